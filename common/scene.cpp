@@ -1,0 +1,231 @@
+#include "common/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+namespace gridrt {
+
+glm::mat4 Motion::at(float time) const {
+  glm::mat4 m(1.0f);
+  if (path_points.size() > 1 && path_period > 0.0f) {
+    // Piecewise-linear closed loop through the path points, one loop per path_period.
+    const float n = float(path_points.size());
+    float phase = std::fmod(time / path_period, 1.0f);
+    if (phase < 0.0f) phase += 1.0f;
+    const float s = phase * n;
+    const size_t i = std::min(size_t(s), path_points.size() - 1);
+    const size_t j = (i + 1) % path_points.size();
+    const float f = s - float(i);
+    m = glm::translate(m, glm::mix(path_points[i], path_points[j], f));
+  } else if (path_points.size() == 1) {
+    m = glm::translate(m, path_points[0]);
+  }
+  if (angular_speed != 0.0f) {
+    m = glm::translate(m, pivot);
+    m = glm::rotate(m, angular_speed * time, glm::normalize(axis));
+    m = glm::translate(m, -pivot);
+  }
+  return m;
+}
+
+namespace {
+
+bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+bool finite(const glm::mat4& m) {
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r)
+      if (!std::isfinite(m[c][r])) return false;
+  return true;
+}
+
+// Split one mesh into pieces of at most kMaxTrianglesPerMesh triangles. Vertices are copied into
+// each piece that uses them, so every piece is a self-contained mesh.
+std::vector<Mesh> split_mesh(const Mesh& mesh) {
+  std::vector<Mesh> pieces;
+  const uint32_t n = mesh.triangle_count();
+  for (uint32_t first = 0; first < n; first += kMaxTrianglesPerMesh) {
+    const uint32_t last = std::min(n, first + kMaxTrianglesPerMesh);
+    Mesh piece;
+    piece.name = mesh.name + "#" + std::to_string(pieces.size());
+    std::vector<uint32_t> remap(mesh.positions.size(), UINT32_MAX);
+    for (uint32_t t = first; t < last; ++t) {
+      glm::uvec3 tri;
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t v = mesh.triangles[t][k];
+        if (remap[v] == UINT32_MAX) {
+          remap[v] = uint32_t(piece.positions.size());
+          piece.positions.push_back(mesh.positions[v]);
+          if (!mesh.normals.empty()) piece.normals.push_back(mesh.normals[v]);
+          if (!mesh.uvs.empty()) piece.uvs.push_back(mesh.uvs[v]);
+        }
+        tri[k] = remap[v];
+      }
+      piece.triangles.push_back(tri);
+      piece.materials.push_back(mesh.materials.empty() ? 0u : mesh.materials[t]);
+    }
+    pieces.push_back(std::move(piece));
+  }
+  return pieces;
+}
+
+}  // namespace
+
+void Scene::finalize() {
+  // Validate every mesh: sizes, indices, finite numbers.
+  if (materials.empty()) materials.push_back(Material{.name = "default"});
+  for (const Mesh& m : meshes) {
+    const std::string where = "scene '" + name + "', mesh '" + m.name + "'";
+    if (!m.normals.empty() && m.normals.size() != m.positions.size())
+      throw Error(where + ": " + std::to_string(m.normals.size()) + " normals for " +
+                  std::to_string(m.positions.size()) + " vertices");
+    if (!m.uvs.empty() && m.uvs.size() != m.positions.size())
+      throw Error(where + ": " + std::to_string(m.uvs.size()) + " texture coordinates for " +
+                  std::to_string(m.positions.size()) + " vertices");
+    if (!m.materials.empty() && m.materials.size() != m.triangles.size())
+      throw Error(where + ": " + std::to_string(m.materials.size()) + " material ids for " +
+                  std::to_string(m.triangles.size()) + " triangles");
+    for (size_t i = 0; i < m.positions.size(); ++i)
+      if (!finite(m.positions[i])) {
+        std::ostringstream os;
+        os << where << ": vertex " << i << " has a non-finite coordinate (" << m.positions[i].x
+           << ", " << m.positions[i].y << ", " << m.positions[i].z << ")";
+        throw Error(os.str());
+      }
+    for (size_t t = 0; t < m.triangles.size(); ++t)
+      for (int k = 0; k < 3; ++k)
+        if (m.triangles[t][k] >= m.positions.size())
+          throw Error(where + ": triangle " + std::to_string(t) + " uses vertex " +
+                      std::to_string(m.triangles[t][k]) + " of " + std::to_string(m.positions.size()));
+    for (uint32_t mat : m.materials)
+      if (mat >= materials.size())
+        throw Error(where + ": material index " + std::to_string(mat) + " of " +
+                    std::to_string(materials.size()));
+  }
+  for (const Material& mat : materials) {
+    for (int32_t tex : {mat.diffuse_texture, mat.alpha_texture})
+      if (tex >= int32_t(textures.size()))
+        throw Error("material '" + mat.name + "' uses texture " + std::to_string(tex) + " of " +
+                    std::to_string(textures.size()));
+    if (!(mat.glossiness >= 0.0f && mat.glossiness <= 1.0f))
+      throw Error("material '" + mat.name + "': glossiness must lie in [0, 1]");
+  }
+  for (const Instance& inst : instances) {
+    if (inst.mesh >= meshes.size())
+      throw Error("instance '" + inst.name + "' uses mesh " + std::to_string(inst.mesh) + " of " +
+                  std::to_string(meshes.size()));
+    if (!finite(inst.transform) || !finite(inst.motion.axis) || !finite(inst.motion.pivot) ||
+        !std::isfinite(inst.motion.angular_speed) || !std::isfinite(inst.motion.path_period))
+      throw Error("instance '" + inst.name + "' has a non-finite transform or motion");
+    for (const glm::vec3& p : inst.motion.path_points)
+      if (!finite(p)) throw Error("instance '" + inst.name + "' has a non-finite path point");
+    if (inst.motion.angular_speed != 0.0f && glm::length(inst.motion.axis) == 0.0f)
+      throw Error("instance '" + inst.name + "' rotates about a zero axis");
+  }
+
+  // Split meshes at the 16-bit triangle limit; every instance of a split mesh becomes one
+  // instance per piece, with the same transform and motion.
+  std::vector<std::vector<uint32_t>> pieces_of(meshes.size());
+  std::vector<Mesh> out_meshes;
+  for (size_t m = 0; m < meshes.size(); ++m) {
+    if (meshes[m].triangle_count() <= kMaxTrianglesPerMesh) {
+      pieces_of[m].push_back(uint32_t(out_meshes.size()));
+      out_meshes.push_back(std::move(meshes[m]));
+    } else {
+      for (Mesh& piece : split_mesh(meshes[m])) {
+        pieces_of[m].push_back(uint32_t(out_meshes.size()));
+        out_meshes.push_back(std::move(piece));
+      }
+    }
+  }
+  meshes = std::move(out_meshes);
+  std::vector<Instance> out_instances;
+  for (const Instance& inst : instances)
+    for (size_t p = 0; p < pieces_of[inst.mesh].size(); ++p) {
+      Instance piece = inst;
+      piece.mesh = pieces_of[inst.mesh][p];
+      if (pieces_of[inst.mesh].size() > 1) piece.name += "#" + std::to_string(p);
+      out_instances.push_back(std::move(piece));
+    }
+  // Static first, dynamic after: the order that makes dynamic ids "offset by the static count".
+  std::stable_partition(out_instances.begin(), out_instances.end(),
+                        [](const Instance& i) { return !i.dynamic; });
+  instances = std::move(out_instances);
+
+  if (instances.size() > kMaxInstances)
+    throw Error("scene '" + name + "' has " + std::to_string(instances.size()) +
+                " instances after splitting meshes at 65,536 triangles; the 16-bit instance "
+                "field of a reference holds at most 65,535");
+  if (triangle_count() == 0) throw Error("scene '" + name + "' is empty: it has no triangles");
+  if (camera) {
+    if (!finite(camera->eye) || !finite(camera->target) || !finite(camera->up) ||
+        !(camera->vfov_degrees > 0.0f && camera->vfov_degrees < 180.0f))
+      throw Error("scene '" + name + "': camera has non-finite values or a field of view outside (0, 180)");
+    if (camera->eye == camera->target) throw Error("scene '" + name + "': camera eye equals its target");
+  }
+  for (const Light& l : lights)
+    if (!finite(l.position) || !finite(l.color) || !std::isfinite(l.intensity))
+      throw Error("scene '" + name + "': a light has non-finite values");
+  if (grid.capacity && (*grid.capacity == 0 || *grid.capacity > 1024))
+    throw Error("scene '" + name + "': grid capacity must lie in [1, 1024]");
+  if (grid.resolution && (grid.resolution->x == 0 || grid.resolution->y == 0 || grid.resolution->z == 0))
+    throw Error("scene '" + name + "': grid resolution must be at least 1 cell per axis");
+  if (grid.cell_size && !(*grid.cell_size > 0.0f && std::isfinite(*grid.cell_size)))
+    throw Error("scene '" + name + "': grid cell size must be a positive finite number");
+}
+
+uint32_t Scene::static_instance_count() const {
+  return uint32_t(std::count_if(instances.begin(), instances.end(),
+                                [](const Instance& i) { return !i.dynamic; }));
+}
+
+bool Scene::has_dynamic() const {
+  return std::any_of(instances.begin(), instances.end(),
+                     [](const Instance& i) { return i.dynamic && i.motion.moves(); });
+}
+
+bool Scene::has_alpha_masks() const {
+  for (const Instance& inst : instances)
+    for (uint32_t m : meshes[inst.mesh].materials)
+      if (materials[m].alpha_keyed()) return true;
+  return false;
+}
+
+bool Scene::has_glossy() const {
+  for (const Instance& inst : instances)
+    for (uint32_t m : meshes[inst.mesh].materials)
+      if (materials[m].glossiness > 0.0f) return true;
+  return false;
+}
+
+uint64_t Scene::triangle_count() const {
+  uint64_t n = 0;
+  for (const Instance& inst : instances) n += meshes[inst.mesh].triangle_count();
+  return n;
+}
+
+Bounds Scene::bounds(float time) const {
+  Bounds b;
+  for (const Instance& inst : instances) {
+    const glm::mat4 m = inst.transform_at(time);
+    for (const glm::vec3& p : meshes[inst.mesh].positions) b.grow(glm::vec3(m * glm::vec4(p, 1.0f)));
+  }
+  return b;
+}
+
+Camera Scene::frame_camera() const {
+  if (camera) return *camera;
+  const Bounds b = bounds(0.0f);
+  Camera c;
+  const glm::vec3 center = 0.5f * (b.lo + b.hi);
+  const float radius = 0.5f * glm::length(b.extent());
+  c.target = center;
+  c.eye = center + glm::vec3(0.0f, 0.25f, 1.0f) * (radius / std::tan(glm::radians(c.vfov_degrees) * 0.5f));
+  return c;
+}
+
+}  // namespace gridrt

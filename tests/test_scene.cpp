@@ -1,0 +1,74 @@
+#include <catch2/catch.hpp>
+
+#include "common/scene.h"
+
+using namespace gridrt;
+
+namespace {
+Mesh strip(uint32_t triangles) {
+  Mesh m;
+  m.name = "strip";
+  for (uint32_t i = 0; i <= triangles + 1; ++i) m.positions.push_back({float(i), float(i % 2), 0.0f});
+  for (uint32_t t = 0; t < triangles; ++t) m.triangles.push_back({t, t + 1, t + 2});
+  m.materials.assign(triangles, 0u);
+  return m;
+}
+}  // namespace
+
+TEST_CASE("A mesh over 65,536 triangles is split into instances of at most 65,536", "[unit][scene]") {
+  Scene s;
+  s.name = "big";
+  s.meshes.push_back(strip(65536 * 2 + 5));
+  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  s.instances.push_back(Instance{.name = "b", .mesh = 0, .dynamic = true});
+  s.finalize();
+  REQUIRE(s.meshes.size() == 3);
+  REQUIRE(s.instances.size() == 6);
+  CHECK(s.meshes[0].triangle_count() == 65536);
+  CHECK(s.meshes[1].triangle_count() == 65536);
+  CHECK(s.meshes[2].triangle_count() == 5);
+  CHECK(s.triangle_count() == 2ull * (65536 * 2 + 5));
+  // Static instances come first, dynamic after.
+  CHECK(s.static_instance_count() == 3);
+  for (size_t i = 0; i < 3; ++i) CHECK_FALSE(s.instances[i].dynamic);
+  for (size_t i = 3; i < 6; ++i) CHECK(s.instances[i].dynamic);
+  // The pieces cover the original triangles in order, vertex for vertex.
+  const Mesh orig = strip(65536 * 2 + 5);
+  const Mesh& p2 = s.meshes[2];
+  for (uint32_t t = 0; t < 5; ++t)
+    for (int k = 0; k < 3; ++k)
+      CHECK(p2.positions[p2.triangles[t][k]] == orig.positions[orig.triangles[65536 * 2 + t][k]]);
+}
+
+TEST_CASE("A mesh of exactly 65,536 triangles is not split", "[unit][scene]") {
+  Scene s;
+  s.meshes.push_back(strip(65536));
+  s.instances.push_back(Instance{.mesh = 0});
+  s.finalize();
+  CHECK(s.meshes.size() == 1);
+}
+
+TEST_CASE("More than 65,535 instances is a clear error", "[unit][scene]") {
+  Scene s;
+  s.meshes.push_back(strip(1));
+  for (uint32_t i = 0; i < 65535; ++i) s.instances.push_back(Instance{.mesh = 0});
+  Scene ok = s;
+  REQUIRE_NOTHROW(ok.finalize());
+  s.instances.push_back(Instance{.mesh = 0});
+  REQUIRE_THROWS_WITH(s.finalize(), Catch::Contains("65,535"));
+}
+
+TEST_CASE("Non-finite coordinates and empty scenes are rejected", "[unit][scene][badinput]") {
+  Scene empty;
+  REQUIRE_THROWS_WITH(empty.finalize(), Catch::Contains("empty"));
+  Scene nan;
+  nan.meshes.push_back(strip(2));
+  nan.meshes[0].positions[1].y = std::numeric_limits<float>::quiet_NaN();
+  nan.instances.push_back(Instance{.mesh = 0});
+  REQUIRE_THROWS_WITH(nan.finalize(), Catch::Contains("non-finite"));
+  Scene inf;
+  inf.meshes.push_back(strip(2));
+  inf.instances.push_back(Instance{.mesh = 0});
+  inf.instances[0].transform[3][0] = std::numeric_limits<float>::infinity();
+  REQUIRE_THROWS_WITH(inf.finalize(), Catch::Contains("non-finite"));
+}
