@@ -1,0 +1,42 @@
+// transform.h: object-to-world transform of a vertex, written once so that the grid build (CPU
+// and GPU) and the Embree oracle see the very same world-space triangles, bit for bit.
+#ifndef GRIDRT_SHARED_TRANSFORM_H
+#define GRIDRT_SHARED_TRANSFORM_H
+
+#include "compat.h"
+
+SH_BEGIN
+
+// A 3x4 affine transform as three rows (x, y, z) of vec4: p' = row . (p, 1).
+struct Affine {
+  vec4 row0;
+  vec4 row1;
+  vec4 row2;
+};
+
+// ((m.x * p.x + m.y * p.y) + m.z * p.z) + m.w, never fused.
+SH_INLINE float affine_row(SH_IN(vec4) m, SH_IN(vec3) p) {
+  SH_PRECISE float xy = m.x * p.x + m.y * p.y;
+  SH_PRECISE float xyz = xy + m.z * p.z;
+  SH_PRECISE float r = xyz + m.w;
+  return r;
+}
+
+SH_INLINE vec3 transform_point(SH_IN(Affine) m, SH_IN(vec3) p) {
+  return vec3(affine_row(m.row0, p), affine_row(m.row1, p), affine_row(m.row2, p));
+}
+
+SH_END
+
+#ifdef __cplusplus
+static_assert(sizeof(gridrt::shared::Affine) == 48, "std430 layout of Affine");
+namespace gridrt::shared {
+// The rows of a column-major glm::mat4 (its last row must be 0 0 0 1).
+inline Affine to_affine(const glm::mat4& m) {
+  return {glm::vec4(m[0][0], m[1][0], m[2][0], m[3][0]), glm::vec4(m[0][1], m[1][1], m[2][1], m[3][1]),
+          glm::vec4(m[0][2], m[1][2], m[2][2], m[3][2])};
+}
+}  // namespace gridrt::shared
+#endif
+
+#endif
