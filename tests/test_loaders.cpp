@@ -418,18 +418,8 @@ TEST_CASE("A real scene survives the binary cache unchanged", "[scenes]") {
   fs::remove_all(dir);
 }
 
-TEST_CASE("Scene files and the dispatcher reach the built-in scenes once they are linked", "[unit][scenefile]") {
-  // common/builtin is written in parallel: until it is merged, these paths give a clear error.
-  Scene s;
-  try {
-    s = load_scene(fixture("builtin_teapot.json"));
-  } catch (const Error& e) {
-    const std::string what = e.what();
-    REQUIRE_THAT(what, Catch::Contains("builtin_teapot.json") && Catch::Contains("no built-in meshes yet"));
-    REQUIRE_THROWS_WITH(load_scene("builtin:teapot"), Catch::Contains("no built-in scenes yet"));
-    WARN("skipped: this build has no built-in scenes yet");
-    return;
-  }
+TEST_CASE("Scene files and the dispatcher reach the built-in scenes", "[unit][scenefile]") {
+  const Scene s = load_scene(fixture("builtin_teapot.json"));
   REQUIRE(s.meshes.size() == 1);
   CHECK(s.meshes[0].triangle_count() > 0);
   REQUIRE(s.materials.size() == 1);
@@ -439,4 +429,5 @@ TEST_CASE("Scene files and the dispatcher reach the built-in scenes once they ar
   CHECK(s.has_dynamic());
   const Scene b = load_scene("builtin:teapot");
   CHECK(b.triangle_count() > 0);
+  REQUIRE_THROWS_WITH(load_scene("builtin:nosuch"), Catch::Contains("nosuch"));
 }
