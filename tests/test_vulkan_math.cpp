@@ -19,7 +19,7 @@ namespace sh = gridrt::shared;
 namespace {
 
 constexpr uint32_t kInStride = 28;   // as test_shared_math.comp
-constexpr uint32_t kOutStride = 12;
+constexpr uint32_t kOutStride = 16;
 
 // Random floats by kind: ordinary, huge, tiny normal, denormal, signed zero, small integers,
 // near one. `finite_only` keeps to values whose products with [0, 4096] stay finite.
@@ -79,13 +79,19 @@ void evaluate(const float* c, uint32_t* o) {
                                           c[21], c[22]);
   o[7] = bits(uv.x), o[8] = bits(uv.y);
   const glm::uvec2 t = sh::alpha_texel_coords(glm::vec2(c[23], c[24]), bits(c[25]), bits(c[26]));
-  o[9] = t.x, o[10] = t.y, o[11] = 0;
+  o[9] = t.x, o[10] = t.y;
+  o[11] = bits(c[0] / c[3]);
+  o[12] = bits(1.0f / c[1]);
+  o[13] = bits(std::sqrt(std::fabs(c[2])));
+  o[14] = bits(std::floor(c[4]));
+  o[15] = 0;
 }
 
 const char* kResultNames[kOutStride] = {"sh_dot", "sh_cross.x", "sh_cross.y", "sh_cross.z",
                                         "transform_point.x", "transform_point.y", "transform_point.z",
                                         "interpolate_uv.x", "interpolate_uv.y", "alpha_texel_coords.x",
-                                        "alpha_texel_coords.y", "pad"};
+                                        "alpha_texel_coords.y", "a.x / b.x", "1 / a.y", "sqrt(|a.z|)",
+                                        "floor(b.y)", "pad"};
 
 bool is_denormal(float f) { return f != 0.0f && std::fpclassify(f) == FP_SUBNORMAL; }
 
@@ -126,7 +132,7 @@ TEST_CASE("Shared math: the GLSL build agrees with the C++ build bit for bit", "
     evaluate(c, cpu);
     for (uint32_t k = 0; k < kOutStride; ++k) {
       const uint32_t g = gpu[size_t(i) * kOutStride + k];
-      const bool is_float = k < 9;
+      const bool is_float = k < 9 || (k >= 11 && k < 15);
       if (is_float && is_denormal(from_bits(cpu[k]))) ++denormal_results;
       if (is_float ? same_float(g, cpu[k]) : g == cpu[k]) continue;
       const bool denormal_case =

@@ -13,8 +13,10 @@ layout(local_size_x = 64) in;
 // (transform); uv0 [15,16] uv1 [17,18] uv2 [19,20] u [21] v [22] (interpolate_uv); uv [23,24],
 // width [25] and height [26] as uint bits (alpha_texel_coords).
 const uint kInStride = 28u;
-// Per case, kOutStride words: dot [0], cross [1..3], transform [4..6], uv [7,8], texel [9,10].
-const uint kOutStride = 12u;
+// Per case, kOutStride words: dot [0], cross [1..3], transform [4..6], uv [7,8], texel [9,10],
+// and the operations the shared headers use for reported values: a.x / b.x [11], 1 / a.y [12],
+// sqrt(|a.z|) [13], floor(b.y) [14].
+const uint kOutStride = 16u;
 
 layout(std430, binding = 0) readonly buffer Inputs { float inputs[]; };
 layout(std430, binding = 1) writeonly buffer Outputs { uint outputs[]; };
@@ -53,5 +55,12 @@ void main() {
                                      floatBitsToUint(at(b, 26u)));
   outputs[o + 9u] = t.x;
   outputs[o + 10u] = t.y;
-  outputs[o + 11u] = 0u;
+  precise float q = at(b, 0u) / at(b, 3u);
+  precise float r = 1.0f / at(b, 1u);
+  precise float w = sqrt(abs(at(b, 2u)));
+  outputs[o + 11u] = floatBitsToUint(q);
+  outputs[o + 12u] = floatBitsToUint(r);
+  outputs[o + 13u] = floatBitsToUint(w);
+  outputs[o + 14u] = floatBitsToUint(floor(at(b, 4u)));
+  outputs[o + 15u] = 0u;
 }
