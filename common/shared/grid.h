@@ -1,0 +1,360 @@
+// grid.h: the fixed-capacity grid's math, written once (paper sections 2.1-2.3, docs/SPEC.md).
+// Compiled as C++ by the reference (reference/) and as GLSL by the Vulkan shaders; see compat.h
+// for the rules. Everything here is a pure function of its arguments: the image, the atomics and
+// the loops that call these functions live in reference/*.cpp and in the shaders, under the same
+// names and heading comments.
+//
+// Units: positions in world units; ray parameters t in units of the ray's |dir| (RayRecord);
+// "cell units" are multiples of GridParams::cell_size.
+#ifndef GRIDRT_SHARED_GRID_H
+#define GRIDRT_SHARED_GRID_H
+
+#include "compat.h"
+
+SH_BEGIN
+
+// ---- Texels ----
+SH_CONST uint kBlank = 0xFFFFFFFFu;     // an empty slot (paper: "blank reference")
+SH_CONST uint kStatusStatic = 1u;       // status texel bit: a static reference found no slot
+SH_CONST uint kStatusDynamic = 2u;      // status texel bit: a dynamic reference found no slot
+
+// ---- Modes (GridParams::insertion, ::traversal, ::triangle_test) ----
+SH_CONST uint kInsertFirstEmpty = 0u;   // paper: compare-and-swap into the first blank slot
+SH_CONST uint kInsertSorted = 1u;       // ours: atomic-min cascade, slots stay sorted
+SH_CONST uint kTraversalPaper = 0u;     // cell-sized segments sampled at their midpoints
+SH_CONST uint kTraversalExact = 1u;     // 3D DDA over every pierced cell
+SH_CONST uint kTriangleMoller = 0u;     // Moller-Trumbore, division-free decisions
+SH_CONST uint kTriangleWatertight = 1u; // reserved: Woop, Benthin, Wald 2013 (not yet implemented)
+
+// ---- GridParams::flags ----
+SH_CONST uint kGridExcludeLaunchRef = 1u;  // never accept the ray's launch triangle (by ref)
+SH_CONST uint kGridAlphaKeying = 2u;       // alpha-keyed materials cut holes
+SH_CONST uint kGridGapFill = 4u;           // paper-mode gap-fill in saturated cells
+
+// ---- Instance flags (GridInstance::flags) ----
+SH_CONST uint kInstanceDynamic = 1u;     // re-inserted by every update
+SH_CONST uint kInstanceAlphaKeyed = 2u;  // some triangle of the instance has an alpha mask
+
+// Everything the build, update and trace passes read, computed once on the host (std430, UBO).
+struct GridParams {
+  vec3 origin;              // world position of the grid's lower corner
+  float cell_size;          // edge of the cubic cells, world units
+  uvec3 cells;              // cells per axis
+  uint capacity;            // reference slots per cell; the status texel follows them
+  vec3 upper;               // origin + cells * cell_size (host, float), the grid box's far corner
+  float inv_cell_size;      // 1 / cell_size rounded once on the host; the only cell-size divisor
+  float sphere_r2;          // (sphere_enlargement * cell_size * sqrt(3) / 2)^2, world units^2
+  float aabb_padding;       // cell units added on each side of a triangle's AABB (cell range)
+  float elongation;         // paper mode: segment elongation on each side, in segment lengths
+  float gap_fill_r2;        // (gap_fill_distance * cell_size)^2, world units^2
+  float self_hit_offset;    // hits need t * |dir| > self_hit_offset * cell_size
+  uint comparison_offset;   // static_instance_count << 16: references >= it are dynamic
+  uint insertion;           // kInsertFirstEmpty or kInsertSorted
+  uint traversal;           // kTraversalPaper or kTraversalExact
+  uint triangle_test;       // kTriangleMoller (kTriangleWatertight reserved)
+  uint flags;               // kGrid* bits
+  uint max_segments;        // safety bound on the steps of one ray (cells.x + cells.y + cells.z + 3)
+  uint pad0;                // std430 padding
+};
+
+// One instance as the passes see it (std430, storage buffer).
+struct GridInstance {
+  uint tri_offset;  // index of its triangle 0 in the geometry buffer
+  uint tri_count;   // triangles of its mesh
+  uint flags;       // kInstance* bits
+  uint pad0;        // std430 padding
+};
+
+// One world-space triangle of the geometry buffer, written by the build/update invocations.
+struct GridTriangle {
+  vec3 v0;        // vertex 0, world space (shared::transform_point of the mesh vertex)
+  uint material;  // index into the material table
+  vec3 v1;        // vertex 1
+  uint pad0;      // std430 padding
+  vec3 v2;        // vertex 2
+  uint pad1;      // std430 padding
+};
+
+// Texture coordinates of a triangle (only read for alpha-keyed materials).
+struct GridTriangleUv {
+  vec2 uv0;
+  vec2 uv1;
+  vec2 uv2;
+};
+
+// A material as the trace pass sees it: where its alpha mask lives in the texel buffer.
+struct GridMaterial {
+  uint alpha_offset;  // first texel of the mask in the flat texel buffer (RGBA8 packed, a << 24)
+  uint alpha_width;   // mask width in texels, 0 = not alpha keyed
+  uint alpha_height;  // mask height in texels
+  uint pad0;          // std430 padding
+};
+
+// ---- References: (instance << 16) | triangle ----
+SH_INLINE uint ref_pack(uint instance, uint triangle) {
+  return (instance << 16u) | (triangle & 0xFFFFu);
+}
+SH_INLINE uint ref_instance(uint ref) { return ref >> 16u; }
+SH_INLINE uint ref_triangle(uint ref) { return ref & 0xFFFFu; }
+
+// ---- Texel addressing: cell c's slot s at x = c.x * (capacity + 1) + s, status at s = capacity ----
+SH_INLINE uvec3 grid_image_extent(SH_IN(GridParams) g) {
+  return uvec3(g.cells.x * (g.capacity + 1u), g.cells.y, g.cells.z);
+}
+SH_INLINE uvec3 slot_texel(SH_IN(uvec3) cell, uint slot, uint capacity) {
+  return uvec3(cell.x * (capacity + 1u) + slot, cell.y, cell.z);
+}
+SH_INLINE uvec3 status_texel(SH_IN(uvec3) cell, uint capacity) {
+  return slot_texel(cell, capacity, capacity);
+}
+// Linear index of a texel, x fastest (the layout of AccelDump::texels).
+SH_INLINE uint texel_index(SH_IN(uvec3) texel, SH_IN(uvec3) extent) {
+  return (texel.z * extent.y + texel.y) * extent.x + texel.x;
+}
+
+// ---- Cell coordinates ----
+// A point in cell units relative to the grid's origin: (p - origin) * inv_cell_size.
+SH_INLINE vec3 grid_local(SH_IN(GridParams) g, SH_IN(vec3) p) {
+  SH_PRECISE vec3 d = p - g.origin;
+  SH_PRECISE vec3 f = d * g.inv_cell_size;
+  return f;
+}
+
+// floor of a local coordinate, clamped in float to [0, cells - 1] before the conversion (a huge,
+// infinite or negative value never reaches the float -> uint conversion).
+SH_INLINE uvec3 cell_of_local(SH_IN(GridParams) g, SH_IN(vec3) f) {
+  vec3 fl = floor(f);
+  vec3 hi = vec3(g.cells - uvec3(1u));
+  vec3 c = min(max(fl, vec3(0.0f)), hi);
+  return uvec3(c);
+}
+
+SH_INLINE uvec3 cell_of_point(SH_IN(GridParams) g, SH_IN(vec3) p) {
+  return cell_of_local(g, grid_local(g, p));
+}
+
+// Whether a point lies in the grid box, judged on the same local coordinates as cell_of_point.
+SH_INLINE bool grid_contains(SH_IN(GridParams) g, SH_IN(vec3) p) {
+  vec3 f = grid_local(g, p);
+  return f.x >= 0.0f && f.y >= 0.0f && f.z >= 0.0f && f.x < float(g.cells.x) &&
+         f.y < float(g.cells.y) && f.z < float(g.cells.z);
+}
+
+// Centre of a cell: origin + (c + 0.5) * cell_size.
+SH_INLINE vec3 cell_center(SH_IN(GridParams) g, SH_IN(uvec3) c) {
+  SH_PRECISE vec3 k = vec3(c) + vec3(0.5f);
+  SH_PRECISE vec3 w = k * g.cell_size;
+  SH_PRECISE vec3 p = g.origin + w;
+  return p;
+}
+
+// ---- Build: the triangle's cell range and the plane test (paper 2.1) ----
+// The cells overlapping the triangle's AABB, padded by aabb_padding cell units on each side so
+// that a triangle touching a cell face is in the cells on both sides.
+SH_INLINE void triangle_cell_range(SH_IN(GridParams) g, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                                   SH_IN(vec3) v2, SH_OUT(uvec3) lo, SH_OUT(uvec3) hi) {
+  vec3 f0 = grid_local(g, v0);
+  vec3 f1 = grid_local(g, v1);
+  vec3 f2 = grid_local(g, v2);
+  SH_PRECISE vec3 fmin = min(min(f0, f1), f2) - vec3(g.aabb_padding);
+  SH_PRECISE vec3 fmax = max(max(f0, f1), f2) + vec3(g.aabb_padding);
+  lo = cell_of_local(g, fmin);
+  hi = cell_of_local(g, fmax);
+}
+
+// Unnormalized plane normal n = cross(v1 - v0, v2 - v0). dot(n, n) == 0 marks a zero-area
+// triangle: it is never inserted (no ray can hit it).
+SH_INLINE vec3 triangle_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  SH_PRECISE vec3 e1 = v1 - v0;
+  SH_PRECISE vec3 e2 = v2 - v0;
+  return sh_cross(e1, e2);
+}
+
+// Plane vs enlarged cell bounding sphere, without sqrt or division: the plane through v0 with
+// normal n (nn = dot(n, n)) passes within sqrt(r2) of `center` iff s*s <= r2 * nn with
+// s = dot(n, center - v0). Finite while edges and grid extent stay below 2^21 world units
+// (docs/SPEC.md); an overflow of both sides to +inf accepts (conservative).
+SH_INLINE bool plane_intersects_enlarged_sphere(SH_IN(vec3) v0, SH_IN(vec3) n, float nn,
+                                                SH_IN(vec3) center, float r2) {
+  SH_PRECISE vec3 d = center - v0;
+  SH_PRECISE float s = sh_dot(n, d);
+  SH_PRECISE float lhs = s * s;
+  SH_PRECISE float rhs = r2 * nn;
+  return lhs <= rhs;
+}
+
+// ---- Rays ----
+SH_INLINE bool sh_finite(float x) { return (floatBitsToUint(x) & 0x7F800000u) != 0x7F800000u; }
+SH_INLINE bool sh_nan(float x) {
+  return (floatBitsToUint(x) & 0x7FFFFFFFu) > 0x7F800000u;
+}
+SH_INLINE float sh_infinity() { return uintBitsToFloat(0x7F800000u); }
+
+// A ray is traced iff org and dir are finite, tmin and tmax are not NaN, and dot(dir, dir) is
+// finite and > 0. Others miss with kHitRejected.
+SH_INLINE bool ray_valid(SH_IN(vec3) org, SH_IN(vec3) dir, float tmin, float tmax) {
+  bool ok = sh_finite(org.x) && sh_finite(org.y) && sh_finite(org.z) && sh_finite(dir.x) &&
+            sh_finite(dir.y) && sh_finite(dir.z) && !sh_nan(tmin) && !sh_nan(tmax);
+  SH_PRECISE float dd = sh_dot(dir, dir);
+  return ok && dd > 0.0f && sh_finite(dd);
+}
+
+SH_INLINE vec3 point_at(SH_IN(vec3) org, SH_IN(vec3) dir, float t) {
+  SH_PRECISE vec3 td = dir * t;
+  SH_PRECISE vec3 p = org + td;
+  return p;
+}
+
+// One slab of the grid-box clip; a zero direction component keeps or rejects the whole ray.
+SH_INLINE bool clip_slab(float o, float d, float lo, float hi, SH_INOUT(float) t0,
+                         SH_INOUT(float) t1) {
+  if (d == 0.0f) return o >= lo && o <= hi;
+  SH_PRECISE float inv = 1.0f / d;
+  SH_PRECISE float ta = (lo - o) * inv;
+  SH_PRECISE float tb = (hi - o) * inv;
+  t0 = max(t0, min(ta, tb));
+  t1 = min(t1, max(ta, tb));
+  return true;
+}
+
+// The ray's parameter interval inside the grid box [origin, upper] (one division per axis).
+SH_INLINE bool clip_to_grid(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir,
+                            SH_OUT(float) t0, SH_OUT(float) t1) {
+  t0 = -sh_infinity();
+  t1 = sh_infinity();
+  bool ok = clip_slab(org.x, dir.x, g.origin.x, g.upper.x, t0, t1);
+  ok = clip_slab(org.y, dir.y, g.origin.y, g.upper.y, t0, t1) && ok;
+  ok = clip_slab(org.z, dir.z, g.origin.z, g.upper.z, t0, t1) && ok;
+  return ok && t0 <= t1;
+}
+
+// Per-ray values both traversals start from, computed once per ray.
+struct RaySetup {
+  float seg_t;    // one cell edge in t units: cell_size / sqrt(dot(dir, dir))
+  float t_start;  // max(tmin, grid entry): paper segment 0 starts here, the DDA starts here
+  float t_end;    // min(tmax, grid exit)
+  float t_lo;     // hits need t > t_lo = max(tmin, self_hit_offset * seg_t)
+};
+
+// False when the ray misses the grid box or its [tmin, tmax] interval lies outside it.
+SH_INLINE bool ray_setup(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, float tmin,
+                         float tmax, SH_OUT(RaySetup) rs) {
+  SH_PRECISE float dd = sh_dot(dir, dir);
+  SH_PRECISE float len = sqrt(dd);
+  rs.seg_t = g.cell_size / len;
+  SH_PRECISE float self_t = g.self_hit_offset * rs.seg_t;
+  rs.t_lo = max(tmin, self_t);
+  float t0;
+  float t1;
+  bool hit = clip_to_grid(g, org, dir, t0, t1);
+  rs.t_start = max(tmin, t0);
+  rs.t_end = min(tmax, t1);
+  return hit && rs.t_start <= rs.t_end;
+}
+
+// ---- Paper traversal: segment k covers [t_start + k L, t_start + (k+1) L], L = seg_t ----
+SH_INLINE float segment_t(SH_IN(RaySetup) rs, float k) {
+  SH_PRECISE float kl = k * rs.seg_t;
+  SH_PRECISE float t = rs.t_start + kl;
+  return t;
+}
+SH_INLINE float segment_begin(SH_IN(RaySetup) rs, uint k) { return segment_t(rs, float(k)); }
+SH_INLINE float segment_end(SH_IN(RaySetup) rs, uint k) { return segment_t(rs, float(k + 1u)); }
+// The sample point's parameter: the segment's midpoint.
+SH_INLINE float segment_sample_t(SH_IN(RaySetup) rs, uint k) {
+  return segment_t(rs, float(k) + 0.5f);
+}
+// The elongated segment [k L - e L, (k+1) L + e L] the triangle tests use.
+SH_INLINE float segment_elongated_begin(SH_IN(GridParams) g, SH_IN(RaySetup) rs, uint k) {
+  SH_PRECISE float k0 = float(k) - g.elongation;
+  return segment_t(rs, k0);
+}
+SH_INLINE float segment_elongated_end(SH_IN(GridParams) g, SH_IN(RaySetup) rs, uint k) {
+  SH_PRECISE float k1 = float(k + 1u) + g.elongation;
+  return segment_t(rs, k1);
+}
+
+// Gap-fill's "has the segment left the launch surface" test (paper 2.3), free of sqrt and
+// division: with d = sample_point - org and n the launch normal, (dot(d, n))^2 >= g2 * dot(n, n); for
+// rays without a launch normal (n == 0), dot(d, d) >= g2. `values` returns (lhs, rhs).
+SH_INLINE bool gap_fill_left_surface(SH_IN(vec3) sample_point, SH_IN(vec3) org, SH_IN(vec3) n, float g2,
+                                     SH_OUT(vec2) values) {
+  SH_PRECISE vec3 d = sample_point - org;
+  SH_PRECISE float nn = sh_dot(n, n);
+  if (nn > 0.0f) {
+    SH_PRECISE float s = sh_dot(d, n);
+    SH_PRECISE float lhs = s * s;
+    SH_PRECISE float rhs = g2 * nn;
+    values = vec2(lhs, rhs);
+    return lhs >= rhs;
+  }
+  SH_PRECISE float dd = sh_dot(d, d);
+  values = vec2(dd, g2);
+  return dd >= g2;
+}
+
+// ---- Exact traversal: 3D DDA (Amanatides-Woo) ----
+// The parameter at which the ray leaves cell index c along one axis (d the direction component,
+// inv = 1 / d): the far boundary origin + (c + 1) * cell_size for d > 0, the near one
+// origin + c * cell_size for d < 0, +inf for d == 0. Recomputed from the cell index at each step
+// (no accumulated tDelta).
+SH_INLINE float dda_axis_exit(float origin, float cell_size, float o, float d, float inv, uint c) {
+  if (d == 0.0f) return sh_infinity();
+  uint k = d > 0.0f ? c + 1u : c;
+  SH_PRECISE float w = float(k) * cell_size;
+  SH_PRECISE float b = origin + w;
+  SH_PRECISE float t = (b - o) * inv;
+  return t;
+}
+
+SH_INLINE vec3 dda_exits(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir,
+                         SH_IN(vec3) inv_dir, SH_IN(uvec3) cell) {
+  return vec3(dda_axis_exit(g.origin.x, g.cell_size, org.x, dir.x, inv_dir.x, cell.x),
+              dda_axis_exit(g.origin.y, g.cell_size, org.y, dir.y, inv_dir.y, cell.y),
+              dda_axis_exit(g.origin.z, g.cell_size, org.z, dir.z, inv_dir.z, cell.z));
+}
+
+// 1 / d per axis (0 where d == 0; unused there). The DDA's one division per axis per ray.
+SH_INLINE vec3 dda_inverse_direction(SH_IN(vec3) dir) {
+  return vec3(dir.x != 0.0f ? 1.0f / dir.x : 0.0f, dir.y != 0.0f ? 1.0f / dir.y : 0.0f,
+              dir.z != 0.0f ? 1.0f / dir.z : 0.0f);
+}
+
+// The axis the DDA steps along: the smallest exit, ties to the lower axis (x, then y, then z).
+SH_INLINE uint dda_step_axis(SH_IN(vec3) exits) {
+  if (exits.x <= exits.y && exits.x <= exits.z) return 0u;
+  if (exits.y <= exits.z) return 1u;
+  return 2u;
+}
+
+SH_INLINE float dda_cell_exit(SH_IN(vec3) exits) { return min(min(exits.x, exits.y), exits.z); }
+
+// Step `cell` along `axis` in the direction of dir; false when that leaves the grid.
+SH_INLINE bool dda_step(SH_IN(GridParams) g, SH_IN(vec3) dir, uint axis, SH_INOUT(uvec3) cell) {
+  float d = axis == 0u ? dir.x : (axis == 1u ? dir.y : dir.z);
+  uint c = axis == 0u ? cell.x : (axis == 1u ? cell.y : cell.z);
+  uint n = axis == 0u ? g.cells.x : (axis == 1u ? g.cells.y : g.cells.z);
+  if (d > 0.0f) {
+    if (c + 1u >= n) return false;
+    c = c + 1u;
+  } else {
+    if (c == 0u) return false;
+    c = c - 1u;
+  }
+  if (axis == 0u) cell.x = c;
+  if (axis == 1u) cell.y = c;
+  if (axis == 2u) cell.z = c;
+  return true;
+}
+
+SH_END
+
+#ifdef __cplusplus
+static_assert(sizeof(gridrt::shared::GridParams) == 96, "std430 layout of GridParams");
+static_assert(sizeof(gridrt::shared::GridInstance) == 16, "std430 layout of GridInstance");
+static_assert(sizeof(gridrt::shared::GridTriangle) == 48, "std430 layout of GridTriangle");
+static_assert(sizeof(gridrt::shared::GridTriangleUv) == 24, "std430 layout of GridTriangleUv");
+static_assert(sizeof(gridrt::shared::GridMaterial) == 16, "std430 layout of GridMaterial");
+#endif
+
+#endif

@@ -1,0 +1,367 @@
+// build.cpp: choosing the grid, scene build (paper 2.1) and scene update (paper 2.2).
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <thread>
+
+#include "common/shared/transform.h"
+#include "reference/grid.h"
+#include "reference/invocations.h"
+
+namespace gridrt::reference {
+
+using shared::GridParams;
+using shared::kBlank;
+
+unsigned thread_count(const GridOptions& options) {
+  if (options.threads) return options.threads;
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+// ---- Grid bounds over the animation ----
+
+Bounds animation_bounds(const Scene& scene, float time) {
+  Bounds b;
+  for (const Instance& inst : scene.instances) {
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    if (!inst.dynamic || !inst.motion.moves()) {
+      const glm::mat4 m = inst.transform_at(time);
+      for (const glm::vec3& p : mesh.positions) b.grow(glm::vec3(m * glm::vec4(p, 1.0f)));
+      continue;
+    }
+    // Swept bounds: world p = path(t) + pivot + R(t) (base p - pivot). A rotating instance stays
+    // in the sphere around its pivot through its farthest base vertex; the path offsets stay in
+    // the hull of the path points (piecewise linear).
+    const Motion& mo = inst.motion;
+    Bounds local;
+    if (mo.angular_speed != 0.0f) {
+      float r = 0.0f;
+      for (const glm::vec3& p : mesh.positions)
+        r = std::max(r, glm::length(glm::vec3(inst.transform * glm::vec4(p, 1.0f)) - mo.pivot));
+      r = r * 1.0001f + 1e-6f;
+      local.grow(mo.pivot - glm::vec3(r));
+      local.grow(mo.pivot + glm::vec3(r));
+    } else {
+      for (const glm::vec3& p : mesh.positions) local.grow(glm::vec3(inst.transform * glm::vec4(p, 1.0f)));
+    }
+    if (mo.path_points.empty()) {
+      b.grow(local);
+    } else {
+      for (const glm::vec3& off : mo.path_points) {
+        b.grow(local.lo + off);
+        b.grow(local.hi + off);
+      }
+    }
+  }
+  return b;
+}
+
+namespace {
+
+// Per-cell counts of the references a build would insert (no capacity): the trial that chooses
+// the capacity.
+std::vector<uint32_t> trial_counts(const Scene& scene, float time, const GridParams& g) {
+  const size_t ncells = size_t(g.cells.x) * g.cells.y * g.cells.z;
+  std::vector<uint32_t> counts(ncells, 0);
+  for (const Instance& inst : scene.instances) {
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    const shared::Affine m = shared::to_affine(inst.transform_at(time));
+    for (const glm::uvec3& tri : mesh.triangles) {
+      const glm::vec3 v0 = shared::transform_point(m, mesh.positions[tri.x]);
+      const glm::vec3 v1 = shared::transform_point(m, mesh.positions[tri.y]);
+      const glm::vec3 v2 = shared::transform_point(m, mesh.positions[tri.z]);
+      const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
+      const float nn = shared::sh_dot(n, n);
+      if (nn == 0.0f) continue;
+      glm::uvec3 lo, hi;
+      shared::triangle_cell_range(g, v0, v1, v2, lo, hi);
+      for (uint32_t z = lo.z; z <= hi.z; ++z)
+        for (uint32_t y = lo.y; y <= hi.y; ++y)
+          for (uint32_t x = lo.x; x <= hi.x; ++x)
+            if (shared::plane_intersects_enlarged_sphere(v0, n, nn, shared::cell_center(g, {x, y, z}),
+                                                         g.sphere_r2))
+              ++counts[(size_t(z) * g.cells.y + y) * g.cells.x + x];
+    }
+  }
+  return counts;
+}
+
+void set_cell_size(GridParams& g, float cell_size, const GridOptions& o) {
+  g.cell_size = cell_size;
+  g.inv_cell_size = 1.0f / cell_size;
+  const double half_diagonal = double(cell_size) * std::sqrt(3.0) / 2.0;
+  g.sphere_r2 = float(std::pow(double(o.sphere_enlargement) * half_diagonal, 2.0));
+  g.gap_fill_r2 = float(std::pow(double(o.gap_fill_distance) * double(cell_size), 2.0));
+}
+
+}  // namespace
+
+GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
+  GridParams g{};
+  // Grid bounds: the animation's bounds, padded by 1e-3 of the largest extent on every side
+  Bounds b = animation_bounds(scene, time);
+  if (b.empty()) throw Error("grid: the scene has no vertices");
+  const glm::vec3 ext = b.extent();
+  const float big = std::max({ext.x, ext.y, ext.z, 1e-3f});
+  const float pad = 1e-3f * big;
+  b.lo -= glm::vec3(pad);
+  b.hi += glm::vec3(pad);
+  const glm::vec3 e = b.extent();
+  g.origin = b.lo;
+
+  // Resolution: density cells per triangle, cubic cells, or the overrides
+  const std::optional<glm::uvec3> res = o.resolution ? o.resolution : scene.grid.resolution;
+  const std::optional<float> cs_over = o.cell_size ? o.cell_size : scene.grid.cell_size;
+  const std::optional<uint32_t> cap_over = o.capacity ? o.capacity : scene.grid.capacity;
+  float cs;
+  if (cs_over) {
+    cs = *cs_over;
+  } else if (res) {
+    cs = std::max({e.x / float(res->x), e.y / float(res->y), e.z / float(res->z)});
+  } else {
+    const double target = std::max(1.0, double(o.density) * double(scene.triangle_count()));
+    cs = float(std::cbrt(double(e.x) * double(e.y) * double(e.z) / target));
+  }
+  if (!(cs > 0.0f) || !std::isfinite(cs)) throw Error("grid: cell size must be positive and finite");
+
+  g.aabb_padding = o.aabb_padding;
+  g.elongation = o.elongation;
+  g.self_hit_offset = o.self_hit_offset;
+  g.comparison_offset = scene.static_instance_count() << 16;
+  g.insertion = o.insertion == Insertion::sorted ? shared::kInsertSorted : shared::kInsertFirstEmpty;
+  g.traversal = o.traversal == Traversal::exact ? shared::kTraversalExact : shared::kTraversalPaper;
+  g.triangle_test = shared::kTriangleMoller;
+  g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
+            (o.alpha_keying ? shared::kGridAlphaKeying : 0u) | (o.gap_fill ? shared::kGridGapFill : 0u);
+
+  // Grow the cells until the image fits the device's limits
+  for (int attempt = 0;; ++attempt) {
+    set_cell_size(g, cs, o);
+    if (res && !cs_over) {
+      g.cells = *res;
+    } else {
+      const glm::vec3 n = glm::ceil(e / cs);
+      const float lim = 1.0e6f;
+      g.cells = glm::uvec3(glm::clamp(n, glm::vec3(1.0f), glm::vec3(lim)));
+    }
+    if (cap_over) {
+      g.capacity = *cap_over;
+    } else {
+      // Capacity: a percentile of the trial's non-empty cells, clamped
+      std::vector<uint32_t> counts = trial_counts(scene, time, g);
+      std::vector<uint32_t> nonempty;
+      for (uint32_t c : counts)
+        if (c) nonempty.push_back(c);
+      uint32_t cap = o.min_capacity;
+      if (!nonempty.empty()) {
+        const size_t k = std::min(nonempty.size() - 1,
+                                  size_t(std::ceil(double(o.capacity_percentile) * double(nonempty.size()))) - 1);
+        std::nth_element(nonempty.begin(), nonempty.begin() + k, nonempty.end());
+        cap = nonempty[k];
+      }
+      g.capacity = std::clamp(cap, o.min_capacity, o.max_capacity);
+    }
+    const uint64_t wx = uint64_t(g.cells.x) * (g.capacity + 1);
+    const uint64_t texels = wx * g.cells.y * g.cells.z;
+    const bool fits = wx <= o.max_image_dimension && g.cells.y <= o.max_image_dimension &&
+                      g.cells.z <= o.max_image_dimension && texels <= o.max_texels;
+    if (fits) break;
+    if ((res && !cs_over) || attempt > 60)
+      throw Error("grid: " + std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" +
+                  std::to_string(g.cells.z) + " cells of capacity " + std::to_string(g.capacity) +
+                  " exceed the image limits (max dimension " + std::to_string(o.max_image_dimension) +
+                  ", max texels " + std::to_string(o.max_texels) + ")");
+    // Larger cells: by the worst ratio, at least 10 percent
+    const double ratio = std::max({double(wx) / o.max_image_dimension, double(g.cells.y) / o.max_image_dimension,
+                                   double(g.cells.z) / o.max_image_dimension,
+                                   std::cbrt(double(texels) / double(o.max_texels)), 1.1});
+    cs = float(double(cs) * std::min(ratio, 2.0));
+  }
+  g.upper = g.origin + glm::vec3(g.cells) * g.cell_size;
+  g.max_segments = g.cells.x + g.cells.y + g.cells.z + 3u;
+  return g;
+}
+
+// ---- Insertion (paper 2.1) ----
+
+// Paper: compare-and-swap blank -> ref into the first slot that takes it; when none does, flag
+// the cell saturated (static or dynamic bit by the reference's kind).
+void insert_first_empty(Image3D& image, const GridParams& g, glm::uvec3 cell, uint32_t ref) {
+  for (uint32_t s = 0; s < g.capacity; ++s) {
+    const uint32_t old = imageAtomicCompSwap(image, glm::ivec3(shared::slot_texel(cell, s, g.capacity)), kBlank, ref);
+    if (old == kBlank) return;
+  }
+  // Saturated: no slot took the reference
+  const uint32_t bit = ref < g.comparison_offset ? shared::kStatusStatic : shared::kStatusDynamic;
+  imageAtomicOr(image, glm::ivec3(shared::status_texel(cell, g.capacity)), bit);
+}
+
+// Ours: an atomic-min cascade. The carried value v takes the smaller of itself and each slot in
+// turn (old = atomicMin(slot, v); v = max(old, v)) until it is blank; the cell ends holding its
+// `capacity` smallest references in ascending order whatever the timing. A value pushed out of
+// the last slot is dropped and flags the cell (static bit if it is static, else dynamic).
+void insert_sorted(Image3D& image, const GridParams& g, glm::uvec3 cell, uint32_t ref) {
+  uint32_t v = ref;
+  for (uint32_t s = 0; s < g.capacity; ++s) {
+    const uint32_t old = imageAtomicMin(image, glm::ivec3(shared::slot_texel(cell, s, g.capacity)), v);
+    v = std::max(old, v);
+    if (v == kBlank) return;
+  }
+  // Saturated: the dropped value names the bit
+  const uint32_t bit = v < g.comparison_offset ? shared::kStatusStatic : shared::kStatusDynamic;
+  imageAtomicOr(image, glm::ivec3(shared::status_texel(cell, g.capacity)), bit);
+}
+
+namespace {
+
+// One emulated geometry-shader invocation: transform the triangle, write it to the geometry
+// buffer, insert its reference into every cell of its AABB range whose enlarged bounding sphere
+// the triangle's plane passes through.
+void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t instance,
+                      uint32_t triangle, const shared::Affine& m) {
+  const GridParams& g = grid.params;
+  const Instance& inst = scene.instances[instance];
+  const Mesh& mesh = scene.meshes[inst.mesh];
+  (void)time;
+  // Transform the vertices and write the world-space triangle
+  const glm::uvec3 idx = mesh.triangles[triangle];
+  const glm::vec3 v0 = shared::transform_point(m, mesh.positions[idx.x]);
+  const glm::vec3 v1 = shared::transform_point(m, mesh.positions[idx.y]);
+  const glm::vec3 v2 = shared::transform_point(m, mesh.positions[idx.z]);
+  shared::GridTriangle& out = grid.triangles[grid.instances[instance].tri_offset + triangle];
+  out.v0 = v0;
+  out.v1 = v1;
+  out.v2 = v2;
+  // Skip zero-area triangles: no ray can hit them
+  const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
+  const float nn = shared::sh_dot(n, n);
+  if (nn == 0.0f) return;
+  // Cells of the AABB range whose enlarged bounding sphere meets the plane
+  glm::uvec3 lo, hi;
+  shared::triangle_cell_range(g, v0, v1, v2, lo, hi);
+  const uint32_t ref = shared::ref_pack(instance, triangle);
+  for (uint32_t z = lo.z; z <= hi.z; ++z)
+    for (uint32_t y = lo.y; y <= hi.y; ++y)
+      for (uint32_t x = lo.x; x <= hi.x; ++x) {
+        const glm::uvec3 cell(x, y, z);
+        if (!shared::plane_intersects_enlarged_sphere(v0, n, nn, shared::cell_center(g, cell), g.sphere_r2))
+          continue;
+        if (g.insertion == shared::kInsertSorted) insert_sorted(grid.image, g, cell, ref);
+        else insert_first_empty(grid.image, g, cell, ref);
+      }
+}
+
+// Invocations over the triangles of instances [first, last): one per triangle.
+void insert_instances(GridData& grid, const Scene& scene, float time, const GridOptions& o,
+                      uint32_t first, uint32_t last) {
+  if (first >= last) return;
+  std::vector<shared::Affine> affine(last - first);
+  for (uint32_t i = first; i < last; ++i) affine[i - first] = shared::to_affine(scene.instances[i].transform_at(time));
+  const uint32_t t0 = grid.instances[first].tri_offset;
+  const uint32_t t1 = grid.instances[last - 1].tri_offset + grid.instances[last - 1].tri_count;
+  run_invocations(
+      t1 - t0, thread_count(o), o.shuffle_seed,
+      [&](uint32_t invocation) {
+        const uint32_t global = t0 + invocation;
+        // The instance holding this triangle: the last whose offset is <= global
+        auto it = std::upper_bound(grid.instances.begin() + first, grid.instances.begin() + last, global,
+                                   [](uint32_t v, const shared::GridInstance& gi) { return v < gi.tri_offset; });
+        const uint32_t instance = uint32_t(it - grid.instances.begin()) - 1;
+        build_invocation(grid, scene, time, instance, global - grid.instances[instance].tri_offset,
+                         affine[instance - first]);
+      },
+      16);
+}
+
+}  // namespace
+
+// ---- Scene build (paper 2.1) ----
+
+void scene_build(GridData& grid, const Scene& scene, float time, const GridOptions& o) {
+  grid = GridData{};
+  grid.params = choose_grid(scene, time, o);
+  const GridParams& g = grid.params;
+  // Tables: instances, materials and their alpha masks, the geometry buffer
+  grid.static_instances = scene.static_instance_count();
+  uint32_t offset = 0;
+  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
+    const Instance& inst = scene.instances[i];
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    shared::GridInstance gi{offset, mesh.triangle_count(), inst.dynamic ? shared::kInstanceDynamic : 0u, 0u};
+    for (uint32_t m : mesh.materials)
+      if (scene.materials[m].alpha_keyed()) gi.flags |= shared::kInstanceAlphaKeyed;
+    grid.instances.push_back(gi);
+    if (i < grid.static_instances) grid.static_triangles = offset + mesh.triangle_count();
+    offset += mesh.triangle_count();
+  }
+  grid.triangles.assign(offset, shared::GridTriangle{});
+  grid.uvs.assign(offset, shared::GridTriangleUv{});
+  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
+    const Mesh& mesh = scene.meshes[scene.instances[i].mesh];
+    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+      const uint32_t k = grid.instances[i].tri_offset + t;
+      grid.triangles[k].material = mesh.materials.empty() ? 0u : mesh.materials[t];
+      if (!mesh.uvs.empty()) {
+        const glm::uvec3 idx = mesh.triangles[t];
+        grid.uvs[k] = {mesh.uvs[idx.x], mesh.uvs[idx.y], mesh.uvs[idx.z]};
+      }
+    }
+  }
+  for (const Material& mat : scene.materials) {
+    shared::GridMaterial gm{};
+    if (mat.alpha_keyed()) {
+      const Texture& tex = scene.textures[size_t(mat.alpha_texture)];
+      gm.alpha_offset = uint32_t(grid.texels.size());
+      gm.alpha_width = tex.width;
+      gm.alpha_height = tex.height;
+      for (size_t p = 0; p < size_t(tex.width) * tex.height; ++p)
+        grid.texels.push_back(uint32_t(tex.rgba[4 * p]) | uint32_t(tex.rgba[4 * p + 1]) << 8 |
+                              uint32_t(tex.rgba[4 * p + 2]) << 16 | uint32_t(tex.rgba[4 * p + 3]) << 24);
+    }
+    grid.materials.push_back(gm);
+  }
+  // The image, every texel blank; status texels 0
+  grid.image = Image3D(shared::grid_image_extent(g), kBlank);
+  run_invocations(g.cells.x * g.cells.y * g.cells.z, thread_count(o), std::nullopt, [&](uint32_t c) {
+    const glm::uvec3 cell(c % g.cells.x, (c / g.cells.x) % g.cells.y, c / (g.cells.x * g.cells.y));
+    imageStore(grid.image, glm::ivec3(shared::status_texel(cell, g.capacity)), 0u);
+  }, 4096);
+  // Static instances first (their references fill the first slots), then the dynamic ones
+  insert_instances(grid, scene, time, o, 0, grid.static_instances);
+  insert_instances(grid, scene, time, o, grid.static_instances, uint32_t(scene.instances.size()));
+}
+
+// ---- Scene update (paper 2.2) ----
+
+// The clear pass, in workgroups of 4x4x4 cells: per cell, blank every reference >= the comparison
+// offset, slot by slot up to the first blank, and reset the dynamic saturation bit.
+void clear_dynamic_references(GridData& grid, const GridOptions& o) {
+  const GridParams& g = grid.params;
+  const glm::uvec3 groups = (g.cells + glm::uvec3(3u)) / 4u;
+  run_invocations(groups.x * groups.y * groups.z, thread_count(o), std::nullopt, [&](uint32_t w) {
+    const glm::uvec3 wg(w % groups.x, (w / groups.x) % groups.y, w / (groups.x * groups.y));
+    for (uint32_t lz = 0; lz < 4; ++lz)
+      for (uint32_t ly = 0; ly < 4; ++ly)
+        for (uint32_t lx = 0; lx < 4; ++lx) {
+          const glm::uvec3 cell = wg * 4u + glm::uvec3(lx, ly, lz);
+          if (cell.x >= g.cells.x || cell.y >= g.cells.y || cell.z >= g.cells.z) continue;
+          // Blank the dynamic references up to the first blank
+          for (uint32_t s = 0; s < g.capacity; ++s) {
+            const glm::ivec3 p(shared::slot_texel(cell, s, g.capacity));
+            const uint32_t ref = imageLoad(grid.image, p);
+            if (ref == kBlank) break;
+            if (ref >= g.comparison_offset) imageAtomicExchange(grid.image, p, kBlank);
+          }
+          // Reset the dynamic saturation bit; the static one persists
+          imageAtomicAnd(grid.image, glm::ivec3(shared::status_texel(cell, g.capacity)), ~shared::kStatusDynamic);
+        }
+  }, 4);
+}
+
+void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& o) {
+  if (grid.static_instances == scene.instances.size()) return;
+  clear_dynamic_references(grid, o);
+  insert_instances(grid, scene, time, o, grid.static_instances, uint32_t(scene.instances.size()));
+}
+
+}  // namespace gridrt::reference

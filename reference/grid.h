@@ -1,0 +1,142 @@
+// grid.h: the CPU reference of the fixed-capacity grid (the spec the Vulkan port is held to).
+// The paper's three phases as functions of the same names as the shaders':
+//   scene_build  (2.1)  one emulated geometry-shader invocation per triangle, on threads
+//   scene_update (2.2)  clear_dynamic_references, then the dynamic instances' invocations
+//   scene_trace  (2.3)  one ray: paper segments or the exact DDA
+// and ReferenceGridTracer, the gridrt::Tracer over them. docs/SPEC.md states every rule.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/scene.h"
+#include "common/shared/explain.h"
+#include "common/shared/grid.h"
+#include "common/shared/triangle.h"
+#include "common/tracer.h"
+#include "reference/image3d.h"
+
+namespace gridrt::reference {
+
+enum class Traversal { paper, exact };
+enum class Insertion { first_empty, sorted };
+
+// Every knob of the grid, with its default (docs/SPEC.md, "Parameters").
+struct GridOptions {
+  // Traversal and insertion
+  Traversal traversal = Traversal::paper;
+  Insertion insertion = Insertion::sorted;  // sorted: images independent of thread timing
+  // Emulated invocations: 0 threads = std::thread::hardware_concurrency(); a seed runs the
+  // build/update invocations in a seeded shuffled order (on any thread count)
+  unsigned threads = 0;
+  std::optional<uint64_t> shuffle_seed;
+  // Build (2.1)
+  float sphere_enlargement = 1.25f;  // cell bounding-sphere radius multiplier (>= 1: conservative)
+  float aabb_padding = 1.0e-3f;      // cell units added on each side of a triangle's AABB
+  // Trace (2.3)
+  float elongation = 0.25f;          // paper: segment elongation on each side, in segment lengths
+  float gap_fill_distance = 2.0f;    // paper: cells the segment must be away from the launch surface
+  float self_hit_offset = 0.0f;      // hits need t * |dir| > self_hit_offset * cell_size
+  bool exclude_launch_ref = true;    // never accept the launch triangle (RayRecord::launch_ref)
+  bool alpha_keying = true;          // alpha-keyed materials cut holes (Features::alpha_keying)
+  bool gap_fill = true;              // paper: gap-fill in saturated cells (Features::gap_fill)
+  // Automatic resolution and capacity (overridden by the fields below, then by Scene::grid)
+  float density = 2.0f;                   // target cells per triangle
+  float capacity_percentile = 0.99f;      // capacity = this percentile of non-empty cells' counts
+  uint32_t min_capacity = 4, max_capacity = 64;
+  uint32_t max_image_dimension = 4096;    // 4096 on lavapipe, 16384 on NVIDIA
+  uint64_t max_texels = uint64_t(1) << 28;  // 1 GiB of image
+  std::optional<glm::uvec3> resolution;   // cells per axis
+  std::optional<uint32_t> capacity;       // slots per cell
+  std::optional<float> cell_size;         // world units
+};
+
+// Everything the GPU holds, as the shaders see it.
+struct GridData {
+  shared::GridParams params{};
+  Image3D image;                                 // the 3D image of references
+  std::vector<shared::GridInstance> instances;   // per instance: triangle offset, count, flags
+  std::vector<shared::GridTriangle> triangles;   // world-space triangles (geometry buffer)
+  std::vector<shared::GridTriangleUv> uvs;       // per triangle texture coordinates
+  std::vector<shared::GridMaterial> materials;   // per material: its alpha mask in `texels`
+  std::vector<uint32_t> texels;                  // alpha masks, RGBA8 packed (a << 24)
+  uint32_t static_instances = 0;
+  uint32_t static_triangles = 0;                 // triangles of the static instances (first)
+};
+
+// Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
+shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
+// World bounds of the scene over its whole animation: static instances at `time`, dynamic ones
+// swept over their motion; not padded.
+Bounds animation_bounds(const Scene& scene, float time);
+
+// Phases (paper names)
+void scene_build(GridData& grid, const Scene& scene, float time, const GridOptions& options);
+void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& options);
+void clear_dynamic_references(GridData& grid, const GridOptions& options);
+void insert_first_empty(Image3D& image, const shared::GridParams& g, glm::uvec3 cell, uint32_t ref);
+void insert_sorted(Image3D& image, const shared::GridParams& g, glm::uvec3 cell, uint32_t ref);
+
+// The explanation of one ray: the events in order, and the hit.
+struct ExplainRecord {
+  Ray ray{};
+  shared::GridParams params{};
+  std::vector<shared::ExplainEvent> events;
+  Hit hit{};
+};
+std::string to_text(const ExplainRecord& record);
+
+// scene_trace for one ray; `explain` (may be null) receives the events.
+Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain);
+
+struct GridStats {
+  glm::vec3 origin{0.0f};
+  float cell_size = 0.0f;
+  glm::uvec3 cells{0};
+  uint32_t capacity = 0;
+  glm::uvec3 image_extent{0};
+  uint64_t image_bytes = 0, geometry_bytes = 0;   // the image; triangles + uvs + tables + masks
+  uint64_t cell_count = 0, empty_cells = 0;
+  uint64_t saturated_static = 0, saturated_dynamic = 0;  // cells with that status bit
+  std::vector<uint64_t> occupancy;                // occupancy[k]: cells holding k references
+  uint64_t references = 0;                        // non-blank slots
+  uint64_t triangles = 0, degenerate_triangles = 0;
+  double references_per_triangle_mean = 0.0;      // over non-degenerate triangles
+  uint32_t references_per_triangle_max = 0;
+  double build_ms = 0.0, update_ms = 0.0;         // last build / update, wall clock
+};
+GridStats grid_stats(const GridData& grid);
+std::string to_text(const GridStats& stats);
+
+// The Tracer: build/update/trace/dump over the functions above.
+class ReferenceGridTracer : public Tracer {
+ public:
+  explicit ReferenceGridTracer(GridOptions options = {});
+  std::string name() const override { return "reference-grid"; }
+  void build(const Scene& scene, float time) override;
+  void update(float time) override;
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  AccelDump dump() const override;
+
+  ExplainRecord explain_ray(const Ray& ray) const;
+  GridStats stats() const;
+  const GridOptions& options() const { return options_; }
+  const GridData& data() const { return grid_; }
+  const shared::GridParams& params() const { return grid_.params; }
+
+ private:
+  GridOptions options_;
+  const Scene* scene_ = nullptr;
+  GridData grid_;
+  double build_ms_ = 0.0, update_ms_ = 0.0;
+};
+
+// Helpers shared by the reference's passes and tests
+unsigned thread_count(const GridOptions& options);
+// Hex bits of a float, e.g. "0x3f800000".
+std::string hex(float f);
+
+}  // namespace gridrt::reference

@@ -1,0 +1,142 @@
+// tracer.cpp: ReferenceGridTracer (the gridrt::Tracer over the reference) and grid statistics.
+#include <chrono>
+#include <cstring>
+#include <sstream>
+
+#include "reference/grid.h"
+#include "reference/invocations.h"
+
+namespace gridrt::reference {
+
+namespace {
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+ReferenceGridTracer::ReferenceGridTracer(GridOptions options) : options_(std::move(options)) {}
+
+void ReferenceGridTracer::build(const Scene& scene, float time) {
+  const auto t0 = std::chrono::steady_clock::now();
+  scene_ = &scene;
+  scene_build(grid_, scene, time, options_);
+  build_ms_ = ms_since(t0);
+}
+
+void ReferenceGridTracer::update(float time) {
+  if (!scene_) throw Error("reference-grid: update before build");
+  const auto t0 = std::chrono::steady_clock::now();
+  scene_update(grid_, *scene_, time, options_);
+  update_ms_ = ms_since(t0);
+}
+
+void ReferenceGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
+  if (hits.size() != rays.size()) throw Error("reference-grid: hits.size() != rays.size()");
+  if (!scene_) throw Error("reference-grid: trace before build");
+  run_invocations(uint32_t(rays.size()), thread_count(options_), std::nullopt,
+                  [&](uint32_t i) { hits[i] = scene_trace(grid_, rays[i], nullptr); }, 64);
+}
+
+AccelDump ReferenceGridTracer::dump() const {
+  AccelDump d;
+  d.kind = "grid";
+  d.extent = grid_.image.extent;
+  d.texels = grid_.image.snapshot();
+  return d;
+}
+
+ExplainRecord ReferenceGridTracer::explain_ray(const Ray& ray) const {
+  if (!scene_) throw Error("reference-grid: explain before build");
+  ExplainRecord rec;
+  rec.hit = scene_trace(grid_, ray, &rec);
+  return rec;
+}
+
+GridStats ReferenceGridTracer::stats() const {
+  GridStats s = grid_stats(grid_);
+  s.build_ms = build_ms_;
+  s.update_ms = update_ms_;
+  return s;
+}
+
+GridStats grid_stats(const GridData& grid) {
+  const shared::GridParams& g = grid.params;
+  GridStats s;
+  s.origin = g.origin;
+  s.cell_size = g.cell_size;
+  s.cells = g.cells;
+  s.capacity = g.capacity;
+  s.image_extent = grid.image.extent;
+  s.image_bytes = uint64_t(grid.image.size()) * 4;
+  s.geometry_bytes = grid.triangles.size() * sizeof(shared::GridTriangle) +
+                     grid.uvs.size() * sizeof(shared::GridTriangleUv) +
+                     grid.instances.size() * sizeof(shared::GridInstance) +
+                     grid.materials.size() * sizeof(shared::GridMaterial) + grid.texels.size() * 4;
+  s.cell_count = uint64_t(g.cells.x) * g.cells.y * g.cells.z;
+  s.occupancy.assign(g.capacity + 1, 0);
+  s.triangles = grid.triangles.size();
+  std::vector<uint32_t> per_triangle(grid.triangles.size(), 0);
+  for (uint32_t z = 0; z < g.cells.z; ++z)
+    for (uint32_t y = 0; y < g.cells.y; ++y)
+      for (uint32_t x = 0; x < g.cells.x; ++x) {
+        const glm::uvec3 cell(x, y, z);
+        uint32_t n = 0;
+        for (; n < g.capacity; ++n) {
+          const uint32_t ref = imageLoad(grid.image, glm::ivec3(shared::slot_texel(cell, n, g.capacity)));
+          if (ref == shared::kBlank) break;
+          ++per_triangle[grid.instances[shared::ref_instance(ref)].tri_offset + shared::ref_triangle(ref)];
+        }
+        s.occupancy[n] += 1;
+        s.references += n;
+        if (n == 0) ++s.empty_cells;
+        const uint32_t status = imageLoad(grid.image, glm::ivec3(shared::status_texel(cell, g.capacity)));
+        if (status & shared::kStatusStatic) ++s.saturated_static;
+        if (status & shared::kStatusDynamic) ++s.saturated_dynamic;
+      }
+  uint64_t sum = 0, counted = 0;
+  for (size_t i = 0; i < grid.triangles.size(); ++i) {
+    const shared::GridTriangle& t = grid.triangles[i];
+    const glm::vec3 n = shared::triangle_normal(t.v0, t.v1, t.v2);
+    if (shared::sh_dot(n, n) == 0.0f) {
+      ++s.degenerate_triangles;
+      continue;
+    }
+    sum += per_triangle[i];
+    ++counted;
+    s.references_per_triangle_max = std::max(s.references_per_triangle_max, per_triangle[i]);
+  }
+  s.references_per_triangle_mean = counted ? double(sum) / double(counted) : 0.0;
+  return s;
+}
+
+std::string to_text(const GridStats& s) {
+  std::ostringstream os;
+  os << "grid: " << s.cells.x << " x " << s.cells.y << " x " << s.cells.z << " cells of "
+     << s.cell_size << " units, origin (" << s.origin.x << ", " << s.origin.y << ", " << s.origin.z
+     << "), capacity " << s.capacity << "\n";
+  os << "image: " << s.image_extent.x << " x " << s.image_extent.y << " x " << s.image_extent.z
+     << " texels, " << s.image_bytes << " bytes; geometry and tables " << s.geometry_bytes << " bytes\n";
+  os << "cells: " << s.cell_count << ", empty " << s.empty_cells << " ("
+     << (s.cell_count ? 100.0 * double(s.empty_cells) / double(s.cell_count) : 0.0) << "%), saturated by static "
+     << s.saturated_static << ", by dynamic " << s.saturated_dynamic << "\n";
+  os << "references: " << s.references << " for " << s.triangles << " triangles (" << s.degenerate_triangles
+     << " zero-area, never inserted); per triangle mean " << s.references_per_triangle_mean << ", max "
+     << s.references_per_triangle_max << "\n";
+  os << "occupancy (references per cell: cells):";
+  for (size_t k = 0; k < s.occupancy.size(); ++k)
+    if (s.occupancy[k]) os << " " << k << ":" << s.occupancy[k];
+  os << "\n";
+  if (s.build_ms > 0.0 || s.update_ms > 0.0)
+    os << "last build " << s.build_ms << " ms, last update " << s.update_ms << " ms\n";
+  return os.str();
+}
+
+std::string hex(float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, 4);
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%08x", u);
+  return buf;
+}
+
+}  // namespace gridrt::reference
