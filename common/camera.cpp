@@ -1,0 +1,40 @@
+#include "common/camera.h"
+
+#include <cmath>
+#include <limits>
+
+namespace gridrt {
+
+CameraFrame camera_frame(const Camera& camera) {
+  const glm::vec3 view = camera.target - camera.eye;
+  if (!(glm::length(view) > 0.0f)) throw Error("camera: eye and target coincide");
+  CameraFrame f;
+  f.forward = glm::normalize(view);
+  const glm::vec3 r = glm::cross(f.forward, camera.up);
+  if (!(glm::length(r) > 1e-6f * glm::length(camera.up))) throw Error("camera: up is parallel to the view direction");
+  f.right = glm::normalize(r);
+  f.up = glm::cross(f.right, f.forward);
+  if (!(camera.vfov_degrees > 0.0f && camera.vfov_degrees < 180.0f))
+    throw Error("camera: vertical field of view must lie in (0, 180) degrees");
+  f.tan_half_fov = std::tan(glm::radians(camera.vfov_degrees) * 0.5f);
+  return f;
+}
+
+Ray camera_ray(const Camera& camera, uint32_t width, uint32_t height, uint32_t x, uint32_t y) {
+  if (width == 0 || height == 0) throw Error("camera: image size must be at least 1 x 1");
+  if (x >= width || y >= height) throw Error("camera: pixel outside the image");
+  const CameraFrame f = camera_frame(camera);
+  // Pixel centre in normalized device coordinates, [-1, 1], y up.
+  const float sx = (2.0f * (float(x) + 0.5f) / float(width) - 1.0f) * f.tan_half_fov * (float(width) / float(height));
+  const float sy = (1.0f - 2.0f * (float(y) + 0.5f) / float(height)) * f.tan_half_fov;
+  Ray ray;
+  ray.org = camera.eye;
+  ray.dir = glm::normalize(f.forward + sx * f.right + sy * f.up);
+  ray.tmin = 0.0f;
+  ray.tmax = std::numeric_limits<float>::infinity();
+  ray.launch_normal = glm::vec3(0.0f);
+  ray.launch_ref = shared::kNoRef;
+  return ray;
+}
+
+}  // namespace gridrt

@@ -1,0 +1,25 @@
+// camera.h: primary rays of a pinhole camera.
+#pragma once
+
+#include <cstdint>
+
+#include "common/scene.h"
+#include "common/tracer.h"
+
+namespace gridrt {
+
+// The ray through the centre of pixel (x, y) of a width x height image; row 0 is the top row.
+// Pinhole at camera.eye, vertical field of view camera.vfov_degrees, square pixels. The direction
+// is normalized; tmin 0, tmax +inf, launch_normal 0, launch_ref shared::kNoRef.
+// Throws Error for an empty image, a pixel outside it, or a degenerate camera (eye == target, or
+// up parallel to the view direction).
+Ray camera_ray(const Camera& camera, uint32_t width, uint32_t height, uint32_t x, uint32_t y);
+
+// The camera's orthonormal frame: right, up, and forward (towards the target).
+struct CameraFrame {
+  glm::vec3 right, up, forward;
+  float tan_half_fov;
+};
+CameraFrame camera_frame(const Camera& camera);
+
+}  // namespace gridrt

@@ -1,0 +1,262 @@
+#include "common/embree/embree_tracer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <embree3/rtcore.h>
+
+// alpha.h calls min/max unqualified (GLSL built-ins); compat.h does not bring GLM's into
+// gridrt::shared yet, so do it here before including it.
+namespace gridrt::shared {
+using glm::floor;
+using glm::max;
+using glm::min;
+}  // namespace gridrt::shared
+#include "common/shared/alpha.h"
+#include "common/shared/transform.h"
+
+namespace gridrt {
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// What the alpha filter of one geometry needs.
+struct GeometryData {
+  const Scene* scene = nullptr;
+  const Mesh* mesh = nullptr;
+};
+
+// The intersection context with the launch reference of the ray being traced.
+struct Context {
+  RTCIntersectContext rtc;
+  uint32_t launch_ref;
+};
+
+// Self-hit exclusion: drop the hit on exactly the triangle the ray leaves.
+void self_filter(const RTCFilterFunctionNArguments* args) {
+  const Context* ctx = reinterpret_cast<const Context*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const uint32_t ref = (RTCHitN_geomID(args->hit, args->N, i) << 16) | RTCHitN_primID(args->hit, args->N, i);
+    if (ref == ctx->launch_ref) args->valid[i] = 0;
+  }
+}
+
+// Alpha keying: no surface where the mask's texel under the hit's uv is below the cutoff.
+void alpha_filter(const RTCFilterFunctionNArguments* args) {
+  const GeometryData* g = static_cast<const GeometryData*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const uint32_t prim = RTCHitN_primID(args->hit, args->N, i);
+    const Material& mat = g->scene->materials[g->mesh->materials[prim]];
+    if (!mat.alpha_keyed()) continue;
+    const Texture& tex = g->scene->textures[mat.alpha_texture];
+    if (tex.width == 0 || tex.height == 0) continue;
+    glm::vec2 uv(0.0f);
+    if (!g->mesh->uvs.empty()) {
+      const glm::uvec3 t = g->mesh->triangles[prim];
+      uv = shared::interpolate_uv(g->mesh->uvs[t[0]], g->mesh->uvs[t[1]], g->mesh->uvs[t[2]],
+                                  RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i));
+    }
+    const glm::uvec2 xy = shared::alpha_texel_coords(uv, tex.width, tex.height);
+    if (tex.texel(xy.x, xy.y).a < shared::kAlphaCutoff) args->valid[i] = 0;
+  }
+}
+
+bool finite3(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+void error_callback(void* user, RTCError code, const char* message) {
+  auto* last = static_cast<std::string*>(user);
+  *last = "Embree error " + std::to_string(int(code)) + ": " + (message ? message : "");
+}
+
+}  // namespace
+
+struct EmbreeTracer::Impl {
+  unsigned threads = 0;
+  RTCDevice device = nullptr;
+  RTCScene rtc_scene = nullptr;
+  const Scene* scene = nullptr;
+  std::string last_error;
+  std::vector<RTCGeometry> geometries;        // per instance
+  std::vector<GeometryData> data;             // per instance (stable addresses)
+  std::vector<std::vector<glm::vec3>> world;  // per instance, world-space vertices
+
+  ~Impl() { release(); }
+
+  void release() {
+    for (RTCGeometry g : geometries) rtcReleaseGeometry(g);
+    geometries.clear();
+    if (rtc_scene) rtcReleaseScene(rtc_scene);
+    rtc_scene = nullptr;
+  }
+
+  void check() {
+    if (!last_error.empty()) {
+      const std::string e = last_error;
+      last_error.clear();
+      throw Error(e);
+    }
+  }
+
+  // World-space vertices of instance i at `time`, written into its Embree vertex buffer.
+  void transform(uint32_t i, float time) {
+    const Instance& inst = scene->instances[i];
+    const Mesh& mesh = scene->meshes[inst.mesh];
+    const shared::Affine m = shared::to_affine(inst.transform_at(time));
+    std::vector<glm::vec3>& w = world[i];
+    w.resize(mesh.positions.size());
+    for (size_t v = 0; v < w.size(); ++v) w[v] = shared::transform_point(m, mesh.positions[v]);
+    float* buf = static_cast<float*>(rtcGetGeometryBufferData(geometries[i], RTC_BUFFER_TYPE_VERTEX, 0));
+    for (size_t v = 0; v < w.size(); ++v) {
+      buf[3 * v + 0] = w[v].x;
+      buf[3 * v + 1] = w[v].y;
+      buf[3 * v + 2] = w[v].z;
+    }
+  }
+
+  Hit trace_one(const Ray& ray) const {
+    Hit hit{};
+    hit.t = kInf;
+    hit.instance = shared::kNoInstance;
+    // Reject what no tracer can trace.
+    if (!finite3(ray.org) || !finite3(ray.dir) || ray.dir == glm::vec3(0.0f) || std::isnan(ray.tmin) ||
+        std::isnan(ray.tmax)) {
+      hit.flags = shared::kHitRejected;
+      return hit;
+    }
+    if (!(ray.tmin < ray.tmax)) return hit;
+    // Strict interval: Embree accepts tnear <= t <= tfar.
+    RTCRayHit rh{};
+    rh.ray.org_x = ray.org.x, rh.ray.org_y = ray.org.y, rh.ray.org_z = ray.org.z;
+    rh.ray.dir_x = ray.dir.x, rh.ray.dir_y = ray.dir.y, rh.ray.dir_z = ray.dir.z;
+    rh.ray.tnear = ray.tmin < 0.0f ? 0.0f : std::nextafter(ray.tmin, kInf);
+    rh.ray.tfar = std::isinf(ray.tmax) ? kInf : std::nextafter(ray.tmax, -kInf);
+    if (!(rh.ray.tnear <= rh.ray.tfar)) return hit;
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.ray.time = 0.0f;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    Context ctx;
+    rtcInitIntersectContext(&ctx.rtc);
+    ctx.launch_ref = ray.launch_ref;
+    if (ray.launch_ref != shared::kNoRef) ctx.rtc.filter = self_filter;
+    rtcIntersect1(rtc_scene, &ctx.rtc, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
+    hit.t = rh.ray.tfar;
+    hit.instance = rh.hit.geomID;
+    hit.triangle = rh.hit.primID;
+    hit.u = rh.hit.u;
+    hit.v = rh.hit.v;
+    // Back face from the world-space triangle the grid also sees.
+    const Mesh& mesh = scene->meshes[scene->instances[hit.instance].mesh];
+    const glm::uvec3 t = mesh.triangles[hit.triangle];
+    const std::vector<glm::vec3>& w = world[hit.instance];
+    const glm::vec3 n = shared::sh_cross(w[t[1]] - w[t[0]], w[t[2]] - w[t[0]]);
+    if (shared::sh_dot(n, ray.dir) > 0.0f) hit.flags |= shared::kHitBackFace;
+    return hit;
+  }
+};
+
+EmbreeTracer::EmbreeTracer(unsigned threads) : impl_(std::make_unique<Impl>()) {
+  impl_->threads = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
+  const std::string config = "threads=" + std::to_string(impl_->threads);
+  impl_->device = rtcNewDevice(config.c_str());
+  if (!impl_->device) throw Error("Embree: cannot create a device (" + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+  rtcSetDeviceErrorFunction(impl_->device, error_callback, &impl_->last_error);
+}
+
+EmbreeTracer::~EmbreeTracer() {
+  impl_->release();
+  rtcReleaseDevice(impl_->device);
+}
+
+void EmbreeTracer::build(const Scene& scene, float time) {
+  Impl& d = *impl_;
+  d.release();
+  d.scene = &scene;
+  d.rtc_scene = rtcNewScene(d.device);
+  rtcSetSceneFlags(d.rtc_scene, RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
+                                              (scene.has_dynamic() ? RTC_SCENE_FLAG_DYNAMIC : 0)));
+  const size_t n = scene.instances.size();
+  d.geometries.assign(n, nullptr);
+  d.data.assign(n, GeometryData{});
+  d.world.assign(n, {});
+  for (uint32_t i = 0; i < n; ++i) {
+    const Instance& inst = scene.instances[i];
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    d.geometries[i] = g;
+    rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                            std::max<size_t>(mesh.positions.size(), 1));
+    auto* idx = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                3 * sizeof(uint32_t), mesh.triangles.size()));
+    d.check();
+    for (size_t t = 0; t < mesh.triangles.size(); ++t)
+      for (int k = 0; k < 3; ++k) idx[3 * t + k] = mesh.triangles[t][k];
+    d.transform(i, time);
+    d.data[i] = GeometryData{&scene, &mesh};
+    bool alpha = false;
+    for (uint32_t m : mesh.materials) alpha = alpha || scene.materials[m].alpha_keyed();
+    if (alpha) {
+      rtcSetGeometryUserData(g, &d.data[i]);
+      rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+    }
+    if (inst.dynamic) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(d.rtc_scene, g, i);
+    d.check();
+  }
+  rtcCommitScene(d.rtc_scene);
+  d.check();
+  d.scene = &scene;
+}
+
+void EmbreeTracer::update(float time) {
+  Impl& d = *impl_;
+  if (!d.rtc_scene) throw Error("EmbreeTracer::update before build");
+  for (uint32_t i = 0; i < d.scene->instances.size(); ++i) {
+    if (!d.scene->instances[i].dynamic) continue;
+    d.transform(i, time);
+    rtcUpdateGeometryBuffer(d.geometries[i], RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(d.geometries[i]);
+  }
+  rtcCommitScene(d.rtc_scene);
+  d.check();
+}
+
+Hit EmbreeTracer::trace_one(const Ray& ray) const {
+  if (!impl_->rtc_scene) throw Error("EmbreeTracer::trace before build");
+  return impl_->trace_one(ray);
+}
+
+void EmbreeTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
+  if (!impl_->rtc_scene) throw Error("EmbreeTracer::trace before build");
+  if (hits.size() != rays.size()) throw Error("EmbreeTracer::trace: hits.size() != rays.size()");
+  constexpr size_t kBlock = 1024;
+  const size_t blocks = (rays.size() + kBlock - 1) / kBlock;
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t b; (b = next.fetch_add(1)) < blocks;) {
+      const size_t end = std::min(rays.size(), (b + 1) * kBlock);
+      for (size_t r = b * kBlock; r < end; ++r) hits[r] = impl_->trace_one(rays[r]);
+    }
+  };
+  const unsigned n = unsigned(std::min<size_t>(impl_->threads, blocks));
+  if (n <= 1) {
+    work();
+    return;
+  }
+  std::vector<std::thread> pool;
+  for (unsigned k = 1; k < n; ++k) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+}
+
+}  // namespace gridrt

@@ -1,0 +1,17 @@
+// features.cpp: which effects a scene calls for (DESIGN.md, "Simulate only what the scene calls
+// for").
+#include "common/tracer.h"
+
+namespace gridrt {
+
+Features Features::for_scene(const Scene& scene) {
+  Features f;
+  f.alpha_keying = scene.has_alpha_masks();
+  f.update = scene.has_dynamic();
+  f.glossy = scene.has_glossy();
+  f.shadows = !scene.lights.empty();
+  f.gap_fill = true;  // only the grid knows whether a cell saturates
+  return f;
+}
+
+}  // namespace gridrt

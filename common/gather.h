@@ -1,0 +1,53 @@
+// gather.h: the gather buffer the paper traces its glossy bounce from (one primary hit per
+// pixel), and the bounce rays leaving it.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "common/scene.h"
+#include "common/tracer.h"
+
+namespace gridrt {
+
+inline constexpr uint32_t kNoMaterial = 0xFFFFFFFFu;
+
+// Per pixel (index y * width + x, row 0 at the top), what the primary ray found.
+struct GatherBuffer {
+  uint32_t width = 0, height = 0;
+  float time = 0.0f;                  // scene time the geometry was at
+  std::vector<uint8_t> valid;         // 1: the primary ray hit a surface
+  std::vector<glm::vec3> position;    // org + t * dir (world)
+  std::vector<glm::vec3> normal;      // unit geometric normal of the hit triangle, facing the viewer
+  std::vector<glm::vec3> incident;    // unit direction of the primary ray
+  std::vector<uint32_t> material;     // index into Scene::materials, kNoMaterial if invalid
+  std::vector<glm::vec2> uv;          // interpolated texture coordinates (0 if the mesh has none)
+  std::vector<uint32_t> launch_ref;   // instance << 16 | triangle, shared::kNoRef if invalid
+  std::vector<Hit> hit;               // the primary hit records
+
+  size_t size() const { return size_t(width) * height; }
+};
+
+// Trace one primary ray per pixel through `tracer` (already built and updated to `time`) and fill
+// the gather buffer. World-space triangles for the normal come from shared::transform_point at
+// `time`, the same vertices every tracer sees.
+GatherBuffer make_gather(const Scene& scene, Tracer& tracer, const Camera& camera, uint32_t width,
+                         uint32_t height, float time = 0.0f);
+
+// One glossy-reflection ray per pixel (index y * width + x), so that bounce hits line up with the
+// gather buffer. A valid pixel whose material has glossiness g > 0 gets the mirror direction of its
+// primary ray about the gather normal, perturbed within a cone of half-angle (1 - g) * pi / 2 by a
+// deterministic per-pixel hash of (x, y, frame) (PCG), folded into the normal's hemisphere; g = 1
+// gives the mirror direction exactly. Origin: the gather position; tmin 0, tmax +inf;
+// launch_normal: the gather normal; launch_ref: the gather launch reference.
+// Unused pixels (invalid, or not glossy) get an empty ray: org 0, dir (0, 0, 1), tmin = tmax = 0,
+// launch_ref kNoRef. Its interval is empty, so every tracer answers a miss (is_unused tells them
+// apart from real rays; shade() ignores their hits).
+std::vector<Ray> bounce_rays(const Scene& scene, const GatherBuffer& gather, uint32_t frame);
+inline bool is_unused(const Ray& r) { return r.tmin == 0.0f && r.tmax == 0.0f; }
+
+// The per-pixel random numbers of bounce_rays: two uniform floats in [0, 1).
+glm::vec2 pixel_random(uint32_t x, uint32_t y, uint32_t frame);
+
+}  // namespace gridrt

@@ -1,0 +1,218 @@
+#include "common/image_io.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <system_error>
+
+#include <unistd.h>
+
+#ifdef GRIDRT_WITH_OIIO
+#include <OpenImageIO/imageio.h>
+#endif
+
+namespace gridrt {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
+
+// The temporary sibling of `path`: same folder, hidden, same extension (OpenImageIO chooses the
+// format by extension).
+fs::path temp_sibling(const fs::path& path) {
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  return dir / ("." + path.filename().string() + ".tmp" + std::to_string(::getpid()) +
+                path.extension().string());
+}
+
+// Write through `write(tmp)` and rename tmp over path; remove tmp on any failure.
+template <class WriteFn>
+void write_atomically(const std::string& path, WriteFn write) {
+  const fs::path tmp = temp_sibling(path);
+  try {
+    write(tmp.string());
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw;
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw Error("cannot write image '" + path + "': rename of the temporary file failed: " + ec.message());
+  }
+}
+
+void check_size(const std::string& path, uint32_t width, uint32_t height, size_t have, size_t per_pixel) {
+  if (width == 0 || height == 0)
+    throw Error("cannot write image '" + path + "': zero size (" + std::to_string(width) + " x " +
+                std::to_string(height) + ")");
+  if (have != size_t(width) * height * per_pixel)
+    throw Error("cannot write image '" + path + "': " + std::to_string(have / per_pixel) +
+                " pixels given for " + std::to_string(width) + " x " + std::to_string(height));
+}
+
+// Binary PPM (P6, 8-bit) or PFM (PF, little-endian float, rows bottom to top as the format says).
+void write_netpbm(const std::string& path, const std::string& tmp, uint32_t width, uint32_t height,
+                  bool pfm, const std::vector<uint8_t>& bytes8, const std::vector<float>& floats) {
+  std::ofstream f(tmp, std::ios::binary);
+  if (!f) throw Error("cannot write image '" + path + "': cannot create '" + tmp + "'");
+  if (pfm) {
+    f << "PF\n" << width << " " << height << "\n-1.0\n";
+    for (uint32_t y = height; y-- > 0;)
+      f.write(reinterpret_cast<const char*>(floats.data() + size_t(y) * width * 3),
+              std::streamsize(size_t(width) * 3 * sizeof(float)));
+  } else {
+    f << "P6\n" << width << " " << height << "\n255\n";
+    f.write(reinterpret_cast<const char*>(bytes8.data()), std::streamsize(bytes8.size()));
+  }
+  f.close();
+  if (!f) throw Error("cannot write image '" + path + "': write failed");
+}
+
+#ifdef GRIDRT_WITH_OIIO
+void write_oiio(const std::string& path, const std::string& tmp, uint32_t width, uint32_t height,
+                int channels, OIIO::TypeDesc type, const void* data) {
+  auto out = OIIO::ImageOutput::create(tmp);
+  if (!out) throw Error("cannot write image '" + path + "': " + OIIO::geterror());
+  OIIO::ImageSpec spec(int(width), int(height), channels, type);
+  if (!out->open(tmp, spec) || !out->write_image(type, data) || !out->close())
+    throw Error("cannot write image '" + path + "': " + out->geterror());
+}
+#endif
+
+bool is_float_format(const std::string& ext) { return ext == ".pfm" || ext == ".exr" || ext == ".hdr"; }
+
+void check_extension(const std::string& path, const std::string& ext) {
+  if (ext == ".ppm" || ext == ".pfm") return;
+#ifdef GRIDRT_WITH_OIIO
+  if (!ext.empty()) return;  // OpenImageIO says whether it knows the format
+  throw Error("cannot write image '" + path + "': no file extension to choose the format by");
+#else
+  throw Error("cannot write image '" + path + "': unknown extension '" + ext +
+              "' (this build has no OpenImageIO: use .ppm or .pfm)");
+#endif
+}
+
+}  // namespace
+
+bool have_image_library() {
+#ifdef GRIDRT_WITH_OIIO
+  return true;
+#else
+  return false;
+#endif
+}
+
+uint8_t linear_to_srgb8(float c) {
+  if (!(c > 0.0f)) return 0;  // also NaN
+  if (c >= 1.0f) return 255;
+  const float s = c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+  return uint8_t(std::lround(s * 255.0f));
+}
+
+void write_image(const std::string& path, uint32_t width, uint32_t height, const std::vector<glm::vec3>& rgb) {
+  check_size(path, width, height, rgb.size(), 1);
+  const std::string ext = lower_extension(path);
+  check_extension(path, ext);
+  std::vector<float> floats;
+  std::vector<uint8_t> bytes;
+  if (is_float_format(ext)) {
+    floats.reserve(rgb.size() * 3);
+    for (const glm::vec3& c : rgb) floats.insert(floats.end(), {c.x, c.y, c.z});
+  } else {
+    bytes.reserve(rgb.size() * 3);
+    for (const glm::vec3& c : rgb)
+      bytes.insert(bytes.end(), {linear_to_srgb8(c.x), linear_to_srgb8(c.y), linear_to_srgb8(c.z)});
+  }
+  write_atomically(path, [&](const std::string& tmp) {
+    if (ext == ".ppm" || ext == ".pfm") return write_netpbm(path, tmp, width, height, ext == ".pfm", bytes, floats);
+#ifdef GRIDRT_WITH_OIIO
+    if (is_float_format(ext)) write_oiio(path, tmp, width, height, 3, OIIO::TypeDesc::FLOAT, floats.data());
+    else write_oiio(path, tmp, width, height, 3, OIIO::TypeDesc::UINT8, bytes.data());
+#endif
+  });
+}
+
+void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgba) {
+  check_size(path, width, height, rgba.size(), 4);
+  const std::string ext = lower_extension(path);
+  check_extension(path, ext);
+  std::vector<float> floats;
+  std::vector<uint8_t> bytes;
+  const size_t n = size_t(width) * height;
+  if (is_float_format(ext)) {
+    for (size_t i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k) floats.push_back(float(rgba[i * 4 + k]) / 255.0f);
+  } else if (ext == ".ppm") {
+    for (size_t i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k) bytes.push_back(rgba[i * 4 + k]);
+  }
+  write_atomically(path, [&](const std::string& tmp) {
+    if (ext == ".ppm" || ext == ".pfm") return write_netpbm(path, tmp, width, height, ext == ".pfm", bytes, floats);
+#ifdef GRIDRT_WITH_OIIO
+    if (is_float_format(ext)) write_oiio(path, tmp, width, height, 3, OIIO::TypeDesc::FLOAT, floats.data());
+    else write_oiio(path, tmp, width, height, 4, OIIO::TypeDesc::UINT8, rgba.data());
+#endif
+  });
+}
+
+Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_channel) {
+#ifdef GRIDRT_WITH_OIIO
+  // Keep colour and alpha as stored (OpenImageIO premultiplies by default): a masked-out texel
+  // still has its colour.
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(path, &config);
+  if (!in) {
+    std::string why = OIIO::geterror();
+    if (!fs::exists(path)) why = "no such file";
+    throw Error("cannot load texture '" + path + "': " + why);
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  const int nch = spec.nchannels;
+  if (spec.width <= 0 || spec.height <= 0 || nch <= 0 || spec.depth > 1)
+    throw Error("cannot load texture '" + path + "': not a 2D image with channels");
+  Texture tex;
+  tex.path = path;
+  tex.width = uint32_t(spec.width);
+  tex.height = uint32_t(spec.height);
+  const size_t n = size_t(tex.width) * tex.height;
+  std::vector<uint8_t> px(n * size_t(nch));
+  if (!in->read_image(0, 0, 0, nch, OIIO::TypeDesc::UINT8, px.data()))
+    throw Error("cannot load texture '" + path + "': " + in->geterror());
+  in->close();
+
+  // Which channel is alpha: the one the file names, else the last of 2 or 4.
+  int a = spec.alpha_channel;
+  if (a < 0 || a >= nch) a = (nch == 2 || nch == 4) ? nch - 1 : -1;
+  if (alpha_channel) *alpha_channel = a >= 0;
+  if (a < 0 && alpha == AlphaSource::kFirstChannel) a = 0;
+  tex.rgba.resize(n * 4);
+  for (size_t i = 0; i < n; ++i) {
+    const uint8_t* p = px.data() + i * size_t(nch);
+    uint8_t* q = tex.rgba.data() + i * 4;
+    if (nch >= 3) { q[0] = p[0]; q[1] = p[1]; q[2] = p[2]; }
+    else { q[0] = q[1] = q[2] = p[0]; }
+    q[3] = a >= 0 ? p[a] : 255;
+    if (q[3] < 255) tex.has_alpha = true;
+  }
+  return tex;
+#else
+  (void)alpha;
+  (void)alpha_channel;
+  throw Error("cannot load texture '" + path +
+              "': this build has no OpenImageIO (GRIDRT_WITH_OIIO off); load the scene from a "
+              ".gridscene cache written by a full build instead");
+#endif
+}
+
+}  // namespace gridrt

@@ -1,0 +1,364 @@
+// gltf.cpp: glTF 2.0 (.gltf, .glb) through TinyGLTF.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <iostream>
+#include <sstream>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <tiny_gltf.h>
+
+#include "common/loaders/loaders.h"
+
+namespace gridrt {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Ctx {
+  const std::string& path;
+  const tinygltf::Model& model;
+  [[noreturn]] void fail(const std::string& what) const { throw Error("glTF '" + path + "': " + what); }
+};
+
+size_t component_size(int type) {
+  switch (type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
+    case TINYGLTF_COMPONENT_TYPE_SHORT:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
+    case TINYGLTF_COMPONENT_TYPE_INT:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
+    default: return 0;
+  }
+}
+
+// The bytes of element i of an accessor, after checking that all `count` elements lie inside
+// the buffer. Calls fn(const unsigned char* element, size_t i) for each.
+void for_each_element(const Ctx& c, int accessor_index, const char* what, int want_type,
+                      const std::function<void(const unsigned char*, size_t)>& fn, size_t& count_out,
+                      int& component_type_out, bool& normalized_out) {
+  if (accessor_index < 0 || size_t(accessor_index) >= c.model.accessors.size())
+    c.fail(std::string(what) + ": accessor " + std::to_string(accessor_index) + " does not exist");
+  const tinygltf::Accessor& a = c.model.accessors[size_t(accessor_index)];
+  const std::string where = std::string(what) + " (accessor " + std::to_string(accessor_index) + ")";
+  if (a.type != want_type) c.fail(where + ": unexpected element type " + std::to_string(a.type));
+  if (a.sparse.isSparse) c.fail(where + ": sparse accessors are not supported");
+  if (a.bufferView < 0 || size_t(a.bufferView) >= c.model.bufferViews.size())
+    c.fail(where + ": no valid buffer view");
+  const tinygltf::BufferView& view = c.model.bufferViews[size_t(a.bufferView)];
+  if (view.buffer < 0 || size_t(view.buffer) >= c.model.buffers.size()) c.fail(where + ": no valid buffer");
+  const tinygltf::Buffer& buffer = c.model.buffers[size_t(view.buffer)];
+  const size_t comp = component_size(a.componentType);
+  const int ncomp = tinygltf::GetNumComponentsInType(uint32_t(a.type));
+  if (comp == 0 || ncomp <= 0) c.fail(where + ": unknown component type");
+  const size_t elem = comp * size_t(ncomp);
+  const int stride_i = a.ByteStride(view);
+  if (stride_i <= 0) c.fail(where + ": invalid byte stride");
+  const size_t stride = size_t(stride_i);
+  const size_t start = view.byteOffset + a.byteOffset;
+  const size_t view_end = view.byteOffset + view.byteLength;
+  if (a.count > 0) {
+    const size_t last = start + stride * (a.count - 1) + elem;
+    if (last > view_end || view_end > buffer.data.size() || last < start)
+      c.fail(where + ": " + std::to_string(a.count) + " elements run past the end of the buffer (" +
+             std::to_string(buffer.data.size()) + " bytes)");
+  }
+  count_out = a.count;
+  component_type_out = a.componentType;
+  normalized_out = a.normalized;
+  for (size_t i = 0; i < a.count; ++i) fn(buffer.data.data() + start + i * stride, i);
+}
+
+float read_component(const unsigned char* p, int type, bool normalized) {
+  switch (type) {
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); return f; }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? float(*p) / 255.0f : float(*p);
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+      uint16_t v; std::memcpy(&v, p, 2); return normalized ? float(v) / 65535.0f : float(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_BYTE: {
+      int8_t v; std::memcpy(&v, p, 1); return normalized ? std::max(float(v) / 127.0f, -1.0f) : float(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_SHORT: {
+      int16_t v; std::memcpy(&v, p, 2); return normalized ? std::max(float(v) / 32767.0f, -1.0f) : float(v);
+    }
+    default: return 0.0f;
+  }
+}
+
+template <int N>
+std::vector<glm::vec<N, float>> read_vectors(const Ctx& c, int accessor, const char* what) {
+  std::vector<glm::vec<N, float>> out;
+  size_t count; int ctype; bool norm;
+  const int want = N == 2 ? TINYGLTF_TYPE_VEC2 : TINYGLTF_TYPE_VEC3;
+  // First pass sizes `out` through the count; elements are written as they come.
+  for_each_element(
+      c, accessor, what, want,
+      [&](const unsigned char* p, size_t i) {
+        if (out.empty()) out.resize(c.model.accessors[size_t(accessor)].count);
+        const int t = c.model.accessors[size_t(accessor)].componentType;
+        const size_t cs = component_size(t);
+        for (int k = 0; k < N; ++k)
+          out[i][k] = read_component(p + size_t(k) * cs, t, c.model.accessors[size_t(accessor)].normalized);
+      },
+      count, ctype, norm);
+  return out;
+}
+
+std::vector<uint32_t> read_indices(const Ctx& c, int accessor) {
+  std::vector<uint32_t> out;
+  size_t count; int ctype; bool norm;
+  for_each_element(
+      c, accessor, "indices", TINYGLTF_TYPE_SCALAR,
+      [&](const unsigned char* p, size_t) {
+        const int t = c.model.accessors[size_t(accessor)].componentType;
+        uint32_t v = 0;
+        if (t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) v = *p;
+        else if (t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) { uint16_t s; std::memcpy(&s, p, 2); v = s; }
+        else if (t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) std::memcpy(&v, p, 4);
+        else c.fail("indices (accessor " + std::to_string(accessor) + ") must be unsigned byte, short or int");
+        out.push_back(v);
+      },
+      count, ctype, norm);
+  return out;
+}
+
+// A decoded glTF image as an RGBA8 texture.
+Texture image_texture(const Ctx& c, int image_index) {
+  if (image_index < 0 || size_t(image_index) >= c.model.images.size())
+    c.fail("image " + std::to_string(image_index) + " does not exist");
+  const tinygltf::Image& img = c.model.images[size_t(image_index)];
+  const std::string what = "image " + std::to_string(image_index) + (img.uri.empty() ? "" : " ('" + img.uri + "')");
+  if (img.width <= 0 || img.height <= 0 || img.component < 1 || img.component > 4 || (img.bits != 8 && img.bits != 16))
+    c.fail(what + ": not decoded (" + std::to_string(img.width) + " x " + std::to_string(img.height) + ", " +
+           std::to_string(img.component) + " channels of " + std::to_string(img.bits) + " bits)");
+  const size_t n = size_t(img.width) * size_t(img.height);
+  const size_t bpc = size_t(img.bits / 8);
+  const size_t nc = size_t(img.component);
+  if (img.image.size() < n * nc * bpc) c.fail(what + ": decoded data too short");
+  Texture tex;
+  tex.path = c.path + "#image" + std::to_string(image_index);
+  tex.width = uint32_t(img.width);
+  tex.height = uint32_t(img.height);
+  tex.rgba.resize(n * 4);
+  auto chan = [&](size_t i, size_t k) -> uint8_t {
+    const unsigned char* p = img.image.data() + (i * nc + k) * bpc;
+    return bpc == 1 ? p[0] : p[1];  // 16-bit little-endian: keep the high byte
+  };
+  for (size_t i = 0; i < n; ++i) {
+    uint8_t* q = tex.rgba.data() + i * 4;
+    if (nc >= 3) { q[0] = chan(i, 0); q[1] = chan(i, 1); q[2] = chan(i, 2); }
+    else { q[0] = q[1] = q[2] = chan(i, 0); }
+    q[3] = (nc == 2 || nc == 4) ? chan(i, nc - 1) : 255;
+    if (q[3] < 255) tex.has_alpha = true;
+  }
+  return tex;
+}
+
+glm::mat4 local_matrix(const tinygltf::Node& n) {
+  if (n.matrix.size() == 16) {
+    glm::mat4 m;
+    for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = float(n.matrix[size_t(i)]);
+    return m;
+  }
+  glm::mat4 m(1.0f);
+  if (n.translation.size() == 3)
+    m = glm::translate(m, glm::vec3(float(n.translation[0]), float(n.translation[1]), float(n.translation[2])));
+  if (n.rotation.size() == 4)
+    m *= glm::mat4_cast(glm::quat(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]), float(n.rotation[2])));
+  if (n.scale.size() == 3) m = glm::scale(m, glm::vec3(float(n.scale[0]), float(n.scale[1]), float(n.scale[2])));
+  return m;
+}
+
+}  // namespace
+
+std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCache& textures) {
+  if (!fs::is_regular_file(path)) throw Error("cannot open glTF '" + path + "': no such file");
+  tinygltf::TinyGLTF loader;
+  tinygltf::Model model;
+  std::string err, warn;
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  const bool ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
+                                : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+  if (!ok || !err.empty()) {
+    while (!err.empty() && err.back() == '\n') err.pop_back();
+    throw Error("cannot load glTF '" + path + "': " + (err.empty() ? std::string("TinyGLTF failed") : err));
+  }
+  if (!warn.empty()) {
+    std::istringstream ws(warn);
+    for (std::string w; std::getline(ws, w);)
+      if (!w.empty()) std::cerr << "warning: " << path << ": " << w << "\n";
+  }
+  const Ctx c{path, model};
+
+  // Materials and their textures.
+  const uint32_t material_base = uint32_t(scene.materials.size());
+  auto texture_of = [&](int texture_index) -> int {
+    if (texture_index < 0 || size_t(texture_index) >= model.textures.size())
+      c.fail("texture " + std::to_string(texture_index) + " does not exist");
+    return model.textures[size_t(texture_index)].source;
+  };
+  for (size_t mi = 0; mi < model.materials.size(); ++mi) {
+    const tinygltf::Material& gm = model.materials[mi];
+    const auto& pbr = gm.pbrMetallicRoughness;
+    Material mat;
+    mat.name = gm.name.empty() ? "material" + std::to_string(mi) : gm.name;
+    float factor_alpha = 1.0f;
+    if (pbr.baseColorFactor.size() == 4) {
+      mat.diffuse = glm::vec3(float(pbr.baseColorFactor[0]), float(pbr.baseColorFactor[1]), float(pbr.baseColorFactor[2]));
+      factor_alpha = float(pbr.baseColorFactor[3]);
+      mat.opacity = factor_alpha;
+    }
+    if (pbr.baseColorTexture.index >= 0) {
+      const int image = texture_of(pbr.baseColorTexture.index);
+      if (pbr.baseColorTexture.texCoord != 0)
+        std::cerr << "warning: " << path << ": material '" << mat.name << "' uses TEXCOORD_"
+                  << pbr.baseColorTexture.texCoord << "; only TEXCOORD_0 is read\n";
+      const std::string key = path + "#image" + std::to_string(image);
+      mat.diffuse_texture = textures.get_or_add(scene, key, [&] { return image_texture(c, image); });
+      if (gm.alphaMode == "MASK") {
+        const float cutoff = float(gm.alphaCutoff);
+        if (cutoff == 0.5f && factor_alpha == 1.0f) {
+          mat.alpha_texture = mat.diffuse_texture;
+        } else {
+          // Bake factor and cutoff into a copy, so that alpha.h's fixed cutoff (128) applies.
+          std::ostringstream k;
+          k << key << "#mask" << cutoff << "x" << factor_alpha;
+          const int32_t src = mat.diffuse_texture;
+          mat.alpha_texture = textures.get_or_add(scene, k.str(), [&] {
+            Texture t = scene.textures[size_t(src)];
+            t.path = k.str();
+            t.has_alpha = false;
+            for (size_t i = 3; i < t.rgba.size(); i += 4) {
+              t.rgba[i] = float(t.rgba[i]) / 255.0f * factor_alpha >= cutoff ? 255 : 0;
+              if (t.rgba[i] < 255) t.has_alpha = true;
+            }
+            return t;
+          });
+        }
+      }
+    }
+    scene.materials.push_back(std::move(mat));
+  }
+  int64_t default_material = -1;
+
+  // Meshes: triangle primitives merged, one Mesh per glTF mesh.
+  const uint32_t mesh_base = uint32_t(scene.meshes.size());
+  for (size_t mi = 0; mi < model.meshes.size(); ++mi) {
+    const tinygltf::Mesh& gmesh = model.meshes[mi];
+    Mesh mesh;
+    mesh.name = gmesh.name.empty() ? fs::path(path).stem().string() + "/mesh" + std::to_string(mi) : gmesh.name;
+    bool all_normals = true, any_uv = false;
+    std::vector<glm::vec3> normals;
+    for (size_t pi = 0; pi < gmesh.primitives.size(); ++pi) {
+      const tinygltf::Primitive& prim = gmesh.primitives[pi];
+      const std::string where = "mesh '" + mesh.name + "' primitive " + std::to_string(pi);
+      if (prim.mode != -1 && prim.mode != TINYGLTF_MODE_TRIANGLES)
+        c.fail(where + ": mode " + std::to_string(prim.mode) + " is not supported (only triangles, mode 4)");
+      auto pos_it = prim.attributes.find("POSITION");
+      if (pos_it == prim.attributes.end()) c.fail(where + ": no POSITION attribute");
+      const auto positions = read_vectors<3>(c, pos_it->second, "POSITION");
+      std::vector<glm::vec3> prim_normals;
+      if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) {
+        prim_normals = read_vectors<3>(c, it->second, "NORMAL");
+        if (prim_normals.size() != positions.size()) c.fail(where + ": NORMAL count differs from POSITION count");
+      } else {
+        all_normals = false;
+      }
+      std::vector<glm::vec2> prim_uvs;
+      if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) {
+        prim_uvs = read_vectors<2>(c, it->second, "TEXCOORD_0");
+        if (prim_uvs.size() != positions.size()) c.fail(where + ": TEXCOORD_0 count differs from POSITION count");
+        any_uv = true;
+      }
+      std::vector<uint32_t> indices;
+      if (prim.indices >= 0) {
+        indices = read_indices(c, prim.indices);
+      } else {
+        indices.resize(positions.size());
+        for (uint32_t i = 0; i < indices.size(); ++i) indices[i] = i;
+      }
+      if (indices.size() % 3 != 0) c.fail(where + ": " + std::to_string(indices.size()) + " indices is not a multiple of 3");
+      for (uint32_t i : indices)
+        if (i >= positions.size())
+          c.fail(where + ": index " + std::to_string(i) + " out of range (" + std::to_string(positions.size()) + " vertices)");
+
+      uint32_t material;
+      if (prim.material >= 0) {
+        if (size_t(prim.material) >= model.materials.size()) c.fail(where + ": material " + std::to_string(prim.material) + " does not exist");
+        material = material_base + uint32_t(prim.material);
+      } else {
+        if (default_material < 0) {
+          default_material = int64_t(scene.materials.size());
+          scene.materials.push_back(Material{.name = "default"});
+        }
+        material = uint32_t(default_material);
+      }
+      const uint32_t first = uint32_t(mesh.positions.size());
+      for (size_t v = 0; v < positions.size(); ++v) {
+        mesh.positions.push_back(positions[v]);
+        normals.push_back(prim_normals.empty() ? glm::vec3(0.0f) : prim_normals[v]);
+        // glTF puts v = 0 at the first row of the image; alpha.h puts it at the last: flip.
+        mesh.uvs.push_back(prim_uvs.empty() ? glm::vec2(0.0f) : glm::vec2(prim_uvs[v].x, 1.0f - prim_uvs[v].y));
+      }
+      for (size_t t = 0; t < indices.size(); t += 3) {
+        mesh.triangles.emplace_back(first + indices[t], first + indices[t + 1], first + indices[t + 2]);
+        mesh.materials.push_back(material);
+      }
+    }
+    if (all_normals) mesh.normals = std::move(normals);
+    if (!any_uv) mesh.uvs.clear();
+    scene.meshes.push_back(std::move(mesh));
+  }
+
+  // Nodes: one instance per node with a mesh, at its world matrix.
+  std::vector<Instance> instances;
+  std::vector<int> depth_of(model.nodes.size(), -1);
+  std::function<void(int, const glm::mat4&, int)> visit = [&](int ni, const glm::mat4& parent, int depth) {
+    if (ni < 0 || size_t(ni) >= model.nodes.size()) c.fail("node " + std::to_string(ni) + " does not exist");
+    if (depth_of[size_t(ni)] >= 0 || depth > 1000) c.fail("node " + std::to_string(ni) + " is reached twice (a cycle or a shared child)");
+    depth_of[size_t(ni)] = depth;
+    const tinygltf::Node& node = model.nodes[size_t(ni)];
+    const glm::mat4 world = parent * local_matrix(node);
+    if (node.mesh >= 0) {
+      if (size_t(node.mesh) >= model.meshes.size()) c.fail("node " + std::to_string(ni) + ": mesh " + std::to_string(node.mesh) + " does not exist");
+      Instance inst;
+      inst.name = node.name.empty() ? "node" + std::to_string(ni) : node.name;
+      inst.mesh = mesh_base + uint32_t(node.mesh);
+      inst.transform = world;
+      instances.push_back(inst);
+    }
+    for (int child : node.children) visit(child, world, depth + 1);
+  };
+  std::vector<int> roots;
+  if (!model.scenes.empty()) {
+    const int s = model.defaultScene >= 0 && size_t(model.defaultScene) < model.scenes.size() ? model.defaultScene : 0;
+    roots = model.scenes[size_t(s)].nodes;
+  } else {
+    std::vector<bool> is_child(model.nodes.size(), false);
+    for (const auto& n : model.nodes)
+      for (int ch : n.children)
+        if (ch >= 0 && size_t(ch) < model.nodes.size()) is_child[size_t(ch)] = true;
+    for (size_t i = 0; i < model.nodes.size(); ++i)
+      if (!is_child[i]) roots.push_back(int(i));
+  }
+  for (int r : roots) visit(r, glm::mat4(1.0f), 0);
+  if (instances.empty() && model.nodes.empty()) {
+    // No nodes at all: every mesh once, untransformed.
+    for (size_t mi = 0; mi < model.meshes.size(); ++mi)
+      instances.push_back(Instance{.name = scene.meshes[mesh_base + mi].name, .mesh = mesh_base + uint32_t(mi)});
+  }
+  uint64_t triangles = 0;
+  for (const Instance& inst : instances) triangles += scene.meshes[inst.mesh].triangle_count();
+  if (triangles == 0) throw Error("glTF '" + path + "' has no triangles: an empty model");
+  return instances;
+}
+
+}  // namespace gridrt

@@ -1,0 +1,336 @@
+// obj.cpp: Wavefront OBJ + MTL through tinyobjloader, with the checks it does not make.
+#include <array>
+#include <charconv>
+#include <cctype>
+#include <cstdlib>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <set>
+#include <sstream>
+#include <string_view>
+#include <unordered_map>
+
+#include <tiny_obj_loader.h>
+
+#include "common/loaders/loaders.h"
+
+namespace gridrt {
+namespace fs = std::filesystem;
+
+int32_t TextureCache::load(Scene& scene, const std::string& path, AlphaSource alpha) {
+  std::error_code ec;
+  fs::path canon = fs::weakly_canonical(path, ec);
+  if (ec) canon = path;
+  // A file with an alpha channel gives the same texture for both alpha sources: store it once,
+  // under the plain key.
+  const std::string plain = canon.string();
+  const std::string first = plain + "#alpha-from-first-channel";
+  if (auto it = index_.find(plain); it != index_.end() && (alpha == AlphaSource::kImage || alpha_channel_[plain]))
+    return it->second;
+  if (auto it = index_.find(first); it != index_.end() && alpha == AlphaSource::kFirstChannel) return it->second;
+  bool has_alpha_channel = false;
+  Texture tex = load_texture(path, alpha, &has_alpha_channel);
+  const std::string key = alpha == AlphaSource::kImage || has_alpha_channel ? plain : first;
+  if (key == plain) alpha_channel_[plain] = has_alpha_channel;
+  return get_or_add(scene, key, [&] { return std::move(tex); });
+}
+
+namespace {
+
+std::string read_file(const std::string& path, const std::string& what) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw Error("cannot open " + what + " '" + path + "'" + (fs::exists(path) ? "" : ": no such file"));
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+std::vector<std::string_view> split_ws(std::string_view line) {
+  std::vector<std::string_view> out;
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+    size_t j = i;
+    while (j < line.size() && line[j] != ' ' && line[j] != '\t') ++j;
+    if (j > i) out.push_back(line.substr(i, j - i));
+    i = j;
+  }
+  return out;
+}
+
+// Calls fn(line_number, tokens) for every non-empty, non-comment line.
+template <class Fn>
+void for_each_line(const std::string& text, Fn fn) {
+  size_t pos = 0;
+  size_t number = 0;
+  while (pos < text.size()) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + pos, end - pos);
+    ++number;
+    pos = end + 1;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const size_t hash = line.find('#');
+    if (hash != std::string_view::npos) line = line.substr(0, hash);
+    auto tokens = split_ws(line);
+    if (!tokens.empty()) fn(number, tokens);
+  }
+}
+
+// A number that overflows a double parses as +-inf (and is then rejected as non-finite); one
+// that underflows as 0 or a denormal.
+bool parse_float(std::string_view s, double& out) {
+  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  out = 0.0;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+  if (p != s.data() + s.size()) return false;
+  if (ec == std::errc::result_out_of_range) {
+    out = std::strtod(std::string(s).c_str(), nullptr);  // +-HUGE_VAL or a tiny value
+    return true;
+  }
+  return ec == std::errc();
+}
+
+bool parse_int(std::string_view s, long& out) {
+  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+  return ec == std::errc() && p == s.data() + s.size();
+}
+
+[[noreturn]] void fail_at(const std::string& path, size_t line, const std::string& what) {
+  throw Error(path + ":" + std::to_string(line) + ": " + what);
+}
+
+// Every token after the keyword that is not an option (-name) must be a finite number; at least
+// `min_numbers` of them.
+void check_numbers(const std::string& path, size_t line, const std::vector<std::string_view>& tok,
+                   size_t min_numbers) {
+  size_t numbers = 0;
+  for (size_t i = 1; i < tok.size(); ++i) {
+    if (tok[i].size() > 1 && tok[i][0] == '-' && std::isalpha(static_cast<unsigned char>(tok[i][1])) &&
+        tok[i] != "-inf" && tok[i] != "-nan")
+      continue;
+    double v;
+    if (!parse_float(tok[i], v))
+      fail_at(path, line, "'" + std::string(tok[0]) + "': '" + std::string(tok[i]) + "' is not a number");
+    if (!std::isfinite(v))
+      fail_at(path, line, "'" + std::string(tok[0]) + "': non-finite value '" + std::string(tok[i]) + "'");
+    ++numbers;
+  }
+  if (numbers < min_numbers)
+    fail_at(path, line, "'" + std::string(tok[0]) + "' needs " + std::to_string(min_numbers) +
+                            " numbers, has " + std::to_string(numbers));
+}
+
+// What the pre-scan of an OBJ file learns.
+struct ObjScan {
+  std::vector<std::pair<std::string, size_t>> mtllibs;  // file name, line
+  std::vector<std::pair<std::string, size_t>> usemtls;  // material name, first line
+};
+
+// tinyobjloader reads a malformed number as 0 and only warns about out-of-range indices (with
+// the number of the last line); this pass finds such lines first.
+ObjScan scan_obj(const std::string& path, const std::string& text) {
+  ObjScan scan;
+  std::set<std::string> used;
+  long counts[3] = {0, 0, 0};                     // v, vt, vn so far
+  long max_index[3] = {0, 0, 0};                  // largest positive index used
+  size_t max_line[3] = {0, 0, 0};                 // where
+  static const char* kinds[3] = {"vertex", "texture coordinate", "normal"};
+  for_each_line(text, [&](size_t line, const std::vector<std::string_view>& tok) {
+    const std::string_view k = tok[0];
+    if (k == "v") { check_numbers(path, line, tok, 3); ++counts[0]; }
+    else if (k == "vt") { check_numbers(path, line, tok, 1); ++counts[1]; }
+    else if (k == "vn") { check_numbers(path, line, tok, 3); ++counts[2]; }
+    else if (k == "f") {
+      if (tok.size() < 4) fail_at(path, line, "face with fewer than 3 vertices");
+      for (size_t i = 1; i < tok.size(); ++i) {
+        std::string_view t = tok[i];
+        for (int slot = 0; slot < 3 && !t.empty(); ++slot) {
+          const size_t slash = t.find('/');
+          const std::string_view part = t.substr(0, slash);
+          t = slash == std::string_view::npos ? std::string_view() : t.substr(slash + 1);
+          if (part.empty() && slot > 0) continue;  // "v//vn"
+          long idx;
+          if (!parse_int(part, idx) || idx == 0)
+            fail_at(path, line, "face: '" + std::string(tok[i]) + "' is not a valid index (1-based, or negative)");
+          if (idx < 0 && -idx > counts[slot])
+            fail_at(path, line, "face: relative " + std::string(kinds[slot]) + " index " + std::to_string(idx) +
+                                    " reaches before the first of " + std::to_string(counts[slot]));
+          if (idx > max_index[slot]) { max_index[slot] = idx; max_line[slot] = line; }
+        }
+      }
+    } else if (k == "mtllib") {
+      if (tok.size() < 2) fail_at(path, line, "mtllib without a file name");
+      for (size_t i = 1; i < tok.size(); ++i) scan.mtllibs.emplace_back(std::string(tok[i]), line);
+    } else if (k == "usemtl") {
+      if (tok.size() < 2) fail_at(path, line, "usemtl without a material name");
+      std::string name(tok[1]);
+      if (used.insert(name).second) scan.usemtls.emplace_back(name, line);
+    }
+  });
+  for (int s = 0; s < 3; ++s)
+    if (max_index[s] > counts[s])
+      fail_at(path, max_line[s], "face: " + std::string(kinds[s]) + " index " + std::to_string(max_index[s]) +
+                                     " out of range (the file has " + std::to_string(counts[s]) + ")");
+  return scan;
+}
+
+// MTL lines tinyobjloader reads leniently: scalar and colour statements must hold numbers,
+// texture statements a file name.
+void scan_mtl(const std::string& path) {
+  const std::string text = read_file(path, "material library");
+  for_each_line(text, [&](size_t line, const std::vector<std::string_view>& tok) {
+    const std::string_view k = tok[0];
+    if (k == "Kd" || k == "Ka" || k == "Ks" || k == "Ke" || k == "Tf") {
+      if (tok.size() > 1 && (tok[1] == "spectral" || tok[1] == "xyz")) return;
+      check_numbers(path, line, tok, 1);
+    } else if (k == "Ns" || k == "Ni" || k == "d" || k == "Tr" || k == "illum") {
+      check_numbers(path, line, tok, 1);
+    } else if (k == "map_Kd" || k == "map_d") {
+      if (tok.size() < 2) fail_at(path, line, std::string(k) + " without a file name");
+    }
+  });
+}
+
+std::string texture_path(const fs::path& dir, std::string name) {
+  for (char& c : name)
+    if (c == '\\') c = '/';
+  return (dir / name).string();
+}
+
+struct TripleHash {
+  size_t operator()(const std::array<int, 3>& t) const {
+    return (size_t(uint32_t(t[0])) * 0x9E3779B97F4A7C15ull) ^ (size_t(uint32_t(t[1])) * 0xC2B2AE3D27D4EB4Full) ^
+           (size_t(uint32_t(t[2])) * 0x165667B19E3779F9ull);
+  }
+};
+
+}  // namespace
+
+std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCache& textures) {
+  // Check what tinyobjloader lets pass: numbers, indices, material libraries and names.
+  const std::string text = read_file(path, "OBJ file");
+  const ObjScan scan = scan_obj(path, text);
+  const fs::path dir = fs::path(path).parent_path();
+  for (const auto& [name, line] : scan.mtllibs) {
+    const fs::path mtl = dir / name;
+    if (!fs::is_regular_file(mtl)) fail_at(path, line, "material library '" + mtl.string() + "' not found");
+    scan_mtl(mtl.string());
+  }
+
+  // Parse with tinyobjloader.
+  tinyobj::ObjReaderConfig config;
+  config.triangulate = true;
+  config.vertex_color = false;
+  config.mtl_search_path = dir.string();
+  tinyobj::ObjReader file_reader;
+  if (!file_reader.ParseFromFile(path, config) || !file_reader.Error().empty()) {
+    std::string err = file_reader.Error();
+    while (!err.empty() && err.back() == '\n') err.pop_back();
+    throw Error("cannot load OBJ '" + path + "': " + (err.empty() ? "tinyobjloader failed" : err));
+  }
+  const tinyobj::attrib_t& attrib = file_reader.GetAttrib();
+  const auto& shapes = file_reader.GetShapes();
+  const auto& mats = file_reader.GetMaterials();
+
+  // Every usemtl must name a material of the libraries.
+  std::set<std::string> names;
+  for (const auto& m : mats) names.insert(m.name);
+  for (const auto& [name, line] : scan.usemtls)
+    if (!names.count(name)) fail_at(path, line, "usemtl '" + name + "': no such material in the material libraries");
+
+  {
+    std::istringstream warnings(file_reader.Warning());
+    for (std::string w; std::getline(warnings, w);)
+      if (!w.empty()) std::cerr << "warning: " << path << ": " << w << "\n";
+  }
+
+  // Materials, with their textures.
+  const uint32_t base = uint32_t(scene.materials.size());
+  for (const auto& m : mats) {
+    Material mat;
+    mat.name = m.name;
+    mat.diffuse = glm::vec3(float(m.diffuse[0]), float(m.diffuse[1]), float(m.diffuse[2]));
+    mat.opacity = float(m.dissolve);
+    if (!m.diffuse_texname.empty())
+      mat.diffuse_texture = textures.load(scene, texture_path(dir, m.diffuse_texname), AlphaSource::kImage);
+    if (!m.alpha_texname.empty())
+      mat.alpha_texture = textures.load(scene, texture_path(dir, m.alpha_texname), AlphaSource::kFirstChannel);
+    scene.materials.push_back(std::move(mat));
+  }
+  int64_t default_material = -1;  // for faces without usemtl, added on first use
+
+  // One vertex per distinct (v, vt, vn) triple.
+  Mesh mesh;
+  mesh.name = fs::path(path).stem().string();
+  std::unordered_map<std::array<int, 3>, uint32_t, TripleHash> vertex_of;
+  bool all_normals = true, any_uv = false;
+  std::vector<glm::vec3> normals;
+  for (const auto& shape : shapes) {
+    const auto& idx = shape.mesh.indices;
+    for (size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
+      if (shape.mesh.num_face_vertices[f] != 3)
+        throw Error("cannot load OBJ '" + path + "': face not triangulated");
+      glm::uvec3 tri;
+      for (int k = 0; k < 3; ++k) {
+        const tinyobj::index_t& ix = idx[3 * f + size_t(k)];
+        const std::array<int, 3> key{ix.vertex_index, ix.texcoord_index, ix.normal_index};
+        auto [it, fresh] = vertex_of.try_emplace(key, uint32_t(mesh.positions.size()));
+        if (fresh) {
+          const size_t v = size_t(ix.vertex_index);
+          if (ix.vertex_index < 0 || 3 * v + 2 >= attrib.vertices.size())
+            throw Error("cannot load OBJ '" + path + "': vertex index out of range");
+          mesh.positions.emplace_back(attrib.vertices[3 * v], attrib.vertices[3 * v + 1], attrib.vertices[3 * v + 2]);
+          glm::vec2 uv(0.0f);
+          if (ix.texcoord_index >= 0) {
+            const size_t t = size_t(ix.texcoord_index);
+            if (2 * t + 1 >= attrib.texcoords.size()) throw Error("cannot load OBJ '" + path + "': texcoord index out of range");
+            uv = {attrib.texcoords[2 * t], attrib.texcoords[2 * t + 1]};
+            any_uv = true;
+          }
+          mesh.uvs.push_back(uv);
+          glm::vec3 n(0.0f);
+          if (ix.normal_index >= 0) {
+            const size_t t = size_t(ix.normal_index);
+            if (3 * t + 2 >= attrib.normals.size()) throw Error("cannot load OBJ '" + path + "': normal index out of range");
+            n = {attrib.normals[3 * t], attrib.normals[3 * t + 1], attrib.normals[3 * t + 2]};
+          } else {
+            all_normals = false;
+          }
+          normals.push_back(n);
+        }
+        tri[k] = it->second;
+      }
+      mesh.triangles.push_back(tri);
+      int mid = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
+      if (mid < 0 || size_t(mid) >= mats.size()) {
+        if (default_material < 0) {
+          default_material = int64_t(scene.materials.size());
+          scene.materials.push_back(Material{.name = "default"});
+        }
+        mesh.materials.push_back(uint32_t(default_material));
+      } else {
+        mesh.materials.push_back(base + uint32_t(mid));
+      }
+    }
+  }
+  if (mesh.triangles.empty()) throw Error("OBJ '" + path + "' has no faces: an empty model");
+  if (all_normals) mesh.normals = std::move(normals);  // a vertex without a normal: flat shading
+  if (!any_uv) mesh.uvs.clear();
+
+  // Positions must be finite (the scan checked the text; this guards the conversion to float).
+  for (size_t i = 0; i < mesh.positions.size(); ++i)
+    if (!std::isfinite(mesh.positions[i].x) || !std::isfinite(mesh.positions[i].y) || !std::isfinite(mesh.positions[i].z))
+      throw Error("OBJ '" + path + "': vertex " + std::to_string(i) + " has a non-finite coordinate (out of float range)");
+
+  Instance inst;
+  inst.name = mesh.name;
+  inst.mesh = uint32_t(scene.meshes.size());
+  scene.meshes.push_back(std::move(mesh));
+  return {inst};
+}
+
+}  // namespace gridrt

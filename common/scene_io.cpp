@@ -1,0 +1,667 @@
+#include "common/scene_io.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <unistd.h>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <nlohmann/json.hpp>
+
+#include "common/builtin/builtin.h"
+#include "common/loaders/loaders.h"
+
+#ifndef GRIDRT_DEFAULT_SCENES
+#define GRIDRT_DEFAULT_SCENES "../shared/data/scenes"
+#endif
+
+namespace gridrt {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+std::string lower_extension(std::string_view path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return ext;
+}
+
+std::string read_text(const std::string& path, const char* what) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw Error(std::string("cannot open ") + what + " '" + path + "'" + (fs::exists(path) ? "" : ": no such file"));
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+// ---------------------------------------------------------------------------------------------
+// JSON scene files
+
+// Reads one JSON scene file; every error names the file and the JSON path of the value.
+class SceneFileReader {
+ public:
+  explicit SceneFileReader(const std::string& path) : path_(path), dir_(fs::path(path).parent_path()) {}
+
+  Scene read() {
+    const std::string text = read_text(path_, "scene file");
+    json root;
+    try {
+      root = json::parse(text);
+    } catch (const json::parse_error& e) {
+      // nlohmann gives the byte position (1-based, just past the offending character).
+      const size_t at = std::min(e.byte > 0 ? e.byte - 1 : 0, text.size());
+      size_t line = 1, column = 1;
+      for (size_t i = 0; i < at; ++i) {
+        if (text[i] == '\n') { ++line; column = 1; } else { ++column; }
+      }
+      throw Error(path_ + ":" + std::to_string(line) + ":" + std::to_string(column) + ": JSON syntax error: " + e.what());
+    }
+    expect_object(root, "the top level");
+    check_keys(root, "", {"name", "description", "meshes", "materials", "instances", "camera", "lights", "grid", "background"});
+
+    scene_.name = root.contains("name") ? get_string(root["name"], "name") : fs::path(path_).stem().string();
+    if (!root.contains("meshes")) fail("", "no \"meshes\"");
+    if (!root.contains("instances")) fail("", "no \"instances\"");
+    read_meshes(root["meshes"]);
+    if (root.contains("materials")) read_materials(root["materials"]);
+    read_instances(root["instances"]);
+    if (root.contains("camera")) read_camera(root["camera"]);
+    if (root.contains("lights")) read_lights(root["lights"]);
+    if (root.contains("grid")) read_grid(root["grid"]);
+    if (root.contains("background")) scene_.background = get_vec3(root["background"], "background");
+    try {
+      scene_.finalize();
+    } catch (const Error& e) {
+      throw Error(path_ + ": " + e.what());
+    }
+    return std::move(scene_);
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& where, const std::string& what) const {
+    throw Error(path_ + ": " + (where.empty() ? "" : where + ": ") + what);
+  }
+
+  void expect_object(const json& j, const std::string& where) const {
+    if (!j.is_object()) fail(where, std::string("expected an object, found ") + j.type_name());
+  }
+
+  void check_keys(const json& j, const std::string& where, std::initializer_list<const char*> allowed) const {
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return it.key() == a; })) {
+        std::string list;
+        for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
+        fail(where, "unknown key \"" + it.key() + "\" (expected one of: " + list + ")");
+      }
+    }
+  }
+
+  float get_number(const json& j, const std::string& where) const {
+    if (!j.is_number()) fail(where, std::string("expected a number, found ") + j.type_name());
+    const double d = j.get<double>();
+    if (!std::isfinite(d)) fail(where, "not a finite number");
+    return float(d);
+  }
+  uint32_t get_uint(const json& j, const std::string& where) const {
+    if (!j.is_number_unsigned() && !(j.is_number_integer() && j.get<int64_t>() >= 0))
+      fail(where, std::string("expected a non-negative integer, found ") + (j.is_number() ? j.dump() : j.type_name()));
+    const uint64_t v = j.get<uint64_t>();
+    if (v > UINT32_MAX) fail(where, "integer too large");
+    return uint32_t(v);
+  }
+  bool get_bool(const json& j, const std::string& where) const {
+    if (!j.is_boolean()) fail(where, std::string("expected true or false, found ") + j.type_name());
+    return j.get<bool>();
+  }
+  std::string get_string(const json& j, const std::string& where) const {
+    if (!j.is_string()) fail(where, std::string("expected a string, found ") + j.type_name());
+    return j.get<std::string>();
+  }
+  glm::vec3 get_vec3(const json& j, const std::string& where) const {
+    if (!j.is_array() || j.size() != 3) fail(where, "expected an array of 3 numbers");
+    return {get_number(j[0], where + "[0]"), get_number(j[1], where + "[1]"), get_number(j[2], where + "[2]")};
+  }
+
+  // "${GRIDRT_SCENES}/x" -> real_scenes_dir()/x; relative paths are relative to the scene file.
+  std::string resolve(const std::string& p, const std::string& where) const {
+    static const std::string kVar = "${GRIDRT_SCENES}";
+    std::string out = p;
+    bool real = false;
+    if (out.rfind(kVar, 0) == 0) {
+      out = real_scenes_dir() + out.substr(kVar.size());
+      real = true;
+    } else if (out.find("${") != std::string::npos) {
+      fail(where, "unknown variable in \"" + p + "\" (only ${GRIDRT_SCENES} is expanded)");
+    }
+    fs::path fp(out);
+    if (fp.is_relative()) fp = dir_ / fp;
+    if (!fs::exists(fp))
+      fail(where, "file '" + fp.string() + "' not found" +
+                      (real ? std::string(" (the real scenes folder is $GRIDRT_SCENES, else ") + GRIDRT_DEFAULT_SCENES + ")" : ""));
+    return fp.string();
+  }
+
+  void read_meshes(const json& j) {
+    expect_object(j, "meshes");
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      const std::string where = "meshes." + it.key();
+      const json& m = it.value();
+      expect_object(m, where);
+      std::vector<Instance> parts;
+      if (m.contains("file")) {
+        check_keys(m, where, {"file"});
+        const std::string file = resolve(get_string(m["file"], where + ".file"), where + ".file");
+        const std::string ext = lower_extension(file);
+        if (ext == ".obj") parts = load_obj(file, scene_, textures_);
+        else if (ext == ".gltf" || ext == ".glb") parts = load_gltf(file, scene_, textures_);
+        else fail(where + ".file", "unknown model extension '" + ext + "' (expected .obj, .gltf or .glb)");
+      } else if (m.contains("builtin")) {
+        check_keys(m, where, {"builtin", "level", "diffuse"});
+        const std::string name = get_string(m["builtin"], where + ".builtin");
+        if (name != "teapot") fail(where + ".builtin", "unknown built-in mesh \"" + name + "\" (expected \"teapot\")");
+        const uint32_t level = m.contains("level") ? get_uint(m["level"], where + ".level") : 6u;
+        if (level < 1 || level > 64) fail(where + ".level", "must lie in [1, 64]");
+        Material mat{.name = it.key()};
+        if (m.contains("diffuse")) mat.diffuse = get_vec3(m["diffuse"], where + ".diffuse");
+        Mesh mesh = builtin_teapot(level, where);
+        mesh.name = it.key();
+        mesh.materials.assign(mesh.triangles.size(), uint32_t(scene_.materials.size()));
+        scene_.materials.push_back(mat);
+        parts.push_back(Instance{.name = it.key(), .mesh = uint32_t(scene_.meshes.size())});
+        scene_.meshes.push_back(std::move(mesh));
+      } else {
+        fail(where, "needs \"file\" or \"builtin\"");
+      }
+      meshes_[it.key()] = std::move(parts);
+    }
+  }
+
+  Mesh builtin_teapot(uint32_t level, const std::string& where) const {
+#ifdef GRIDRT_HAVE_BUILTIN
+    (void)where;
+    return make_teapot_mesh(level);
+#else
+    (void)level;
+    fail(where, "this build has no built-in meshes yet (common/builtin is not implemented)");
+#endif
+  }
+
+  void read_materials(const json& j) {
+    expect_object(j, "materials");
+    check_keys(j, "materials", {"glossiness", "overrides"});
+    if (j.contains("glossiness")) {
+      const float g = get_number(j["glossiness"], "materials.glossiness");
+      for (Material& m : scene_.materials) m.glossiness = g;
+    }
+    if (j.contains("overrides")) {
+      expect_object(j["overrides"], "materials.overrides");
+      for (auto it = j["overrides"].begin(); it != j["overrides"].end(); ++it) {
+        const std::string where = "materials.overrides." + it.key();
+        expect_object(it.value(), where);
+        check_keys(it.value(), where, {"glossiness", "diffuse", "opacity"});
+        bool found = false;
+        for (Material& m : scene_.materials) {
+          if (m.name != it.key()) continue;
+          found = true;
+          if (it->contains("glossiness")) m.glossiness = get_number((*it)["glossiness"], where + ".glossiness");
+          if (it->contains("diffuse")) m.diffuse = get_vec3((*it)["diffuse"], where + ".diffuse");
+          if (it->contains("opacity")) m.opacity = get_number((*it)["opacity"], where + ".opacity");
+        }
+        if (!found) fail(where, "no material is named \"" + it.key() + "\"");
+      }
+    }
+  }
+
+  glm::mat4 read_transform(const json& j, const std::string& where) const {
+    glm::mat4 m(1.0f);
+    if (j.contains("translate")) m = glm::translate(m, get_vec3(j["translate"], where + ".translate"));
+    if (j.contains("rotate")) {
+      const json& r = j["rotate"];
+      const json list = r.is_array() ? r : json::array({r});
+      for (size_t i = 0; i < list.size(); ++i) {
+        const std::string w = where + ".rotate" + (r.is_array() ? "[" + std::to_string(i) + "]" : "");
+        expect_object(list[i], w);
+        check_keys(list[i], w, {"axis", "degrees"});
+        if (!list[i].contains("axis") || !list[i].contains("degrees")) fail(w, "needs \"axis\" and \"degrees\"");
+        const glm::vec3 axis = get_vec3(list[i]["axis"], w + ".axis");
+        if (glm::length(axis) == 0.0f) fail(w + ".axis", "zero axis");
+        m = glm::rotate(m, glm::radians(get_number(list[i]["degrees"], w + ".degrees")), glm::normalize(axis));
+      }
+    }
+    if (j.contains("scale")) {
+      const json& s = j["scale"];
+      m = glm::scale(m, s.is_number() ? glm::vec3(get_number(s, where + ".scale")) : get_vec3(s, where + ".scale"));
+    }
+    return m;
+  }
+
+  Motion read_motion(const json& j, const std::string& where, const glm::vec3& default_pivot) const {
+    expect_object(j, where);
+    check_keys(j, where, {"rotate", "path"});
+    Motion mo;
+    if (j.contains("rotate")) {
+      const std::string w = where + ".rotate";
+      const json& r = j["rotate"];
+      expect_object(r, w);
+      check_keys(r, w, {"axis", "pivot", "speed"});
+      mo.axis = r.contains("axis") ? get_vec3(r["axis"], w + ".axis") : glm::vec3(0, 1, 0);
+      mo.pivot = r.contains("pivot") ? get_vec3(r["pivot"], w + ".pivot") : default_pivot;
+      if (!r.contains("speed")) fail(w, "needs \"speed\" (radians per second)");
+      mo.angular_speed = get_number(r["speed"], w + ".speed");
+      if (glm::length(mo.axis) == 0.0f) fail(w + ".axis", "zero axis");
+    }
+    if (j.contains("path")) {
+      const std::string w = where + ".path";
+      const json& p = j["path"];
+      expect_object(p, w);
+      check_keys(p, w, {"points", "period"});
+      if (!p.contains("points") || !p["points"].is_array() || p["points"].empty())
+        fail(w + ".points", "expected a non-empty array of [x, y, z] offsets");
+      for (size_t i = 0; i < p["points"].size(); ++i)
+        mo.path_points.push_back(get_vec3(p["points"][i], w + ".points[" + std::to_string(i) + "]"));
+      mo.path_period = p.contains("period") ? get_number(p["period"], w + ".period") : 1.0f;
+      if (!(mo.path_period > 0.0f)) fail(w + ".period", "must be positive (seconds)");
+    }
+    return mo;
+  }
+
+  void read_instances(const json& j) {
+    if (!j.is_array()) fail("instances", std::string("expected an array, found ") + j.type_name());
+    for (size_t i = 0; i < j.size(); ++i) {
+      const std::string where = "instances[" + std::to_string(i) + "]";
+      const json& in = j[i];
+      expect_object(in, where);
+      check_keys(in, where, {"name", "mesh", "translate", "rotate", "scale", "dynamic", "motion"});
+      if (!in.contains("mesh")) fail(where, "needs \"mesh\"");
+      const std::string mesh = get_string(in["mesh"], where + ".mesh");
+      auto found = meshes_.find(mesh);
+      if (found == meshes_.end()) fail(where + ".mesh", "no mesh is named \"" + mesh + "\"");
+      const std::string name = in.contains("name") ? get_string(in["name"], where + ".name") : mesh;
+      const glm::mat4 m = read_transform(in, where);
+      const glm::vec3 translate = glm::vec3(m[3]);
+      Motion motion;
+      if (in.contains("motion")) motion = read_motion(in["motion"], where + ".motion", translate);
+      const bool dynamic = in.contains("dynamic") ? get_bool(in["dynamic"], where + ".dynamic") : motion.moves();
+      if (motion.moves() && !dynamic) fail(where, "has a motion but \"dynamic\": false (static instances never move)");
+      for (const Instance& part : found->second) {
+        Instance inst = part;
+        inst.name = found->second.size() == 1 ? name : name + "/" + part.name;
+        inst.transform = m * part.transform;
+        inst.dynamic = dynamic;
+        inst.motion = motion;
+        scene_.instances.push_back(std::move(inst));
+      }
+    }
+  }
+
+  void read_camera(const json& j) {
+    expect_object(j, "camera");
+    check_keys(j, "camera", {"eye", "target", "up", "vfov"});
+    Camera c;
+    if (!j.contains("eye") || !j.contains("target")) fail("camera", "needs \"eye\" and \"target\"");
+    c.eye = get_vec3(j["eye"], "camera.eye");
+    c.target = get_vec3(j["target"], "camera.target");
+    if (j.contains("up")) c.up = get_vec3(j["up"], "camera.up");
+    if (j.contains("vfov")) c.vfov_degrees = get_number(j["vfov"], "camera.vfov");
+    scene_.camera = c;
+  }
+
+  void read_lights(const json& j) {
+    if (!j.is_array()) fail("lights", std::string("expected an array, found ") + j.type_name());
+    for (size_t i = 0; i < j.size(); ++i) {
+      const std::string where = "lights[" + std::to_string(i) + "]";
+      expect_object(j[i], where);
+      check_keys(j[i], where, {"position", "direction", "color", "intensity"});
+      Light l;
+      if (j[i].contains("position") == j[i].contains("direction"))
+        fail(where, "needs exactly one of \"position\" (point light) and \"direction\" (towards a directional light)");
+      if (j[i].contains("position")) l.position = get_vec3(j[i]["position"], where + ".position");
+      else { l.position = get_vec3(j[i]["direction"], where + ".direction"); l.directional = true; }
+      if (j[i].contains("color")) l.color = get_vec3(j[i]["color"], where + ".color");
+      if (j[i].contains("intensity")) l.intensity = get_number(j[i]["intensity"], where + ".intensity");
+      scene_.lights.push_back(l);
+    }
+  }
+
+  void read_grid(const json& j) {
+    expect_object(j, "grid");
+    check_keys(j, "grid", {"resolution", "capacity", "cell_size"});
+    if (j.contains("resolution")) {
+      const json& r = j["resolution"];
+      if (!r.is_array() || r.size() != 3) fail("grid.resolution", "expected an array of 3 integers");
+      scene_.grid.resolution = glm::uvec3(get_uint(r[0], "grid.resolution[0]"), get_uint(r[1], "grid.resolution[1]"),
+                                          get_uint(r[2], "grid.resolution[2]"));
+    }
+    if (j.contains("capacity")) scene_.grid.capacity = get_uint(j["capacity"], "grid.capacity");
+    if (j.contains("cell_size")) scene_.grid.cell_size = get_number(j["cell_size"], "grid.cell_size");
+  }
+
+  std::string path_;
+  fs::path dir_;
+  Scene scene_;
+  TextureCache textures_;
+  std::map<std::string, std::vector<Instance>> meshes_;  // by name: the instances a file gave
+};
+
+// ---------------------------------------------------------------------------------------------
+// Binary cache
+
+static_assert(std::endian::native == std::endian::little, "the .gridscene writer assumes a little-endian host");
+constexpr char kMagic[8] = {'G', 'R', 'I', 'D', 'S', 'C', 'N', '\0'};
+constexpr char kEndMagic[8] = {'E', 'N', 'D', 'S', 'C', 'N', '\0', '\0'};
+
+class Writer {
+ public:
+  template <class T>
+  void pod(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    const char* p = reinterpret_cast<const char*>(&v);
+    out.append(p, sizeof(T));
+  }
+  template <class T>
+  void vec(const std::vector<T>& v) {
+    pod(uint64_t(v.size()));
+    if (!v.empty()) out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  }
+  void str(const std::string& s) {
+    pod(uint64_t(s.size()));
+    out.append(s);
+  }
+  std::string out;
+};
+
+class Reader {
+ public:
+  Reader(const std::string& data, const std::string& path) : d_(data), path_(path) {}
+  template <class T>
+  T pod(const char* what) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    need(sizeof(T), what);
+    T v;
+    std::memcpy(&v, d_.data() + pos_, sizeof(T));
+    pos_ += sizeof(T);
+    return v;
+  }
+  template <class T>
+  std::vector<T> vec(const char* what) {
+    const uint64_t n = pod<uint64_t>(what);
+    if (n > (d_.size() - pos_) / sizeof(T)) fail(std::string(what) + ": " + std::to_string(n) + " elements run past the end of the file");
+    std::vector<T> v(n);
+    if (n) std::memcpy(v.data(), d_.data() + pos_, n * sizeof(T));
+    pos_ += n * sizeof(T);
+    return v;
+  }
+  std::string str(const char* what) {
+    const uint64_t n = pod<uint64_t>(what);
+    need(n, what);
+    std::string s = d_.substr(pos_, n);
+    pos_ += n;
+    return s;
+  }
+  uint32_t count(const char* what, size_t min_bytes_each) {
+    const uint64_t n = pod<uint64_t>(what);
+    if (n > (d_.size() - pos_) / min_bytes_each) fail(std::string(what) + ": count " + std::to_string(n) + " exceeds the file");
+    return uint32_t(n);
+  }
+  bool flag(const char* what) {
+    const uint8_t b = pod<uint8_t>(what);
+    if (b > 1) fail(std::string(what) + ": flag byte " + std::to_string(b) + " is neither 0 nor 1");
+    return b != 0;
+  }
+  void need(uint64_t n, const char* what) const {
+    if (n > d_.size() - pos_) fail(std::string("truncated at ") + what + " (byte " + std::to_string(pos_) + " of " + std::to_string(d_.size()) + ")");
+  }
+  [[noreturn]] void fail(const std::string& what) const { throw Error("corrupt scene cache '" + path_ + "': " + what); }
+  size_t pos() const { return pos_; }
+  size_t size() const { return d_.size(); }
+  const char* at() const { return d_.data() + pos_; }
+  void skip(size_t n) { pos_ += n; }
+
+ private:
+  const std::string& d_;
+  const std::string& path_;
+  size_t pos_ = 0;
+};
+
+}  // namespace
+
+std::string real_scenes_dir() {
+  if (const char* env = std::getenv("GRIDRT_SCENES"); env && *env) return env;
+  return GRIDRT_DEFAULT_SCENES;
+}
+
+Scene load_scene_file(const std::string& path) { return SceneFileReader(path).read(); }
+
+Scene load_model_scene(const std::string& path) {
+  if (!fs::exists(path)) throw Error("cannot open model '" + path + "': no such file");
+  Scene scene;
+  scene.name = fs::path(path).filename().string();
+  TextureCache textures;
+  const std::string ext = lower_extension(path);
+  std::vector<Instance> parts;
+  if (ext == ".obj") parts = load_obj(path, scene, textures);
+  else if (ext == ".gltf" || ext == ".glb") parts = load_gltf(path, scene, textures);
+  else throw Error("cannot load model '" + path + "': unknown extension '" + ext + "' (expected .obj, .gltf or .glb)");
+  for (Instance& inst : parts) scene.instances.push_back(std::move(inst));
+  scene.finalize();
+  // A camera that frames it, and a light above and in front, bright enough at the centre.
+  const Camera cam = scene.frame_camera();
+  scene.camera = cam;
+  const Bounds b = scene.bounds(0.0f);
+  const glm::vec3 center = 0.5f * (b.lo + b.hi);
+  const float radius = std::max(0.5f * glm::length(b.extent()), 1e-6f);
+  Light light;
+  light.position = center + 0.5f * (cam.eye - center) + glm::vec3(0.0f, 2.0f * radius, 0.0f);
+  const float d = glm::length(light.position - center);
+  light.intensity = d * d;  // 1/d^2 falloff: unit irradiance at the centre
+  scene.lights.push_back(light);
+  return scene;
+}
+
+Scene load_scene(std::string_view spec) {
+  if (spec.rfind("builtin:", 0) == 0) {
+#ifdef GRIDRT_HAVE_BUILTIN
+    return make_builtin(spec.substr(8));
+#else
+    throw Error("cannot load '" + std::string(spec) + "': this build has no built-in scenes yet");
+#endif
+  }
+  const std::string path(spec);
+  const std::string ext = lower_extension(path);
+  if (ext == ".json") return load_scene_file(path);
+  if (ext == ".gridscene") return load_scene_binary(path);
+  if (ext == ".obj" || ext == ".gltf" || ext == ".glb") return load_model_scene(path);
+  throw Error("cannot load scene '" + path + "': unknown extension '" + ext +
+              "' (expected builtin:NAME, .json, .obj, .gltf, .glb or .gridscene)");
+}
+
+void save_scene_binary(const Scene& s, const std::string& path) {
+  Writer w;
+  w.out.append(kMagic, 8);
+  w.pod(kSceneBinaryVersion);
+  w.str(s.name);
+  w.pod(s.background);
+  w.pod(uint64_t(s.meshes.size()));
+  for (const Mesh& m : s.meshes) {
+    w.str(m.name);
+    w.vec(m.positions);
+    w.vec(m.normals);
+    w.vec(m.uvs);
+    w.vec(m.triangles);
+    w.vec(m.materials);
+  }
+  w.pod(uint64_t(s.materials.size()));
+  for (const Material& m : s.materials) {
+    w.str(m.name);
+    w.pod(m.diffuse);
+    w.pod(m.diffuse_texture);
+    w.pod(m.alpha_texture);
+    w.pod(m.glossiness);
+    w.pod(m.opacity);
+  }
+  w.pod(uint64_t(s.textures.size()));
+  for (const Texture& t : s.textures) {
+    w.str(t.path);
+    w.pod(t.width);
+    w.pod(t.height);
+    w.pod(uint8_t(t.has_alpha));
+    w.vec(t.rgba);
+  }
+  w.pod(uint64_t(s.instances.size()));
+  for (const Instance& i : s.instances) {
+    w.str(i.name);
+    w.pod(i.mesh);
+    w.pod(i.transform);
+    w.pod(uint8_t(i.dynamic));
+    w.pod(i.motion.axis);
+    w.pod(i.motion.pivot);
+    w.pod(i.motion.angular_speed);
+    w.vec(i.motion.path_points);
+    w.pod(i.motion.path_period);
+  }
+  w.pod(uint8_t(s.camera.has_value()));
+  if (s.camera) {
+    w.pod(s.camera->eye);
+    w.pod(s.camera->target);
+    w.pod(s.camera->up);
+    w.pod(s.camera->vfov_degrees);
+  }
+  w.pod(uint64_t(s.lights.size()));
+  for (const Light& l : s.lights) {
+    w.pod(l.position);
+    w.pod(l.color);
+    w.pod(l.intensity);
+    w.pod(uint8_t(l.directional));
+  }
+  w.pod(uint8_t(s.grid.resolution.has_value()));
+  w.pod(s.grid.resolution.value_or(glm::uvec3(0)));
+  w.pod(uint8_t(s.grid.capacity.has_value()));
+  w.pod(s.grid.capacity.value_or(0u));
+  w.pod(uint8_t(s.grid.cell_size.has_value()));
+  w.pod(s.grid.cell_size.value_or(0.0f));
+  w.out.append(kEndMagic, 8);
+
+  // Temp file beside the target, then rename: never a half-written cache.
+  const fs::path target(path);
+  const fs::path tmp = (target.has_parent_path() ? target.parent_path() : fs::path(".")) /
+                       ("." + target.filename().string() + ".tmp" + std::to_string(::getpid()));
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    if (!f) throw Error("cannot write scene cache '" + path + "': cannot create '" + tmp.string() + "'");
+    f.write(w.out.data(), std::streamsize(w.out.size()));
+    f.close();
+    if (!f) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw Error("cannot write scene cache '" + path + "': write failed");
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, target, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw Error("cannot write scene cache '" + path + "': " + ec.message());
+  }
+}
+
+Scene load_scene_binary(const std::string& path) {
+  const std::string data = read_text(path, "scene cache");
+  Reader r(data, path);
+  r.need(8, "the magic number");
+  if (std::memcmp(r.at(), kMagic, 8) != 0) r.fail("not a .gridscene file (wrong magic number)");
+  r.skip(8);
+  const uint32_t version = r.pod<uint32_t>("the version");
+  if (version != kSceneBinaryVersion)
+    r.fail("version " + std::to_string(version) + ", this build reads version " + std::to_string(kSceneBinaryVersion));
+  Scene s;
+  s.name = r.str("the scene name");
+  s.background = r.pod<glm::vec3>("the background");
+  s.meshes.resize(r.count("the mesh count", 48));
+  for (Mesh& m : s.meshes) {
+    m.name = r.str("a mesh name");
+    m.positions = r.vec<glm::vec3>("positions");
+    m.normals = r.vec<glm::vec3>("normals");
+    m.uvs = r.vec<glm::vec2>("uvs");
+    m.triangles = r.vec<glm::uvec3>("triangles");
+    m.materials = r.vec<uint32_t>("material ids");
+  }
+  s.materials.resize(r.count("the material count", 32));
+  for (Material& m : s.materials) {
+    m.name = r.str("a material name");
+    m.diffuse = r.pod<glm::vec3>("a diffuse colour");
+    m.diffuse_texture = r.pod<int32_t>("a diffuse texture");
+    m.alpha_texture = r.pod<int32_t>("an alpha texture");
+    m.glossiness = r.pod<float>("a glossiness");
+    m.opacity = r.pod<float>("an opacity");
+  }
+  s.textures.resize(r.count("the texture count", 25));
+  for (Texture& t : s.textures) {
+    t.path = r.str("a texture path");
+    t.width = r.pod<uint32_t>("a texture width");
+    t.height = r.pod<uint32_t>("a texture height");
+    t.has_alpha = r.flag("a texture alpha flag");
+    t.rgba = r.vec<uint8_t>("texels");
+    if (t.rgba.size() != uint64_t(t.width) * t.height * 4)
+      r.fail("texture '" + t.path + "': " + std::to_string(t.rgba.size()) + " bytes for " + std::to_string(t.width) + " x " +
+             std::to_string(t.height) + " RGBA8");
+  }
+  s.instances.resize(r.count("the instance count", 100));
+  for (Instance& i : s.instances) {
+    i.name = r.str("an instance name");
+    i.mesh = r.pod<uint32_t>("an instance mesh");
+    i.transform = r.pod<glm::mat4>("an instance transform");
+    i.dynamic = r.flag("an instance dynamic flag");
+    i.motion.axis = r.pod<glm::vec3>("a motion axis");
+    i.motion.pivot = r.pod<glm::vec3>("a motion pivot");
+    i.motion.angular_speed = r.pod<float>("an angular speed");
+    i.motion.path_points = r.vec<glm::vec3>("path points");
+    i.motion.path_period = r.pod<float>("a path period");
+  }
+  if (r.flag("the camera flag")) {
+    Camera c;
+    c.eye = r.pod<glm::vec3>("the camera eye");
+    c.target = r.pod<glm::vec3>("the camera target");
+    c.up = r.pod<glm::vec3>("the camera up");
+    c.vfov_degrees = r.pod<float>("the camera field of view");
+    s.camera = c;
+  }
+  s.lights.resize(r.count("the light count", 29));
+  for (Light& l : s.lights) {
+    l.position = r.pod<glm::vec3>("a light position");
+    l.color = r.pod<glm::vec3>("a light colour");
+    l.intensity = r.pod<float>("a light intensity");
+    l.directional = r.flag("a light directional flag");
+  }
+  const bool has_res = r.flag("the grid resolution flag");
+  const glm::uvec3 res = r.pod<glm::uvec3>("the grid resolution");
+  if (has_res) s.grid.resolution = res;
+  const bool has_cap = r.flag("the grid capacity flag");
+  const uint32_t cap = r.pod<uint32_t>("the grid capacity");
+  if (has_cap) s.grid.capacity = cap;
+  const bool has_cell = r.flag("the grid cell size flag");
+  const float cell = r.pod<float>("the grid cell size");
+  if (has_cell) s.grid.cell_size = cell;
+  r.need(8, "the end marker");
+  if (std::memcmp(r.at(), kEndMagic, 8) != 0) r.fail("end marker missing");
+  r.skip(8);
+  if (r.pos() != r.size()) r.fail(std::to_string(r.size() - r.pos()) + " bytes after the end marker");
+  // Validate every index and number, as for any other scene (the scene was finalized when it was
+  // saved, so this splits and reorders nothing).
+  try {
+    s.finalize();
+  } catch (const Error& e) {
+    r.fail(e.what());
+  }
+  return s;
+}
+
+}  // namespace gridrt

@@ -1,0 +1,125 @@
+#include "common/shade.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "common/shared/transform.h"
+// alpha.h calls min/max unqualified (GLSL built-ins); bring GLM's into gridrt::shared first.
+namespace gridrt::shared {
+using glm::floor;
+using glm::max;
+using glm::min;
+}  // namespace gridrt::shared
+#include "common/shared/alpha.h"
+
+namespace gridrt {
+
+namespace {
+
+glm::vec3 material_albedo(const Scene& scene, uint32_t material, glm::vec2 uv) {
+  if (material >= scene.materials.size()) return glm::vec3(0.0f);
+  const Material& m = scene.materials[material];
+  glm::vec3 c = m.diffuse;
+  if (m.diffuse_texture >= 0) {
+    const Texture& t = scene.textures[m.diffuse_texture];
+    if (t.width > 0 && t.height > 0) {
+      const glm::uvec2 xy = shared::alpha_texel_coords(uv, t.width, t.height);
+      const glm::u8vec4 texel = t.texel(xy.x, xy.y);
+      c *= glm::vec3(texel.r, texel.g, texel.b) * (1.0f / 255.0f);
+    }
+  }
+  return c;
+}
+
+// Light arriving at p with unit normal n, from every light (or the headlight), no shadows unless
+// a shadow tracer is given.
+glm::vec3 direct_light(const Scene& scene, glm::vec3 p, glm::vec3 n, uint32_t launch_ref, Tracer* shadows) {
+  glm::vec3 e(0.0f);
+  if (scene.lights.empty()) {
+    const glm::vec3 to_eye = scene.frame_camera().eye - p;
+    const float len = glm::length(to_eye);
+    return len > 0.0f ? glm::vec3(std::max(0.0f, glm::dot(n, to_eye / len))) : glm::vec3(0.0f);
+  }
+  for (const Light& l : scene.lights) {
+    glm::vec3 to_light = l.directional ? l.position : l.position - p;
+    const float d2 = glm::dot(to_light, to_light);
+    if (!(d2 > 0.0f)) continue;
+    const glm::vec3 L = to_light / std::sqrt(d2);
+    const float cos = glm::dot(n, L);
+    if (cos <= 0.0f) continue;
+    if (shadows) {
+      Ray r;
+      r.org = p;
+      r.dir = l.directional ? L : to_light;
+      r.tmin = 0.0f;
+      r.tmax = l.directional ? std::numeric_limits<float>::infinity() : 1.0f;
+      r.launch_normal = n;
+      r.launch_ref = launch_ref;
+      Hit h;
+      shadows->trace(std::span<const Ray>(&r, 1), std::span<Hit>(&h, 1));
+      if (!is_miss(h)) continue;
+    }
+    e += l.color * l.intensity * cos / (l.directional ? 1.0f : d2);
+  }
+  return e;
+}
+
+}  // namespace
+
+glm::vec3 surface_albedo(const Scene& scene, uint32_t instance, uint32_t triangle, float u, float v) {
+  if (instance >= scene.instances.size()) return glm::vec3(0.0f);
+  const Mesh& mesh = scene.meshes[scene.instances[instance].mesh];
+  if (triangle >= mesh.triangles.size()) return glm::vec3(0.0f);
+  glm::vec2 uv(0.0f);
+  if (!mesh.uvs.empty()) {
+    const glm::uvec3 t = mesh.triangles[triangle];
+    uv = shared::interpolate_uv(mesh.uvs[t[0]], mesh.uvs[t[1]], mesh.uvs[t[2]], u, v);
+  }
+  return material_albedo(scene, mesh.materials.empty() ? 0u : mesh.materials[triangle], uv);
+}
+
+std::vector<glm::vec3> shade(const Scene& scene, const GatherBuffer& g, std::span<const Ray> bounce_rays,
+                             std::span<const Hit> bounce_hits, const ShadeOptions& options) {
+  const bool bounce = !bounce_hits.empty();
+  if (bounce && (bounce_hits.size() != g.size() || bounce_rays.size() != g.size()))
+    throw Error("shade: bounce rays and hits must have one entry per pixel");
+  std::vector<glm::vec3> out(g.size(), scene.background);
+  for (size_t p = 0; p < g.size(); ++p) {
+    if (!g.valid[p]) continue;
+    const glm::vec3 albedo = material_albedo(scene, g.material[p], g.uv[p]);
+    glm::vec3 c = albedo * (options.ambient + direct_light(scene, g.position[p], g.normal[p], g.launch_ref[p],
+                                                            options.shadow_tracer));
+    const float gloss = g.material[p] < scene.materials.size() ? scene.materials[g.material[p]].glossiness : 0.0f;
+    if (bounce && gloss > 0.0f && !is_unused(bounce_rays[p])) {
+      const Hit& h = bounce_hits[p];
+      glm::vec3 b = scene.background;
+      if (!is_miss(h) && h.instance < scene.instances.size()) {
+        const bool gap = (h.flags & shared::kHitGapFill) != 0u;
+        const float u = gap ? 1.0f / 3.0f : h.u, v = gap ? 1.0f / 3.0f : h.v;
+        const glm::vec3 a = surface_albedo(scene, h.instance, h.triangle, u, v);
+        const Ray& r = bounce_rays[p];
+        const glm::vec3 hp = r.org + h.t * r.dir;
+        // The bounce hit's normal, facing the bounce ray.
+        glm::vec3 n(0.0f, 1.0f, 0.0f);
+        const Mesh& mesh = scene.meshes[scene.instances[h.instance].mesh];
+        if (h.triangle < mesh.triangles.size()) {
+          const shared::Affine m = shared::to_affine(scene.instances[h.instance].transform_at(g.time));
+          const glm::uvec3 t = mesh.triangles[h.triangle];
+          const glm::vec3 v0 = shared::transform_point(m, mesh.positions[t[0]]);
+          const glm::vec3 nn = glm::cross(shared::transform_point(m, mesh.positions[t[1]]) - v0,
+                                          shared::transform_point(m, mesh.positions[t[2]]) - v0);
+          if (glm::length(nn) > 0.0f) n = glm::normalize(nn);
+          if (glm::dot(n, r.dir) > 0.0f) n = -n;
+        }
+        b = a * (options.ambient + direct_light(scene, hp, n, (h.instance << 16) | h.triangle, nullptr));
+      }
+      c = (1.0f - gloss) * c + gloss * b;
+    }
+    out[p] = c;
+  }
+  for (glm::vec3& c : out) c = glm::clamp(c * options.exposure, glm::vec3(0.0f), glm::vec3(1.0f));
+  return out;
+}
+
+}  // namespace gridrt

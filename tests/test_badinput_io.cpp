@@ -1,0 +1,123 @@
+// Bad input to the loaders, the scene files, image output and the binary cache: each gives an
+// Error whose message names the file (and the line where one is known), never a crash.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+
+#include <unistd.h>
+
+#include "common/image_io.h"
+#include "common/scene_io.h"
+
+using namespace gridrt;
+using Catch::Contains;
+namespace fs = std::filesystem;
+
+namespace {
+std::string fixture(const std::string& name) { return std::string(GRIDRT_DATA_DIR) + "/fixtures/" + name; }
+
+fs::path temp_dir() {
+  const fs::path d = fs::temp_directory_path() / ("gridrt-badinput-" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+}  // namespace
+
+TEST_CASE("Missing files and unknown extensions are errors naming the file", "[badinput]") {
+  REQUIRE_THROWS_WITH(load_scene(fixture("no_such_file.obj")), Contains("no_such_file.obj") && Contains("no such file"));
+  REQUIRE_THROWS_WITH(load_scene(fixture("no_such_file.json")), Contains("no_such_file.json"));
+  REQUIRE_THROWS_WITH(load_scene(fixture("no_such_file.glb")), Contains("no_such_file.glb"));
+  REQUIRE_THROWS_WITH(load_scene(fixture("no_such_file.gridscene")), Contains("no_such_file.gridscene"));
+  REQUIRE_THROWS_WITH(load_scene(fixture("quad.mtl")), Contains("quad.mtl") && Contains("unknown extension"));
+  REQUIRE_THROWS_WITH(load_scene("scene.fbx"), Contains("scene.fbx") && Contains("unknown extension"));
+}
+
+TEST_CASE("Malformed OBJ files: error with file and line", "[badinput]") {
+  CHECK_THROWS_WITH(load_scene(fixture("garbage_number.obj")), Contains("garbage_number.obj:2") && Contains("'zero' is not a number"));
+  CHECK_THROWS_WITH(load_scene(fixture("index_out_of_range.obj")),
+                    Contains("index_out_of_range.obj:5") && Contains("vertex index 4 out of range"));
+  CHECK_THROWS_WITH(load_scene(fixture("nan.obj")), Contains("nan.obj:2") && Contains("non-finite"));
+  CHECK_THROWS_WITH(load_scene(fixture("inf.obj")), Contains("inf.obj:3") && Contains("non-finite"));
+  CHECK_THROWS_WITH(load_scene(fixture("overflow.obj")), Contains("overflow.obj:3") && Contains("non-finite"));
+  CHECK_THROWS_WITH(load_scene(fixture("empty.obj")), Contains("empty.obj") && Contains("empty"));
+}
+
+TEST_CASE("Missing or malformed MTL files and unknown materials are errors", "[badinput]") {
+  CHECK_THROWS_WITH(load_scene(fixture("missing_mtl.obj")),
+                    Contains("missing_mtl.obj:1") && Contains("does_not_exist.mtl") && Contains("not found"));
+  CHECK_THROWS_WITH(load_scene(fixture("malformed_mtl.obj")), Contains("malformed.mtl:3") && Contains("'half' is not a number"));
+  CHECK_THROWS_WITH(load_scene(fixture("unknown_material.obj")),
+                    Contains("unknown_material.obj:5") && Contains("no_such_material"));
+}
+
+TEST_CASE("A texture that will not load is an error naming it", "[badinput]") {
+  CHECK_THROWS_WITH(load_scene(fixture("missing_texture.obj")), Contains("no_such_texture.png") && Contains("no such file"));
+  CHECK_THROWS_WITH(load_scene(fixture("bad_texture.obj")), Contains("not_an_image.png"));
+  CHECK_THROWS_WITH(load_texture(fixture("not_an_image.png")), Contains("not_an_image.png"));
+}
+
+TEST_CASE("Malformed glTF and GLB files are errors naming the file", "[badinput]") {
+  CHECK_THROWS_WITH(load_scene(fixture("bad_json.gltf")), Contains("bad_json.gltf") && Contains("line 1"));
+  CHECK_THROWS_WITH(load_scene(fixture("truncated.glb")), Contains("truncated.glb"));
+  CHECK_THROWS_WITH(load_scene(fixture("bad_magic.glb")), Contains("bad_magic.glb") && Contains("magic"));
+  CHECK_THROWS_WITH(load_scene(fixture("lines.gltf")), Contains("lines.gltf") && Contains("mode 1"));
+  CHECK_THROWS_WITH(load_scene(fixture("overrun.gltf")), Contains("overrun.gltf") && Contains("past the end"));
+}
+
+TEST_CASE("Malformed JSON scene files: syntax error with line, unknown key, wrong type", "[badinput]") {
+  CHECK_THROWS_WITH(load_scene(fixture("bad_syntax.json")), Contains("bad_syntax.json:7:") && Contains("syntax error"));
+  CHECK_THROWS_WITH(load_scene(fixture("unknown_key.json")), Contains("unknown_key.json") && Contains("\"translte\""));
+  CHECK_THROWS_WITH(load_scene(fixture("wrong_type.json")),
+                    Contains("wrong_type.json") && Contains("instances[0].translate[1]") && Contains("expected a number"));
+  CHECK_THROWS_WITH(load_scene(fixture("missing_mesh_file.json")),
+                    Contains("missing_mesh_file.json") && Contains("no_such_model.obj"));
+}
+
+TEST_CASE("Image output: zero size, size mismatch and unknown extensions are errors", "[badinput]") {
+  const fs::path dir = temp_dir();
+  const std::string png = (dir / "zero.png").string();
+  CHECK_THROWS_WITH(write_image(png, 0, 4, {}), Contains("zero.png") && Contains("zero size"));
+  CHECK_THROWS_WITH(write_image((dir / "short.ppm").string(), 2, 2, std::vector<glm::vec3>(3)),
+                    Contains("short.ppm") && Contains("3 pixels"));
+  CHECK_THROWS_WITH(write_image((dir / "x.nosuchformat").string(), 1, 1, std::vector<glm::vec3>(1)),
+                    Contains("x.nosuchformat"));
+  CHECK_FALSE(fs::exists(png));
+  // Nothing half-written is left behind.
+  for (const auto& e : fs::directory_iterator(dir)) FAIL("left behind: " << e.path());
+  fs::remove_all(dir);
+}
+
+TEST_CASE("A corrupt or truncated .gridscene is an error, never a crash", "[badinput]") {
+  const fs::path dir = temp_dir();
+  const std::string good = (dir / "good.gridscene").string();
+  save_scene_binary(load_scene(fixture("scene_small.json")), good);
+  std::string bytes;
+  {
+    std::ifstream f(good, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(f), {});
+  }
+  REQUIRE(bytes.size() > 100);
+  auto write = [&](const std::string& name, const std::string& data) {
+    const std::string p = (dir / name).string();
+    std::ofstream(p, std::ios::binary).write(data.data(), std::streamsize(data.size()));
+    return p;
+  };
+  CHECK_THROWS_WITH(load_scene(write("empty.gridscene", "")), Contains("empty.gridscene") && Contains("truncated"));
+  CHECK_THROWS_WITH(load_scene(write("magic.gridscene", "NOTASCENE" + bytes.substr(9))), Contains("magic.gridscene") && Contains("magic"));
+  // Every truncation point is caught.
+  for (size_t n = 0; n < bytes.size(); n += std::max<size_t>(1, bytes.size() / 97))
+    CHECK_THROWS_WITH(load_scene_binary(write("cut.gridscene", bytes.substr(0, n))), Contains("cut.gridscene"));
+  // Flipped bytes either load a valid scene or give an Error (never a crash or a huge allocation).
+  for (size_t i = 8; i < bytes.size(); i += 7) {
+    std::string b = bytes;
+    b[i] = char(b[i] ^ 0xA5);
+    try {
+      (void)load_scene_binary(write("flip.gridscene", b));
+    } catch (const Error& e) {
+      CHECK_THAT(e.what(), Contains("flip.gridscene"));
+    }
+  }
+  CHECK_THROWS_WITH(load_scene(write("trailing.gridscene", bytes + "x")), Contains("after the end marker"));
+  fs::remove_all(dir);
+}

@@ -1,0 +1,391 @@
+// Loaders (OBJ, glTF), image I/O, scene files and the binary cache, on the project's fixtures
+// and on the real scenes of ../shared/data/scenes.
+#include <catch2/catch.hpp>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <mutex>
+
+#include <unistd.h>
+
+#include "common/image_io.h"
+#include "common/loaders/loaders.h"
+#include "common/scene_io.h"
+
+using namespace gridrt;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string fixture(const std::string& name) { return std::string(GRIDRT_DATA_DIR) + "/fixtures/" + name; }
+
+fs::path temp_dir() {
+  const fs::path d = fs::temp_directory_path() / ("gridrt-loaders-" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+// The real scenes folder: $GRIDRT_SCENES, else the one beside the checkout. Empty when absent;
+// absent is a skip, except under CI (env CI set), where it is a failure.
+std::string real_scenes() {
+  const char* env = std::getenv("GRIDRT_SCENES");
+  const std::string dir = env && *env ? env : GRIDRT_SHARED_SCENES;
+  if (fs::is_directory(dir)) return dir;
+  if (std::getenv("CI")) FAIL("the real scenes folder '" << dir << "' is missing, and CI must test with it");
+  WARN("skipped: the real scenes folder '" << dir << "' is missing (set GRIDRT_SCENES)");
+  return "";
+}
+
+// Each real scene is loaded once per test run (they take a second or more each in Debug).
+const Scene& cached(const std::string& spec) {
+  static std::map<std::string, Scene> cache;
+  static std::mutex mutex;
+  std::lock_guard lock(mutex);
+  auto it = cache.find(spec);
+  if (it == cache.end()) {
+    const auto t0 = std::chrono::steady_clock::now();
+    it = cache.emplace(spec, load_scene(spec)).first;
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::cerr << "loaded " << spec << " in " << s << " s\n";
+  }
+  return it->second;
+}
+
+size_t count_named(const Scene& s, const std::string& prefix) {
+  size_t n = 0;
+  for (const Material& m : s.materials) n += m.name.rfind(prefix, 0) == 0;
+  return n;
+}
+
+}  // namespace
+
+// ---- Fixtures ------------------------------------------------------------------------------
+
+TEST_CASE("OBJ: polygons triangulated, vertices welded by index triple, materials and textures", "[unit][loaders]") {
+  Scene s;
+  TextureCache cache;
+  const auto inst = load_obj(fixture("quad.obj"), s, cache);
+  REQUIRE(inst.size() == 1);
+  REQUIRE(s.meshes.size() == 1);
+  const Mesh& m = s.meshes[0];
+  // A quad (2 triangles), a pentagon (3) and a triangle (1).
+  CHECK(m.triangle_count() == 6);
+  // Distinct (v, vt, vn) triples: 1/1/1 2/2/1 3/3/1 4/4/1 5/2/1 6/3/1 7/3/1 1//1 2//1 4//1.
+  CHECK(m.positions.size() == 10);
+  REQUIRE(m.normals.size() == 10);
+  REQUIRE(m.uvs.size() == 10);
+  CHECK(m.uvs[m.triangles[0][1]] == glm::vec2(1, 0));
+  // Materials: leaf, plain, graymask, in MTL order; faces keep theirs.
+  REQUIRE(s.materials.size() == 3);
+  CHECK(s.materials[0].name == "leaf");
+  CHECK(s.materials[0].diffuse == glm::vec3(0.2f, 0.6f, 0.1f));
+  CHECK(m.materials == std::vector<uint32_t>{0, 0, 0, 0, 0, 1});
+  CHECK(s.materials[1].opacity == 0.5f);
+  CHECK(s.materials[1].diffuse_texture == -1);
+  CHECK(s.materials[0].glossiness == 0.0f);
+  // map_Kd and map_d of one RGBA file share one texture; a gray map_d takes its first channel.
+  REQUIRE(s.textures.size() == 2);
+  CHECK(s.materials[0].diffuse_texture == s.materials[0].alpha_texture);
+  const Texture& leaf = s.textures[size_t(s.materials[0].alpha_texture)];
+  CHECK(leaf.width == 2);
+  CHECK(leaf.height == 2);
+  CHECK(leaf.has_alpha);
+  CHECK(leaf.texel(0, 0) == glm::u8vec4(255, 0, 0, 255));  // row 0 = first row of the file
+  CHECK(leaf.texel(1, 0) == glm::u8vec4(0, 255, 0, 0));
+  CHECK(leaf.texel(0, 1) == glm::u8vec4(0, 0, 255, 200));
+  const Texture& gray = s.textures[size_t(s.materials[2].alpha_texture)];
+  CHECK(gray.width == 4);
+  CHECK(gray.texel(1, 0).a == 255);
+  CHECK(gray.texel(0, 0).a == 0);
+  CHECK(gray.texel(3, 1).a == 128);
+  CHECK(s.materials[2].diffuse_texture == -1);
+}
+
+TEST_CASE("glTF and GLB: node hierarchy, flipped v, MASK material", "[unit][loaders]") {
+  for (const char* file : {"quad.gltf", "quad.glb"}) {
+    INFO(file);
+    Scene s;
+    TextureCache cache;
+    const auto inst = load_gltf(fixture(file), s, cache);
+    REQUIRE(s.meshes.size() == 1);
+    REQUIRE(inst.size() == 2);  // two nodes share the mesh
+    const Mesh& m = s.meshes[0];
+    CHECK(m.triangle_count() == 2);
+    CHECK(m.positions.size() == 4);
+    CHECK(m.normals.size() == 4);
+    // World matrices: parent translation (10, 0, 0) times child scale 2 / translation (0, 5, 0).
+    CHECK(inst[0].name == "quad");
+    CHECK(glm::vec3(inst[0].transform * glm::vec4(1, 1, 0, 1)) == glm::vec3(12, 2, 0));
+    CHECK(glm::vec3(inst[1].transform * glm::vec4(1, 1, 0, 1)) == glm::vec3(11, 6, 0));
+    // glTF uv (0, 1) (bottom-left of the image) becomes (0, 0): v = 0 at the last row.
+    CHECK(m.uvs[0] == glm::vec2(0, 0));
+    CHECK(m.uvs[2] == glm::vec2(1, 1));
+    REQUIRE(s.materials.size() == 1);
+    const Material& mat = s.materials[0];
+    CHECK(mat.name == "leaf");
+    CHECK(mat.diffuse == glm::vec3(0.5f, 0.25f, 1.0f));
+    CHECK(mat.alpha_keyed());
+    CHECK(mat.alpha_texture == mat.diffuse_texture);
+    REQUIRE(s.textures.size() == 1);
+    CHECK(s.textures[0].width == 2);
+    CHECK(s.textures[0].texel(1, 0) == glm::u8vec4(0, 255, 0, 0));
+    CHECK(s.textures[0].has_alpha);
+  }
+}
+
+TEST_CASE("Image output: PPM and PFM by hand, PNG and EXR through OpenImageIO, read back", "[unit][image]") {
+  const fs::path dir = temp_dir();
+  const std::vector<glm::vec3> px = {{0, 0, 0}, {1, 0.5f, 0.25f}, {0.2f, 2.0f, -1.0f}, {0.0031308f, 0.5f, 1.0f}};
+  CHECK(linear_to_srgb8(0.5f) == 188);
+  CHECK(linear_to_srgb8(std::numeric_limits<float>::quiet_NaN()) == 0);
+  const std::string ppm = (dir / "a.ppm").string();
+  write_image(ppm, 2, 2, px);
+  {
+    std::ifstream f(ppm, std::ios::binary);
+    std::string all((std::istreambuf_iterator<char>(f)), {});
+    REQUIRE(all.rfind("P6\n2 2\n255\n", 0) == 0);
+    REQUIRE(all.size() == 11 + 12);
+    CHECK(uint8_t(all[11 + 3]) == 255);
+    CHECK(uint8_t(all[11 + 4]) == 188);
+  }
+  const std::string pfm = (dir / "a.pfm").string();
+  write_image(pfm, 2, 2, px);
+  CHECK(fs::file_size(pfm) == std::string("PF\n2 2\n-1.0\n").size() + 4 * 12);
+  if (have_image_library()) {
+    const std::string png = (dir / "a.png").string();
+    write_image(png, 2, 2, px);
+    const Texture t = load_texture(png);
+    CHECK(t.width == 2);
+    CHECK(t.height == 2);
+    CHECK(t.texel(1, 0) == glm::u8vec4(255, 188, 137, 255));
+    CHECK(t.texel(0, 1) == glm::u8vec4(124, 255, 0, 255));
+    write_image((dir / "a.exr").string(), 2, 2, px);
+    CHECK(fs::file_size(dir / "a.exr") > 0);
+  }
+  // Only the final files, no temporaries.
+  size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.path().filename().string()[0] != '.';
+  size_t all = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++all;
+  CHECK(files == all);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("Scene file: meshes, instances, motion, materials, camera, lights, grid", "[unit][scenefile]") {
+  const Scene s = load_scene(fixture("scene_small.json"));
+  CHECK(s.name == "small");
+  // floor + spinner (the OBJ) + walker (2 glTF nodes): 4 instances, dynamic ones last.
+  REQUIRE(s.instances.size() == 4);
+  CHECK(s.static_instance_count() == 1);
+  CHECK(s.instances[0].name == "floor");
+  CHECK(s.instances[1].name == "spinner");
+  CHECK(s.instances[2].name == "walker/quad");
+  CHECK(s.has_dynamic());
+  // Rotating in place: the default pivot is the instance's translation.
+  CHECK(s.instances[1].motion.pivot == glm::vec3(1, 0, 2));
+  CHECK(s.instances[1].motion.angular_speed == 1.5f);
+  CHECK(s.instances[2].motion.path_points.size() == 3);
+  CHECK(s.instances[2].motion.path_period == 3.0f);
+  // Floor: rotated -90 degrees about x, scaled 10: (1, 1, 0) -> (10, 0, -10).
+  const glm::vec3 p = glm::vec3(s.instances[0].transform * glm::vec4(1, 1, 0, 1));
+  CHECK(p.x == Approx(10));
+  CHECK(p.y == Approx(0).margin(1e-5));
+  CHECK(p.z == Approx(-10));
+  // Materials: default glossiness, then the override by name.
+  for (const Material& m : s.materials) CHECK(m.glossiness == (m.name == "plain" ? 0.7f : 0.1f));
+  CHECK(s.has_glossy());
+  CHECK(s.has_alpha_masks());
+  REQUIRE(s.camera);
+  CHECK(s.camera->vfov_degrees == 50.0f);
+  REQUIRE(s.lights.size() == 2);
+  CHECK(s.lights[0].intensity == 40.0f);
+  CHECK(s.lights[1].directional);
+  CHECK(s.grid.resolution == glm::uvec3(16, 8, 16));
+  CHECK(s.grid.capacity == 12u);
+  CHECK_FALSE(s.grid.cell_size);
+  CHECK(s.background == glm::vec3(0.1f, 0.1f, 0.2f));
+}
+
+TEST_CASE("A bare model loads as a framed scene with a light", "[unit][scenefile]") {
+  const Scene s = load_scene(fixture("quad.glb"));
+  CHECK(s.instances.size() == 2);
+  CHECK(s.static_instance_count() == 2);
+  REQUIRE(s.camera);
+  REQUIRE(s.lights.size() == 1);
+  const Bounds b = s.bounds();
+  CHECK(s.lights[0].position.y > b.hi.y);
+}
+
+namespace {
+void check_same(const Scene& a, const Scene& b) {
+  CHECK(a.name == b.name);
+  CHECK(a.background == b.background);
+  REQUIRE(a.meshes.size() == b.meshes.size());
+  for (size_t i = 0; i < a.meshes.size(); ++i) {
+    CHECK(a.meshes[i].name == b.meshes[i].name);
+    CHECK(a.meshes[i].positions == b.meshes[i].positions);
+    CHECK(a.meshes[i].normals == b.meshes[i].normals);
+    CHECK(a.meshes[i].uvs == b.meshes[i].uvs);
+    CHECK(a.meshes[i].triangles == b.meshes[i].triangles);
+    CHECK(a.meshes[i].materials == b.meshes[i].materials);
+  }
+  REQUIRE(a.materials.size() == b.materials.size());
+  for (size_t i = 0; i < a.materials.size(); ++i) {
+    const Material &x = a.materials[i], &y = b.materials[i];
+    CHECK((x.name == y.name && x.diffuse == y.diffuse && x.diffuse_texture == y.diffuse_texture &&
+           x.alpha_texture == y.alpha_texture && x.glossiness == y.glossiness && x.opacity == y.opacity));
+  }
+  REQUIRE(a.textures.size() == b.textures.size());
+  for (size_t i = 0; i < a.textures.size(); ++i) {
+    const Texture &x = a.textures[i], &y = b.textures[i];
+    CHECK((x.path == y.path && x.width == y.width && x.height == y.height && x.has_alpha == y.has_alpha && x.rgba == y.rgba));
+  }
+  REQUIRE(a.instances.size() == b.instances.size());
+  for (size_t i = 0; i < a.instances.size(); ++i) {
+    const Instance &x = a.instances[i], &y = b.instances[i];
+    CHECK((x.name == y.name && x.mesh == y.mesh && x.transform == y.transform && x.dynamic == y.dynamic &&
+           x.motion.axis == y.motion.axis && x.motion.pivot == y.motion.pivot &&
+           x.motion.angular_speed == y.motion.angular_speed && x.motion.path_points == y.motion.path_points &&
+           x.motion.path_period == y.motion.path_period));
+  }
+  REQUIRE(a.camera.has_value() == b.camera.has_value());
+  if (a.camera)
+    CHECK((a.camera->eye == b.camera->eye && a.camera->target == b.camera->target && a.camera->up == b.camera->up &&
+           a.camera->vfov_degrees == b.camera->vfov_degrees));
+  REQUIRE(a.lights.size() == b.lights.size());
+  for (size_t i = 0; i < a.lights.size(); ++i)
+    CHECK((a.lights[i].position == b.lights[i].position && a.lights[i].color == b.lights[i].color &&
+           a.lights[i].intensity == b.lights[i].intensity && a.lights[i].directional == b.lights[i].directional));
+  CHECK(a.grid.resolution == b.grid.resolution);
+  CHECK(a.grid.capacity == b.grid.capacity);
+  CHECK(a.grid.cell_size == b.grid.cell_size);
+}
+}  // namespace
+
+TEST_CASE("Binary scene cache round trip gives an identical scene", "[unit][scenefile]") {
+  const fs::path dir = temp_dir();
+  Scene a = load_scene(fixture("scene_small.json"));
+  a.grid.cell_size = 0.25f;
+  const std::string path = (dir / "small.gridscene").string();
+  save_scene_binary(a, path);
+  const Scene b = load_scene(path);
+  check_same(a, b);
+  // Saving again gives the same bytes.
+  save_scene_binary(b, (dir / "again.gridscene").string());
+  CHECK(fs::file_size(path) == fs::file_size(dir / "again.gridscene"));
+  fs::remove_all(dir);
+}
+
+// ---- Real scenes -------------------------------------------------------------------------------
+
+TEST_CASE("Real scenes load with the README's triangle counts", "[scenes]") {
+  const std::string dir = real_scenes();
+  if (dir.empty()) return;
+  // Every face of these files is already a triangle (checked with awk), and no triangle is
+  // dropped: degenerate (zero-area) ones are kept (sibenik has ~1.1k), as the README counts them.
+  struct Expect { const char* file; uint64_t triangles; size_t materials; size_t meshes; };
+  for (const Expect& e : {Expect{"sibenik/sibenik.obj", 80479, 18, 2}, Expect{"sponza/sponza.obj", 66454, 20, 2},
+                          Expect{"ons-reborn/ons-reborn.obj", 125101, 72, 2}, Expect{"bunny/bunny.obj", 69451, 1, 2},
+                          Expect{"teapot/teapot-992.obj", 992, 1, 1}}) {
+    INFO(e.file);
+    const Scene& s = cached(dir + "/" + e.file);
+    CHECK(s.triangle_count() == e.triangles);
+    // Over 65,536 triangles: split into pieces of at most 65,536.
+    CHECK(s.meshes.size() == e.meshes);
+    for (const Mesh& m : s.meshes) CHECK(m.triangle_count() <= kMaxTrianglesPerMesh);
+    CHECK(s.instances.size() == e.meshes);
+    CHECK(s.materials.size() == e.materials);  // the MTL's (bunny, teapot: one default)
+    CHECK(s.camera);
+    CHECK(s.lights.size() == 1);
+  }
+}
+
+TEST_CASE("Real scenes: textures load with sane sizes; ons-reborn's foliage is alpha-masked", "[scenes]") {
+  const std::string dir = real_scenes();
+  if (dir.empty()) return;
+  for (const char* file : {"sibenik/sibenik.obj", "sponza/sponza.obj", "ons-reborn/ons-reborn.obj"}) {
+    INFO(file);
+    const Scene& s = cached(dir + "/" + file);
+    CHECK_FALSE(s.textures.empty());
+    for (const Texture& t : s.textures) {
+      INFO(t.path);
+      CHECK(t.width >= 1);
+      CHECK(t.width <= 4096);
+      CHECK(t.height >= 1);
+      CHECK(t.height <= 4096);
+      CHECK(t.rgba.size() == size_t(t.width) * t.height * 4);
+    }
+  }
+  const Scene& ons = cached(dir + "/ons-reborn/ons-reborn.obj");
+  // The three materials with map_d: grass02, leaves4, textures/morph/leaves3.
+  std::vector<std::string> masked;
+  for (const Material& m : ons.materials)
+    if (m.alpha_keyed()) masked.push_back(m.name);
+  CHECK(masked == std::vector<std::string>{"grass02", "leaves4", "textures/morph/leaves3"});
+  for (const Material& m : ons.materials)
+    if (m.alpha_keyed()) {
+      const Texture& t = ons.textures[size_t(m.alpha_texture)];
+      CHECK(t.has_alpha);  // the foliage really has holes
+      CHECK(m.alpha_texture == m.diffuse_texture);  // same TGA, decoded once
+    }
+  CHECK(ons.has_alpha_masks());
+  CHECK_FALSE(cached(dir + "/sponza/sponza.obj").has_alpha_masks());
+  // Sibenik's glass: d 0.5.
+  CHECK(cached(dir + "/sibenik/sibenik.obj").materials.size() == 18);
+  CHECK(count_named(cached(dir + "/sibenik/sibenik.obj"), "staklo") >= 4);
+}
+
+TEST_CASE("The paper's scene files load; their dynamic instances move between t = 0 and t = 1", "[scenes]") {
+  if (real_scenes().empty()) return;
+  const std::string dir = std::string(GRIDRT_DATA_DIR) + "/scenes/";
+  struct Expect { const char* file; uint64_t static_triangles; size_t dynamic; bool alpha; };
+  for (const Expect& e : {Expect{"sibenik-teapots.json", 80479, 3, false}, Expect{"sponza-teapots.json", 66454, 3, false},
+                          Expect{"ons-reborn-teapot.json", 125101, 1, true}, Expect{"teapot.json", 0, 1, false},
+                          Expect{"bunny.json", 69451, 0, false}}) {
+    INFO(e.file);
+    const Scene& s = cached(dir + e.file);
+    CHECK(s.instances.size() - s.static_instance_count() == e.dynamic);
+    CHECK(s.triangle_count() == e.static_triangles + 992 * e.dynamic);
+    CHECK(s.has_alpha_masks() == e.alpha);
+    CHECK(s.camera);
+    CHECK(s.lights.size() == 1);
+    for (const Instance& inst : s.instances) {
+      if (!inst.dynamic) continue;
+      INFO(inst.name);
+      CHECK(inst.motion.moves());
+      const glm::vec3 p(1.0f, 2.0f, 3.0f);  // an off-axis point of the teapot
+      const glm::vec3 a(inst.transform_at(0.0f) * glm::vec4(p, 1.0f)), b(inst.transform_at(1.0f) * glm::vec4(p, 1.0f));
+      CHECK(glm::length(b - a) > 1e-3f * glm::length(s.bounds().extent()));
+    }
+    // The paper's frames have a glossy floor (the glossy bounce matters).
+    if (e.dynamic == 3) CHECK(s.has_glossy());
+  }
+  // Teapots stand on the floor: their lowest point at t = 0 lies within 1 cm of the floor.
+  const Scene& sib = cached(dir + "sibenik-teapots.json");
+  for (const Instance& inst : sib.instances)
+    if (inst.dynamic) {
+      float low = 1e30f;
+      for (const glm::vec3& q : sib.meshes[inst.mesh].positions) low = std::min(low, (inst.transform_at(0.0f) * glm::vec4(q, 1.0f)).y);
+      CHECK(low == Approx(0.001f).margin(0.01f));
+    }
+}
+
+TEST_CASE("A real scene survives the binary cache unchanged", "[scenes]") {
+  if (real_scenes().empty()) return;
+  const Scene& a = cached(std::string(GRIDRT_DATA_DIR) + "/scenes/ons-reborn-teapot.json");
+  const fs::path dir = temp_dir();
+  const std::string path = (dir / "ons.gridscene").string();
+  const auto t0 = std::chrono::steady_clock::now();
+  save_scene_binary(a, path);
+  const auto t1 = std::chrono::steady_clock::now();
+  const Scene b = load_scene(path);
+  const auto t2 = std::chrono::steady_clock::now();
+  std::cerr << "ons-reborn-teapot.gridscene: " << fs::file_size(path) / 1e6 << " MB, saved in "
+            << std::chrono::duration<double>(t1 - t0).count() << " s, loaded in " << std::chrono::duration<double>(t2 - t1).count() << " s\n";
+  check_same(a, b);
+  fs::remove_all(dir);
+}
