@@ -209,6 +209,7 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
 #else
   (void)alpha;
   (void)alpha_channel;
+  if (!fs::exists(path)) throw Error("cannot load texture '" + path + "': no such file");
   throw Error("cannot load texture '" + path +
               "': this build has no OpenImageIO (GRIDRT_WITH_OIIO off); load the scene from a "
               ".gridscene cache written by a full build instead");

@@ -186,13 +186,11 @@ class SceneFileReader {
   }
 
   Mesh builtin_teapot(uint32_t level, const std::string& where) const {
-#ifdef GRIDRT_HAVE_BUILTIN
-    (void)where;
-    return make_teapot_mesh(level);
-#else
-    (void)level;
-    fail(where, "this build has no built-in meshes yet (common/builtin is not implemented)");
-#endif
+    try {
+      return make_teapot_mesh(level);
+    } catch (const Error& e) {
+      fail(where, e.what());
+    }
   }
 
   void read_materials(const json& j) {
@@ -469,11 +467,7 @@ Scene load_model_scene(const std::string& path) {
 
 Scene load_scene(std::string_view spec) {
   if (spec.rfind("builtin:", 0) == 0) {
-#ifdef GRIDRT_HAVE_BUILTIN
     return make_builtin(spec.substr(8));
-#else
-    throw Error("cannot load '" + std::string(spec) + "': this build has no built-in scenes yet");
-#endif
   }
   const std::string path(spec);
   const std::string ext = lower_extension(path);

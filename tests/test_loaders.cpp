@@ -66,6 +66,10 @@ size_t count_named(const Scene& s, const std::string& prefix) {
 // ---- Fixtures ------------------------------------------------------------------------------
 
 TEST_CASE("OBJ: polygons triangulated, vertices welded by index triple, materials and textures", "[unit][loaders]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO, so no textures");
+    return;
+  }
   Scene s;
   TextureCache cache;
   const auto inst = load_obj(fixture("quad.obj"), s, cache);
@@ -176,6 +180,10 @@ TEST_CASE("Image output: PPM and PFM by hand, PNG and EXR through OpenImageIO, r
 }
 
 TEST_CASE("Scene file: meshes, instances, motion, materials, camera, lights, grid", "[unit][scenefile]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO, so no textures");
+    return;
+  }
   const Scene s = load_scene(fixture("scene_small.json"));
   CHECK(s.name == "small");
   // floor + spinner (the OBJ) + walker (2 glTF nodes): 4 instances, dynamic ones last.
@@ -267,6 +275,10 @@ void check_same(const Scene& a, const Scene& b) {
 }  // namespace
 
 TEST_CASE("Binary scene cache round trip gives an identical scene", "[unit][scenefile]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO, so no textures");
+    return;
+  }
   const fs::path dir = temp_dir();
   Scene a = load_scene(fixture("scene_small.json"));
   a.grid.cell_size = 0.25f;
@@ -283,6 +295,10 @@ TEST_CASE("Binary scene cache round trip gives an identical scene", "[unit][scen
 // ---- Real scenes -------------------------------------------------------------------------------
 
 TEST_CASE("Real scenes load with the README's triangle counts", "[scenes]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO, so no textures");
+    return;
+  }
   const std::string dir = real_scenes();
   if (dir.empty()) return;
   // Every face of these files is already a triangle (checked with awk), and no triangle is
@@ -305,6 +321,10 @@ TEST_CASE("Real scenes load with the README's triangle counts", "[scenes]") {
 }
 
 TEST_CASE("Real scenes: textures load with sane sizes; ons-reborn's foliage is alpha-masked", "[scenes]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO, so no textures");
+    return;
+  }
   const std::string dir = real_scenes();
   if (dir.empty()) return;
   for (const char* file : {"sibenik/sibenik.obj", "sponza/sponza.obj", "ons-reborn/ons-reborn.obj"}) {
@@ -340,6 +360,10 @@ TEST_CASE("Real scenes: textures load with sane sizes; ons-reborn's foliage is a
 }
 
 TEST_CASE("The paper's scene files load; their dynamic instances move between t = 0 and t = 1", "[scenes]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO, so no textures");
+    return;
+  }
   if (real_scenes().empty()) return;
   const std::string dir = std::string(GRIDRT_DATA_DIR) + "/scenes/";
   struct Expect { const char* file; uint64_t static_triangles; size_t dynamic; bool alpha; };
@@ -375,6 +399,10 @@ TEST_CASE("The paper's scene files load; their dynamic instances move between t 
 }
 
 TEST_CASE("A real scene survives the binary cache unchanged", "[scenes]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO, so no textures");
+    return;
+  }
   if (real_scenes().empty()) return;
   const Scene& a = cached(std::string(GRIDRT_DATA_DIR) + "/scenes/ons-reborn-teapot.json");
   const fs::path dir = temp_dir();
@@ -388,4 +416,18 @@ TEST_CASE("A real scene survives the binary cache unchanged", "[scenes]") {
             << std::chrono::duration<double>(t1 - t0).count() << " s, loaded in " << std::chrono::duration<double>(t2 - t1).count() << " s\n";
   check_same(a, b);
   fs::remove_all(dir);
+}
+
+TEST_CASE("Scene files and the dispatcher reach the built-in scenes", "[unit][scenefile]") {
+  const Scene s = load_scene(fixture("builtin_teapot.json"));
+  REQUIRE(s.meshes.size() == 1);
+  CHECK(s.meshes[0].triangle_count() > 0);
+  REQUIRE(s.materials.size() == 1);
+  CHECK(s.materials[0].name == "pot");
+  CHECK(s.materials[0].glossiness == 0.5f);
+  CHECK(s.materials[0].diffuse == glm::vec3(0.8f, 0.2f, 0.2f));
+  CHECK(s.has_dynamic());
+  const Scene b = load_scene("builtin:teapot");
+  CHECK(b.triangle_count() > 0);
+  REQUIRE_THROWS_WITH(load_scene("builtin:nosuch"), Catch::Contains("nosuch"));
 }
