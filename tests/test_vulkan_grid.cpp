@@ -1,0 +1,403 @@
+// test_vulkan_grid.cpp: the Vulkan grid against the CPU reference, on lavapipe with the
+// validation layer on (DESIGN.md, "The grid"; docs/VULKAN.md):
+//  - sorted images identical texel for texel, geometry buffers identical in bits;
+//  - first-empty images identical per cell as multisets where unsaturated, a flagged choice of
+//    the candidates where saturated;
+//  - the raster build (geometry shader) and the compute build give the same images;
+//  - every hit record identical in bits (t, ids, barycentrics, flags, cells, tests), in paper and
+//    exact modes, with alpha keying and gap-fill, after several animated frames;
+//  - the explained ray leaves the same events as the reference's explain.
+// Every mismatch prints the index, the ray and both records as hex bits.
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <random>
+#include <sstream>
+
+#include "tests/test_grid_util.h"
+#include "tests/vulkan_test_util.h"
+#include "vulkan/grid.h"
+
+using namespace gridrt;
+using namespace gridrt::test;
+using gridrt::vulkan::BuildMode;
+using gridrt::vulkan::VulkanGridTracer;
+using reference::GridOptions;
+using reference::ReferenceGridTracer;
+namespace sh = gridrt::shared;
+
+namespace {
+
+// Random triangles, a dynamic instance that moves, and alpha-keyed quads with a checkerboard mask
+// (alpha 0 and 255 in 4x4 blocks of an 16x16 texture), static and dynamic.
+Scene test_scene(uint32_t seed, bool alpha = true) {
+  Scene s = gridtest::random_scene(300, 0.7f, 10.0f, seed, 60);
+  if (!alpha) return s;
+  Texture tex;
+  tex.width = tex.height = 16;
+  tex.rgba.resize(16 * 16 * 4);
+  for (uint32_t y = 0; y < 16; ++y)
+    for (uint32_t x = 0; x < 16; ++x) {
+      uint8_t* p = &tex.rgba[(y * 16 + x) * 4];
+      p[0] = p[1] = p[2] = 200;
+      p[3] = ((x / 4 + y / 4) % 2) ? 255 : 0;
+    }
+  tex.has_alpha = true;
+  s.textures.push_back(tex);
+  if (s.materials.empty()) s.materials.push_back(Material{.name = "default"});
+  s.materials.push_back(Material{.name = "leaves", .alpha_texture = 0});
+  Mesh quads;
+  quads.name = "leaves";
+  std::mt19937 rng(seed + 99);
+  std::uniform_real_distribution<float> pos(1.0f, 9.0f), uvr(-2.0f, 2.0f);
+  for (uint32_t q = 0; q < 12; ++q) {
+    const glm::vec3 c(pos(rng), pos(rng), pos(rng));
+    const uint32_t b = uint32_t(quads.positions.size());
+    const glm::vec3 a = glm::normalize(glm::vec3(uvr(rng), uvr(rng), uvr(rng))) * 1.5f;
+    const glm::vec3 bb = glm::normalize(glm::cross(a, glm::vec3(0.3f, 1.0f, 0.1f))) * 1.5f;
+    quads.positions.insert(quads.positions.end(), {c - a - bb, c + a - bb, c + a + bb, c - a + bb});
+    const glm::vec2 o(uvr(rng), uvr(rng));
+    quads.uvs.insert(quads.uvs.end(), {o, o + glm::vec2(3.0f, 0.0f), o + glm::vec2(3.0f, 3.0f), o + glm::vec2(0.0f, 3.0f)});
+    quads.triangles.push_back({b, b + 1, b + 2});
+    quads.triangles.push_back({b, b + 2, b + 3});
+  }
+  quads.materials.assign(quads.triangles.size(), 1u);
+  s.meshes.push_back(quads);
+  s.instances.push_back(Instance{.name = "leaves", .mesh = uint32_t(s.meshes.size() - 1)});
+  Instance moving{.name = "leaves-moving", .mesh = uint32_t(s.meshes.size() - 1), .dynamic = true};
+  moving.motion.axis = {0.0f, 1.0f, 0.0f};
+  moving.motion.pivot = glm::vec3(5.0f);
+  moving.motion.angular_speed = 0.9f;
+  s.instances.push_back(moving);
+  s.finalize();
+  return s;
+}
+
+// Camera rays (a 96x64 image from outside the box), random rays through the box, and secondary
+// rays leaving the primary hits (launch normal and reference set: self-hit and gap-fill logic).
+std::vector<Ray> test_rays(const ReferenceGridTracer& ref, uint32_t seed) {
+  std::vector<Ray> rays;
+  const glm::vec3 eye(-6.0f, 13.0f, -7.0f), target(5.0f, 4.5f, 5.0f);
+  const glm::vec3 f = glm::normalize(target - eye), r = glm::normalize(glm::cross(f, glm::vec3(0, 1, 0))),
+                  u = glm::cross(r, f);
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 96; ++x) {
+      const float px = (float(x) + 0.5f) / 96.0f * 2.0f - 1.0f, py = 1.0f - (float(y) + 0.5f) / 64.0f * 2.0f;
+      rays.push_back(gridtest::make_ray(eye, f + 0.75f * px * r + 0.5f * py * u));
+    }
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> p(-1.0f, 11.0f), d(-1.0f, 1.0f);
+  for (uint32_t i = 0; i < 1500; ++i) {
+    glm::vec3 dir(d(rng), d(rng), d(rng));
+    if (glm::dot(dir, dir) < 1e-4f) dir = {0.0f, 0.0f, 1.0f};
+    rays.push_back(gridtest::make_ray({p(rng), p(rng), p(rng)}, dir, 0.0f, (i % 3) ? INFINITY : 4.0f));
+  }
+  // Secondary rays from the reference's primary hits
+  std::vector<Hit> hits(rays.size());
+  const size_t primary = rays.size();
+  std::vector<Ray> first(rays.begin(), rays.begin() + 96 * 64);
+  hits.resize(first.size());
+  const_cast<ReferenceGridTracer&>(ref).trace(first, hits);
+  const reference::GridData& g = ref.data();
+  for (size_t i = 0; i < first.size() && rays.size() < primary + 1500; i += 3) {
+    const Hit& h = hits[i];
+    if (is_miss(h) || (h.flags & sh::kHitGapFill)) continue;
+    const sh::GridTriangle& t = g.triangles[g.instances[h.instance].tri_offset + h.triangle];
+    glm::vec3 n = sh::triangle_normal(t.v0, t.v1, t.v2);
+    if (glm::dot(n, first[i].dir) > 0.0f) n = -n;
+    Ray s = gridtest::make_ray(first[i].org + first[i].dir * h.t, glm::reflect(first[i].dir, glm::normalize(n)));
+    s.launch_normal = n;
+    s.launch_ref = sh::ref_pack(h.instance, h.triangle);
+    rays.push_back(s);
+  }
+  return rays;
+}
+
+std::string hex_hit(const Hit& h) {
+  std::ostringstream os;
+  os << "t " << hex(h.t) << " inst " << h.instance << " tri " << h.triangle << " u " << hex(h.u) << " v "
+     << hex(h.v) << " flags " << h.flags << " cells " << h.cells << " tests " << h.tests;
+  return os.str();
+}
+std::string hex_ray(const Ray& r) {
+  std::ostringstream os;
+  os << "org (" << hex(r.org.x) << ", " << hex(r.org.y) << ", " << hex(r.org.z) << ") dir (" << hex(r.dir.x) << ", "
+     << hex(r.dir.y) << ", " << hex(r.dir.z) << ") tmin " << hex(r.tmin) << " tmax " << hex(r.tmax) << " launch ref "
+     << hex(r.launch_ref);
+  return os.str();
+}
+
+// Every hit record identical in bits; returns the number of mismatches, reporting the first few.
+size_t compare_hits(std::span<const Ray> rays, std::span<const Hit> want, std::span<const Hit> got) {
+  size_t bad = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    if (std::memcmp(&want[i], &got[i], sizeof(Hit)) == 0) continue;
+    if (++bad <= 5)
+      UNSCOPED_INFO("ray " << i << ": " << hex_ray(rays[i]) << "\n  reference " << hex_hit(want[i]) << "\n  vulkan    "
+                           << hex_hit(got[i]));
+  }
+  return bad;
+}
+
+size_t compare_texels(const AccelDump& want, const AccelDump& got) {
+  REQUIRE(want.extent == got.extent);
+  REQUIRE(want.texels.size() == got.texels.size());
+  size_t bad = 0;
+  for (size_t i = 0; i < want.texels.size(); ++i)
+    if (want.texels[i] != got.texels[i] && ++bad <= 5)
+      UNSCOPED_INFO("texel " << i << " (x " << i % want.extent.x << ", y " << (i / want.extent.x) % want.extent.y
+                             << ", z " << i / (size_t(want.extent.x) * want.extent.y) << "): reference "
+                             << hex(want.texels[i]) << " vulkan " << hex(got.texels[i]));
+  return bad;
+}
+
+size_t compare_triangles(const std::vector<sh::GridTriangle>& want, const std::vector<sh::GridTriangle>& got) {
+  REQUIRE(want.size() == got.size());
+  size_t bad = 0;
+  for (size_t i = 0; i < want.size(); ++i) {
+    const glm::vec3 a[3] = {want[i].v0, want[i].v1, want[i].v2}, b[3] = {got[i].v0, got[i].v1, got[i].v2};
+    for (int k = 0; k < 3; ++k)
+      for (int c = 0; c < 3; ++c)
+        if (bits(a[k][c]) != bits(b[k][c]) && ++bad <= 5)
+          UNSCOPED_INFO("triangle " << i << " vertex " << k << " axis " << c << ": reference " << hex(a[k][c])
+                                    << " vulkan " << hex(b[k][c]));
+    if (want[i].material != got[i].material && ++bad <= 5) UNSCOPED_INFO("triangle " << i << ": material differs");
+  }
+  return bad;
+}
+
+// Every reference a build would insert into each cell (no capacity), from the geometry buffer.
+std::vector<std::vector<uint32_t>> candidates(const reference::GridData& grid) {
+  const sh::GridParams& g = grid.params;
+  std::vector<std::vector<uint32_t>> out(size_t(g.cells.x) * g.cells.y * g.cells.z);
+  for (uint32_t i = 0; i < grid.instances.size(); ++i)
+    for (uint32_t k = 0; k < grid.instances[i].tri_count; ++k) {
+      const sh::GridTriangle& t = grid.triangles[grid.instances[i].tri_offset + k];
+      const glm::vec3 n = sh::triangle_normal(t.v0, t.v1, t.v2);
+      const float nn = sh::sh_dot(n, n);
+      if (nn == 0.0f) continue;
+      glm::uvec3 lo, hi;
+      sh::triangle_cell_range(g, t.v0, t.v1, t.v2, lo, hi);
+      for (uint32_t z = lo.z; z <= hi.z; ++z)
+        for (uint32_t y = lo.y; y <= hi.y; ++y)
+          for (uint32_t x = lo.x; x <= hi.x; ++x)
+            if (sh::plane_intersects_enlarged_sphere(t.v0, n, nn, sh::cell_center(g, {x, y, z}), g.sphere_r2))
+              out[(size_t(z) * g.cells.y + y) * g.cells.x + x].push_back(sh::ref_pack(i, k));
+    }
+  return out;
+}
+
+// First-empty: unsaturated cells hold exactly their candidates; saturated ones `capacity` of them,
+// flagged. Returns the number of bad cells; counts saturated cells.
+size_t check_first_empty(const reference::GridData& grid, const AccelDump& got, size_t* saturated) {
+  const sh::GridParams& g = grid.params;
+  const std::vector<std::vector<uint32_t>> cand = candidates(grid);
+  size_t bad = 0;
+  *saturated = 0;
+  for (uint32_t z = 0; z < g.cells.z; ++z)
+    for (uint32_t y = 0; y < g.cells.y; ++y)
+      for (uint32_t x = 0; x < g.cells.x; ++x) {
+        const glm::uvec3 cell(x, y, z);
+        std::vector<uint32_t> want = cand[(size_t(z) * g.cells.y + y) * g.cells.x + x];
+        std::vector<uint32_t> have;
+        for (uint32_t s = 0; s < g.capacity; ++s) {
+          const uint32_t v = got.texels[sh::texel_index(sh::slot_texel(cell, s, g.capacity), got.extent)];
+          if (v != sh::kBlank) have.push_back(v);
+        }
+        const uint32_t status = got.texels[sh::texel_index(sh::status_texel(cell, g.capacity), got.extent)];
+        std::sort(want.begin(), want.end());
+        std::sort(have.begin(), have.end());
+        bool ok;
+        if (want.size() <= g.capacity) {
+          ok = have == want && status == 0u;
+        } else {
+          ++*saturated;
+          ok = have.size() == g.capacity && std::includes(want.begin(), want.end(), have.begin(), have.end()) &&
+               status != 0u;
+        }
+        if (!ok && ++bad <= 5)
+          UNSCOPED_INFO("cell (" << x << ", " << y << ", " << z << "): " << want.size() << " candidates, "
+                                 << have.size() << " held, status " << status);
+      }
+  return bad;
+}
+
+GridOptions options(reference::Insertion insertion, reference::Traversal traversal, uint32_t capacity) {
+  GridOptions o;
+  o.insertion = insertion;
+  o.traversal = traversal;
+  o.threads = 2;
+  o.capacity = capacity;  // small: some cells saturate (gap-fill, first-empty choices)
+  return o;
+}
+
+}  // namespace
+
+TEST_CASE("Vulkan grid, sorted: images identical texel for texel, raster and compute builds, through updates",
+          "[vulkan][diff][grid]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = test_scene(3);
+  const GridOptions o = options(reference::Insertion::sorted, reference::Traversal::paper, 5);
+  ReferenceGridTracer ref(o);
+  ref.build(scene, 0.0f);
+  for (BuildMode mode : {BuildMode::raster, BuildMode::compute}) {
+    INFO((mode == BuildMode::raster ? "raster build" : "compute build"));
+    VulkanGridTracer vk(ctx, o, {.build = mode});
+    vk.build(scene, 0.0f);
+    CHECK(std::memcmp(&vk.params(), &ref.params(), sizeof(sh::GridParams)) == 0);
+    const AccelDump want = ref.dump();
+    CHECK(compare_texels(want, vk.dump()) == 0);
+    CHECK(compare_triangles(ref.data().triangles, vk.download_triangles()) == 0);
+    // Saturated cells exist, static and dynamic
+    const reference::GridStats stats = ref.stats();
+    CHECK(stats.saturated_static > 0);
+    CHECK(stats.saturated_dynamic > 0);
+    for (float time : {0.4f, 1.3f, 2.9f}) {
+      INFO("after update to " << time);
+      ReferenceGridTracer ref_t(o);
+      ref_t.build(scene, 0.0f);
+      ref_t.update(time);
+      vk.update(time);
+      CHECK(compare_texels(ref_t.dump(), vk.dump()) == 0);
+      CHECK(compare_triangles(ref_t.data().triangles, vk.download_triangles()) == 0);
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+TEST_CASE("Vulkan grid, first-empty: unsaturated cells hold their references, saturated ones a flagged choice",
+          "[vulkan][diff][grid]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = test_scene(4);
+  const GridOptions o = options(reference::Insertion::first_empty, reference::Traversal::paper, 5);
+  ReferenceGridTracer ref(o);
+  ref.build(scene, 0.0f);
+  for (BuildMode mode : {BuildMode::raster, BuildMode::compute}) {
+    INFO((mode == BuildMode::raster ? "raster build" : "compute build"));
+    VulkanGridTracer vk(ctx, o, {.build = mode});
+    vk.build(scene, 0.0f);
+    size_t saturated = 0;
+    CHECK(check_first_empty(ref.data(), vk.dump(), &saturated) == 0);
+    CHECK(saturated > 0);
+    CHECK(compare_triangles(ref.data().triangles, vk.download_triangles()) == 0);
+    vk.update(1.1f);
+    ReferenceGridTracer ref_t(o);
+    ref_t.build(scene, 0.0f);
+    ref_t.update(1.1f);
+    CHECK(check_first_empty(ref_t.data(), vk.dump(), &saturated) == 0);
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+TEST_CASE("Vulkan grid: every hit record identical in bits to the reference's, paper and exact, animated",
+          "[vulkan][diff][grid]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = test_scene(5);
+  for (auto traversal : {reference::Traversal::paper, reference::Traversal::exact}) {
+    const bool paper = traversal == reference::Traversal::paper;
+    INFO((paper ? "paper traversal" : "exact traversal"));
+    const GridOptions o = options(reference::Insertion::sorted, traversal, paper ? 4 : 8);
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    VulkanGridTracer vk(ctx, o, {.build = paper ? BuildMode::raster : BuildMode::compute});
+    vk.build(scene, 0.0f);
+    for (float time : {0.0f, 0.7f, 2.2f}) {
+      INFO("time " << time);
+      if (time > 0.0f) {
+        ref.update(time);
+        vk.update(time);
+      }
+      const std::vector<Ray> rays = test_rays(ref, 17 + uint32_t(time * 10));
+      std::vector<Hit> want(rays.size()), got(rays.size());
+      ref.trace(rays, want);
+      vk.trace(rays, got);
+      CHECK(compare_hits(rays, want, got) == 0);
+      // The rays exercise what they should
+      size_t hits = 0, gap = 0, back = 0, alpha_cut = 0;
+      for (const Hit& h : want) {
+        hits += !is_miss(h);
+        gap += (h.flags & sh::kHitGapFill) != 0;
+        back += (h.flags & sh::kHitBackFace) != 0;
+      }
+      (void)alpha_cut;
+      INFO("hits " << hits << " gap-fill " << gap << " back faces " << back << " of " << rays.size());
+      CHECK(hits > rays.size() / 10);
+      if (paper) CHECK(gap > 0);
+      CHECK(back > 0);
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+TEST_CASE("Vulkan grid: alpha keying and features off agree with the reference", "[vulkan][diff][grid]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = test_scene(6);
+  // Rays straight at the alpha-keyed quads: some cut, some kept
+  GridOptions o = options(reference::Insertion::sorted, reference::Traversal::exact, 8);
+  for (int variant = 0; variant < 3; ++variant) {
+    o.alpha_keying = variant != 1;
+    o.gap_fill = variant != 2;
+    o.traversal = variant == 2 ? reference::Traversal::paper : reference::Traversal::exact;
+    INFO("alpha keying " << o.alpha_keying << ", gap-fill " << o.gap_fill);
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    VulkanGridTracer vk(ctx, o);
+    vk.build(scene, 0.0f);
+    const std::vector<Ray> rays = test_rays(ref, 40 + variant);
+    std::vector<Hit> want(rays.size()), got(rays.size());
+    ref.trace(rays, want);
+    vk.trace(rays, got);
+    CHECK(compare_hits(rays, want, got) == 0);
+    size_t leaves = 0;
+    for (const Hit& h : want) leaves += !is_miss(h) && scene.instances[h.instance].name.rfind("leaves", 0) == 0;
+    CHECK(leaves > 0);
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+TEST_CASE("Vulkan grid: the explained ray leaves the reference's events, bit for bit", "[vulkan][diff][grid][explain]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = test_scene(7);
+  for (auto traversal : {reference::Traversal::paper, reference::Traversal::exact}) {
+    const GridOptions o = options(reference::Insertion::sorted, traversal, 4);
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    VulkanGridTracer vk(ctx, o);
+    vk.build(scene, 0.0f);
+    const std::vector<Ray> rays = test_rays(ref, 77);
+    // A hit, a gap-fill, a miss, an alpha cut where there is one, a secondary ray
+    std::vector<Hit> hits(rays.size());
+    ref.trace(rays, hits);
+    std::vector<uint32_t> chosen = {0u, uint32_t(96 * 32 + 48), uint32_t(rays.size() - 1)};
+    for (uint32_t i = 0; i < rays.size(); ++i)
+      if (hits[i].flags & sh::kHitGapFill) {
+        chosen.push_back(i);
+        break;
+      }
+    for (uint32_t i = 0; i < rays.size(); ++i)
+      if (!is_miss(hits[i]) && hits[i].tests > 6) {
+        chosen.push_back(i);
+        break;
+      }
+    for (uint32_t index : chosen) {
+      INFO((traversal == reference::Traversal::paper ? "paper" : "exact") << " ray " << index << ": "
+                                                                          << hex_ray(rays[index]));
+      const reference::ExplainRecord want = ref.explain_ray(rays[index]);
+      const reference::ExplainRecord got = vk.explain_ray(rays, index);
+      CHECK(std::memcmp(&want.hit, &got.hit, sizeof(Hit)) == 0);
+      REQUIRE(want.events.size() == got.events.size());
+      size_t bad = 0;
+      for (size_t e = 0; e < want.events.size(); ++e)
+        if (std::memcmp(&want.events[e], &got.events[e], sizeof(sh::ExplainEvent)) != 0 && ++bad <= 3)
+          UNSCOPED_INFO("event " << e << " differs (kind " << want.events[e].kind << " vs " << got.events[e].kind << ")");
+      CHECK(bad == 0);
+      CHECK(reference::to_text(want) == reference::to_text(got));
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}

@@ -1,0 +1,365 @@
+// grid.cpp: VulkanGridTracer, the host side of the Vulkan grid (see grid.h). The passes are in
+// vulkan/shaders/; this file makes the tables they read (as reference/build.cpp does), records
+// the passes and reads the results back.
+#include "vulkan/grid.h"
+
+#include <algorithm>
+#include <cstring>
+
+namespace gridrt::vulkan {
+
+using shared::GridParams;
+
+namespace {
+
+// The descriptor set every grid pipeline uses (vulkan/shaders/grid_common.glsl and trace.comp).
+enum Binding : uint32_t {
+  kParams = 0,
+  kImage = 1,
+  kInstances = 2,
+  kTriangles = 3,
+  kUvs = 4,
+  kMaterials = 5,
+  kTexels = 6,
+  kBuildInstances = 7,
+  kPositions = 8,
+  kIndices = 9,
+  kRays = 10,
+  kHits = 11,
+  kExplain = 12,
+  kBindingCount = 13,
+};
+constexpr uint32_t kStorageBuffersPerStage = kBindingCount - 1;
+
+// Specialization constant ids (grid_common.glsl).
+enum SpecId : uint32_t { kSpecCapacity = 0, kSpecInsertion = 1, kSpecTraversal = 2, kSpecFlags = 3, kSpecExplain = 4 };
+
+// Push constants of trace.comp.
+struct TracePush {
+  uint32_t ray_offset, ray_count, explain_ray, explain_capacity;
+};
+constexpr uint32_t kNoExplain = 0xFFFFFFFFu;
+constexpr VkDeviceSize kExplainHeader = 16;  // count + padding before the events
+
+SpecConstants spec_for(const GridParams& g, bool explain) {
+  SpecConstants s;
+  s.add(kSpecCapacity, g.capacity).add(kSpecInsertion, g.insertion).add(kSpecTraversal, g.traversal);
+  s.add(kSpecFlags, g.flags).add(kSpecExplain, explain);
+  return s;
+}
+
+template <class T>
+Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
+  Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  ctx.upload(b, data.data(), data.size() * sizeof(T));
+  return b;
+}
+
+}  // namespace
+
+struct VulkanGridTracer::Gpu {
+  Buffer params, instances, triangles, uvs, materials, texels, build_instances, positions, indices;
+  Buffer rays, hits, explain;
+  size_t ray_capacity = 0;
+  Image3D image;
+  std::unique_ptr<Descriptors> set;
+  std::unique_ptr<Pipeline> init, raster, compute, clear, trace, trace_explain;
+  std::unique_ptr<Timestamps> timestamps;
+};
+
+VulkanGridTracer::VulkanGridTracer(reference::GridOptions options, VulkanGridOptions vk)
+    : owned_(std::make_unique<Context>(ContextOptions::from_env())), ctx_(owned_.get()), options_(std::move(options)),
+      vk_(vk) {}
+
+VulkanGridTracer::VulkanGridTracer(Context& ctx, reference::GridOptions options, VulkanGridOptions vk)
+    : ctx_(&ctx), options_(std::move(options)), vk_(vk) {}
+
+VulkanGridTracer::~VulkanGridTracer() {
+  gpu_.reset();  // before an owned context goes
+}
+
+std::string VulkanGridTracer::name() const {
+  return vk_.build == BuildMode::raster ? "vulkan-grid" : "vulkan-grid (compute build)";
+}
+
+// ---- Scene build (paper 2.1) ----
+
+void VulkanGridTracer::build(const Scene& scene, float time) {
+  Context& ctx = *ctx_;
+  const DeviceInfo& dev = ctx.info();
+  if (dev.limits.maxPerStageDescriptorStorageBuffers < kStorageBuffersPerStage)
+    throw Error("the Vulkan grid needs " + std::to_string(kStorageBuffersPerStage) +
+                " storage buffers per shader stage, over maxPerStageDescriptorStorageBuffers (" +
+                std::to_string(dev.limits.maxPerStageDescriptorStorageBuffers) + ") on " + dev.name +
+                "; use --backend cpu");
+  if (vk_.build == BuildMode::raster && (!dev.geometry_shader || !dev.vertex_pipeline_stores_and_atomics))
+    throw Error(dev.name + " lacks geometryShader or vertexPipelineStoresAndAtomics for the raster build: use "
+                           "the compute build (--build compute)");
+  gpu_.reset();
+  scene_ = &scene;
+
+  // The grid the reference would choose, within this device's image limit
+  reference::GridOptions o = options_;
+  o.max_image_dimension = std::min(o.max_image_dimension, dev.limits.maxImageDimension3D);
+  params_ = reference::choose_grid(scene, time, o);
+  const GridParams& g = params_;
+
+  // Tables: instances, materials and their alpha masks, the geometry buffer (reference/build.cpp)
+  static_instances_ = scene.static_instance_count();
+  instances_.clear();
+  uint32_t offset = 0;
+  for (const Instance& inst : scene.instances) {
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    shared::GridInstance gi{offset, mesh.triangle_count(), inst.dynamic ? shared::kInstanceDynamic : 0u, 0u};
+    for (uint32_t m : mesh.materials)
+      if (scene.materials[m].alpha_keyed()) gi.flags |= shared::kInstanceAlphaKeyed;
+    instances_.push_back(gi);
+    offset += mesh.triangle_count();
+  }
+  std::vector<shared::GridTriangle> triangles(offset, shared::GridTriangle{});
+  std::vector<shared::GridTriangleUv> uvs(offset, shared::GridTriangleUv{});
+  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
+    const Mesh& mesh = scene.meshes[scene.instances[i].mesh];
+    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+      const uint32_t k = instances_[i].tri_offset + t;
+      triangles[k].material = mesh.materials.empty() ? 0u : mesh.materials[t];
+      if (!mesh.uvs.empty()) {
+        const glm::uvec3 idx = mesh.triangles[t];
+        uvs[k] = {mesh.uvs[idx.x], mesh.uvs[idx.y], mesh.uvs[idx.z]};
+      }
+    }
+  }
+  std::vector<shared::GridMaterial> materials;
+  std::vector<uint32_t> texels;
+  for (const Material& mat : scene.materials) {
+    shared::GridMaterial gm{};
+    if (mat.alpha_keyed()) {
+      const Texture& tex = scene.textures[size_t(mat.alpha_texture)];
+      gm.alpha_offset = uint32_t(texels.size());
+      gm.alpha_width = tex.width;
+      gm.alpha_height = tex.height;
+      for (size_t p = 0; p < size_t(tex.width) * tex.height; ++p)
+        texels.push_back(uint32_t(tex.rgba[4 * p]) | uint32_t(tex.rgba[4 * p + 1]) << 8 |
+                         uint32_t(tex.rgba[4 * p + 2]) << 16 | uint32_t(tex.rgba[4 * p + 3]) << 24);
+    }
+    materials.push_back(gm);
+  }
+
+  // Build input: the object-space meshes and every instance's transform
+  std::vector<glm::vec4> positions;
+  std::vector<uint32_t> indices;
+  std::vector<uint32_t> vertex_offset(scene.meshes.size()), index_offset(scene.meshes.size());
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    vertex_offset[m] = uint32_t(positions.size());
+    index_offset[m] = uint32_t(indices.size());
+    for (const glm::vec3& p : scene.meshes[m].positions) positions.emplace_back(p, 1.0f);
+    for (const glm::uvec3& t : scene.meshes[m].triangles) indices.insert(indices.end(), {t.x, t.y, t.z});
+  }
+  build_instances_.clear();
+  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
+    const Instance& inst = scene.instances[i];
+    build_instances_.push_back({shared::to_affine(inst.transform_at(time)), vertex_offset[inst.mesh],
+                                index_offset[inst.mesh], instances_[i].tri_offset, instances_[i].tri_count});
+  }
+
+  // Device resources: buffers, the image, the descriptor set, the pipelines
+  gpu_ = std::make_unique<Gpu>();
+  Gpu& gpu = *gpu_;
+  gpu.params = make_buffer(ctx, std::vector<GridParams>{g});
+  gpu.instances = make_buffer(ctx, instances_);
+  gpu.triangles = make_buffer(ctx, triangles);
+  gpu.uvs = make_buffer(ctx, uvs);
+  gpu.materials = make_buffer(ctx, materials);
+  gpu.texels = make_buffer(ctx, texels);
+  gpu.build_instances = make_buffer(ctx, build_instances_);
+  gpu.positions = make_buffer(ctx, positions);
+  gpu.indices = make_buffer(ctx, indices);
+  gpu.explain = ctx.create_buffer(kExplainHeader + VkDeviceSize(vk_.explain_capacity) * sizeof(shared::ExplainEvent),
+                                  VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  gpu.rays = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  gpu.hits = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  gpu.image = ctx.create_image3d(shared::grid_image_extent(g));
+
+  const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  gpu.set = std::make_unique<Descriptors>(
+      ctx, std::initializer_list<VkDescriptorType>{sb, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, sb, sb, sb, sb, sb, sb, sb,
+                                                   sb, sb, sb, sb});
+  Descriptors& set = *gpu.set;
+  set.bind(kParams, gpu.params);
+  set.bind(kImage, gpu.image);
+  set.bind(kInstances, gpu.instances);
+  set.bind(kTriangles, gpu.triangles);
+  set.bind(kUvs, gpu.uvs);
+  set.bind(kMaterials, gpu.materials);
+  set.bind(kTexels, gpu.texels);
+  set.bind(kBuildInstances, gpu.build_instances);
+  set.bind(kPositions, gpu.positions);
+  set.bind(kIndices, gpu.indices);
+  set.bind(kRays, gpu.rays);
+  set.bind(kHits, gpu.hits);
+  set.bind(kExplain, gpu.explain);
+
+  gpu.init = std::make_unique<Pipeline>(ctx, "grid_init.comp", set.layout(), 0, spec_for(g, false));
+  if (vk_.build == BuildMode::raster)
+    gpu.raster = std::make_unique<Pipeline>(ctx, "build.vert", "build.geom", set.layout(), 0, spec_for(g, false));
+  else
+    gpu.compute = std::make_unique<Pipeline>(ctx, "build.comp", set.layout(), uint32_t(sizeof(shared::BuildPush)),
+                                             spec_for(g, false));
+  gpu.clear = std::make_unique<Pipeline>(ctx, "clear_dynamic.comp", set.layout(), uint32_t(sizeof(uint32_t)),
+                                         spec_for(g, false));
+  gpu.trace = std::make_unique<Pipeline>(ctx, "trace.comp", set.layout(), uint32_t(sizeof(TracePush)),
+                                         spec_for(g, false));
+  if (dev.timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
+
+  // The passes: the image blank with status texels 0, the static instances (their references
+  // fill the first slots), then the dynamic ones
+  const glm::uvec3 extent = gpu.image.extent;
+  const uint32_t* max_groups = dev.limits.maxComputeWorkGroupCount;
+  if (groups(extent.x, 4) > max_groups[0] || groups(extent.y, 4) > max_groups[1] || groups(extent.z, 4) > max_groups[2])
+    throw Error("the grid image needs more workgroups than maxComputeWorkGroupCount on " + dev.name +
+                ": use fewer cells or a smaller capacity, or --backend cpu");
+  ctx.submit([&](VkCommandBuffer cb) {
+    if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+    gpu.init->bind(cb, set.set());
+    vkCmdDispatch(cb, groups(extent.x, 4), groups(extent.y, 4), groups(extent.z, 4));
+    barrier(cb);
+    insert_instances(cb, 0, static_instances_);
+    barrier(cb);
+    insert_instances(cb, static_instances_, uint32_t(scene.instances.size()));
+    if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+  });
+  timings_.build_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
+}
+
+// Insert the triangles of instances [first, last): the raster pass (one draw per instance,
+// firstInstance = its id) or the compute build (one invocation per triangle).
+void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last) {
+  if (first >= last) return;
+  Gpu& gpu = *gpu_;
+  if (vk_.build == BuildMode::raster) {
+    gpu.raster->begin_pass(cb);
+    gpu.raster->bind(cb, gpu.set->set());
+    for (uint32_t i = first; i < last; ++i)
+      if (instances_[i].tri_count) vkCmdDraw(cb, 3 * instances_[i].tri_count, 1, 0, i);
+    gpu.raster->end_pass(cb);
+    return;
+  }
+  const uint32_t begin = instances_[first].tri_offset;
+  const uint32_t end = instances_[last - 1].tri_offset + instances_[last - 1].tri_count;
+  const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
+  gpu.compute->bind(cb, gpu.set->set());
+  for (uint32_t t = begin; t < end; t += std::min(chunk, end - t)) {
+    const shared::BuildPush push{first, last, t, std::min(chunk, end - t)};
+    gpu.compute->push(cb, push);
+    vkCmdDispatch(cb, groups(push.tri_count, 64), 1, 1);
+  }
+}
+
+// ---- Scene update (paper 2.2) ----
+
+void VulkanGridTracer::upload_transforms(float time, uint32_t first, uint32_t last) {
+  for (uint32_t i = first; i < last; ++i)
+    build_instances_[i].transform = shared::to_affine(scene_->instances[i].transform_at(time));
+  if (first < last)
+    ctx_->upload(gpu_->build_instances, &build_instances_[first], (last - first) * sizeof(shared::BuildInstance),
+                 first * sizeof(shared::BuildInstance));
+}
+
+void VulkanGridTracer::update(float time) {
+  if (!scene_ || !gpu_) throw Error("vulkan-grid: update before build");
+  const uint32_t n = uint32_t(scene_->instances.size());
+  if (static_instances_ == n) return;
+  Gpu& gpu = *gpu_;
+  upload_transforms(time, static_instances_, n);
+  const GridParams& g = params_;
+  ctx_->submit([&](VkCommandBuffer cb) {
+    if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+    // Clear the dynamic references, 4x4x4 cells per workgroup
+    gpu.clear->bind(cb, gpu.set->set());
+    gpu.clear->push(cb, g.comparison_offset);
+    vkCmdDispatch(cb, groups(g.cells.x, 4), groups(g.cells.y, 4), groups(g.cells.z, 4));
+    barrier(cb);
+    // Insert the dynamic instances at their new transforms
+    insert_instances(cb, static_instances_, n);
+    if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+  });
+  timings_.update_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
+}
+
+// ---- Scene trace (paper 2.3) ----
+
+void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index) {
+  if (hits.size() != rays.size()) throw Error("vulkan-grid: hits.size() != rays.size()");
+  if (!scene_ || !gpu_) throw Error("vulkan-grid: trace before build");
+  if (rays.empty()) return;
+  Context& ctx = *ctx_;
+  Gpu& gpu = *gpu_;
+  // Ray and hit buffers, grown as needed
+  if (rays.size() > gpu.ray_capacity) {
+    gpu.rays = ctx.create_buffer(rays.size_bytes(), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    gpu.hits = ctx.create_buffer(rays.size() * sizeof(Hit), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    gpu.ray_capacity = rays.size();
+    gpu.set->bind(kRays, gpu.rays);
+    gpu.set->bind(kHits, gpu.hits);
+  }
+  ctx.upload(gpu.rays, rays.data(), rays.size_bytes());
+  const bool explain = explain_index != kNoExplain;
+  if (explain && !gpu.trace_explain)
+    gpu.trace_explain = std::make_unique<Pipeline>(ctx, "trace.comp", gpu.set->layout(), uint32_t(sizeof(TracePush)),
+                                                   spec_for(params_, true));
+  const Pipeline& pipe = explain ? *gpu.trace_explain : *gpu.trace;
+  const uint32_t n = uint32_t(rays.size());
+  const uint32_t chunk = ctx.info().limits.maxComputeWorkGroupCount[0] * 64u;
+  ctx.submit([&](VkCommandBuffer cb) {
+    if (explain) {
+      vkCmdFillBuffer(cb, gpu.explain.buffer, 0, kExplainHeader, 0u);
+      barrier(cb);
+    }
+    if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+    pipe.bind(cb, gpu.set->set());
+    for (uint32_t first = 0; first < n; first += std::min(chunk, n - first)) {
+      const TracePush push{first, std::min(chunk, n - first), explain_index, vk_.explain_capacity};
+      pipe.push(cb, push);
+      vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
+    }
+    if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+  });
+  timings_.trace_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
+  ctx.download(gpu.hits, hits.data(), hits.size_bytes());
+}
+
+void VulkanGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) { run_trace(rays, hits, kNoExplain); }
+
+reference::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays, uint32_t index) {
+  if (index >= rays.size()) throw Error("vulkan-grid: explain index out of range");
+  std::vector<Hit> hits(rays.size());
+  run_trace(rays, hits, index);
+  uint32_t count = 0;
+  ctx_->download(gpu_->explain, &count, sizeof count);
+  if (count > vk_.explain_capacity)
+    throw Error("vulkan-grid: the explained ray left " + std::to_string(count) + " events, over the explain buffer's " +
+                std::to_string(vk_.explain_capacity) + " (VulkanGridOptions::explain_capacity)");
+  reference::ExplainRecord rec;
+  rec.ray = rays[index];
+  rec.params = params_;
+  rec.events = ctx_->download<shared::ExplainEvent>(gpu_->explain, count, kExplainHeader);
+  rec.hit = hits[index];
+  return rec;
+}
+
+AccelDump VulkanGridTracer::dump() const {
+  if (!gpu_) return {};
+  AccelDump d;
+  d.kind = "grid";
+  d.extent = gpu_->image.extent;
+  d.texels = ctx_->download(gpu_->image);
+  return d;
+}
+
+std::vector<shared::GridTriangle> VulkanGridTracer::download_triangles() const {
+  if (!gpu_) return {};
+  const uint32_t n = instances_.empty() ? 0 : instances_.back().tri_offset + instances_.back().tri_count;
+  return ctx_->download<shared::GridTriangle>(gpu_->triangles, n);
+}
+
+}  // namespace gridrt::vulkan

@@ -1,0 +1,85 @@
+// grid.h: the Vulkan port of the fixed-capacity grid, behind the same interface as the reference
+// (reference/grid.h) and held to it bit for bit (docs/VULKAN.md):
+//   scene_build  (2.1)  grid_init.comp, then the raster pass (build.vert + build.geom, one draw
+//                       per instance) or the compute build (build.comp), static then dynamic
+//   scene_update (2.2)  clear_dynamic.comp (4x4x4 workgroups), then the dynamic instances again
+//   scene_trace  (2.3)  trace.comp, one invocation per ray; the explain ray records its events
+// The grid (placement, resolution, capacity) is chosen by reference::choose_grid, so both
+// tracers build the same grid from the same GridOptions.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/tracer.h"
+#include "reference/grid.h"
+#include "vulkan/context.h"
+#include "vulkan/pipeline.h"
+#include "vulkan/shaders/build_input.h"
+
+namespace gridrt::vulkan {
+
+enum class BuildMode {
+  raster,   // the paper's: a raster pass whose geometry shader does the work
+  compute,  // one compute invocation per triangle
+};
+
+struct VulkanGridOptions {
+  BuildMode build = BuildMode::raster;
+  uint32_t explain_capacity = 1u << 16;  // events the explain buffer holds
+};
+
+// GPU time of the last build, update and trace (timestamp queries), milliseconds.
+struct GridTimings {
+  double build_ms = 0.0, update_ms = 0.0, trace_ms = 0.0;
+};
+
+class VulkanGridTracer : public Tracer {
+ public:
+  // On its own context (ContextOptions::from_env()).
+  explicit VulkanGridTracer(reference::GridOptions options = {}, VulkanGridOptions vk = {});
+  // On a context the caller keeps alive.
+  VulkanGridTracer(Context& ctx, reference::GridOptions options = {}, VulkanGridOptions vk = {});
+  ~VulkanGridTracer() override;
+
+  std::string name() const override;
+  void build(const Scene& scene, float time) override;
+  void update(float time) override;
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  AccelDump dump() const override;
+
+  // Traces `rays` and records the events of rays[index], as the reference's explain_ray does.
+  reference::ExplainRecord explain_ray(std::span<const Ray> rays, uint32_t index);
+  reference::ExplainRecord explain_ray(const Ray& ray) { return explain_ray(std::span<const Ray>(&ray, 1), 0); }
+
+  // The geometry buffer as the build wrote it (for tests against GridData::triangles).
+  std::vector<shared::GridTriangle> download_triangles() const;
+
+  const shared::GridParams& params() const { return params_; }
+  const reference::GridOptions& options() const { return options_; }
+  const GridTimings& timings() const { return timings_; }
+  Context& context() const { return *ctx_; }
+
+ private:
+  struct Gpu;  // buffers, image, descriptors, pipelines
+  void insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last);
+  void upload_transforms(float time, uint32_t first, uint32_t last);
+  void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index);
+
+  std::unique_ptr<Context> owned_;
+  Context* ctx_ = nullptr;
+  reference::GridOptions options_;
+  VulkanGridOptions vk_;
+  const Scene* scene_ = nullptr;
+  shared::GridParams params_{};
+  uint32_t static_instances_ = 0;
+  std::vector<shared::GridInstance> instances_;
+  std::vector<shared::BuildInstance> build_instances_;
+  std::unique_ptr<Gpu> gpu_;
+  GridTimings timings_;
+};
+
+}  // namespace gridrt::vulkan

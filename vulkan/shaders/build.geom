@@ -1,0 +1,14 @@
+#version 460
+// build.geom: the geometry shader of the raster build (paper 2.1): one invocation per triangle
+// does the whole build step (build.glsl) and emits nothing; rasterization is discarded.
+#extension GL_GOOGLE_include_directive : require
+#include "build.glsl"
+
+layout(triangles) in;
+layout(points, max_vertices = 1) out;
+
+layout(location = 0) in vec3 world[];
+layout(location = 1) flat in uint instance_id[];
+layout(location = 2) flat in uint triangle_id[];
+
+void main() { build_invocation(instance_id[0], triangle_id[0], world[0], world[1], world[2]); }

@@ -1,0 +1,68 @@
+// build.glsl: scene build (paper 2.1), the body of one build invocation, shared by the geometry
+// shader of the raster pass (build.geom) and the compute build (build.comp). Same names and
+// heading comments as reference/build.cpp.
+#ifndef GRIDRT_BUILD_GLSL
+#define GRIDRT_BUILD_GLSL
+
+#include "grid_common.glsl"
+
+layout(binding = 1, r32ui) uniform coherent uimage3D grid_image;
+
+// Paper: compare-and-swap blank -> ref into the first slot that takes it; when none does, flag
+// the cell saturated (static or dynamic bit by the reference's kind).
+void insert_first_empty(GridParams g, uvec3 cell, uint ref) {
+  for (uint s = 0u; s < g.capacity; ++s) {
+    const uint old = imageAtomicCompSwap(grid_image, ivec3(slot_texel(cell, s, g.capacity)), kBlank, ref);
+    if (old == kBlank) return;
+  }
+  // Saturated: no slot took the reference
+  const uint bit = ref < g.comparison_offset ? kStatusStatic : kStatusDynamic;
+  imageAtomicOr(grid_image, ivec3(status_texel(cell, g.capacity)), bit);
+}
+
+// Ours: an atomic-min cascade. The carried value v takes the smaller of itself and each slot in
+// turn (old = atomicMin(slot, v); v = max(old, v)) until it is blank; the cell ends holding its
+// `capacity` smallest references in ascending order whatever the timing. A value pushed out of
+// the last slot is dropped and flags the cell (static bit if it is static, else dynamic).
+void insert_sorted(GridParams g, uvec3 cell, uint ref) {
+  uint v = ref;
+  for (uint s = 0u; s < g.capacity; ++s) {
+    const uint old = imageAtomicMin(grid_image, ivec3(slot_texel(cell, s, g.capacity)), v);
+    v = max(old, v);
+    if (v == kBlank) return;
+  }
+  // Saturated: the dropped value names the bit
+  const uint bit = v < g.comparison_offset ? kStatusStatic : kStatusDynamic;
+  imageAtomicOr(grid_image, ivec3(status_texel(cell, g.capacity)), bit);
+}
+
+// One build invocation: write the world-space triangle to the geometry buffer, insert its
+// reference into every cell of its AABB range whose enlarged bounding sphere the triangle's plane
+// passes through.
+void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2) {
+  const GridParams g = grid_params();
+  // Write the world-space triangle (the material was written by the host)
+  const uint k = instances[instance].tri_offset + triangle;
+  triangles[k].v0 = v0;
+  triangles[k].v1 = v1;
+  triangles[k].v2 = v2;
+  // Skip zero-area triangles: no ray can hit them
+  const vec3 n = triangle_normal(v0, v1, v2);
+  const float nn = sh_dot(n, n);
+  if (nn == 0.0f) return;
+  // Cells of the AABB range whose enlarged bounding sphere meets the plane
+  uvec3 lo;
+  uvec3 hi;
+  triangle_cell_range(g, v0, v1, v2, lo, hi);
+  const uint ref = ref_pack(instance, triangle);
+  for (uint z = lo.z; z <= hi.z; ++z)
+    for (uint y = lo.y; y <= hi.y; ++y)
+      for (uint x = lo.x; x <= hi.x; ++x) {
+        const uvec3 cell = uvec3(x, y, z);
+        if (!plane_intersects_enlarged_sphere(v0, n, nn, cell_center(g, cell), g.sphere_r2)) continue;
+        if (g.insertion == kInsertSorted) insert_sorted(g, cell, ref);
+        else insert_first_empty(g, cell, ref);
+      }
+}
+
+#endif

@@ -1,0 +1,52 @@
+// grid_common.glsl: what every grid shader shares: the shared headers, the specialization
+// constants, and the one descriptor set (vulkan/grid.cpp, Binding) of the grid's buffers.
+#ifndef GRIDRT_GRID_COMMON_GLSL
+#define GRIDRT_GRID_COMMON_GLSL
+
+#include "common/shared/compat.h"
+#include "common/shared/records.h"
+#include "common/shared/transform.h"
+#include "common/shared/alpha.h"
+#include "common/shared/grid.h"
+#include "common/shared/triangle.h"
+#include "common/shared/explain.h"
+#include "vulkan/shaders/build_input.h"
+
+// Specialization constants: the values of GridParams that shape the code, so that unused paths
+// (alpha keying, gap-fill, the other traversal or insertion) are not compiled in. The host sets
+// them from the same GridParams it uploads (vulkan/grid.cpp, SpecId).
+layout(constant_id = 0) const uint kCapacity = 4u;   // GridParams::capacity
+layout(constant_id = 1) const uint kInsertion = 1u;  // GridParams::insertion
+layout(constant_id = 2) const uint kTraversal = 0u;  // GridParams::traversal
+layout(constant_id = 3) const uint kFlags = 0u;      // GridParams::flags (kGrid* bits)
+layout(constant_id = 4) const bool kExplain = false; // trace: record the explain ray's events
+
+layout(std430, binding = 0) readonly buffer ParamsBuffer { GridParams params_buffer; };
+layout(std430, binding = 2) readonly buffer Instances { GridInstance instances[]; };
+layout(std430, binding = 3) buffer Triangles { GridTriangle triangles[]; };
+layout(std430, binding = 4) readonly buffer Uvs { GridTriangleUv uvs[]; };
+layout(std430, binding = 5) readonly buffer Materials { GridMaterial materials[]; };
+layout(std430, binding = 6) readonly buffer Texels { uint texels[]; };
+layout(std430, binding = 7) readonly buffer BuildInstances { BuildInstance build_instances[]; };
+layout(std430, binding = 8) readonly buffer Positions { vec4 positions[]; };
+layout(std430, binding = 9) readonly buffer Indices { uint indices[]; };
+
+// The grid's parameters with the specialized fields constant.
+GridParams grid_params() {
+  GridParams g = params_buffer;
+  g.capacity = kCapacity;
+  g.insertion = kInsertion;
+  g.traversal = kTraversal;
+  g.flags = kFlags;
+  return g;
+}
+
+// World-space vertex `corner` (0..2) of `triangle` of `instance`: the mesh vertex through the
+// instance's transform (shared::transform_point, as the reference).
+vec3 world_vertex(uint instance, uint triangle, uint corner) {
+  const uint index = indices[build_instances[instance].index_offset + 3u * triangle + corner];
+  const vec3 p = positions[build_instances[instance].vertex_offset + index].xyz;
+  return transform_point(build_instances[instance].transform, p);
+}
+
+#endif

@@ -1,0 +1,278 @@
+#version 460
+// trace.comp: scene trace (paper 2.3), one invocation per ray: paper segments or the exact DDA,
+// alpha keying and gap-fill, as specialization constants. This file follows reference/trace.cpp
+// block by block, with the same names and heading comments; the explain ray (push constant)
+// writes the same events as the reference's explain into the explain buffer.
+#extension GL_GOOGLE_include_directive : require
+#include "grid_common.glsl"
+
+layout(local_size_x = 64) in;
+layout(binding = 1, r32ui) uniform readonly uimage3D grid_image;
+layout(std430, binding = 10) readonly buffer Rays { RayRecord rays[]; };
+layout(std430, binding = 11) writeonly buffer Hits { HitRecord hits[]; };
+layout(std430, binding = 12) buffer Explain {
+  uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
+  uint explain_pad0;
+  uint explain_pad1;
+  uint explain_pad2;
+  ExplainEvent explain_events[];
+};
+layout(push_constant) uniform Push {
+  uint ray_offset;        // index of invocation 0's ray
+  uint ray_count;         // rays of this dispatch
+  uint explain_ray;       // the ray whose events are recorded (0xFFFFFFFF: none)
+  uint explain_capacity;  // events the explain buffer holds
+} pc;
+
+// The state of one ray's traversal (reference/trace.cpp, TraceState).
+struct TraceState {
+  vec3 org;
+  vec3 dir;
+  float tmin;
+  float tmax;
+  vec3 launch_normal;
+  uint launch_ref;
+  RaySetup rs;
+  bool has_best;
+  float best_t;
+  uint best_ref;
+  float best_u;
+  float best_v;
+  uint best_flags;
+  uint cells;
+  uint tests;
+};
+
+TraceState st;
+bool explaining = false;
+
+void emit(uint kind, uint code, uint ref, uint step, uvec3 cell, uint slot, vec4 f0, vec4 f1) {
+  if (!kExplain || !explaining) return;
+  const uint i = explain_count;
+  if (i < pc.explain_capacity) explain_events[i] = ExplainEvent(kind, code, ref, step, cell, slot, f0, f1);
+  explain_count = i + 1u;
+}
+
+// Test one reference of a cell against the interval (t_lo, t_hi); the closest accepted hit so far
+// is kept (ties: the smaller reference).
+void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, float t_lo, float t_hi) {
+  // Self-hit: the launch triangle
+  if ((g.flags & kGridExcludeLaunchRef) != 0u && ref == st.launch_ref) {
+    emit(kEvTest, kTestSelfHit, ref, step, cell, slot, vec4(0.0f), vec4(0.0f));
+    return;
+  }
+  const GridInstance inst = instances[ref_instance(ref)];
+  const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(ref)];
+  // Moller-Trumbore against the elongated segment
+  TriangleTest r;
+  const float best = st.has_best ? st.best_t : sh_infinity();
+  uint code = moller_trumbore(st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
+  st.tests += 1u;
+  float t = 0.0f;
+  vec2 bc = vec2(0.0f);
+  if (code == kTestAccepted) {
+    // Barycentrics by Cramer's rule at the hit point
+    t = moller_trumbore_t(r);
+    bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
+    // Alpha keying: the mask texel under the interpolated uv
+    if ((g.flags & kGridAlphaKeying) != 0u && (inst.flags & kInstanceAlphaKeyed) != 0u) {
+      const GridMaterial mat = materials[tri.material];
+      if (mat.alpha_width != 0u) {
+        const GridTriangleUv tuv = uvs[inst.tri_offset + ref_triangle(ref)];
+        const vec2 uv = interpolate_uv(tuv.uv0, tuv.uv1, tuv.uv2, bc.x, bc.y);
+        const uvec2 xy = alpha_texel_coords(uv, mat.alpha_width, mat.alpha_height);
+        const uint alpha = texel_alpha(texels[mat.alpha_offset + xy.y * mat.alpha_width + xy.x]);
+        const bool keep = alpha_keeps(alpha);
+        emit(kEvAlpha, keep ? 1u : 0u, ref, step, uvec3(xy.x, xy.y, tri.material), alpha,
+             vec4(bc.x, bc.y, uv.x, uv.y), vec4(0.0f));
+        if (!keep) code = kTestAlphaKeyed;
+      }
+    }
+    // Tie rule: equal t keeps the smaller reference
+    if (code == kTestAccepted && st.has_best && !(t < st.best_t || (t == st.best_t && ref < st.best_ref)))
+      code = kTestTieLost;
+  }
+  emit(kEvTest, code, ref, step, cell, slot, vec4(r.det, r.u_det, r.v_det, r.t_det),
+       vec4(r.lo_det, r.hi_det, r.best_det, t));
+  if (code != kTestAccepted) return;
+  // A new best hit
+  emit(kEvCandidate, 0u, ref, step, cell, slot, vec4(t, bc.x, bc.y, st.has_best ? st.best_t : sh_infinity()),
+       vec4(0.0f));
+  st.has_best = true;
+  st.best_t = t;
+  st.best_ref = ref;
+  st.best_u = bc.x;
+  st.best_v = bc.y;
+  st.best_flags = r.det < 0.0f ? kHitBackFace : 0u;
+}
+
+// Every reference of a cell, slot by slot up to the first blank; returns the last one read.
+uint test_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
+  uint last = kBlank;
+  for (uint s = 0u; s < g.capacity; ++s) {
+    const uint ref = imageLoad(grid_image, ivec3(slot_texel(cell, s, g.capacity))).x;
+    emit(kEvSlot, 0u, ref, step, cell, s, vec4(0.0f), vec4(0.0f));
+    if (ref == kBlank) break;
+    last = ref;
+    test_reference(g, ref, step, cell, s, t_lo, t_hi);
+  }
+  return last;
+}
+
+HitRecord report(uint step) {
+  HitRecord h;
+  h.t = st.best_t;
+  h.instance = ref_instance(st.best_ref);
+  h.triangle = ref_triangle(st.best_ref);
+  h.u = st.best_u;
+  h.v = st.best_v;
+  h.flags = st.best_flags;
+  h.cells = st.cells;
+  h.tests = st.tests;
+  emit(kEvReport, h.flags, st.best_ref, step, uvec3(0u), 0u, vec4(h.t, h.u, h.v, 0.0f), vec4(0.0f));
+  return h;
+}
+
+HitRecord miss(uint code, uint step, uint flags) {
+  HitRecord h;
+  h.t = 0.0f;
+  h.instance = kNoInstance;
+  h.triangle = kNoInstance;
+  h.u = 0.0f;
+  h.v = 0.0f;
+  h.flags = flags;
+  h.cells = st.cells;
+  h.tests = st.tests;
+  emit(kEvMiss, code, kBlank, step, uvec3(0u), 0u, vec4(0.0f), vec4(0.0f));
+  return h;
+}
+
+// The end of a traversal: the best candidate if there is one (hits found by elongation past the
+// last segment are real triangle hits), else a miss.
+HitRecord finish(uint code, uint step) { return st.has_best ? report(step) : miss(code, step, 0u); }
+
+// Gap-fill (paper 2.3): a saturated cell without a reported hit reports a false hit at the
+// segment's midpoint with the last reference read, once the segment has left the launch surface.
+bool gap_fill(GridParams g, uvec3 cell, uint step, uint last_ref, vec3 sample_point, float t_mid,
+              out HitRecord result) {
+  vec2 values;
+  const bool left = gap_fill_left_surface(sample_point, st.org, st.launch_normal, g.gap_fill_r2, values);
+  const bool inside = t_mid > st.rs.t_lo && t_mid < st.tmax;
+  const uint code = !left ? kGapTooClose : (!inside ? kGapOutsideRay : kGapApplied);
+  emit(kEvGapFill, code, last_ref, step, cell, 0u, vec4(values.x, values.y, t_mid, 0.0f), vec4(0.0f));
+  if (code != kGapApplied) return false;
+  const GridInstance inst = instances[ref_instance(last_ref)];
+  const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(last_ref)];
+  const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, sample_point);
+  st.has_best = true;
+  st.best_t = t_mid;
+  st.best_ref = last_ref;
+  st.best_u = bc.x;
+  st.best_v = bc.y;
+  st.best_flags = kHitGapFill;
+  result = report(step);
+  return true;
+}
+
+// ---- Paper traversal: cell-sized segments, sampled at their midpoints ----
+HitRecord trace_paper(GridParams g) {
+  uvec3 prev = uvec3(0xFFFFFFFFu);
+  for (uint k = 0u; k < g.max_segments; ++k) {
+    // The segment and its sample point
+    const float seg_begin = segment_begin(st.rs, k);
+    const float seg_end = segment_end(st.rs, k);
+    if (seg_begin >= st.rs.t_end) return finish(seg_begin >= st.tmax ? kMissTmax : kMissLeftGrid, k);
+    const float t_mid = segment_sample_t(st.rs, k);
+    const vec3 sample_point = point_at(st.org, st.dir, t_mid);
+    if (!grid_contains(g, sample_point)) return finish(kMissLeftGrid, k);
+    const uvec3 cell = cell_of_point(g, sample_point);
+    // Visited-cell tracking: a straight ray does not come back to a convex cell
+    if (cell == prev) {
+      emit(kEvCellSkipped, 0u, kBlank, k, cell, 0u, vec4(sample_point, t_mid), vec4(0.0f));
+    } else {
+      prev = cell;
+      st.cells += 1u;
+      // Test the cell's references against the elongated segment
+      const float e_begin = segment_elongated_begin(g, st.rs, k);
+      const float e_end = segment_elongated_end(g, st.rs, k);
+      const float t_lo = max(st.rs.t_lo, e_begin);
+      const float t_hi = min(st.tmax, e_end);
+      emit(kEvCell, 0u, kBlank, k, cell, 0u, vec4(sample_point, t_mid), vec4(seg_begin, seg_end, t_lo, t_hi));
+      const uint last_ref = test_cell(g, cell, k, t_lo, t_hi);
+      // Report the closest hit once it lies before the segment's end ("t < 1")
+      if (st.has_best && st.best_t < seg_end) return report(k);
+      // Gap-fill in a saturated cell
+      if ((g.flags & kGridGapFill) != 0u && last_ref != kBlank) {
+        const uint status = imageLoad(grid_image, ivec3(status_texel(cell, g.capacity))).x;
+        emit(kEvStatus, status, kBlank, k, cell, g.capacity, vec4(0.0f), vec4(0.0f));
+        HitRecord h;
+        if (status != 0u && gap_fill(g, cell, k, last_ref, sample_point, t_mid, h)) return h;
+      }
+      continue;
+    }
+    // A skipped step still reports a candidate that now lies before the segment's end
+    if (st.has_best && st.best_t < seg_end) return report(k);
+  }
+  return finish(kMissStepLimit, g.max_segments);
+}
+
+// ---- Exact traversal: 3D DDA over every pierced cell ----
+HitRecord trace_exact(GridParams g) {
+  // Enter the grid at t_start
+  const vec3 inv_dir = dda_inverse_direction(st.dir);
+  uvec3 cell = cell_of_point(g, point_at(st.org, st.dir, st.rs.t_start));
+  float t_entry = st.rs.t_start;
+  for (uint k = 0u; k < g.max_segments; ++k) {
+    const vec3 exits = dda_exits(g, st.org, st.dir, inv_dir, cell);
+    const float t_exit = dda_cell_exit(exits);
+    st.cells += 1u;
+    // Test the cell's references against the whole ray
+    emit(kEvCell, 0u, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
+         vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
+    test_cell(g, cell, k, st.rs.t_lo, st.tmax);
+    // Report the closest hit once it lies inside this cell or before
+    if (st.has_best && st.best_t <= t_exit) return report(k);
+    if (t_exit >= st.rs.t_end) return finish(t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
+    // Step to the next cell
+    if (!dda_step(g, st.dir, dda_step_axis(exits), cell)) return finish(kMissLeftGrid, k);
+    t_entry = t_exit;
+  }
+  return finish(kMissStepLimit, g.max_segments);
+}
+
+// ---- Scene trace (paper 2.3) ----
+HitRecord scene_trace(GridParams g, RayRecord ray) {
+  st.org = ray.org;
+  st.dir = ray.dir;
+  st.tmin = ray.tmin;
+  st.tmax = ray.tmax;
+  st.launch_normal = ray.launch_normal;
+  st.launch_ref = ray.launch_ref;
+  st.has_best = false;
+  st.best_t = 0.0f;
+  st.best_ref = kBlank;
+  st.best_u = 0.0f;
+  st.best_v = 0.0f;
+  st.best_flags = 0u;
+  st.cells = 0u;
+  st.tests = 0u;
+  emit(kEvRay, 0u, ray.launch_ref, 0u, uvec3(0u), 0u, vec4(ray.org, ray.tmin), vec4(ray.dir, ray.tmax));
+  // Reject rays with NaN/inf values or a zero direction
+  if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax)) {
+    emit(kEvRejected, 0u, kBlank, 0u, uvec3(0u), 0u, vec4(0.0f), vec4(0.0f));
+    return miss(kMissOutsideGrid, 0u, kHitRejected);
+  }
+  // Per-ray setup: segment length, the grid box
+  const bool meets = ray_setup(g, st.org, st.dir, st.tmin, st.tmax, st.rs);
+  emit(kEvSetup, g.traversal, kBlank, 0u, uvec3(0u), meets ? 1u : 0u,
+       vec4(st.rs.seg_t, st.rs.t_start, st.rs.t_end, st.rs.t_lo), vec4(st.launch_normal, 0.0f));
+  if (!meets) return miss(kMissOutsideGrid, 0u, 0u);
+  return g.traversal == kTraversalExact ? trace_exact(g) : trace_paper(g);
+}
+
+void main() {
+  if (gl_GlobalInvocationID.x >= pc.ray_count) return;
+  const uint i = pc.ray_offset + gl_GlobalInvocationID.x;
+  explaining = kExplain && i == pc.explain_ray;
+  hits[i] = scene_trace(grid_params(), rays[i]);
+}
