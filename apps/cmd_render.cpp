@@ -24,6 +24,7 @@ struct RenderOptions {
   float fps = 30.0f;
   bool shadows = false;
   bool no_bounce = false;
+  BackendOptions backend_options;
 };
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -43,7 +44,8 @@ void run_render(const RenderOptions& o) {
   check_output_path(o.output);
   check_image_extension(o.output);
   const Scene scene = load_scene_or_default(o.scene);
-  std::unique_ptr<Tracer> tracer = make_backend(o.backend.empty() ? backend_names().front() : o.backend);
+  std::unique_ptr<Tracer> tracer =
+      make_backend(o.backend.empty() ? backend_names().front() : o.backend, o.backend_options, scene);
 
   auto t0 = std::chrono::steady_clock::now();
   tracer->build(scene, o.time);
@@ -85,9 +87,7 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("scene", o->scene,
                   "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
                   "(atrium, cornell, teapot); default: the embedded atrium");
-  std::string backends;
-  for (const std::string& n : backend_names()) backends += (backends.empty() ? "" : ", ") + n;
-  cmd->add_option("--backend,-b", o->backend, "Tracer: " + backends + " (default: the first)");
+  cmd->add_option("--backend,-b", o->backend, "Tracer: " + backend_list() + " (default: the first)");
   cmd->add_option("--width", o->width, "Image width in pixels")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height in pixels")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--time,-t", o->time, "Scene time in seconds (animation)");
@@ -97,6 +97,7 @@ void add_render_command(CLI::App& app) {
   cmd->add_flag("--shadows", o->shadows, "Trace shadow rays to the lights");
   cmd->add_flag("--no-bounce", o->no_bounce, "Primary rays only, no glossy bounce");
   cmd->add_option("-o,--output", o->output, "Image file: .png, .jpg, .exr, .hdr, .tif (OpenImageIO), .ppm, .pfm");
+  add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_render(*o); });
 }
 
