@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
   app::add_render_command(app);
   app::add_convert_command(app);
   app::add_grid_commands(app);
+  app::add_bench_command(app);
   try {
     app.parse(argc, argv);
     return 0;
