@@ -401,3 +401,54 @@ TEST_CASE("Vulkan grid: the explained ray leaves the reference's events, bit for
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
+
+#include "common/builtin/builtin.h"
+#include "common/camera.h"
+#include "common/gather.h"
+
+TEST_CASE("Vulkan grid on the built-in scenes: images and every hit identical, primary and bounce rays, animated",
+          "[vulkan][diff][grid][scenes]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  for (const std::string& name : builtin_names()) {
+    const Scene scene = make_builtin(name);
+    for (auto traversal : {reference::Traversal::paper, reference::Traversal::exact}) {
+      GridOptions o;
+      o.traversal = traversal;
+      o.threads = 2;
+      INFO(name << ", " << (traversal == reference::Traversal::paper ? "paper" : "exact") << " traversal, "
+                << scene.triangle_count() << " triangles");
+      ReferenceGridTracer ref(o);
+      ref.build(scene, 0.0f);
+      VulkanGridTracer vk(ctx, o, {.build = traversal == reference::Traversal::paper ? BuildMode::raster
+                                                                                      : BuildMode::compute});
+      vk.build(scene, 0.0f);
+      CHECK(compare_texels(ref.dump(), vk.dump()) == 0);
+      const Camera cam = scene.frame_camera();
+      for (float time : {0.0f, 0.8f, 2.5f}) {
+        INFO("time " << time);
+        if (time > 0.0f) {
+          if (!scene.has_dynamic()) break;
+          ref.update(time);
+          vk.update(time);
+          CHECK(compare_texels(ref.dump(), vk.dump()) == 0);
+        }
+        // Primary rays (96x64) and the glossy bounce off the reference's gather buffer
+        const GatherBuffer gather = make_gather(scene, ref, cam, 96, 64, time);
+        std::vector<Ray> rays;
+        for (uint32_t y = 0; y < 64; ++y)
+          for (uint32_t x = 0; x < 96; ++x) rays.push_back(camera_ray(cam, 96, 64, x, y));
+        const std::vector<Ray> bounce = bounce_rays(scene, gather, 1);
+        rays.insert(rays.end(), bounce.begin(), bounce.end());
+        std::vector<Hit> want(rays.size()), got(rays.size());
+        ref.trace(rays, want);
+        vk.trace(rays, got);
+        CHECK(compare_hits(rays, want, got) == 0);
+        size_t hits = 0;
+        for (const Hit& h : want) hits += !is_miss(h);
+        CHECK(hits > 96 * 64 / 4);
+      }
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
