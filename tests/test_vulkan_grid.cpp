@@ -9,6 +9,9 @@
 //  - the explained ray leaves the same events as the reference's explain.
 // Every mismatch prints the index, the ray and both records as hex bits.
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <random>
@@ -400,4 +403,115 @@ TEST_CASE("Vulkan grid: the explained ray leaves the reference's events, bit for
     }
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+#include "common/builtin/builtin.h"
+#include "common/camera.h"
+#include "common/gather.h"
+
+TEST_CASE("Vulkan grid on the built-in scenes: images and every hit identical, primary and bounce rays, animated",
+          "[vulkan][diff][grid][scenes]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  for (const std::string& name : builtin_names()) {
+    const Scene scene = make_builtin(name);
+    for (auto traversal : {reference::Traversal::paper, reference::Traversal::exact}) {
+      GridOptions o;
+      o.traversal = traversal;
+      o.threads = 2;
+      INFO(name << ", " << (traversal == reference::Traversal::paper ? "paper" : "exact") << " traversal, "
+                << scene.triangle_count() << " triangles");
+      ReferenceGridTracer ref(o);
+      ref.build(scene, 0.0f);
+      VulkanGridTracer vk(ctx, o, {.build = traversal == reference::Traversal::paper ? BuildMode::raster
+                                                                                      : BuildMode::compute});
+      vk.build(scene, 0.0f);
+      CHECK(compare_texels(ref.dump(), vk.dump()) == 0);
+      const Camera cam = scene.frame_camera();
+      for (float time : {0.0f, 0.8f, 2.5f}) {
+        INFO("time " << time);
+        if (time > 0.0f) {
+          if (!scene.has_dynamic()) break;
+          ref.update(time);
+          vk.update(time);
+          CHECK(compare_texels(ref.dump(), vk.dump()) == 0);
+        }
+        // Primary rays (96x64) and the glossy bounce off the reference's gather buffer
+        const GatherBuffer gather = make_gather(scene, ref, cam, 96, 64, time);
+        std::vector<Ray> rays;
+        for (uint32_t y = 0; y < 64; ++y)
+          for (uint32_t x = 0; x < 96; ++x) rays.push_back(camera_ray(cam, 96, 64, x, y));
+        const std::vector<Ray> bounce = bounce_rays(scene, gather, 1);
+        rays.insert(rays.end(), bounce.begin(), bounce.end());
+        std::vector<Hit> want(rays.size()), got(rays.size());
+        ref.trace(rays, want);
+        vk.trace(rays, got);
+        CHECK(compare_hits(rays, want, got) == 0);
+        size_t hits = 0;
+        for (const Hit& h : want) hits += !is_miss(h);
+        CHECK(hits > 96 * 64 / 4);
+      }
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+// Timings of the Vulkan grid. Hidden: run with
+//   build/dev/tests/gridrt_tests "[.vkbench]"   (GRIDRT_BENCH_SIZE=WxH, default 480x270)
+// Medians of 5 runs after one warm-up, validation off; device time (timestamps) and host time
+// (submit to fence) of each pass. On lavapipe read the host times (docs/VULKAN.md).
+TEST_CASE("Vulkan grid timings on the atrium", "[.vkbench]") {
+  uint32_t w = 480, h = 270;
+  if (const char* s = std::getenv("GRIDRT_BENCH_SIZE")) std::sscanf(s, "%ux%u", &w, &h);
+  vulkan::ContextOptions co = vulkan::ContextOptions::from_env();
+  co.validation = false;
+  vulkan::Context ctx(co);
+  const Scene scene = make_builtin("atrium");
+  const Camera cam = scene.frame_camera();
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::vector<Ray> rays;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) rays.push_back(camera_ray(cam, w, h, x, y));
+  std::ostringstream out;
+  out << ctx.info().name << ", atrium (" << scene.triangle_count() << " triangles), " << w << "x" << h
+      << ": device ms / host ms, medians of 5\n";
+  for (auto traversal : {reference::Traversal::paper, reference::Traversal::exact})
+    for (BuildMode mode : {BuildMode::raster, BuildMode::compute}) {
+      GridOptions o;
+      o.traversal = traversal;
+      VulkanGridTracer vk(ctx, o, {.build = mode});
+      std::vector<double> t[8];
+      std::vector<Hit> hits(rays.size());
+      for (int run = 0; run < 6; ++run) {
+        const float time = 0.1f * float(run + 1);
+        vk.build(scene, 0.0f);
+        const vulkan::GridTimings b = vk.timings();
+        vk.update(time);
+        const vulkan::GridTimings u = vk.timings();
+        vk.trace(rays, hits);
+        const vulkan::GridTimings p = vk.timings();
+        const GatherBuffer gather = make_gather(scene, vk, cam, w, h, time);
+        const std::vector<Ray> bounce = bounce_rays(scene, gather, 1);
+        std::vector<Hit> bh(bounce.size());
+        vk.trace(bounce, bh);
+        const vulkan::GridTimings g = vk.timings();
+        if (run == 0) continue;
+        const double v[8] = {b.build_ms, b.build_host_ms, u.update_ms, u.update_host_ms,
+                             p.trace_ms, p.trace_host_ms, g.trace_ms, g.trace_host_ms};
+        for (int k = 0; k < 8; ++k) t[k].push_back(v[k]);
+      }
+      char line[400];
+      std::snprintf(line, sizeof line,
+                    "  %s, %s build: build %.2f / %.2f, update %.2f / %.2f, primary trace %.2f / %.2f, bounce "
+                    "trace %.2f / %.2f\n",
+                    traversal == reference::Traversal::paper ? "paper" : "exact",
+                    mode == BuildMode::raster ? "raster " : "compute", median(t[0]), median(t[1]), median(t[2]),
+                    median(t[3]), median(t[4]), median(t[5]), median(t[6]), median(t[7]));
+      out << line;
+    }
+  out << "  grid from reference::choose_grid; the reference's own times: [.bench] tests of the reference\n";
+  WARN(out.str());
 }

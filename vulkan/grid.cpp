@@ -4,6 +4,7 @@
 #include "vulkan/grid.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cstring>
 
 namespace gridrt::vulkan {
@@ -40,6 +41,10 @@ struct TracePush {
 };
 constexpr uint32_t kNoExplain = 0xFFFFFFFFu;
 constexpr VkDeviceSize kExplainHeader = 16;  // count + padding before the events
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
 
 SpecConstants spec_for(const GridParams& g, bool explain) {
   SpecConstants s;
@@ -218,6 +223,7 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   if (groups(extent.x, 4) > max_groups[0] || groups(extent.y, 4) > max_groups[1] || groups(extent.z, 4) > max_groups[2])
     throw Error("the grid image needs more workgroups than maxComputeWorkGroupCount on " + dev.name +
                 ": use fewer cells or a smaller capacity, or --backend cpu");
+  const auto t0 = std::chrono::steady_clock::now();
   ctx.submit([&](VkCommandBuffer cb) {
     if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     gpu.init->bind(cb, set.set());
@@ -228,6 +234,7 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
     insert_instances(cb, static_instances_, uint32_t(scene.instances.size()));
     if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
+  timings_.build_host_ms = ms_since(t0);
   timings_.build_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
 }
 
@@ -272,6 +279,7 @@ void VulkanGridTracer::update(float time) {
   Gpu& gpu = *gpu_;
   upload_transforms(time, static_instances_, n);
   const GridParams& g = params_;
+  const auto t0 = std::chrono::steady_clock::now();
   ctx_->submit([&](VkCommandBuffer cb) {
     if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     // Clear the dynamic references, 4x4x4 cells per workgroup
@@ -283,6 +291,7 @@ void VulkanGridTracer::update(float time) {
     insert_instances(cb, static_instances_, n);
     if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
+  timings_.update_host_ms = ms_since(t0);
   timings_.update_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
 }
 
@@ -310,6 +319,7 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
   const Pipeline& pipe = explain ? *gpu.trace_explain : *gpu.trace;
   const uint32_t n = uint32_t(rays.size());
   const uint32_t chunk = ctx.info().limits.maxComputeWorkGroupCount[0] * 64u;
+  const auto t0 = std::chrono::steady_clock::now();
   ctx.submit([&](VkCommandBuffer cb) {
     if (explain) {
       vkCmdFillBuffer(cb, gpu.explain.buffer, 0, kExplainHeader, 0u);
@@ -324,6 +334,7 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
     }
     if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
+  timings_.trace_host_ms = ms_since(t0);
   timings_.trace_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
   ctx.download(gpu.hits, hits.data(), hits.size_bytes());
 }

@@ -32,9 +32,13 @@ struct VulkanGridOptions {
   uint32_t explain_capacity = 1u << 16;  // events the explain buffer holds
 };
 
-// GPU time of the last build, update and trace (timestamp queries), milliseconds.
+// Time of the last build, update and trace, milliseconds: on the device (timestamp queries
+// around the pass's commands; 0 without timestamps) and on the host (submit to fence, the pass's
+// commands only: no uploads or downloads). lavapipe's timestamps do not bracket compute
+// dispatches (docs/VULKAN.md): there, the host times are the ones to read.
 struct GridTimings {
   double build_ms = 0.0, update_ms = 0.0, trace_ms = 0.0;
+  double build_host_ms = 0.0, update_host_ms = 0.0, trace_host_ms = 0.0;
 };
 
 class VulkanGridTracer : public Tracer {
