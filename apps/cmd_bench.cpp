@@ -135,7 +135,7 @@ void run_bench(const BenchOptions& o) {
     }
     const double update = median(times.update), trace = median(times.trace);
     const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
-    std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.1f |\n", name.c_str(), device.c_str(),
+    std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
                 times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
     std::fflush(stdout);
     out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
