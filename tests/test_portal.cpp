@@ -458,3 +458,24 @@ TEST_CASE("Portal: tile map files parse; the built-in text matches data/maps/bui
   CHECK(w.dims == glm::uvec3(32, 6, 32));
   CHECK(w.lights.size() == 2);
 }
+
+TEST_CASE("Portal: the build's run-length integration equals the direct sum over voxel faces", "[portal][unit]") {
+  for (const PortalBuild* b : {&builtin_build(), &teapot_build()}) {
+    const World& w = b->world;
+    std::mt19937 rng(3);
+    size_t checked = 0;
+    for (int n = 0; n < 400; ++n) {
+      const Box& B = b->maximal[rng() % b->maximal.size()];
+      const glm::ivec3 v(B.lo.x + int(rng() % uint32_t(B.size().x)), B.lo.y + int(rng() % uint32_t(B.size().y)),
+                         B.lo.z + int(rng() % uint32_t(B.size().z)));
+      const uint32_t f = rng() % 6;
+      const EntryCost slow = integrate_flux_density_over_cuboid(w, FluxDensity::get(), v, f, B);
+      const EntryCost fast = integrate_flux_density_fast(w, v, f, B);
+      INFO(w.name << " box " << n << " face " << f);
+      REQUIRE(fast.p_open == Approx(slow.p_open).margin(1e-9));
+      REQUIRE(fast.p_wall == Approx(slow.p_wall).margin(1e-9));
+      ++checked;
+    }
+    CHECK(checked == 400);
+  }
+}

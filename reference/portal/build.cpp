@@ -345,7 +345,129 @@ struct MediumGrid {
   }
 };
 
+// The same integral, exact, in O(rows + open runs) instead of O(area): the open voxel faces of
+// each face of the box as runs along one tangent axis (one list per row of the other), and the
+// flux table summed along rows by 1D prefix sums (folded like the table).
+struct FluxPrefix {
+  int R = 0;
+  std::vector<double> z;  // [(j * R + (q - 1)) * (R + 1) + n] = sum over i < n of z_face(i, j, q)
+  std::vector<double> x;  // [((p - 1) * R + k) * (R + 1) + n] = sum over j < n of x_face(p, j, k)
+  explicit FluxPrefix(const FluxDensity& f) : R(f.range) {
+    z.assign(size_t(R) * R * (R + 1), 0.0);
+    x.assign(size_t(R) * R * (R + 1), 0.0);
+    for (int a = 0; a < R; ++a)
+      for (int b = 0; b < R; ++b) {
+        double* zp = &z[(size_t(a) * R + b) * (R + 1)];
+        double* xp = &x[(size_t(a) * R + b) * (R + 1)];
+        for (int n = 0; n < R; ++n) {
+          zp[n + 1] = zp[n] + f.z_face(n, a, b + 1);
+          xp[n + 1] = xp[n] + f.x_face(a + 1, n, b);
+        }
+      }
+  }
+  // Sum of g(|i|) over signed i in [l, h), g given by its prefix row P (R + 1 entries).
+  double fold(const double* P, int l, int h) const {
+    auto S = [&](int n) { return P[std::clamp(n, 0, R)]; };
+    double sum = 0.0;
+    if (l < 0) sum += S(1 - l) - S(1 - std::min(h, 0));
+    const int pl = std::max(l, 0);
+    if (h > pl) sum += S(h) - S(pl);
+    return sum;
+  }
+  const double* zrow(int j, int q) const { return &z[(size_t(j) * R + (q - 1)) * (R + 1)]; }
+  const double* xrow(int p, int k) const { return &x[(size_t(p - 1) * R + k) * (R + 1)]; }
+};
+
+struct FaceRuns {
+  int row_axis = 0, run_axis = 0, row_lo = 0;
+  std::vector<std::vector<std::pair<int, int>>> rows;  // open runs [start, end), absolute coordinates
+};
+struct BoxRuns {
+  FaceRuns f[6][2];  // [face][0: runs along tangent0 of the face normal, 1: along tangent1]
+};
+
+BoxRuns box_runs(const MediumGrid& media, const Box& B) {
+  BoxRuns r;
+  for (uint32_t f = 0; f < 6; ++f) {
+    const int n = int(f / 2);
+    const int beyond = (f & 1u) ? B.hi[n] : B.lo[n] - 1;
+    const int tg[2] = {int(shared::portal_tangent0(uint32_t(n))), int(shared::portal_tangent1(uint32_t(n)))};
+    for (int d = 0; d < 2; ++d) {
+      FaceRuns& fr = r.f[f][d];
+      fr.run_axis = tg[d], fr.row_axis = tg[1 - d], fr.row_lo = B.lo[fr.row_axis];
+      fr.rows.resize(size_t(B.hi[fr.row_axis] - B.lo[fr.row_axis]));
+      for (int row = B.lo[fr.row_axis]; row < B.hi[fr.row_axis]; ++row) {
+        auto& runs = fr.rows[size_t(row - fr.row_lo)];
+        int start = -1;
+        for (int c = B.lo[fr.run_axis]; c <= B.hi[fr.run_axis]; ++c) {
+          bool open = false;
+          if (c < B.hi[fr.run_axis]) {
+            glm::ivec3 w;
+            w[n] = beyond, w[fr.row_axis] = row, w[fr.run_axis] = c;
+            open = media(w) == B.medium;
+          }
+          if (open && start < 0) start = c;
+          if (!open && start >= 0) runs.push_back({start, c}), start = -1;
+        }
+      }
+    }
+  }
+  return r;
+}
+
+EntryCost integrate_runs(const FluxPrefix& fp, const BoxRuns& runs, glm::ivec3 v, uint32_t entry_face, const Box& B) {
+  const int e = int(entry_face / 2);
+  const int s = (entry_face & 1u) ? -1 : 1;
+  const int a0 = int(shared::portal_tangent0(uint32_t(e))), a1 = int(shared::portal_tangent1(uint32_t(e)));
+  const int K = s > 0 ? B.hi[e] - v[e] : v[e] - B.lo[e] + 1;
+  const int i0 = B.lo[a0] - v[a0], i1 = B.hi[a0] - v[a0];
+  const int j0 = B.lo[a1] - v[a1], j1 = B.hi[a1] - v[a1];
+  const int R = fp.R;
+  double total = 0.0, open = 0.0;
+  // Far face (normal e, on the side the rays move to): rows along a1, runs along a0.
+  if (K <= R) {
+    const FaceRuns& fr = runs.f[2 * e + (s > 0 ? 1 : 0)][0];
+    for (int j = std::max(j0, 1 - R); j < std::min(j1, R); ++j) {
+      const double* P = fp.zrow(std::abs(j), K);
+      total += fp.fold(P, i0, i1);
+      for (const auto& [a, b] : fr.rows[size_t(v[a1] + j - fr.row_lo)]) open += fp.fold(P, a - v[a0], b - v[a0]);
+    }
+  }
+  // Side faces: rows along e (depth k), runs along the other tangent.
+  const int kmax = std::min(K, R);
+  for (int t = 0; t < 2; ++t) {
+    const int n = t ? a1 : a0, other = t ? a0 : a1;
+    const int lo = t ? j0 : i0, hi = t ? j1 : i1;      // the normal's range
+    const int olo = t ? i0 : j0, ohi = t ? i1 : j1;    // the run axis' range
+    for (int side = 0; side < 2; ++side) {
+      const int p = side ? 1 - lo : hi;
+      if (p > R) continue;
+      const int d = other == int(shared::portal_tangent0(uint32_t(n))) ? 0 : 1;
+      const FaceRuns& fr = runs.f[2 * n + (side ? 0 : 1)][d];
+      for (int k = 0; k < kmax; ++k) {
+        const double* P = fp.xrow(p, k);
+        total += fp.fold(P, olo, ohi);
+        for (const auto& [a, b] : fr.rows[size_t(v[e] + s * k - fr.row_lo)]) open += fp.fold(P, a - v[other], b - v[other]);
+      }
+    }
+  }
+  EntryCost c;
+  c.p_open = open;
+  c.p_wall = total - open;
+  return c;
+}
+
 }  // namespace
+
+EntryCost integrate_flux_density_fast(const World& world, glm::ivec3 v, uint32_t entry_face, const Box& div) {
+  static const FluxPrefix prefix(FluxDensity::get());
+  const MediumGrid media(world);
+  EntryCost c = integrate_runs(prefix, box_runs(media, div), v, entry_face, div);
+  const EntryCost slow = integrate_flux_density_over_cuboid(world, FluxDensity::get(), v, entry_face, div);
+  c.length = slow.length;
+  c.cost = c.length > 0 ? c.p_open / c.length : 1e30;
+  return c;
+}
 
 EntryCost integrate_flux_density_over_cuboid(const World& world, const FluxDensity& flux, glm::ivec3 v,
                                              uint32_t entry_face, const Box& div) {
@@ -423,11 +545,13 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
   });
   std::atomic<size_t> evaluated{0};
   const MediumGrid media(w);
+  const FluxPrefix prefix(flux);
   {
     std::optional<Progress> progress;
     if (opt.progress) progress.emplace("portal build: choosing divs", b.maximal.size());
     parallel_for(b.maximal.size(), T, [&](size_t bi) {
       const Box& B = b.maximal[bi];
+      const BoxRuns runs = box_runs(media, B);
       size_t local = 0;
       for (int z = B.lo.z; z < B.hi.z; ++z)
         for (int y = B.lo.y; y < B.hi.y; ++y)
@@ -443,7 +567,13 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
               if (single) {
                 key = uint64_t(bi);
               } else {
-                const EntryCost c = integrate_impl(media, flux, v, f, B);
+                EntryCost c = integrate_runs(prefix, runs, v, f, B);
+                c.length = flux.length_sum(B.lo[shared::portal_tangent0(f / 2)] - v[shared::portal_tangent0(f / 2)],
+                                           B.hi[shared::portal_tangent0(f / 2)] - v[shared::portal_tangent0(f / 2)],
+                                           B.lo[shared::portal_tangent1(f / 2)] - v[shared::portal_tangent1(f / 2)],
+                                           B.hi[shared::portal_tangent1(f / 2)] - v[shared::portal_tangent1(f / 2)], 0,
+                                           (f & 1u) ? v[f / 2] - B.lo[f / 2] + 1 : B.hi[f / 2] - v[f / 2]);
+                c.cost = c.length > 0 ? c.p_open / c.length : 1e30;
                 const float cf = float(c.cost);
                 uint32_t bits;
                 std::memcpy(&bits, &cf, 4);

@@ -65,6 +65,10 @@ struct EntryCost {
 EntryCost integrate_flux_density_over_cuboid(const World& world, const FluxDensity& flux, glm::ivec3 v,
                                              uint32_t entry_face, const Box& div);
 
+// The same integral as the build evaluates it: open voxel faces as runs, the table summed by 1D
+// prefix sums (exact up to the order of summation). For tests.
+EntryCost integrate_flux_density_fast(const World& world, glm::ivec3 v, uint32_t entry_face, const Box& div);
+
 struct PortalOptions {
   uint32_t atlas_width = 1024;  // texels per atlas row
   uint32_t info_width = 1024;   // texels per div-info row (a multiple of 8)

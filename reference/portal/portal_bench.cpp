@@ -34,6 +34,8 @@ int main(int argc, char** argv) try {
     else worlds.push_back(a);
   }
   if (worlds.empty()) worlds = {"builtin", "builtin:teapot"};
+  std::vector<std::string> notes;
+  char line[1024];
   std::printf("| world | voxels | maximal divs | stored divs | build s | memory KiB | tracer | rays/s | steps/ray | hits |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const std::string& spec : worlds) {
@@ -87,19 +89,24 @@ int main(int argc, char** argv) try {
     render(b, cam, ro, &fsm);
     ro.state_machine = false;
     render(b, cam, ro, &loops);
-    std::fprintf(stdout,
-                 "\n%s: build phases: maximal %.3f s, flux table %.3f s, choice %.3f s (%zu candidate evaluations), pack %.3f s;"
-                 " voxelize/load %.3f s\n",
+    std::snprintf(line, sizeof line,
+                 "%s: build phases: maximal %.3f s, flux table %.3f s, choice %.3f s (%zu candidate evaluations), pack %.3f s;"
+                 " voxelize/load %.3f s",
                  spec.c_str(), b.stats.seconds_maximal, b.stats.seconds_flux, b.stats.seconds_choice, b.stats.candidates_evaluated,
                  b.stats.seconds_pack, t_vox);
-    std::fprintf(stdout,
+    notes.push_back(line);
+    std::snprintf(line, sizeof line,
                  "%s: render %ux%u primary + 2 shadow: FSM %.3f s (%.1f fps), loops %.3f s; %.2f steps/primary ray, %.2f "
-                 "steps/shadow ray, %llu shadow rays\n\n",
+                 "steps/shadow ray, %llu shadow rays",
                  spec.c_str(), width, height, fsm.seconds, 1.0 / fsm.seconds, loops.seconds,
                  double(fsm.primary_steps) / double(fsm.primary_rays),
                  fsm.shadow_rays ? double(fsm.shadow_steps) / double(fsm.shadow_rays) : 0.0,
                  (unsigned long long)fsm.shadow_rays);
+    notes.push_back(line);
+    std::fflush(stdout);
   }
+  std::printf("\n");
+  for (const std::string& n : notes) std::printf("- %s\n", n.c_str());
   return 0;
 } catch (const std::exception& e) {
   std::fprintf(stderr, "portal_bench: %s\n", e.what());
