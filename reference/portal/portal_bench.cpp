@@ -48,15 +48,15 @@ int main(int argc, char** argv) try {
     const double t0 = now();
     PortalOptions po;
     po.threads = threads;
-    const PortalBuild b = build_portal(w, po);
+    PortalTracer pt(build_portal(w, po), po);
     const double t_build = now() - t0;
+    const PortalBuild& b = pt.portal();
     const Camera cam = b.world.camera;
     std::vector<Ray> rays;
     rays.reserve(size_t(width) * height);
     for (uint32_t y = 0; y < height; ++y)
       for (uint32_t x = 0; x < width; ++x) rays.push_back(camera_ray(cam, width, height, x, y));
     std::vector<Hit> hp(rays.size()), hd(rays.size());
-    PortalTracer pt(b.world, po);  // builds again; the figures above are from `b`
     VoxelDdaTracer dt(b.world);
     // Best of three for each tracer.
     double best_p = 1e30, best_d = 1e30;

@@ -330,6 +330,8 @@ PortalTracer::PortalTracer(uint32_t resolution, PortalOptions options) : resolut
 PortalTracer::PortalTracer(World world, PortalOptions options) : resolution_(0), options_(options) {
   build_ = std::make_unique<PortalBuild>(build_portal(std::move(world), options_));
 }
+PortalTracer::PortalTracer(PortalBuild build, PortalOptions options)
+    : resolution_(0), options_(options), build_(std::make_unique<PortalBuild>(std::move(build))) {}
 void PortalTracer::build(const Scene& scene, float) {
   build_ = std::make_unique<PortalBuild>(build_portal(voxelize(scene, resolution_ ? resolution_ : 64), options_));
 }

@@ -69,6 +69,7 @@ class PortalTracer final : public Tracer {
  public:
   explicit PortalTracer(uint32_t resolution = 64, PortalOptions options = {});
   explicit PortalTracer(World world, PortalOptions options = {});
+  explicit PortalTracer(PortalBuild build, PortalOptions options = {});  // an existing build
   std::string name() const override { return "portal-cpu"; }
   void build(const Scene& scene, float time) override;
   void update(float) override {}
