@@ -108,7 +108,7 @@ void transition(const Context& c, PixelState& s, const Step& st) {
         s.div = st.texel;
         return;
       }
-      const uint32_t gm = next_glass ? nd.glass_material : s.glass;
+      const uint32_t gm = next_glass ? nd.glass_material : s.glass;  // the glass whose surface this is
       const glm::vec3 x = crossing(s.ray, st);
       glm::vec3 n(0.0f);
       n[st.axis] = s.ray.dir[st.axis] > 0.0f ? -1.0f : 1.0f;
@@ -135,7 +135,6 @@ void transition(const Context& c, PixelState& s, const Step& st) {
       } else {
         ++s.reflections;  // stays in the current div
       }
-      (void)gm;
       s.ray.org = x;
       s.ray.dir = d;
       s.ray.tmin = 0.0f;

@@ -221,11 +221,9 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
     else *log += fmt("start: voxel (%d, %d, %d), start texel %s\n", st.voxel.x, st.voxel.y, st.voxel.z, texel_text(st.texel).c_str());
   }
   uint32_t cur = st.div, steps = 0, texels = st.div == sh::kPortalExteriorDiv ? 0 : 1;
-  uint32_t medium = 0xFFFFFFFFu;  // glass material of the current div (none: air)
   const uint32_t limit = 4u * p.div_count + 16u;
   while (steps < limit) {
     const DivInfo d = read_div_info(p, cur);
-    if (d.type == sh::kPortalDivGlass) medium = d.glass_material;
     ++steps;
     const Step s = step_ray(p, cur, r);
     if (s.kind == StepKind::kNoDirection) {
@@ -266,7 +264,6 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
     }
     cur = s.texel;
   }
-  (void)medium;
   if (log) *log += "step limit reached: miss\n";
   return miss_hit(steps, texels);
 }
