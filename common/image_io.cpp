@@ -94,8 +94,9 @@ bool is_float_format(const std::string& ext) { return ext == ".pfm" || ext == ".
 void check_extension(const std::string& path, const std::string& ext) {
   if (ext == ".ppm" || ext == ".pfm") return;
 #ifdef GRIDRT_WITH_OIIO
-  if (!ext.empty()) return;  // OpenImageIO says whether it knows the format
-  throw Error("cannot write image '" + path + "': no file extension to choose the format by");
+  if (ext.empty()) throw Error("cannot write image '" + path + "': no file extension to choose the format by");
+  if (!OIIO::ImageOutput::create(path))
+    throw Error("cannot write image '" + path + "': OpenImageIO knows no format for '" + ext + "'");
 #else
   throw Error("cannot write image '" + path + "': unknown extension '" + ext +
               "' (this build has no OpenImageIO: use .ppm or .pfm)");
@@ -103,6 +104,8 @@ void check_extension(const std::string& path, const std::string& ext) {
 }
 
 }  // namespace
+
+void check_image_extension(const std::string& path) { check_extension(path, lower_extension(path)); }
 
 bool have_image_library() {
 #ifdef GRIDRT_WITH_OIIO

@@ -49,4 +49,7 @@ void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
 // Whether this build reads textures (has OpenImageIO).
 bool have_image_library();
 
+// Error unless write_image can write this file's format (check before long work).
+void check_image_extension(const std::string& path);
+
 }  // namespace gridrt

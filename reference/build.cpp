@@ -133,6 +133,9 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
   g.triangle_test = shared::kTriangleMoller;
   g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) | (o.gap_fill ? shared::kGridGapFill : 0u);
+  g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
+              : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
+                                                          : shared::kRepeatMerge;
 
   // Grow the cells until the image fits the device's limits
   for (int attempt = 0;; ++attempt) {

@@ -84,7 +84,9 @@ std::string to_text(const ExplainRecord& rec) {
           os << "step " << e.step << ": cell " << cellstr(e.cell) << ", t in [" << num(e.f1.x) << ", "
              << num(e.f1.y) << "]; triangles tested on (" << num(e.f1.z) << ", " << num(e.f1.w) << ")\n";
         else
-          os << "segment " << e.step << ": [" << num(e.f1.x) << ", " << num(e.f1.y) << "], sample at t "
+          os << "segment " << e.step
+             << (e.code ? " to " + std::to_string(e.step + e.code) + " (their samples share one cell: one visit)" : "")
+             << ": [" << num(e.f1.x) << ", " << num(e.f1.y) << "], midpoint t "
              << num(e.f0.w) << " = " << vec(glm::vec3(e.f0)) << "\n  cell " << cellstr(e.cell)
              << "; triangles tested on the elongated segment (" << num(e.f1.z) << ", " << num(e.f1.w) << ")\n";
         break;

@@ -37,12 +37,15 @@ struct GridOptions {
   float sphere_enlargement = 1.25f;  // cell bounding-sphere radius multiplier (>= 1: conservative)
   float aabb_padding = 1.0e-3f;      // cell units added on each side of a triangle's AABB
   // Trace (2.3)
-  float elongation = 0.25f;          // paper: segment elongation on each side, in segment lengths
+  float elongation = 0.5f;           // paper: segment elongation on each side, in segment lengths
   float gap_fill_distance = 2.0f;    // paper: cells the segment must be away from the launch surface
   float self_hit_offset = 0.0f;      // hits need t * |dir| > self_hit_offset * cell_size
   bool exclude_launch_ref = true;    // never accept the launch triangle (RayRecord::launch_ref)
   bool alpha_keying = true;          // alpha-keyed materials cut holes (Features::alpha_keying)
   bool gap_fill = true;              // paper: gap-fill in saturated cells (Features::gap_fill)
+  // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
+  // skip (the literal reading of visited-cell tracking), retest (a second visit)
+  enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
   // Automatic resolution and capacity (overridden by the fields below, then by Scene::grid)
   float density = 2.0f;                   // target cells per triangle
   float capacity_percentile = 0.99f;      // capacity = this percentile of non-empty cells' counts

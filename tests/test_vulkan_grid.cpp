@@ -377,17 +377,22 @@ TEST_CASE("Vulkan grid: every hit record identical in bits to the reference's, p
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
-TEST_CASE("Vulkan grid: alpha keying and features off agree with the reference", "[vulkan][diff][grid]") {
+TEST_CASE("Vulkan grid: alpha keying, features off and the paper's repeat modes agree with the reference",
+          "[vulkan][diff][grid]") {
   vulkan::Context& ctx = vk_context();
   ctx.clear_messages();
   const Scene scene = test_scene(6);
   // Rays straight at the alpha-keyed quads: some cut, some kept
   GridOptions o = options(reference::Insertion::sorted, reference::Traversal::exact, 8);
-  for (int variant = 0; variant < 3; ++variant) {
+  for (int variant = 0; variant < 5; ++variant) {
     o.alpha_keying = variant != 1;
     o.gap_fill = variant != 2;
-    o.traversal = variant == 2 ? reference::Traversal::paper : reference::Traversal::exact;
-    INFO("alpha keying " << o.alpha_keying << ", gap-fill " << o.gap_fill);
+    o.traversal = variant >= 2 ? reference::Traversal::paper : reference::Traversal::exact;
+    o.repeats = variant == 3   ? GridOptions::Repeats::skip
+                : variant == 4 ? GridOptions::Repeats::retest
+                               : GridOptions::Repeats::merge;
+    INFO("alpha keying " << o.alpha_keying << ", gap-fill " << o.gap_fill << ", traversal "
+                         << (variant >= 2 ? "paper" : "exact") << ", repeats " << int(o.repeats));
     ReferenceGridTracer ref(o);
     ref.build(scene, 0.0f);
     VulkanGridTracer vk(ctx, o);

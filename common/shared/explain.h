@@ -13,8 +13,10 @@ SH_CONST uint kEvRay = 1u;        // f0 = (org, tmin), f1 = (dir, tmax), ref = l
 SH_CONST uint kEvRejected = 2u;   // the ray has NaN/inf values or a zero direction
 SH_CONST uint kEvSetup = 3u;      // code = traversal, f0 = (seg_t, t_start, t_end, t_lo),
                                   // f1 = launch normal (xyz); slot = 1 if the ray meets the grid
-SH_CONST uint kEvCell = 4u;       // a cell is visited: step, cell; paper: f0 = (sample xyz, t),
-                                  // f1 = (segment begin, end, elongated begin, elongated end);
+SH_CONST uint kEvCell = 4u;       // a cell is visited: step, cell; paper: code = further
+                                  // segments merged into this visit, f0 = (midpoint of the
+                                  // visit's segments xyz, its t), f1 = (segment begin, end,
+                                  // elongated begin, elongated end, clipped to (t_lo, tmax));
                                   // exact: f0 = (entry point xyz, t entry), f1 = (t entry, t exit,
                                   // t_lo, t_hi)
 SH_CONST uint kEvCellSkipped = 5u;  // paper: same cell as the previous step; f0 = (sample, t)

@@ -31,6 +31,12 @@ SH_CONST uint kGridExcludeLaunchRef = 1u;  // never accept the ray's launch tria
 SH_CONST uint kGridAlphaKeying = 2u;       // alpha-keyed materials cut holes
 SH_CONST uint kGridGapFill = 4u;           // paper-mode gap-fill in saturated cells
 
+// ---- Paper traversal: what a sample landing in the previous step's cell does (GridParams::repeats) ----
+SH_CONST uint kRepeatMerge = 0u;   // default: consecutive samples in one cell merge into one visit,
+                                   // tested once against the union of their segments
+SH_CONST uint kRepeatSkip = 1u;    // the literal reading: the repeated cell is skipped
+SH_CONST uint kRepeatRetest = 2u;  // the cell is tested again with the new segment
+
 // ---- Instance flags (GridInstance::flags) ----
 SH_CONST uint kInstanceDynamic = 1u;     // re-inserted by every update
 SH_CONST uint kInstanceAlphaKeyed = 2u;  // some triangle of the instance has an alpha mask
@@ -54,7 +60,7 @@ struct GridParams {
   uint triangle_test;       // kTriangleMoller (kTriangleWatertight reserved)
   uint flags;               // kGrid* bits
   uint max_segments;        // safety bound on the steps of one ray (cells.x + cells.y + cells.z + 3)
-  uint pad0;                // std430 padding
+  uint repeats;             // paper: kRepeatMerge, kRepeatSkip or kRepeatRetest
 };
 
 // One instance as the passes see it (std430, storage buffer).
@@ -236,7 +242,8 @@ struct RaySetup {
   float t_lo;     // hits need t > t_lo = max(tmin, self_hit_offset * seg_t)
 };
 
-// False when the ray misses the grid box or its [tmin, tmax] interval lies outside it.
+// False when the ray misses the grid box, its (tmin, tmax) interval lies outside it, or the
+// interval is empty (tmin >= tmax, e.g. the unused rays of a gather buffer).
 SH_INLINE bool ray_setup(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, float tmin,
                          float tmax, SH_OUT(RaySetup) rs) {
   SH_PRECISE float dd = sh_dot(dir, dir);
@@ -249,7 +256,7 @@ SH_INLINE bool ray_setup(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, 
   bool hit = clip_to_grid(g, org, dir, t0, t1);
   rs.t_start = max(tmin, t0);
   rs.t_end = min(tmax, t1);
-  return hit && rs.t_start <= rs.t_end;
+  return hit && rs.t_start <= rs.t_end && tmin < tmax;
 }
 
 // ---- Paper traversal: segment k covers [t_start + k L, t_start + (k+1) L], L = seg_t ----

@@ -1,0 +1,107 @@
+#include "apps/backends.h"
+
+#include <cstdio>
+#include <map>
+
+#include "common/scene.h"
+#ifdef GRIDRT_HAVE_EMBREE
+#  include "common/embree/embree_tracer.h"
+#endif
+#ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/grid.h"
+#endif
+
+namespace gridrt::app {
+
+void add_backend_options(CLI::App* cmd, BackendOptions& o) {
+  reference::GridOptions& g = o.grid;
+  const std::map<std::string, reference::Traversal> traversals{{"paper", reference::Traversal::paper},
+                                                               {"exact", reference::Traversal::exact}};
+  const std::map<std::string, reference::Insertion> insertions{{"sorted", reference::Insertion::sorted},
+                                                               {"first-empty", reference::Insertion::first_empty}};
+  cmd->add_option("--traversal", g.traversal, "Grid traversal: paper (fixed cell-edge segments) or exact (3D DDA)")
+      ->transform(CLI::CheckedTransformer(traversals, CLI::ignore_case))
+      ->group("Grid");
+  cmd->add_option("--insertion", g.insertion,
+                  "Insertion: sorted (atomic-min cascade, timing-independent) or first-empty (the paper's CAS)")
+      ->transform(CLI::CheckedTransformer(insertions, CLI::ignore_case))
+      ->group("Grid");
+  cmd->add_option("--capacity", g.capacity, "Slots per cell (default: chosen from the scene)")
+      ->check(CLI::Range(1u, 1024u))->group("Grid");
+  cmd->add_option("--resolution", o.resolution, "Cells per axis X,Y,Z (default: chosen from the scene)")
+      ->delimiter(',')->expected(3)->check(CLI::Range(1u, 16384u))->group("Grid");
+  cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units")->check(CLI::PositiveNumber)->group("Grid");
+  cmd->add_option("--density", g.density, "Target cells per triangle for the automatic resolution")
+      ->check(CLI::PositiveNumber)->group("Grid");
+  cmd->add_option("--max-image-dimension", g.max_image_dimension, "Largest image side the grid may use")
+      ->check(CLI::Range(2u, 65536u))->group("Grid");
+  cmd->add_option("--enlargement", g.sphere_enlargement, "Cell bounding-sphere radius multiplier (build)")
+      ->check(CLI::Range(0.0f, 16.0f))->group("Grid");
+  cmd->add_option("--elongation", g.elongation, "Segment elongation on each side, in segment lengths (paper trace)")
+      ->check(CLI::Range(0.0f, 16.0f))->group("Grid");
+  cmd->add_option("--gap-fill-distance", g.gap_fill_distance, "Cells from the launch surface before gap-fill")
+      ->check(CLI::Range(0.0f, 1e6f))->group("Grid");
+  cmd->add_option("--self-hit-offset", g.self_hit_offset, "Hits need t|dir| > this many cells")
+      ->check(CLI::Range(0.0f, 1e6f))->group("Grid");
+  cmd->add_flag("--no-gap-fill{false}", g.gap_fill, "Disable gap-fill in saturated cells")->group("Grid");
+  cmd->add_flag("--all-effects", o.all_effects,
+                "Simulate every effect (alpha keying, gap-fill) even where the scene does not call for it")
+      ->group("Grid");
+  cmd->add_option("--threads", g.threads, "CPU threads (0: all)")->group("Grid");
+  cmd->add_option("--shuffle-seed", g.shuffle_seed, "Run build invocations in a seeded shuffled order")->group("Grid");
+  cmd->add_option("--vk-build", o.vk_build, "Vulkan build: raster (geometry shader, the paper's) or compute")
+      ->check(CLI::IsMember({"raster", "compute"}))->group("Vulkan");
+  cmd->add_flag("--fallback-cpu", o.fallback_cpu, "Without a usable Vulkan device, use the CPU reference")
+      ->group("Vulkan");
+}
+
+std::vector<std::string> backend_names() {
+  std::vector<std::string> names{"cpu"};
+#ifdef GRIDRT_HAVE_VULKAN
+  names.push_back("vulkan");
+#endif
+#ifdef GRIDRT_HAVE_EMBREE
+  names.push_back("embree");
+#endif
+  return names;
+}
+
+std::string backend_list() {
+  std::string known;
+  for (const std::string& n : backend_names()) known += (known.empty() ? "" : ", ") + n;
+  return known;
+}
+
+reference::GridOptions grid_options_for(const BackendOptions& o, const Scene& scene) {
+  reference::GridOptions g = o.grid;
+  if (!o.resolution.empty()) g.resolution = glm::uvec3(o.resolution[0], o.resolution[1], o.resolution[2]);
+  if (!o.all_effects) {
+    // Simulate only what the scene calls for (DESIGN.md): no alpha keying without masks.
+    const Features f = Features::for_scene(scene);
+    g.alpha_keying = g.alpha_keying && f.alpha_keying;
+  }
+  return g;
+}
+
+std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptions& o, const Scene& scene) {
+  if (name == "cpu") return std::make_unique<reference::ReferenceGridTracer>(grid_options_for(o, scene));
+#ifdef GRIDRT_HAVE_VULKAN
+  if (name == "vulkan") {
+    vulkan::VulkanGridOptions vk;
+    vk.build = o.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+    try {
+      return std::make_unique<vulkan::VulkanGridTracer>(grid_options_for(o, scene), vk);
+    } catch (const Error& e) {
+      if (!o.fallback_cpu) throw;
+      std::fprintf(stderr, "gridrt: %s\ngridrt: falling back to the CPU reference (--fallback-cpu)\n", e.what());
+      return std::make_unique<reference::ReferenceGridTracer>(grid_options_for(o, scene));
+    }
+  }
+#endif
+#ifdef GRIDRT_HAVE_EMBREE
+  if (name == "embree") return std::make_unique<EmbreeTracer>();
+#endif
+  throw Error("unknown backend '" + name + "' (this build has: " + backend_list() + ")");
+}
+
+}  // namespace gridrt::app

@@ -1,0 +1,62 @@
+// backends.h: the tracers the tool can run, by name, and the options they share.
+#pragma once
+
+#include <algorithm>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "common/progress.h"
+#include "common/tracer.h"
+#include "reference/grid.h"
+
+namespace gridrt::app {
+
+struct BackendOptions {
+  reference::GridOptions grid;   // the grid's knobs, shared by cpu and vulkan
+  std::string vk_build = "raster";  // raster (the paper's geometry-shader pass) or compute
+  bool fallback_cpu = false;     // no Vulkan device: use the CPU reference instead of failing
+  bool all_effects = false;      // simulate every effect even where the scene does not need it
+  std::vector<unsigned> resolution;  // --resolution X,Y,Z
+};
+
+// Registers --traversal, --insertion, --capacity, ... on a verb.
+void add_backend_options(CLI::App* cmd, BackendOptions& options);
+
+// Names this build knows, in the order `--help` lists them (the first is the default).
+std::vector<std::string> backend_names();
+std::string backend_list();  // "cpu, vulkan, embree"
+
+// A tracer by name; Error for a name this build does not have (naming the ones it has). The grid
+// options are narrowed to what `scene` calls for (unless all_effects).
+std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptions& options, const Scene& scene);
+
+// The grid options of `options` for `scene`: overrides applied, unneeded effects switched off.
+reference::GridOptions grid_options_for(const BackendOptions& options, const Scene& scene);
+
+// Wraps a tracer so that every trace() call goes in chunks and advances a progress line.
+class ProgressTracer : public Tracer {
+ public:
+  ProgressTracer(Tracer& inner, Progress& progress) : inner_(inner), progress_(progress) {}
+  std::string name() const override { return inner_.name(); }
+  void build(const Scene& scene, float time) override { inner_.build(scene, time); }
+  void update(float time) override { inner_.update(time); }
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
+    constexpr size_t kChunk = 1 << 16;
+    for (size_t i = 0; i < rays.size(); i += kChunk) {
+      const size_t n = std::min(kChunk, rays.size() - i);
+      inner_.trace(rays.subspan(i, n), hits.subspan(i, n));
+      progress_.advance(n);
+    }
+  }
+  AccelDump dump() const override { return inner_.dump(); }
+
+ private:
+  Tracer& inner_;
+  Progress& progress_;
+};
+
+}  // namespace gridrt::app

@@ -1,0 +1,172 @@
+// gridrt bench: time the phases of the paper's frame on one backend: the static build once, then
+// per frame the update of the dynamic instances and the trace of the glossy bounce rays off a
+// gather buffer, after warm-up; medians over the frames, as a table and as JSON.
+// Vulkan phases are timed with timestamp queries where the device's timestamps bracket the
+// passes (not lavapipe: there the host time from submit to fence is reported, and says so).
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "apps/backends.h"
+#include "apps/commands.h"
+#include "common/gather.h"
+#include "reference/grid.h"
+#ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/grid.h"
+#endif
+
+namespace gridrt::app {
+namespace {
+
+struct BenchOptions {
+  std::string scene;
+  std::vector<std::string> backends;
+  uint32_t width = 1920, height = 1080;
+  uint32_t frames = 20, warmup = 3;
+  float fps = 30.0f;
+  std::string json;
+  BackendOptions backend_options;
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+struct PhaseTimes {
+  double build = 0.0;
+  std::vector<double> update, trace;
+  std::string clock = "host";  // "gpu timestamps" or "host"
+};
+
+void run_bench(const BenchOptions& o) {
+  const Scene scene = load_scene_or_default(o.scene);
+  const std::vector<std::string> backends = o.backends.empty() ? std::vector<std::string>{backend_names().front()} : o.backends;
+
+  // The gather buffer, once, by the exact traversal of the reference grid (CPU).
+  reference::GridOptions exact = grid_options_for(o.backend_options, scene);
+  exact.traversal = reference::Traversal::exact;
+  reference::ReferenceGridTracer gather_tracer(exact);
+  gather_tracer.build(scene, 0.0f);
+  GatherBuffer gather;
+  {
+    Progress progress("gather buffer (CPU reference, exact)", size_t(o.width) * o.height);
+    ProgressTracer traced(gather_tracer, progress);
+    gather = make_gather(scene, traced, scene.frame_camera(), o.width, o.height, 0.0f);
+  }
+  size_t bounce_count = 0;
+  {
+    const std::vector<Ray> r = bounce_rays(scene, gather, 0);
+    bounce_count = size_t(std::count_if(r.begin(), r.end(), [](const Ray& ray) { return !is_unused(ray); }));
+  }
+  const Features features = Features::for_scene(scene);
+  std::printf("bench: %s, %llu triangles, %zu instances (%zu dynamic), %ux%u, %zu glossy bounce rays per frame, "
+              "%u frames after %u warm-up\n",
+              scene.name.c_str(), (unsigned long long)scene.triangle_count(), scene.instances.size(),
+              scene.instances.size() - scene.static_instance_count(), o.width, o.height, bounce_count, o.frames,
+              o.warmup);
+  std::printf("machine: %u hardware threads; effects the scene calls for: alpha keying %s, update %s, glossy %s\n",
+              std::thread::hardware_concurrency(), features.alpha_keying ? "yes" : "no", features.update ? "yes" : "no",
+              features.glossy ? "yes" : "no");
+
+  nlohmann::json out;
+  out["scene"] = scene.name;
+  out["width"] = o.width;
+  out["height"] = o.height;
+  out["rays_per_frame"] = bounce_count;
+  out["frames"] = o.frames;
+  std::printf("\n| backend | device | clock | build ms | update ms (median) | trace ms (median) | Mrays/s | grid MiB |\n"
+              "|---|---|---|---|---|---|---|---|\n");
+  for (const std::string& name : backends) {
+    std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
+    PhaseTimes times;
+    std::string device = "CPU, " + std::to_string(std::thread::hardware_concurrency()) + " threads";
+    double grid_mib = 0.0;
+    auto t0 = std::chrono::steady_clock::now();
+    tracer->build(scene, 0.0f);
+    times.build = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+    auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
+    if (vk) {
+      device = vk->context().info().name;
+      if (vk->timings().build_ms > 0.0) {
+        times.clock = "gpu timestamps";
+        times.build = vk->timings().build_ms;
+      }
+    }
+#endif
+    if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
+      grid_mib = double(ref->stats().image_bytes) / (1 << 20);
+    const AccelDump dump = tracer->dump();
+    if (!dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
+
+    std::vector<Hit> hits;
+    for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
+      const float time = float(f + 1) / o.fps;
+      const std::vector<Ray> rays = bounce_rays(scene, gather, f);
+      hits.resize(rays.size());
+      t0 = std::chrono::steady_clock::now();
+      tracer->update(time);
+      double update_ms = ms_since(t0);
+      t0 = std::chrono::steady_clock::now();
+      tracer->trace(rays, hits);
+      double trace_ms = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+      if (vk && times.clock == "gpu timestamps") {
+        update_ms = vk->timings().update_ms;
+        trace_ms = vk->timings().trace_ms;
+      } else if (vk) {
+        update_ms = vk->timings().update_host_ms;
+        trace_ms = vk->timings().trace_host_ms;
+      }
+#endif
+      if (f < o.warmup) continue;
+      times.update.push_back(update_ms);
+      times.trace.push_back(trace_ms);
+    }
+    const double update = median(times.update), trace = median(times.trace);
+    const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
+    std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
+                times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
+    std::fflush(stdout);
+    out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
+                             {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
+                             {"grid_mib", grid_mib},    {"update_ms_all", times.update},
+                             {"trace_ms_all", times.trace}};
+  }
+  if (!o.json.empty()) {
+    std::ofstream f(o.json);
+    if (!f) throw Error("cannot write '" + o.json + "'");
+    f << out.dump(2) << "\n";
+  }
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app) {
+  auto o = std::make_shared<BenchOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "bench", "Time the static build, then per frame the dynamic update and the glossy-bounce trace (medians)");
+  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  cmd->add_option("--backend,-b", o->backends, "Backends to time, one after the other: " + backend_list())
+      ->delimiter(',');
+  cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--frames", o->frames, "Timed frames")->check(CLI::Range(1u, 100000u));
+  cmd->add_option("--warmup", o->warmup, "Untimed frames first")->check(CLI::Range(0u, 1000u));
+  cmd->add_option("--fps", o->fps, "Scene time step per frame is 1/fps")->check(CLI::PositiveNumber);
+  cmd->add_option("--json", o->json, "Also write the figures as JSON to this file");
+  add_backend_options(cmd, o->backend_options);
+  cmd->callback([o] { run_bench(*o); });
+}
+
+}  // namespace gridrt::app

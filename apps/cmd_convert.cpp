@@ -1,0 +1,26 @@
+// gridrt convert: any scene the tool reads -> the binary cache (.gridscene), textures decoded.
+// The cache loads without OpenImageIO: it is how real scenes travel to the GPU machine.
+#include <cstdio>
+
+#include "apps/commands.h"
+#include "common/scene_io.h"
+
+namespace gridrt::app {
+
+void add_convert_command(CLI::App& app) {
+  auto scene = std::make_shared<std::string>();
+  auto output = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("convert", "Write a scene as a binary cache (.gridscene) that loads without OpenImageIO");
+  cmd->add_option("scene", *scene, "A scene file (.json), a mesh, or builtin:NAME")->required();
+  cmd->add_option("-o,--output", *output, "The .gridscene file to write")->required();
+  cmd->callback([scene, output] {
+    check_output_path(*output);
+    if (!output->ends_with(".gridscene")) throw Error("convert writes .gridscene files, not '" + *output + "'");
+    const Scene s = load_scene_or_default(*scene);
+    save_scene_binary(s, *output);
+    std::fprintf(stderr, "wrote %s: %llu triangles, %zu instances, %zu textures\n", output->c_str(),
+                 (unsigned long long)s.triangle_count(), s.instances.size(), s.textures.size());
+  });
+}
+
+}  // namespace gridrt::app

@@ -1,0 +1,297 @@
+// gridrt explain / stats / diff: the grid's own verbs.
+//   explain  every step of one pixel's ray through the CPU reference (and the Vulkan shader's own
+//            record beside it with --backend vulkan)
+//   stats    the grid's size, memory, occupancy and saturation
+//   diff     the CPU reference against the Vulkan port: grid images and every hit, over frames
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <optional>
+#include <sstream>
+
+#include "apps/backends.h"
+#include "apps/commands.h"
+#include "common/camera.h"
+#include "common/gather.h"
+#include "reference/compare.h"
+#include "reference/grid.h"
+#ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/grid.h"
+#endif
+
+namespace gridrt::app {
+namespace {
+
+namespace sh = gridrt::shared;
+
+struct GridVerbOptions {
+  std::string scene;
+  std::string backend = "cpu";
+  uint32_t width = 960, height = 540;
+  float time = 0.0f;
+  BackendOptions backend_options;
+};
+
+void add_common(CLI::App* cmd, GridVerbOptions& o) {
+  cmd->add_option("scene", o.scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  cmd->add_option("--width", o.width, "Image width of the gather buffer")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--height", o.height, "Image height of the gather buffer")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--time,-t", o.time, "Scene time in seconds");
+  add_backend_options(cmd, o.backend_options);
+}
+
+// The gather buffer every grid verb traces its bounce from: primary rays through the exact
+// traversal of the reference grid (the paper rasterizes it; the exact DDA finds the same first
+// surface as rasterization up to ties).
+// Traces only the ray of one index and answers a miss for every other: a gather buffer whose one
+// pixel is real, for explaining that pixel without tracing the whole image.
+class OneRayTracer : public Tracer {
+ public:
+  OneRayTracer(Tracer& inner, size_t index) : inner_(inner), index_(index) {}
+  std::string name() const override { return inner_.name(); }
+  void build(const Scene& scene, float time) override { inner_.build(scene, time); }
+  void update(float time) override { inner_.update(time); }
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
+    for (Hit& h : hits) h = Hit{std::numeric_limits<float>::infinity(), sh::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0};
+    if (index_ < rays.size()) inner_.trace(rays.subspan(index_, 1), hits.subspan(index_, 1));
+  }
+
+ private:
+  Tracer& inner_;
+  size_t index_;
+};
+
+GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
+                              float time, std::optional<size_t> only_pixel = std::nullopt) {
+  reference::GridOptions exact = grid;
+  exact.traversal = reference::Traversal::exact;
+  reference::ReferenceGridTracer tracer(exact);
+  tracer.build(scene, time);
+  if (only_pixel) {
+    OneRayTracer one(tracer, *only_pixel);
+    return make_gather(scene, one, scene.frame_camera(), w, h, time);
+  }
+  Progress progress("gather buffer", size_t(w) * h);
+  ProgressTracer traced(tracer, progress);
+  return make_gather(scene, traced, scene.frame_camera(), w, h, time);
+}
+
+// The ray `explain` and `diff` follow for a pixel: its glossy bounce where it has one, else the
+// primary ray through it.
+Ray pixel_ray(const Scene& scene, const GatherBuffer& gather, const std::vector<Ray>& bounces, uint32_t x, uint32_t y,
+              bool* is_bounce) {
+  const size_t i = size_t(y) * gather.width + x;
+  *is_bounce = !is_unused(bounces[i]);
+  return *is_bounce ? bounces[i] : camera_ray(scene.frame_camera(), gather.width, gather.height, x, y);
+}
+
+// ---- explain ----------------------------------------------------------------------------------
+
+struct ExplainOptions : GridVerbOptions {
+  std::vector<uint32_t> pixel;
+  bool primary = false;
+};
+
+void run_explain(const ExplainOptions& o) {
+  const Scene scene = load_scene_or_default(o.scene);
+  const uint32_t x = o.pixel[0], y = o.pixel[1];
+  if (x >= o.width || y >= o.height)
+    throw Error("pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
+                std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
+  const reference::GridOptions grid = grid_options_for(o.backend_options, scene);
+  const GatherBuffer gather = reference_gather(scene, grid, o.width, o.height, o.time, size_t(y) * o.width + x);
+  const std::vector<Ray> bounces = bounce_rays(scene, gather, 0);
+  bool is_bounce = false;
+  Ray ray = pixel_ray(scene, gather, bounces, x, y, &is_bounce);
+  if (o.primary && is_bounce) {
+    ray = camera_ray(scene.frame_camera(), o.width, o.height, x, y);
+    is_bounce = false;
+  }
+  std::printf("pixel %u,%u of %ux%u at t = %g: the %s\n\n", x, y, o.width, o.height, o.time,
+              is_bounce ? "glossy bounce ray off the gather buffer" : "primary ray (the pixel has no glossy bounce)");
+
+  reference::ReferenceGridTracer ref(grid);
+  ref.build(scene, o.time);
+  const reference::ExplainRecord want = ref.explain_ray(ray);
+  std::printf("== CPU reference ==\n%s\n", reference::to_text(want).c_str());
+  if (o.backend == "cpu") return;
+#ifdef GRIDRT_HAVE_VULKAN
+  if (o.backend == "vulkan") {
+    vulkan::VulkanGridOptions vk;
+    vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+    vulkan::VulkanGridTracer gpu(grid, vk);
+    gpu.build(scene, o.time);
+    const reference::ExplainRecord got = gpu.explain_ray(ray);
+    std::printf("== Vulkan (%s) ==\n", gpu.context().info().name.c_str());
+    size_t k = 0;
+    while (k < want.events.size() && k < got.events.size() &&
+           std::memcmp(&want.events[k], &got.events[k], sizeof(sh::ExplainEvent)) == 0)
+      ++k;
+    const bool same_hit = std::memcmp(&want.hit, &got.hit, sizeof(Hit)) == 0;
+    if (k == want.events.size() && k == got.events.size() && same_hit) {
+      std::printf("identical: all %zu events and the hit record agree bit for bit\n", k);
+      return;
+    }
+    std::printf("the shader parts from the reference at event %zu of %zu (reference %zu events, shader %zu)\n", k,
+                std::max(want.events.size(), got.events.size()), want.events.size(), got.events.size());
+    auto tail = [&](const reference::ExplainRecord& r) {
+      reference::ExplainRecord part = r;
+      part.events.assign(r.events.begin() + std::ptrdiff_t(std::min(k, r.events.size())), r.events.end());
+      return reference::to_text(part);
+    };
+    std::printf("-- reference from there --\n%s\n-- shader from there --\n%s\n", tail(want).c_str(), tail(got).c_str());
+    std::printf("reference hit: %s\nshader hit:    %s\n", reference::hex_hit(want.hit).c_str(),
+                reference::hex_hit(got.hit).c_str());
+    return;
+  }
+#endif
+  throw Error("explain knows the backends cpu" + std::string(backend_list().find("vulkan") != std::string::npos ? " and vulkan" : "") +
+              ", not '" + o.backend + "'");
+}
+
+// ---- stats ------------------------------------------------------------------------------------
+
+void run_stats(const GridVerbOptions& o) {
+  const Scene scene = load_scene_or_default(o.scene);
+  reference::ReferenceGridTracer ref(grid_options_for(o.backend_options, scene));
+  ref.build(scene, o.time);
+  std::printf("scene %s: %llu triangles in %zu instances (%u static)\n%s", scene.name.c_str(),
+              (unsigned long long)scene.triangle_count(), scene.instances.size(), scene.static_instance_count(),
+              reference::to_text(ref.stats()).c_str());
+}
+
+// ---- diff -------------------------------------------------------------------------------------
+
+#ifdef GRIDRT_HAVE_VULKAN
+struct DiffOptions : GridVerbOptions {
+  uint32_t frames = 3;
+  float fps = 30.0f;
+};
+
+// Grid images: sorted texel for texel; first-empty per cell as multisets. Returns false on a
+// difference, after printing the first one.
+bool diff_images(const reference::ReferenceGridTracer& ref, Tracer& gpu, uint32_t frame) {
+  const AccelDump want = ref.dump(), got = gpu.dump();
+  const sh::GridParams& g = ref.params();
+  if (ref.options().insertion == reference::Insertion::sorted) {
+    const reference::TexelDiff d = reference::compare_texels(want, got);
+    std::printf("frame %u: grid image %ux%ux%u: %zu of %zu texels differ\n", frame, want.extent.x, want.extent.y,
+                want.extent.z, d.differing.size(), d.texels);
+    if (d.differing.empty()) return true;
+    const size_t i = d.differing.front();
+    const uint32_t tx = uint32_t(i % want.extent.x), ty = uint32_t((i / want.extent.x) % want.extent.y),
+                   tz = uint32_t(i / (size_t(want.extent.x) * want.extent.y));
+    std::printf("  first: texel (%u, %u, %u) = cell (%u, %u, %u) %s %u: reference 0x%08x, vulkan 0x%08x\n", tx, ty, tz,
+                tx / (g.capacity + 1), ty, tz, tx % (g.capacity + 1) == g.capacity ? "status" : "slot",
+                tx % (g.capacity + 1), want.texels[i], got.texels[i]);
+    return false;
+  }
+  const reference::CellCheck c = reference::check_cells_as_multisets(ref.data(), got);
+  std::printf("frame %u: first-empty grid: %zu of %zu cells break the multiset rule (%zu saturated)\n", frame,
+              c.bad.size(), c.cells, c.saturated);
+  if (c.bad.empty()) return true;
+  const size_t i = c.bad.front();
+  std::printf("  first: cell (%zu, %zu, %zu)\n", i % g.cells.x, (i / g.cells.x) % g.cells.y,
+              i / (size_t(g.cells.x) * g.cells.y));
+  return false;
+}
+
+void run_diff(const DiffOptions& o) {
+  const Scene scene = load_scene_or_default(o.scene);
+  const reference::GridOptions grid = grid_options_for(o.backend_options, scene);
+  vulkan::VulkanGridOptions vk;
+  vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+  vulkan::VulkanGridTracer gpu(grid, vk);
+  reference::ReferenceGridTracer ref(grid);
+  std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, Vulkan device %s (%s build)\n",
+              scene.name.c_str(), o.width, o.height, o.frames,
+              grid.traversal == reference::Traversal::paper ? "paper" : "exact",
+              grid.insertion == reference::Insertion::sorted ? "sorted" : "first-empty",
+              gpu.context().info().name.c_str(), o.backend_options.vk_build.c_str());
+  bool all_same = true;
+  size_t total_rays = 0, total_identical = 0;
+  for (uint32_t frame = 0; frame < o.frames; ++frame) {
+    const float time = o.time + float(frame) / o.fps;
+    if (frame == 0) {
+      ref.build(scene, time);
+      gpu.build(scene, time);
+    } else {
+      ref.update(time);
+      gpu.update(time);
+    }
+    all_same = diff_images(ref, gpu, frame) && all_same;
+
+    // Every hit: the primary rays and the glossy bounce off the reference's gather buffer.
+    const GatherBuffer gather = reference_gather(scene, grid, o.width, o.height, time);
+    std::vector<Ray> rays = bounce_rays(scene, gather, frame);
+    for (uint32_t y = 0; y < o.height; ++y)
+      for (uint32_t x = 0; x < o.width; ++x) rays.push_back(camera_ray(scene.frame_camera(), o.width, o.height, x, y));
+    std::vector<Hit> want(rays.size()), got(rays.size());
+    {
+      Progress progress("frame " + std::to_string(frame) + ": reference trace", rays.size());
+      ProgressTracer traced(ref, progress);
+      traced.trace(rays, want);
+    }
+    gpu.trace(rays, got);
+    const reference::HitDiff d = reference::compare_hits(want, got);
+    total_rays += d.rays;
+    total_identical += d.identical;
+    std::printf("frame %u: %zu rays: %zu identical in bits, %zu differ (%zu of them in floats only: t within %u ulps, "
+                "u/v within %u ulps)\n",
+                frame, d.rays, d.identical, d.differing.size(), d.same_discrete - d.identical, d.max_ulps_t,
+                d.max_ulps_uv);
+    if (!d.differing.empty()) {
+      all_same = false;
+      const size_t i = d.differing.front();
+      std::printf("\nfirst differing ray %zu: %s\n  reference %s\n  vulkan    %s\n\n", i,
+                  reference::hex_ray(rays[i]).c_str(), reference::hex_hit(want[i]).c_str(),
+                  reference::hex_hit(got[i]).c_str());
+      const reference::ExplainRecord a = ref.explain_ray(rays[i]);
+      const reference::ExplainRecord b = gpu.explain_ray(rays[i]);
+      std::printf("== reference's account ==\n%s\n== shader's account ==\n%s\n", reference::to_text(a).c_str(),
+                  reference::to_text(b).c_str());
+      break;
+    }
+  }
+  std::printf("%s: %zu of %zu hit records identical in bits over the frames compared\n",
+              all_same ? "AGREE" : "DIFFER", total_identical, total_rays);
+  if (!all_same) throw Error("the Vulkan port differs from the reference (see above)");
+}
+#endif
+
+}  // namespace
+
+void add_grid_commands(CLI::App& app) {
+  {
+    auto o = std::make_shared<ExplainOptions>();
+    CLI::App* cmd = app.add_subcommand("explain", "Every step of one pixel's ray through the grid, with the floats in hex");
+    add_common(cmd, *o);
+    cmd->add_option("--pixel,-p", o->pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
+    cmd->add_flag("--primary", o->primary, "Explain the primary ray, not the glossy bounce");
+    cmd->add_option("--backend,-b", o->backend, "cpu, or vulkan to show the shader's own record beside the reference's")
+        ->check(CLI::IsMember({"cpu", "vulkan"}));
+    cmd->callback([o] { run_explain(*o); });
+  }
+  {
+    auto o = std::make_shared<GridVerbOptions>();
+    CLI::App* cmd = app.add_subcommand("stats", "The grid's size, memory, occupancy histogram and saturated cells");
+    add_common(cmd, *o);
+    cmd->callback([o] { run_stats(*o); });
+  }
+#ifdef GRIDRT_HAVE_VULKAN
+  {
+    auto o = std::make_shared<DiffOptions>();
+    o->width = 160;
+    o->height = 90;
+    CLI::App* cmd = app.add_subcommand(
+        "diff", "Run the CPU reference and the Vulkan port on a scene: grid images and every hit, over frames");
+    add_common(cmd, *o);
+    cmd->add_option("--frames", o->frames, "Animated frames to compare (the first is a build, then updates)")
+        ->check(CLI::Range(1u, 10000u));
+    cmd->add_option("--fps", o->fps, "Frames per second")->check(CLI::PositiveNumber);
+    cmd->callback([o] { run_diff(*o); });
+  }
+#endif
+}
+
+}  // namespace gridrt::app

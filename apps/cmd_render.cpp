@@ -1,0 +1,104 @@
+// gridrt render: a frame (or an animation) of a scene through one backend: primary rays into a
+// gather buffer, one glossy bounce off it, simple shading, an image file.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include "apps/backends.h"
+#include "apps/commands.h"
+#include "common/gather.h"
+#include "common/image_io.h"
+#include "common/progress.h"
+#include "common/shade.h"
+
+namespace gridrt::app {
+namespace {
+
+struct RenderOptions {
+  std::string scene;
+  std::string backend;
+  std::string output = "render.png";
+  uint32_t width = 960, height = 540;
+  float time = 0.0f;
+  uint32_t frames = 1;
+  float fps = 30.0f;
+  bool shadows = false;
+  bool no_bounce = false;
+  BackendOptions backend_options;
+};
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// out.png -> out_0007.png for frame 7 of an animation.
+std::string frame_path(const std::string& output, uint32_t frame, uint32_t frames) {
+  if (frames <= 1) return output;
+  const std::filesystem::path p(output);
+  char suffix[16];
+  std::snprintf(suffix, sizeof suffix, "_%04u", frame);
+  return (p.parent_path() / (p.stem().string() + suffix + p.extension().string())).string();
+}
+
+void run_render(const RenderOptions& o) {
+  check_output_path(o.output);
+  check_image_extension(o.output);
+  const Scene scene = load_scene_or_default(o.scene);
+  std::unique_ptr<Tracer> tracer =
+      make_backend(o.backend.empty() ? backend_names().front() : o.backend, o.backend_options, scene);
+
+  auto t0 = std::chrono::steady_clock::now();
+  tracer->build(scene, o.time);
+  std::fprintf(stderr, "%s: built %s (%llu triangles, %zu instances) in %.2f s\n", tracer->name().c_str(),
+               scene.name.c_str(), (unsigned long long)scene.triangle_count(), scene.instances.size(),
+               seconds_since(t0));
+  const Camera camera = scene.frame_camera();
+  for (uint32_t frame = 0; frame < o.frames; ++frame) {
+    const float time = o.time + float(frame) / o.fps;
+    if (frame > 0) tracer->update(time);
+    const size_t pixels = size_t(o.width) * o.height;
+    t0 = std::chrono::steady_clock::now();
+    Progress progress("frame " + std::to_string(frame) + ": tracing", pixels * (o.no_bounce ? 1 : 2));
+    ProgressTracer traced(*tracer, progress);
+    const GatherBuffer gather = make_gather(scene, traced, camera, o.width, o.height, time);
+    std::vector<Ray> rays;
+    std::vector<Hit> hits;
+    if (!o.no_bounce) {
+      rays = bounce_rays(scene, gather, frame);
+      hits.resize(rays.size());
+      traced.trace(rays, hits);
+    }
+    progress.finish();
+    ShadeOptions shade_options;
+    if (o.shadows) shade_options.shadow_tracer = tracer.get();
+    const std::vector<glm::vec3> rgb = shade(scene, gather, rays, hits, shade_options);
+    const std::string path = frame_path(o.output, frame, o.frames);
+    write_image(path, o.width, o.height, rgb);
+    std::fprintf(stderr, "%s: frame %u (t = %.3f s) traced and shaded in %.2f s -> %s\n", tracer->name().c_str(),
+                 frame, time, seconds_since(t0), path.c_str());
+  }
+}
+
+}  // namespace
+
+void add_render_command(CLI::App& app) {
+  auto o = std::make_shared<RenderOptions>();
+  CLI::App* cmd = app.add_subcommand("render", "Render a scene to an image: primary rays, one glossy bounce, simple shading");
+  cmd->add_option("scene", o->scene,
+                  "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
+                  "(atrium, cornell, teapot); default: the embedded atrium");
+  cmd->add_option("--backend,-b", o->backend, "Tracer: " + backend_list() + " (default: the first)");
+  cmd->add_option("--width", o->width, "Image width in pixels")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--height", o->height, "Image height in pixels")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--time,-t", o->time, "Scene time in seconds (animation)");
+  cmd->add_option("--frames", o->frames, "Frames to render, --fps apart, written as NAME_0000.EXT ...")
+      ->check(CLI::Range(1u, 100000u));
+  cmd->add_option("--fps", o->fps, "Frames per second of --frames")->check(CLI::PositiveNumber);
+  cmd->add_flag("--shadows", o->shadows, "Trace shadow rays to the lights");
+  cmd->add_flag("--no-bounce", o->no_bounce, "Primary rays only, no glossy bounce");
+  cmd->add_option("-o,--output", o->output, "Image file: .png, .jpg, .exr, .hdr, .tif (OpenImageIO), .ppm, .pfm");
+  add_backend_options(cmd, o->backend_options);
+  cmd->callback([o] { run_render(*o); });
+}
+
+}  // namespace gridrt::app

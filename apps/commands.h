@@ -1,0 +1,24 @@
+// commands.h: the tool's verbs, each registered on the CLI11 app by one function.
+#pragma once
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "common/scene.h"
+
+namespace gridrt::app {
+
+void add_render_command(CLI::App& app);   // cmd_render.cpp
+void add_convert_command(CLI::App& app);  // cmd_convert.cpp
+void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: explain, stats, diff
+void add_bench_command(CLI::App& app);    // cmd_bench.cpp
+
+// The scene named by SCENE (a scene file, a bare mesh, builtin:NAME), or the embedded default
+// when `spec` is empty. Prints how long loading took when it took over a second.
+Scene load_scene_or_default(const std::string& spec);
+
+// Error unless the folder of `path` exists (checked before hours of work, not after).
+void check_output_path(const std::string& path);
+
+}  // namespace gridrt::app

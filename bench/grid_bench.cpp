@@ -1,0 +1,122 @@
+// grid_bench: the reference grid's build, update and trace times, rays/s and memory on built-in
+// and scene-file scenes, beside Embree on the same rays, and its agreement with Embree.
+//   gridrt_grid_bench [--threads N] [--size WxH] [--repeat R] [--exact] [--first-empty]
+//                     [--max-dim D] SCENE...        (SCENE: builtin:NAME, a .json, .obj, ...)
+// Rays: the camera's primary rays, then one mirror bounce per primary hit off the gather buffer
+// (the paper's use). Times: the best of R runs, wall clock.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "common/camera.h"
+#include "common/gather.h"
+#include "common/scene_io.h"
+#include "reference/grid.h"
+#ifdef GRIDRT_BENCH_EMBREE
+#include "common/embree/embree_tracer.h"
+#endif
+
+using namespace gridrt;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+template <class F>
+double best_ms(int repeat, F&& f) {
+  double best = 1e300;
+  for (int i = 0; i < repeat; ++i) {
+    const auto t0 = Clock::now();
+    f();
+    best = std::min(best, std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+  }
+  return best;
+}
+
+std::vector<Ray> make_rays(const Scene& scene, Tracer& primary, uint32_t w, uint32_t h) {
+  const Camera cam = scene.frame_camera();
+  const GatherBuffer gb = make_gather(scene, primary, cam, w, h, 0.0f);
+  std::vector<Ray> rays;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) rays.push_back(camera_ray(cam, w, h, x, y));
+  for (size_t i = 0; i < gb.size(); ++i) {
+    if (!gb.valid[i]) continue;
+    const glm::vec3 n = gb.normal[i], d = gb.incident[i];
+    Ray r{};
+    r.org = gb.position[i];
+    r.dir = d - 2.0f * glm::dot(d, n) * n;
+    r.tmin = 0.0f;
+    r.tmax = INFINITY;
+    r.launch_normal = n;
+    r.launch_ref = gb.launch_ref[i];
+    rays.push_back(r);
+  }
+  return rays;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  reference::GridOptions o;
+  uint32_t w = 320, h = 240;
+  int repeat = 3;
+  std::vector<std::string> scenes;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--threads" && i + 1 < argc) o.threads = unsigned(std::atoi(argv[++i]));
+    else if (a == "--size" && i + 1 < argc) std::sscanf(argv[++i], "%ux%u", &w, &h);
+    else if (a == "--repeat" && i + 1 < argc) repeat = std::atoi(argv[++i]);
+    else if (a == "--max-dim" && i + 1 < argc) o.max_image_dimension = uint32_t(std::atoi(argv[++i]));
+    else if (a == "--exact") o.traversal = reference::Traversal::exact;
+    else if (a == "--first-empty") o.insertion = reference::Insertion::first_empty;
+    else scenes.push_back(a);
+  }
+  if (scenes.empty()) scenes = {"builtin:cornell", "builtin:teapot", "builtin:atrium"};
+  const unsigned threads = reference::thread_count(o);
+  std::printf("threads %u, %ux%u camera rays + mirror bounces, best of %d, traversal %s, insertion %s, max image dim %u\n",
+              threads, w, h, repeat, o.traversal == reference::Traversal::exact ? "exact" : "paper",
+              o.insertion == reference::Insertion::sorted ? "sorted" : "first-empty", o.max_image_dimension);
+  std::printf("| scene | triangles | cells | capacity | image MiB | geometry MiB | build ms | update ms | rays | grid Mrays/s | embree Mrays/s | agree %% | gap-fill %% | saturated cells |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const std::string& spec : scenes) {
+    const Scene scene = load_scene(spec);
+    reference::ReferenceGridTracer grid(o);
+    const double build = best_ms(repeat, [&] { grid.build(scene, 0.0f); });
+    const bool dynamic = scene.has_dynamic();
+    const double update = dynamic ? best_ms(repeat, [&] { grid.update(0.5f); }) : 0.0;
+    grid.build(scene, 0.0f);
+#ifdef GRIDRT_BENCH_EMBREE
+    EmbreeTracer embree(threads);
+    embree.build(scene, 0.0f);
+    const std::vector<Ray> rays = make_rays(scene, embree, w, h);
+#else
+    const std::vector<Ray> rays = make_rays(scene, grid, w, h);
+#endif
+    std::vector<Hit> hits(rays.size()), want(rays.size());
+    const double trace = best_ms(repeat, [&] { grid.trace(rays, hits); });
+    double etrace = 0.0, agree = 0.0;
+#ifdef GRIDRT_BENCH_EMBREE
+    etrace = best_ms(repeat, [&] { embree.trace(rays, want); });
+    size_t same = 0;
+    for (size_t i = 0; i < rays.size(); ++i)
+      same += (is_miss(hits[i]) && is_miss(want[i])) ||
+              (!is_miss(hits[i]) && !is_miss(want[i]) && !(hits[i].flags & shared::kHitGapFill) &&
+               hits[i].instance == want[i].instance && hits[i].triangle == want[i].triangle);
+    agree = 100.0 * double(same) / double(rays.size());
+#endif
+    size_t gaps = 0;
+    for (const Hit& hit : hits) gaps += (hit.flags & shared::kHitGapFill) != 0;
+    const reference::GridStats s = grid.stats();
+    std::printf("| %s | %llu | %ux%ux%u | %u | %.1f | %.1f | %.1f | %.2f | %zu | %.2f | %.2f | %.1f | %.1f | %llu+%llu |\n",
+                spec.c_str(), (unsigned long long)s.triangles, s.cells.x, s.cells.y, s.cells.z, s.capacity,
+                double(s.image_bytes) / 1048576.0, double(s.geometry_bytes) / 1048576.0, build, update,
+                rays.size(), double(rays.size()) / trace / 1e3, etrace > 0 ? double(rays.size()) / etrace / 1e3 : 0.0,
+                agree, 100.0 * double(gaps) / double(rays.size()), (unsigned long long)s.saturated_static,
+                (unsigned long long)s.saturated_dynamic);
+    std::fflush(stdout);
+  }
+  return 0;
+}

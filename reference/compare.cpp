@@ -1,0 +1,123 @@
+#include "reference/compare.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+
+namespace gridrt::reference {
+
+namespace sh = gridrt::shared;
+
+uint32_t ulp_distance(float a, float b) {
+  const uint32_t ua = std::bit_cast<uint32_t>(a), ub = std::bit_cast<uint32_t>(b);
+  if (ua == ub) return 0;
+  if (std::isnan(a) || std::isnan(b)) return UINT32_MAX;
+  // Map the sign-magnitude bits onto a monotonic integer line (-0 and +0 meet at 0).
+  auto ordered = [](uint32_t u) -> int64_t {
+    return (u & 0x80000000u) ? -int64_t(u & 0x7fffffffu) : int64_t(u);
+  };
+  const int64_t d = ordered(ua) - ordered(ub);
+  return uint32_t(std::min<int64_t>(d < 0 ? -d : d, UINT32_MAX));
+}
+
+std::string hex_hit(const Hit& h) {
+  std::ostringstream os;
+  os << "t " << hex(h.t) << " (" << h.t << ") inst " << h.instance << " tri " << h.triangle << " u " << hex(h.u)
+     << " v " << hex(h.v) << " flags " << h.flags << " cells " << h.cells << " tests " << h.tests;
+  return os.str();
+}
+
+std::string hex_ray(const Ray& r) {
+  std::ostringstream os;
+  os << "org (" << hex(r.org.x) << ", " << hex(r.org.y) << ", " << hex(r.org.z) << ") dir (" << hex(r.dir.x)
+     << ", " << hex(r.dir.y) << ", " << hex(r.dir.z) << ") tmin " << hex(r.tmin) << " tmax " << hex(r.tmax)
+     << " launch ref 0x" << std::hex << r.launch_ref;
+  return os.str();
+}
+
+HitDiff compare_hits(std::span<const Hit> want, std::span<const Hit> got) {
+  HitDiff d;
+  d.rays = std::min(want.size(), got.size());
+  for (size_t i = 0; i < d.rays; ++i) {
+    const Hit& a = want[i];
+    const Hit& b = got[i];
+    if (std::memcmp(&a, &b, sizeof(Hit)) == 0) {
+      ++d.identical;
+      ++d.same_discrete;
+      continue;
+    }
+    d.differing.push_back(i);
+    if (a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags) {
+      ++d.same_discrete;
+      d.max_ulps_t = std::max(d.max_ulps_t, ulp_distance(a.t, b.t));
+      d.max_ulps_uv = std::max({d.max_ulps_uv, ulp_distance(a.u, b.u), ulp_distance(a.v, b.v)});
+    }
+  }
+  return d;
+}
+
+TexelDiff compare_texels(const AccelDump& want, const AccelDump& got) {
+  TexelDiff d;
+  if (want.extent != got.extent || want.texels.size() != got.texels.size())
+    throw Error("grid images of different extents cannot be compared texel for texel");
+  d.texels = want.texels.size();
+  for (size_t i = 0; i < d.texels; ++i)
+    if (want.texels[i] != got.texels[i]) d.differing.push_back(i);
+  return d;
+}
+
+std::vector<std::vector<uint32_t>> cell_candidates(const GridData& grid) {
+  const sh::GridParams& g = grid.params;
+  std::vector<std::vector<uint32_t>> out(size_t(g.cells.x) * g.cells.y * g.cells.z);
+  for (uint32_t i = 0; i < grid.instances.size(); ++i)
+    for (uint32_t k = 0; k < grid.instances[i].tri_count; ++k) {
+      const sh::GridTriangle& t = grid.triangles[grid.instances[i].tri_offset + k];
+      const glm::vec3 n = sh::triangle_normal(t.v0, t.v1, t.v2);
+      const float nn = sh::sh_dot(n, n);
+      if (nn == 0.0f) continue;
+      glm::uvec3 lo, hi;
+      sh::triangle_cell_range(g, t.v0, t.v1, t.v2, lo, hi);
+      for (uint32_t z = lo.z; z <= hi.z; ++z)
+        for (uint32_t y = lo.y; y <= hi.y; ++y)
+          for (uint32_t x = lo.x; x <= hi.x; ++x)
+            if (sh::plane_intersects_enlarged_sphere(t.v0, n, nn, sh::cell_center(g, {x, y, z}), g.sphere_r2))
+              out[(size_t(z) * g.cells.y + y) * g.cells.x + x].push_back(sh::ref_pack(i, k));
+    }
+  return out;
+}
+
+CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image) {
+  const sh::GridParams& g = grid.params;
+  const std::vector<std::vector<uint32_t>> cand = cell_candidates(grid);
+  CellCheck c;
+  c.cells = cand.size();
+  for (uint32_t z = 0; z < g.cells.z; ++z)
+    for (uint32_t y = 0; y < g.cells.y; ++y)
+      for (uint32_t x = 0; x < g.cells.x; ++x) {
+        const size_t index = (size_t(z) * g.cells.y + y) * g.cells.x + x;
+        const glm::uvec3 cell(x, y, z);
+        std::vector<uint32_t> want = cand[index];
+        std::vector<uint32_t> have;
+        for (uint32_t s = 0; s < g.capacity; ++s) {
+          const uint32_t v = image.texels[sh::texel_index(sh::slot_texel(cell, s, g.capacity), image.extent)];
+          if (v != sh::kBlank) have.push_back(v);
+        }
+        const uint32_t status = image.texels[sh::texel_index(sh::status_texel(cell, g.capacity), image.extent)];
+        std::sort(want.begin(), want.end());
+        std::sort(have.begin(), have.end());
+        bool ok;
+        if (want.size() <= g.capacity) {
+          ok = have == want && status == 0u;
+        } else {
+          ++c.saturated;
+          ok = have.size() == g.capacity && std::adjacent_find(have.begin(), have.end()) == have.end() &&
+               std::includes(want.begin(), want.end(), have.begin(), have.end()) && status != 0u;
+        }
+        if (!ok) c.bad.push_back(index);
+      }
+  return c;
+}
+
+}  // namespace gridrt::reference

@@ -1,0 +1,51 @@
+// compare.h: how two tracers are held to each other: hit records by bits (and by ulps where a
+// driver may differ), grid images texel for texel (sorted) or per cell as multisets (first-empty).
+// Used by `gridrt diff` and by the differential tests.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/tracer.h"
+#include "reference/grid.h"
+
+namespace gridrt::reference {
+
+// Distance in units in the last place between two floats (0 for identical bits, and for +0/-0);
+// UINT32_MAX when either is NaN and the bits differ.
+uint32_t ulp_distance(float a, float b);
+
+// Hit records, both as bits ("t 0x3f800000 inst 1 tri 2 ...") for messages.
+std::string hex_hit(const Hit& h);
+std::string hex_ray(const Ray& r);
+
+struct HitDiff {
+  size_t rays = 0;
+  size_t identical = 0;          // memcmp-equal records
+  size_t same_discrete = 0;      // same instance, triangle and flags (floats may differ)
+  uint32_t max_ulps_t = 0, max_ulps_uv = 0;  // over same_discrete records
+  std::vector<size_t> differing; // indices of the records that are not identical, in order
+};
+HitDiff compare_hits(std::span<const Hit> want, std::span<const Hit> got);
+
+struct TexelDiff {
+  size_t texels = 0;
+  std::vector<size_t> differing;  // texel indices (x fastest)
+};
+TexelDiff compare_texels(const AccelDump& want, const AccelDump& got);
+
+// Every reference a build would insert into each cell if capacity were unlimited (cell index
+// (z * cells.y + y) * cells.x + x), from the grid's geometry buffer.
+std::vector<std::vector<uint32_t>> cell_candidates(const GridData& grid);
+
+// First-empty images: an unsaturated cell holds exactly its candidates (any slot order) and a
+// clear status; a saturated one `capacity` distinct candidates and a set status.
+struct CellCheck {
+  size_t cells = 0, saturated = 0;
+  std::vector<size_t> bad;  // cell indices that break the rule
+};
+CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image);
+
+}  // namespace gridrt::reference
