@@ -130,16 +130,58 @@ std::string hex_ray(const Ray& r) {
   return os.str();
 }
 
-// Every hit record identical in bits; returns the number of mismatches, reporting the first few.
-size_t compare_hits(std::span<const Ray> rays, std::span<const Hit> want, std::span<const Hit> got) {
-  size_t bad = 0;
+// How two tracers' hit records agree.
+struct HitAgreement {
+  size_t rays = 0;
+  size_t bit_different = 0;   // any bit of the record
+  size_t hit_different = 0;   // instance, triangle or flags
+  size_t stats_different = 0; // cells or tests, same hit
+  double max_t_rel = 0.0;     // same hit: |dt| / max(1, |t|)
+  double max_uv_abs = 0.0;    // same hit: |du|, |dv|
+};
+
+HitAgreement compare_hits(std::span<const Ray> rays, std::span<const Hit> want, std::span<const Hit> got,
+                          bool report_bits) {
+  HitAgreement a;
+  a.rays = rays.size();
   for (size_t i = 0; i < rays.size(); ++i) {
-    if (std::memcmp(&want[i], &got[i], sizeof(Hit)) == 0) continue;
-    if (++bad <= 5)
-      UNSCOPED_INFO("ray " << i << ": " << hex_ray(rays[i]) << "\n  reference " << hex_hit(want[i]) << "\n  vulkan    "
-                           << hex_hit(got[i]));
+    const Hit& w = want[i];
+    const Hit& g = got[i];
+    if (std::memcmp(&w, &g, sizeof(Hit)) == 0) continue;
+    ++a.bit_different;
+    const bool same_hit = w.instance == g.instance && w.triangle == g.triangle && w.flags == g.flags;
+    if (same_hit) {
+      a.stats_different += w.cells != g.cells || w.tests != g.tests;
+      a.max_t_rel = std::max(a.max_t_rel, std::abs(double(w.t) - double(g.t)) / std::max(1.0, std::abs(double(w.t))));
+      a.max_uv_abs = std::max({a.max_uv_abs, std::abs(double(w.u) - double(g.u)), std::abs(double(w.v) - double(g.v))});
+    } else {
+      ++a.hit_different;
+    }
+    if ((report_bits ? a.bit_different : a.hit_different) <= 5 && (report_bits || !same_hit))
+      UNSCOPED_INFO("ray " << i << ": " << hex_ray(rays[i]) << "\n  reference " << hex_hit(w) << "\n  vulkan    "
+                           << hex_hit(g));
   }
-  return bad;
+  return a;
+}
+
+// lavapipe: every hit record identical in bits. Other devices (division and sqrt may round
+// differently, docs/VULKAN.md): at most 1 % of the rays find another hit, and the same hits
+// agree within a relative 1e-5 in t and 1e-3 in u, v.
+void check_hits(const vulkan::Context& ctx, std::span<const Ray> rays, std::span<const Hit> want,
+                std::span<const Hit> got) {
+  const bool exact = bit_exact_device(ctx);
+  const HitAgreement a = compare_hits(rays, want, got, exact);
+  if (exact) {
+    CHECK(a.bit_different == 0);
+    return;
+  }
+  WARN(ctx.info().name << ": " << a.bit_different << " of " << a.rays << " hit records differ in bits; "
+                       << a.hit_different << " find another hit, " << a.stats_different
+                       << " the same hit with other cells/tests; largest relative t difference " << a.max_t_rel
+                       << ", largest u/v difference " << a.max_uv_abs);
+  CHECK(a.hit_different * 100 <= a.rays);
+  CHECK(a.max_t_rel <= 1e-5);
+  CHECK(a.max_uv_abs <= 1e-3);
 }
 
 size_t compare_texels(const AccelDump& want, const AccelDump& got) {
@@ -317,7 +359,7 @@ TEST_CASE("Vulkan grid: every hit record identical in bits to the reference's, p
       std::vector<Hit> want(rays.size()), got(rays.size());
       ref.trace(rays, want);
       vk.trace(rays, got);
-      CHECK(compare_hits(rays, want, got) == 0);
+      check_hits(ctx, rays, want, got);
       // The rays exercise what they should
       size_t hits = 0, gap = 0, back = 0, alpha_cut = 0;
       for (const Hit& h : want) {
@@ -335,17 +377,22 @@ TEST_CASE("Vulkan grid: every hit record identical in bits to the reference's, p
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
-TEST_CASE("Vulkan grid: alpha keying and features off agree with the reference", "[vulkan][diff][grid]") {
+TEST_CASE("Vulkan grid: alpha keying, features off and the paper's repeat modes agree with the reference",
+          "[vulkan][diff][grid]") {
   vulkan::Context& ctx = vk_context();
   ctx.clear_messages();
   const Scene scene = test_scene(6);
   // Rays straight at the alpha-keyed quads: some cut, some kept
   GridOptions o = options(reference::Insertion::sorted, reference::Traversal::exact, 8);
-  for (int variant = 0; variant < 3; ++variant) {
+  for (int variant = 0; variant < 5; ++variant) {
     o.alpha_keying = variant != 1;
     o.gap_fill = variant != 2;
-    o.traversal = variant == 2 ? reference::Traversal::paper : reference::Traversal::exact;
-    INFO("alpha keying " << o.alpha_keying << ", gap-fill " << o.gap_fill);
+    o.traversal = variant >= 2 ? reference::Traversal::paper : reference::Traversal::exact;
+    o.repeats = variant == 3   ? GridOptions::Repeats::skip
+                : variant == 4 ? GridOptions::Repeats::retest
+                               : GridOptions::Repeats::merge;
+    INFO("alpha keying " << o.alpha_keying << ", gap-fill " << o.gap_fill << ", traversal "
+                         << (variant >= 2 ? "paper" : "exact") << ", repeats " << int(o.repeats));
     ReferenceGridTracer ref(o);
     ref.build(scene, 0.0f);
     VulkanGridTracer vk(ctx, o);
@@ -354,7 +401,7 @@ TEST_CASE("Vulkan grid: alpha keying and features off agree with the reference",
     std::vector<Hit> want(rays.size()), got(rays.size());
     ref.trace(rays, want);
     vk.trace(rays, got);
-    CHECK(compare_hits(rays, want, got) == 0);
+    check_hits(ctx, rays, want, got);
     size_t leaves = 0;
     for (const Hit& h : want) leaves += !is_miss(h) && scene.instances[h.instance].name.rfind("leaves", 0) == 0;
     CHECK(leaves > 0);
@@ -392,6 +439,17 @@ TEST_CASE("Vulkan grid: the explained ray leaves the reference's events, bit for
                                                                           << hex_ray(rays[index]));
       const reference::ExplainRecord want = ref.explain_ray(rays[index]);
       const reference::ExplainRecord got = vk.explain_ray(rays, index);
+      if (!bit_exact_device(ctx)) {
+        // Elsewhere the values may differ by ulps (docs/VULKAN.md): the record must still be the
+        // device's own trace of the ray, from the ray event to the report or miss
+        std::vector<Hit> traced(rays.size());
+        vk.trace(rays, traced);
+        CHECK(std::memcmp(&traced[index], &got.hit, sizeof(Hit)) == 0);
+        REQUIRE(got.events.size() >= 2);
+        CHECK(got.events.front().kind == sh::kEvRay);
+        CHECK((got.events.back().kind == sh::kEvReport || got.events.back().kind == sh::kEvMiss));
+        continue;
+      }
       CHECK(std::memcmp(&want.hit, &got.hit, sizeof(Hit)) == 0);
       REQUIRE(want.events.size() == got.events.size());
       size_t bad = 0;
@@ -446,7 +504,7 @@ TEST_CASE("Vulkan grid on the built-in scenes: images and every hit identical, p
         std::vector<Hit> want(rays.size()), got(rays.size());
         ref.trace(rays, want);
         vk.trace(rays, got);
-        CHECK(compare_hits(rays, want, got) == 0);
+        check_hits(ctx, rays, want, got);
         size_t hits = 0;
         for (const Hit& h : want) hits += !is_miss(h);
         CHECK(hits > 96 * 64 / 4);
@@ -457,8 +515,9 @@ TEST_CASE("Vulkan grid on the built-in scenes: images and every hit identical, p
 }
 
 // Timings of the Vulkan grid. Hidden: run with
-//   build/dev/tests/gridrt_tests "[.vkbench]"   (GRIDRT_BENCH_SIZE=WxH, default 480x270)
-// Medians of 5 runs after one warm-up, validation off; device time (timestamps) and host time
+//   build/dev/tests/gridrt_tests "[.vkbench]"   (GRIDRT_BENCH_SIZE=WxH, default 480x270;
+//   GRIDRT_BENCH_ONLY=paper-raster|paper-compute|exact-raster|exact-compute for one configuration)
+// Medians after warm-ups, validation off; device time (timestamps) and host time
 // (submit to fence) of each pass. On lavapipe read the host times (docs/VULKAN.md).
 TEST_CASE("Vulkan grid timings on the atrium", "[.vkbench]") {
   uint32_t w = 480, h = 270;
@@ -477,31 +536,46 @@ TEST_CASE("Vulkan grid timings on the atrium", "[.vkbench]") {
     for (uint32_t x = 0; x < w; ++x) rays.push_back(camera_ray(cam, w, h, x, y));
   std::ostringstream out;
   out << ctx.info().name << ", atrium (" << scene.triangle_count() << " triangles), " << w << "x" << h
-      << ": device ms / host ms, medians of 5\n";
+      << ": device ms / host ms, medians (builds of 5, updates of 3, traces of 15)\n";
+  const char* only = std::getenv("GRIDRT_BENCH_ONLY");  // e.g. "paper-compute"
+  const int repeat = std::getenv("GRIDRT_BENCH_REPEAT") ? std::atoi(std::getenv("GRIDRT_BENCH_REPEAT")) : 1;
+  for (int rep = 0; rep < repeat; ++rep)
   for (auto traversal : {reference::Traversal::paper, reference::Traversal::exact})
     for (BuildMode mode : {BuildMode::raster, BuildMode::compute}) {
+      const std::string config = std::string(traversal == reference::Traversal::paper ? "paper" : "exact") +
+                                 (mode == BuildMode::raster ? "-raster" : "-compute");
+      if (only && config != only) continue;
       GridOptions o;
       o.traversal = traversal;
       VulkanGridTracer vk(ctx, o, {.build = mode});
       std::vector<double> t[8];
       std::vector<Hit> hits(rays.size());
-      for (int run = 0; run < 6; ++run) {
-        const float time = 0.1f * float(run + 1);
+      for (int run = 0; run < 6; ++run) {  // builds: one warm-up, five timed
         vk.build(scene, 0.0f);
-        const vulkan::GridTimings b = vk.timings();
-        vk.update(time);
-        const vulkan::GridTimings u = vk.timings();
-        vk.trace(rays, hits);
-        const vulkan::GridTimings p = vk.timings();
+        if (run) t[0].push_back(vk.timings().build_ms), t[1].push_back(vk.timings().build_host_ms);
+      }
+      // Frames: update, then each trace five times back to back, after a second of back-to-back
+      // traces: GPUs lower their clocks under bursty work such as this (the host makes the gather
+      // buffer between traces), and the first configuration would otherwise run at other clocks
+      // than the rest. One warm-up frame, three timed.
+      for (int run = 0; run < 4; ++run) {
+        const float time = 0.1f * float(run + 1);
         const GatherBuffer gather = make_gather(scene, vk, cam, w, h, time);
         const std::vector<Ray> bounce = bounce_rays(scene, gather, 1);
         std::vector<Hit> bh(bounce.size());
-        vk.trace(bounce, bh);
-        const vulkan::GridTimings g = vk.timings();
-        if (run == 0) continue;
-        const double v[8] = {b.build_ms, b.build_host_ms, u.update_ms, u.update_host_ms,
-                             p.trace_ms, p.trace_host_ms, g.trace_ms, g.trace_host_ms};
-        for (int k = 0; k < 8; ++k) t[k].push_back(v[k]);
+        for (const auto t0 = std::chrono::steady_clock::now();
+             std::chrono::steady_clock::now() - t0 < std::chrono::seconds(1);)
+          vk.trace(rays, hits);
+        vk.update(time);
+        if (run) t[2].push_back(vk.timings().update_ms), t[3].push_back(vk.timings().update_host_ms);
+        for (int k = 0; k < 5; ++k) {
+          vk.trace(rays, hits);
+          if (run) t[4].push_back(vk.timings().trace_ms), t[5].push_back(vk.timings().trace_host_ms);
+        }
+        for (int k = 0; k < 5; ++k) {
+          vk.trace(bounce, bh);
+          if (run) t[6].push_back(vk.timings().trace_ms), t[7].push_back(vk.timings().trace_host_ms);
+        }
       }
       char line[400];
       std::snprintf(line, sizeof line,
