@@ -33,7 +33,8 @@ enum Binding : uint32_t {
 constexpr uint32_t kStorageBuffersPerStage = kBindingCount - 1;
 
 // Specialization constant ids (grid_common.glsl).
-enum SpecId : uint32_t { kSpecCapacity = 0, kSpecInsertion = 1, kSpecTraversal = 2, kSpecFlags = 3, kSpecExplain = 4 };
+enum SpecId : uint32_t { kSpecCapacity = 0, kSpecInsertion = 1, kSpecTraversal = 2, kSpecFlags = 3, kSpecExplain = 4,
+                       kSpecTriangleTest = 5 };
 
 // Push constants of trace.comp.
 struct TracePush {
@@ -49,7 +50,7 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 SpecConstants spec_for(const GridParams& g, bool explain) {
   SpecConstants s;
   s.add(kSpecCapacity, g.capacity).add(kSpecInsertion, g.insertion).add(kSpecTraversal, g.traversal);
-  s.add(kSpecFlags, g.flags).add(kSpecExplain, explain);
+  s.add(kSpecFlags, g.flags).add(kSpecExplain, explain).add(kSpecTriangleTest, g.triangle_test);
   return s;
 }
 

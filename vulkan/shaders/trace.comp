@@ -63,10 +63,10 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   }
   const GridInstance inst = instances[ref_instance(ref)];
   const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(ref)];
-  // Moller-Trumbore against the elongated segment
+  // The triangle test (Moller-Trumbore or watertight) against the elongated segment
   TriangleTest r;
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = moller_trumbore(st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
+  uint code = triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -110,7 +110,7 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
 uint test_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
   uint last = kBlank;
   for (uint s = 0u; s < g.capacity; ++s) {
-    const uint ref = imageLoad(grid_image, ivec3(slot_texel(cell, s, g.capacity))).x;
+    const uint ref = imageLoad(grid_image, ivec3(cell_slot_texel(g, cell, s))).x;
     emit(kEvSlot, 0u, ref, step, cell, s, vec4(0.0f), vec4(0.0f));
     if (ref == kBlank) break;
     last = ref;
@@ -135,9 +135,9 @@ HitRecord report(uint step) {
 
 HitRecord miss(uint code, uint step, uint flags) {
   HitRecord h;
-  h.t = 0.0f;
+  h.t = sh_infinity();
   h.instance = kNoInstance;
-  h.triangle = kNoInstance;
+  h.triangle = 0u;
   h.u = 0.0f;
   h.v = 0.0f;
   h.flags = flags;
@@ -177,41 +177,49 @@ bool gap_fill(GridParams g, uvec3 cell, uint step, uint last_ref, vec3 sample_po
 // ---- Paper traversal: cell-sized segments, sampled at their midpoints ----
 HitRecord trace_paper(GridParams g) {
   uvec3 prev = uvec3(0xFFFFFFFFu);
-  for (uint k = 0u; k < g.max_segments; ++k) {
-    // The segment and its sample point
+  uint k = 0u;
+  while (k < g.max_segments) {
+    // The segment and its sample point (a midpoint past the grid's exit is clamped into the
+    // boundary cell: closed rooms have their walls on the grid boundary)
     const float seg_begin = segment_begin(st.rs, k);
-    const float seg_end = segment_end(st.rs, k);
     if (seg_begin >= st.rs.t_end) return finish(seg_begin >= st.tmax ? kMissTmax : kMissLeftGrid, k);
-    const float t_mid = segment_sample_t(st.rs, k);
-    const vec3 sample_point = point_at(st.org, st.dir, t_mid);
-    if (!grid_contains(g, sample_point)) return finish(kMissLeftGrid, k);
-    const uvec3 cell = cell_of_point(g, sample_point);
+    const uvec3 cell = cell_of_point(g, point_at(st.org, st.dir, segment_sample_t(st.rs, k)));
     // Visited-cell tracking: a straight ray does not come back to a convex cell
-    if (cell == prev) {
-      emit(kEvCellSkipped, 0u, kBlank, k, cell, 0u, vec4(sample_point, t_mid), vec4(0.0f));
-    } else {
-      prev = cell;
-      st.cells += 1u;
-      // Test the cell's references against the elongated segment
-      const float e_begin = segment_elongated_begin(g, st.rs, k);
-      const float e_end = segment_elongated_end(g, st.rs, k);
-      const float t_lo = max(st.rs.t_lo, e_begin);
-      const float t_hi = min(st.tmax, e_end);
-      emit(kEvCell, 0u, kBlank, k, cell, 0u, vec4(sample_point, t_mid), vec4(seg_begin, seg_end, t_lo, t_hi));
-      const uint last_ref = test_cell(g, cell, k, t_lo, t_hi);
-      // Report the closest hit once it lies before the segment's end ("t < 1")
-      if (st.has_best && st.best_t < seg_end) return report(k);
-      // Gap-fill in a saturated cell
-      if ((g.flags & kGridGapFill) != 0u && last_ref != kBlank) {
-        const uint status = imageLoad(grid_image, ivec3(status_texel(cell, g.capacity))).x;
-        emit(kEvStatus, status, kBlank, k, cell, g.capacity, vec4(0.0f), vec4(0.0f));
-        HitRecord h;
-        if (status != 0u && gap_fill(g, cell, k, last_ref, sample_point, t_mid, h)) return h;
-      }
+    if (cell == prev && g.repeats == kRepeatSkip) {
+      emit(kEvCellSkipped, 0u, kBlank, k, cell, 0u,
+           vec4(point_at(st.org, st.dir, segment_sample_t(st.rs, k)), segment_sample_t(st.rs, k)), vec4(0.0f));
+      // A skipped step still reports a candidate that now lies before the segment's end
+      if (st.has_best && st.best_t < segment_end(st.rs, k)) return report(k);
+      k += 1u;
       continue;
     }
-    // A skipped step still reports a candidate that now lies before the segment's end
+    prev = cell;
+    // Merge the following segments whose samples fall into the same cell: one visit
+    uint last = k;
+    if (g.repeats == kRepeatMerge) {
+      while (last + 1u < g.max_segments && segment_begin(st.rs, last + 1u) < st.rs.t_end &&
+             cell_of_point(g, point_at(st.org, st.dir, segment_sample_t(st.rs, last + 1u))) == cell)
+        last += 1u;
+    }
+    const float seg_end = segment_end(st.rs, last);
+    const float t_mid = segment_t(st.rs, float(k + last + 1u) * 0.5f);
+    const vec3 sample_point = point_at(st.org, st.dir, t_mid);
+    st.cells += 1u;
+    // Test the cell's references against the elongated segment
+    const float t_lo = max(st.rs.t_lo, segment_elongated_begin(g, st.rs, k));
+    const float t_hi = min(st.tmax, segment_elongated_end(g, st.rs, last));
+    emit(kEvCell, last - k, kBlank, k, cell, 0u, vec4(sample_point, t_mid), vec4(seg_begin, seg_end, t_lo, t_hi));
+    const uint last_ref = test_cell(g, cell, k, t_lo, t_hi);
+    // Report the closest hit once it lies before the segment's end ("t < 1")
     if (st.has_best && st.best_t < seg_end) return report(k);
+    // Gap-fill in a saturated cell
+    if ((g.flags & kGridGapFill) != 0u && last_ref != kBlank) {
+      const uint status = imageLoad(grid_image, ivec3(cell_status_texel(g, cell))).x;
+      emit(kEvStatus, status, kBlank, k, cell, g.capacity, vec4(0.0f), vec4(0.0f));
+      HitRecord h;
+      if (status != 0u && gap_fill(g, cell, k, last_ref, sample_point, t_mid, h)) return h;
+    }
+    k = last + 1u;
   }
   return finish(kMissStepLimit, g.max_segments);
 }
