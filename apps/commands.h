@@ -13,6 +13,7 @@ void add_render_command(CLI::App& app);   // cmd_render.cpp
 void add_convert_command(CLI::App& app);  // cmd_convert.cpp
 void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: explain, stats, diff
 void add_bench_command(CLI::App& app);    // cmd_bench.cpp
+void add_sweep_command(CLI::App& app);    // cmd_sweep.cpp: accuracy against Embree vs time
 
 // The scene named by SCENE (a scene file, a bare mesh, builtin:NAME), or the embedded default
 // when `spec` is empty. Prints how long loading took when it took over a second.
