@@ -44,6 +44,39 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
   cmd->add_option("--self-hit-offset", g.self_hit_offset, "Hits need t|dir| > this many cells")
       ->check(CLI::Range(0.0f, 1e6f))->group("Grid");
   cmd->add_flag("--no-gap-fill{false}", g.gap_fill, "Disable gap-fill in saturated cells")->group("Grid");
+  const std::map<std::string, reference::GridOptions::TriangleTest> tests{
+      {"moller", reference::GridOptions::TriangleTest::moller},
+      {"watertight", reference::GridOptions::TriangleTest::watertight}};
+  cmd->add_option("--triangle-test", g.triangle_test,
+                  "Ray/triangle test: moller (Moller-Trumbore) or watertight (Woop, Benthin, Wald 2013)")
+      ->transform(CLI::CheckedTransformer(tests, CLI::ignore_case))
+      ->group("Grid");
+  const std::map<std::string, reference::GridOptions::CapacityPolicy> policies{
+      {"no-saturation", reference::GridOptions::CapacityPolicy::no_saturation},
+      {"percentile", reference::GridOptions::CapacityPolicy::percentile}};
+  cmd->add_option("--capacity-policy", g.capacity_policy,
+                  "Automatic capacity: no-saturation (the resolution near the density target whose largest cell "
+                  "fits) or percentile (the 0.99 percentile of cell counts, the original rule)")
+      ->transform(CLI::CheckedTransformer(policies, CLI::ignore_case))
+      ->group("Grid");
+  cmd->add_option("--max-capacity", g.max_capacity, "Largest automatic capacity")
+      ->check(CLI::Range(1u, 65535u))->group("Grid");
+  const std::map<std::string, reference::GridOptions::SlotAxis> axes{
+      {"auto", reference::GridOptions::SlotAxis::automatic}, {"x", reference::GridOptions::SlotAxis::x},
+      {"y", reference::GridOptions::SlotAxis::y}, {"z", reference::GridOptions::SlotAxis::z}};
+  cmd->add_option("--slot-axis", g.slot_axis,
+                  "Scene axis laid along the image's x, the slots' axis (auto: the axis with the fewest cells)")
+      ->transform(CLI::CheckedTransformer(axes, CLI::ignore_case))
+      ->group("Grid");
+  cmd->add_option_function<double>(
+         "--memory-budget", [&g](double mib) { g.max_texels = uint64_t(mib * 1024.0 * 1024.0 / 4.0); },
+         "Largest grid image in MiB (default 1024)")
+      ->check(CLI::Range(0.001, 1.0e6))->group("Grid");
+  cmd->add_option("--aabb-padding", g.aabb_padding, "Cell units added on each side of a triangle's AABB (build)")
+      ->check(CLI::Range(0.0f, 16.0f))->group("Grid");
+  cmd->add_flag("--keep-launch-ref{false}", g.exclude_launch_ref,
+                "Self-hit: test the ray's launch triangle too (default: never accept it)")
+      ->group("Grid");
   cmd->add_flag("--all-effects", o.all_effects,
                 "Simulate every effect (alpha keying, gap-fill) even where the scene does not call for it")
       ->group("Grid");

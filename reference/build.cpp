@@ -58,31 +58,58 @@ Bounds animation_bounds(const Scene& scene, float time) {
 
 namespace {
 
+// Adds to `counts` the references instance `i` would insert into each cell at `time` (no capacity).
+void count_instance(const Scene& scene, size_t i, float time, const GridParams& g, std::vector<uint32_t>& counts) {
+  const Instance& inst = scene.instances[i];
+  const Mesh& mesh = scene.meshes[inst.mesh];
+  const shared::Affine m = shared::to_affine(inst.transform_at(time));
+  for (const glm::uvec3& tri : mesh.triangles) {
+    const glm::vec3 v0 = shared::transform_point(m, mesh.positions[tri.x]);
+    const glm::vec3 v1 = shared::transform_point(m, mesh.positions[tri.y]);
+    const glm::vec3 v2 = shared::transform_point(m, mesh.positions[tri.z]);
+    const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
+    const float nn = shared::sh_dot(n, n);
+    if (nn == 0.0f) continue;
+    glm::uvec3 lo, hi;
+    shared::triangle_cell_range(g, v0, v1, v2, lo, hi);
+    for (uint32_t z = lo.z; z <= hi.z; ++z)
+      for (uint32_t y = lo.y; y <= hi.y; ++y)
+        for (uint32_t x = lo.x; x <= hi.x; ++x)
+          if (shared::plane_intersects_enlarged_sphere(v0, n, nn, shared::cell_center(g, {x, y, z}), g.sphere_r2))
+            ++counts[(size_t(z) * g.cells.y + y) * g.cells.x + x];
+  }
+}
+
 // Per-cell counts of the references a build would insert (no capacity): the trial that chooses
-// the capacity.
-std::vector<uint32_t> trial_counts(const Scene& scene, float time, const GridParams& g) {
+// the capacity. Instances that do not move count at `time`; moving ones at `samples` times spread
+// over the longest period of their motions (at most 60 s), per cell the largest of those counts.
+std::vector<uint32_t> trial_counts(const Scene& scene, float time, const GridParams& g, uint32_t samples) {
   const size_t ncells = size_t(g.cells.x) * g.cells.y * g.cells.z;
   std::vector<uint32_t> counts(ncells, 0);
-  for (const Instance& inst : scene.instances) {
-    const Mesh& mesh = scene.meshes[inst.mesh];
-    const shared::Affine m = shared::to_affine(inst.transform_at(time));
-    for (const glm::uvec3& tri : mesh.triangles) {
-      const glm::vec3 v0 = shared::transform_point(m, mesh.positions[tri.x]);
-      const glm::vec3 v1 = shared::transform_point(m, mesh.positions[tri.y]);
-      const glm::vec3 v2 = shared::transform_point(m, mesh.positions[tri.z]);
-      const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
-      const float nn = shared::sh_dot(n, n);
-      if (nn == 0.0f) continue;
-      glm::uvec3 lo, hi;
-      shared::triangle_cell_range(g, v0, v1, v2, lo, hi);
-      for (uint32_t z = lo.z; z <= hi.z; ++z)
-        for (uint32_t y = lo.y; y <= hi.y; ++y)
-          for (uint32_t x = lo.x; x <= hi.x; ++x)
-            if (shared::plane_intersects_enlarged_sphere(v0, n, nn, shared::cell_center(g, {x, y, z}),
-                                                         g.sphere_r2))
-              ++counts[(size_t(z) * g.cells.y + y) * g.cells.x + x];
+  std::vector<size_t> moving;
+  double horizon = 0.0;
+  for (size_t i = 0; i < scene.instances.size(); ++i) {
+    const Instance& inst = scene.instances[i];
+    if (!inst.dynamic || !inst.motion.moves()) {
+      count_instance(scene, i, time, g, counts);
+      continue;
     }
+    moving.push_back(i);
+    const Motion& mo = inst.motion;
+    if (mo.path_points.size() > 1) horizon = std::max(horizon, double(mo.path_period));
+    if (mo.angular_speed != 0.0f) horizon = std::max(horizon, 2.0 * 3.14159265358979 / std::abs(double(mo.angular_speed)));
   }
+  if (moving.empty()) return counts;
+  horizon = std::min(horizon, 60.0);
+  const uint32_t n = std::max(1u, samples);
+  std::vector<uint32_t> dyn_max(ncells, 0), dyn(ncells);
+  for (uint32_t k = 0; k < n; ++k) {
+    std::fill(dyn.begin(), dyn.end(), 0u);
+    const float t = float(double(time) + horizon * double(k) / double(n));
+    for (size_t i : moving) count_instance(scene, i, t, g, dyn);
+    for (size_t c = 0; c < ncells; ++c) dyn_max[c] = std::max(dyn_max[c], dyn[c]);
+  }
+  for (size_t c = 0; c < ncells; ++c) counts[c] += dyn_max[c];
   return counts;
 }
 
@@ -94,9 +121,64 @@ void set_cell_size(GridParams& g, float cell_size, const GridOptions& o) {
   g.gap_fill_r2 = float(std::pow(double(o.gap_fill_distance) * double(cell_size), 2.0));
 }
 
+// The slot axis for `cells`: the option, or the axis with the fewest cells (ties: x, y, z).
+uint32_t slot_axis_for(glm::uvec3 cells, const GridOptions& o) {
+  switch (o.slot_axis) {
+    case GridOptions::SlotAxis::x: return 0;
+    case GridOptions::SlotAxis::y: return 1;
+    case GridOptions::SlotAxis::z: return 2;
+    case GridOptions::SlotAxis::automatic: break;
+  }
+  if (cells.x <= cells.y && cells.x <= cells.z) return 0;
+  return cells.y <= cells.z ? 1 : 2;
+}
+
+glm::uvec3 cells_for(glm::vec3 extent, float cs) {
+  const glm::vec3 n = glm::ceil(extent / cs);
+  return glm::uvec3(glm::clamp(n, glm::vec3(1.0f), glm::vec3(1.0e6f)));
+}
+
+// The largest capacity the limits allow `cells` with slots along `axis` (0 when none does).
+uint32_t capacity_allowed(glm::uvec3 cells, uint32_t axis, const GridOptions& o) {
+  const uint64_t along = cells[axis];
+  for (uint32_t a = 0; a < 3; ++a)
+    if (a != axis && cells[a] > o.max_image_dimension) return 0;
+  const uint64_t total = uint64_t(cells.x) * cells.y * cells.z;
+  const uint64_t by_dim = o.max_image_dimension / along;
+  const uint64_t by_mem = o.max_texels / total;
+  const uint64_t cap = std::min({by_dim, by_mem, uint64_t(o.max_capacity) + 1});
+  return cap == 0 ? 0 : uint32_t(cap - 1);
+}
+
+// Weigh one resolution: count, then the capacity that drops nothing if the limits allow it.
+GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm::uvec3 cells,
+                    std::optional<uint32_t> cap_over, const GridOptions& o) {
+  GridCandidate c;
+  c.cell_size = cs;
+  c.cells = cells;
+  c.slot_axis = slot_axis_for(cells, o);
+  const uint32_t allowed = capacity_allowed(cells, c.slot_axis, o);
+  const uint32_t lowest = cap_over ? *cap_over : o.min_capacity;
+  c.fits = allowed >= lowest;
+  if (!c.fits) return c;
+  set_cell_size(g, cs, o);
+  g.cells = cells;
+  const std::vector<uint32_t> counts = trial_counts(scene, time, g, o.capacity_time_samples);
+  for (uint32_t n : counts) c.max_count = std::max(c.max_count, n);
+  c.capacity = cap_over ? *cap_over : std::clamp(c.max_count, o.min_capacity, allowed);
+  for (uint32_t n : counts)
+    if (n > c.capacity) c.dropped += n - c.capacity, c.saturated_cells += 1;
+  c.texels = uint64_t(cells.x) * cells.y * cells.z * (c.capacity + 1);
+  return c;
+}
+
 }  // namespace
 
 GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
+  return choose_grid(scene, time, o, nullptr);
+}
+
+GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, GridChoice* choice) {
   GridParams g{};
   // Grid bounds: the animation's bounds, padded by 1e-3 of the largest extent on every side
   Bounds b = animation_bounds(scene, time);
@@ -130,59 +212,106 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
   g.comparison_offset = scene.static_instance_count() << 16;
   g.insertion = o.insertion == Insertion::sorted ? shared::kInsertSorted : shared::kInsertFirstEmpty;
   g.traversal = o.traversal == Traversal::exact ? shared::kTraversalExact : shared::kTraversalPaper;
-  g.triangle_test = shared::kTriangleMoller;
+  g.triangle_test = o.triangle_test == GridOptions::TriangleTest::watertight ? shared::kTriangleWatertight
+                                                                              : shared::kTriangleMoller;
   g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) | (o.gap_fill ? shared::kGridGapFill : 0u);
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
+  const auto too_big = [&](glm::uvec3 cells, uint32_t cap) {
+    return Error("grid: " + std::to_string(cells.x) + "x" + std::to_string(cells.y) + "x" + std::to_string(cells.z) +
+                 " cells of capacity " + std::to_string(cap) + " exceed the image limits (max dimension " +
+                 std::to_string(o.max_image_dimension) + ", max texels " + std::to_string(o.max_texels) + ")");
+  };
+  const auto finish = [&](glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis) {
+    set_cell_size(g, cell_size, o);
+    g.cells = cells;
+    g.capacity = cap;
+    g.flags |= axis << shared::kGridSlotAxisShift;
+    g.upper = g.origin + glm::vec3(g.cells) * g.cell_size;
+    g.max_segments = g.cells.x + g.cells.y + g.cells.z + 3u;
+    return g;
+  };
 
-  // Grow the cells until the image fits the device's limits
-  for (int attempt = 0;; ++attempt) {
-    set_cell_size(g, cs, o);
-    if (res && !cs_over) {
-      g.cells = *res;
-    } else {
-      const glm::vec3 n = glm::ceil(e / cs);
-      const float lim = 1.0e6f;
-      g.cells = glm::uvec3(glm::clamp(n, glm::vec3(1.0f), glm::vec3(lim)));
-    }
-    if (cap_over) {
-      g.capacity = *cap_over;
-    } else {
-      // Capacity: a percentile of the trial's non-empty cells, clamped
-      std::vector<uint32_t> counts = trial_counts(scene, time, g);
+  if (o.capacity_policy == GridOptions::CapacityPolicy::percentile && !cap_over) {
+    // The original rule: a percentile of the trial's non-empty cells, clamped; larger cells until
+    // the image fits
+    for (int attempt = 0;; ++attempt) {
+      set_cell_size(g, cs, o);
+      g.cells = (res && !cs_over) ? *res : cells_for(e, cs);
       std::vector<uint32_t> nonempty;
-      for (uint32_t c : counts)
+      for (uint32_t c : trial_counts(scene, time, g, o.capacity_time_samples))
         if (c) nonempty.push_back(c);
       uint32_t cap = o.min_capacity;
       if (!nonempty.empty()) {
         const size_t k = std::min(nonempty.size() - 1,
                                   size_t(std::ceil(double(o.capacity_percentile) * double(nonempty.size()))) - 1);
-        std::nth_element(nonempty.begin(), nonempty.begin() + k, nonempty.end());
+        std::nth_element(nonempty.begin(), nonempty.begin() + ptrdiff_t(k), nonempty.end());
         cap = nonempty[k];
       }
-      g.capacity = std::clamp(cap, o.min_capacity, o.max_capacity);
+      cap = std::clamp(cap, o.min_capacity, o.max_capacity);
+      const uint32_t axis = slot_axis_for(g.cells, o);
+      const uint32_t allowed = capacity_allowed(g.cells, axis, o);
+      if (cap <= allowed && allowed > 0) return finish(g.cells, cs, cap, axis);
+      if ((res && !cs_over) || attempt > 60) throw too_big(g.cells, cap);
+      const double along = double(g.cells[axis]) * (cap + 1);
+      const double texels = along * double(g.cells.x) * g.cells.y * g.cells.z / g.cells[axis];
+      const double ratio = std::max({along / o.max_image_dimension, double(g.cells.x) / o.max_image_dimension,
+                                     double(g.cells.y) / o.max_image_dimension,
+                                     double(g.cells.z) / o.max_image_dimension,
+                                     std::cbrt(texels / double(o.max_texels)), 1.1});
+      cs = float(double(cs) * std::min(ratio, 2.0));
     }
-    const uint64_t wx = uint64_t(g.cells.x) * (g.capacity + 1);
-    const uint64_t texels = wx * g.cells.y * g.cells.z;
-    const bool fits = wx <= o.max_image_dimension && g.cells.y <= o.max_image_dimension &&
-                      g.cells.z <= o.max_image_dimension && texels <= o.max_texels;
-    if (fits) break;
-    if ((res && !cs_over) || attempt > 60)
-      throw Error("grid: " + std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" +
-                  std::to_string(g.cells.z) + " cells of capacity " + std::to_string(g.capacity) +
-                  " exceed the image limits (max dimension " + std::to_string(o.max_image_dimension) +
-                  ", max texels " + std::to_string(o.max_texels) + ")");
-    // Larger cells: by the worst ratio, at least 10 percent
-    const double ratio = std::max({double(wx) / o.max_image_dimension, double(g.cells.y) / o.max_image_dimension,
-                                   double(g.cells.z) / o.max_image_dimension,
-                                   std::cbrt(double(texels) / double(o.max_texels)), 1.1});
-    cs = float(double(cs) * std::min(ratio, 2.0));
   }
-  g.upper = g.origin + glm::vec3(g.cells) * g.cell_size;
-  g.max_segments = g.cells.x + g.cells.y + g.cells.z + 3u;
-  return g;
+
+  // Fixed cells (a resolution or cell-size override, or a capacity override): one candidate, an
+  // error if it does not fit
+  GridChoice local;
+  GridChoice& ch = choice ? *choice : local;
+  ch = GridChoice{};
+  if (res && !cs_over) {
+    const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o);
+    if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity));
+    ch.candidates.push_back(c);
+    return finish(c.cells, cs, c.capacity, c.slot_axis);
+  }
+  // Candidate cell sizes cs * 2^(j/4) around the density target, weighed in the order
+  // j = 0, -1, 1, -2, 2, ... (finer cells first at each distance): the first that drops no
+  // reference wins; else the one dropping fewest. With a cell-size override only j = 0; with a
+  // capacity override the density target unless it does not fit.
+  const bool search = !cs_over && !cap_over;
+  const int finest = search ? -8 : 0, coarsest = search ? 12 : 0;
+  std::vector<int> order{0};
+  for (int d = 1; d <= std::max(-finest, coarsest); ++d) {
+    if (-d >= finest) order.push_back(-d);
+    if (d <= coarsest) order.push_back(d);
+  }
+  bool done = false;
+  for (int j : order) {
+    const float c_cs = float(double(cs) * std::exp2(double(j) / 4.0));
+    const GridCandidate c = weigh(scene, time, g, c_cs, cells_for(e, c_cs), cap_over, o);
+    if (!c.fits) continue;
+    ch.candidates.push_back(c);
+    if (c.dropped == 0) {
+      done = true;
+      break;
+    }
+  }
+  // Nothing fits yet (tiny image limits): coarser cells until something does
+  for (int j = coarsest + 1; !done && ch.candidates.empty() && j < coarsest + 80; ++j) {
+    if (cs_over) break;
+    const float c_cs = float(double(cs) * std::exp2(double(j) / 4.0));
+    const GridCandidate c = weigh(scene, time, g, c_cs, cells_for(e, c_cs), cap_over, o);
+    if (c.fits) ch.candidates.push_back(c);
+  }
+  if (ch.candidates.empty()) throw too_big(cells_for(e, cs), cap_over.value_or(o.min_capacity));
+  size_t best = 0;
+  for (size_t i = 1; i < ch.candidates.size(); ++i)
+    if (ch.candidates[i].dropped < ch.candidates[best].dropped) best = i;
+  ch.chosen = best;
+  const GridCandidate& c = ch.candidates[best];
+  return finish(c.cells, c.cell_size, c.capacity, c.slot_axis);
 }
 
 // ---- Insertion (paper 2.1) ----
@@ -191,12 +320,12 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
 // the cell saturated (static or dynamic bit by the reference's kind).
 void insert_first_empty(Image3D& image, const GridParams& g, glm::uvec3 cell, uint32_t ref) {
   for (uint32_t s = 0; s < g.capacity; ++s) {
-    const uint32_t old = imageAtomicCompSwap(image, glm::ivec3(shared::slot_texel(cell, s, g.capacity)), kBlank, ref);
+    const uint32_t old = imageAtomicCompSwap(image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), kBlank, ref);
     if (old == kBlank) return;
   }
   // Saturated: no slot took the reference
   const uint32_t bit = ref < g.comparison_offset ? shared::kStatusStatic : shared::kStatusDynamic;
-  imageAtomicOr(image, glm::ivec3(shared::status_texel(cell, g.capacity)), bit);
+  imageAtomicOr(image, glm::ivec3(shared::cell_status_texel(g, cell)), bit);
 }
 
 // Ours: an atomic-min cascade. The carried value v takes the smaller of itself and each slot in
@@ -206,13 +335,13 @@ void insert_first_empty(Image3D& image, const GridParams& g, glm::uvec3 cell, ui
 void insert_sorted(Image3D& image, const GridParams& g, glm::uvec3 cell, uint32_t ref) {
   uint32_t v = ref;
   for (uint32_t s = 0; s < g.capacity; ++s) {
-    const uint32_t old = imageAtomicMin(image, glm::ivec3(shared::slot_texel(cell, s, g.capacity)), v);
+    const uint32_t old = imageAtomicMin(image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), v);
     v = std::max(old, v);
     if (v == kBlank) return;
   }
   // Saturated: the dropped value names the bit
   const uint32_t bit = v < g.comparison_offset ? shared::kStatusStatic : shared::kStatusDynamic;
-  imageAtomicOr(image, glm::ivec3(shared::status_texel(cell, g.capacity)), bit);
+  imageAtomicOr(image, glm::ivec3(shared::cell_status_texel(g, cell)), bit);
 }
 
 namespace {
@@ -327,7 +456,7 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
   grid.image = Image3D(shared::grid_image_extent(g), kBlank);
   run_invocations(g.cells.x * g.cells.y * g.cells.z, thread_count(o), std::nullopt, [&](uint32_t c) {
     const glm::uvec3 cell(c % g.cells.x, (c / g.cells.x) % g.cells.y, c / (g.cells.x * g.cells.y));
-    imageStore(grid.image, glm::ivec3(shared::status_texel(cell, g.capacity)), 0u);
+    imageStore(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), 0u);
   }, 4096);
   // Static instances first (their references fill the first slots), then the dynamic ones
   insert_instances(grid, scene, time, o, 0, grid.static_instances);
@@ -350,13 +479,13 @@ void clear_dynamic_references(GridData& grid, const GridOptions& o) {
           if (cell.x >= g.cells.x || cell.y >= g.cells.y || cell.z >= g.cells.z) continue;
           // Blank the dynamic references up to the first blank
           for (uint32_t s = 0; s < g.capacity; ++s) {
-            const glm::ivec3 p(shared::slot_texel(cell, s, g.capacity));
+            const glm::ivec3 p(shared::cell_slot_texel(g, cell, s));
             const uint32_t ref = imageLoad(grid.image, p);
             if (ref == kBlank) break;
             if (ref >= g.comparison_offset) imageAtomicExchange(grid.image, p, kBlank);
           }
           // Reset the dynamic saturation bit; the static one persists
-          imageAtomicAnd(grid.image, glm::ivec3(shared::status_texel(cell, g.capacity)), ~shared::kStatusDynamic);
+          imageAtomicAnd(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), ~shared::kStatusDynamic);
         }
   }, 4);
 }

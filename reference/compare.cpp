@@ -104,10 +104,10 @@ CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image)
         std::vector<uint32_t> want = cand[index];
         std::vector<uint32_t> have;
         for (uint32_t s = 0; s < g.capacity; ++s) {
-          const uint32_t v = image.texels[sh::texel_index(sh::slot_texel(cell, s, g.capacity), image.extent)];
+          const uint32_t v = image.texels[sh::texel_index(sh::cell_slot_texel(g, cell, s), image.extent)];
           if (v != sh::kBlank) have.push_back(v);
         }
-        const uint32_t status = image.texels[sh::texel_index(sh::status_texel(cell, g.capacity), image.extent)];
+        const uint32_t status = image.texels[sh::texel_index(sh::cell_status_texel(g, cell), image.extent)];
         std::sort(want.begin(), want.end());
         std::sort(have.begin(), have.end());
         bool ok;

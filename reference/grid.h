@@ -46,12 +46,24 @@ struct GridOptions {
   // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
   // skip (the literal reading of visited-cell tracking), retest (a second visit)
   enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
-  // Automatic resolution and capacity (overridden by the fields below, then by Scene::grid)
+  // Triangle test: Moller-Trumbore (fast, not watertight) or Woop-Benthin-Wald (watertight)
+  enum class TriangleTest { moller, watertight } triangle_test = TriangleTest::moller;
+  // Automatic resolution and capacity (overridden by the fields below, then by Scene::grid);
+  // docs/SPEC.md, "Grid placement, resolution and capacity"
   float density = 2.0f;                   // target cells per triangle
-  float capacity_percentile = 0.99f;      // capacity = this percentile of non-empty cells' counts
-  uint32_t min_capacity = 4, max_capacity = 64;
+  // no_saturation (default): candidate resolutions around the density target are counted and the
+  // one closest to it whose largest cell count fits the limits is taken, capacity = that count (no
+  // cell drops a reference); if none fits, the candidate dropping the fewest references.
+  // percentile: the original rule, capacity = capacity_percentile of the non-empty cells' counts.
+  enum class CapacityPolicy { no_saturation, percentile } capacity_policy = CapacityPolicy::no_saturation;
+  float capacity_percentile = 0.99f;      // percentile policy: capacity = this percentile of counts
+  uint32_t min_capacity = 4, max_capacity = 1024;
+  // The scene axis laid along the image's x (the slots' axis): automatic = the axis with the fewest
+  // cells, which leaves the most room for slots under max_image_dimension.
+  enum class SlotAxis { automatic, x, y, z } slot_axis = SlotAxis::automatic;
   uint32_t max_image_dimension = 4096;    // 4096 on lavapipe, 16384 on NVIDIA
-  uint64_t max_texels = uint64_t(1) << 28;  // 1 GiB of image
+  uint64_t max_texels = uint64_t(1) << 28;  // the memory budget: 2^28 texels = 1 GiB of image
+  uint32_t capacity_time_samples = 16;    // dynamic instances counted at this many times of their motion
   std::optional<glm::uvec3> resolution;   // cells per axis
   std::optional<uint32_t> capacity;       // slots per cell
   std::optional<float> cell_size;         // world units
@@ -72,6 +84,27 @@ struct GridData {
 
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
+
+// One resolution choose_grid weighed: its cells, the largest per-cell count over the animation
+// samples, the capacity the limits allow it, and the references it would drop.
+struct GridCandidate {
+  float cell_size = 0.0f;
+  glm::uvec3 cells{0};
+  uint32_t slot_axis = 0;        // 0 x, 1 y, 2 z
+  uint32_t max_count = 0;        // largest per-cell count (static + dynamic over the samples)
+  uint32_t capacity = 0;         // min(max_count, what the limits allow), >= min_capacity
+  uint64_t dropped = 0;          // sum over cells of max(0, count - capacity)
+  uint64_t saturated_cells = 0;  // cells with count > capacity
+  uint64_t texels = 0;
+  bool fits = false;             // within max_image_dimension and max_texels
+};
+// The candidates choose_grid weighed (in the order it weighed them) and the index it took; empty
+// when capacity or resolution is overridden.
+struct GridChoice {
+  std::vector<GridCandidate> candidates;
+  size_t chosen = 0;
+};
+shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice);
 // World bounds of the scene over its whole animation: static instances at `time`, dynamic ones
 // swept over their motion; not padded.
 Bounds animation_bounds(const Scene& scene, float time);

@@ -47,10 +47,10 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   }
   const GridInstance inst = grid.instances[ref_instance(ref)];
   const GridTriangle tri = grid.triangles[inst.tri_offset + ref_triangle(ref)];
-  // Moller-Trumbore against the elongated segment
+  // The triangle test (Moller-Trumbore or watertight) against the elongated segment
   TriangleTest r;
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = moller_trumbore(st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
+  uint code = triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -95,7 +95,7 @@ uint test_cell(const GridData& grid, TraceState& st, uvec3 cell, uint step, floa
   const GridParams& g = grid.params;
   uint last = kBlank;
   for (uint s = 0u; s < g.capacity; ++s) {
-    const uint ref = imageLoad(grid.image, ivec3(slot_texel(cell, s, g.capacity)));
+    const uint ref = imageLoad(grid.image, ivec3(cell_slot_texel(g, cell, s)));
     emit(st, kEvSlot, 0u, ref, step, cell, s, vec4(0.0f), vec4(0.0f));
     if (ref == kBlank) break;
     last = ref;
@@ -199,7 +199,7 @@ Hit trace_paper(const GridData& grid, TraceState& st) {
     if (st.has_best && st.best_t < seg_end) return report(st, k);
     // Gap-fill in a saturated cell
     if ((g.flags & kGridGapFill) != 0u && last_ref != kBlank) {
-      const uint status = imageLoad(grid.image, ivec3(status_texel(cell, g.capacity)));
+      const uint status = imageLoad(grid.image, ivec3(cell_status_texel(g, cell)));
       emit(st, kEvStatus, status, kBlank, k, cell, g.capacity, vec4(0.0f), vec4(0.0f));
       Hit h;
       if (status != 0u && gap_fill(grid, st, cell, k, last_ref, sample, t_mid, h)) return h;

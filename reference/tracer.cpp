@@ -82,14 +82,14 @@ GridStats grid_stats(const GridData& grid) {
         const glm::uvec3 cell(x, y, z);
         uint32_t n = 0;
         for (; n < g.capacity; ++n) {
-          const uint32_t ref = imageLoad(grid.image, glm::ivec3(shared::slot_texel(cell, n, g.capacity)));
+          const uint32_t ref = imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, n)));
           if (ref == shared::kBlank) break;
           ++per_triangle[grid.instances[shared::ref_instance(ref)].tri_offset + shared::ref_triangle(ref)];
         }
         s.occupancy[n] += 1;
         s.references += n;
         if (n == 0) ++s.empty_cells;
-        const uint32_t status = imageLoad(grid.image, glm::ivec3(shared::status_texel(cell, g.capacity)));
+        const uint32_t status = imageLoad(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)));
         if (status & shared::kStatusStatic) ++s.saturated_static;
         if (status & shared::kStatusDynamic) ++s.saturated_dynamic;
       }

@@ -57,12 +57,12 @@ CellContent read_cell(const GridData& grid, glm::uvec3 c) {
   CellContent out;
   bool ended = false;
   for (uint32_t s = 0; s < g.capacity; ++s) {
-    const uint32_t ref = imageLoad(grid.image, glm::ivec3(sh::slot_texel(c, s, g.capacity)));
+    const uint32_t ref = imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, c, s)));
     if (ref == sh::kBlank) ended = true;
     else if (ended) out.blank_tail = false;
     else out.refs.push_back(ref);
   }
-  out.status = imageLoad(grid.image, glm::ivec3(sh::status_texel(c, g.capacity)));
+  out.status = imageLoad(grid.image, glm::ivec3(sh::cell_status_texel(g, c)));
   return out;
 }
 

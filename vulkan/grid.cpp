@@ -40,6 +40,7 @@ enum SpecId : uint32_t {
   kSpecFlags = 3,
   kSpecExplain = 4,
   kSpecRepeats = 5,
+  kSpecTriangleTest = 6,
 };
 
 // Push constants of trace.comp.
@@ -57,6 +58,7 @@ SpecConstants spec_for(const GridParams& g, bool explain) {
   SpecConstants s;
   s.add(kSpecCapacity, g.capacity).add(kSpecInsertion, g.insertion).add(kSpecTraversal, g.traversal);
   s.add(kSpecFlags, g.flags).add(kSpecExplain, explain).add(kSpecRepeats, g.repeats);
+  s.add(kSpecTriangleTest, g.triangle_test);
   return s;
 }
 

@@ -24,12 +24,17 @@ SH_CONST uint kInsertSorted = 1u;       // ours: atomic-min cascade, slots stay 
 SH_CONST uint kTraversalPaper = 0u;     // cell-sized segments sampled at their midpoints
 SH_CONST uint kTraversalExact = 1u;     // 3D DDA over every pierced cell
 SH_CONST uint kTriangleMoller = 0u;     // Moller-Trumbore, division-free decisions
-SH_CONST uint kTriangleWatertight = 1u; // reserved: Woop, Benthin, Wald 2013 (not yet implemented)
+SH_CONST uint kTriangleWatertight = 1u; // Woop, Benthin, Wald 2013: watertight, division-free
 
 // ---- GridParams::flags ----
 SH_CONST uint kGridExcludeLaunchRef = 1u;  // never accept the ray's launch triangle (by ref)
 SH_CONST uint kGridAlphaKeying = 2u;       // alpha-keyed materials cut holes
 SH_CONST uint kGridGapFill = 4u;           // paper-mode gap-fill in saturated cells
+// Bits 8-9: the scene axis laid along the image's x, the axis that carries the slots (0 x, 1 y,
+// 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis"). The
+// image swaps that axis with x; every other axis keeps its place.
+SH_CONST uint kGridSlotAxisShift = 8u;
+SH_CONST uint kGridSlotAxisMask = 0x300u;
 
 // ---- Paper traversal: what a sample landing in the previous step's cell does (GridParams::repeats) ----
 SH_CONST uint kRepeatMerge = 0u;   // default: consecutive samples in one cell merge into one visit,
@@ -57,7 +62,7 @@ struct GridParams {
   uint comparison_offset;   // static_instance_count << 16: references >= it are dynamic
   uint insertion;           // kInsertFirstEmpty or kInsertSorted
   uint traversal;           // kTraversalPaper or kTraversalExact
-  uint triangle_test;       // kTriangleMoller (kTriangleWatertight reserved)
+  uint triangle_test;       // kTriangleMoller or kTriangleWatertight
   uint flags;               // kGrid* bits
   uint max_segments;        // safety bound on the steps of one ray (cells.x + cells.y + cells.z + 3)
   uint repeats;             // paper: kRepeatMerge, kRepeatSkip or kRepeatRetest
@@ -103,15 +108,35 @@ SH_INLINE uint ref_pack(uint instance, uint triangle) {
 SH_INLINE uint ref_instance(uint ref) { return ref >> 16u; }
 SH_INLINE uint ref_triangle(uint ref) { return ref & 0xFFFFu; }
 
-// ---- Texel addressing: cell c's slot s at x = c.x * (capacity + 1) + s, status at s = capacity ----
-SH_INLINE uvec3 grid_image_extent(SH_IN(GridParams) g) {
-  return uvec3(g.cells.x * (g.capacity + 1u), g.cells.y, g.cells.z);
+// ---- Texel addressing: image cell c's slot s at x = c.x * (capacity + 1) + s, status at s = capacity ----
+// The scene axis that carries the slots (kGridSlotAxis* bits of flags).
+SH_INLINE uint grid_slot_axis(SH_IN(GridParams) g) {
+  return (g.flags & kGridSlotAxisMask) >> kGridSlotAxisShift;
 }
+// A scene cell (or cell count) as the image lays it out: the slot axis swapped with x.
+SH_INLINE uvec3 image_cell(SH_IN(GridParams) g, SH_IN(uvec3) c) {
+  uint a = grid_slot_axis(g);
+  if (a == 1u) return uvec3(c.y, c.x, c.z);
+  if (a == 2u) return uvec3(c.z, c.y, c.x);
+  return c;
+}
+SH_INLINE uvec3 grid_image_extent(SH_IN(GridParams) g) {
+  uvec3 n = image_cell(g, g.cells);
+  return uvec3(n.x * (g.capacity + 1u), n.y, n.z);
+}
+// Slot s of an image cell (no axis swap: the layout primitive).
 SH_INLINE uvec3 slot_texel(SH_IN(uvec3) cell, uint slot, uint capacity) {
   return uvec3(cell.x * (capacity + 1u) + slot, cell.y, cell.z);
 }
 SH_INLINE uvec3 status_texel(SH_IN(uvec3) cell, uint capacity) {
   return slot_texel(cell, capacity, capacity);
+}
+// Slot s and the status texel of scene cell `cell`: what every pass addresses.
+SH_INLINE uvec3 cell_slot_texel(SH_IN(GridParams) g, SH_IN(uvec3) cell, uint slot) {
+  return slot_texel(image_cell(g, cell), slot, g.capacity);
+}
+SH_INLINE uvec3 cell_status_texel(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
+  return status_texel(image_cell(g, cell), g.capacity);
 }
 // Linear index of a texel, x fastest (the layout of AccelDump::texels).
 SH_INLINE uint texel_index(SH_IN(uvec3) texel, SH_IN(uvec3) extent) {

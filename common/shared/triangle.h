@@ -2,12 +2,16 @@
 // written once for the reference and the shaders (compat.h rules).
 //  - moller_trumbore: Moller and Trumbore 1997/2005, every decision free of division (Embree
 //    style: u, v, t scaled by det, the sign of det folded in, compared against bounds * |det|).
+//  - watertight: Woop, Benthin and Wald 2013 ("Watertight ray/triangle intersection", JCGT 2(1)),
+//    with the shear scaled by the ray's dominant direction component instead of divided by it, so
+//    that it needs no division at all (see the function).
 //  - cramer_barycentrics: Ericson 2004 (Real-Time Collision Detection, 3.4), one division.
 #ifndef GRIDRT_SHARED_TRIANGLE_H
 #define GRIDRT_SHARED_TRIANGLE_H
 
 #include "alpha.h"
 #include "compat.h"
+#include "grid.h"
 
 SH_BEGIN
 
@@ -79,6 +83,102 @@ SH_INLINE uint moller_trumbore(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
   else if (t > best) r.code = kTestNotCloser;
   else r.code = kTestAccepted;
   return r.code;
+}
+
+// Component k (0 x, 1 y, 2 z) of v, without dynamic vector indexing.
+SH_INLINE float sh_component(SH_IN(vec3) v, uint k) { return k == 0u ? v.x : (k == 1u ? v.y : v.z); }
+
+// Watertight test (Woop, Benthin, Wald 2013) against (t_lo, t_hi) and not farther than best_t, in
+// the same TriangleTest as moller_trumbore (det's sign: < 0 for a back face, as there).
+// Steps: kz = the axis of the largest |dir| component (ties x, y, z), kx, ky the next two
+// cyclically. The paper shears the vertices relative to org by S = (dx/dz, dy/dz, 1/dz); here
+// every sheared coordinate is multiplied by dz instead: a.x = A[kx]*dz - dx*A[kz] (A = v0 - org,
+// likewise a.y, b, c). The 2D edge functions U = c.x b.y - c.y b.x, V = a.x c.y - a.y c.x,
+// W = b.x a.y - b.y a.x are then the paper's times dz^2 (same signs). A vertex's sheared
+// coordinates depend only on the vertex and the ray, and an edge shared by two triangles gives
+// both the same products in the opposite order, so its edge function is exactly negated: a ray
+// through a shared edge or vertex is inside at least one of the triangles (no hole). Zero edge
+// functions count as inside (the paper's double-precision re-test of zeros is not done: GLSL
+// has no portable double); both triangles of a shared edge then accept and the tie rule picks
+// one. det = U + V + W; T = U A[kz] + V B[kz] + W C[kz] = t * det * dz; all t decisions compare
+// T against bounds times D = det * dz, the sign of D folded in. Recorded: det = D (its sign is
+// that of moller_trumbore's det: < 0 a back face), u_det = V, v_det = W (times sign(det), so
+// scaled by |det|, not |D|), t_det = T, lo/hi/best times |D|; moller_trumbore_t then reports
+// t = T / |D|. Float range: products of three coordinates (|org - v| * |dir|^2 ...) stay finite
+// for coordinates and directions below about 1e12.
+SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
+                          SH_OUT(TriangleTest) r) {
+  // Permutation: kz the dominant axis of the direction
+  SH_PRECISE vec3 adir = abs(dir);
+  uint kz = adir.x >= adir.y ? (adir.x >= adir.z ? 0u : 2u) : (adir.y >= adir.z ? 1u : 2u);
+  uint kx = kz == 2u ? 0u : kz + 1u;
+  uint ky = kx == 2u ? 0u : kx + 1u;
+  float dx = sh_component(dir, kx);
+  float dy = sh_component(dir, ky);
+  float dz = sh_component(dir, kz);
+  // Vertices relative to the origin, sheared (scaled by dz, no division)
+  SH_PRECISE vec3 A = v0 - org;
+  SH_PRECISE vec3 B = v1 - org;
+  SH_PRECISE vec3 C = v2 - org;
+  SH_PRECISE float az = sh_component(A, kz);
+  SH_PRECISE float bz = sh_component(B, kz);
+  SH_PRECISE float cz = sh_component(C, kz);
+  SH_PRECISE float ax = sh_component(A, kx) * dz - dx * az;
+  SH_PRECISE float ay = sh_component(A, ky) * dz - dy * az;
+  SH_PRECISE float bx = sh_component(B, kx) * dz - dx * bz;
+  SH_PRECISE float by = sh_component(B, ky) * dz - dy * bz;
+  SH_PRECISE float cx = sh_component(C, kx) * dz - dx * cz;
+  SH_PRECISE float cy = sh_component(C, ky) * dz - dy * cz;
+  // Edge functions (the weights of v0, v1, v2 times det)
+  SH_PRECISE float U = cx * by - cy * bx;
+  SH_PRECISE float V = ax * cy - ay * cx;
+  SH_PRECISE float W = bx * ay - by * ax;
+  SH_PRECISE float uv = U + V;
+  SH_PRECISE float det = uv + W;
+  // Distance times det * dz, the sign of D = det * dz folded in
+  SH_PRECISE float tu = U * az;
+  SH_PRECISE float tv = V * bz;
+  SH_PRECISE float tw = W * cz;
+  SH_PRECISE float tuv = tu + tv;
+  SH_PRECISE float T = tuv + tw;
+  SH_PRECISE float D = det * dz;
+  SH_PRECISE float sgn = D < 0.0f ? -1.0f : 1.0f;
+  SH_PRECISE float sdet = det < 0.0f ? -1.0f : 1.0f;
+  SH_PRECISE float ad = D * sgn;
+  SH_PRECISE float t = T * sgn;
+  SH_PRECISE float lo = t_lo * ad;
+  SH_PRECISE float hi = t_hi * ad;
+  SH_PRECISE float best = best_t * ad;
+  SH_PRECISE float u = V * sdet;
+  SH_PRECISE float v = W * sdet;
+  // D has the sign of moller_trumbore's det (< 0: back face)
+  r.det = D;
+  r.u_det = u;
+  r.v_det = v;
+  r.t_det = t;
+  r.lo_det = lo;
+  r.hi_det = hi;
+  r.best_det = best;
+  // Decisions: + - * and comparisons only; inside iff U, V, W do not have mixed signs
+  bool mixed = (U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f);
+  if (mixed && u < 0.0f) r.code = kTestOutsideU;
+  else if (mixed && v < 0.0f) r.code = kTestOutsideV;
+  else if (mixed) r.code = kTestOutsideUV;
+  else if (det == 0.0f || D == 0.0f) r.code = kTestParallel;
+  else if (t <= lo) r.code = kTestBehind;
+  else if (t >= hi) r.code = kTestBeyond;
+  else if (t > best) r.code = kTestNotCloser;
+  else r.code = kTestAccepted;
+  return r.code;
+}
+
+// The triangle test GridParams::triangle_test names.
+SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
+                             SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
+                             SH_OUT(TriangleTest) r) {
+  if (which == kTriangleWatertight) return watertight(org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
+  return moller_trumbore(org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
 }
 
 // The reported distance of an accepted test: t_det * (1 / |det|), the one division.

@@ -12,12 +12,12 @@ layout(binding = 1, r32ui) uniform coherent uimage3D grid_image;
 // the cell saturated (static or dynamic bit by the reference's kind).
 void insert_first_empty(GridParams g, uvec3 cell, uint ref) {
   for (uint s = 0u; s < g.capacity; ++s) {
-    const uint old = imageAtomicCompSwap(grid_image, ivec3(slot_texel(cell, s, g.capacity)), kBlank, ref);
+    const uint old = imageAtomicCompSwap(grid_image, ivec3(cell_slot_texel(g, cell, s)), kBlank, ref);
     if (old == kBlank) return;
   }
   // Saturated: no slot took the reference
   const uint bit = ref < g.comparison_offset ? kStatusStatic : kStatusDynamic;
-  imageAtomicOr(grid_image, ivec3(status_texel(cell, g.capacity)), bit);
+  imageAtomicOr(grid_image, ivec3(cell_status_texel(g, cell)), bit);
 }
 
 // Ours: an atomic-min cascade. The carried value v takes the smaller of itself and each slot in
@@ -27,13 +27,13 @@ void insert_first_empty(GridParams g, uvec3 cell, uint ref) {
 void insert_sorted(GridParams g, uvec3 cell, uint ref) {
   uint v = ref;
   for (uint s = 0u; s < g.capacity; ++s) {
-    const uint old = imageAtomicMin(grid_image, ivec3(slot_texel(cell, s, g.capacity)), v);
+    const uint old = imageAtomicMin(grid_image, ivec3(cell_slot_texel(g, cell, s)), v);
     v = max(old, v);
     if (v == kBlank) return;
   }
   // Saturated: the dropped value names the bit
   const uint bit = v < g.comparison_offset ? kStatusStatic : kStatusDynamic;
-  imageAtomicOr(grid_image, ivec3(status_texel(cell, g.capacity)), bit);
+  imageAtomicOr(grid_image, ivec3(cell_status_texel(g, cell)), bit);
 }
 
 // One build invocation: write the world-space triangle to the geometry buffer, insert its

@@ -16,11 +16,11 @@ void main() {
   if (cell.x >= g.cells.x || cell.y >= g.cells.y || cell.z >= g.cells.z) return;
   // Blank the dynamic references up to the first blank
   for (uint s = 0u; s < g.capacity; ++s) {
-    const ivec3 p = ivec3(slot_texel(cell, s, g.capacity));
+    const ivec3 p = ivec3(cell_slot_texel(g, cell, s));
     const uint ref = imageLoad(grid_image, p).x;
     if (ref == kBlank) break;
     if (ref >= pc.comparison_offset) imageAtomicExchange(grid_image, p, kBlank);
   }
   // Reset the dynamic saturation bit; the static one persists
-  imageAtomicAnd(grid_image, ivec3(status_texel(cell, g.capacity)), ~kStatusDynamic);
+  imageAtomicAnd(grid_image, ivec3(cell_status_texel(g, cell)), ~kStatusDynamic);
 }

@@ -21,6 +21,7 @@ layout(constant_id = 2) const uint kTraversal = 0u;  // GridParams::traversal
 layout(constant_id = 3) const uint kFlags = 0u;      // GridParams::flags (kGrid* bits)
 layout(constant_id = 4) const bool kExplain = false; // trace: record the explain ray's events
 layout(constant_id = 5) const uint kRepeats = 0u;    // GridParams::repeats
+layout(constant_id = 6) const uint kTriangleTest = 0u; // GridParams::triangle_test
 
 layout(std430, binding = 0) readonly buffer ParamsBuffer { GridParams params_buffer; };
 layout(std430, binding = 2) readonly buffer Instances { GridInstance instances[]; };
@@ -40,6 +41,7 @@ GridParams grid_params() {
   g.traversal = kTraversal;
   g.flags = kFlags;
   g.repeats = kRepeats;
+  g.triangle_test = kTriangleTest;
   return g;
 }
 

@@ -63,10 +63,10 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   }
   const GridInstance inst = instances[ref_instance(ref)];
   const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(ref)];
-  // Moller-Trumbore against the elongated segment
+  // The triangle test (Moller-Trumbore or watertight) against the elongated segment
   TriangleTest r;
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = moller_trumbore(st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
+  uint code = triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -110,7 +110,7 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
 uint test_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
   uint last = kBlank;
   for (uint s = 0u; s < g.capacity; ++s) {
-    const uint ref = imageLoad(grid_image, ivec3(slot_texel(cell, s, g.capacity))).x;
+    const uint ref = imageLoad(grid_image, ivec3(cell_slot_texel(g, cell, s))).x;
     emit(kEvSlot, 0u, ref, step, cell, s, vec4(0.0f), vec4(0.0f));
     if (ref == kBlank) break;
     last = ref;
@@ -214,7 +214,7 @@ HitRecord trace_paper(GridParams g) {
     if (st.has_best && st.best_t < seg_end) return report(k);
     // Gap-fill in a saturated cell
     if ((g.flags & kGridGapFill) != 0u && last_ref != kBlank) {
-      const uint status = imageLoad(grid_image, ivec3(status_texel(cell, g.capacity))).x;
+      const uint status = imageLoad(grid_image, ivec3(cell_status_texel(g, cell))).x;
       emit(kEvStatus, status, kBlank, k, cell, g.capacity, vec4(0.0f), vec4(0.0f));
       HitRecord h;
       if (status != 0u && gap_fill(g, cell, k, last_ref, sample_point, t_mid, h)) return h;

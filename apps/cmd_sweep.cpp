@@ -1,0 +1,522 @@
+// gridrt sweep: what accuracy costs in time (issue 5). For each scene and each configuration of a
+// grid over the knobs, on the glossy-bounce rays of the paper's frame (a gather buffer made by
+// primary rays through the exact grid, as the other grid verbs do): accuracy against the Embree
+// oracle and time (build, update, trace; rays/s; memory). Writes per scene a CSV file, a Markdown
+// table and a PNG plot of agreement against trace time with the Pareto front marked.
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "apps/backends.h"
+#include "apps/commands.h"
+#include "common/gather.h"
+#include "common/image_io.h"
+#include "reference/compare.h"
+#include "reference/grid.h"
+#ifdef GRIDRT_HAVE_EMBREE
+#  include "common/embree/embree_tracer.h"
+#endif
+#ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/grid.h"
+#endif
+
+namespace gridrt::app {
+namespace {
+
+using reference::GridOptions;
+
+// The knobs swept, each a list of values as typed (validated before any work).
+struct SweepOptions {
+  std::vector<std::string> scenes;
+  std::vector<std::string> backends{"cpu"};
+  uint32_t width = 240, height = 135;
+  std::string out = "sweep";
+  uint32_t repeat = 3;  // trace timings: the median of this many runs
+  std::vector<std::string> traversal{"paper", "exact"};
+  std::vector<std::string> triangle_test{"moller", "watertight"};
+  std::vector<std::string> capacity{"auto", "percentile"};
+  std::vector<std::string> enlargement{"1.25"};
+  std::vector<std::string> elongation{"0.5"};
+  std::vector<std::string> gap_fill{"on"};
+  std::vector<std::string> launch{"exclude"};
+  std::vector<std::string> max_dim{"4096"};
+  BackendOptions backend_options;
+};
+
+// One point of the grid of knobs.
+struct Config {
+  std::string traversal, triangle_test, capacity, launch, gap_fill;
+  float enlargement = 1.25f, elongation = 0.5f;
+  uint32_t max_dim = 4096;
+  std::string label() const {
+    std::ostringstream s;
+    s << traversal << " " << triangle_test << " cap=" << capacity << " enl=" << enlargement;
+    if (traversal == "paper") s << " elo=" << elongation << " gap=" << gap_fill;
+    s << " self=" << launch << " dim=" << max_dim;
+    return s.str();
+  }
+};
+
+float parse_float(const std::string& knob, const std::string& v, float lo, float hi) {
+  size_t used = 0;
+  float f = 0.0f;
+  try {
+    f = std::stof(v, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != v.size() || !(f >= lo && f <= hi))
+    throw Error("--" + knob + ": '" + v + "' is not a number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return f;
+}
+
+void check_member(const std::string& knob, const std::vector<std::string>& values,
+                  const std::vector<std::string>& allowed) {
+  if (values.empty()) throw Error("--" + knob + ": the list is empty");
+  for (const std::string& v : values)
+    if (std::find(allowed.begin(), allowed.end(), v) == allowed.end()) {
+      std::string known;
+      for (const std::string& a : allowed) known += (known.empty() ? "" : ", ") + a;
+      throw Error("--" + knob + ": unknown value '" + v + "' (known: " + known + ")");
+    }
+}
+
+// Every configuration of the grid of knobs; exact traversal ignores elongation and gap-fill, so
+// it takes only their first values (no duplicate rows).
+std::vector<Config> configurations(const SweepOptions& o) {
+  check_member("traversal", o.traversal, {"paper", "exact"});
+  check_member("triangle-test", o.triangle_test, {"moller", "watertight"});
+  check_member("gap-fill", o.gap_fill, {"on", "off"});
+  check_member("self-hit", o.launch, {"exclude", "keep"});
+  for (const auto* list : {&o.capacity, &o.enlargement, &o.elongation, &o.max_dim})
+    if (list->empty()) throw Error("sweep: a knob's list is empty");
+  for (const std::string& c : o.capacity)
+    if (c != "auto" && c != "percentile") parse_float("capacity", c, 1.0f, 65535.0f);
+  std::vector<Config> out;
+  for (const std::string& tr : o.traversal)
+    for (const std::string& tt : o.triangle_test)
+      for (const std::string& cap : o.capacity)
+        for (const std::string& en : o.enlargement)
+          for (size_t ei = 0; ei < o.elongation.size(); ++ei)
+            for (size_t gi = 0; gi < o.gap_fill.size(); ++gi)
+              for (const std::string& la : o.launch)
+                for (const std::string& md : o.max_dim) {
+                  if (tr == "exact" && (ei > 0 || gi > 0)) continue;
+                  Config c;
+                  c.traversal = tr;
+                  c.triangle_test = tt;
+                  c.capacity = cap;
+                  c.enlargement = parse_float("enlargement", en, 0.0f, 16.0f);
+                  c.elongation = parse_float("elongation", o.elongation[ei], 0.0f, 16.0f);
+                  c.gap_fill = o.gap_fill[gi];
+                  c.launch = la;
+                  c.max_dim = uint32_t(parse_float("max-image-dimension", md, 2.0f, 65536.0f));
+                  out.push_back(c);
+                }
+  return out;
+}
+
+BackendOptions backend_options_for(const SweepOptions& o, const Config& c) {
+  BackendOptions b = o.backend_options;
+  GridOptions& g = b.grid;
+  g.traversal = c.traversal == "exact" ? reference::Traversal::exact : reference::Traversal::paper;
+  g.triangle_test = c.triangle_test == "watertight" ? GridOptions::TriangleTest::watertight : GridOptions::TriangleTest::moller;
+  if (c.capacity == "percentile") {
+    // The original rule: the 0.99 percentile of the cells' counts, clamped to [4, 64]
+    g.capacity_policy = GridOptions::CapacityPolicy::percentile;
+    g.max_capacity = 64;
+  } else if (c.capacity != "auto") {
+    g.capacity = uint32_t(std::stoul(c.capacity));
+  }
+  g.sphere_enlargement = c.enlargement;
+  g.elongation = c.elongation;
+  g.gap_fill = c.gap_fill == "on";
+  g.exclude_launch_ref = c.launch == "exclude";
+  g.max_image_dimension = c.max_dim;
+  return b;
+}
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+// Accuracy of one tracer's hits against the oracle's.
+struct Accuracy {
+  size_t rays = 0, differ = 0, ties = 0, holes = 0, false_hits = 0, gap_fill = 0;
+  double median_dt = 0.0, max_dt = 0.0;  // |t - t_oracle| over rays with the same triangle
+  double agree() const { return rays ? 100.0 * double(rays - differ) / double(rays) : 100.0; }
+};
+
+// A differing ray is a tie when both hit, at distances within kTieUlps of each other.
+constexpr uint32_t kTieUlps = 64;
+
+Accuracy accuracy(std::span<const Hit> want, std::span<const Hit> got) {
+  Accuracy a;
+  a.rays = want.size();
+  std::vector<double> dts;
+  for (size_t i = 0; i < want.size(); ++i) {
+    const Hit& w = want[i];
+    const Hit& g = got[i];
+    if (g.flags & shared::kHitGapFill) ++a.gap_fill;
+    const bool wm = is_miss(w), gm = is_miss(g);
+    if (wm && gm) continue;
+    if (!wm && gm) {
+      ++a.holes, ++a.differ;
+      continue;
+    }
+    if (wm && !gm) {
+      ++a.false_hits, ++a.differ;
+      continue;
+    }
+    if (w.instance != g.instance || w.triangle != g.triangle) {
+      ++a.differ;
+      if (!(g.flags & shared::kHitGapFill) && reference::ulp_distance(w.t, g.t) <= kTieUlps) ++a.ties;
+      continue;
+    }
+    dts.push_back(std::abs(double(g.t) - double(w.t)));
+  }
+  if (!dts.empty()) {
+    a.max_dt = *std::max_element(dts.begin(), dts.end());
+    std::nth_element(dts.begin(), dts.begin() + ptrdiff_t(dts.size() / 2), dts.end());
+    a.median_dt = dts[dts.size() / 2];
+  }
+  return a;
+}
+
+struct Row {
+  size_t index = 0;
+  Config config;
+  std::string backend, grid;
+  uint32_t capacity = 0;
+  uint64_t saturated = 0;
+  double build_ms = 0, update_ms = 0, trace_ms = 0, mrays = 0, grid_mib = 0;
+  Accuracy acc;
+};
+
+// ---- The plot: agreement against trace time, drawn into an RGB buffer ----
+
+// A 3x5 bitmap font: each glyph five rows of three bits (MSB left).
+const std::map<char, std::array<uint8_t, 5>>& font() {
+  static const std::map<char, std::array<uint8_t, 5>> f{
+      {'0', {7, 5, 5, 5, 7}}, {'1', {2, 6, 2, 2, 7}}, {'2', {7, 1, 7, 4, 7}}, {'3', {7, 1, 7, 1, 7}},
+      {'4', {5, 5, 7, 1, 1}}, {'5', {7, 4, 7, 1, 7}}, {'6', {7, 4, 7, 5, 7}}, {'7', {7, 1, 1, 1, 1}},
+      {'8', {7, 5, 7, 5, 7}}, {'9', {7, 5, 7, 1, 7}}, {'.', {0, 0, 0, 0, 2}}, {'%', {5, 1, 2, 4, 5}},
+      {'-', {0, 0, 7, 0, 0}}, {' ', {0, 0, 0, 0, 0}}, {'A', {2, 5, 7, 5, 5}}, {'C', {7, 4, 4, 4, 7}},
+      {'D', {6, 5, 5, 5, 6}}, {'E', {7, 4, 6, 4, 7}}, {'G', {7, 4, 5, 5, 7}}, {'M', {5, 7, 7, 5, 5}},
+      {'R', {6, 5, 6, 5, 5}}, {'S', {7, 4, 7, 1, 7}}, {'T', {7, 2, 2, 2, 2}}, {'P', {7, 5, 7, 4, 4}},
+      {'F', {7, 4, 6, 4, 4}}, {'O', {7, 5, 5, 5, 7}}, {'N', {6, 5, 5, 5, 5}}, {'I', {7, 2, 2, 2, 7}},
+      {'L', {4, 4, 4, 4, 7}}, {'X', {5, 5, 2, 5, 5}}, {'W', {5, 5, 7, 7, 5}}, {'/', {1, 1, 2, 4, 4}},
+      {'(', {1, 2, 2, 2, 1}}, {')', {4, 2, 2, 2, 4}}, {'=', {0, 7, 0, 7, 0}}, {'H', {5, 5, 7, 5, 5}},
+      {'U', {5, 5, 5, 5, 7}}, {'B', {6, 5, 6, 5, 6}}, {'K', {5, 5, 6, 5, 5}}, {'Y', {5, 5, 2, 2, 2}},
+      {'V', {5, 5, 5, 5, 2}}, {'J', {1, 1, 1, 5, 7}}, {'Q', {7, 5, 5, 7, 1}}, {'Z', {7, 1, 2, 4, 7}},
+      {':', {0, 2, 0, 2, 0}}, {',', {0, 0, 0, 2, 4}}};
+  return f;
+}
+
+struct Canvas {
+  uint32_t w, h;
+  std::vector<glm::vec3> px;
+  Canvas(uint32_t width, uint32_t height) : w(width), h(height), px(size_t(width) * height, glm::vec3(1.0f)) {}
+  void set(int x, int y, glm::vec3 c) {
+    if (x >= 0 && y >= 0 && x < int(w) && y < int(h)) px[size_t(y) * w + size_t(x)] = c;
+  }
+  void line(int x0, int y0, int x1, int y1, glm::vec3 c) {
+    const int n = std::max(std::abs(x1 - x0), std::abs(y1 - y0));
+    for (int i = 0; i <= n; ++i) {
+      const double s = n ? double(i) / n : 0.0;
+      set(int(std::lround(x0 + s * (x1 - x0))), int(std::lround(y0 + s * (y1 - y0))), c);
+    }
+  }
+  void box(int cx, int cy, int r, glm::vec3 c) {
+    for (int y = -r; y <= r; ++y)
+      for (int x = -r; x <= r; ++x) set(cx + x, cy + y, c);
+  }
+  // Text at scale 2 (6x10 pixels a glyph, 8 apart); unknown characters as blanks.
+  void text(int x, int y, const std::string& s, glm::vec3 c, int scale = 2) {
+    for (char ch : s) {
+      const char u = char(std::toupper(static_cast<unsigned char>(ch)));
+      const auto it = font().find(u);
+      if (it != font().end())
+        for (int r = 0; r < 5; ++r)
+          for (int b = 0; b < 3; ++b)
+            if (it->second[size_t(r)] & (4 >> b))
+              for (int sy = 0; sy < scale; ++sy)
+                for (int sx = 0; sx < scale; ++sx) set(x + b * scale + sx, y + r * scale + sy, c);
+      x += 4 * scale;
+    }
+  }
+};
+
+std::string fmt(double v, int digits) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+// Pareto front: rows no other row beats in both trace time (lower) and agreement (higher).
+std::vector<bool> pareto(const std::vector<Row>& rows) {
+  std::vector<bool> front(rows.size(), true);
+  for (size_t i = 0; i < rows.size(); ++i)
+    for (size_t j = 0; j < rows.size(); ++j)
+      if (j != i && rows[j].trace_ms <= rows[i].trace_ms && rows[j].acc.agree() >= rows[i].acc.agree() &&
+          (rows[j].trace_ms < rows[i].trace_ms || rows[j].acc.agree() > rows[i].acc.agree()))
+        front[i] = false;
+  return front;
+}
+
+void plot(const std::string& path, const std::string& title, const std::vector<Row>& rows) {
+  Canvas cv(720, 480);
+  const int L = 80, R = 700, T = 40, B = 420;
+  double tmax = 0.0, amin = 100.0;
+  for (const Row& r : rows) tmax = std::max(tmax, r.trace_ms), amin = std::min(amin, r.acc.agree());
+  tmax = tmax > 0.0 ? tmax * 1.1 : 1.0;
+  amin = std::max(0.0, std::floor(amin - 1.0));
+  const double arange = std::max(100.0 - amin, 1e-3);
+  const auto X = [&](double ms) { return int(L + (R - L) * ms / tmax); };
+  const auto Y = [&](double agree) { return int(B - (B - T) * (agree - amin) / arange); };
+  const glm::vec3 black(0.0f), grey(0.8f), red(0.85f, 0.1f, 0.1f), blue(0.1f, 0.3f, 0.85f);
+  // Axes, ticks and their values
+  for (int i = 0; i <= 5; ++i) {
+    const double ms = tmax * i / 5.0, ag = amin + arange * i / 5.0;
+    cv.line(X(ms), T, X(ms), B, grey);
+    cv.line(L, Y(ag), R, Y(ag), grey);
+    cv.text(X(ms) - 12, B + 8, fmt(ms, ms < 10 ? 1 : 0), black);
+    cv.text(8, Y(ag) - 5, fmt(ag, arange < 5 ? 2 : 1), black);
+  }
+  cv.line(L, B, R, B, black);
+  cv.line(L, T, L, B, black);
+  cv.text(L + 200, B + 34, "TRACE MS (MEDIAN)", black);
+  cv.text(8, 12, "AGREE % VS EMBREE", black);
+  cv.text(L + 240, 12, title, black);
+  // The Pareto front, then every point with its row number (front points red)
+  const std::vector<bool> front = pareto(rows);
+  std::vector<size_t> f;
+  for (size_t i = 0; i < rows.size(); ++i)
+    if (front[i]) f.push_back(i);
+  std::sort(f.begin(), f.end(), [&](size_t a, size_t b) { return rows[a].trace_ms < rows[b].trace_ms; });
+  for (size_t k = 1; k < f.size(); ++k)
+    cv.line(X(rows[f[k - 1]].trace_ms), Y(rows[f[k - 1]].acc.agree()), X(rows[f[k]].trace_ms),
+            Y(rows[f[k]].acc.agree()), red);
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const int x = X(rows[i].trace_ms), y = Y(rows[i].acc.agree());
+    cv.box(x, y, 3, front[i] ? red : blue);
+    cv.text(x + 6, y - 12, std::to_string(rows[i].index), front[i] ? red : blue);
+  }
+  std::string out = path;
+  try {
+    check_image_extension(out);
+  } catch (const Error&) {
+    out = path.substr(0, path.rfind('.')) + ".ppm";  // a build without OpenImageIO
+  }
+  write_image(out, cv.w, cv.h, cv.px);
+  std::printf("  plot: %s\n", out.c_str());
+}
+
+std::string file_stem(const std::string& scene) {
+  std::string s = std::filesystem::path(scene).stem().string();
+  for (char& c : s)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '-';
+  return s.empty() ? "scene" : s;
+}
+
+void write_outputs(const std::string& dir, const std::string& stem, const std::string& title,
+                   const std::vector<Row>& rows, const std::string& header) {
+  const std::vector<bool> front = pareto(rows);
+  {
+    std::ofstream csv(dir + "/" + stem + ".csv");
+    if (!csv) throw Error("cannot write '" + dir + "/" + stem + ".csv'");
+    csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,elongation,gap_fill,self_hit,"
+           "max_dim,grid,capacity,saturated_cells,rays,differ,ties,holes,false_hits,gap_fill_hits,agree_pct,"
+           "median_dt,max_dt,build_ms,update_ms,trace_ms,mrays_per_s,grid_mib,pareto\n";
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const Row& r = rows[i];
+      const Config& c = r.config;
+      csv << r.index << "," << title << "," << r.backend << "," << c.traversal << "," << c.triangle_test << ","
+          << c.capacity << "," << c.enlargement << "," << c.elongation << "," << c.gap_fill << "," << c.launch << ","
+          << c.max_dim << "," << r.grid << "," << r.capacity << "," << r.saturated << "," << r.acc.rays << ","
+          << r.acc.differ << "," << r.acc.ties << "," << r.acc.holes << "," << r.acc.false_hits << ","
+          << r.acc.gap_fill << "," << fmt(r.acc.agree(), 3) << "," << r.acc.median_dt << "," << r.acc.max_dt << ","
+          << fmt(r.build_ms, 2) << "," << fmt(r.update_ms, 2) << "," << fmt(r.trace_ms, 2) << "," << fmt(r.mrays, 3)
+          << "," << fmt(r.grid_mib, 2) << "," << (front[i] ? 1 : 0) << "\n";
+    }
+  }
+  std::ofstream md(dir + "/" + stem + ".md");
+  if (!md) throw Error("cannot write '" + dir + "/" + stem + ".md'");
+  md << header << "\n\n"
+     << "| # | backend | traversal | test | capacity | enl | elo | gap-fill | self-hit | grid | cap | sat. cells | "
+        "agree % | differ | ties | holes | false hits | gap-fill hits | median dt | max dt | build ms | update ms | "
+        "trace ms | Mrays/s | MiB | front |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  char dt[64];
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const Row& r = rows[i];
+    const Config& c = r.config;
+    const bool paper = c.traversal == "paper";
+    std::snprintf(dt, sizeof dt, "%.1e | %.1e", r.acc.median_dt, r.acc.max_dt);
+    md << "| " << r.index << " | " << r.backend << " | " << c.traversal << " | " << c.triangle_test << " | "
+       << c.capacity << " | " << c.enlargement << " | " << (paper ? fmt(c.elongation, 2) : "-") << " | "
+       << (paper ? c.gap_fill : "-") << " | " << c.launch << " | " << r.grid << " | " << r.capacity << " | "
+       << r.saturated << " | " << fmt(r.acc.agree(), 2) << " | " << r.acc.differ << " | " << r.acc.ties << " | "
+       << r.acc.holes << " | " << r.acc.false_hits << " | " << r.acc.gap_fill << " | " << dt << " | "
+       << fmt(r.build_ms, 1) << " | " << fmt(r.update_ms, 1) << " | " << fmt(r.trace_ms, 1) << " | "
+       << fmt(r.mrays, 2) << " | " << fmt(r.grid_mib, 1) << " | " << (front[i] ? "*" : "") << " |\n";
+  }
+  std::printf("  table: %s/%s.md, data: %s/%s.csv\n", dir.c_str(), stem.c_str(), dir.c_str(), stem.c_str());
+}
+
+void run_sweep(const SweepOptions& o) {
+#ifndef GRIDRT_HAVE_EMBREE
+  throw Error("sweep needs the Embree oracle, which this build does not have");
+#else
+  if (o.scenes.empty()) throw Error("sweep: name at least one scene");
+  if (o.backends.empty()) throw Error("--backend: the list is empty");
+  for (const std::string& b : o.backends)
+    if (b != "cpu" && b != "vulkan") throw Error("--backend: '" + b + "' cannot be swept (cpu, vulkan)");
+  const std::vector<Config> configs = configurations(o);
+  std::filesystem::create_directories(o.out);
+  std::printf("sweep: %zu configurations x %zu backend(s) per scene, %ux%u gather buffer, trace medians of %u\n",
+              configs.size(), o.backends.size(), o.width, o.height, o.repeat);
+  for (const std::string& spec : o.scenes) {
+    const Scene scene = load_scene_or_default(spec);
+    // The gather buffer and its glossy bounce rays (only the used ones are traced and timed)
+    GatherBuffer gather;
+    {
+      GridOptions exact = grid_options_for(o.backend_options, scene);
+      exact.traversal = reference::Traversal::exact;
+      reference::ReferenceGridTracer tracer(exact);
+      tracer.build(scene, 0.0f);
+      Progress progress("gather buffer (" + scene.name + ")", size_t(o.width) * o.height);
+      ProgressTracer traced(tracer, progress);
+      gather = make_gather(scene, traced, scene.frame_camera(), o.width, o.height, 0.0f);
+    }
+    std::vector<Ray> rays;
+    for (const Ray& r : bounce_rays(scene, gather, 0))
+      if (!is_unused(r)) rays.push_back(r);
+    if (rays.empty()) throw Error("sweep: " + scene.name + " has no glossy bounce rays in its frame");
+    EmbreeTracer embree(0);
+    embree.build(scene, 0.0f);
+    std::vector<Hit> want(rays.size());
+    auto t0 = std::chrono::steady_clock::now();
+    embree.trace(rays, want);
+    const double embree_ms = ms_since(t0);
+    std::printf("%s: %llu triangles, %zu glossy bounce rays; Embree traces them in %.1f ms\n", scene.name.c_str(),
+                (unsigned long long)scene.triangle_count(), rays.size(), embree_ms);
+
+    std::vector<Row> rows;
+    Progress progress("sweep " + scene.name, configs.size() * o.backends.size());
+    for (const std::string& backend : o.backends)
+      for (const Config& c : configs) {
+        Row row;
+        row.index = rows.size();
+        row.config = c;
+        row.backend = backend;
+        const BackendOptions bo = backend_options_for(o, c);
+        std::unique_ptr<Tracer> tracer;
+        try {
+          tracer = make_backend(backend, bo, scene);
+          t0 = std::chrono::steady_clock::now();
+          tracer->build(scene, 0.0f);
+          row.build_ms = ms_since(t0);
+        } catch (const Error& e) {
+          std::fprintf(stderr, "gridrt sweep: %s, %s: skipped: %s\n", scene.name.c_str(), c.label().c_str(), e.what());
+          progress.advance();
+          continue;
+        }
+        t0 = std::chrono::steady_clock::now();
+        tracer->update(0.0f);
+        row.update_ms = ms_since(t0);
+        std::vector<Hit> got(rays.size());
+        std::vector<double> times;
+        for (uint32_t k = 0; k < std::max(1u, o.repeat); ++k) {
+          t0 = std::chrono::steady_clock::now();
+          tracer->trace(rays, got);
+          times.push_back(ms_since(t0));
+        }
+        row.trace_ms = median(times);
+        row.mrays = row.trace_ms > 0.0 ? double(rays.size()) / (row.trace_ms * 1e3) : 0.0;
+        const AccelDump dump = tracer->dump();
+        row.grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
+        const reference::GridOptions go = grid_options_for(bo, scene);
+        if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
+          const reference::GridStats s = ref->stats();
+          row.saturated = s.saturated_static + s.saturated_dynamic;
+          row.capacity = s.capacity;
+          row.grid = std::to_string(s.cells.x) + "x" + std::to_string(s.cells.y) + "x" + std::to_string(s.cells.z);
+        }
+#ifdef GRIDRT_HAVE_VULKAN
+        if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get())) {
+          // Host times on lavapipe; timestamps where the device has them
+          if (vk->timings().build_ms > 0.0) row.build_ms = vk->timings().build_ms;
+          const shared::GridParams g = reference::choose_grid(scene, 0.0f, go);
+          row.capacity = g.capacity;
+          row.grid = std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" + std::to_string(g.cells.z);
+          // Saturated cells from the image's status texels
+          for (uint32_t z = 0; z < g.cells.z; ++z)
+            for (uint32_t y = 0; y < g.cells.y; ++y)
+              for (uint32_t x = 0; x < g.cells.x; ++x)
+                row.saturated += dump.texels[shared::texel_index(shared::cell_status_texel(g, {x, y, z}), dump.extent)] != 0u;
+        }
+#endif
+        row.acc = accuracy(want, got);
+        rows.push_back(row);
+        progress.advance();
+      }
+    progress.finish();
+    const std::string stem = file_stem(spec);
+    std::ostringstream header;
+    header << "Scene `" << scene.name << "`: " << scene.triangle_count() << " triangles, " << rays.size()
+           << " glossy bounce rays of a " << o.width << "x" << o.height << " gather buffer (frame 0, t = 0); Embree "
+           << fmt(embree_ms, 1) << " ms on " << std::thread::hardware_concurrency()
+           << " hardware threads. agree = same triangle or both miss; ties = differing rays whose t is within "
+           << kTieUlps << " ulps of Embree's; dt = |t - t_embree| over same-triangle hits; times: medians, host clock.";
+    std::printf("%s\n", header.str().c_str());
+    write_outputs(o.out, stem, scene.name, rows, header.str());
+    plot(o.out + "/" + stem + ".png", scene.name, rows);
+  }
+#endif
+}
+
+}  // namespace
+
+void add_sweep_command(CLI::App& app) {
+  auto o = std::make_shared<SweepOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "sweep", "Accuracy against Embree vs time over a grid of the grid's knobs, per scene: CSV, Markdown, PNG plot");
+  cmd->add_option("scenes", o->scenes, "Scene files, meshes or builtin:NAME")->required();
+  cmd->add_option("--backend,-b", o->backends, "Backends: cpu, vulkan (comma separated)")->delimiter(',');
+  cmd->add_option("--width", o->width, "Gather buffer width")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--height", o->height, "Gather buffer height")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--out,-o", o->out, "Output folder (per scene: NAME.csv, NAME.md, NAME.png)");
+  cmd->add_option("--repeat", o->repeat, "Trace each configuration this many times (median)")
+      ->check(CLI::Range(1u, 1000u));
+  cmd->add_option("--traversal", o->traversal, "Knob values: paper,exact")->delimiter(',')->group("Knobs");
+  cmd->add_option("--triangle-test", o->triangle_test, "Knob values: moller,watertight")->delimiter(',')->group("Knobs");
+  cmd->add_option("--capacity", o->capacity,
+                  "Knob values: auto (no saturation where the limits allow), percentile (the original 0.99 "
+                  "percentile clamped to 64), or a number of slots")
+      ->delimiter(',')->group("Knobs");
+  cmd->add_option("--enlargement", o->enlargement, "Knob values: sphere enlargement")->delimiter(',')->group("Knobs");
+  cmd->add_option("--elongation", o->elongation, "Knob values: segment elongation (paper)")->delimiter(',')->group("Knobs");
+  cmd->add_option("--gap-fill", o->gap_fill, "Knob values: on,off (paper)")->delimiter(',')->group("Knobs");
+  cmd->add_option("--self-hit", o->launch, "Knob values: exclude,keep (the launch triangle)")->delimiter(',')->group("Knobs");
+  cmd->add_option("--max-image-dimension", o->max_dim, "Knob values: image limit (4096 lavapipe, 16384 NVIDIA)")
+      ->delimiter(',')->group("Knobs");
+  cmd->add_option("--threads", o->backend_options.grid.threads, "CPU threads (0: all)");
+  cmd->add_option("--density", o->backend_options.grid.density, "Target cells per triangle")->check(CLI::PositiveNumber);
+  cmd->callback([o] { run_sweep(*o); });
+}
+
+}  // namespace gridrt::app
