@@ -166,6 +166,8 @@ void run_stats(const GridVerbOptions& o) {
 struct DiffOptions : GridVerbOptions {
   uint32_t frames = 3;
   float fps = 30.0f;
+  uint32_t ulps_t = 0;   // float fields of otherwise equal hits may differ by this many ulps in t
+  float abs_uv = 0.0f;   // ... and by this much in u and v (absolute)
 };
 
 // Grid images: sorted texel for texel; first-empty per cell as multisets. Returns false on a
@@ -209,7 +211,14 @@ void run_diff(const DiffOptions& o) {
               grid.insertion == reference::Insertion::sorted ? "sorted" : "first-empty",
               gpu.context().info().name.c_str(), o.backend_options.vk_build.c_str());
   bool all_same = true;
-  size_t total_rays = 0, total_identical = 0;
+  size_t total_rays = 0, total_identical = 0, total_discrete = 0, total_beyond = 0;
+  bool first_discrete = false;
+  struct FloatDiff {
+    uint32_t frame = 0;
+    size_t index = 0;
+    Ray ray{};
+    Hit want{}, got{};
+  } first_beyond;
   for (uint32_t frame = 0; frame < o.frames; ++frame) {
     const float time = o.time + float(frame) / o.fps;
     if (frame == 0) {
@@ -236,25 +245,49 @@ void run_diff(const DiffOptions& o) {
     const reference::HitDiff d = reference::compare_hits(want, got);
     total_rays += d.rays;
     total_identical += d.identical;
-    std::printf("frame %u: %zu rays: %zu identical in bits, %zu differ (%zu of them in floats only: t within %u ulps, "
-                "u/v within %u ulps)\n",
-                frame, d.rays, d.identical, d.differing.size(), d.same_discrete - d.identical, d.max_ulps_t,
-                d.max_ulps_uv);
-    if (!d.differing.empty()) {
-      all_same = false;
-      const size_t i = d.differing.front();
-      std::printf("\nfirst differing ray %zu: %s\n  reference %s\n  vulkan    %s\n\n", i,
+    total_discrete += d.discrete.size();
+    // Float-only differences: within the stated bounds or not.
+    size_t beyond = 0;
+    float max_duv = 0.0f;
+    for (size_t i : d.differing) {
+      const Hit& a = want[i];
+      const Hit& b = got[i];
+      if (a.instance != b.instance || a.triangle != b.triangle || a.flags != b.flags || a.cells != b.cells ||
+          a.tests != b.tests)
+        continue;
+      const float duv = std::max(std::abs(a.u - b.u), std::abs(a.v - b.v));
+      max_duv = std::max(max_duv, duv);
+      if (reference::ulp_distance(a.t, b.t) > o.ulps_t || duv > o.abs_uv) {
+        if (beyond == 0) first_beyond = {frame, i, rays[i], a, b};
+        ++beyond;
+      }
+    }
+    total_beyond += beyond;
+    std::printf("frame %u: %zu rays: %zu identical in bits; %zu differ only in floats (t within %u ulps, u/v within "
+                "%.3g), %zu of them beyond the bounds (%u ulps in t, %.3g in u/v); %zu differ in the hit itself "
+                "(instance, triangle, flags, cells or tests)\n",
+                frame, d.rays, d.identical, d.same_discrete - d.identical, d.max_ulps_t, double(max_duv), beyond,
+                o.ulps_t, double(o.abs_uv), d.discrete.size());
+    if (!d.discrete.empty() && !first_discrete) {
+      const size_t i = d.discrete.front();
+      first_discrete = true;
+      std::printf("\nfirst ray whose hit differs: ray %zu: %s\n  reference %s\n  vulkan    %s\n\n", i,
                   reference::hex_ray(rays[i]).c_str(), reference::hex_hit(want[i]).c_str(),
                   reference::hex_hit(got[i]).c_str());
       const reference::ExplainRecord a = ref.explain_ray(rays[i]);
       const reference::ExplainRecord b = gpu.explain_ray(rays[i]);
       std::printf("== reference's account ==\n%s\n== shader's account ==\n%s\n", reference::to_text(a).c_str(),
                   reference::to_text(b).c_str());
-      break;
     }
   }
-  std::printf("%s: %zu of %zu hit records identical in bits over the frames compared\n",
-              all_same ? "AGREE" : "DIFFER", total_identical, total_rays);
+  if (total_beyond)
+    std::printf("first ray beyond the float bounds: frame %u ray %zu: %s\n  reference %s\n  vulkan    %s\n",
+                first_beyond.frame, first_beyond.index, reference::hex_ray(first_beyond.ray).c_str(),
+                reference::hex_hit(first_beyond.want).c_str(), reference::hex_hit(first_beyond.got).c_str());
+  all_same = all_same && total_discrete == 0 && total_beyond == 0;
+  std::printf("%s: %zu of %zu hit records identical in bits, %zu with another hit, %zu beyond the float bounds, "
+              "over the frames compared\n",
+              all_same ? "AGREE" : "DIFFER", total_identical, total_rays, total_discrete, total_beyond);
   if (!all_same) throw Error("the Vulkan port differs from the reference (see above)");
 }
 #endif
@@ -289,6 +322,10 @@ void add_grid_commands(CLI::App& app) {
     cmd->add_option("--frames", o->frames, "Animated frames to compare (the first is a build, then updates)")
         ->check(CLI::Range(1u, 10000u));
     cmd->add_option("--fps", o->fps, "Frames per second")->check(CLI::PositiveNumber);
+    cmd->add_option("--ulps", o->ulps_t,
+                    "Allow t of otherwise identical hits to differ by this many ulps (drivers whose division is "
+                    "not correctly rounded; default 0: bit for bit)");
+    cmd->add_option("--uv-tolerance", o->abs_uv, "Allow u and v of otherwise identical hits to differ by this much");
     cmd->callback([o] { run_diff(*o); });
   }
 #endif

@@ -41,6 +41,17 @@ std::string frame_path(const std::string& output, uint32_t frame, uint32_t frame
 }
 
 void run_render(const RenderOptions& o) {
+  if (o.backend.rfind("portal", 0) == 0) {
+    // The portal-div raytracer renders worlds of voxels with its own shading (cmd_portal.cpp).
+    PortalRenderOptions p;
+    p.scene = o.scene.empty() ? "builtin:level" : o.scene;
+    p.backend = o.backend;
+    p.output = o.output;
+    p.width = o.width;
+    p.height = o.height;
+    run_portal_render(p);
+    return;
+  }
   check_output_path(o.output);
   check_image_extension(o.output);
   const Scene scene = load_scene_or_default(o.scene);
@@ -87,7 +98,9 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("scene", o->scene,
                   "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
                   "(atrium, cornell, teapot); default: the embedded atrium");
-  cmd->add_option("--backend,-b", o->backend, "Tracer: " + backend_list() + " (default: the first)");
+  cmd->add_option("--backend,-b", o->backend,
+                  "Tracer: " + backend_list() + ", or portal-cpu (voxel worlds: a .map, builtin:level, a scene voxelized) "
+                  "(default: the first)");
   cmd->add_option("--width", o->width, "Image width in pixels")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height in pixels")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--time,-t", o->time, "Scene time in seconds (animation)");

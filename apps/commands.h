@@ -13,6 +13,17 @@ void add_render_command(CLI::App& app);   // cmd_render.cpp
 void add_convert_command(CLI::App& app);  // cmd_convert.cpp
 void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: explain, stats, diff
 void add_bench_command(CLI::App& app);    // cmd_bench.cpp
+void add_portal_command(CLI::App& app);   // cmd_portal.cpp: portal render, portal explain
+
+struct PortalRenderOptions {
+  std::string scene;             // a .map, builtin:level, or a scene to voxelize
+  std::string backend = "portal-cpu";
+  std::string output = "render.png";
+  uint32_t width = 720, height = 360;  // the seed's resolution
+  uint32_t voxels = 64;
+  bool separate_loops = false;
+};
+void run_portal_render(const PortalRenderOptions& options);  // cmd_portal.cpp
 
 // The scene named by SCENE (a scene file, a bare mesh, builtin:NAME), or the embedded default
 // when `spec` is empty. Prints how long loading took when it took over a second.

@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
   app::add_convert_command(app);
   app::add_grid_commands(app);
   app::add_bench_command(app);
+  app::add_portal_command(app);
   try {
     app.parse(argc, argv);
     return 0;

@@ -49,10 +49,13 @@ HitDiff compare_hits(std::span<const Hit> want, std::span<const Hit> got) {
       continue;
     }
     d.differing.push_back(i);
-    if (a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags) {
+    if (a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags && a.cells == b.cells &&
+        a.tests == b.tests) {
       ++d.same_discrete;
       d.max_ulps_t = std::max(d.max_ulps_t, ulp_distance(a.t, b.t));
       d.max_ulps_uv = std::max({d.max_ulps_uv, ulp_distance(a.u, b.u), ulp_distance(a.v, b.v)});
+    } else {
+      d.discrete.push_back(i);
     }
   }
   return d;

@@ -24,9 +24,10 @@ std::string hex_ray(const Ray& r);
 struct HitDiff {
   size_t rays = 0;
   size_t identical = 0;          // memcmp-equal records
-  size_t same_discrete = 0;      // same instance, triangle and flags (floats may differ)
+  size_t same_discrete = 0;      // same instance, triangle, flags, cells and tests (floats may differ)
   uint32_t max_ulps_t = 0, max_ulps_uv = 0;  // over same_discrete records
   std::vector<size_t> differing; // indices of the records that are not identical, in order
+  std::vector<size_t> discrete;  // indices whose discrete fields differ (another hit, cells, ...)
 };
 HitDiff compare_hits(std::span<const Hit> want, std::span<const Hit> got);
 

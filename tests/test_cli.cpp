@@ -36,7 +36,7 @@ fs::path scratch(const std::string& name) {
 }  // namespace
 
 TEST_CASE("CLI: every verb has --help", "[cli]") {
-  for (const char* verb : {"render", "convert"}) {
+  for (const char* verb : {"render", "convert", "explain", "stats", "bench", "diff", "portal render", "portal explain"}) {
     const Run r = run_tool(std::string(verb) + " --help");
     INFO(r.output);
     CHECK(r.exit_code == 0);
@@ -103,4 +103,32 @@ TEST_CASE("CLI: convert writes a cache that renders like the scene", "[cli]") {
     return std::string(std::istreambuf_iterator<char>(f), {});
   };
   CHECK(slurp(a) == slurp(b));
+}
+
+TEST_CASE("CLI: the portal backend renders a tile map and explains a pixel against the voxel DDA", "[cli][portal]") {
+  const fs::path out = scratch("portal.ppm");
+  fs::remove(out);
+  const Run r = run_tool("render --backend portal-cpu " + std::string(GRIDRT_DATA_DIR) +
+                         "/maps/tiny.map --width 24 --height 12 -o " + out.string());
+  INFO(r.output);
+  REQUIRE(r.exit_code == 0);
+  CHECK(fs::exists(out));
+  const Run e = run_tool("portal explain --size 24,12 --pixel 12,6");
+  INFO(e.output);
+  REQUIRE(e.exit_code == 0);
+  CHECK_THAT(e.output, Catch::Contains("(agrees)"));
+  const Run bad = run_tool("portal explain --size 24,12 --pixel 30,6");
+  CHECK(bad.exit_code == 1);
+  CHECK_THAT(bad.output, Catch::Contains("outside"));
+}
+
+TEST_CASE("CLI: explain and stats describe the grid of a built-in scene", "[cli][grid]") {
+  const Run s = run_tool("stats builtin:cornell");
+  INFO(s.output);
+  REQUIRE(s.exit_code == 0);
+  CHECK_THAT(s.output, Catch::Contains("occupancy"));
+  const Run e = run_tool("explain builtin:cornell --width 64 --height 48 --pixel 32,30");
+  INFO(e.output);
+  REQUIRE(e.exit_code == 0);
+  CHECK_THAT(e.output, Catch::Contains("CPU reference") && Catch::Contains("0x"));
 }

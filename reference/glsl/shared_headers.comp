@@ -10,9 +10,13 @@
 #include "common/shared/grid.h"
 #include "common/shared/triangle.h"
 #include "common/shared/explain.h"
+#include "common/shared/portal.h"
 layout(local_size_x = 1) in;
 layout(std430, binding = 0) buffer B { GridParams g; ExplainEvent ev; HitRecord h; };
 void main() {
+  float pnum;
+  uint pa = portal_exit_axis(vec3(0), vec3(1), vec3(0.5), vec3(1), pnum);
+  bool pw = portal_texel_is_wall(pa) && portal_before_tmax(1.0f, 1.0f, 2.0f);
   uvec3 lo; uvec3 hi;
   triangle_cell_range(g, vec3(0), vec3(1), vec3(2), lo, hi);
   vec3 n = triangle_normal(vec3(0), vec3(1,0,0), vec3(0,1,0));

@@ -1,0 +1,188 @@
+// portal.h: the per-ray math of the portal ("div") tracer (seeds/002, docs/PORTAL.md), written
+// once for the CPU reference and the Vulkan port. Texture fetches are not here: each side fetches
+// the div info, the atlas texel and the start map its own way and hands the values to these
+// functions.
+//
+// Space: voxel space, voxel (i, j, k) is the unit cube [i, i+1] x [j, j+1] x [k, k+1]. A ray is
+// org + t * dir in voxel space (t is the caller's parameter: world -> voxel space maps org and dir
+// by one affine map, so t does not change).
+//
+// Decisions (which face a ray leaves a box by, which voxel of that face it crosses, whether a wall
+// lies before tmax) use only + - * and comparisons. Every plane crossing is compared through
+// portal_first(): plane A (axis a, numerator na = signed distance ahead, ad_a = |dir[a]|) is
+// crossed first iff na * ad_b < nb * ad_a, ties to the lower axis. The voxel DDA uses the same
+// predicate, which is what keeps the two tracers' discrete answers identical.
+#ifndef GRIDRT_SHARED_PORTAL_H
+#define GRIDRT_SHARED_PORTAL_H
+
+#include "compat.h"
+
+SH_BEGIN
+
+#ifdef __cplusplus
+using glm::abs;
+using glm::floor;
+using glm::max;
+using glm::min;
+#endif
+
+// Faces of a voxel or div, by outward normal: 2 * axis + (1 if positive).
+SH_CONST uint kPortalFaceNegX = 0u;
+SH_CONST uint kPortalFacePosX = 1u;
+SH_CONST uint kPortalFaceNegY = 2u;
+SH_CONST uint kPortalFacePosY = 3u;
+SH_CONST uint kPortalFaceNegZ = 4u;
+SH_CONST uint kPortalFacePosZ = 5u;
+SH_CONST uint kPortalFaceInside = 6u;  // the ray started inside a solid voxel
+
+// Atlas texels (16 bits): a neighbour div, a wall of a material, or outside the world.
+SH_CONST uint kPortalWallBit = 0x8000u;     // texel >= this: a wall, material = texel - kPortalWallBit
+SH_CONST uint kPortalOutside = 0xFFFFu;     // the world's boundary: the ray leaves the world (a miss)
+SH_CONST uint kPortalMaxDivs = 0x8000u;     // div indices 0 .. 0x7FFF
+SH_CONST uint kPortalMaxMaterial = 0x7FFEu; // wall materials 0 .. 0x7FFE
+SH_CONST uint kPortalExteriorDiv = 0u;      // div 0 is the exterior div: the world box, surfaced outside
+
+// Div types (the type byte of div info texel 7).
+SH_CONST uint kPortalDivAir = 0u;       // interior div of empty space
+SH_CONST uint kPortalDivExterior = 1u;  // the world box seen from outside
+SH_CONST uint kPortalDivGlass = 2u;     // interior div of a glass medium (material in texel 6 .w)
+
+// Hit records of the portal tracer and the voxel DDA (common/shared/records.h):
+//   t         parametric distance to the wall face (division once, at the end)
+//   instance  wall material (kNoInstance on a miss: the ray left the world or reached tmax)
+//   triangle  (voxel << 3) | face, voxel = x + X * (y + Y * z) of the solid voxel hit, face =
+//             its face the ray hit (kPortalFace*), kPortalFaceInside if the ray started inside it
+//   u, v      sub-texel coordinates on that face, in [0, 1]: the lower and the higher of the two
+//             tangent axes (x,y for z faces, x,z for y faces, y,z for x faces)
+//   cells     divs (portal) or voxels (DDA) visited;  tests: atlas texels read (portal) or
+//             voxels tested (DDA)
+SH_CONST uint kPortalFaceBits = 3u;
+
+// Signed distance ahead of `o` to the plane `p` along an axis with direction component `d`
+// (positive: the plane is ahead). Its ratio to |d| is the parametric distance.
+SH_INLINE float portal_ahead(float p, float o, float d) {
+  SH_PRECISE float n = (d >= 0.0f) ? (p - o) : (o - p);
+  return n;
+}
+
+// Whether plane A (axis a, ahead na, |d_a| = ada) is crossed before plane B (axis b, nb, adb):
+// na / ada < nb / adb without dividing; equal: the lower axis first.
+SH_INLINE bool portal_first(uint a, float na, float ada, uint b, float nb, float adb) {
+  SH_PRECISE float lhs = na * adb;
+  SH_PRECISE float rhs = nb * ada;
+  return lhs < rhs || (lhs == rhs && a < b);
+}
+
+// The axis of the face a ray leaves the box [lo, hi] by (only the face each direction component
+// points to: three slab tests), or 3 if dir is zero. `num` gets that plane's distance ahead.
+SH_INLINE uint portal_exit_axis(SH_IN(vec3) lo, SH_IN(vec3) hi, SH_IN(vec3) org, SH_IN(vec3) dir,
+                               SH_OUT(float) num) {
+  uint best = 3u;
+  float bn = 0.0f;
+  float bd = 0.0f;
+  for (uint a = 0u; a < 3u; a++) {
+    if (dir[a] == 0.0f) continue;
+    float n = portal_ahead(dir[a] > 0.0f ? hi[a] : lo[a], org[a], dir[a]);
+    float ad = abs(dir[a]);
+    if (best == 3u || portal_first(a, n, ad, best, bn, bd)) {
+      best = a;
+      bn = n;
+      bd = ad;
+    }
+  }
+  num = bn;
+  return best;
+}
+
+// The axis of the face a ray enters the box [lo, hi] by from outside (the latest of the near
+// planes), or 3 if it misses the box or dir is zero. `num` gets that plane's distance ahead.
+// Missing: some far plane comes before the entry plane, or the box lies behind (far plane behind).
+SH_INLINE uint portal_entry_axis(SH_IN(vec3) lo, SH_IN(vec3) hi, SH_IN(vec3) org, SH_IN(vec3) dir,
+                                SH_OUT(float) num) {
+  uint best = 3u;
+  float bn = 0.0f;
+  float bd = 0.0f;
+  for (uint a = 0u; a < 3u; a++) {
+    if (dir[a] == 0.0f) {
+      if (org[a] < lo[a] || org[a] > hi[a]) { num = 0.0f; return 3u; }
+      continue;
+    }
+    float n = portal_ahead(dir[a] > 0.0f ? lo[a] : hi[a], org[a], dir[a]);
+    float ad = abs(dir[a]);
+    // The latest near plane; ties to the lower axis.
+    if (best == 3u || portal_first(best, bn, bd, a, n, ad)) {
+      best = a;
+      bn = n;
+      bd = ad;
+    }
+  }
+  if (best == 3u) { num = 0.0f; return 3u; }
+  // Every far plane must come after the entry plane.
+  for (uint a = 0u; a < 3u; a++) {
+    if (dir[a] == 0.0f || a == best) continue;
+    float fn = portal_ahead(dir[a] > 0.0f ? hi[a] : lo[a], org[a], dir[a]);
+    if (portal_first(a, fn, abs(dir[a]), best, bn, bd)) { num = 0.0f; return 3u; }
+  }
+  if (bn < 0.0f) { num = 0.0f; return 3u; }  // the whole box lies behind the origin
+  num = bn;
+  return best;
+}
+
+// The voxel index along axis b (b != a) at the moment the ray crosses plane A (axis a, ahead na,
+// |d_a| = ada), within the voxel range [lo, hi) of a box: the voxel the DDA would be in, found by
+// binary search over the planes of axis b with the same predicate (no division).
+SH_INLINE uint portal_cross_index(uint a, float na, float ada, uint b, float ob, float db, uint lo, uint hi) {
+  if (db == 0.0f) {
+    float f = floor(ob);
+    float c = min(max(f, float(lo)), float(hi - 1u));
+    return uint(c);
+  }
+  float adb = abs(db);
+  if (db > 0.0f) {
+    // Largest plane q in (lo, hi) crossed before A: the voxel is q (else lo).
+    uint l = lo;          // invariant: plane l counts as crossed (or l == lo)
+    uint h = hi;          // invariant: plane h is not crossed before A (or h == hi)
+    while (h - l > 1u) {
+      uint m = (l + h) / 2u;
+      if (portal_first(b, portal_ahead(float(m), ob, db), adb, a, na, ada)) l = m; else h = m;
+    }
+    return l;
+  }
+  // db < 0: smallest plane q in (lo, hi) crossed before A: the voxel is q - 1 (else hi - 1).
+  uint l = lo;            // invariant: plane l not crossed before A (or l == lo)
+  uint h = hi;            // invariant: plane h crossed (or h == hi)
+  while (h - l > 1u) {
+    uint m = (l + h) / 2u;
+    if (portal_first(b, portal_ahead(float(m), ob, db), adb, a, na, ada)) h = m; else l = m;
+  }
+  return h - 1u;
+}
+
+// The two tangent axes of axis a, lower first.
+SH_INLINE uint portal_tangent0(uint a) { return a == 0u ? 1u : 0u; }
+SH_INLINE uint portal_tangent1(uint a) { return a == 2u ? 1u : 2u; }
+
+// Sub-texel coordinate on a face: the crossing coordinate along axis b minus its voxel index,
+// clamped to [0, 1] (a reported value: one division, t = na / ada, here).
+SH_INLINE float portal_subtexel(float na, float ada, float ob, float db, uint index) {
+  SH_PRECISE float t = na / ada;
+  SH_PRECISE float c = ob + t * db;
+  SH_PRECISE float f = c - float(index);
+  return min(max(f, 0.0f), 1.0f);
+}
+
+// Whether a plane crossing at distance ahead `na` (|d_a| = ada) lies before tmax: na < tmax * ada.
+SH_INLINE bool portal_before_tmax(float na, float ada, float tmax) {
+  SH_PRECISE float lim = tmax * ada;
+  return na < lim;
+}
+
+// Face of the solid voxel a ray hits when it crosses a plane of axis a moving along dir[a].
+SH_INLINE uint portal_hit_face(uint a, float da) { return 2u * a + (da > 0.0f ? 0u : 1u); }
+
+// Decode an atlas texel.
+SH_INLINE bool portal_texel_is_wall(uint texel) { return texel >= kPortalWallBit; }
+
+SH_END
+
+#endif

@@ -1,0 +1,124 @@
+// build.h: maximal divs, the flux-density heuristic, the per-face choice and the packed textures
+// of the portal tracer (seeds/002; docs/PORTAL.md, "Build" and "Storage").
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "common/shared/portal.h"
+#include "reference/portal/world.h"
+
+namespace gridrt::portal {
+
+inline constexpr uint32_t kNone = 0xFFFFFFFFu;
+
+// A div: the voxels [lo, hi) of one medium (kEmpty for air, a glass material).
+struct Box {
+  glm::ivec3 lo{0}, hi{0};
+  uint32_t medium = kEmpty;
+  glm::ivec3 size() const { return hi - lo; }
+  int64_t volume() const { return int64_t(hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z); }
+  bool contains(glm::ivec3 v) const {
+    return v.x >= lo.x && v.y >= lo.y && v.z >= lo.z && v.x < hi.x && v.y < hi.y && v.z < hi.z;
+  }
+  bool operator==(const Box&) const = default;
+};
+
+// Every maximal div of every medium: boxes of voxels of one medium that cannot grow by one layer
+// in any of the six directions. Exact: for each z range [z0, z1], the columns empty over the whole
+// range form a 2D mask whose maximal rectangles (histogram stack, one pass per row) are the
+// candidates; a candidate is kept if the layers z0 - 1 and z1 + 1 block it. Each maximal box is
+// found once. Sorted by (medium, lo.z, lo.y, lo.x, hi.z, hi.y, hi.x).
+std::vector<Box> maximal_divs(const World& world, unsigned threads = 0);
+
+// The seed's FluxDensity: rays start uniformly on the unit square z = 0 (voxel (0, 0, 0)'s -z
+// face), cosine-distributed over the hemisphere dz > 0; for every voxel face of the octant
+// x, y >= 0 (folded: the distribution is symmetric in x and in y), the fraction of rays that cross
+// it, and for every voxel the mean length of ray inside it. Offsets up to `range` voxels; beyond,
+// 0. Deterministic (fixed seed). Built once per process by get().
+struct FluxDensity {
+  int range = 0;
+  uint32_t rays = 0;
+  std::vector<float> plane_x;  // [(p - 1) * R + j) * R + k]: plane x = p (p >= 1), voxel row j, depth k
+  std::vector<float> plane_z;  // [(i * R + j) * R + (q - 1)]: plane z = q (q >= 1), column (i, j)
+  std::vector<double> length_sat;  // summed-area table of mean length, (R+1)^3
+  float x_face(int p, int j, int k) const;  // p >= 1 folded plane, j, k >= 0; 0 beyond range
+  float z_face(int i, int j, int q) const;
+  double length_sum(int i0, int i1, int j0, int j1, int k0, int k1) const;  // folded box [i0,i1) x ... (i, j signed)
+  static FluxDensity compute(int range, uint32_t rays);
+  static const FluxDensity& get();  // range 64, 2^18 rays
+};
+
+// The seed's heuristic for rays entering voxel `v` through its face `entry_face` (moving inwards)
+// into the maximal div `div` (which contains v), integrated over the sub-cuboid they can enter:
+//   p_open  = sum of flux over the cuboid's exit voxel faces whose far voxel is of the same medium
+//   p_wall  = the same over faces to a wall, another medium or outside the world
+//   length  = expected length of ray inside the cuboid (sum of mean lengths of its voxels)
+//   cost    = p_open / length  (the seed's "expected length over the probability of reaching an
+//             exit face", inverted so that 0 is the best and nothing divides by zero)
+struct EntryCost {
+  double p_open = 0, p_wall = 0, length = 0, cost = 0;
+};
+EntryCost integrate_flux_density_over_cuboid(const World& world, const FluxDensity& flux, glm::ivec3 v,
+                                             uint32_t entry_face, const Box& div);
+
+// The same integral as the build evaluates it: open voxel faces as runs, the table summed by 1D
+// prefix sums (exact up to the order of summation). For tests.
+EntryCost integrate_flux_density_fast(const World& world, glm::ivec3 v, uint32_t entry_face, const Box& div);
+
+struct PortalOptions {
+  uint32_t atlas_width = 1024;  // texels per atlas row
+  uint32_t info_width = 1024;   // texels per div-info row (a multiple of 8)
+  unsigned threads = 0;         // 0: hardware concurrency
+  bool progress = true;         // a Progress line on stderr for long builds
+};
+
+// The textures exactly as a GPU would hold them (docs/PORTAL.md, "Storage").
+struct PackedPortal {
+  glm::uvec3 dims{0};
+  glm::vec3 origin{0.0f};
+  float voxel_size = 1.0f;
+  uint32_t atlas_width = 0, atlas_height = 0;
+  std::vector<uint16_t> atlas;     // R16_UINT, row-major
+  uint32_t info_width = 0, info_height = 0;
+  std::vector<uint8_t> info;       // RGBA8_UINT, row-major, 8 texels per div
+  std::vector<uint16_t> start;     // R16_UINT 3D, one texel per voxel: a div containing it, or a wall texel
+  uint32_t div_count = 0;
+  size_t bytes() const { return atlas.size() * 2 + info.size() + start.size() * 2; }
+};
+
+// Decoded div info of div `d` (reads the RGBA8 texels only).
+struct DivInfo {
+  glm::ivec3 lo{0}, size{0};
+  uint32_t type = 0, glass_material = 0;
+  glm::uvec2 face_uv[6]{};  // atlas origin of each face's rectangle
+};
+DivInfo read_div_info(const PackedPortal& packed, uint32_t d);
+
+struct BuildStats {
+  double seconds_maximal = 0, seconds_flux = 0, seconds_choice = 0, seconds_pack = 0, seconds_total = 0;
+  size_t maximal = 0, candidates_evaluated = 0, divs = 0, atlas_texels = 0, bytes = 0;
+};
+
+struct PortalBuild {
+  World world;
+  std::vector<Box> maximal;          // every maximal div
+  std::vector<uint32_t> choice;      // [voxel * 6 + entry face]: index into maximal, kNone if no ray enters there
+  std::vector<uint32_t> start_box;   // [voxel]: largest maximal div containing it, kNone for opaque voxels
+  std::vector<Box> divs;             // stored divs; divs[0] is the exterior div (the world box)
+  std::vector<uint32_t> div_of_maximal;  // maximal index -> stored div index, kNone if unused
+  PackedPortal packed;
+  BuildStats stats;
+};
+
+// Build everything for `world`. Throws Error when the world breaks a format limit (more than
+// 32768 divs, an atlas taller than 65536 rows).
+PortalBuild build_portal(World world, const PortalOptions& options = {});
+
+// Face rectangle size of a box face (tangent axes, lower first).
+glm::ivec2 face_extent(const Box& b, uint32_t face);
+
+}  // namespace gridrt::portal

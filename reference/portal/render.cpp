@@ -1,0 +1,241 @@
+// render.cpp: primary + two shadow rays per pixel through the portal tracer, with non-forking
+// refraction, as three separate loops or as one loop with state transitions (trace.h).
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "common/camera.h"
+#include "reference/portal/trace.h"
+
+namespace gridrt::portal {
+
+namespace sh = gridrt::shared;
+
+bool refract_or_reflect(glm::vec3 d, glm::vec3 n, float eta, glm::vec3& out) {
+  const float cosi = -glm::dot(n, d);
+  const float k = 1.0f - eta * eta * (1.0f - cosi * cosi);
+  if (k < 0.0f) {
+    out = d + 2.0f * cosi * n;  // total internal reflection: the reflected ray instead
+    return false;
+  }
+  out = glm::normalize(eta * d + (eta * cosi - std::sqrt(k)) * n);
+  return true;
+}
+
+namespace {
+
+enum Mode : uint32_t { kPrimary = 0, kShadowA = 1, kShadowB = 2, kDone = 3 };
+
+// Everything one pixel carries: the current ray and div, and the primary hit for the shadow rays.
+struct PixelState {
+  uint32_t mode = kPrimary;
+  uint32_t div = 0;
+  VoxelRay ray;
+  glm::vec3 filter{1.0f};      // accumulated colour filter (glass)
+  uint32_t interfaces = 0;     // glass surfaces crossed or reflected from
+  bool in_glass = false;
+  uint32_t glass = 0;          // material of the glass the ray is in
+  glm::vec3 glass_entry{0.0f};
+  glm::vec3 point{0.0f}, normal{0.0f}, albedo{0.0f};
+  uint32_t hit_div = 0;
+  float light = 0.0f;          // sum over lights of visible * N.L
+  glm::vec3 color{0.0f};
+  uint32_t steps_primary = 0, steps_shadow = 0, iterations = 0, refractions = 0, reflections = 0, shadow_rays = 0;
+};
+
+struct Context {
+  const PortalBuild& build;
+  const RenderOptions& opt;
+  glm::vec3 lights[2];
+};
+
+void finish(const Context& c, PixelState& s) {
+  s.color = s.filter * s.albedo * (c.opt.ambient + (1.0f - c.opt.ambient) * 0.5f * s.light);
+  s.mode = kDone;
+}
+
+// Set up shadow ray `i` (0 or 1) or, past the last, finish the pixel.
+void begin_shadow(const Context& c, PixelState& s, uint32_t i) {
+  for (; i < 2; ++i) {
+    const glm::vec3 to = c.lights[i] - s.point;
+    if (glm::dot(to, s.normal) <= 0.0f) continue;  // the light is behind the surface
+    s.ray.org = s.point;
+    s.ray.dir = to;
+    s.ray.tmin = 0.0f;
+    s.ray.tmax = 1.0f;  // reaching t = 1 is reaching the light
+    s.div = s.hit_div;  // the shadow ray starts in the div the primary ray ended in: no offset needed
+    s.mode = kShadowA + i;
+    ++s.shadow_rays;
+    return;
+  }
+  finish(c, s);
+}
+
+void begin_primary(const Context& c, PixelState& s, const Ray& ray) {
+  const PackedPortal& p = c.build.packed;
+  s.ray = to_voxel_ray(p.origin, p.voxel_size, ray);
+  const Start st = start_ray(p, s.ray);
+  if (st.kind == Start::kMiss) {
+    s.color = c.opt.background;
+    s.mode = kDone;
+  } else if (st.kind == Start::kInsideSolid) {
+    s.albedo = c.build.world.materials[st.texel - sh::kPortalWallBit].color;
+    s.color = s.albedo * c.opt.ambient;
+    s.mode = kDone;
+  } else {
+    s.div = st.div;
+    s.mode = kPrimary;
+  }
+}
+
+glm::vec3 crossing(const VoxelRay& r, const Step& st) { return r.org + (st.num / st.ad) * r.dir; }
+
+glm::vec3 pow3(glm::vec3 f, float d) { return {std::pow(f.x, d), std::pow(f.y, d), std::pow(f.z, d)}; }
+
+// The state transitions: what one step's result does to the pixel.
+void transition(const Context& c, PixelState& s, const Step& st) {
+  const PackedPortal& p = c.build.packed;
+  const World& w = c.build.world;
+  ++s.iterations;
+  if (s.mode == kPrimary) {
+    ++s.steps_primary;
+    if (st.kind == StepKind::kNext) {
+      const DivInfo nd = read_div_info(p, st.texel);
+      const bool next_glass = nd.type == sh::kPortalDivGlass;
+      if (next_glass == s.in_glass && (!next_glass || nd.glass_material == s.glass)) {
+        s.div = st.texel;
+        return;
+      }
+      const uint32_t gm = next_glass ? nd.glass_material : s.glass;  // the glass whose surface this is
+      const glm::vec3 x = crossing(s.ray, st);
+      glm::vec3 n(0.0f);
+      n[st.axis] = s.ray.dir[st.axis] > 0.0f ? -1.0f : 1.0f;
+      if (!c.opt.refraction) {  // glass as an opaque wall
+        s.point = x, s.normal = n, s.albedo = w.materials[gm].color, s.hit_div = s.div;
+        begin_shadow(c, s, 0);
+        return;
+      }
+      if (++s.interfaces > c.opt.max_interfaces) {
+        s.filter = glm::vec3(0.0f);
+        s.color = glm::vec3(0.0f);
+        s.mode = kDone;
+        return;
+      }
+      const float n_from = s.in_glass ? w.materials[s.glass].ior : 1.0f;
+      const float n_to = next_glass ? w.materials[nd.glass_material].ior : 1.0f;
+      glm::vec3 d;
+      if (refract_or_reflect(glm::normalize(s.ray.dir), n, n_from / n_to, d)) {
+        ++s.refractions;
+        if (s.in_glass) s.filter *= pow3(w.materials[s.glass].filter, glm::length(x - s.glass_entry));
+        s.in_glass = next_glass;
+        if (next_glass) s.glass = nd.glass_material, s.glass_entry = x;
+        s.div = st.texel;
+      } else {
+        ++s.reflections;  // stays in the current div
+      }
+      s.ray.org = x;
+      s.ray.dir = d;
+      s.ray.tmin = 0.0f;
+      s.ray.tmax = std::numeric_limits<float>::infinity();
+      return;
+    }
+    if (st.kind == StepKind::kWall) {
+      const glm::vec3 x = crossing(s.ray, st);
+      if (s.in_glass) s.filter *= pow3(w.materials[s.glass].filter, glm::length(x - s.glass_entry));
+      s.point = x;
+      s.normal = glm::vec3(0.0f);
+      s.normal[st.axis] = s.ray.dir[st.axis] > 0.0f ? -1.0f : 1.0f;
+      s.albedo = w.materials[st.texel - sh::kPortalWallBit].color;
+      s.hit_div = s.div;
+      begin_shadow(c, s, 0);
+      return;
+    }
+    s.color = s.filter * c.opt.background;  // outside, tmax or no direction
+    s.mode = kDone;
+    return;
+  }
+  // Shadow rays: reaching t = 1 (tmax) is reaching the light; a wall, glass or the outside blocks.
+  ++s.steps_shadow;
+  const uint32_t i = s.mode - kShadowA;
+  if (st.kind == StepKind::kNext) {
+    const DivInfo nd = read_div_info(p, st.texel);
+    const bool next_glass = nd.type == sh::kPortalDivGlass;
+    if (next_glass == s.in_glass && (!next_glass || nd.glass_material == s.glass)) {
+      s.div = st.texel;
+      return;
+    }
+  } else if (st.kind == StepKind::kTmax) {
+    s.light += glm::dot(s.normal, glm::normalize(s.ray.dir));
+  }
+  begin_shadow(c, s, i + 1);
+}
+
+}  // namespace
+
+std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, const RenderOptions& opt, RenderStats* stats) {
+  if (opt.width == 0 || opt.height == 0) throw Error("portal render: image size must be at least 1 x 1");
+  const auto t0 = std::chrono::steady_clock::now();
+  const World& w = build.world;
+  Context c{build, opt, {}};
+  for (int i = 0; i < 2; ++i)
+    c.lights[i] = w.to_voxel(size_t(i) < w.lights.size() ? w.lights[size_t(i)] : camera.eye);
+  camera_frame(camera);  // throws for a degenerate camera
+  std::vector<glm::vec3> image(size_t(opt.width) * opt.height);
+  std::vector<RenderStats> row_stats(opt.height);
+  const PackedPortal& p = build.packed;
+  unsigned threads = opt.threads ? opt.threads : std::max(1u, std::thread::hardware_concurrency());
+  std::atomic<uint32_t> next{0};
+  auto work = [&] {
+    std::vector<PixelState> row(opt.width);
+    for (uint32_t y; (y = next.fetch_add(1)) < opt.height;) {
+      for (uint32_t x = 0; x < opt.width; ++x) {
+        row[x] = PixelState{};
+        begin_primary(c, row[x], camera_ray(camera, opt.width, opt.height, x, y));
+      }
+      if (opt.state_machine) {
+        // One loop: the same step for every kind of ray, transitions at the end of each iteration.
+        for (uint32_t x = 0; x < opt.width; ++x) {
+          PixelState& s = row[x];
+          while (s.mode != kDone) transition(c, s, step_ray(p, s.div, s.ray));
+        }
+      } else {
+        // Three loops: every pixel's primary ray, then every first shadow ray, then every second.
+        for (uint32_t mode = kPrimary; mode <= kShadowB; ++mode)
+          for (uint32_t x = 0; x < opt.width; ++x) {
+            PixelState& s = row[x];
+            while (s.mode == mode) transition(c, s, step_ray(p, s.div, s.ray));
+          }
+      }
+      RenderStats& rs = row_stats[y];
+      for (uint32_t x = 0; x < opt.width; ++x) {
+        const PixelState& s = row[x];
+        image[size_t(y) * opt.width + x] = s.color;
+        rs.primary_rays += 1;
+        rs.shadow_rays += s.shadow_rays;
+        rs.primary_steps += s.steps_primary;
+        rs.shadow_steps += s.steps_shadow;
+        rs.loop_iterations += s.iterations;
+        rs.refractions += s.refractions;
+        rs.reflections += s.reflections;
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (auto& th : pool) th.join();
+  if (stats) {
+    *stats = RenderStats{};
+    for (const RenderStats& r : row_stats) {
+      stats->primary_rays += r.primary_rays, stats->shadow_rays += r.shadow_rays;
+      stats->primary_steps += r.primary_steps, stats->shadow_steps += r.shadow_steps;
+      stats->loop_iterations += r.loop_iterations, stats->refractions += r.refractions, stats->reflections += r.reflections;
+    }
+    stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  return image;
+}
+
+}  // namespace gridrt::portal

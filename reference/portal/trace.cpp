@@ -1,0 +1,371 @@
+// trace.cpp: portal traversal, voxel DDA, explain, tracers, renderer (trace.h).
+#include "reference/portal/trace.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <limits>
+#include <thread>
+
+#include "common/camera.h"
+#include "common/shared/portal.h"
+
+namespace gridrt::portal {
+
+namespace sh = gridrt::shared;
+
+namespace {
+
+template <class F>
+void parallel_rows(size_t n, unsigned threads, F&& f) {
+  if (!threads) threads = std::max(1u, std::thread::hardware_concurrency());
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i; (i = next.fetch_add(1)) < n;) f(i);
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads && t < n; ++t) pool.emplace_back(work);
+  work();
+  for (auto& th : pool) th.join();
+}
+
+std::string fmt(const char* f, ...) __attribute__((format(printf, 1, 2)));
+std::string fmt(const char* f, ...) {
+  char buf[512];
+  va_list ap;
+  va_start(ap, f);
+  std::vsnprintf(buf, sizeof buf, f, ap);
+  va_end(ap);
+  return buf;
+}
+
+const char* face_name(uint32_t f) {
+  static const char* n[] = {"-X", "+X", "-Y", "+Y", "-Z", "+Z", "inside"};
+  return n[std::min(f, 6u)];
+}
+
+std::string texel_text(uint32_t t) {
+  if (t == sh::kPortalOutside) return fmt("0x%04X (outside the world)", t);
+  if (t >= sh::kPortalWallBit) return fmt("0x%04X (wall, material %u)", t, t - sh::kPortalWallBit);
+  return fmt("0x%04X (div %u)", t, t);
+}
+
+Hit miss_hit(uint32_t steps, uint32_t texels) {
+  Hit h{};
+  h.t = std::numeric_limits<float>::infinity();
+  h.instance = sh::kNoInstance;
+  h.triangle = 0;
+  h.u = h.v = 0.0f;
+  h.flags = 0;
+  h.cells = steps;
+  h.tests = texels;
+  return h;
+}
+
+uint32_t voxel_linear(glm::uvec3 dims, glm::ivec3 v) { return uint32_t(v.x) + dims.x * (uint32_t(v.y) + dims.y * uint32_t(v.z)); }
+
+// A wall hit on plane (axis, num, ad) of `ray`, entering solid voxel `wall`; `side` is the voxel
+// index along the tangents (the voxel the ray was in when it crossed).
+Hit wall_hit(glm::uvec3 dims, const VoxelRay& r, uint32_t axis, float num, float ad, glm::ivec3 side, glm::ivec3 wall,
+             uint32_t material, uint32_t steps, uint32_t texels) {
+  Hit h = miss_hit(steps, texels);
+  const uint32_t t0 = sh::portal_tangent0(axis), t1 = sh::portal_tangent1(axis);
+  h.t = num / ad;
+  h.instance = material;
+  h.triangle = (voxel_linear(dims, wall) << sh::kPortalFaceBits) | sh::portal_hit_face(axis, r.dir[axis]);
+  h.u = sh::portal_subtexel(num, ad, r.org[t0], r.dir[t0], uint32_t(side[t0]));
+  h.v = sh::portal_subtexel(num, ad, r.org[t1], r.dir[t1], uint32_t(side[t1]));
+  return h;
+}
+
+Hit inside_hit(glm::uvec3 dims, const VoxelRay& r, glm::ivec3 v, uint32_t material) {
+  Hit h = miss_hit(1, 1);
+  h.t = r.tmin;
+  h.instance = material;
+  h.triangle = (voxel_linear(dims, v) << sh::kPortalFaceBits) | sh::kPortalFaceInside;
+  return h;
+}
+
+// Where a voxel-space ray starts: inside the world box (the voxel of org + tmin dir), entering it
+// (entry axis and the boundary voxel), or missing it. Shared by the portal and the DDA.
+struct Entry {
+  enum Kind { kInside, kEnter, kMiss } kind = kMiss;
+  glm::ivec3 voxel{0};
+  uint32_t axis = 3;
+  float num = 0, ad = 0;
+};
+Entry enter_world(glm::uvec3 dims, const VoxelRay& r) {
+  Entry e;
+  const glm::vec3 hi(dims);
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(r.org[a]) || !std::isfinite(r.dir[a])) return e;
+  const glm::vec3 q = r.org + r.tmin * r.dir;
+  if (q.x >= 0.0f && q.y >= 0.0f && q.z >= 0.0f && q.x <= hi.x && q.y <= hi.y && q.z <= hi.z) {
+    e.kind = Entry::kInside;
+    // The voxel the ray moves into: a point on a voxel plane belongs to the voxel ahead of it.
+    for (int a = 0; a < 3; ++a) {
+      const float c = r.dir[a] < 0.0f ? std::ceil(q[a]) - 1.0f : std::floor(q[a]);
+      e.voxel[a] = std::clamp(int(c), 0, int(dims[a]) - 1);
+    }
+    return e;
+  }
+  float num = 0.0f;
+  const uint32_t a = sh::portal_entry_axis(glm::vec3(0.0f), hi, r.org, r.dir, num);
+  if (a == 3) return e;
+  const float ad = std::abs(r.dir[a]);
+  if (num < r.tmin * ad) return e;  // the box lies before tmin
+  e.kind = Entry::kEnter;
+  e.axis = a, e.num = num, e.ad = ad;
+  e.voxel[a] = r.dir[a] > 0.0f ? 0 : int(dims[a]) - 1;
+  for (uint32_t b : {sh::portal_tangent0(a), sh::portal_tangent1(a)})
+    e.voxel[b] = int(sh::portal_cross_index(a, num, ad, b, r.org[b], r.dir[b], 0u, dims[b]));
+  return e;
+}
+
+uint16_t atlas_at(const PackedPortal& p, glm::uvec2 uv) { return p.atlas[size_t(uv.y) * p.atlas_width + uv.x]; }
+
+}  // namespace
+
+VoxelRay to_voxel_ray(glm::vec3 origin, float voxel_size, const Ray& ray) {
+  VoxelRay r;
+  const float inv = 1.0f / voxel_size;
+  r.org = (ray.org - origin) * inv;
+  r.dir = ray.dir * inv;
+  r.tmin = ray.tmin;
+  r.tmax = ray.tmax;
+  return r;
+}
+
+glm::ivec3 hit_voxel(const World& w, const Hit& h) {
+  const uint32_t i = hit_voxel_index(h);
+  return glm::ivec3(i % w.dims.x, (i / w.dims.x) % w.dims.y, i / (w.dims.x * w.dims.y));
+}
+
+Start start_ray(const PackedPortal& p, const VoxelRay& r) {
+  Start s;
+  const Entry e = enter_world(p.dims, r);
+  if (e.kind == Entry::kMiss) return s;
+  if (e.kind == Entry::kEnter) {
+    s.kind = Start::kDiv;
+    s.div = sh::kPortalExteriorDiv;
+    return s;
+  }
+  s.voxel = e.voxel;
+  s.texel = p.start[voxel_linear(p.dims, e.voxel)];
+  if (sh::portal_texel_is_wall(s.texel)) {
+    s.kind = Start::kInsideSolid;
+    return s;
+  }
+  s.kind = Start::kDiv;
+  s.div = s.texel;
+  return s;
+}
+
+Step step_ray(const PackedPortal& p, uint32_t div, const VoxelRay& r) {
+  Step s;
+  const DivInfo d = read_div_info(p, div);
+  const glm::vec3 lo(d.lo), hi(d.lo + d.size);
+  float num = 0.0f;
+  if (d.type == sh::kPortalDivExterior) {
+    // The exterior div: the face the ray enters the world box by (surfaced on the outside).
+    const uint32_t a = sh::portal_entry_axis(lo, hi, r.org, r.dir, num);
+    if (a == 3) return s;
+    s.axis = a, s.num = num, s.ad = std::abs(r.dir[a]);
+    s.face = 2 * a + (r.dir[a] > 0.0f ? 0u : 1u);
+    s.voxel[a] = r.dir[a] > 0.0f ? d.lo[a] : d.lo[a] + d.size[a] - 1;
+  } else {
+    // 1. The exit face: three slab tests, only the face each direction component points to.
+    const uint32_t a = sh::portal_exit_axis(lo, hi, r.org, r.dir, num);
+    if (a == 3) return s;
+    s.axis = a, s.num = num, s.ad = std::abs(r.dir[a]);
+    if (!sh::portal_before_tmax(num, s.ad, r.tmax)) {
+      s.kind = StepKind::kTmax;
+      return s;
+    }
+    s.face = 2 * a + (r.dir[a] > 0.0f ? 1u : 0u);
+    s.voxel[a] = r.dir[a] > 0.0f ? d.lo[a] + d.size[a] - 1 : d.lo[a];
+  }
+  // 2. The crossing voxel along the tangents, and the face texel there.
+  const uint32_t a = s.axis, t0 = sh::portal_tangent0(a), t1 = sh::portal_tangent1(a);
+  for (uint32_t b : {t0, t1})
+    s.voxel[b] = int(sh::portal_cross_index(a, s.num, s.ad, b, r.org[b], r.dir[b], uint32_t(d.lo[b]),
+                                            uint32_t(d.lo[b] + d.size[b])));
+  s.texel_uv = d.face_uv[s.face] + glm::uvec2(uint32_t(s.voxel[t0] - d.lo[t0]), uint32_t(s.voxel[t1] - d.lo[t1]));
+  s.texel = atlas_at(p, s.texel_uv);
+  // 3. What the texel says.
+  if (s.texel == sh::kPortalOutside) s.kind = StepKind::kOutside;
+  else if (sh::portal_texel_is_wall(s.texel)) s.kind = StepKind::kWall;
+  else s.kind = StepKind::kNext;
+  return s;
+}
+
+Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
+  const VoxelRay r = to_voxel_ray(p.origin, p.voxel_size, ray);
+  if (log) *log += fmt("voxel-space ray: org (%.6g, %.6g, %.6g) dir (%.6g, %.6g, %.6g) t in (%g, %g)\n", r.org.x, r.org.y,
+                       r.org.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax);
+  const Start st = start_ray(p, r);
+  if (st.kind == Start::kMiss) {
+    if (log) *log += "start: the ray never enters the world box: miss\n";
+    return miss_hit(0, 0);
+  }
+  if (st.kind == Start::kInsideSolid) {
+    if (log) *log += fmt("start: voxel (%d, %d, %d), start texel %s: the ray starts inside a wall\n", st.voxel.x, st.voxel.y,
+                         st.voxel.z, texel_text(st.texel).c_str());
+    return inside_hit(p.dims, r, st.voxel, st.texel - sh::kPortalWallBit);
+  }
+  if (log) {
+    if (st.div == sh::kPortalExteriorDiv) *log += "start: outside the world box: exterior div 0\n";
+    else *log += fmt("start: voxel (%d, %d, %d), start texel %s\n", st.voxel.x, st.voxel.y, st.voxel.z, texel_text(st.texel).c_str());
+  }
+  uint32_t cur = st.div, steps = 0, texels = st.div == sh::kPortalExteriorDiv ? 0 : 1;
+  const uint32_t limit = 4u * p.div_count + 16u;
+  while (steps < limit) {
+    const DivInfo d = read_div_info(p, cur);
+    ++steps;
+    const Step s = step_ray(p, cur, r);
+    if (s.kind == StepKind::kNoDirection) {
+      if (log) *log += fmt("div %u: no face ahead (zero direction or missed box): miss\n", cur);
+      return miss_hit(steps, texels);
+    }
+    if (log)
+      *log += fmt("div %u [%d,%d,%d .. %d,%d,%d)%s: %s face %s at t = %.7g, voxel (%d, %d, %d)", cur, d.lo.x, d.lo.y, d.lo.z,
+                  d.lo.x + d.size.x, d.lo.y + d.size.y, d.lo.z + d.size.z,
+                  d.type == sh::kPortalDivExterior ? " (exterior)" : d.type == sh::kPortalDivGlass ? " (glass)" : "",
+                  d.type == sh::kPortalDivExterior ? "enters by" : "exits by", face_name(s.face), double(s.num / s.ad),
+                  s.voxel.x, s.voxel.y, s.voxel.z);
+    if (s.kind == StepKind::kTmax) {
+      if (log) *log += ": beyond tmax, miss\n";
+      return miss_hit(steps, texels);
+    }
+    ++texels;
+    if (log) *log += fmt(", atlas texel (%u, %u) = %s\n", s.texel_uv.x, s.texel_uv.y, texel_text(s.texel).c_str());
+    if (s.kind == StepKind::kOutside) return miss_hit(steps, texels);
+    glm::ivec3 wall = s.voxel;
+    if (d.type != sh::kPortalDivExterior) wall[s.axis] += r.dir[s.axis] > 0.0f ? 1 : -1;
+    if (s.kind == StepKind::kWall) {
+      const Hit h = wall_hit(p.dims, r, s.axis, s.num, s.ad, s.voxel, wall, s.texel - sh::kPortalWallBit, steps, texels);
+      if (log) *log += fmt("hit: voxel (%d, %d, %d) face %s, material %u, t = %.9g, uv = (%.6g, %.6g)\n", wall.x, wall.y,
+                           wall.z, face_name(hit_face(h)), h.instance, double(h.t), double(h.u), double(h.v));
+      return h;
+    }
+    // Next div; a change of medium (air <-> glass) is a surface for this tracer.
+    const DivInfo nd = read_div_info(p, s.texel);
+    const uint32_t next_medium = nd.type == sh::kPortalDivGlass ? nd.glass_material : 0xFFFFFFFFu;
+    const uint32_t cur_medium = d.type == sh::kPortalDivGlass ? d.glass_material : 0xFFFFFFFFu;
+    if (next_medium != cur_medium) {
+      const uint32_t m = next_medium != 0xFFFFFFFFu ? next_medium : cur_medium;
+      const Hit h = wall_hit(p.dims, r, s.axis, s.num, s.ad, s.voxel, wall, m, steps, texels);
+      if (log) *log += fmt("hit: glass surface, voxel (%d, %d, %d) face %s, material %u, t = %.9g\n", wall.x, wall.y, wall.z,
+                           face_name(hit_face(h)), m, double(h.t));
+      return h;
+    }
+    cur = s.texel;
+  }
+  if (log) *log += "step limit reached: miss\n";
+  return miss_hit(steps, texels);
+}
+
+Hit trace_dda(const World& w, const Ray& ray, std::string* log) {
+  const VoxelRay r = to_voxel_ray(w.origin, w.voxel_size, ray);
+  const Entry e = enter_world(w.dims, r);
+  if (e.kind == Entry::kMiss) {
+    if (log) *log += "dda: the ray never enters the world box: miss\n";
+    return miss_hit(0, 0);
+  }
+  glm::ivec3 c = e.voxel;
+  uint32_t steps = 1, tests = 1;
+  if (w.solid(c)) {
+    if (e.kind == Entry::kInside) return inside_hit(w.dims, r, c, w.at(c));
+    // Entering from outside straight into a wall: the boundary face.
+    glm::ivec3 side = c;
+    return wall_hit(w.dims, r, e.axis, e.num, e.ad, side, c, w.at(c), steps, tests);
+  }
+  const uint32_t limit = 3u * (w.dims.x + w.dims.y + w.dims.z) + 8u;
+  while (steps < limit) {
+    float num = 0.0f;
+    const uint32_t a = sh::portal_exit_axis(glm::vec3(c), glm::vec3(c) + 1.0f, r.org, r.dir, num);
+    if (a == 3) return miss_hit(steps, tests);
+    const float ad = std::abs(r.dir[a]);
+    if (!sh::portal_before_tmax(num, ad, r.tmax)) return miss_hit(steps, tests);
+    glm::ivec3 n = c;
+    n[a] += r.dir[a] > 0.0f ? 1 : -1;
+    if (log) *log += fmt("dda: voxel (%d, %d, %d) -> (%d, %d, %d)\n", c.x, c.y, c.z, n.x, n.y, n.z);
+    if (!w.inside(n)) return miss_hit(steps, tests);
+    ++tests;
+    if (w.solid(n)) return wall_hit(w.dims, r, a, num, ad, c, n, w.at(n), steps, tests);
+    c = n;
+    ++steps;
+  }
+  return miss_hit(steps, tests);
+}
+
+std::string explain_portal(const PackedPortal& p, const World& w, const Ray& ray) {
+  std::string s = fmt("portal-cpu: world '%s' %u x %u x %u voxels, %u divs, atlas %u x %u\n", w.name.c_str(), p.dims.x,
+                      p.dims.y, p.dims.z, p.div_count, p.atlas_width, p.atlas_height);
+  s += fmt("ray: org (%.6g, %.6g, %.6g) dir (%.6g, %.6g, %.6g)\n", ray.org.x, ray.org.y, ray.org.z, ray.dir.x, ray.dir.y,
+           ray.dir.z);
+  const Hit h = trace_portal(p, ray, &s);
+  if (is_miss(h)) s += fmt("result: miss after %u divs, %u texels read\n", h.cells, h.tests);
+  else {
+    const glm::ivec3 v = hit_voxel(w, h);
+    s += fmt("result: material %u ('%s') at voxel (%d, %d, %d) face %s, t = %.9g, after %u divs, %u texels read\n",
+             h.instance, h.instance < w.materials.size() ? w.materials[h.instance].name.c_str() : "?", v.x, v.y, v.z,
+             face_name(hit_face(h)), double(h.t), h.cells, h.tests);
+  }
+  const Hit g = trace_dda(w, ray);
+  s += fmt("voxel DDA: %s after %u voxels%s\n", is_miss(g) ? "miss" : fmt("material %u, t = %.9g", g.instance, double(g.t)).c_str(),
+           g.cells, (g.instance == h.instance && g.triangle == h.triangle) ? " (agrees)" : " (DIFFERS)");
+  return s;
+}
+
+// ---- Tracers ---------------------------------------------------------------------------------
+
+PortalTracer::PortalTracer(uint32_t resolution, PortalOptions options) : resolution_(resolution), options_(options) {}
+PortalTracer::PortalTracer(World world, PortalOptions options) : resolution_(0), options_(options) {
+  build_ = std::make_unique<PortalBuild>(build_portal(std::move(world), options_));
+}
+PortalTracer::PortalTracer(PortalBuild build, PortalOptions options)
+    : resolution_(0), options_(options), build_(std::make_unique<PortalBuild>(std::move(build))) {}
+void PortalTracer::build(const Scene& scene, float) {
+  build_ = std::make_unique<PortalBuild>(build_portal(voxelize(scene, resolution_ ? resolution_ : 64), options_));
+}
+const PortalBuild& PortalTracer::portal() const {
+  if (!build_) throw Error("portal-cpu: not built");
+  return *build_;
+}
+void PortalTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
+  if (rays.size() != hits.size()) throw Error("portal-cpu: rays and hits differ in size");
+  const PackedPortal& p = portal().packed;
+  const size_t chunk = 4096;
+  parallel_rows((rays.size() + chunk - 1) / chunk, options_.threads, [&](size_t c) {
+    for (size_t i = c * chunk; i < std::min(rays.size(), (c + 1) * chunk); ++i) hits[i] = trace_portal(p, rays[i]);
+  });
+}
+AccelDump PortalTracer::dump() const {
+  AccelDump d;
+  d.kind = "portal";
+  const PackedPortal& p = portal().packed;
+  d.extent = glm::uvec3(p.atlas_width, p.atlas_height, 1);
+  d.texels.assign(p.atlas.begin(), p.atlas.end());
+  return d;
+}
+std::string PortalTracer::explain(const Ray& ray) const { return explain_portal(portal().packed, portal().world, ray); }
+
+void VoxelDdaTracer::build(const Scene& scene, float) { world_ = voxelize(scene, resolution_ ? resolution_ : 64); }
+const World& VoxelDdaTracer::world() const {
+  if (!world_) throw Error("voxel-dda: not built");
+  return *world_;
+}
+void VoxelDdaTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
+  if (rays.size() != hits.size()) throw Error("voxel-dda: rays and hits differ in size");
+  const World& w = world();
+  const size_t chunk = 4096;
+  parallel_rows((rays.size() + chunk - 1) / chunk, 0, [&](size_t c) {
+    for (size_t i = c * chunk; i < std::min(rays.size(), (c + 1) * chunk); ++i) hits[i] = trace_dda(w, rays[i]);
+  });
+}
+
+}  // namespace gridrt::portal

@@ -1,0 +1,132 @@
+// trace.h: the portal tracer (seeds/002: stackless traversal of divs, only the current div index as
+// state), the exact voxel DDA over the same occupancy (the ground truth), explain, the Tracer
+// implementations "portal-cpu" and "voxel-dda", and the renderer (primary + two shadow rays,
+// non-forking refraction) as separate loops and as the single-loop state machine.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/tracer.h"
+#include "reference/portal/build.h"
+
+namespace gridrt::portal {
+
+// A ray in voxel space (org and dir mapped by the world's origin and voxel size; t unchanged).
+struct VoxelRay {
+  glm::vec3 org{0.0f}, dir{0.0f, 0.0f, 1.0f};
+  float tmin = 0.0f, tmax = 0.0f;
+};
+VoxelRay to_voxel_ray(glm::vec3 origin, float voxel_size, const Ray& ray);
+
+// One step of the portal traversal from div `div` (seed steps 1-3): the exit face by three slab
+// tests, the texel of that face at the crossing voxel, and what it says.
+enum class StepKind : uint32_t { kNext, kWall, kOutside, kTmax, kNoDirection };
+struct Step {
+  StepKind kind = StepKind::kNoDirection;
+  uint32_t axis = 3;          // axis of the plane crossed
+  float num = 0, ad = 0;      // that plane's distance ahead and |dir[axis]|: t = num / ad
+  uint32_t face = 0;          // the div face left (exterior div: the world face entered)
+  glm::ivec3 voxel{0};        // exterior: the boundary voxel entered; else the voxel on this side of the face
+  glm::uvec2 texel_uv{0};     // atlas coordinates read
+  uint32_t texel = 0;         // the atlas texel value
+};
+Step step_ray(const PackedPortal& packed, uint32_t div, const VoxelRay& ray);
+
+// Where a ray starts: the div holding the voxel at org + tmin dir (start map), the exterior div
+// (div 0) when that point lies outside the world, or a hit (the point is inside a solid voxel:
+// t = tmin, face kPortalFaceInside) / a miss (outside and never entering).
+struct Start {
+  enum Kind { kDiv, kInsideSolid, kMiss } kind = kMiss;
+  uint32_t div = 0;
+  glm::ivec3 voxel{0};
+  uint32_t texel = 0;
+};
+Start start_ray(const PackedPortal& packed, const VoxelRay& ray);
+
+// Closest wall of a world-space ray from the packed textures only. Glass counts as a wall here
+// (the first surface). `log`, if given, receives the explanation (one line per step).
+Hit trace_portal(const PackedPortal& packed, const Ray& ray, std::string* log = nullptr);
+// The same by an exact voxel DDA over the world's occupancy (same hit convention, same plane
+// predicate). `log` as above.
+Hit trace_dda(const World& world, const Ray& ray, std::string* log = nullptr);
+
+// Readable account of one ray: divs visited, exit faces, texels read, decisions.
+std::string explain_portal(const PackedPortal& packed, const World& world, const Ray& ray);
+
+// Helpers for hit records (common/shared/portal.h gives the convention).
+inline uint32_t hit_face(const Hit& h) { return h.triangle & 7u; }
+inline uint32_t hit_voxel_index(const Hit& h) { return h.triangle >> 3; }
+glm::ivec3 hit_voxel(const World& world, const Hit& h);
+
+// Tracer interface. build(scene) voxelizes the scene at `resolution`; the World constructor
+// builds from a world directly (then build(scene) is not needed; update does nothing).
+class PortalTracer final : public Tracer {
+ public:
+  explicit PortalTracer(uint32_t resolution = 64, PortalOptions options = {});
+  explicit PortalTracer(World world, PortalOptions options = {});
+  explicit PortalTracer(PortalBuild build, PortalOptions options = {});  // an existing build
+  std::string name() const override { return "portal-cpu"; }
+  void build(const Scene& scene, float time) override;
+  void update(float) override {}
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  AccelDump dump() const override;  // kind "portal": the atlas texels (extent atlas w x h x 1)
+  const PortalBuild& portal() const;
+  std::string explain(const Ray& ray) const;
+
+ private:
+  uint32_t resolution_;
+  PortalOptions options_;
+  std::unique_ptr<PortalBuild> build_;
+};
+
+class VoxelDdaTracer final : public Tracer {
+ public:
+  explicit VoxelDdaTracer(uint32_t resolution = 64) : resolution_(resolution) {}
+  explicit VoxelDdaTracer(World world) : resolution_(0), world_(std::move(world)) { world_->validate(); }
+  std::string name() const override { return "voxel-dda"; }
+  void build(const Scene& scene, float time) override;
+  void update(float) override {}
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  const World& world() const;
+
+ private:
+  uint32_t resolution_;
+  std::optional<World> world_;
+};
+
+// ---- Rendering -------------------------------------------------------------------------------
+
+struct RenderOptions {
+  uint32_t width = 720, height = 360;  // the seed's resolution
+  bool state_machine = true;   // one loop with state transitions (seed's FSM); false: three loops
+  bool refraction = true;      // glass refracts (never forks; total internal reflection reflects)
+  unsigned threads = 0;        // 0: hardware concurrency
+  float ambient = 0.15f;
+  glm::vec3 background{0.0f};  // a ray leaving the world
+  uint32_t max_interfaces = 32; // glass interfaces per primary ray before it is given up (black)
+};
+
+struct RenderStats {
+  uint64_t primary_rays = 0, shadow_rays = 0;
+  uint64_t primary_steps = 0, shadow_steps = 0;  // divs visited
+  uint64_t loop_iterations = 0;                  // of the FSM loop or the three loops together
+  uint64_t refractions = 0, reflections = 0;     // total internal reflections
+  double seconds = 0;
+};
+
+// Linear RGB, row 0 at the top (index y * width + x). The two shadow rays go to the world's first
+// two lights (a missing light is placed at the eye). Shading: material colour * filter *
+// (ambient + (1 - ambient) * sum over the two lights of visible * max(0, N.L) / 2).
+std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, const RenderOptions& options = {},
+                              RenderStats* stats = nullptr);
+
+// Refraction of unit direction `d` at a surface with unit normal `n` facing the incoming ray,
+// eta = n_from / n_to. Returns false (and the reflected direction) on total internal reflection.
+bool refract_or_reflect(glm::vec3 d, glm::vec3 n, float eta, glm::vec3& out);
+
+}  // namespace gridrt::portal

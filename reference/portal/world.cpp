@@ -1,0 +1,319 @@
+// world.cpp: tile maps, the built-in level and voxelized meshes (world.h).
+#include "reference/portal/world.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "common/shared/portal.h"
+#include "common/shared/transform.h"
+
+namespace gridrt::portal {
+
+namespace {
+
+// The built-in level; data/maps/builtin.map holds the same text.
+constexpr std::string_view kBuiltinLevel = R"MAP(# gridrt portal tile map (docs/PORTAL.md, "Tile maps"): the built-in level.
+size 32 32 4
+map
+11111111111111111111111111111111
+1......1...........2...........1
+1..E...1...........2...........1
+1......1...........2...........1
+1....L.1....3..3...2...........1
+1..................G...........1
+1......1...........2...........1
+1......1....3..3...2...........1
+1......1...........2...........1
+1111.111111111.11122222.22222221
+1.........1........2...........1
+1.........1........2...........1
+1.........1........2...........1
+1....4....1....................1
+1.........1........2...........1
+1.........1........2.....5.....1
+1...........................L..1
+1.........1........2...........1
+11111.11111111111112...........1
+1.........1........2.....5.....1
+1.........1........2...........1
+1...6.....1........22222.2222222
+1.........1........2...........1
+1.........1........2...........1
+1..............................1
+1.........1........2...........1
+1.........1.....7..2.....8.....1
+1...6.....1........2...........1
+1.........1........2...........1
+1.........1........2...........1
+1.........1........2...........1
+11111111111111111111111111111111
+)MAP";
+
+[[noreturn]] void fail(const std::string& name, size_t line, const std::string& what) {
+  throw Error("tile map " + name + (line ? ":" + std::to_string(line) : std::string()) + ": " + what);
+}
+
+glm::vec3 palette(uint32_t i) {
+  static const glm::vec3 colors[] = {{0.6f, 0.6f, 0.6f}, {0.55f, 0.5f, 0.45f}, {0.35f, 0.45f, 0.7f},
+                                     {0.7f, 0.35f, 0.3f}, {0.4f, 0.65f, 0.35f}, {0.75f, 0.7f, 0.3f},
+                                     {0.6f, 0.4f, 0.65f}, {0.3f, 0.65f, 0.65f}, {0.8f, 0.55f, 0.35f},
+                                     {0.45f, 0.45f, 0.5f}};
+  return colors[i % 10];
+}
+
+}  // namespace
+
+bool World::has_glass() const {
+  return std::any_of(materials.begin(), materials.end(), [](const WallMaterial& m) { return m.glass; });
+}
+
+void World::validate() const {
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] == 0) throw Error("portal world '" + name + "': empty world (a dimension is 0)");
+    if (dims[a] > kMaxWorldAxis)
+      throw Error("portal world '" + name + "': " + std::to_string(dims[a]) + " voxels along axis " + "xyz"[a] +
+                  ", the div format (8-bit sizes and origins) allows at most " + std::to_string(kMaxWorldAxis));
+  }
+  if (voxels.size() != voxel_count()) throw Error("portal world '" + name + "': voxel array size does not match dims");
+  if (materials.size() > shared::kPortalMaxMaterial + 1)
+    throw Error("portal world '" + name + "': more than 32767 materials");
+  for (size_t i = 0; i < voxels.size(); ++i)
+    if (voxels[i] != kEmpty && voxels[i] >= materials.size())
+      throw Error("portal world '" + name + "': voxel " + std::to_string(i) + " has unknown material " +
+                  std::to_string(voxels[i]));
+  for (size_t m = 0; m < materials.size(); ++m)
+    if (materials[m].glass && m > 255)
+      throw Error("portal world '" + name + "': glass material " + std::to_string(m) + " above 255 (8-bit div info)");
+  if (!(voxel_size > 0.0f) || !std::isfinite(voxel_size)) throw Error("portal world '" + name + "': bad voxel size");
+}
+
+World parse_tile_map(std::string_view text, const std::string& name, bool require_eye) {
+  World w;
+  w.name = name;
+  // Default materials: '0'..'9' walls 0..9, 'G' glass 10, floor 11, ceiling 12.
+  std::string chars;
+  for (int i = 0; i < 10; ++i) {
+    chars.push_back(char('0' + i));
+    w.materials.push_back({std::string("wall") + char('0' + i), palette(uint32_t(i)), false, 1.5f, glm::vec3(1.0f)});
+  }
+  chars.push_back('G');
+  w.materials.push_back({"glass", glm::vec3(0.8f, 0.9f, 1.0f), true, 1.5f, glm::vec3(0.75f, 0.85f, 1.0f)});
+  chars.push_back('\0');
+  w.materials.push_back({"floor", glm::vec3(0.45f, 0.42f, 0.4f), false, 1.5f, glm::vec3(1.0f)});
+  chars.push_back('\0');
+  w.materials.push_back({"ceiling", glm::vec3(0.75f, 0.75f, 0.78f), false, 1.5f, glm::vec3(1.0f)});
+  const uint16_t floor_m = 11, ceiling_m = 12;
+
+  uint32_t W = 0, D = 0, H = 0;
+  bool have_size = false, in_map = false;
+  std::vector<std::string> rows;
+  std::vector<size_t> row_lines;
+  size_t lineno = 0;
+  std::string line;
+  std::istringstream in{std::string(text)};
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (in_map) {
+      if (line.empty() && rows.size() == D) continue;
+      rows.push_back(line);
+      row_lines.push_back(lineno);
+      continue;
+    }
+    const size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::istringstream ls(line);
+    std::string key;
+    ls >> key;
+    if (key == "size") {
+      long long a = -1, b = -1, c = -1;
+      if (!(ls >> a >> b >> c)) fail(name, lineno, "expected 'size WIDTH DEPTH HEIGHT'");
+      if (a <= 0 || b <= 0 || c <= 0) fail(name, lineno, "size must be positive (empty world)");
+      if (a > kMaxWorldAxis || b > kMaxWorldAxis || c + 2 > kMaxWorldAxis)
+        fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) +
+                               " exceeds the div format's 255 voxels per axis (height + 2 for floor and ceiling)");
+      W = uint32_t(a), D = uint32_t(b), H = uint32_t(c);
+      have_size = true;
+    } else if (key == "material") {
+      std::string c, mname;
+      float r, g, b;
+      if (!(ls >> c >> mname >> r >> g >> b) || c.size() != 1)
+        fail(name, lineno, "expected 'material CHAR NAME R G B [glass IOR]'");
+      if (c[0] == '.' || c[0] == 'E' || c[0] == 'L' || c[0] == ' ') fail(name, lineno, "'" + c + "' is reserved");
+      WallMaterial m{mname, glm::vec3(r, g, b), false, 1.5f, glm::vec3(1.0f)};
+      std::string opt;
+      if (ls >> opt) {
+        if (opt != "glass" || !(ls >> m.ior) || !(m.ior > 0.0f)) fail(name, lineno, "expected 'glass IOR' after the colour");
+        m.glass = true;
+        m.filter = m.color;
+      }
+      const size_t at = chars.find(c[0]);
+      if (at != std::string::npos) {
+        w.materials[at] = m;
+      } else {
+        chars.push_back(c[0]);
+        w.materials.push_back(m);
+      }
+    } else if (key == "map") {
+      if (!have_size) fail(name, lineno, "'map' before 'size'");
+      in_map = true;
+    } else {
+      fail(name, lineno, "unknown keyword '" + key + "'");
+    }
+  }
+  if (!have_size) fail(name, 0, "no 'size' line (empty world)");
+  if (!in_map) fail(name, 0, "no 'map' section");
+  if (rows.size() != D)
+    fail(name, 0, "expected " + std::to_string(D) + " map rows, found " + std::to_string(rows.size()));
+
+  w.dims = glm::uvec3(W, H + 2, D);
+  w.voxels.assign(w.voxel_count(), kEmpty);
+  bool eye = false;
+  glm::ivec2 eye_tile{0};
+  std::vector<glm::ivec2> light_tiles;
+  for (uint32_t z = 0; z < D; ++z) {
+    const std::string& r = rows[z];
+    if (r.size() != W)
+      fail(name, row_lines[z], "row has " + std::to_string(r.size()) + " characters, expected " + std::to_string(W) +
+                                   " (ragged map)");
+    for (uint32_t x = 0; x < W; ++x) {
+      const char c = r[x];
+      uint16_t m = kEmpty;
+      if (c == '.') {
+      } else if (c == 'E') {
+        if (eye) fail(name, row_lines[z], "a second eye 'E' at column " + std::to_string(x + 1));
+        eye = true;
+        eye_tile = {int(x), int(z)};
+      } else if (c == 'L') {
+        light_tiles.push_back({int(x), int(z)});
+      } else {
+        const size_t at = c ? chars.find(c) : std::string::npos;
+        if (at == std::string::npos)
+          fail(name, row_lines[z], std::string("unknown character '") + c + "' at column " + std::to_string(x + 1));
+        m = uint16_t(at);
+      }
+      w.voxels[w.index(x, 0, z)] = floor_m;
+      w.voxels[w.index(x, H + 1, z)] = ceiling_m;
+      for (uint32_t y = 1; y <= H; ++y) w.voxels[w.index(x, y, z)] = m;
+    }
+  }
+  if (require_eye && !eye) fail(name, 0, "no eye 'E' in the map");
+  // Camera: at the eye tile, half way up, looking along the longest free run of tiles.
+  const float mid = 1.0f + 0.5f * float(H);
+  if (eye) {
+    w.has_eye = true;
+    const glm::ivec2 dirs[4] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+    int best = 0, best_len = -1;
+    for (int d = 0; d < 4; ++d) {
+      int len = 0;
+      glm::ivec2 p = eye_tile + dirs[d];
+      while (p.x >= 0 && p.y >= 0 && p.x < int(W) && p.y < int(D) && w.voxels[w.index(p.x, 1, p.y)] == kEmpty) {
+        ++len;
+        p += dirs[d];
+      }
+      if (len > best_len) best_len = len, best = d;
+    }
+    w.camera.eye = glm::vec3(float(eye_tile.x) + 0.5f, mid, float(eye_tile.y) + 0.5f);
+    w.camera.target = w.camera.eye + glm::vec3(float(dirs[best].x), 0.0f, float(dirs[best].y));
+    w.camera.up = glm::vec3(0.0f, 1.0f, 0.0f);
+    w.camera.vfov_degrees = 60.0f;
+  }
+  for (const glm::ivec2& l : light_tiles) w.lights.push_back(glm::vec3(float(l.x) + 0.5f, float(H) + 0.5f, float(l.y) + 0.5f));
+  w.validate();
+  return w;
+}
+
+World load_tile_map(const std::string& path, bool require_eye) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw Error("tile map " + path + ": cannot open");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return parse_tile_map(ss.str(), path, require_eye);
+}
+
+std::string_view builtin_level_text() { return kBuiltinLevel; }
+World builtin_level() { return parse_tile_map(kBuiltinLevel, "builtin", true); }
+
+bool triangle_box_overlap(glm::vec3 c, glm::vec3 h, glm::vec3 a, glm::vec3 b, glm::vec3 cc) {
+  const glm::vec3 v0 = a - c, v1 = b - c, v2 = cc - c;
+  const glm::vec3 e[3] = {v1 - v0, v2 - v1, v0 - v2};
+  // Box axes.
+  for (int i = 0; i < 3; ++i) {
+    const float mn = std::min({v0[i], v1[i], v2[i]}), mx = std::max({v0[i], v1[i], v2[i]});
+    if (mn > h[i] || mx < -h[i]) return false;
+  }
+  // Triangle normal.
+  const glm::vec3 n = glm::cross(e[0], e[1]);
+  {
+    const float d = glm::dot(n, v0);
+    const float r = h.x * std::abs(n.x) + h.y * std::abs(n.y) + h.z * std::abs(n.z);
+    if (d > r || d < -r) return false;
+  }
+  // Edge x box-axis cross products.
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      glm::vec3 axis(0.0f);
+      axis[j] = 1.0f;
+      const glm::vec3 l = glm::cross(axis, e[i]);
+      const float p0 = glm::dot(l, v0), p1 = glm::dot(l, v1), p2 = glm::dot(l, v2);
+      const float r = h.x * std::abs(l.x) + h.y * std::abs(l.y) + h.z * std::abs(l.z);
+      if (std::min({p0, p1, p2}) > r || std::max({p0, p1, p2}) < -r) return false;
+    }
+  return true;
+}
+
+World voxelize(const Scene& scene, uint32_t resolution) {
+  if (resolution < 1 || resolution > kMaxWorldAxis - 2)
+    throw Error("voxelize: resolution " + std::to_string(resolution) + " outside 1 .. 253 (8-bit div format)");
+  const Bounds b = scene.bounds(0.0f);
+  if (b.empty() || scene.triangle_count() == 0) throw Error("voxelize: scene '" + scene.name + "' has no triangles (empty world)");
+  World w;
+  w.name = scene.name;
+  const glm::vec3 ext = b.extent();
+  const float longest = std::max({ext.x, ext.y, ext.z});
+  w.voxel_size = longest > 0.0f ? longest / float(resolution) : 1.0f;
+  for (int a = 0; a < 3; ++a)
+    w.dims[a] = std::clamp(uint32_t(std::ceil(ext[a] / w.voxel_size - 1e-4f)), 1u, resolution) + 2;
+  w.origin = b.lo - glm::vec3(w.voxel_size);
+  w.voxels.assign(w.voxel_count(), kEmpty);
+  for (const Material& m : scene.materials) w.materials.push_back({m.name, m.diffuse, false, 1.5f, glm::vec3(1.0f)});
+  if (w.materials.empty()) w.materials.push_back({"default", glm::vec3(0.8f), false, 1.5f, glm::vec3(1.0f)});
+  if (w.materials.size() > shared::kPortalMaxMaterial + 1) throw Error("voxelize: more than 32767 materials");
+  const glm::vec3 half(0.5f * w.voxel_size * 1.0001f);
+  for (size_t ii = 0; ii < scene.instances.size(); ++ii) {
+    const Instance& inst = scene.instances[ii];
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    const shared::Affine xf = shared::to_affine(inst.transform_at(0.0f));
+    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+      const glm::uvec3 tri = mesh.triangles[t];
+      const glm::vec3 p0 = shared::transform_point(xf, mesh.positions[tri.x]);
+      const glm::vec3 p1 = shared::transform_point(xf, mesh.positions[tri.y]);
+      const glm::vec3 p2 = shared::transform_point(xf, mesh.positions[tri.z]);
+      const glm::vec3 lo = w.to_voxel(glm::min(p0, glm::min(p1, p2))), hi = w.to_voxel(glm::max(p0, glm::max(p1, p2)));
+      glm::ivec3 vlo, vhi;
+      for (int a = 0; a < 3; ++a) {
+        vlo[a] = std::clamp(int(std::floor(lo[a])) - 1, 0, int(w.dims[a]) - 1);
+        vhi[a] = std::clamp(int(std::floor(hi[a])) + 1, 0, int(w.dims[a]) - 1);
+      }
+      const uint16_t mat = uint16_t(t < mesh.materials.size() ? std::min<uint32_t>(mesh.materials[t], uint32_t(w.materials.size() - 1)) : 0);
+      for (int z = vlo.z; z <= vhi.z; ++z)
+        for (int y = vlo.y; y <= vhi.y; ++y)
+          for (int x = vlo.x; x <= vhi.x; ++x) {
+            uint16_t& v = w.voxels[w.index(x, y, z)];
+            if (v != kEmpty) continue;
+            const glm::vec3 center = w.to_world(glm::vec3(x, y, z) + 0.5f);
+            if (triangle_box_overlap(center, half, p0, p1, p2)) v = mat;
+          }
+    }
+  }
+  const Camera cam = scene.frame_camera();
+  w.camera = cam;
+  for (const Light& l : scene.lights)
+    w.lights.push_back(l.directional ? cam.eye + l.position * (2.0f * longest) : l.position);
+  w.validate();
+  return w;
+}
+
+}  // namespace gridrt::portal

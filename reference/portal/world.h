@@ -1,0 +1,85 @@
+// world.h: the voxel worlds the portal tracer runs in (docs/PORTAL.md, "Worlds"): an occupancy
+// grid of wall materials, from a Wolf3D-style tile map, the built-in level, or a voxelized mesh.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "common/scene.h"
+
+namespace gridrt::portal {
+
+inline constexpr uint16_t kEmpty = 0xFFFF;      // a voxel of empty space
+inline constexpr uint32_t kMaxWorldAxis = 255;  // div sizes and origins are 8-bit (seed's format)
+
+struct WallMaterial {
+  std::string name;
+  glm::vec3 color{0.7f};
+  bool glass = false;        // a transparent medium the renderer refracts through (never forks)
+  float ior = 1.5f;          // index of refraction of the glass
+  glm::vec3 filter{1.0f};    // colour filter per unit length inside the glass
+};
+
+struct World {
+  std::string name;
+  glm::uvec3 dims{0};                  // voxels per axis, each 1 .. 255
+  std::vector<uint16_t> voxels;        // x fastest, then y, then z: kEmpty or a material index
+  std::vector<WallMaterial> materials; // indexed by voxel values
+  glm::vec3 origin{0.0f};              // world position of voxel corner (0, 0, 0)
+  float voxel_size = 1.0f;             // world units per voxel
+  // Tile maps: the eye and the lights (world positions); scenes: from the scene.
+  bool has_eye = false;
+  Camera camera;
+  std::vector<glm::vec3> lights;
+
+  size_t index(uint32_t x, uint32_t y, uint32_t z) const { return x + size_t(dims.x) * (y + size_t(dims.y) * z); }
+  size_t index(glm::uvec3 v) const { return index(v.x, v.y, v.z); }
+  size_t voxel_count() const { return size_t(dims.x) * dims.y * dims.z; }
+  bool inside(glm::ivec3 v) const {
+    return v.x >= 0 && v.y >= 0 && v.z >= 0 && uint32_t(v.x) < dims.x && uint32_t(v.y) < dims.y && uint32_t(v.z) < dims.z;
+  }
+  uint16_t at(glm::ivec3 v) const { return voxels[index(glm::uvec3(v))]; }
+  bool solid(glm::ivec3 v) const { return at(v) != kEmpty; }  // wall or glass
+  // Medium key of a voxel for div building: kEmpty for air, the material for glass, and
+  // kOpaque for an opaque wall (no div).
+  static constexpr uint32_t kOpaque = 0x10000;
+  uint32_t medium(glm::ivec3 v) const {
+    const uint16_t m = at(v);
+    if (m == kEmpty) return kEmpty;
+    return materials[m].glass ? m : kOpaque;
+  }
+  bool has_glass() const;
+
+  // Check dims (1 .. 255 each), sizes, material indices (< materials.size(), <= 0x7FFE), glass
+  // materials < 256. Throws Error naming what is wrong.
+  void validate() const;
+  // Voxel-space <-> world-space.
+  glm::vec3 to_voxel(glm::vec3 p) const { return (p - origin) * (1.0f / voxel_size); }
+  glm::vec3 to_world(glm::vec3 v) const { return origin + v * voxel_size; }
+};
+
+// A tile map (format in docs/PORTAL.md, "Tile maps"). `name` names the source in errors.
+// `require_eye`: a map without 'E' is an error. Throws Error with the line and column.
+World parse_tile_map(std::string_view text, const std::string& name = "map", bool require_eye = true);
+World load_tile_map(const std::string& path, bool require_eye = true);
+
+// The built-in level: 32 x 32 tiles, 4 voxels high, rooms, corridors, pillars, a glass wall,
+// two lights. Its text is builtin_level_text().
+World builtin_level();
+std::string_view builtin_level_text();
+
+// Voxelize every instance of `scene` at time 0: a voxel is solid when a triangle overlaps it
+// (triangle/box separating-axis test, Akenine-Moeller), its material the scene material of the
+// lowest (instance, triangle) that overlaps it. `resolution` voxels along the longest axis of the
+// bounds (1 .. 253); one empty voxel of margin on every side. Camera and lights from the scene.
+World voxelize(const Scene& scene, uint32_t resolution = 64);
+
+// Triangle/axis-aligned box overlap (separating axis theorem: 3 box axes, the triangle normal,
+// 9 edge cross products). Exposed for tests.
+bool triangle_box_overlap(glm::vec3 box_center, glm::vec3 box_half, glm::vec3 a, glm::vec3 b, glm::vec3 c);
+
+}  // namespace gridrt::portal

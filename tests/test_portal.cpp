@@ -1,0 +1,481 @@
+// test_portal.cpp: the portal ("div") tracer of seeds/002 against independent truth: brute-force
+// box enumeration, the world's occupancy, the exact voxel DDA, the seed's own 2D example.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "common/builtin/builtin.h"
+#include "common/camera.h"
+#include "reference/portal/build.h"
+#include "reference/portal/trace.h"
+#include "reference/portal/world.h"
+
+using namespace gridrt;
+using namespace gridrt::portal;
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+Ray make_ray(glm::vec3 o, glm::vec3 d, float tmin = 0.0f, float tmax = kInf) {
+  Ray r{};
+  r.org = o, r.dir = d, r.tmin = tmin, r.tmax = tmax;
+  r.launch_normal = glm::vec3(0.0f);
+  r.launch_ref = shared::kNoRef;
+  return r;
+}
+
+std::string hex(float f) {
+  uint32_t b;
+  std::memcpy(&b, &f, 4);
+  char s[64];
+  std::snprintf(s, sizeof s, "%.9g (0x%08X)", double(f), b);
+  return s;
+}
+
+std::string ray_text(const Ray& r) {
+  return "org (" + hex(r.org.x) + ", " + hex(r.org.y) + ", " + hex(r.org.z) + ") dir (" + hex(r.dir.x) + ", " + hex(r.dir.y) +
+         ", " + hex(r.dir.z) + ")";
+}
+
+// Random world: occupancy with probability `fill`, materials 0..2.
+World random_world(glm::uvec3 dims, float fill, uint32_t seed) {
+  World w;
+  w.name = "random";
+  w.dims = dims;
+  w.materials = {{"a", glm::vec3(1, 0, 0)}, {"b", glm::vec3(0, 1, 0)}, {"c", glm::vec3(0, 0, 1)}};
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  w.voxels.resize(w.voxel_count());
+  for (auto& v : w.voxels) v = U(rng) < fill ? uint16_t(rng() % 3) : kEmpty;
+  return w;
+}
+
+bool box_all(const World& w, const Box& b, uint32_t medium) {
+  for (int z = b.lo.z; z < b.hi.z; ++z)
+    for (int y = b.lo.y; y < b.hi.y; ++y)
+      for (int x = b.lo.x; x < b.hi.x; ++x)
+        if (w.medium({x, y, z}) != medium) return false;
+  return true;
+}
+
+// Can box b grow by one layer on face f?
+bool can_grow(const World& w, const Box& b, uint32_t f) {
+  Box g = b;
+  const int a = int(f / 2);
+  if (f & 1u) g.hi[a] += 1; else g.lo[a] -= 1;
+  if (g.lo[a] < 0 || g.hi[a] > int(w.dims[a])) return false;
+  return box_all(w, g, b.medium);
+}
+
+void check_divs(const World& w, const std::vector<Box>& divs) {
+  std::vector<uint8_t> covered(w.voxel_count(), 0);
+  for (const Box& b : divs) {
+    INFO("div [" << b.lo.x << "," << b.lo.y << "," << b.lo.z << " .. " << b.hi.x << "," << b.hi.y << "," << b.hi.z << ")");
+    REQUIRE(box_all(w, b, b.medium));
+    for (uint32_t f = 0; f < 6; ++f) REQUIRE_FALSE(can_grow(w, b, f));
+    for (int z = b.lo.z; z < b.hi.z; ++z)
+      for (int y = b.lo.y; y < b.hi.y; ++y)
+        for (int x = b.lo.x; x < b.hi.x; ++x) covered[w.index(x, y, z)] = 1;
+  }
+  for (size_t i = 0; i < covered.size(); ++i) {
+    const glm::ivec3 v(i % w.dims.x, (i / w.dims.x) % w.dims.y, i / (w.dims.x * w.dims.y));
+    if (w.medium(v) != World::kOpaque) REQUIRE(covered[i]);
+  }
+}
+
+// Every maximal box by brute force: all boxes of one medium that cannot grow.
+std::vector<Box> brute_force_maximal(const World& w) {
+  std::vector<Box> out;
+  const glm::ivec3 d(w.dims);
+  for (uint32_t medium : {uint32_t(kEmpty)})
+    for (int z0 = 0; z0 < d.z; ++z0)
+      for (int z1 = z0 + 1; z1 <= d.z; ++z1)
+        for (int y0 = 0; y0 < d.y; ++y0)
+          for (int y1 = y0 + 1; y1 <= d.y; ++y1)
+            for (int x0 = 0; x0 < d.x; ++x0)
+              for (int x1 = x0 + 1; x1 <= d.x; ++x1) {
+                const Box b{{x0, y0, z0}, {x1, y1, z1}, medium};
+                if (!box_all(w, b, medium)) break;  // growing x1 further cannot help
+                bool maximal = true;
+                for (uint32_t f = 0; f < 6 && maximal; ++f) maximal = !can_grow(w, b, f);
+                if (maximal) out.push_back(b);
+              }
+  return out;
+}
+
+const PortalBuild& builtin_build() {
+  static const PortalBuild b = build_portal(builtin_level(), PortalOptions{1024, 1024, 0, false});
+  return b;
+}
+
+const PortalBuild& teapot_build() {
+  static const PortalBuild b = [] {
+    Scene s = make_builtin("teapot");
+    return build_portal(voxelize(s, 24), PortalOptions{1024, 1024, 0, false});
+  }();
+  return b;
+}
+
+// A random ray starting in an empty voxel (or outside the world, `outside`), random direction.
+Ray random_ray(const World& w, std::mt19937& rng, bool outside) {
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  glm::vec3 d;
+  do d = glm::vec3(U(rng), U(rng), U(rng)) * 2.0f - 1.0f;
+  while (glm::length(d) < 0.1f);
+  if (outside) {
+    const glm::vec3 c = w.to_world(glm::vec3(w.dims) * 0.5f);
+    const float r = glm::length(glm::vec3(w.dims)) * w.voxel_size;
+    const glm::vec3 target = w.to_world(glm::vec3(U(rng), U(rng), U(rng)) * glm::vec3(w.dims));
+    const glm::vec3 o = c + glm::normalize(d) * r;
+    return make_ray(o, target - o);
+  }
+  for (;;) {
+    const glm::ivec3 v(rng() % w.dims.x, rng() % w.dims.y, rng() % w.dims.z);
+    if (w.solid(v)) continue;
+    const glm::vec3 o = w.to_world(glm::vec3(v) + glm::vec3(U(rng), U(rng), U(rng)));
+    return make_ray(o, d);
+  }
+}
+
+struct Compare {
+  size_t rays = 0, hits = 0;
+  double portal_steps = 0, dda_steps = 0;
+};
+
+Compare compare_with_dda(const PortalBuild& b, size_t n, bool outside, uint32_t seed) {
+  std::mt19937 rng(seed);
+  Compare c;
+  for (size_t i = 0; i < n; ++i) {
+    const Ray r = random_ray(b.world, rng, outside);
+    const Hit p = trace_portal(b.packed, r);
+    const Hit d = trace_dda(b.world, r);
+    INFO("ray " << i << ": " << ray_text(r));
+    INFO(explain_portal(b.packed, b.world, r));
+    REQUIRE(p.instance == d.instance);
+    if (is_miss(d)) continue;
+    REQUIRE(hit_voxel_index(p) == hit_voxel_index(d));
+    REQUIRE(hit_face(p) == hit_face(d));
+    // Same plane, same numerator, same division: t and uv agree to the bit.
+    REQUIRE(hex(p.t) == hex(d.t));
+    REQUIRE(hex(p.u) == hex(d.u));
+    REQUIRE(hex(p.v) == hex(d.v));
+    ++c.hits;
+    c.portal_steps += p.cells;
+    c.dda_steps += d.cells;
+  }
+  c.rays = n;
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("Portal: maximal divs equal brute-force enumeration on random worlds", "[portal][unit]") {
+  for (uint32_t seed = 1; seed <= 12; ++seed) {
+    const World w = random_world({5 + seed % 3, 4 + seed % 2, 3 + seed % 4}, 0.3f + 0.03f * float(seed), seed);
+    std::vector<Box> got = maximal_divs(w, 2);
+    std::vector<Box> want = brute_force_maximal(w);
+    auto key = [](const Box& b) { return std::tuple(b.lo.z, b.lo.y, b.lo.x, b.hi.z, b.hi.y, b.hi.x); };
+    std::sort(got.begin(), got.end(), [&](const Box& a, const Box& c) { return key(a) < key(c); });
+    std::sort(want.begin(), want.end(), [&](const Box& a, const Box& c) { return key(a) < key(c); });
+    INFO("seed " << seed);
+    REQUIRE(got.size() == want.size());
+    REQUIRE(got == want);
+  }
+}
+
+TEST_CASE("Portal: divs are empty, maximal and cover empty space (built-in level, teapot)", "[portal][unit]") {
+  for (const PortalBuild* b : {&builtin_build(), &teapot_build()}) {
+    INFO(b->world.name);
+    check_divs(b->world, b->maximal);
+    std::vector<Box> stored(b->divs.begin() + 1, b->divs.end());
+    for (const Box& d : stored) REQUIRE(std::find(b->maximal.begin(), b->maximal.end(), d) != b->maximal.end());
+    // Every entered face has a chosen div containing its voxel.
+    for (size_t i = 0; i < b->choice.size(); ++i)
+      if (b->choice[i] != kNone) {
+        const size_t v = i / 6;
+        const glm::ivec3 p(v % b->world.dims.x, (v / b->world.dims.x) % b->world.dims.y,
+                           v / (b->world.dims.x * b->world.dims.y));
+        REQUIRE(b->maximal[b->choice[i]].contains(p));
+      }
+  }
+}
+
+TEST_CASE("Portal: packed div info and atlas round trip; every texel points to the right div or wall", "[portal][unit]") {
+  for (const PortalBuild* b : {&builtin_build(), &teapot_build()}) {
+    const World& w = b->world;
+    const PackedPortal& p = b->packed;
+    INFO(w.name);
+    REQUIRE(p.div_count == b->divs.size());
+    for (uint32_t d = 0; d < p.div_count; ++d) {
+      const DivInfo info = read_div_info(p, d);
+      const Box& B = b->divs[d];
+      REQUIRE(info.lo == B.lo);
+      REQUIRE(info.size == B.size());
+      REQUIRE(info.type == (d == 0 ? shared::kPortalDivExterior : B.medium == kEmpty ? shared::kPortalDivAir : shared::kPortalDivGlass));
+      for (uint32_t f = 0; f < 6; ++f) {
+        const uint32_t a = f / 2, t0 = shared::portal_tangent0(a), t1 = shared::portal_tangent1(a);
+        const glm::ivec2 ext = face_extent(B, f);
+        REQUIRE(info.face_uv[f].x + ext.x <= p.atlas_width);
+        REQUIRE(info.face_uv[f].y + ext.y <= p.atlas_height);
+        for (int j = 0; j < ext.y; ++j)
+          for (int i = 0; i < ext.x; ++i) {
+            glm::ivec3 v;
+            v[t0] = B.lo[t0] + i, v[t1] = B.lo[t1] + j;
+            if (d == 0) v[a] = (f & 1u) ? B.hi[a] - 1 : 0;
+            else v[a] = (f & 1u) ? B.hi[a] : B.lo[a] - 1;
+            const uint32_t texel = p.atlas[size_t(info.face_uv[f].y + j) * p.atlas_width + info.face_uv[f].x + i];
+            INFO("div " << d << " face " << f << " voxel " << v.x << "," << v.y << "," << v.z << " texel " << texel);
+            if (!w.inside(v)) {
+              REQUIRE(texel == shared::kPortalOutside);
+            } else if (w.medium(v) == World::kOpaque) {
+              REQUIRE(texel == shared::kPortalWallBit + w.at(v));
+            } else {
+              REQUIRE(texel < p.div_count);
+              REQUIRE(texel != 0);
+              REQUIRE(b->divs[texel].contains(v));
+              REQUIRE(b->divs[texel].medium == w.medium(v));
+            }
+          }
+      }
+    }
+    // Start map: a div containing the voxel, or the wall.
+    for (size_t i = 0; i < w.voxel_count(); ++i) {
+      const glm::ivec3 v(i % w.dims.x, (i / w.dims.x) % w.dims.y, i / (w.dims.x * w.dims.y));
+      if (w.medium(v) == World::kOpaque) REQUIRE(p.start[i] == shared::kPortalWallBit + w.voxels[i]);
+      else REQUIRE(b->divs[p.start[i]].contains(v));
+    }
+  }
+}
+
+TEST_CASE("Portal: trace agrees with the voxel DDA on the built-in level", "[portal][unit]") {
+  const Compare in = compare_with_dda(builtin_build(), 4000, false, 7);
+  const Compare out = compare_with_dda(builtin_build(), 1000, true, 8);
+  CHECK(in.hits > 3000);
+  CHECK(out.hits > 500);
+  WARN("built-in level: mean steps portal " << in.portal_steps / in.hits << " vs DDA " << in.dda_steps / in.hits);
+}
+
+TEST_CASE("Portal: trace agrees with the voxel DDA on a voxelized mesh (teapot)", "[portal][unit]") {
+  const Compare in = compare_with_dda(teapot_build(), 3000, false, 9);
+  const Compare out = compare_with_dda(teapot_build(), 3000, true, 10);
+  CHECK(out.hits > 300);
+  WARN("teapot: mean steps portal " << (in.portal_steps + out.portal_steps) / double(in.hits + out.hits) << " vs DDA "
+                                    << (in.dda_steps + out.dda_steps) / double(in.hits + out.hits));
+}
+
+TEST_CASE("Portal: rays along voxel edges and corners, axis-aligned rays, tmax", "[portal][unit]") {
+  const PortalBuild& b = builtin_build();
+  // Through voxel corners (integer origins, diagonal directions) and along edges.
+  std::vector<Ray> rays;
+  for (int x = 1; x < 31; x += 3)
+    for (int z = 1; z < 31; z += 2)
+      for (glm::vec3 d : {glm::vec3(1, 1, 1), glm::vec3(-1, 0, 1), glm::vec3(1, 0, 0), glm::vec3(0, -1, 0), glm::vec3(-2, 1, 1),
+                          glm::vec3(1, 0, -1)})
+        rays.push_back(make_ray(glm::vec3(float(x), 2.0f, float(z)), d));
+  size_t hits = 0;
+  for (const Ray& r : rays) {
+    if (b.world.solid(glm::ivec3(glm::floor(r.org)))) continue;
+    const Hit p = trace_portal(b.packed, r), d = trace_dda(b.world, r);
+    INFO(ray_text(r));
+    REQUIRE(p.instance == d.instance);
+    REQUIRE(p.triangle == d.triangle);
+    REQUIRE(hex(p.t) == hex(d.t));
+    hits += !is_miss(p);
+  }
+  CHECK(hits > 100);
+  // tmax before the wall: a miss for both.
+  const Ray r = make_ray(glm::vec3(2.5f, 2.5f, 2.5f), glm::vec3(1, 0, 0));
+  const Hit full = trace_portal(b.packed, r);
+  REQUIRE_FALSE(is_miss(full));
+  const Ray shortr = make_ray(r.org, r.dir, 0.0f, full.t * 0.5f);
+  CHECK(is_miss(trace_portal(b.packed, shortr)));
+  CHECK(is_miss(trace_dda(b.world, shortr)));
+}
+
+TEST_CASE("Portal: heuristic picks the seed's 3x1 / 1x3 divs", "[portal][unit]") {
+  // The seed's arrangement: a row of three cells and a column of three sharing the top-left cell
+  // T, entered from the left and from the top. T sits at the world's corner so that rays enter
+  // from outside (through the world's -X and -Z faces) without widening the divs; the walls are
+  // 8 voxels tall so that the flux is nearly the seed's 2D one. Map rows run along +z.
+  const World w = parse_tile_map("size 4 4 8\nmap\nE..1\n.111\n.111\n1111\n", "seed-example");
+  const PortalBuild b = build_portal(w, PortalOptions{64, 64, 1, false});
+  const glm::ivec3 v(0, 4, 0);  // T, half way up
+  const Box row{{0, 1, 0}, {3, 9, 1}, kEmpty}, col{{0, 1, 0}, {1, 9, 3}, kEmpty};
+  REQUIRE(std::find(b.maximal.begin(), b.maximal.end(), row) != b.maximal.end());
+  REQUIRE(std::find(b.maximal.begin(), b.maximal.end(), col) != b.maximal.end());
+  const size_t vi = b.world.index(glm::uvec3(v));
+  // Entering through the -X face (from the left): the row. Through the -Z face (from the top): the column.
+  const EntryCost row_x = integrate_flux_density_over_cuboid(b.world, FluxDensity::get(), v, shared::kPortalFaceNegX, row);
+  const EntryCost col_x = integrate_flux_density_over_cuboid(b.world, FluxDensity::get(), v, shared::kPortalFaceNegX, col);
+  INFO("row: p_open " << row_x.p_open << " length " << row_x.length << "; column: p_open " << col_x.p_open << " length "
+                      << col_x.length);
+  CHECK(row_x.cost < col_x.cost);
+  REQUIRE(b.choice[vi * 6 + shared::kPortalFaceNegX] != kNone);
+  REQUIRE(b.choice[vi * 6 + shared::kPortalFaceNegZ] != kNone);
+  REQUIRE(b.maximal[b.choice[vi * 6 + shared::kPortalFaceNegX]] == row);
+  REQUIRE(b.maximal[b.choice[vi * 6 + shared::kPortalFaceNegZ]] == col);
+  // Every flux over a closed cuboid's faces sums to at most 1, and open + wall is the whole flux.
+  CHECK(row_x.p_open + row_x.p_wall <= 1.0 + 1e-3);  // Monte Carlo table: 2^18 rays
+  CHECK(row_x.p_open + row_x.p_wall > 0.95);
+}
+
+TEST_CASE("Portal: flux density table is a distribution", "[portal][unit]") {
+  const FluxDensity& f = FluxDensity::get();
+  // Every ray leaves the unit cube above the source exactly once: lid + four sides = 1.
+  const double lid = f.z_face(0, 0, 1);
+  const double side = f.x_face(1, 0, 0);  // plane x = 1 (and by symmetry x = 0, y = 0, y = 1)
+  CHECK(lid + 4.0 * side == Approx(1.0).margin(0.01));
+  // Form factor of a unit square to a parallel unit square at distance 1: 0.1998.
+  CHECK(lid == Approx(0.1998).margin(0.005));
+}
+
+TEST_CASE("Portal: state machine and separate loops render the same image, bit for bit", "[portal][unit]") {
+  const PortalBuild& b = builtin_build();
+  RenderOptions o;
+  o.width = 96, o.height = 48;
+  RenderStats s1, s2;
+  o.state_machine = true;
+  const auto a = render(b, b.world.camera, o, &s1);
+  o.state_machine = false;
+  const auto c = render(b, b.world.camera, o, &s2);
+  REQUIRE(a.size() == c.size());
+  REQUIRE(std::memcmp(a.data(), c.data(), a.size() * sizeof(glm::vec3)) == 0);
+  CHECK(s1.loop_iterations == s2.loop_iterations);
+  CHECK(s1.shadow_rays > 0);
+  // Lit pixels exist and not everything is lit (shadows).
+  size_t bright = 0;
+  for (const auto& p : a) bright += p.x + p.y + p.z > 0.5f;
+  CHECK(bright > 0);
+}
+
+TEST_CASE("Portal: refraction never forks; total internal reflection reflects", "[portal][unit]") {
+  glm::vec3 out;
+  // Into glass at 45 degrees: refracted, bent towards the normal (Snell).
+  const glm::vec3 d = glm::normalize(glm::vec3(1, -1, 0)), n(0, 1, 0);
+  REQUIRE(refract_or_reflect(d, n, 1.0f / 1.5f, out));
+  CHECK(std::abs(out.x) == Approx(std::sin(glm::radians(45.0f)) / 1.5f).margin(1e-5));
+  // Out of glass at 60 degrees (critical angle 41.8): total internal reflection.
+  const glm::vec3 g = glm::normalize(glm::vec3(std::sin(glm::radians(60.0f)), -std::cos(glm::radians(60.0f)), 0));
+  REQUIRE_FALSE(refract_or_reflect(g, n, 1.5f, out));
+  CHECK(out.x == Approx(g.x));
+  CHECK(out.y == Approx(-g.y));
+  // A glass block in a room: the render refracts, and one grazing view reflects internally.
+  const World w = parse_tile_map("size 9 5 3\nmap\n111111111\n1.......1\n1E..GG..1\n1.......1\n111111111\n", "glass");
+  const PortalBuild b = build_portal(w, PortalOptions{64, 64, 1, false});
+  RenderOptions o;
+  o.width = 64, o.height = 32;
+  RenderStats s;
+  const auto img = render(b, b.world.camera, o, &s);
+  CHECK(s.refractions > 0);
+  CHECK(s.reflections > 0);
+  // Non-forking: one primary path per pixel, at most two shadow rays.
+  CHECK(s.primary_rays == 64u * 32u);
+  CHECK(s.shadow_rays <= 2u * s.primary_rays);
+  o.refraction = false;
+  RenderStats s0;
+  render(b, b.world.camera, o, &s0);
+  CHECK(s0.refractions == 0);
+}
+
+TEST_CASE("Portal: Tracer interface names, scene build, explain", "[portal][unit]") {
+  Scene s = make_builtin("teapot");
+  PortalTracer p(24);
+  VoxelDdaTracer d(24);
+  CHECK(p.name() == "portal-cpu");
+  CHECK(d.name() == "voxel-dda");
+  p.build(s, 0.0f);
+  d.build(s, 0.0f);
+  std::vector<Ray> rays;
+  const Camera cam = s.frame_camera();
+  for (uint32_t y = 0; y < 16; ++y)
+    for (uint32_t x = 0; x < 16; ++x) rays.push_back(camera_ray(cam, 16, 16, x, y));
+  std::vector<Hit> hp(rays.size()), hd(rays.size());
+  p.trace(rays, hp);
+  d.trace(rays, hd);
+  size_t hits = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    REQUIRE(hp[i].instance == hd[i].instance);
+    REQUIRE(hp[i].triangle == hd[i].triangle);
+    hits += !is_miss(hp[i]);
+  }
+  CHECK(hits > 20);
+  const std::string e = p.explain(rays[8 * 16 + 8]);
+  CHECK(e.find("exterior") != std::string::npos);
+  CHECK(e.find("agrees") != std::string::npos);
+  CHECK(p.dump().kind == "portal");
+}
+
+TEST_CASE("Portal: bad input is a clear Error", "[portal][unit][badinput]") {
+  auto msg = [](auto f) {
+    try {
+      f();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1E1\n11\n"); }), Catch::Contains("ragged"));
+  CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1E1\n1?1\n"); }), Catch::Contains("unknown character '?'"));
+  CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1.1\n111\n"); }), Catch::Contains("no eye"));
+  CHECK_NOTHROW(parse_tile_map("size 3 2 1\nmap\n1.1\n111\n", "x", false));
+  CHECK_THAT(msg([] { parse_tile_map("size 300 2 1\nmap\n"); }), Catch::Contains("255"));
+  CHECK_THAT(msg([] { parse_tile_map("size 0 2 1\nmap\n"); }), Catch::Contains("empty world"));
+  CHECK_THAT(msg([] { parse_tile_map("# nothing\n"); }), Catch::Contains("empty world"));
+  CHECK_THAT(msg([] { parse_tile_map("size 3 3 1\nmap\n1E1\n"); }), Catch::Contains("expected 3 map rows"));
+  CHECK_THAT(msg([] { parse_tile_map("size 3 1 1\nbogus\nmap\n1E1\n"); }), Catch::Contains("unknown keyword"));
+  World big;
+  big.name = "big";
+  big.dims = {256, 1, 1};
+  big.voxels.assign(256, kEmpty);
+  CHECK_THAT(msg([&] { build_portal(big); }), Catch::Contains("at most 255"));
+  World empty;
+  empty.name = "nothing";
+  CHECK_THAT(msg([&] { build_portal(empty); }), Catch::Contains("empty world"));
+  Scene none;
+  none.name = "none";
+  CHECK_THAT(msg([&] { voxelize(none, 16); }), Catch::Contains("no triangles"));
+  CHECK_THAT(msg([] { voxelize(make_builtin("teapot"), 300); }), Catch::Contains("1 .. 253"));
+  CHECK_THAT(msg([] { build_portal(builtin_level(), PortalOptions{1024, 12, 1, false}); }), Catch::Contains("multiple of 8"));
+  CHECK_THAT(msg([] { build_portal(builtin_level(), PortalOptions{4, 1024, 1, false}); }), Catch::Contains("atlas width"));
+}
+
+TEST_CASE("Portal: tile map files parse; the built-in text matches data/maps/builtin.map", "[portal][unit]") {
+  for (const char* f : {"builtin.map", "corridors.map", "tiny.map"}) {
+    const World w = load_tile_map(std::string(GRIDRT_DATA_DIR) + "/maps/" + f);
+    CHECK(w.has_eye);
+    CHECK(w.lights.size() >= 1);
+  }
+  std::ifstream in(std::string(GRIDRT_DATA_DIR) + "/maps/builtin.map");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  CHECK(ss.str() == std::string(builtin_level_text()));
+  const World w = builtin_level();
+  CHECK(w.dims == glm::uvec3(32, 6, 32));
+  CHECK(w.lights.size() == 2);
+}
+
+TEST_CASE("Portal: the build's run-length integration equals the direct sum over voxel faces", "[portal][unit]") {
+  for (const PortalBuild* b : {&builtin_build(), &teapot_build()}) {
+    const World& w = b->world;
+    std::mt19937 rng(3);
+    size_t checked = 0;
+    for (int n = 0; n < 400; ++n) {
+      const Box& B = b->maximal[rng() % b->maximal.size()];
+      const glm::ivec3 v(B.lo.x + int(rng() % uint32_t(B.size().x)), B.lo.y + int(rng() % uint32_t(B.size().y)),
+                         B.lo.z + int(rng() % uint32_t(B.size().z)));
+      const uint32_t f = rng() % 6;
+      const EntryCost slow = integrate_flux_density_over_cuboid(w, FluxDensity::get(), v, f, B);
+      const EntryCost fast = integrate_flux_density_fast(w, v, f, B);
+      INFO(w.name << " box " << n << " face " << f);
+      REQUIRE(fast.p_open == Approx(slow.p_open).margin(1e-9));
+      REQUIRE(fast.p_wall == Approx(slow.p_wall).margin(1e-9));
+      ++checked;
+    }
+    CHECK(checked == 400);
+  }
+}
