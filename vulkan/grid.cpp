@@ -81,8 +81,17 @@ struct VulkanGridTracer::Gpu {
   std::unique_ptr<Timestamps> timestamps;
 };
 
+namespace {
+// A context for `vk`: the compute build does not need geometry shaders.
+ContextOptions context_options(const VulkanGridOptions& vk) {
+  ContextOptions o = ContextOptions::from_env();
+  o.raster_build = vk.build == BuildMode::raster;
+  return o;
+}
+}  // namespace
+
 VulkanGridTracer::VulkanGridTracer(reference::GridOptions options, VulkanGridOptions vk)
-    : owned_(std::make_unique<Context>(ContextOptions::from_env())), ctx_(owned_.get()), options_(std::move(options)),
+    : owned_(std::make_unique<Context>(context_options(vk))), ctx_(owned_.get()), options_(std::move(options)),
       vk_(vk) {}
 
 VulkanGridTracer::VulkanGridTracer(Context& ctx, reference::GridOptions options, VulkanGridOptions vk)

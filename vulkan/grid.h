@@ -43,7 +43,8 @@ struct GridTimings {
 
 class VulkanGridTracer : public Tracer {
  public:
-  // On its own context (ContextOptions::from_env()).
+  // On its own context (ContextOptions::from_env(); geometry shaders required only for the
+  // raster build).
   explicit VulkanGridTracer(reference::GridOptions options = {}, VulkanGridOptions vk = {});
   // On a context the caller keeps alive.
   VulkanGridTracer(Context& ctx, reference::GridOptions options = {}, VulkanGridOptions vk = {});
