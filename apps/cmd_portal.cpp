@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 
 #include "apps/commands.h"
@@ -120,7 +121,8 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
     std::printf("| %s | %s | %.3f | %.3g | %.2f | %.1f%% |\n", tracer, device.c_str(), ms, n / (ms / 1000.0), steps / n,
                 100.0 * hit / n);
   };
-  std::vector<Hit> hits(rays.size());
+  std::vector<Hit> hits(rays.size()), cpu_hits;
+  std::vector<glm::vec3> cpu_image;
   if (!vulkan_only) {
     portal::PortalTracer cpu(build, options);
     portal::VoxelDdaTracer dda(build.world);
@@ -131,6 +133,7 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
       best = std::min(best, seconds_since(s) * 1000.0);
     }
     report("portal-cpu", "CPU threads", best, hits);
+    cpu_hits = hits;
     best = 1e30;
     for (uint32_t r = 0; r < repeats; ++r) {
       const auto s = std::chrono::steady_clock::now();
@@ -145,7 +148,7 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
       double rbest = 1e30;
       portal::RenderStats st;
       for (uint32_t r = 0; r < repeats; ++r) {
-        portal::render(build, camera, ro, &st);
+        cpu_image = portal::render(build, camera, ro, &st);
         rbest = std::min(rbest, st.seconds * 1000.0);
       }
       std::printf("render portal-cpu %s: %.3f ms (%.1f fps), %.2f steps/primary ray, %.2f steps/shadow ray, %llu shadow "
@@ -168,14 +171,28 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
     if (r) best = std::min(best, host_time ? gpu.timings().trace_host_ms : gpu.timings().trace_ms);
   }
   report("portal-vulkan", dev + (host_time ? " (host ms)" : " (device ms)"), best, hits);
+  if (!cpu_hits.empty()) {
+    // The differential check on this device: records identical in bits, and identical but for t, u, v.
+    size_t same = 0, discrete = 0;
+    for (size_t i = 0; i < hits.size(); ++i) {
+      const Hit &a = cpu_hits[i], &b = hits[i];
+      same += std::memcmp(&a, &b, sizeof(Hit)) == 0;
+      discrete += a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags && a.cells == b.cells &&
+                  a.tests == b.tests;
+    }
+    std::printf("portal-vulkan vs portal-cpu: %zu of %zu hit records identical in bits, %zu identical in material, "
+                "voxel, face, divs and texels\n", same, hits.size(), discrete);
+  }
+  std::vector<glm::vec3> fsm_image;
   portal::RenderOptions ro;
   ro.width = width, ro.height = height;
   for (bool fsm : {true, false}) {
     ro.state_machine = fsm;
     double rbest = 1e30;
     portal::RenderStats st;
+    std::vector<glm::vec3> image;
     for (uint32_t r = 0; r < repeats + 1; ++r) {
-      gpu.render(camera, ro, &st);
+      image = gpu.render(camera, ro, &st);
       if (r) rbest = std::min(rbest, host_time ? gpu.timings().render_host_ms : gpu.timings().render_ms);
     }
     std::printf("render portal-vulkan %s on %s: %.3f ms %s (%.1f fps), %.2f steps/primary ray, %.2f steps/shadow ray, "
@@ -184,6 +201,14 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
                 1000.0 / rbest, double(st.primary_steps) / double(st.primary_rays),
                 st.shadow_rays ? double(st.shadow_steps) / double(st.shadow_rays) : 0.0,
                 (unsigned long long)st.shadow_rays);
+    if (fsm) fsm_image = image;
+    const std::vector<glm::vec3>& ref = fsm ? cpu_image : fsm_image;
+    if (ref.size() == image.size()) {
+      size_t differ = 0;
+      for (size_t i = 0; i < image.size(); ++i) differ += std::memcmp(&ref[i], &image[i], sizeof(glm::vec3)) != 0;
+      std::printf("  %s: %zu of %zu pixels differ in bits\n",
+                  fsm ? "vs the portal-cpu render" : "vs the portal-vulkan state machine", differ, image.size());
+    }
   }
 #else
   if (vulkan_only) throw Error("this build has no Vulkan port");
