@@ -113,7 +113,7 @@ void add_render_command(CLI::App& app) {
                   "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
                   "(atrium, cornell, teapot); default: the embedded atrium");
   cmd->add_option("--backend,-b", o->backend,
-                  "Tracer: " + backend_list() + ", or portal-cpu (voxel worlds: a .map, builtin:level, a scene voxelized) "
+                  "Tracer: " + backend_list() + ", or portal-cpu, portal-vulkan (voxel worlds: a .map, builtin:level, a scene voxelized) "
                   "(default: the first)");
   cmd->add_option("--width", o->width, "Image width in pixels")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height in pixels")->check(CLI::Range(1u, 16384u));
