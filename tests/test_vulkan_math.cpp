@@ -13,6 +13,7 @@
 
 #include "common/shared/alpha.h"
 #include "common/shared/grid.h"
+#include "common/shared/rounding.h"
 #include "common/shared/triangle.h"
 #include "common/shared/transform.h"
 #include "tests/vulkan_test_util.h"
@@ -86,9 +87,9 @@ void evaluate(const float* c, uint32_t* o) {
   o[7] = bits(uv.x), o[8] = bits(uv.y);
   const glm::uvec2 t = sh::alpha_texel_coords(glm::vec2(c[23], c[24]), bits(c[25]), bits(c[26]));
   o[9] = t.x, o[10] = t.y;
-  o[11] = bits(c[0] / c[3]);
-  o[12] = bits(1.0f / c[1]);
-  o[13] = bits(std::sqrt(std::fabs(c[2])));
+  o[11] = bits(sh::sh_div(c[0], c[3]));
+  o[12] = bits(sh::sh_rcp(c[1]));
+  o[13] = bits(sh::sh_sqrt(std::fabs(c[2])));
   o[14] = bits(std::floor(c[4]));
   o[15] = 0;
 }
@@ -96,7 +97,7 @@ void evaluate(const float* c, uint32_t* o) {
 const char* kResultNames[kOutStride] = {"sh_dot", "sh_cross.x", "sh_cross.y", "sh_cross.z",
                                         "transform_point.x", "transform_point.y", "transform_point.z",
                                         "interpolate_uv.x", "interpolate_uv.y", "alpha_texel_coords.x",
-                                        "alpha_texel_coords.y", "a.x / b.x", "1 / a.y", "sqrt(|a.z|)",
+                                        "alpha_texel_coords.y", "sh_div(a.x, b.x)", "sh_rcp(a.y)", "sh_sqrt(|a.z|)",
                                         "floor(b.y)", "pad"};
 
 bool is_denormal(float f) { return f != 0.0f && std::fpclassify(f) == FP_SUBNORMAL; }
@@ -141,12 +142,11 @@ TEST_CASE("Shared math: the GLSL build agrees with the C++ build bit for bit", "
   // (shaderDenormPreserveFloat32) and on lavapipe, which keeps them without promising it
   // (docs/VULKAN.md). Elsewhere a case with a denormal input or result may differ (flush to
   // zero; the C++ twin run with FTZ/DAZ tells an intermediate denormal): counted and reported,
-  // not failed. Division and sqrt are held to the bit on lavapipe,
-  // elsewhere to kDivisionUlps; + - * everywhere to the bit.
+  // not failed. Everything else to the bit on every device: + - * are correctly rounded, and
+  // sh_div, sh_rcp and sh_sqrt (rounding.h) are by construction.
   const bool preserve = ctx.info().denorm_preserve_f32;
   const bool strict = preserve || bit_exact_device(ctx);
-  const bool exact_division = bit_exact_device(ctx);
-  size_t mismatches = 0, flushed = 0, denormal_results = 0, rounded = 0;
+  size_t mismatches = 0, flushed = 0, denormal_results = 0;
   std::ostringstream report;
   for (uint32_t i = 0; i < kCount; ++i) {
     const float* c = &in[size_t(i) * kInStride];
@@ -165,16 +165,6 @@ TEST_CASE("Shared math: the GLSL build agrees with the C++ build bit for bit", "
         ++flushed;
         continue;
       }
-      if (k >= 11 && k <= 13 && !exact_division) {
-        // Vulkan: 2.5 ulp for a divisor in [2^-126, 2^126], anything outside (NVIDIA multiplies
-        // by a reciprocal that flushes to 0 for divisors over 2^126)
-        const float divisor = std::fabs(k == 11 ? c[3] : c[1]);
-        const bool in_range = k == 13 || (divisor >= 0x1p-126f && divisor <= 0x1p126f);
-        if (!in_range || ulp_distance(g, cpu[k]) <= kDivisionUlps) {
-          ++rounded;
-          continue;
-        }
-      }
       if (++mismatches <= 8) {
         report << "case " << i << ", " << kResultNames[k] << ": gpu " << (is_float ? hex(from_bits(g)) : hex(g))
                << ", cpu " << (is_float ? hex(from_bits(cpu[k])) : hex(cpu[k])) << "\n  inputs:";
@@ -189,9 +179,6 @@ TEST_CASE("Shared math: the GLSL build agrees with the C++ build bit for bit", "
   CHECK(denormal_results > 100);  // the inputs do exercise denormals
   CHECK(mismatches == 0);
   if (!strict && flushed) WARN(flushed << " results differ in cases with denormals (no shaderDenormPreserveFloat32)");
-  if (rounded)
-    WARN(rounded << " quotients and square roots differ by at most " << kDivisionUlps
-                 << " ulps, or have a divisor outside [2^-126, 2^126]");
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
@@ -209,23 +196,19 @@ namespace {
 constexpr uint32_t kGridInStride = 20;  // as test_grid_math.comp
 constexpr uint32_t kGridOutStride = 24;
 const char* kGridMathNames[kGridOutStride] = {
-    "dot(dir, dir)", "sqrt", "cell_size / len (precise)", "cell_size / len (plain)", "clip t0", "clip t1",
+    "dot(dir, dir)", "sh_sqrt", "sh_div(cell_size, len)", "cell_size / len (the built-in, for comparison)", "clip t0", "clip t1",
     "clipped | meets << 1", "rs.seg_t", "rs.t_start", "rs.t_end", "rs.t_lo", "moller_trumbore code", "det",
     "u*|det|", "v*|det|", "t*|det|", "t_lo*|det|", "t_hi*|det|", "moller_trumbore_t", "cramer u", "cramer v",
     "1/dir.x", "1/dir.y", "1/dir.z"};
 bool grid_math_is_float(uint32_t k) { return k != 6 && k != 11; }
-// Which values involve a division or a square root (the rest are + - * and comparisons only).
-bool grid_math_divides(uint32_t k) { return (k >= 1 && k <= 10) || k >= 18; }
-// Barycentrics at a hit point that moved by ulps: absolute differences, not ulps.
-bool grid_math_is_barycentric(uint32_t k) { return k == 19 || k == 20; }
 
 void grid_math_cpu(const sh::GridParams& g, const float* c, uint32_t* o) {
   const glm::vec3 org(c[0], c[1], c[2]), dir(c[4], c[5], c[6]), v0(c[8], c[9], c[10]), v1(c[11], c[12], c[13]),
       v2(c[14], c[15], c[16]);
   const float tmin = c[3], tmax = c[7];
   const float dd = sh::sh_dot(dir, dir);
-  const float len = std::sqrt(dd);
-  o[0] = bits(dd), o[1] = bits(len), o[2] = bits(g.cell_size / len), o[3] = bits(g.cell_size / len);
+  const float len = sh::sh_sqrt(dd);
+  o[0] = bits(dd), o[1] = bits(len), o[2] = bits(sh::sh_div(g.cell_size, len)), o[3] = bits(g.cell_size / len);
   float t0, t1;
   const bool clipped = sh::clip_to_grid(g, org, dir, t0, t1);
   sh::RaySetup rs;
@@ -295,7 +278,6 @@ TEST_CASE("Shared grid math: ray setup, Moller-Trumbore, Cramer, DDA inverse, GL
   // Per value: how many differ, the largest distance in ulps, the first case
   std::vector<size_t> differ(kGridOutStride, 0), first(kGridOutStride, 0);
   std::vector<uint64_t> worst(kGridOutStride, 0);
-  std::vector<double> worst_abs(kGridOutStride, 0.0);
   size_t accepted = 0;
   for (uint32_t i = 0; i < kCount; ++i) {
     uint32_t cpu[kGridOutStride];
@@ -306,8 +288,6 @@ TEST_CASE("Shared grid math: ray setup, Moller-Trumbore, Cramer, DDA inverse, GL
       if (grid_math_is_float(k) ? same_float(v, cpu[k]) : v == cpu[k]) continue;
       if (differ[k]++ == 0) first[k] = i;
       worst[k] = std::max<uint64_t>(worst[k], grid_math_is_float(k) ? ulp_distance(v, cpu[k]) : ~uint64_t(0));
-      if (grid_math_is_float(k))
-        worst_abs[k] = std::max(worst_abs[k], std::abs(double(from_bits(v)) - double(from_bits(cpu[k]))));
     }
   }
   std::ostringstream table;
@@ -324,20 +304,12 @@ TEST_CASE("Shared grid math: ray setup, Moller-Trumbore, Cramer, DDA inverse, GL
   }
   INFO(ctx.info().name << ": " << (table.str().empty() ? "every value identical\n" : table.str()));
   CHECK(accepted > kCount / 4);
-  if (bit_exact_device(ctx)) {
-    CHECK(total == 0);  // DESIGN.md: on lavapipe, to the bit
-  } else {
-    if (total) WARN("values that differ from the C++ build on " << ctx.info().name << ":\n" << table.str());
-    // + - * results to the bit; divisions and square roots within kDivisionUlps, what follows
-    // from them (clip, setup, reported t: a few operations on) within twice that; barycentrics
-    // within 1e-3; the clip's and setup's decisions on at most 0.1 % of the rays
-    for (uint32_t k = 0; k < kGridOutStride; ++k) {
-      INFO(kGridMathNames[k]);
-      if (k == 6) CHECK(differ[k] * 1000 <= kCount);
-      else if (!grid_math_divides(k)) CHECK(differ[k] == 0);
-      else if (grid_math_is_barycentric(k)) CHECK(worst_abs[k] <= 1e-3);
-      else CHECK(worst[k] <= 2 * kDivisionUlps);
-    }
-  }
+  // Every value to the bit on every device (division and square root by rounding.h), except the
+  // built-in `/` kept for comparison: to the bit on lavapipe, within kDivisionUlps elsewhere.
+  if (!bit_exact_device(ctx) && differ[3])
+    WARN("the built-in cell_size / len on " << ctx.info().name << ": " << differ[3] << " of " << kCount
+                                            << " differ from the correctly rounded quotient, by at most " << worst[3] << " ulps");
+  CHECK(total - differ[3] == 0);
+  CHECK(worst[3] <= (bit_exact_device(ctx) ? 0u : kDivisionUlps));
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

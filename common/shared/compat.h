@@ -5,6 +5,8 @@
 //  - `uint` for index math (signed overflow is UB in C++, wraps in GLSL); no shift by >= 32.
 //  - Float literals carry an `f` suffix (no double promotion in C++); unsigned ones a `u`.
 //  - Decisions use + - * and comparisons only; a division appears only in reported values.
+//  - No float `/`, `sqrt` or `inversesqrt`: sh_div, sh_rcp and sh_sqrt (rounding.h) are correctly
+//    rounded on every device, the built-ins are not (2.5 ulp in Vulkan).
 //  - Every float temporary that feeds a decision or a reported value is SH_PRECISE, so that the
 //    GLSL compiler and driver do not contract a*b+c into an FMA (the C++ side is built with
 //    -ffp-contract=off). dot/cross are written out as ordered sums (sh_dot, sh_cross).

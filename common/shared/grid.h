@@ -10,6 +10,7 @@
 #define GRIDRT_SHARED_GRID_H
 
 #include "compat.h"
+#include "rounding.h"
 
 SH_BEGIN
 
@@ -240,7 +241,7 @@ SH_INLINE vec3 point_at(SH_IN(vec3) org, SH_IN(vec3) dir, float t) {
 SH_INLINE bool clip_slab(float o, float d, float lo, float hi, SH_INOUT(float) t0,
                          SH_INOUT(float) t1) {
   if (d == 0.0f) return o >= lo && o <= hi;
-  SH_PRECISE float inv = 1.0f / d;
+  SH_PRECISE float inv = sh_rcp(d);
   SH_PRECISE float ta = (lo - o) * inv;
   SH_PRECISE float tb = (hi - o) * inv;
   t0 = max(t0, min(ta, tb));
@@ -272,8 +273,8 @@ struct RaySetup {
 SH_INLINE bool ray_setup(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, float tmin,
                          float tmax, SH_OUT(RaySetup) rs) {
   SH_PRECISE float dd = sh_dot(dir, dir);
-  SH_PRECISE float len = sqrt(dd);
-  rs.seg_t = g.cell_size / len;
+  SH_PRECISE float len = sh_sqrt(dd);
+  rs.seg_t = sh_div(g.cell_size, len);
   SH_PRECISE float self_t = g.self_hit_offset * rs.seg_t;
   rs.t_lo = max(tmin, self_t);
   float t0;
@@ -346,10 +347,10 @@ SH_INLINE vec3 dda_exits(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir,
               dda_axis_exit(g.origin.z, g.cell_size, org.z, dir.z, inv_dir.z, cell.z));
 }
 
-// 1 / d per axis (0 where d == 0; unused there). The DDA's one division per axis per ray.
+// 1 / d per axis (0 where d == 0; unused there). The DDA's one division (sh_rcp) per axis per ray.
 SH_INLINE vec3 dda_inverse_direction(SH_IN(vec3) dir) {
-  return vec3(dir.x != 0.0f ? 1.0f / dir.x : 0.0f, dir.y != 0.0f ? 1.0f / dir.y : 0.0f,
-              dir.z != 0.0f ? 1.0f / dir.z : 0.0f);
+  return vec3(dir.x != 0.0f ? sh_rcp(dir.x) : 0.0f, dir.y != 0.0f ? sh_rcp(dir.y) : 0.0f,
+              dir.z != 0.0f ? sh_rcp(dir.z) : 0.0f);
 }
 
 // The axis the DDA steps along: the smallest exit, ties to the lower axis (x, then y, then z).

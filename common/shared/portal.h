@@ -16,6 +16,7 @@
 #define GRIDRT_SHARED_PORTAL_H
 
 #include "compat.h"
+#include "rounding.h"
 
 SH_BEGIN
 
@@ -165,7 +166,7 @@ SH_INLINE uint portal_tangent1(uint a) { return a == 2u ? 1u : 2u; }
 // Sub-texel coordinate on a face: the crossing coordinate along axis b minus its voxel index,
 // clamped to [0, 1] (a reported value: one division, t = na / ada, here).
 SH_INLINE float portal_subtexel(float na, float ada, float ob, float db, uint index) {
-  SH_PRECISE float t = na / ada;
+  SH_PRECISE float t = sh_div(na, ada);
   SH_PRECISE float c = ob + t * db;
   SH_PRECISE float f = c - float(index);
   return min(max(f, 0.0f), 1.0f);

@@ -184,7 +184,7 @@ SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN
 // The reported distance of an accepted test: t_det * (1 / |det|), the one division.
 SH_INLINE float moller_trumbore_t(SH_IN(TriangleTest) r) {
   SH_PRECISE float ad = abs(r.det);
-  SH_PRECISE float inv = 1.0f / ad;
+  SH_PRECISE float inv = sh_rcp(ad);
   SH_PRECISE float t = r.t_det * inv;
   return t;
 }
@@ -205,7 +205,7 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
   SH_PRECISE float d21 = sh_dot(e2, e1);
   SH_PRECISE float denom = d00 * d11 - d01 * d01;
   if (denom == 0.0f) return vec2(0.0f);
-  SH_PRECISE float inv = 1.0f / denom;
+  SH_PRECISE float inv = sh_rcp(denom);
   SH_PRECISE float w1 = (d11 * d20 - d01 * d21) * inv;
   SH_PRECISE float w2 = (d00 * d21 - d01 * d20) * inv;
   return vec2(w1, w2);

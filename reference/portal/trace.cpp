@@ -73,7 +73,7 @@ Hit wall_hit(glm::uvec3 dims, const VoxelRay& r, uint32_t axis, float num, float
              uint32_t material, uint32_t steps, uint32_t texels) {
   Hit h = miss_hit(steps, texels);
   const uint32_t t0 = sh::portal_tangent0(axis), t1 = sh::portal_tangent1(axis);
-  h.t = num / ad;
+  h.t = sh::sh_div(num, ad);  // as the shaders compute it (rounding.h)
   h.instance = material;
   h.triangle = (voxel_linear(dims, wall) << sh::kPortalFaceBits) | sh::portal_hit_face(axis, r.dir[axis]);
   h.u = sh::portal_subtexel(num, ad, r.org[t0], r.dir[t0], uint32_t(side[t0]));

@@ -33,8 +33,8 @@ void main() {
 
   // The steps of ray_setup, then ray_setup itself
   precise float dd = sh_dot(dir, dir);
-  precise float len = sqrt(dd);
-  precise float seg = g.cell_size / len;
+  precise float len = sh_sqrt(dd);
+  precise float seg = sh_div(g.cell_size, len);
   float seg_plain = g.cell_size / len;
   float t0;
   float t1;

@@ -6,6 +6,7 @@
 #include "common/shared/compat.h"
 #include "common/shared/transform.h"
 #include "common/shared/alpha.h"
+#include "common/shared/rounding.h"
 
 layout(local_size_x = 64) in;
 
@@ -14,8 +15,8 @@ layout(local_size_x = 64) in;
 // width [25] and height [26] as uint bits (alpha_texel_coords).
 const uint kInStride = 28u;
 // Per case, kOutStride words: dot [0], cross [1..3], transform [4..6], uv [7,8], texel [9,10],
-// and the operations the shared headers use for reported values: a.x / b.x [11], 1 / a.y [12],
-// sqrt(|a.z|) [13], floor(b.y) [14].
+// and the operations the shared headers use for reported values: sh_div(a.x, b.x) [11],
+// sh_rcp(a.y) [12], sh_sqrt(|a.z|) [13] (rounding.h), floor(b.y) [14].
 const uint kOutStride = 16u;
 
 layout(std430, binding = 0) readonly buffer Inputs { float inputs[]; };
@@ -55,9 +56,9 @@ void main() {
                                      floatBitsToUint(at(b, 26u)));
   outputs[o + 9u] = t.x;
   outputs[o + 10u] = t.y;
-  precise float q = at(b, 0u) / at(b, 3u);
-  precise float r = 1.0f / at(b, 1u);
-  precise float w = sqrt(abs(at(b, 2u)));
+  precise float q = sh_div(at(b, 0u), at(b, 3u));
+  precise float r = sh_rcp(at(b, 1u));
+  precise float w = sh_sqrt(abs(at(b, 2u)));
   outputs[o + 11u] = floatBitsToUint(q);
   outputs[o + 12u] = floatBitsToUint(r);
   outputs[o + 13u] = floatBitsToUint(w);
