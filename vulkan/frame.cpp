@@ -385,63 +385,70 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
 
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
 
-void VulkanFrame::render(uint32_t frame) {
+void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   Context& ctx = grid_.context();
   Gpu& gpu = *gpu_;
   const uint32_t w = options_.width, h = options_.height;
+  repeats = std::max(repeats, 1u);
   ctx.upload(gpu.params, &frame, sizeof frame, offsetof(shared::FrameParams, frame));
   if (bounce_) grid_.bind_ray_buffers(gpu.rays, gpu.hits);
   const std::vector<shared::GridInstance>& instances = grid_.instances();
   const auto t0 = std::chrono::steady_clock::now();
   ctx.submit([&](VkCommandBuffer cb) {
     barrier(cb);  // the grid's update and the parameters, before anything reads them
-    if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
-    // Gather: the raster pass, one draw per instance (firstInstance = its id)
-    VkClearValue clear[2]{};
-    clear[0].color.uint32[0] = shared::kNoRef;
-    clear[1].depthStencil = {0.0f, 0};
-    VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
-    bi.renderPass = gpu.pass;
-    bi.framebuffer = gpu.framebuffer;
-    bi.renderArea = {{0, 0}, {w, h}};
-    bi.clearValueCount = 2;
-    bi.pClearValues = clear;
-    vkCmdBeginRenderPass(cb, &bi, VK_SUBPASS_CONTENTS_INLINE);
-    vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.raster);
-    const VkDescriptorSet s = gpu.set->set();
-    vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.layout, 0, 1, &s, 0, nullptr);
-    for (uint32_t i = 0; i < instances.size(); ++i)
-      if (instances[i].tri_count) vkCmdDraw(cb, 3 * instances[i].tri_count, 1, 0, i);
-    vkCmdEndRenderPass(cb);
-    VkBufferImageCopy region{};
-    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-    region.imageExtent = {w, h, 1};
-    vkCmdCopyImageToBuffer(cb, gpu.color.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, gpu.visibility.buffer, 1,
-                           &region);
-    barrier(cb);
-    // Gather: position, normal, material, uv from the visible triangle
-    gpu.resolve->bind(cb, s);
-    vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
-    barrier(cb);
-    if (gpu.timestamps) gpu.timestamps->write(cb, 1);
-    if (bounce_) {
-      // Bounce rays
-      gpu.bounce->bind(cb, s);
+    if (gpu.timestamps) gpu.timestamps->reset(cb);
+    for (uint32_t rep = 0; rep < repeats; ++rep) {
+      // Timestamps bracket the last repetition only (the earlier ones keep the GPU busy)
+      const bool timed = gpu.timestamps && rep + 1 == repeats;
+      if (rep > 0) barrier(cb);
+      if (timed) gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+      // Gather: the raster pass, one draw per instance (firstInstance = its id)
+      VkClearValue clear[2]{};
+      clear[0].color.uint32[0] = shared::kNoRef;
+      clear[1].depthStencil = {0.0f, 0};
+      VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+      bi.renderPass = gpu.pass;
+      bi.framebuffer = gpu.framebuffer;
+      bi.renderArea = {{0, 0}, {w, h}};
+      bi.clearValueCount = 2;
+      bi.pClearValues = clear;
+      vkCmdBeginRenderPass(cb, &bi, VK_SUBPASS_CONTENTS_INLINE);
+      vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.raster);
+      const VkDescriptorSet s = gpu.set->set();
+      vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.layout, 0, 1, &s, 0, nullptr);
+      for (uint32_t i = 0; i < instances.size(); ++i)
+        if (instances[i].tri_count) vkCmdDraw(cb, 3 * instances[i].tri_count, 1, 0, i);
+      vkCmdEndRenderPass(cb);
+      VkBufferImageCopy region{};
+      region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+      region.imageExtent = {w, h, 1};
+      vkCmdCopyImageToBuffer(cb, gpu.color.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, gpu.visibility.buffer, 1,
+                             &region);
+      barrier(cb);
+      // Gather: position, normal, material, uv from the visible triangle
+      gpu.resolve->bind(cb, s);
       vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
       barrier(cb);
-      if (gpu.timestamps) gpu.timestamps->write(cb, 2);
-      // Trace through the grid
-      grid_.record_trace(cb, w * h);
-      barrier(cb);
-      if (gpu.timestamps) gpu.timestamps->write(cb, 3);
-    } else if (gpu.timestamps) {
-      gpu.timestamps->write(cb, 2);
-      gpu.timestamps->write(cb, 3);
+      if (timed) gpu.timestamps->write(cb, 1);
+      if (bounce_) {
+        // Bounce rays
+        gpu.bounce->bind(cb, s);
+        vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 2);
+        // Trace through the grid
+        grid_.record_trace(cb, w * h);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 3);
+      } else if (timed) {
+        gpu.timestamps->write(cb, 2);
+        gpu.timestamps->write(cb, 3);
+      }
+      // Shade
+      gpu.shade->bind(cb, s);
+      vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+      if (timed) gpu.timestamps->write(cb, 4);
     }
-    // Shade
-    gpu.shade->bind(cb, s);
-    vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
-    if (gpu.timestamps) gpu.timestamps->write(cb, 4);
   });
   timings_.host_ms = ms_since(t0);
   if (gpu.timestamps) {

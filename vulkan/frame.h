@@ -49,8 +49,10 @@ class VulkanFrame {
   VulkanFrame& operator=(const VulkanFrame&) = delete;
 
   // Gather, bounce, trace and shade at the grid's current time (update the grid first);
-  // `frame` selects the bounce's per-pixel random sequence (bounce_rays' frame).
-  void render(uint32_t frame);
+  // `frame` selects the bounce's per-pixel random sequence (bounce_rays' frame). `repeats` > 1
+  // records the passes that many times back to back in the one submission and times the last
+  // (a GPU kept busy, as in a render loop, rather than idling while the host waits).
+  void render(uint32_t frame, uint32_t repeats = 1);
 
   // Read-backs of the last render(), per pixel (index y * width + x).
   GatherBuffer download_gather() const;     // as make_gather fills it (hit: t, instance, triangle)
