@@ -1,7 +1,10 @@
-// The portal-div raytracer in the tool: `gridrt portal render` and `gridrt portal explain`, and
-// `gridrt render --backend portal-cpu` (which lands here).
+// The portal-div raytracer in the tool: `gridrt portal render`, `gridrt portal explain` and
+// `gridrt portal bench`, and `gridrt render --backend portal-cpu|portal-vulkan` (which lands here).
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
+#include <memory>
 
 #include "apps/commands.h"
 #include "common/camera.h"
@@ -10,6 +13,9 @@
 #include "reference/portal/build.h"
 #include "reference/portal/trace.h"
 #include "reference/portal/world.h"
+#ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/portal.h"
+#endif
 
 namespace gridrt::app {
 
@@ -17,6 +23,26 @@ namespace {
 
 bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string portal_backends() {
+#ifdef GRIDRT_HAVE_VULKAN
+  return "portal-cpu, portal-vulkan";
+#else
+  return "portal-cpu";
+#endif
+}
+
+void check_portal_backend(const std::string& backend) {
+  if (backend == "portal-cpu") return;
+#ifdef GRIDRT_HAVE_VULKAN
+  if (backend == "portal-vulkan") return;
+#endif
+  throw Error("backend '" + backend + "' is not built for portal worlds (this build has: " + portal_backends() + ")");
 }
 
 }  // namespace
@@ -33,28 +59,160 @@ portal::World load_world(const std::string& spec, uint32_t voxels) {
 void run_portal_render(const PortalRenderOptions& o) {
   check_output_path(o.output);
   check_image_extension(o.output);
-  if (o.backend != "portal-cpu")
-    throw Error("backend '" + o.backend + "' is not built for portal worlds (this build has: portal-cpu)");
+  check_portal_backend(o.backend);
   portal::World world = load_world(o.scene, o.voxels);
   const Camera camera = world.camera;
   auto t0 = std::chrono::steady_clock::now();
   portal::PortalOptions options;
-  const portal::PortalBuild build = portal::build_portal(std::move(world), options);
-  const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  portal::PortalBuild build = portal::build_portal(std::move(world), options);
+  const double build_s = seconds_since(t0);
   portal::RenderOptions ro;
   ro.width = o.width;
   ro.height = o.height;
   ro.state_machine = !o.separate_loops;
   portal::RenderStats stats;
-  const std::vector<glm::vec3> rgb = portal::render(build, camera, ro, &stats);
+  std::vector<glm::vec3> rgb;
+  const std::string name = build.world.name;
+  const size_t divs = build.divs.size();
+  std::string device;
+  if (o.backend == "portal-cpu") {
+    rgb = portal::render(build, camera, ro, &stats);
+  } else {
+#ifdef GRIDRT_HAVE_VULKAN
+    vulkan::PortalVulkanTracer tracer(std::move(build), options);
+    rgb = tracer.render(camera, ro, &stats);
+    device = " on " + tracer.context().info().name;
+#endif
+  }
   write_image(o.output, o.width, o.height, rgb);
   std::fprintf(stderr,
-               "portal-cpu: %s: %zu divs built in %.2f s; %llu primary + %llu shadow rays, %.2f divs per primary ray, "
-               "rendered in %.3f s -> %s\n",
-               build.world.name.c_str(), build.divs.size(), build_s, (unsigned long long)stats.primary_rays,
+               "%s%s: %s: %zu divs built in %.2f s; %llu primary + %llu shadow rays, %.2f divs per primary ray, "
+               "rendered (%s) in %.3f s -> %s\n",
+               o.backend.c_str(), device.c_str(), name.c_str(), divs, build_s, (unsigned long long)stats.primary_rays,
                (unsigned long long)stats.shadow_rays,
-               stats.primary_rays ? double(stats.primary_steps) / double(stats.primary_rays) : 0.0, stats.seconds,
-               o.output.c_str());
+               stats.primary_rays ? double(stats.primary_steps) / double(stats.primary_rays) : 0.0,
+               o.separate_loops ? "three loops" : "state machine", stats.seconds, o.output.c_str());
+}
+
+// Rays/s and steps per ray of portal-cpu, voxel-dda and (where built) portal-vulkan on the
+// world's camera rays, best of `repeats`; then the renderer (primary + 2 shadow rays) as the
+// state machine and as three loops (docs/PORTAL.md, "Measurements").
+void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, uint32_t height, uint32_t repeats,
+                      bool vulkan_only) {
+  portal::World world = load_world(spec, voxels);
+  const Camera camera = world.camera;
+  portal::PortalOptions options;
+  options.progress = false;
+  const auto t0 = std::chrono::steady_clock::now();
+  portal::PortalBuild build = portal::build_portal(std::move(world), options);
+  const double build_s = seconds_since(t0);
+  std::vector<Ray> rays;
+  rays.reserve(size_t(width) * height);
+  for (uint32_t y = 0; y < height; ++y)
+    for (uint32_t x = 0; x < width; ++x) rays.push_back(camera_ray(camera, width, height, x, y));
+  const double n = double(rays.size());
+  std::printf("world %s: %u x %u x %u voxels, %zu divs, built in %.2f s; %u x %u camera rays, best of %u\n",
+              build.world.name.c_str(), build.world.dims.x, build.world.dims.y, build.world.dims.z, build.divs.size(),
+              build_s, width, height, repeats);
+  std::printf("| tracer | device | ms | rays/s | steps/ray | hits |\n|---|---|---|---|---|---|\n");
+  auto report = [&](const char* tracer, const std::string& device, double ms, const std::vector<Hit>& hits) {
+    double steps = 0, hit = 0;
+    for (const Hit& h : hits) steps += h.cells, hit += !is_miss(h);
+    std::printf("| %s | %s | %.3f | %.3g | %.2f | %.1f%% |\n", tracer, device.c_str(), ms, n / (ms / 1000.0), steps / n,
+                100.0 * hit / n);
+  };
+  std::vector<Hit> hits(rays.size()), cpu_hits;
+  std::vector<glm::vec3> cpu_image;
+  if (!vulkan_only) {
+    portal::PortalTracer cpu(build, options);
+    portal::VoxelDdaTracer dda(build.world);
+    double best = 1e30;
+    for (uint32_t r = 0; r < repeats; ++r) {
+      const auto s = std::chrono::steady_clock::now();
+      cpu.trace(rays, hits);
+      best = std::min(best, seconds_since(s) * 1000.0);
+    }
+    report("portal-cpu", "CPU threads", best, hits);
+    cpu_hits = hits;
+    best = 1e30;
+    for (uint32_t r = 0; r < repeats; ++r) {
+      const auto s = std::chrono::steady_clock::now();
+      dda.trace(rays, hits);
+      best = std::min(best, seconds_since(s) * 1000.0);
+    }
+    report("voxel-dda", "CPU threads", best, hits);
+    portal::RenderOptions ro;
+    ro.width = width, ro.height = height;
+    for (bool fsm : {true, false}) {
+      ro.state_machine = fsm;
+      double rbest = 1e30;
+      portal::RenderStats st;
+      for (uint32_t r = 0; r < repeats; ++r) {
+        cpu_image = portal::render(build, camera, ro, &st);
+        rbest = std::min(rbest, st.seconds * 1000.0);
+      }
+      std::printf("render portal-cpu %s: %.3f ms (%.1f fps), %.2f steps/primary ray, %.2f steps/shadow ray, %llu shadow "
+                  "rays\n",
+                  fsm ? "state machine" : "three loops", rbest, 1000.0 / rbest,
+                  double(st.primary_steps) / double(st.primary_rays),
+                  st.shadow_rays ? double(st.shadow_steps) / double(st.shadow_rays) : 0.0,
+                  (unsigned long long)st.shadow_rays);
+    }
+  }
+#ifdef GRIDRT_HAVE_VULKAN
+  vulkan::PortalVulkanTracer gpu(std::move(build), options);
+  const std::string dev = gpu.context().info().name;
+  // Device time (timestamps) where they bracket dispatches; lavapipe: host time (docs/VULKAN.md).
+  const bool host_time = gpu.context().info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE ||
+                         !gpu.context().info().timestamp_valid_bits;
+  double best = 1e30;
+  for (uint32_t r = 0; r < repeats + 1; ++r) {  // one warm-up
+    gpu.trace(rays, hits);
+    if (r) best = std::min(best, host_time ? gpu.timings().trace_host_ms : gpu.timings().trace_ms);
+  }
+  report("portal-vulkan", dev + (host_time ? " (host ms)" : " (device ms)"), best, hits);
+  if (!cpu_hits.empty()) {
+    // The differential check on this device: records identical in bits, and identical but for t, u, v.
+    size_t same = 0, discrete = 0;
+    for (size_t i = 0; i < hits.size(); ++i) {
+      const Hit &a = cpu_hits[i], &b = hits[i];
+      same += std::memcmp(&a, &b, sizeof(Hit)) == 0;
+      discrete += a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags && a.cells == b.cells &&
+                  a.tests == b.tests;
+    }
+    std::printf("portal-vulkan vs portal-cpu: %zu of %zu hit records identical in bits, %zu identical in material, "
+                "voxel, face, divs and texels\n", same, hits.size(), discrete);
+  }
+  std::vector<glm::vec3> fsm_image;
+  portal::RenderOptions ro;
+  ro.width = width, ro.height = height;
+  for (bool fsm : {true, false}) {
+    ro.state_machine = fsm;
+    double rbest = 1e30;
+    portal::RenderStats st;
+    std::vector<glm::vec3> image;
+    for (uint32_t r = 0; r < repeats + 1; ++r) {
+      image = gpu.render(camera, ro, &st);
+      if (r) rbest = std::min(rbest, host_time ? gpu.timings().render_host_ms : gpu.timings().render_ms);
+    }
+    std::printf("render portal-vulkan %s on %s: %.3f ms %s (%.1f fps), %.2f steps/primary ray, %.2f steps/shadow ray, "
+                "%llu shadow rays\n",
+                fsm ? "state machine" : "three loops", dev.c_str(), rbest, host_time ? "host" : "device",
+                1000.0 / rbest, double(st.primary_steps) / double(st.primary_rays),
+                st.shadow_rays ? double(st.shadow_steps) / double(st.shadow_rays) : 0.0,
+                (unsigned long long)st.shadow_rays);
+    if (fsm) fsm_image = image;
+    const std::vector<glm::vec3>& ref = fsm ? cpu_image : fsm_image;
+    if (ref.size() == image.size()) {
+      size_t differ = 0;
+      for (size_t i = 0; i < image.size(); ++i) differ += std::memcmp(&ref[i], &image[i], sizeof(glm::vec3)) != 0;
+      std::printf("  %s: %zu of %zu pixels differ in bits\n",
+                  fsm ? "vs the portal-cpu render" : "vs the portal-vulkan state machine", differ, image.size());
+    }
+  }
+#else
+  if (vulkan_only) throw Error("this build has no Vulkan port");
+#endif
 }
 
 void add_portal_command(CLI::App& app) {
@@ -68,6 +226,7 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
     cmd->add_flag("--separate-loops", o->separate_loops, "Three loops (primary, shadow 1, shadow 2), not the state machine");
+    cmd->add_option("--backend", o->backend, "Tracer: " + portal_backends());
     cmd->add_option("-o,--output", o->output, "Image file");
     cmd->callback([o] { run_portal_render(*o); });
   }
@@ -76,21 +235,48 @@ void add_portal_command(CLI::App& app) {
     auto voxels = std::make_shared<uint32_t>(64);
     auto size = std::make_shared<std::vector<uint32_t>>(std::vector<uint32_t>{720, 360});
     auto pixel = std::make_shared<std::vector<uint32_t>>();
+    auto backend = std::make_shared<std::string>("portal-cpu");
     CLI::App* cmd = portal_cmd->add_subcommand("explain", "Every div, face and texel one pixel's primary ray visits");
     cmd->add_option("world", *spec, "A tile map (.map), builtin:level (default), or a scene to voxelize");
     cmd->add_option("--voxels", *voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 255u));
     cmd->add_option("--size", *size, "Image size W,H the pixel lies in")->delimiter(',')->expected(2)
         ->check(CLI::Range(1u, 16384u));
     cmd->add_option("--pixel,-p", *pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
+    cmd->add_option("--backend", *backend,
+                    "Tracer: " + portal_backends() + " (portal-vulkan: the shader's own record beside the reference's)");
     cmd->callback([=] {
+      check_portal_backend(*backend);
       const uint32_t w = (*size)[0], h = (*size)[1], x = (*pixel)[0], y = (*pixel)[1];
       if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
       portal::World world = load_world(*spec, *voxels);
       const Camera camera = world.camera;
-      portal::PortalTracer tracer(std::move(world));
       const Ray ray = camera_ray(camera, w, h, x, y);
+#ifdef GRIDRT_HAVE_VULKAN
+      if (*backend == "portal-vulkan") {
+        vulkan::PortalVulkanTracer tracer(std::move(world));
+        std::printf("%s", tracer.explain(ray).c_str());
+        return;
+      }
+#endif
+      portal::PortalTracer tracer(std::move(world));
       std::printf("%s", tracer.explain(ray).c_str());
     });
+  }
+  {
+    auto spec = std::make_shared<std::string>();
+    auto voxels = std::make_shared<uint32_t>(64);
+    auto size = std::make_shared<std::vector<uint32_t>>(std::vector<uint32_t>{720, 360});
+    auto repeats = std::make_shared<uint32_t>(3);
+    auto vulkan_only = std::make_shared<bool>(false);
+    CLI::App* cmd = portal_cmd->add_subcommand(
+        "bench", "Rays/s and steps per ray: portal-cpu, voxel-dda, portal-vulkan; the renderer as FSM and three loops");
+    cmd->add_option("world", *spec, "A tile map (.map), builtin:level (default), or a scene to voxelize");
+    cmd->add_option("--voxels", *voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 255u));
+    cmd->add_option("--size", *size, "Image size W,H (the seed's: 720,360)")->delimiter(',')->expected(2)
+        ->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--repeats", *repeats, "Best of this many runs")->check(CLI::Range(1u, 1000u));
+    cmd->add_flag("--vulkan-only", *vulkan_only, "Measure portal-vulkan only");
+    cmd->callback([=] { run_portal_bench(*spec, *voxels, (*size)[0], (*size)[1], *repeats, *vulkan_only); });
   }
 }
 

@@ -58,8 +58,18 @@ void run_render(const RenderOptions& o) {
   check_output_path(o.output);
   check_image_extension(o.output);
   const Scene scene = load_scene_or_default(o.scene);
-  std::unique_ptr<Tracer> tracer =
-      make_backend(o.backend.empty() ? backend_names().front() : o.backend, o.backend_options, scene);
+  const std::string backend = o.backend.empty() ? backend_names().front() : o.backend;
+  std::unique_ptr<Tracer> tracer = make_backend(backend, o.backend_options, scene);
+  // The paper rasterizes its gather buffer: primary visibility is exact, only the bounce goes
+  // through the paper's segments (and may meet gap-fill voxels). A grid backend in paper mode
+  // therefore makes the gather buffer with a second tracer on the exact traversal.
+  std::unique_ptr<Tracer> gather_tracer;
+  if (backend != "embree" && o.backend_options.grid.traversal == reference::Traversal::paper) {
+    BackendOptions exact = o.backend_options;
+    exact.grid.traversal = reference::Traversal::exact;
+    gather_tracer = make_backend(backend, exact, scene);
+    gather_tracer->build(scene, o.time);
+  }
 
   auto t0 = std::chrono::steady_clock::now();
   tracer->build(scene, o.time);
@@ -89,12 +99,16 @@ void run_render(const RenderOptions& o) {
   const Camera camera = scene.frame_camera();
   for (uint32_t frame = 0; frame < o.frames; ++frame) {
     const float time = o.time + float(frame) / o.fps;
-    if (frame > 0) tracer->update(time);
+    if (frame > 0) {
+      tracer->update(time);
+      if (gather_tracer) gather_tracer->update(time);
+    }
     const size_t pixels = size_t(o.width) * o.height;
     t0 = std::chrono::steady_clock::now();
     Progress progress("frame " + std::to_string(frame) + ": tracing", pixels * (o.no_bounce ? 1 : 2));
     ProgressTracer traced(*tracer, progress);
-    const GatherBuffer gather = make_gather(scene, traced, camera, o.width, o.height, time);
+    ProgressTracer gather_traced(gather_tracer ? *gather_tracer : *tracer, progress);
+    const GatherBuffer gather = make_gather(scene, gather_traced, camera, o.width, o.height, time);
     std::vector<Ray> rays;
     std::vector<Hit> hits;
     if (!o.no_bounce) {
@@ -122,7 +136,7 @@ void add_render_command(CLI::App& app) {
                   "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
                   "(atrium, cornell, teapot); default: the embedded atrium");
   cmd->add_option("--backend,-b", o->backend,
-                  "Tracer: " + backend_list() + ", or portal-cpu (voxel worlds: a .map, builtin:level, a scene voxelized) "
+                  "Tracer: " + backend_list() + ", or portal-cpu, portal-vulkan (voxel worlds: a .map, builtin:level, a scene voxelized) "
                   "(default: the first)");
   cmd->add_option("--width", o->width, "Image width in pixels")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height in pixels")->check(CLI::Range(1u, 16384u));

@@ -107,7 +107,7 @@ TEST_CASE("Bounce rays: deterministic, normalized, in the hemisphere, mirror at 
   }
 }
 
-TEST_CASE("Shade: a mirror floor shows the red wall; deterministic, in [0, 1]", "[unit][oracle]") {
+TEST_CASE("Shade: a mirror floor shows the red wall - deterministic, in [0, 1]", "[unit][oracle]") {
   const Scene s = mirror_scene(1.0f);
   EmbreeTracer tracer(2);
   tracer.build(s, 0.0f);

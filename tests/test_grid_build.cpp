@@ -204,7 +204,7 @@ TEST_CASE("After animated frames, the updated image equals a fresh build at that
   }
 }
 
-TEST_CASE("Grid bounds cover the animation; zero-area triangles are never inserted", "[grid]") {
+TEST_CASE("Grid bounds cover the animation - zero-area triangles are never inserted", "[grid]") {
   Scene scene = random_scene(100, 0.8f, 8.0f, 25, 40);
   // Add a zero-area triangle to the static mesh
   Mesh& m = scene.meshes[0];

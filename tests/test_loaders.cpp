@@ -320,7 +320,7 @@ TEST_CASE("Real scenes load with the README's triangle counts", "[scenes]") {
   }
 }
 
-TEST_CASE("Real scenes: textures load with sane sizes; ons-reborn's foliage is alpha-masked", "[scenes]") {
+TEST_CASE("Real scenes: textures load with sane sizes - ons-reborn's foliage is alpha-masked", "[scenes]") {
   if (!have_image_library()) {
     WARN("skipped: this build has no OpenImageIO, so no textures");
     return;
@@ -359,7 +359,7 @@ TEST_CASE("Real scenes: textures load with sane sizes; ons-reborn's foliage is a
   CHECK(count_named(cached(dir + "/sibenik/sibenik.obj"), "staklo") >= 4);
 }
 
-TEST_CASE("The paper's scene files load; their dynamic instances move between t = 0 and t = 1", "[scenes]") {
+TEST_CASE("The paper's scene files load - their dynamic instances move between t = 0 and t = 1", "[scenes]") {
   if (!have_image_library()) {
     WARN("skipped: this build has no OpenImageIO, so no textures");
     return;

@@ -120,7 +120,7 @@ TEST_CASE("Oracle: axis-aligned quads, exact t, barycentrics, back faces", "[ora
   CHECK(m.flags == 0u);
 }
 
-TEST_CASE("Oracle: rays parallel to a quad miss; tmin and tmax are strict", "[oracle]") {
+TEST_CASE("Oracle: rays parallel to a quad miss - tmin and tmax are strict", "[oracle]") {
   Scene s;
   s.name = "quads";
   s.meshes = {quad_mesh(-1, 1, -1, 1, 0), quad_mesh(-1, 1, -1, 1, -1)};

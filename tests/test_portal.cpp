@@ -205,7 +205,7 @@ TEST_CASE("Portal: divs are empty, maximal and cover empty space (built-in level
   }
 }
 
-TEST_CASE("Portal: packed div info and atlas round trip; every texel points to the right div or wall", "[portal][unit]") {
+TEST_CASE("Portal: packed div info and atlas round trip - every texel points to the right div or wall", "[portal][unit]") {
   for (const PortalBuild* b : {&builtin_build(), &teapot_build()}) {
     const World& w = b->world;
     const PackedPortal& p = b->packed;
@@ -353,7 +353,7 @@ TEST_CASE("Portal: state machine and separate loops render the same image, bit f
   CHECK(bright > 0);
 }
 
-TEST_CASE("Portal: refraction never forks; total internal reflection reflects", "[portal][unit]") {
+TEST_CASE("Portal: refraction never forks - total internal reflection reflects", "[portal][unit]") {
   glm::vec3 out;
   // Into glass at 45 degrees: refracted, bent towards the normal (Snell).
   const glm::vec3 d = glm::normalize(glm::vec3(1, -1, 0)), n(0, 1, 0);
@@ -444,7 +444,7 @@ TEST_CASE("Portal: bad input is a clear Error", "[portal][unit][badinput]") {
   CHECK_THAT(msg([] { build_portal(builtin_level(), PortalOptions{4, 1024, 1, false}); }), Catch::Contains("atlas width"));
 }
 
-TEST_CASE("Portal: tile map files parse; the built-in text matches data/maps/builtin.map", "[portal][unit]") {
+TEST_CASE("Portal: tile map files parse - the built-in text matches data/maps/builtin.map", "[portal][unit]") {
   for (const char* f : {"builtin.map", "corridors.map", "tiny.map"}) {
     const World w = load_tile_map(std::string(GRIDRT_DATA_DIR) + "/maps/" + f);
     CHECK(w.has_eye);

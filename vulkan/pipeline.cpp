@@ -174,6 +174,20 @@ void Descriptors::bind(uint32_t binding, const Image3D& image) {
   vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
 }
 
+void Descriptors::bind(uint32_t binding, VkImageView view, VkImageLayout layout) {
+  if (binding >= types_.size() || (types_[binding] != VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE &&
+                                   types_[binding] != VK_DESCRIPTOR_TYPE_STORAGE_IMAGE))
+    throw Error("descriptor binding " + std::to_string(binding) + " is not a sampled or storage image");
+  const VkDescriptorImageInfo info{VK_NULL_HANDLE, view, layout};
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.dstSet = set_;
+  w.dstBinding = binding;
+  w.descriptorCount = 1;
+  w.descriptorType = types_[binding];
+  w.pImageInfo = &info;
+  vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
+}
+
 // ---- Pipeline ----
 
 VkShaderModule Pipeline::module(std::string_view name) {

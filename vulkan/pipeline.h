@@ -68,6 +68,9 @@ class Descriptors {
 
   void bind(uint32_t binding, const Buffer& buffer);
   void bind(uint32_t binding, const Image3D& image);
+  // A sampled or storage image by its view, in `layout` (e.g. the portal's textures, sampled in
+  // SHADER_READ_ONLY_OPTIMAL).
+  void bind(uint32_t binding, VkImageView view, VkImageLayout layout);
   VkDescriptorSetLayout layout() const { return layout_; }
   VkDescriptorSet set() const { return set_; }
 

@@ -1,0 +1,273 @@
+#version 460
+// portal_render.comp: primary + two shadow rays per pixel through the portal tracer, with
+// non-forking refraction (reference/portal/render.cpp, function by function, same names and
+// heading comments). Push constant `pass`: 0 runs the single-loop state machine (the seed's FSM:
+// one loop, the same step_ray for every kind of ray, transitions at the end of each iteration);
+// 1, 2, 3 are the three separate loops (all primary rays, then all first shadow rays, then all
+// second), one dispatch each, the pixel's state kept in the pixel buffer between them.
+//
+// The host math of the reference is mirrored exactly: glm::normalize is v * (1 / sqrt(dot(v, v))),
+// glm::dot the ordered sum sh_dot, glm::length sqrt(dot(v, v)), every temporary `precise`. The one
+// function that is not the reference's to the bit is pow (std::pow on the CPU): the glass filter.
+#extension GL_GOOGLE_include_directive : require
+#include "portal_trace.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(std430, binding = 7) readonly buffer RenderParamsBuffer { PortalRenderParams rp; };
+layout(std430, binding = 8) readonly buffer Materials { PortalMaterial materials[]; };
+layout(std430, binding = 9) buffer Pixels { PortalPixel pixels[]; };
+layout(push_constant) uniform Push {
+  uint pass;  // 0: state machine; 1, 2, 3: the separate loops (primary, shadow A, shadow B)
+} pc;
+
+const uint kPrimary = 0u;
+const uint kShadowA = 1u;
+const uint kShadowB = 2u;
+const uint kDone = 3u;
+
+float infinity() { return uintBitsToFloat(0x7F800000u); }
+
+// glm::normalize and glm::length, as GLM computes them.
+vec3 ref_normalize(vec3 v) {
+  precise float len = sqrt(sh_dot(v, v));
+  precise float inv = 1.0f / len;
+  precise vec3 r = v * inv;
+  return r;
+}
+float ref_length(vec3 v) {
+  precise float len = sqrt(sh_dot(v, v));
+  return len;
+}
+
+// Refraction of unit direction `d` at a surface with unit normal `n` facing the incoming ray,
+// eta = n_from / n_to. Returns false (and the reflected direction) on total internal reflection.
+bool refract_or_reflect(vec3 d, vec3 n, float eta, out vec3 o) {
+  precise float cosi = -sh_dot(n, d);
+  precise float k = 1.0f - eta * eta * (1.0f - cosi * cosi);
+  if (k < 0.0f) {
+    precise vec3 r = d + 2.0f * cosi * n;  // total internal reflection: the reflected ray instead
+    o = r;
+    return false;
+  }
+  precise vec3 v = eta * d + (eta * cosi - sqrt(k)) * n;
+  o = ref_normalize(v);
+  return true;
+}
+
+// The ray through the centre of pixel (x, y) (common/camera.cpp, camera_ray).
+RayRecord camera_ray(uint x, uint y) {
+  // Pixel centre in normalized device coordinates, [-1, 1], y up.
+  precise float sx = (2.0f * (float(x) + 0.5f) / float(rp.width) - 1.0f) * rp.tan_half_fov *
+                     (float(rp.width) / float(rp.height));
+  precise float sy = (1.0f - 2.0f * (float(y) + 0.5f) / float(rp.height)) * rp.tan_half_fov;
+  precise vec3 v = rp.forward + sx * rp.right + sy * rp.up;
+  RayRecord ray;
+  ray.org = rp.eye;
+  ray.dir = ref_normalize(v);
+  ray.tmin = 0.0f;
+  ray.tmax = infinity();
+  ray.launch_normal = vec3(0.0f);
+  ray.launch_ref = kNoRef;
+  return ray;
+}
+
+void finish(inout PortalPixel s) {
+  precise float shade = rp.ambient + (1.0f - rp.ambient) * 0.5f * s.light;
+  precise vec3 c = s.filter_acc * s.albedo * shade;
+  s.color = c;
+  s.mode = kDone;
+}
+
+vec3 light_position(uint i) { return i == 0u ? rp.light0 : rp.light1; }
+
+// Set up shadow ray `i` (0 or 1) or, past the last, finish the pixel.
+void begin_shadow(inout PortalPixel s, uint i) {
+  for (; i < 2u; ++i) {
+    precise vec3 to = light_position(i) - s.point;
+    if (sh_dot(to, s.normal) <= 0.0f) continue;  // the light is behind the surface
+    s.org = s.point;
+    s.dir = to;
+    s.tmin = 0.0f;
+    s.tmax = 1.0f;      // reaching t = 1 is reaching the light
+    s.div = s.hit_div;  // the shadow ray starts in the div the primary ray ended in: no offset needed
+    s.mode = kShadowA + i;
+    ++s.shadow_rays;
+    return;
+  }
+  finish(s);
+}
+
+void begin_primary(inout PortalPixel s, RayRecord ray) {
+  const VoxelRay r = to_voxel_ray(ray);
+  s.org = r.org;
+  s.dir = r.dir;
+  s.tmin = r.tmin;
+  s.tmax = r.tmax;
+  const Start st = start_ray(r);
+  if (st.kind == kStartMiss) {
+    s.color = rp.background;
+    s.mode = kDone;
+  } else if (st.kind == kStartInsideSolid) {
+    s.albedo = materials[st.texel - kPortalWallBit].color;
+    precise vec3 c = s.albedo * rp.ambient;
+    s.color = c;
+    s.mode = kDone;
+  } else {
+    s.div = st.div;
+    s.mode = kPrimary;
+  }
+}
+
+VoxelRay pixel_ray(PortalPixel s) { return VoxelRay(s.org, s.dir, s.tmin, s.tmax); }
+
+vec3 crossing(PortalPixel s, Step st) {
+  precise float t = st.num / st.ad;
+  precise vec3 x = s.org + t * s.dir;
+  return x;
+}
+
+vec3 pow3(vec3 f, float d) { return vec3(pow(f.x, d), pow(f.y, d), pow(f.z, d)); }
+
+// The state transitions: what one step's result does to the pixel.
+void transition(inout PortalPixel s, Step st) {
+  ++s.iterations;
+  if (s.mode == kPrimary) {
+    ++s.steps_primary;
+    if (st.kind == kStepNext) {
+      const DivInfo nd = read_div_info(st.texel);
+      const bool next_glass = nd.type == kPortalDivGlass;
+      const bool in_glass = s.in_glass != 0u;
+      if (next_glass == in_glass && (!next_glass || nd.glass_material == s.glass)) {
+        s.div = st.texel;
+        return;
+      }
+      const uint gm = next_glass ? nd.glass_material : s.glass;  // the glass whose surface this is
+      const vec3 x = crossing(s, st);
+      vec3 n = vec3(0.0f);
+      n[st.axis] = s.dir[st.axis] > 0.0f ? -1.0f : 1.0f;
+      if (rp.refraction == 0u) {  // glass as an opaque wall
+        s.point = x;
+        s.normal = n;
+        s.albedo = materials[gm].color;
+        s.hit_div = s.div;
+        begin_shadow(s, 0u);
+        return;
+      }
+      if (++s.interfaces > rp.max_interfaces) {
+        s.filter_acc = vec3(0.0f);
+        s.color = vec3(0.0f);
+        s.mode = kDone;
+        return;
+      }
+      const float n_from = in_glass ? materials[s.glass].ior : 1.0f;
+      const float n_to = next_glass ? materials[nd.glass_material].ior : 1.0f;
+      precise float eta = n_from / n_to;
+      vec3 d;
+      if (refract_or_reflect(ref_normalize(s.dir), n, eta, d)) {
+        ++s.refractions;
+        if (in_glass) {
+          precise vec3 f = s.filter_acc * pow3(materials[s.glass].glass_filter, ref_length(x - s.glass_entry));
+          s.filter_acc = f;
+        }
+        s.in_glass = next_glass ? 1u : 0u;
+        if (next_glass) {
+          s.glass = nd.glass_material;
+          s.glass_entry = x;
+        }
+        s.div = st.texel;
+      } else {
+        ++s.reflections;  // stays in the current div
+      }
+      s.org = x;
+      s.dir = d;
+      s.tmin = 0.0f;
+      s.tmax = infinity();
+      return;
+    }
+    if (st.kind == kStepWall) {
+      const vec3 x = crossing(s, st);
+      if (s.in_glass != 0u) {
+        precise vec3 f = s.filter_acc * pow3(materials[s.glass].glass_filter, ref_length(x - s.glass_entry));
+        s.filter_acc = f;
+      }
+      s.point = x;
+      s.normal = vec3(0.0f);
+      s.normal[st.axis] = s.dir[st.axis] > 0.0f ? -1.0f : 1.0f;
+      s.albedo = materials[st.texel - kPortalWallBit].color;
+      s.hit_div = s.div;
+      begin_shadow(s, 0u);
+      return;
+    }
+    precise vec3 c = s.filter_acc * rp.background;  // outside, tmax or no direction
+    s.color = c;
+    s.mode = kDone;
+    return;
+  }
+  // Shadow rays: reaching t = 1 (tmax) is reaching the light; a wall, glass or the outside blocks.
+  ++s.steps_shadow;
+  const uint i = s.mode - kShadowA;
+  if (st.kind == kStepNext) {
+    const DivInfo nd = read_div_info(st.texel);
+    const bool next_glass = nd.type == kPortalDivGlass;
+    if (next_glass == (s.in_glass != 0u) && (!next_glass || nd.glass_material == s.glass)) {
+      s.div = st.texel;
+      return;
+    }
+  } else if (st.kind == kStepTmax) {
+    precise float l = s.light + sh_dot(s.normal, ref_normalize(s.dir));
+    s.light = l;
+  }
+  begin_shadow(s, i + 1u);
+}
+
+PortalPixel new_pixel() {
+  PortalPixel s;
+  s.org = vec3(0.0f);
+  s.tmin = 0.0f;
+  s.dir = vec3(0.0f, 0.0f, 1.0f);
+  s.tmax = 0.0f;
+  s.filter_acc = vec3(1.0f);
+  s.mode = kPrimary;
+  s.glass_entry = vec3(0.0f);
+  s.div = 0u;
+  s.point = vec3(0.0f);
+  s.interfaces = 0u;
+  s.normal = vec3(0.0f);
+  s.in_glass = 0u;
+  s.albedo = vec3(0.0f);
+  s.glass = 0u;
+  s.color = vec3(0.0f);
+  s.light = 0.0f;
+  s.hit_div = 0u;
+  s.steps_primary = 0u;
+  s.steps_shadow = 0u;
+  s.iterations = 0u;
+  s.refractions = 0u;
+  s.reflections = 0u;
+  s.shadow_rays = 0u;
+  s.pad0 = 0u;
+  return s;
+}
+
+void main() {
+  const uint x = gl_GlobalInvocationID.x;
+  const uint y = gl_GlobalInvocationID.y;
+  if (x >= rp.width || y >= rp.height) return;
+  const uint p = y * rp.width + x;
+  PortalPixel s;
+  if (pc.pass <= 1u) {
+    s = new_pixel();
+    begin_primary(s, camera_ray(x, y));
+  } else {
+    s = pixels[p];
+  }
+  if (pc.pass == 0u) {
+    // One loop: the same step for every kind of ray, transitions at the end of each iteration.
+    while (s.mode != kDone) transition(s, step_ray(s.div, pixel_ray(s)));
+  } else {
+    // One of the three loops: this pass's kind of ray only.
+    const uint mode = pc.pass - 1u;
+    while (s.mode == mode) transition(s, step_ray(s.div, pixel_ray(s)));
+  }
+  pixels[p] = s;
+}

@@ -1,0 +1,332 @@
+// portal_trace.glsl: the portal tracer on the GPU (seeds/002: stackless traversal of divs, only
+// the current div index as state). It follows reference/portal/trace.cpp function by function,
+// with the same names and heading comments; the per-ray math is common/shared/portal.h, the same
+// functions the reference calls. The textures are the reference's PackedPortal as the seed stores
+// them: the atlas R16_UINT, the div info RGBA8_UINT (8 texels per div, lexicographically packed),
+// the start map R16_UINT 3D, all read by point-sampled texel fetches.
+#ifndef GRIDRT_PORTAL_TRACE_GLSL
+#define GRIDRT_PORTAL_TRACE_GLSL
+
+#extension GL_EXT_samplerless_texture_functions : require
+
+#include "common/shared/compat.h"
+#include "common/shared/records.h"
+#include "common/shared/portal.h"
+#include "vulkan/shaders/portal_input.h"
+
+// The descriptor set of every portal pass (vulkan/portal.cpp, Binding).
+layout(binding = 0) uniform utexture2D atlas_tex;  // R16_UINT
+layout(binding = 1) uniform utexture2D info_tex;   // RGBA8_UINT
+layout(binding = 2) uniform utexture3D start_tex;  // R16_UINT
+layout(std430, binding = 3) readonly buffer ParamsBuffer { PortalParams params; };
+layout(std430, binding = 6) buffer Explain {
+  uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
+  uint explain_pad0;
+  uint explain_pad1;
+  uint explain_pad2;
+  PortalExplainEvent explain_events[];
+};
+
+// Step kinds (reference StepKind).
+const uint kStepNext = 0u;
+const uint kStepWall = 1u;
+const uint kStepOutside = 2u;
+const uint kStepTmax = 3u;
+const uint kStepNoDirection = 4u;
+
+// A ray in voxel space (org and dir mapped by the world's origin and voxel size; t unchanged).
+struct VoxelRay {
+  vec3 org;
+  vec3 dir;
+  float tmin;
+  float tmax;
+};
+
+// Decoded div info of one div (reference DivInfo).
+struct DivInfo {
+  ivec3 lo;
+  ivec3 size;
+  uint type;
+  uint glass_material;
+  uvec2 face_uv[6];
+};
+
+// One step's result (reference Step).
+struct Step {
+  uint kind;
+  uint axis;       // axis of the plane crossed
+  float num;       // that plane's distance ahead: t = num / ad
+  float ad;        // |dir[axis]|
+  uint face;       // the div face left (exterior div: the world face entered)
+  ivec3 voxel;     // exterior: the boundary voxel entered; else the voxel on this side of the face
+  uvec2 texel_uv;  // atlas coordinates read
+  uint texel;      // the atlas texel value
+};
+
+// Where a ray starts (reference Start).
+const uint kStartDiv = 0u;
+const uint kStartInsideSolid = 1u;
+const uint kStartMiss = 2u;
+struct Start {
+  uint kind;
+  uint div;
+  ivec3 voxel;
+  uint texel;
+};
+
+// Where a voxel-space ray starts relative to the world box (reference Entry).
+const uint kEntryInside = 0u;
+const uint kEntryEnter = 1u;
+const uint kEntryMiss = 2u;
+struct Entry {
+  uint kind;
+  ivec3 voxel;
+  uint axis;
+  float num;
+  float ad;
+};
+
+VoxelRay to_voxel_ray(RayRecord ray) {
+  VoxelRay r;
+  const float inv = params.inv_voxel_size;
+  precise vec3 o = (ray.org - params.origin) * inv;
+  precise vec3 d = ray.dir * inv;
+  r.org = o;
+  r.dir = d;
+  r.tmin = ray.tmin;
+  r.tmax = ray.tmax;
+  return r;
+}
+
+uint voxel_linear(uvec3 dims, ivec3 v) { return uint(v.x) + dims.x * (uint(v.y) + dims.y * uint(v.z)); }
+
+HitRecord miss_hit(uint steps, uint texels) {
+  HitRecord h;
+  h.t = uintBitsToFloat(0x7F800000u);  // +infinity
+  h.instance = kNoInstance;
+  h.triangle = 0u;
+  h.u = 0.0f;
+  h.v = 0.0f;
+  h.flags = 0u;
+  h.cells = steps;
+  h.tests = texels;
+  return h;
+}
+
+// A wall hit on plane (axis, num, ad) of `r`, entering solid voxel `wall`; `side` is the voxel
+// index along the tangents (the voxel the ray was in when it crossed).
+HitRecord wall_hit(uvec3 dims, VoxelRay r, uint axis, float num, float ad, ivec3 side, ivec3 wall, uint material,
+                   uint steps, uint texels) {
+  HitRecord h = miss_hit(steps, texels);
+  const uint t0 = portal_tangent0(axis);
+  const uint t1 = portal_tangent1(axis);
+  precise float t = num / ad;
+  h.t = t;
+  h.instance = material;
+  h.triangle = (voxel_linear(dims, wall) << kPortalFaceBits) | portal_hit_face(axis, r.dir[axis]);
+  h.u = portal_subtexel(num, ad, r.org[t0], r.dir[t0], uint(side[t0]));
+  h.v = portal_subtexel(num, ad, r.org[t1], r.dir[t1], uint(side[t1]));
+  return h;
+}
+
+HitRecord inside_hit(uvec3 dims, VoxelRay r, ivec3 v, uint material) {
+  HitRecord h = miss_hit(1u, 1u);
+  h.t = r.tmin;
+  h.instance = material;
+  h.triangle = (voxel_linear(dims, v) << kPortalFaceBits) | kPortalFaceInside;
+  return h;
+}
+
+bool finite_float(float x) { return !isinf(x) && !isnan(x); }
+
+// Where a voxel-space ray starts: inside the world box (the voxel of org + tmin dir), entering it
+// (entry axis and the boundary voxel), or missing it. Shared by the portal and the DDA.
+Entry enter_world(uvec3 dims, VoxelRay r) {
+  Entry e;
+  e.kind = kEntryMiss;
+  e.voxel = ivec3(0);
+  e.axis = 3u;
+  e.num = 0.0f;
+  e.ad = 0.0f;
+  const vec3 hi = vec3(dims);
+  for (uint a = 0u; a < 3u; a++)
+    if (!finite_float(r.org[a]) || !finite_float(r.dir[a])) return e;
+  precise vec3 q = r.org + r.tmin * r.dir;
+  if (q.x >= 0.0f && q.y >= 0.0f && q.z >= 0.0f && q.x <= hi.x && q.y <= hi.y && q.z <= hi.z) {
+    e.kind = kEntryInside;
+    // The voxel the ray moves into: a point on a voxel plane belongs to the voxel ahead of it.
+    for (uint a = 0u; a < 3u; a++) {
+      const float c = r.dir[a] < 0.0f ? ceil(q[a]) - 1.0f : floor(q[a]);
+      e.voxel[a] = clamp(int(c), 0, int(dims[a]) - 1);
+    }
+    return e;
+  }
+  float num = 0.0f;
+  const uint a = portal_entry_axis(vec3(0.0f), hi, r.org, r.dir, num);
+  if (a == 3u) return e;
+  const float ad = abs(r.dir[a]);
+  precise float lim = r.tmin * ad;
+  if (num < lim) return e;  // the box lies before tmin
+  e.kind = kEntryEnter;
+  e.axis = a;
+  e.num = num;
+  e.ad = ad;
+  e.voxel[a] = r.dir[a] > 0.0f ? 0 : int(dims[a]) - 1;
+  const uint b0 = portal_tangent0(a);
+  const uint b1 = portal_tangent1(a);
+  e.voxel[b0] = int(portal_cross_index(a, num, ad, b0, r.org[b0], r.dir[b0], 0u, dims[b0]));
+  e.voxel[b1] = int(portal_cross_index(a, num, ad, b1, r.org[b1], r.dir[b1], 0u, dims[b1]));
+  return e;
+}
+
+uint atlas_at(uvec2 uv) { return texelFetch(atlas_tex, ivec2(uv), 0).r; }
+
+// Decoded div info of div `d` (reads the RGBA8 texels only): texel k of div d is texel 8 d + k of
+// the row-major info texture.
+uvec4 div_info_texel(uint d, uint k) {
+  const uint idx = d * 8u + k;
+  return texelFetch(info_tex, ivec2(idx % params.info_width, idx / params.info_width), 0);
+}
+DivInfo read_div_info(uint d) {
+  DivInfo info;
+  for (uint f = 0u; f < 6u; f++) {
+    const uvec4 t = div_info_texel(d, f);
+    info.face_uv[f] = uvec2(t.x | (t.z << 8), t.y | (t.w << 8));
+  }
+  const uvec4 s = div_info_texel(d, 6u);
+  const uvec4 o = div_info_texel(d, 7u);
+  info.size = ivec3(s.xyz);
+  info.glass_material = s.w;
+  info.lo = ivec3(o.xyz);
+  info.type = o.w;
+  return info;
+}
+
+Start start_ray(VoxelRay r) {
+  Start s;
+  s.kind = kStartMiss;
+  s.div = 0u;
+  s.voxel = ivec3(0);
+  s.texel = 0u;
+  const Entry e = enter_world(params.dims, r);
+  if (e.kind == kEntryMiss) return s;
+  if (e.kind == kEntryEnter) {
+    s.kind = kStartDiv;
+    s.div = kPortalExteriorDiv;
+    return s;
+  }
+  s.voxel = e.voxel;
+  s.texel = texelFetch(start_tex, e.voxel, 0).r;
+  if (portal_texel_is_wall(s.texel)) {
+    s.kind = kStartInsideSolid;
+    return s;
+  }
+  s.kind = kStartDiv;
+  s.div = s.texel;
+  return s;
+}
+
+Step step_ray(uint div, VoxelRay r) {
+  Step s;
+  s.kind = kStepNoDirection;
+  s.axis = 3u;
+  s.num = 0.0f;
+  s.ad = 0.0f;
+  s.face = 0u;
+  s.voxel = ivec3(0);
+  s.texel_uv = uvec2(0u);
+  s.texel = 0u;
+  const DivInfo d = read_div_info(div);
+  const vec3 lo = vec3(d.lo);
+  const vec3 hi = vec3(d.lo + d.size);
+  float num = 0.0f;
+  if (d.type == kPortalDivExterior) {
+    // The exterior div: the face the ray enters the world box by (surfaced on the outside).
+    const uint a = portal_entry_axis(lo, hi, r.org, r.dir, num);
+    if (a == 3u) return s;
+    s.axis = a;
+    s.num = num;
+    s.ad = abs(r.dir[a]);
+    s.face = 2u * a + (r.dir[a] > 0.0f ? 0u : 1u);
+    s.voxel[a] = r.dir[a] > 0.0f ? d.lo[a] : d.lo[a] + d.size[a] - 1;
+  } else {
+    // 1. The exit face: three slab tests, only the face each direction component points to.
+    const uint a = portal_exit_axis(lo, hi, r.org, r.dir, num);
+    if (a == 3u) return s;
+    s.axis = a;
+    s.num = num;
+    s.ad = abs(r.dir[a]);
+    if (!portal_before_tmax(num, s.ad, r.tmax)) {
+      s.kind = kStepTmax;
+      return s;
+    }
+    s.face = 2u * a + (r.dir[a] > 0.0f ? 1u : 0u);
+    s.voxel[a] = r.dir[a] > 0.0f ? d.lo[a] + d.size[a] - 1 : d.lo[a];
+  }
+  // 2. The crossing voxel along the tangents, and the face texel there.
+  const uint a = s.axis;
+  const uint t0 = portal_tangent0(a);
+  const uint t1 = portal_tangent1(a);
+  s.voxel[t0] = int(portal_cross_index(a, s.num, s.ad, t0, r.org[t0], r.dir[t0], uint(d.lo[t0]),
+                                       uint(d.lo[t0] + d.size[t0])));
+  s.voxel[t1] = int(portal_cross_index(a, s.num, s.ad, t1, r.org[t1], r.dir[t1], uint(d.lo[t1]),
+                                       uint(d.lo[t1] + d.size[t1])));
+  s.texel_uv = d.face_uv[s.face] + uvec2(uint(s.voxel[t0] - d.lo[t0]), uint(s.voxel[t1] - d.lo[t1]));
+  s.texel = atlas_at(s.texel_uv);
+  // 3. What the texel says.
+  if (s.texel == kPortalOutside) s.kind = kStepOutside;
+  else if (portal_texel_is_wall(s.texel)) s.kind = kStepWall;
+  else s.kind = kStepNext;
+  return s;
+}
+
+// ---- Explain: the explained ray's own record (vulkan/portal.cpp turns it into text) ----
+layout(constant_id = 0) const bool kExplain = false;  // record the explain ray's events
+bool explaining = false;
+uint explain_capacity = 0u;
+
+void emit(uint kind, uint div, uint face, uint texel, ivec3 voxel, uint step, uvec2 texel_uv, float num, float ad) {
+  if (!kExplain || !explaining) return;
+  const uint i = explain_count;
+  if (i < explain_capacity)
+    explain_events[i] = PortalExplainEvent(kind, div, face, texel, voxel, step, texel_uv, num, ad);
+  explain_count = i + 1u;
+}
+
+HitRecord trace_portal(RayRecord ray) {
+  const VoxelRay r = to_voxel_ray(ray);
+  const Start st = start_ray(r);
+  emit(0u, st.div, 0u, st.texel, st.voxel, st.kind, uvec2(0u), 0.0f, 0.0f);
+  if (st.kind == kStartMiss) return miss_hit(0u, 0u);
+  if (st.kind == kStartInsideSolid) return inside_hit(params.dims, r, st.voxel, st.texel - kPortalWallBit);
+  uint cur = st.div;
+  uint steps = 0u;
+  uint texels = st.div == kPortalExteriorDiv ? 0u : 1u;
+  const uint limit = 4u * params.div_count + 16u;
+  while (steps < limit) {
+    const DivInfo d = read_div_info(cur);
+    ++steps;
+    const Step s = step_ray(cur, r);
+    emit(1u, cur, s.face, s.texel, s.voxel, s.kind, s.texel_uv, s.num, s.ad);
+    if (s.kind == kStepNoDirection) return miss_hit(steps, texels);
+    if (s.kind == kStepTmax) return miss_hit(steps, texels);
+    ++texels;
+    if (s.kind == kStepOutside) return miss_hit(steps, texels);
+    ivec3 wall = s.voxel;
+    if (d.type != kPortalDivExterior) wall[s.axis] += r.dir[s.axis] > 0.0f ? 1 : -1;
+    if (s.kind == kStepWall)
+      return wall_hit(params.dims, r, s.axis, s.num, s.ad, s.voxel, wall, s.texel - kPortalWallBit, steps, texels);
+    // Next div; a change of medium (air <-> glass) is a surface for this tracer.
+    const DivInfo nd = read_div_info(s.texel);
+    const uint next_medium = nd.type == kPortalDivGlass ? nd.glass_material : 0xFFFFFFFFu;
+    const uint cur_medium = d.type == kPortalDivGlass ? d.glass_material : 0xFFFFFFFFu;
+    if (next_medium != cur_medium) {
+      const uint m = next_medium != 0xFFFFFFFFu ? next_medium : cur_medium;
+      return wall_hit(params.dims, r, s.axis, s.num, s.ad, s.voxel, wall, m, steps, texels);
+    }
+    cur = s.texel;
+  }
+  return miss_hit(steps, texels);
+}
+
+#endif
