@@ -10,6 +10,9 @@
 #include "common/image_io.h"
 #include "common/progress.h"
 #include "common/shade.h"
+#ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/frame.h"
+#endif
 
 namespace gridrt::app {
 namespace {
@@ -73,6 +76,26 @@ void run_render(const RenderOptions& o) {
   std::fprintf(stderr, "%s: built %s (%llu triangles, %zu instances) in %.2f s\n", tracer->name().c_str(),
                scene.name.c_str(), (unsigned long long)scene.triangle_count(), scene.instances.size(),
                seconds_since(t0));
+#ifdef GRIDRT_HAVE_VULKAN
+  // The Vulkan grid renders the whole frame on the GPU (vulkan/frame.h): raster gather, bounce,
+  // trace and shade, read back once as RGBA8. Shadow rays are the CPU path's only.
+  if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get()); vk && !o.shadows) {
+    vulkan::VulkanFrame gpu_frame(*vk, scene, {.width = o.width, .height = o.height, .bounce = !o.no_bounce});
+    for (uint32_t frame = 0; frame < o.frames; ++frame) {
+      const float time = o.time + float(frame) / o.fps;
+      if (frame > 0) vk->update(time);
+      t0 = std::chrono::steady_clock::now();
+      gpu_frame.render(frame);
+      const std::string path = frame_path(o.output, frame, o.frames);
+      write_image_rgba8(path, o.width, o.height, gpu_frame.download_rgba());
+      std::fprintf(stderr, "%s: frame %u (t = %.3f s) rendered on the GPU in %.2f s (device: gather %.3f, bounce %.3f, "
+                   "trace %.3f, shade %.3f ms) -> %s\n", tracer->name().c_str(), frame, time, seconds_since(t0),
+                   gpu_frame.timings().gather_ms, gpu_frame.timings().bounce_ms, gpu_frame.timings().trace_ms,
+                   gpu_frame.timings().shade_ms, path.c_str());
+    }
+    return;
+  }
+#endif
   const Camera camera = scene.frame_camera();
   for (uint32_t frame = 0; frame < o.frames; ++frame) {
     const float time = o.time + float(frame) / o.fps;

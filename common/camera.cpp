@@ -20,16 +20,28 @@ CameraFrame camera_frame(const Camera& camera) {
   return f;
 }
 
+shared::CameraParams camera_params(const Camera& camera, uint32_t width, uint32_t height) {
+  if (width == 0 || height == 0) throw Error("camera: image size must be at least 1 x 1");
+  const CameraFrame f = camera_frame(camera);
+  shared::CameraParams c{};
+  c.eye = camera.eye;
+  c.tan_half_fov = f.tan_half_fov;
+  c.right = f.right;
+  c.aspect = float(width) / float(height);
+  c.up = f.up;
+  c.width = width;
+  c.forward = f.forward;
+  c.height = height;
+  return c;
+}
+
 Ray camera_ray(const Camera& camera, uint32_t width, uint32_t height, uint32_t x, uint32_t y) {
   if (width == 0 || height == 0) throw Error("camera: image size must be at least 1 x 1");
   if (x >= width || y >= height) throw Error("camera: pixel outside the image");
-  const CameraFrame f = camera_frame(camera);
-  // Pixel centre in normalized device coordinates, [-1, 1], y up.
-  const float sx = (2.0f * (float(x) + 0.5f) / float(width) - 1.0f) * f.tan_half_fov * (float(width) / float(height));
-  const float sy = (1.0f - 2.0f * (float(y) + 0.5f) / float(height)) * f.tan_half_fov;
+  // The pixel centre's direction (common/shared/bounce.h, shared with the GPU gather)
   Ray ray;
   ray.org = camera.eye;
-  ray.dir = glm::normalize(f.forward + sx * f.right + sy * f.up);
+  ray.dir = shared::camera_direction(camera_params(camera, width, height), x, y);
   ray.tmin = 0.0f;
   ray.tmax = std::numeric_limits<float>::infinity();
   ray.launch_normal = glm::vec3(0.0f);

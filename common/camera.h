@@ -4,6 +4,7 @@
 #include <cstdint>
 
 #include "common/scene.h"
+#include "common/shared/bounce.h"
 #include "common/tracer.h"
 
 namespace gridrt {
@@ -21,5 +22,8 @@ struct CameraFrame {
   float tan_half_fov;
 };
 CameraFrame camera_frame(const Camera& camera);
+
+// The camera as the per-pixel code of common/shared/bounce.h reads it (CPU and GPU alike).
+shared::CameraParams camera_params(const Camera& camera, uint32_t width, uint32_t height);
 
 }  // namespace gridrt

@@ -50,4 +50,8 @@ inline bool is_unused(const Ray& r) { return r.tmin == 0.0f && r.tmax == 0.0f; }
 // The per-pixel random numbers of bounce_rays: two uniform floats in [0, 1).
 glm::vec2 pixel_random(uint32_t x, uint32_t y, uint32_t frame);
 
+// cos((1 - glossiness) pi / 2): the cosine of the bounce cone's half-angle, once per material (the
+// host computes it for the GPU too, so both use the same value).
+float cone_cos_max(float glossiness);
+
 }  // namespace gridrt

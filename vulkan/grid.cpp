@@ -78,7 +78,7 @@ struct VulkanGridTracer::Gpu {
   Image3D image;
   std::unique_ptr<Descriptors> set;
   std::unique_ptr<Pipeline> init, raster, compute, clear, trace, trace_explain;
-  std::unique_ptr<Timestamps> timestamps;
+  std::unique_ptr<Timestamps> timestamps, update_timestamps;
 };
 
 namespace {
@@ -232,7 +232,10 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
                                          spec_for(g, false));
   gpu.trace = std::make_unique<Pipeline>(ctx, "trace.comp", set.layout(), uint32_t(sizeof(TracePush)),
                                          spec_for(g, false));
-  if (dev.timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
+  if (dev.timestamp_valid_bits) {
+    gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
+    gpu.update_timestamps = std::make_unique<Timestamps>(ctx, 3);  // begin, after the clear, end
+  }
 
   // The passes: the image blank with status texels 0, the static instances (their references
   // fill the first slots), then the dynamic ones
@@ -299,18 +302,24 @@ void VulkanGridTracer::update(float time) {
   const GridParams& g = params_;
   const auto t0 = std::chrono::steady_clock::now();
   ctx_->submit([&](VkCommandBuffer cb) {
-    if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+    if (gpu.update_timestamps) gpu.update_timestamps->reset(cb), gpu.update_timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     // Clear the dynamic references, 4x4x4 cells per workgroup
     gpu.clear->bind(cb, gpu.set->set());
     gpu.clear->push(cb, g.comparison_offset);
     vkCmdDispatch(cb, groups(g.cells.x, 4), groups(g.cells.y, 4), groups(g.cells.z, 4));
     barrier(cb);
+    if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
     // Insert the dynamic instances at their new transforms
     insert_instances(cb, static_instances_, n);
-    if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+    if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 2, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
   timings_.update_host_ms = ms_since(t0);
-  timings_.update_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
+  if (gpu.update_timestamps) {
+    const std::vector<double> ns = gpu.update_timestamps->read_ns();
+    timings_.update_ms = (ns[2] - ns[0]) * 1e-6;
+    timings_.clear_ms = (ns[1] - ns[0]) * 1e-6;
+    timings_.insert_ms = (ns[2] - ns[1]) * 1e-6;
+  }
 }
 
 // ---- Scene trace (paper 2.3) ----
@@ -374,6 +383,41 @@ reference::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays
   rec.events = ctx_->download<shared::ExplainEvent>(gpu_->explain, count, kExplainHeader);
   rec.hit = hits[index];
   return rec;
+}
+
+// ---- Passes of other pipelines on the grid's device data (vulkan/frame.h) ----
+
+const Buffer& VulkanGridTracer::instance_buffer() const {
+  if (!gpu_) throw Error("vulkan-grid: instance_buffer before build");
+  return gpu_->instances;
+}
+
+const Buffer& VulkanGridTracer::triangle_buffer() const {
+  if (!gpu_) throw Error("vulkan-grid: triangle_buffer before build");
+  return gpu_->triangles;
+}
+
+const Buffer& VulkanGridTracer::uv_buffer() const {
+  if (!gpu_) throw Error("vulkan-grid: uv_buffer before build");
+  return gpu_->uvs;
+}
+
+void VulkanGridTracer::bind_ray_buffers(const Buffer& rays, const Buffer& hits) {
+  if (!gpu_) throw Error("vulkan-grid: bind_ray_buffers before build");
+  gpu_->set->bind(kRays, rays);
+  gpu_->set->bind(kHits, hits);
+  gpu_->ray_capacity = 0;  // the next trace() makes and binds its own buffers again
+}
+
+void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count) {
+  if (!gpu_) throw Error("vulkan-grid: record_trace before build");
+  const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
+  gpu_->trace->bind(cb, gpu_->set->set());
+  for (uint32_t first = 0; first < count; first += std::min(chunk, count - first)) {
+    const TracePush push{first, std::min(chunk, count - first), kNoExplain, vk_.explain_capacity};
+    gpu_->trace->push(cb, push);
+    vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
+  }
 }
 
 AccelDump VulkanGridTracer::dump() const {

@@ -39,6 +39,7 @@ struct VulkanGridOptions {
 struct GridTimings {
   double build_ms = 0.0, update_ms = 0.0, trace_ms = 0.0;
   double build_host_ms = 0.0, update_host_ms = 0.0, trace_host_ms = 0.0;
+  double clear_ms = 0.0, insert_ms = 0.0;  // the update's two passes (device), update_ms = their sum
 };
 
 class VulkanGridTracer : public Tracer {
@@ -66,6 +67,20 @@ class VulkanGridTracer : public Tracer {
   const shared::GridParams& params() const { return params_; }
   const reference::GridOptions& options() const { return options_; }
   const GridTimings& timings() const { return timings_; }
+
+  // For passes of other pipelines on the grid's device data (vulkan/frame.h), valid after
+  // build(): the instances (GridInstance), the geometry buffer (GridTriangle, world space as the
+  // build and update wrote it) and the triangles' uvs (GridTriangleUv).
+  const Buffer& instance_buffer() const;
+  const Buffer& triangle_buffer() const;
+  const Buffer& uv_buffer() const;
+  // Binds device buffers the caller keeps alive as the rays and hits of record_trace (a later
+  // trace() binds its own again).
+  void bind_ray_buffers(const Buffer& rays, const Buffer& hits);
+  // Records the trace of rays [0, count) of the bound buffers into `cb` (no barriers).
+  void record_trace(VkCommandBuffer cb, uint32_t count);
+  uint32_t static_instance_count() const { return static_instances_; }
+  const std::vector<shared::GridInstance>& instances() const { return instances_; }
   Context& context() const { return *ctx_; }
 
  private:

@@ -1,0 +1,518 @@
+// frame.cpp: VulkanFrame, the paper's frame on the GPU (see frame.h): the tables shading reads,
+// the raster gather's render pass and pipeline, the compute passes, one submission per frame.
+#include "vulkan/frame.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "common/camera.h"
+#include "vulkan/pipeline.h"
+
+namespace gridrt::vulkan {
+
+namespace {
+
+// The descriptor set of the frame passes (vulkan/shaders/frame_common.glsl).
+enum FrameBinding : uint32_t {
+  kParams = 0,
+  kInstances = 1,
+  kTriangles = 2,
+  kUvs = 3,
+  kVisibility = 4,
+  kGather = 5,
+  kMaterials = 6,
+  kDiffuseTexels = 7,
+  kLights = 8,
+  kRays = 9,
+  kHits = 10,
+  kImage = 11,
+  kBindingCount = 12,
+};
+constexpr uint32_t kSpecFrameFlags = 10;
+
+// A 2D image with its memory and view: the gather's attachments.
+struct Image2D {
+  VkDevice device = VK_NULL_HANDLE;
+  VkImage image = VK_NULL_HANDLE;
+  VkDeviceMemory memory = VK_NULL_HANDLE;
+  VkImageView view = VK_NULL_HANDLE;
+  Image2D() = default;
+  Image2D(const Image2D&) = delete;
+  Image2D& operator=(const Image2D&) = delete;
+  ~Image2D() {
+    if (view) vkDestroyImageView(device, view, nullptr);
+    if (image) vkDestroyImage(device, image, nullptr);
+    if (memory) vkFreeMemory(device, memory, nullptr);
+  }
+};
+
+void create_image2d(Context& ctx, Image2D& img, VkFormat format, uint32_t width, uint32_t height,
+                    VkImageUsageFlags usage, VkImageAspectFlags aspect) {
+  img.device = ctx.device();
+  VkImageCreateInfo ci{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+  ci.imageType = VK_IMAGE_TYPE_2D;
+  ci.format = format;
+  ci.extent = {width, height, 1};
+  ci.mipLevels = 1;
+  ci.arrayLayers = 1;
+  ci.samples = VK_SAMPLE_COUNT_1_BIT;
+  ci.tiling = VK_IMAGE_TILING_OPTIMAL;
+  ci.usage = usage;
+  ci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  ci.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  GRIDRT_VK_CHECK(vkCreateImage(ctx.device(), &ci, nullptr, &img.image));
+  VkMemoryRequirements req;
+  vkGetImageMemoryRequirements(ctx.device(), img.image, &req);
+  ctx.require_allocation(req.size, "a gather attachment");
+  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  ai.allocationSize = req.size;
+  ai.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  if (ai.memoryTypeIndex == ~0u) ai.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, 0);
+  GRIDRT_VK_CHECK(vkAllocateMemory(ctx.device(), &ai, nullptr, &img.memory));
+  GRIDRT_VK_CHECK(vkBindImageMemory(ctx.device(), img.image, img.memory, 0));
+  VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+  vi.image = img.image;
+  vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
+  vi.format = format;
+  vi.subresourceRange = {aspect, 0, 1, 0, 1};
+  GRIDRT_VK_CHECK(vkCreateImageView(ctx.device(), &vi, nullptr, &img.view));
+}
+
+template <class T>
+Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
+  Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  if (!data.empty()) ctx.upload(b, data.data(), data.size() * sizeof(T));
+  return b;
+}
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+struct VulkanFrame::Gpu {
+  Context* ctx = nullptr;
+  Buffer params, visibility, gather, materials, texels, lights, rays, hits, image;
+  Image2D color, depth;
+  std::unique_ptr<Descriptors> set;
+  std::unique_ptr<Pipeline> resolve, bounce, shade;
+  std::unique_ptr<Timestamps> timestamps;
+  // The raster gather
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  VkPipeline raster = VK_NULL_HANDLE;
+  VkRenderPass pass = VK_NULL_HANDLE;
+  VkFramebuffer framebuffer = VK_NULL_HANDLE;
+  std::vector<VkShaderModule> modules;
+  shared::CameraParams camera{};
+
+  ~Gpu() {
+    VkDevice d = ctx->device();
+    if (raster) vkDestroyPipeline(d, raster, nullptr);
+    if (layout) vkDestroyPipelineLayout(d, layout, nullptr);
+    if (framebuffer) vkDestroyFramebuffer(d, framebuffer, nullptr);
+    if (pass) vkDestroyRenderPass(d, pass, nullptr);
+    for (VkShaderModule m : modules) vkDestroyShaderModule(d, m, nullptr);
+  }
+
+  VkShaderModule module(std::string_view name) {
+    const std::vector<uint32_t> words =
+        patch_float_controls(shader_spirv(name), FloatControls::for_device(ctx->info()));
+    VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+    ci.codeSize = words.size() * 4;
+    ci.pCode = words.data();
+    VkShaderModule m;
+    GRIDRT_VK_CHECK(vkCreateShaderModule(ctx->device(), &ci, nullptr, &m));
+    modules.push_back(m);
+    return m;
+  }
+
+  void create_raster(uint32_t width, uint32_t height, const VkSpecializationInfo* spec);
+};
+
+// The gather's render pass (an R32_UINT colour attachment cleared to kNoRef, a D32 depth
+// attachment cleared to 0: reversed depth) and its pipeline.
+void VulkanFrame::Gpu::create_raster(uint32_t width, uint32_t height, const VkSpecializationInfo* spec) {
+  VkDevice d = ctx->device();
+  VkAttachmentDescription att[2]{};
+  att[0].format = VK_FORMAT_R32_UINT;
+  att[0].samples = VK_SAMPLE_COUNT_1_BIT;
+  att[0].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  att[0].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  att[0].stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+  att[0].stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  att[0].initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  att[0].finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+  att[1] = att[0];
+  att[1].format = VK_FORMAT_D32_SFLOAT;
+  att[1].storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  att[1].finalLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
+  VkAttachmentReference color_ref{0, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+  VkAttachmentReference depth_ref{1, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
+  VkSubpassDescription sub{};
+  sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+  sub.colorAttachmentCount = 1;
+  sub.pColorAttachments = &color_ref;
+  sub.pDepthStencilAttachment = &depth_ref;
+  const VkPipelineStageFlags attach_stages = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT |
+                                             VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT |
+                                             VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+  const VkAccessFlags attach_access = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_COLOR_ATTACHMENT_READ_BIT |
+                                      VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT |
+                                      VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT;
+  VkSubpassDependency deps[2]{};
+  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
+  deps[0].dstSubpass = 0;
+  deps[0].srcStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
+  deps[0].dstStageMask = attach_stages | VK_PIPELINE_STAGE_VERTEX_SHADER_BIT;
+  deps[0].srcAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT;
+  deps[0].dstAccessMask = attach_access | VK_ACCESS_SHADER_READ_BIT;
+  deps[1].srcSubpass = 0;
+  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
+  deps[1].srcStageMask = attach_stages;
+  deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
+  deps[1].srcAccessMask = attach_access;
+  deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT;
+  VkRenderPassCreateInfo rp{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
+  rp.attachmentCount = 2;
+  rp.pAttachments = att;
+  rp.subpassCount = 1;
+  rp.pSubpasses = &sub;
+  rp.dependencyCount = 2;
+  rp.pDependencies = deps;
+  GRIDRT_VK_CHECK(vkCreateRenderPass(d, &rp, nullptr, &pass));
+
+  const VkImageView views[2] = {color.view, depth.view};
+  VkFramebufferCreateInfo fb{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+  fb.renderPass = pass;
+  fb.attachmentCount = 2;
+  fb.pAttachments = views;
+  fb.width = width;
+  fb.height = height;
+  fb.layers = 1;
+  GRIDRT_VK_CHECK(vkCreateFramebuffer(d, &fb, nullptr, &framebuffer));
+
+  const VkDescriptorSetLayout set_layout = set->layout();
+  VkPipelineLayoutCreateInfo li{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  li.setLayoutCount = 1;
+  li.pSetLayouts = &set_layout;
+  GRIDRT_VK_CHECK(vkCreatePipelineLayout(d, &li, nullptr, &layout));
+
+  VkPipelineShaderStageCreateInfo stages[2]{};
+  stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
+  stages[0].module = module("gather.vert");
+  stages[0].pName = "main";
+  stages[0].pSpecializationInfo = spec;
+  stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
+  stages[1].module = module("gather.frag");
+  stages[1].pName = "main";
+  stages[1].pSpecializationInfo = spec;
+  VkPipelineVertexInputStateCreateInfo vin{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkViewport viewport{0.0f, 0.0f, float(width), float(height), 0.0f, 1.0f};
+  VkRect2D scissor{{0, 0}, {width, height}};
+  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  vp.viewportCount = 1;
+  vp.pViewports = &viewport;
+  vp.scissorCount = 1;
+  vp.pScissors = &scissor;
+  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  rs.polygonMode = VK_POLYGON_MODE_FILL;
+  rs.cullMode = VK_CULL_MODE_NONE;  // both faces, as the rays see them
+  rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+  rs.lineWidth = 1.0f;
+  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
+  VkPipelineDepthStencilStateCreateInfo ds{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
+  ds.depthTestEnable = VK_TRUE;
+  ds.depthWriteEnable = VK_TRUE;
+  ds.depthCompareOp = VK_COMPARE_OP_GREATER;  // reversed depth: nearer is larger
+  VkPipelineColorBlendAttachmentState blend{};
+  blend.colorWriteMask = VK_COLOR_COMPONENT_R_BIT;
+  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  cb.attachmentCount = 1;
+  cb.pAttachments = &blend;
+  VkGraphicsPipelineCreateInfo gi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  gi.stageCount = 2;
+  gi.pStages = stages;
+  gi.pVertexInputState = &vin;
+  gi.pInputAssemblyState = &ia;
+  gi.pViewportState = &vp;
+  gi.pRasterizationState = &rs;
+  gi.pMultisampleState = &ms;
+  gi.pDepthStencilState = &ds;
+  gi.pColorBlendState = &cb;
+  gi.layout = layout;
+  gi.renderPass = pass;
+  GRIDRT_VK_CHECK(vkCreateGraphicsPipelines(d, VK_NULL_HANDLE, 1, &gi, nullptr, &raster));
+}
+
+VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOptions options)
+    : grid_(grid), scene_(scene), options_(options) {
+  Context& ctx = grid.context();
+  const uint32_t w = options_.width, h = options_.height;
+  if (w == 0 || h == 0) throw Error("vulkan frame: image size must be at least 1 x 1");
+  bounce_ = options_.bounce && scene.has_glossy();
+  gpu_ = std::make_unique<Gpu>();
+  Gpu& gpu = *gpu_;
+  gpu.ctx = &ctx;
+
+  // Parameters: the camera of the CPU's primary rays; a near plane far inside the scene's scale
+  gpu.camera = camera_params(scene.frame_camera(), w, h);
+  const Bounds b = scene.bounds(0.0f);
+  const float extent = b.empty() ? 1.0f : glm::length(b.extent());
+  shared::FrameParams fp{};
+  fp.camera = gpu.camera;
+  fp.background = scene.background;
+  fp.light_count = uint32_t(scene.lights.size());
+  fp.ambient = options_.ambient;
+  fp.exposure = options_.exposure;
+  fp.near_plane = std::max(extent, 1e-6f) * 1e-6f;
+  fp.frame = 0;
+  fp.material_count = uint32_t(scene.materials.size());
+
+  // Materials and their diffuse textures (halved until the texel buffer fits the device's
+  // maxStorageBufferRange; then shading reads coarser textures than the CPU's)
+  std::vector<shared::FrameMaterial> materials;
+  std::vector<uint32_t> texels;
+  bool textured = false, alpha = false;
+  uint64_t texel_budget = ctx.info().limits.maxStorageBufferRange / 4;
+  for (const Material& m : scene.materials)
+    if (m.alpha_keyed()) {
+      const Texture& t = scene.textures[size_t(m.alpha_texture)];
+      texel_budget -= std::min<uint64_t>(texel_budget, uint64_t(t.width) * t.height);
+    }
+  uint32_t shrink = 0;
+  for (;; ++shrink) {
+    uint64_t total = 0;
+    for (const Material& m : scene.materials)
+      if (m.diffuse_texture >= 0) {
+        const Texture& t = scene.textures[size_t(m.diffuse_texture)];
+        total += uint64_t(std::max(1u, t.width >> shrink)) * std::max(1u, t.height >> shrink);
+      }
+    if (total <= texel_budget || shrink > 12) break;
+  }
+  for (const Material& m : scene.materials) {
+    shared::FrameMaterial fm{};
+    fm.diffuse = m.diffuse;
+    fm.glossiness = m.glossiness;
+    fm.cos_max = cone_cos_max(m.glossiness);
+    if (m.diffuse_texture >= 0) {
+      const Texture& t = scene.textures[size_t(m.diffuse_texture)];
+      if (t.width > 0 && t.height > 0) {
+        const uint32_t tw = std::max(1u, t.width >> shrink), th = std::max(1u, t.height >> shrink);
+        fm.texture_offset = uint32_t(texels.size());
+        fm.texture_width = tw;
+        fm.texture_height = th;
+        for (uint32_t y = 0; y < th; ++y)
+          for (uint32_t x = 0; x < tw; ++x) {
+            const glm::u8vec4 c = t.texel(std::min(x << shrink, t.width - 1), std::min(y << shrink, t.height - 1));
+            texels.push_back(uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | uint32_t(c.a) << 24);
+          }
+        textured = true;
+      }
+    }
+    if (m.alpha_keyed() && (grid.params().flags & shared::kGridAlphaKeying)) {
+      // The mask at full resolution, as the grid's trace reads it
+      const Texture& t = scene.textures[size_t(m.alpha_texture)];
+      fm.alpha_offset = uint32_t(texels.size());
+      fm.alpha_width = t.width;
+      fm.alpha_height = t.height;
+      for (size_t p = 0; p < size_t(t.width) * t.height; ++p)
+        texels.push_back(uint32_t(t.rgba[4 * p]) | uint32_t(t.rgba[4 * p + 1]) << 8 |
+                         uint32_t(t.rgba[4 * p + 2]) << 16 | uint32_t(t.rgba[4 * p + 3]) << 24);
+      alpha = true;
+    }
+    materials.push_back(fm);
+  }
+  std::vector<shared::FrameLight> lights;
+  for (const Light& l : scene.lights)
+    lights.push_back({l.position, l.directional ? 1.0f : 0.0f, l.color * l.intensity, 0.0f});
+
+  // Buffers
+  const size_t pixels = size_t(w) * h;
+  const VkBufferUsageFlags sb = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  gpu.params = make_buffer(ctx, std::vector<shared::FrameParams>{fp});
+  gpu.materials = make_buffer(ctx, materials);
+  gpu.texels = make_buffer(ctx, texels);
+  gpu.lights = make_buffer(ctx, lights);
+  gpu.visibility = ctx.create_buffer(pixels * 4, sb);
+  gpu.gather = ctx.create_buffer(pixels * sizeof(shared::GatherTexel), sb);
+  gpu.rays = ctx.create_buffer(pixels * sizeof(Ray), sb);
+  gpu.hits = ctx.create_buffer(pixels * sizeof(Hit), sb);
+  gpu.image = ctx.create_buffer(pixels * 4, sb);
+  create_image2d(ctx, gpu.color, VK_FORMAT_R32_UINT, w, h,
+                 VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
+  create_image2d(ctx, gpu.depth, VK_FORMAT_D32_SFLOAT, w, h, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
+                 VK_IMAGE_ASPECT_DEPTH_BIT);
+
+  // The descriptor set, the pipelines (specialized: bounce, textures)
+  const VkDescriptorType t = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  gpu.set = std::make_unique<Descriptors>(
+      ctx, std::initializer_list<VkDescriptorType>{t, t, t, t, t, t, t, t, t, t, t, t},
+      VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
+  Descriptors& set = *gpu.set;
+  set.bind(kParams, gpu.params);
+  set.bind(kInstances, grid.instance_buffer());
+  set.bind(kTriangles, grid.triangle_buffer());
+  set.bind(kUvs, grid.uv_buffer());
+  set.bind(kVisibility, gpu.visibility);
+  set.bind(kGather, gpu.gather);
+  set.bind(kMaterials, gpu.materials);
+  set.bind(kDiffuseTexels, gpu.texels);
+  set.bind(kLights, gpu.lights);
+  set.bind(kRays, gpu.rays);
+  set.bind(kHits, gpu.hits);
+  set.bind(kImage, gpu.image);
+  const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
+                         (alpha ? shared::kFrameAlpha : 0u);
+  auto spec = [&] {
+    SpecConstants s;
+    s.add(kSpecFrameFlags, flags);
+    return s;
+  };
+  gpu.resolve = std::make_unique<Pipeline>(ctx, "gather_resolve.comp", set.layout(), 0, spec());
+  gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
+  gpu.shade = std::make_unique<Pipeline>(ctx, "shade.comp", set.layout(), 0, spec());
+  SpecConstants raster_spec = spec();
+  gpu.create_raster(w, h, raster_spec.info());
+  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 5);
+}
+
+VulkanFrame::~VulkanFrame() { gpu_.reset(); }
+
+void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
+  Context& ctx = grid_.context();
+  Gpu& gpu = *gpu_;
+  const uint32_t w = options_.width, h = options_.height;
+  repeats = std::max(repeats, 1u);
+  ctx.upload(gpu.params, &frame, sizeof frame, offsetof(shared::FrameParams, frame));
+  if (bounce_) grid_.bind_ray_buffers(gpu.rays, gpu.hits);
+  const std::vector<shared::GridInstance>& instances = grid_.instances();
+  const auto t0 = std::chrono::steady_clock::now();
+  ctx.submit([&](VkCommandBuffer cb) {
+    barrier(cb);  // the grid's update and the parameters, before anything reads them
+    if (gpu.timestamps) gpu.timestamps->reset(cb);
+    for (uint32_t rep = 0; rep < repeats; ++rep) {
+      // Timestamps bracket the last repetition only (the earlier ones keep the GPU busy)
+      const bool timed = gpu.timestamps && rep + 1 == repeats;
+      if (rep > 0) barrier(cb);
+      if (timed) gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+      // Gather: the raster pass, one draw per instance (firstInstance = its id)
+      VkClearValue clear[2]{};
+      clear[0].color.uint32[0] = shared::kNoRef;
+      clear[1].depthStencil = {0.0f, 0};
+      VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+      bi.renderPass = gpu.pass;
+      bi.framebuffer = gpu.framebuffer;
+      bi.renderArea = {{0, 0}, {w, h}};
+      bi.clearValueCount = 2;
+      bi.pClearValues = clear;
+      vkCmdBeginRenderPass(cb, &bi, VK_SUBPASS_CONTENTS_INLINE);
+      vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.raster);
+      const VkDescriptorSet s = gpu.set->set();
+      vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.layout, 0, 1, &s, 0, nullptr);
+      for (uint32_t i = 0; i < instances.size(); ++i)
+        if (instances[i].tri_count) vkCmdDraw(cb, 3 * instances[i].tri_count, 1, 0, i);
+      vkCmdEndRenderPass(cb);
+      VkBufferImageCopy region{};
+      region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+      region.imageExtent = {w, h, 1};
+      vkCmdCopyImageToBuffer(cb, gpu.color.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, gpu.visibility.buffer, 1,
+                             &region);
+      barrier(cb);
+      // Gather: position, normal, material, uv from the visible triangle
+      gpu.resolve->bind(cb, s);
+      vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+      barrier(cb);
+      if (timed) gpu.timestamps->write(cb, 1);
+      if (bounce_) {
+        // Bounce rays
+        gpu.bounce->bind(cb, s);
+        vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 2);
+        // Trace through the grid
+        grid_.record_trace(cb, w * h);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 3);
+      } else if (timed) {
+        gpu.timestamps->write(cb, 2);
+        gpu.timestamps->write(cb, 3);
+      }
+      // Shade
+      gpu.shade->bind(cb, s);
+      vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+      if (timed) gpu.timestamps->write(cb, 4);
+    }
+  });
+  timings_.host_ms = ms_since(t0);
+  if (gpu.timestamps) {
+    const std::vector<double> ns = gpu.timestamps->read_ns();
+    timings_.gather_ms = (ns[1] - ns[0]) * 1e-6;
+    timings_.bounce_ms = (ns[2] - ns[1]) * 1e-6;
+    timings_.trace_ms = (ns[3] - ns[2]) * 1e-6;
+    timings_.shade_ms = (ns[4] - ns[3]) * 1e-6;
+    timings_.total_ms = (ns[4] - ns[0]) * 1e-6;
+  }
+}
+
+GatherBuffer VulkanFrame::download_gather() const {
+  Context& ctx = grid_.context();
+  const uint32_t w = options_.width, h = options_.height;
+  const std::vector<shared::GatherTexel> texels = ctx.download<shared::GatherTexel>(gpu_->gather, size_t(w) * h);
+  GatherBuffer g;
+  g.width = w;
+  g.height = h;
+  const size_t n = g.size();
+  g.valid.assign(n, 0);
+  g.position.assign(n, glm::vec3(0.0f));
+  g.normal.assign(n, glm::vec3(0.0f));
+  g.incident.resize(n);
+  g.material.assign(n, kNoMaterial);
+  g.uv.assign(n, glm::vec2(0.0f));
+  g.launch_ref.assign(n, shared::kNoRef);
+  g.hit.assign(n, Hit{0.0f, shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0});
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const size_t p = size_t(y) * w + x;
+      const shared::GatherTexel& t = texels[p];
+      g.incident[p] = shared::camera_direction(gpu_->camera, x, y);
+      if (t.launch_ref == shared::kNoRef) continue;
+      g.valid[p] = 1;
+      g.position[p] = t.position;
+      g.normal[p] = t.normal;
+      g.material[p] = t.material;
+      g.uv[p] = t.uv;
+      g.launch_ref[p] = t.launch_ref;
+      g.hit[p].t = t.t;
+      g.hit[p].instance = shared::ref_instance(t.launch_ref);
+      g.hit[p].triangle = shared::ref_triangle(t.launch_ref);
+    }
+  return g;
+}
+
+std::vector<Ray> VulkanFrame::download_rays() const {
+  return grid_.context().download<Ray>(gpu_->rays, size_t(options_.width) * options_.height);
+}
+
+std::vector<Hit> VulkanFrame::download_hits() const {
+  return grid_.context().download<Hit>(gpu_->hits, size_t(options_.width) * options_.height);
+}
+
+std::vector<uint8_t> VulkanFrame::download_rgba() const {
+  return grid_.context().download<uint8_t>(gpu_->image, size_t(options_.width) * options_.height * 4);
+}
+
+std::vector<uint32_t> VulkanFrame::download_visibility() const {
+  return grid_.context().download<uint32_t>(gpu_->visibility, size_t(options_.width) * options_.height);
+}
+
+const Buffer& VulkanFrame::ray_buffer() const { return gpu_->rays; }
+const Buffer& VulkanFrame::hit_buffer() const { return gpu_->hits; }
+
+}  // namespace gridrt::vulkan

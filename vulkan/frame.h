@@ -1,0 +1,84 @@
+// frame.h: the paper's frame on the GPU, after the grid's update, in one submission:
+//   gather   a raster pass (gather.vert + gather.frag: the geometry buffer's world-space triangles,
+//            depth test, the visible triangle's reference per pixel into an R32_UINT attachment),
+//            copied to a buffer; gather_resolve.comp turns it into the gather buffer (position,
+//            normal, material, uv, launch reference) with the same shared math as make_gather
+//   bounce   bounce.comp: one glossy bounce ray per pixel, as bounce_rays (common/shared/bounce.h)
+//   trace    the grid's trace pipeline (VulkanGridTracer::record_trace) on the device ray buffer
+//   shade    shade.comp: as shade() (no shadow rays) into RGBA8, sRGB-encoded
+// Each phase is bracketed by timestamp queries. Nothing goes through the host between phases.
+//
+// The tie rule of the raster gather: the rasterizer covers a pixel centre by Vulkan's rules (the
+// top-left rule on shared edges) and keeps the nearest interpolated depth; the CPU gather keeps the
+// ray's closest accepted hit (ties: the smaller reference). They pick different triangles only
+// where two candidates meet at the pixel centre (a shared edge, a silhouette, an intersection, or
+// depths within the rasterizer's precision); tests/test_vulkan_frame.cpp counts and bounds those.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "common/gather.h"
+#include "common/shade.h"
+#include "vulkan/grid.h"
+#include "vulkan/shaders/frame_input.h"
+
+namespace gridrt::vulkan {
+
+// Device milliseconds of the phases of the last render() (0 without timestamps), and the host's
+// submit-to-fence time of the whole (on lavapipe the one to read: docs/VULKAN.md).
+struct FrameTimings {
+  double gather_ms = 0.0, bounce_ms = 0.0, trace_ms = 0.0, shade_ms = 0.0;
+  double total_ms = 0.0;  // gather + bounce + trace + shade
+  double host_ms = 0.0;
+};
+
+struct FrameOptions {
+  uint32_t width = 1920, height = 1080;
+  float ambient = 0.2f, exposure = 1.0f;  // ShadeOptions
+  bool bounce = true;   // false: no bounce rays (as a scene without glossy materials)
+};
+
+class VulkanFrame {
+ public:
+  // `grid` must be built from `scene`; both outlive the frame.
+  VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOptions options = {});
+  ~VulkanFrame();
+  VulkanFrame(const VulkanFrame&) = delete;
+  VulkanFrame& operator=(const VulkanFrame&) = delete;
+
+  // Gather, bounce, trace and shade at the grid's current time (update the grid first);
+  // `frame` selects the bounce's per-pixel random sequence (bounce_rays' frame). `repeats` > 1
+  // records the passes that many times back to back in the one submission and times the last
+  // (a GPU kept busy, as in a render loop, rather than idling while the host waits).
+  void render(uint32_t frame, uint32_t repeats = 1);
+
+  // Read-backs of the last render(), per pixel (index y * width + x).
+  GatherBuffer download_gather() const;     // as make_gather fills it (hit: t, instance, triangle)
+  std::vector<Ray> download_rays() const;   // the bounce rays
+  std::vector<Hit> download_hits() const;   // their hits
+  std::vector<uint8_t> download_rgba() const;  // RGBA8, sRGB-encoded
+  std::vector<uint32_t> download_visibility() const;  // the raster pass's reference per pixel
+
+  // The device buffers of the bounce rays and hits (another tracer may trace the same rays).
+  const Buffer& ray_buffer() const;
+  const Buffer& hit_buffer() const;
+  uint32_t ray_count() const { return options_.width * options_.height; }
+  // Whether the bounce runs (the scene has glossy materials, and options.bounce).
+  bool bounce() const { return bounce_; }
+
+  const FrameTimings& timings() const { return timings_; }
+  const FrameOptions& options() const { return options_; }
+
+ private:
+  struct Gpu;
+  VulkanGridTracer& grid_;
+  const Scene& scene_;
+  FrameOptions options_;
+  bool bounce_ = true;
+  std::unique_ptr<Gpu> gpu_;
+  FrameTimings timings_;
+};
+
+}  // namespace gridrt::vulkan

@@ -1,0 +1,25 @@
+#version 460
+// bounce.comp: one glossy bounce ray per pixel off the gather buffer, as common/gather.cpp's
+// bounce_rays makes it (common/shared/bounce.h); unused pixels get the empty ray.
+#extension GL_GOOGLE_include_directive : require
+#include "frame_common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+void main() {
+  const CameraParams c = fp.camera;
+  const uvec2 px = gl_GlobalInvocationID.xy;
+  if (px.x >= c.width || px.y >= c.height) return;
+  const uint p = px.y * c.width + px.x;
+  RayRecord ray = RayRecord(vec3(0.0f), 0.0f, vec3(0.0f, 0.0f, 1.0f), 0.0f, vec3(0.0f), kNoRef);
+  const GatherTexel g = gather[p];
+  if ((kFrameFlags & kFrameBounce) != 0u && g.launch_ref != kNoRef && g.material < fp.material_count) {
+    const FrameMaterial m = fmaterials[g.material];
+    if (m.glossiness > 0.0f) {
+      const vec3 d = camera_direction(c, px.x, px.y);
+      const vec3 dir = bounce_direction(d, g.normal, m.glossiness, m.cos_max, pixel_random(px.x, px.y, fp.frame));
+      ray = RayRecord(g.position, 0.0f, dir, sh_infinity(), g.normal, g.launch_ref);
+    }
+  }
+  rays[p] = ray;
+}

@@ -1,0 +1,61 @@
+// frame_input.h: what the passes of the paper's frame read besides the grid's tables (vulkan/
+// frame.h): the frame's parameters, the materials and lights as shading reads them. Shared by
+// the host (vulkan/frame.cpp) and the shaders (compat.h rules).
+#ifndef GRIDRT_VULKAN_FRAME_INPUT_H
+#define GRIDRT_VULKAN_FRAME_INPUT_H
+
+#include "common/shared/compat.h"
+#include "common/shared/bounce.h"
+
+SH_BEGIN
+
+// Feature bits of the frame passes (specialization constant kFrameFlags, vulkan/frame.cpp).
+SH_CONST uint kFrameBounce = 1u;    // glossy materials: make and shade bounce rays
+SH_CONST uint kFrameTextures = 2u;  // some material has a diffuse texture
+SH_CONST uint kFrameAlpha = 4u;     // alpha keying: some material has a mask (and the grid keys them)
+
+struct FrameParams {
+  CameraParams camera;   // the primary rays' camera
+  vec3 background;       // environment colour on a miss
+  uint light_count;      // 0: a headlight at the eye
+  float ambient;         // ShadeOptions::ambient
+  float exposure;        // ShadeOptions::exposure
+  float near_plane;      // the raster gather's near plane (camera space, world units)
+  uint frame;            // the bounce's per-pixel sequence number
+  uint material_count;   // entries of the material table
+  uint pad0;
+  uint pad1;
+  uint pad2;
+};
+
+// A material as shading reads it.
+struct FrameMaterial {
+  vec3 diffuse;          // Material::diffuse
+  float glossiness;      // Material::glossiness
+  float cos_max;         // cone_cos_max(glossiness)
+  uint texture_offset;   // first texel of the diffuse texture in the texel buffer (RGBA8 packed)
+  uint texture_width;    // 0: no texture
+  uint texture_height;
+  uint alpha_offset;     // first texel of the alpha mask in the texel buffer (full resolution)
+  uint alpha_width;      // 0: no mask
+  uint alpha_height;
+  uint pad0;
+};
+
+// A light; radiance = colour * intensity.
+struct FrameLight {
+  vec3 position;         // point light position, or the direction towards a directional light
+  float directional;     // 1: directional, 0: point light (1/d^2 falloff)
+  vec3 radiance;
+  float pad0;
+};
+
+SH_END
+
+#ifdef __cplusplus
+static_assert(sizeof(gridrt::shared::FrameParams) == 112, "std430 layout of FrameParams");
+static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
+static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
+#endif
+
+#endif
