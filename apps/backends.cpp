@@ -33,7 +33,9 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
   cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units")->check(CLI::PositiveNumber)->group("Grid");
   cmd->add_option("--density", g.density, "Target cells per triangle for the automatic resolution")
       ->check(CLI::PositiveNumber)->group("Grid");
-  cmd->add_option("--max-image-dimension", g.max_image_dimension, "Largest image side the grid may use")
+  cmd->add_option("--max-image-dimension", o.max_image_dimension,
+                  "Largest image side the grid may use (default: the Vulkan device's limit when the vulkan "
+                  "backend runs, else 4096)")
       ->check(CLI::Range(2u, 65536u))->group("Grid");
   cmd->add_option("--enlargement", g.sphere_enlargement, "Cell bounding-sphere radius multiplier (build)")
       ->check(CLI::Range(0.0f, 16.0f))->group("Grid");
@@ -105,8 +107,30 @@ std::string backend_list() {
   return known;
 }
 
+uint32_t vulkan_max_image_dimension() {
+#ifdef GRIDRT_HAVE_VULKAN
+  try {
+    vulkan::Context ctx;
+    return ctx.info().limits.maxImageDimension3D;
+  } catch (const Error&) {
+    return 0;
+  }
+#else
+  return 0;
+#endif
+}
+
+void resolve_image_limit(BackendOptions& o, bool uses_vulkan) {
+  if (o.max_image_dimension || !uses_vulkan) return;
+  const uint32_t limit = vulkan_max_image_dimension();
+  if (limit == 0) return;
+  o.max_image_dimension = limit;
+  std::fprintf(stderr, "grid image limit: %u texels per side (the Vulkan device's maxImageDimension3D)\n", limit);
+}
+
 reference::GridOptions grid_options_for(const BackendOptions& o, const Scene& scene) {
   reference::GridOptions g = o.grid;
+  if (o.max_image_dimension) g.max_image_dimension = *o.max_image_dimension;
   if (!o.resolution.empty()) g.resolution = glm::uvec3(o.resolution[0], o.resolution[1], o.resolution[2]);
   if (!o.all_effects) {
     // Simulate only what the scene calls for (DESIGN.md): no alpha keying without masks.

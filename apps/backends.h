@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -21,7 +22,17 @@ struct BackendOptions {
   bool fallback_cpu = false;     // no Vulkan device: use the CPU reference instead of failing
   bool all_effects = false;      // simulate every effect even where the scene does not need it
   std::vector<unsigned> resolution;  // --resolution X,Y,Z
+  // --max-image-dimension; unset: the Vulkan device's maxImageDimension3D where a verb runs the
+  // vulkan backend (so both tracers of `diff` choose the same grid), else 4096 (lavapipe's)
+  std::optional<uint32_t> max_image_dimension;
 };
+
+// The largest 3D image side of the Vulkan device the tool would use (0 without one).
+uint32_t vulkan_max_image_dimension();
+
+// Fills options.max_image_dimension from the Vulkan device when the user did not set it and
+// `uses_vulkan`; prints what it chose.
+void resolve_image_limit(BackendOptions& options, bool uses_vulkan);
 
 // Registers --traversal, --insertion, --capacity, ... on a verb.
 void add_backend_options(CLI::App* cmd, BackendOptions& options);

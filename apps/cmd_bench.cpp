@@ -146,7 +146,9 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
 }
 #endif
 
-void run_bench(const BenchOptions& o) {
+void run_bench(const BenchOptions& options) {
+  BenchOptions o = options;
+  resolve_image_limit(o.backend_options, std::find(o.backends.begin(), o.backends.end(), "vulkan") != o.backends.end());
   const Scene scene = load_scene_or_default(o.scene);
   const std::vector<std::string> backends = o.backends.empty() ? std::vector<std::string>{backend_names().front()} : o.backends;
 

@@ -92,7 +92,9 @@ struct ExplainOptions : GridVerbOptions {
   bool primary = false;
 };
 
-void run_explain(const ExplainOptions& o) {
+void run_explain(const ExplainOptions& options) {
+  ExplainOptions o = options;
+  resolve_image_limit(o.backend_options, o.backend == "vulkan");
   const Scene scene = load_scene_or_default(o.scene);
   const uint32_t x = o.pixel[0], y = o.pixel[1];
   if (x >= o.width || y >= o.height)
@@ -198,7 +200,9 @@ bool diff_images(const reference::ReferenceGridTracer& ref, Tracer& gpu, uint32_
   return false;
 }
 
-void run_diff(const DiffOptions& o) {
+void run_diff(const DiffOptions& options) {
+  DiffOptions o = options;
+  resolve_image_limit(o.backend_options, true);
   const Scene scene = load_scene_or_default(o.scene);
   const reference::GridOptions grid = grid_options_for(o.backend_options, scene);
   vulkan::VulkanGridOptions vk;

@@ -43,7 +43,9 @@ std::string frame_path(const std::string& output, uint32_t frame, uint32_t frame
   return (p.parent_path() / (p.stem().string() + suffix + p.extension().string())).string();
 }
 
-void run_render(const RenderOptions& o) {
+void run_render(const RenderOptions& options) {
+  RenderOptions o = options;
+  resolve_image_limit(o.backend_options, o.backend == "vulkan");
   if (o.backend.rfind("portal", 0) == 0) {
     // The portal-div raytracer renders worlds of voxels with its own shading (cmd_portal.cpp).
     PortalRenderOptions p;
