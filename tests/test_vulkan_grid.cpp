@@ -17,6 +17,7 @@
 #include <random>
 #include <sstream>
 
+#include "reference/compare.h"
 #include "tests/test_grid_util.h"
 #include "tests/vulkan_test_util.h"
 #include "vulkan/grid.h"
@@ -211,60 +212,17 @@ size_t compare_triangles(const std::vector<sh::GridTriangle>& want, const std::v
   return bad;
 }
 
-// Every reference a build would insert into each cell (no capacity), from the geometry buffer.
-std::vector<std::vector<uint32_t>> candidates(const reference::GridData& grid) {
-  const sh::GridParams& g = grid.params;
-  std::vector<std::vector<uint32_t>> out(size_t(g.cells.x) * g.cells.y * g.cells.z);
-  for (uint32_t i = 0; i < grid.instances.size(); ++i)
-    for (uint32_t k = 0; k < grid.instances[i].tri_count; ++k) {
-      const sh::GridTriangle& t = grid.triangles[grid.instances[i].tri_offset + k];
-      const glm::vec3 n = sh::triangle_normal(t.v0, t.v1, t.v2);
-      const float nn = sh::sh_dot(n, n);
-      if (nn == 0.0f) continue;
-      glm::uvec3 lo, hi;
-      sh::triangle_cell_range(g, t.v0, t.v1, t.v2, lo, hi);
-      for (uint32_t z = lo.z; z <= hi.z; ++z)
-        for (uint32_t y = lo.y; y <= hi.y; ++y)
-          for (uint32_t x = lo.x; x <= hi.x; ++x)
-            if (sh::plane_intersects_enlarged_sphere(t.v0, n, nn, sh::cell_center(g, {x, y, z}), g.sphere_r2))
-              out[(size_t(z) * g.cells.y + y) * g.cells.x + x].push_back(sh::ref_pack(i, k));
-    }
-  return out;
-}
-
 // First-empty: unsaturated cells hold exactly their candidates; saturated ones `capacity` of them,
-// flagged. Returns the number of bad cells; counts saturated cells.
+// flagged (reference::check_cells_as_multisets). Returns the number of bad cells; counts saturated
+// cells.
 size_t check_first_empty(const reference::GridData& grid, const AccelDump& got, size_t* saturated) {
+  const reference::CellCheck c = reference::check_cells_as_multisets(grid, got);
+  *saturated = c.saturated;
   const sh::GridParams& g = grid.params;
-  const std::vector<std::vector<uint32_t>> cand = candidates(grid);
-  size_t bad = 0;
-  *saturated = 0;
-  for (uint32_t z = 0; z < g.cells.z; ++z)
-    for (uint32_t y = 0; y < g.cells.y; ++y)
-      for (uint32_t x = 0; x < g.cells.x; ++x) {
-        const glm::uvec3 cell(x, y, z);
-        std::vector<uint32_t> want = cand[(size_t(z) * g.cells.y + y) * g.cells.x + x];
-        std::vector<uint32_t> have;
-        for (uint32_t s = 0; s < g.capacity; ++s) {
-          const uint32_t v = got.texels[sh::texel_index(sh::cell_slot_texel(g, cell, s), got.extent)];
-          if (v != sh::kBlank) have.push_back(v);
-        }
-        const uint32_t status = got.texels[sh::texel_index(sh::cell_status_texel(g, cell), got.extent)];
-        std::sort(want.begin(), want.end());
-        std::sort(have.begin(), have.end());
-        bool ok;
-        if (want.size() <= g.capacity) {
-          ok = have == want && status == 0u;
-        } else {
-          ++*saturated;
-          ok = have.size() == g.capacity && std::includes(want.begin(), want.end(), have.begin(), have.end()) &&
-               status != 0u;
-        }
-        if (!ok && ++bad <= 5)
-          UNSCOPED_INFO("cell (" << x << ", " << y << ", " << z << "): " << want.size() << " candidates, "
-                                 << have.size() << " held, status " << status);
-      }
-  return bad;
+  for (size_t k = 0; k < c.bad.size() && k < 5; ++k)
+    UNSCOPED_INFO("cell (" << c.bad[k] % g.cells.x << ", " << (c.bad[k] / g.cells.x) % g.cells.y << ", "
+                           << c.bad[k] / (size_t(g.cells.x) * g.cells.y) << ") breaks the multiset rule");
+  return c.bad.size();
 }
 
 GridOptions options(reference::Insertion insertion, reference::Traversal traversal, uint32_t capacity) {
