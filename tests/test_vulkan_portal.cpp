@@ -229,7 +229,7 @@ void check_render(const pt::PortalBuild& b, bool has_glass) {
 
 }  // namespace
 
-TEST_CASE("Portal Vulkan: the render equals the CPU render; state machine == separate loops", "[vulkan][portal][diff]") {
+TEST_CASE("Portal Vulkan: the render equals the CPU render - state machine == separate loops", "[vulkan][portal][diff]") {
   SECTION("the built-in level") { check_render(builtin_build(), false); }
   SECTION("a glass block in a room (refraction, total internal reflection)") {
     const pt::World w =
