@@ -15,6 +15,8 @@
 namespace gridrt::vulkan {
 
 namespace sh = gridrt::shared;
+using portal::face_name;
+using portal::texel_text;
 
 namespace {
 
@@ -142,16 +144,6 @@ std::string fmt(const char* f, ...) {
   return buf;
 }
 
-const char* face_name(uint32_t f) {
-  static const char* n[] = {"-X", "+X", "-Y", "+Y", "-Z", "+Z", "inside"};
-  return n[std::min(f, 6u)];
-}
-
-std::string texel_text(uint32_t t) {
-  if (t == sh::kPortalOutside) return fmt("0x%04X (outside the world)", t);
-  if (t >= sh::kPortalWallBit) return fmt("0x%04X (wall, material %u)", t, t - sh::kPortalWallBit);
-  return fmt("0x%04X (div %u)", t, t);
-}
 
 std::vector<std::string> lines_of(const std::string& s) {
   std::vector<std::string> out;

@@ -42,16 +42,6 @@ std::string fmt(const char* f, ...) {
   return buf;
 }
 
-const char* face_name(uint32_t f) {
-  static const char* n[] = {"-X", "+X", "-Y", "+Y", "-Z", "+Z", "inside"};
-  return n[std::min(f, 6u)];
-}
-
-std::string texel_text(uint32_t t) {
-  if (t == sh::kPortalOutside) return fmt("0x%04X (outside the world)", t);
-  if (t >= sh::kPortalWallBit) return fmt("0x%04X (wall, material %u)", t, t - sh::kPortalWallBit);
-  return fmt("0x%04X (div %u)", t, t);
-}
 
 Hit miss_hit(uint32_t steps, uint32_t texels) {
   Hit h{};
@@ -128,6 +118,17 @@ Entry enter_world(glm::uvec3 dims, const VoxelRay& r) {
 uint16_t atlas_at(const PackedPortal& p, glm::uvec2 uv) { return p.atlas[size_t(uv.y) * p.atlas_width + uv.x]; }
 
 }  // namespace
+
+const char* face_name(uint32_t f) {
+  static const char* n[] = {"-X", "+X", "-Y", "+Y", "-Z", "+Z", "inside"};
+  return n[std::min(f, 6u)];
+}
+
+std::string texel_text(uint32_t t) {
+  if (t == sh::kPortalOutside) return fmt("0x%04X (outside the world)", t);
+  if (t >= sh::kPortalWallBit) return fmt("0x%04X (wall, material %u)", t, t - sh::kPortalWallBit);
+  return fmt("0x%04X (div %u)", t, t);
+}
 
 VoxelRay to_voxel_ray(glm::vec3 origin, float voxel_size, const Ray& ray) {
   VoxelRay r;

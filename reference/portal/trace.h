@@ -55,6 +55,11 @@ Hit trace_portal(const PackedPortal& packed, const Ray& ray, std::string* log = 
 // predicate). `log` as above.
 Hit trace_dda(const World& world, const Ray& ray, std::string* log = nullptr);
 
+// Names for explain texts (shared by the CPU and Vulkan accounts): a face id ("-X" ... "+Z",
+// "inside") and an atlas texel ("0x8001 (wall, material 1)").
+const char* face_name(uint32_t face);
+std::string texel_text(uint32_t texel);
+
 // Readable account of one ray: divs visited, exit faces, texels read, decisions.
 std::string explain_portal(const PackedPortal& packed, const World& world, const Ray& ray);
 
