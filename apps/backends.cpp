@@ -54,13 +54,29 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
       ->transform(CLI::CheckedTransformer(tests, CLI::ignore_case))
       ->group("Grid");
   const std::map<std::string, reference::GridOptions::CapacityPolicy> policies{
+      {"trace-cost", reference::GridOptions::CapacityPolicy::trace_cost},
       {"no-saturation", reference::GridOptions::CapacityPolicy::no_saturation},
       {"percentile", reference::GridOptions::CapacityPolicy::percentile}};
   cmd->add_option("--capacity-policy", g.capacity_policy,
-                  "Automatic capacity: no-saturation (the resolution near the density target whose largest cell "
-                  "fits) or percentile (the 0.99 percentile of cell counts, the original rule)")
+                  "Automatic resolution and capacity: trace-cost (the candidate whose estimated trace work on a "
+                  "sample of the frame's rays is lowest), no-saturation (the resolution near the density target "
+                  "whose largest cell fits) or percentile (the 0.99 percentile of cell counts, the original rule)")
       ->transform(CLI::CheckedTransformer(policies, CLI::ignore_case))
       ->group("Grid");
+  cmd->add_option("--cell-visit-cost", g.cell_visit_cost,
+                  "trace-cost policy: the cost of visiting a cell, in reference tests")
+      ->check(CLI::Range(0.0f, 1.0e6f))->group("Grid");
+  cmd->add_option("--saturation-cost", g.saturation_cost,
+                  "trace-cost policy: the cost of a ray meeting a saturated cell, in reference tests")
+      ->check(CLI::Range(0.0f, 1.0e12f))->group("Grid");
+  cmd->add_option_function<std::vector<uint32_t>>(
+         "--work-sample",
+         [&g](const std::vector<uint32_t>& wh) {
+           g.work_sample_width = wh[0];
+           g.work_sample_height = wh[1];
+         },
+         "trace-cost policy: the gather buffer W,H whose rays sample the trace's work (default 96,54)")
+      ->delimiter(',')->expected(2)->check(CLI::Range(1u, 4096u))->group("Grid");
   cmd->add_option("--max-capacity", g.max_capacity, "Largest automatic capacity")
       ->check(CLI::Range(1u, 65535u))->group("Grid");
   const std::map<std::string, reference::GridOptions::SlotAxis> axes{
@@ -74,7 +90,9 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
          "--memory-budget", [&g](double mib) { g.max_texels = uint64_t(mib * 1024.0 * 1024.0 / 4.0); },
          "Largest grid image in MiB (default 1024)")
       ->check(CLI::Range(0.001, 1.0e6))->group("Grid");
-  cmd->add_option("--aabb-padding", g.aabb_padding, "Cell units added on each side of a triangle's AABB (build)")
+  cmd->add_option("--aabb-padding", g.aabb_padding,
+                  "Cell units added on each side of a triangle's AABB (build; default 0.001, and for the paper "
+                  "traversal the trace-cost policy also weighs 0.25)")
       ->check(CLI::Range(0.0f, 16.0f))->group("Grid");
   cmd->add_flag("--keep-launch-ref{false}", g.exclude_launch_ref,
                 "Self-hit: test the ray's launch triangle too (default: never accept it)")

@@ -3,6 +3,8 @@
 //            record beside it with --backend vulkan)
 //   stats    the grid's size, memory, occupancy and saturation
 //   diff     the CPU reference against the Vulkan port: grid images and every hit, over frames
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <limits>
@@ -15,8 +17,12 @@
 #include "common/gather.h"
 #include "reference/compare.h"
 #include "reference/grid.h"
+#include "reference/policy.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "vulkan/grid.h"
+#endif
+#ifdef GRIDRT_HAVE_EMBREE
+#  include "common/embree/embree_tracer.h"
 #endif
 
 namespace gridrt::app {
@@ -153,13 +159,102 @@ void run_explain(const ExplainOptions& options) {
 
 // ---- stats ------------------------------------------------------------------------------------
 
-void run_stats(const GridVerbOptions& o) {
+struct StatsOptions : GridVerbOptions {
+  bool candidates = false;  // print the candidates choose_grid weighed
+  bool measure = false;     // ... and trace the frame's rays through each of them
+  uint32_t repeat = 3;
+};
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The candidates choose_grid weighed, with the trace-cost policy's estimates; with `measure`, each
+// candidate built (its cell size and capacity as overrides) and the frame's glossy bounce rays of a
+// --width x --height gather buffer (camera rays without glossy materials) traced through it: the
+// hit records' cells and tests per ray beside the estimates, and the trace time (median).
+void print_candidates(const StatsOptions& o, const Scene& scene, const reference::GridOptions& go) {
+  reference::GridChoice choice;
+  auto t0 = std::chrono::steady_clock::now();
+  const sh::GridParams chosen = reference::choose_grid(scene, o.time, go, &choice);
+  const double choose_ms = ms_since(t0);
+  std::printf("\nchoose_grid: %.0f ms, %zu candidates (image limit %u, policy %s)\n", choose_ms,
+              choice.candidates.size(), go.max_image_dimension,
+              go.capacity_policy == reference::GridOptions::CapacityPolicy::trace_cost      ? "trace-cost"
+              : go.capacity_policy == reference::GridOptions::CapacityPolicy::no_saturation ? "no-saturation"
+                                                                                            : "percentile");
+  std::vector<Ray> rays;
+  std::vector<Hit> want;  // Embree's hits, where this build has it
+  if (o.measure) {
+    const GatherBuffer gather = reference_gather(scene, go, o.width, o.height, o.time);
+    for (const Ray& r : bounce_rays(scene, gather, 0))
+      if (!is_unused(r)) rays.push_back(r);
+    if (rays.empty())
+      for (uint32_t y = 0; y < o.height; ++y)
+        for (uint32_t x = 0; x < o.width; ++x) rays.push_back(camera_ray(scene.frame_camera(), o.width, o.height, x, y));
+#ifdef GRIDRT_HAVE_EMBREE
+    EmbreeTracer embree(reference::thread_count(go));
+    embree.build(scene, o.time);
+    want.resize(rays.size());
+    embree.trace(rays, want);
+#endif
+    std::printf("measured on %zu rays of a %ux%u gather buffer, %u thread(s), trace median of %u\n", rays.size(),
+                o.width, o.height, reference::thread_count(go), o.repeat);
+  }
+  std::printf("| | cells | cell size | AABB padding | capacity | largest count | saturated cells | dropped refs | MiB | est. cells/ray "
+              "| est. tests/ray | est. at risk %% | est. skipped %% | est. lost %% | est. cost |%s\n",
+              o.measure ? " cells/ray | tests/ray | gap-fill % | agree % | trace ms |" : "");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|%s\n", o.measure ? "---|---|---|---|---|" : "");
+  for (size_t i = 0; i < choice.candidates.size(); ++i) {
+    const reference::GridCandidate& c = choice.candidates[i];
+    std::printf("| %s | %ux%ux%u | %g | %g | %u | %u | %llu | %llu | %.1f | %.1f | %.1f | %.2f | %.3f | %.3f | %.0f |",
+                i == choice.chosen ? "**chosen**" : "", c.cells.x, c.cells.y, c.cells.z, double(c.cell_size),
+                double(c.aabb_padding),
+                c.capacity, c.max_count, (unsigned long long)c.saturated_cells, (unsigned long long)c.dropped,
+                double(c.texels) * 4.0 / 1048576.0, c.work.cells, c.work.tests, 100.0 * c.work.at_risk, 100.0 * c.work.skipped, 100.0 * c.work.lost, c.cost);
+    if (o.measure) {
+      reference::GridOptions gc = go;
+      gc.cell_size = c.cell_size;
+      gc.capacity = c.capacity;
+      gc.aabb_padding = c.aabb_padding;
+      reference::ReferenceGridTracer t(gc);
+      t.build(scene, o.time);
+      std::vector<Hit> hits(rays.size());
+      std::vector<double> ms;
+      for (uint32_t k = 0; k < std::max(1u, o.repeat); ++k) {
+        t0 = std::chrono::steady_clock::now();
+        t.trace(rays, hits);
+        ms.push_back(ms_since(t0));
+      }
+      std::sort(ms.begin(), ms.end());
+      const reference::WorkEstimate m = reference::measured_work(rays, hits);
+      double agree = 0.0;
+      if (!want.empty()) {
+        size_t same = 0;
+        for (size_t r = 0; r < rays.size(); ++r)
+          same += (is_miss(hits[r]) && is_miss(want[r])) ||
+                  (!is_miss(hits[r]) && !is_miss(want[r]) && !(hits[r].flags & sh::kHitGapFill) &&
+                   hits[r].instance == want[r].instance && hits[r].triangle == want[r].triangle);
+        agree = 100.0 * double(same) / double(rays.size());
+      }
+      std::printf(" %.1f | %.1f | %.3f | %s | %.2f |", m.cells, m.tests, 100.0 * m.lost,
+                  want.empty() ? "-" : std::to_string(agree).substr(0, 6).c_str(), ms[ms.size() / 2]);
+    }
+    std::printf("\n");
+    std::fflush(stdout);
+  }
+  (void)chosen;
+}
+
+void run_stats(const StatsOptions& o) {
   const Scene scene = load_scene_or_default(o.scene);
-  reference::ReferenceGridTracer ref(grid_options_for(o.backend_options, scene));
+  const reference::GridOptions go = grid_options_for(o.backend_options, scene);
+  reference::ReferenceGridTracer ref(go);
   ref.build(scene, o.time);
   std::printf("scene %s: %llu triangles in %zu instances (%u static)\n%s", scene.name.c_str(),
               (unsigned long long)scene.triangle_count(), scene.instances.size(), scene.static_instance_count(),
               reference::to_text(ref.stats()).c_str());
+  if (o.candidates || o.measure) print_candidates(o, scene, go);
 }
 
 // ---- diff -------------------------------------------------------------------------------------
@@ -310,9 +405,17 @@ void add_grid_commands(CLI::App& app) {
     cmd->callback([o] { run_explain(*o); });
   }
   {
-    auto o = std::make_shared<GridVerbOptions>();
+    auto o = std::make_shared<StatsOptions>();
+    o->width = 192;
+    o->height = 108;
     CLI::App* cmd = app.add_subcommand("stats", "The grid's size, memory, occupancy histogram and saturated cells");
     add_common(cmd, *o);
+    cmd->add_flag("--candidates", o->candidates,
+                  "Also list the candidate grids choose_grid weighed, with the trace-cost policy's estimates");
+    cmd->add_flag("--measure", o->measure,
+                  "Also build every candidate and trace the frame's bounce rays (--width x --height gather buffer) "
+                  "through it: measured cells and tests per ray and trace time beside the estimates");
+    cmd->add_option("--repeat", o->repeat, "--measure: trace this many times (median)")->check(CLI::Range(1u, 100u));
     cmd->callback([o] { run_stats(*o); });
   }
 #ifdef GRIDRT_HAVE_VULKAN

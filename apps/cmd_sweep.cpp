@@ -20,6 +20,7 @@
 #include "common/image_io.h"
 #include "reference/compare.h"
 #include "reference/grid.h"
+#include "reference/policy.h"
 #ifdef GRIDRT_HAVE_EMBREE
 #  include "common/embree/embree_tracer.h"
 #endif
@@ -44,6 +45,8 @@ struct SweepOptions {
   std::vector<std::string> capacity{"auto", "percentile"};
   std::vector<std::string> enlargement{"1.25"};
   std::vector<std::string> elongation{"0.5"};
+  std::vector<std::string> padding{"auto"};
+  std::vector<std::string> repeats{"merge"};
   std::vector<std::string> gap_fill{"on"};
   std::vector<std::string> launch{"exclude"};
   std::vector<std::string> max_dim{"4096"};
@@ -52,13 +55,20 @@ struct SweepOptions {
 
 // One point of the grid of knobs.
 struct Config {
-  std::string traversal, triangle_test, capacity, launch, gap_fill;
+  std::string traversal, triangle_test, capacity, launch, gap_fill, repeats = "merge";
   float enlargement = 1.25f, elongation = 0.5f;
+  std::optional<float> padding;  // none: automatic
   uint32_t max_dim = 4096;
+  std::string padding_text() const {
+    if (!padding) return "auto";
+    std::ostringstream s;
+    s << *padding;
+    return s.str();
+  }
   std::string label() const {
     std::ostringstream s;
-    s << traversal << " " << triangle_test << " cap=" << capacity << " enl=" << enlargement;
-    if (traversal == "paper") s << " elo=" << elongation << " gap=" << gap_fill;
+    s << traversal << " " << triangle_test << " cap=" << capacity << " enl=" << enlargement << " pad=" << padding_text();
+    if (traversal == "paper") s << " elo=" << elongation << " rep=" << repeats << " gap=" << gap_fill;
     s << " self=" << launch << " dim=" << max_dim;
     return s.str();
   }
@@ -95,21 +105,27 @@ std::vector<Config> configurations(const SweepOptions& o) {
   check_member("triangle-test", o.triangle_test, {"moller", "watertight"});
   check_member("gap-fill", o.gap_fill, {"on", "off"});
   check_member("self-hit", o.launch, {"exclude", "keep"});
-  for (const auto* list : {&o.capacity, &o.enlargement, &o.elongation, &o.max_dim})
+  check_member("repeats", o.repeats, {"merge", "skip", "retest"});
+  for (const auto* list : {&o.capacity, &o.enlargement, &o.elongation, &o.padding, &o.max_dim})
     if (list->empty()) throw Error("sweep: a knob's list is empty");
   for (const std::string& c : o.capacity)
-    if (c != "auto" && c != "percentile") parse_float("capacity", c, 1.0f, 65535.0f);
+    if (c != "auto" && c != "trace-cost" && c != "no-saturation" && c != "percentile")
+      parse_float("capacity", c, 1.0f, 65535.0f);
   std::vector<Config> out;
   for (const std::string& tr : o.traversal)
     for (const std::string& tt : o.triangle_test)
       for (const std::string& cap : o.capacity)
         for (const std::string& en : o.enlargement)
+          for (const std::string& pa : o.padding)
           for (size_t ei = 0; ei < o.elongation.size(); ++ei)
+          for (size_t ri = 0; ri < o.repeats.size(); ++ri)
             for (size_t gi = 0; gi < o.gap_fill.size(); ++gi)
               for (const std::string& la : o.launch)
                 for (const std::string& md : o.max_dim) {
-                  if (tr == "exact" && (ei > 0 || gi > 0)) continue;
+                  if (tr == "exact" && (ei > 0 || gi > 0 || ri > 0)) continue;
                   Config c;
+                  if (pa != "auto") c.padding = parse_float("aabb-padding", pa, 0.0f, 16.0f);
+                  c.repeats = o.repeats[ri];
                   c.traversal = tr;
                   c.triangle_test = tt;
                   c.capacity = cap;
@@ -132,11 +148,19 @@ BackendOptions backend_options_for(const SweepOptions& o, const Config& c) {
     // The original rule: the 0.99 percentile of the cells' counts, clamped to [4, 64]
     g.capacity_policy = GridOptions::CapacityPolicy::percentile;
     g.max_capacity = 64;
+  } else if (c.capacity == "no-saturation") {
+    g.capacity_policy = GridOptions::CapacityPolicy::no_saturation;
+  } else if (c.capacity == "trace-cost") {
+    g.capacity_policy = GridOptions::CapacityPolicy::trace_cost;
   } else if (c.capacity != "auto") {
     g.capacity = uint32_t(std::stoul(c.capacity));
   }
   g.sphere_enlargement = c.enlargement;
+  g.aabb_padding = c.padding;
   g.elongation = c.elongation;
+  g.repeats = c.repeats == "skip"     ? GridOptions::Repeats::skip
+              : c.repeats == "retest" ? GridOptions::Repeats::retest
+                                      : GridOptions::Repeats::merge;
   g.gap_fill = c.gap_fill == "on";
   g.exclude_launch_ref = c.launch == "exclude";
   g.max_image_dimension = c.max_dim;
@@ -204,7 +228,23 @@ struct Row {
   uint64_t saturated = 0;
   double build_ms = 0, update_ms = 0, trace_ms = 0, mrays = 0, grid_mib = 0;
   Accuracy acc;
+  // Differing rays by cause (reference::classify_difference; CPU rows only), and the measured work
+  std::array<size_t, 9> why{};
+  float padding = 0.0f;  // the AABB padding the grid was built with
+  reference::WorkEstimate work;
 };
+
+// The causes column: "skip 12, win 3, ..." (only the non-zero ones).
+std::string causes(const Row& r) {
+  using D = reference::Difference;
+  const std::pair<D, const char*> names[] = {{D::skipped_cell, "skip"}, {D::window, "win"},  {D::dropped, "drop"},
+                                             {D::reported_early, "early"}, {D::tested, "test"}, {D::grid_nearer, "near"},
+                                             {D::gap_fill, "gap"}, {D::tie, "tie"}};
+  std::string s;
+  for (const auto& [d, name] : names)
+    if (r.why[size_t(d)]) s += (s.empty() ? "" : ", ") + std::string(name) + " " + std::to_string(r.why[size_t(d)]);
+  return s.empty() ? "-" : s;
+}
 
 // ---- The plot: agreement against trace time, drawn into an RGB buffer ----
 
@@ -338,28 +378,37 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
   {
     std::ofstream csv(dir + "/" + stem + ".csv");
     if (!csv) throw Error("cannot write '" + dir + "/" + stem + ".csv'");
-    csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,elongation,gap_fill,self_hit,"
-           "max_dim,grid,capacity,saturated_cells,rays,differ,ties,holes,false_hits,gap_fill_hits,agree_pct,"
-           "median_dt,max_dt,build_ms,update_ms,trace_ms,mrays_per_s,grid_mib,pareto\n";
+    csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,aabb_padding,elongation,repeats,"
+           "gap_fill,self_hit,max_dim,grid,capacity,saturated_cells,rays,differ,ties,holes,false_hits,gap_fill_hits,agree_pct,"
+           "median_dt,max_dt,build_ms,update_ms,trace_ms,mrays_per_s,grid_mib,pareto,cells_per_ray,tests_per_ray,"
+           "skipped_cell,window,dropped,reported_early,tested,grid_nearer,gap_fill,tie\n";
     for (size_t i = 0; i < rows.size(); ++i) {
       const Row& r = rows[i];
       const Config& c = r.config;
       csv << r.index << "," << title << "," << r.backend << "," << c.traversal << "," << c.triangle_test << ","
-          << c.capacity << "," << c.enlargement << "," << c.elongation << "," << c.gap_fill << "," << c.launch << ","
+          << c.capacity << "," << c.enlargement << "," << r.padding << "," << c.elongation << "," << c.repeats << ","
+          << c.gap_fill << "," << c.launch << ","
           << c.max_dim << "," << r.grid << "," << r.capacity << "," << r.saturated << "," << r.acc.rays << ","
           << r.acc.differ << "," << r.acc.ties << "," << r.acc.holes << "," << r.acc.false_hits << ","
           << r.acc.gap_fill << "," << fmt(r.acc.agree(), 3) << "," << r.acc.median_dt << "," << r.acc.max_dt << ","
           << fmt(r.build_ms, 2) << "," << fmt(r.update_ms, 2) << "," << fmt(r.trace_ms, 2) << "," << fmt(r.mrays, 3)
-          << "," << fmt(r.grid_mib, 2) << "," << (front[i] ? 1 : 0) << "\n";
+          << "," << fmt(r.grid_mib, 2) << "," << (front[i] ? 1 : 0) << "," << fmt(r.work.cells, 2) << ","
+          << fmt(r.work.tests, 2);
+      using D = reference::Difference;
+      for (D d : {D::skipped_cell, D::window, D::dropped, D::reported_early, D::tested, D::grid_nearer, D::gap_fill,
+                  D::tie})
+        csv << "," << r.why[size_t(d)];
+      csv << "\n";
     }
   }
   std::ofstream md(dir + "/" + stem + ".md");
   if (!md) throw Error("cannot write '" + dir + "/" + stem + ".md'");
   md << header << "\n\n"
-     << "| # | backend | traversal | test | capacity | enl | elo | gap-fill | self-hit | grid | cap | sat. cells | "
-        "agree % | differ | ties | holes | false hits | gap-fill hits | median dt | max dt | build ms | update ms | "
-        "trace ms | Mrays/s | MiB | front |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+     << "| # | backend | traversal | test | capacity | enl | pad | elo | repeats | gap-fill | self-hit | grid | cap | "
+        "sat. cells | agree % | differ | ties | holes | false hits | gap-fill hits | median dt | max dt | build ms | "
+        "update ms | trace ms | Mrays/s | MiB | cells/ray | tests/ray | causes | front |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "---|---|---|\n";
   char dt[64];
   for (size_t i = 0; i < rows.size(); ++i) {
     const Row& r = rows[i];
@@ -367,12 +416,13 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
     const bool paper = c.traversal == "paper";
     std::snprintf(dt, sizeof dt, "%.1e | %.1e", r.acc.median_dt, r.acc.max_dt);
     md << "| " << r.index << " | " << r.backend << " | " << c.traversal << " | " << c.triangle_test << " | "
-       << c.capacity << " | " << c.enlargement << " | " << (paper ? fmt(c.elongation, 2) : "-") << " | "
-       << (paper ? c.gap_fill : "-") << " | " << c.launch << " | " << r.grid << " | " << r.capacity << " | "
+       << c.capacity << " | " << c.enlargement << " | " << (c.padding ? "" : "auto ") << r.padding << " | " << (paper ? fmt(c.elongation, 2) : "-")
+       << " | " << (paper ? c.repeats : "-") << " | " << (paper ? c.gap_fill : "-") << " | " << c.launch << " | " << r.grid << " | " << r.capacity << " | "
        << r.saturated << " | " << fmt(r.acc.agree(), 2) << " | " << r.acc.differ << " | " << r.acc.ties << " | "
        << r.acc.holes << " | " << r.acc.false_hits << " | " << r.acc.gap_fill << " | " << dt << " | "
        << fmt(r.build_ms, 1) << " | " << fmt(r.update_ms, 1) << " | " << fmt(r.trace_ms, 1) << " | "
-       << fmt(r.mrays, 2) << " | " << fmt(r.grid_mib, 1) << " | " << (front[i] ? "*" : "") << " |\n";
+       << fmt(r.mrays, 2) << " | " << fmt(r.grid_mib, 1) << " | " << fmt(r.work.cells, 1) << " | "
+       << fmt(r.work.tests, 1) << " | " << causes(r) << " | " << (front[i] ? "*" : "") << " |\n";
   }
   std::printf("  table: %s/%s.md, data: %s/%s.csv\n", dir.c_str(), stem.c_str(), dir.c_str(), stem.c_str());
 }
@@ -455,6 +505,7 @@ void run_sweep(const SweepOptions& o) {
           row.saturated = s.saturated_static + s.saturated_dynamic;
           row.capacity = s.capacity;
           row.grid = std::to_string(s.cells.x) + "x" + std::to_string(s.cells.y) + "x" + std::to_string(s.cells.z);
+          row.padding = ref->params().aabb_padding;
         }
 #ifdef GRIDRT_HAVE_VULKAN
         if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get())) {
@@ -462,6 +513,7 @@ void run_sweep(const SweepOptions& o) {
           if (vk->timings().build_ms > 0.0) row.build_ms = vk->timings().build_ms;
           const shared::GridParams g = reference::choose_grid(scene, 0.0f, go);
           row.capacity = g.capacity;
+          row.padding = g.aabb_padding;
           row.grid = std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" + std::to_string(g.cells.z);
           // Saturated cells from the image's status texels
           for (uint32_t z = 0; z < g.cells.z; ++z)
@@ -471,6 +523,10 @@ void run_sweep(const SweepOptions& o) {
         }
 #endif
         row.acc = accuracy(want, got);
+        row.work = reference::measured_work(rays, got);
+        if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
+          for (size_t i = 0; i < rays.size(); ++i)
+            row.why[size_t(reference::classify_difference(ref->data(), rays[i], got[i], want[i]))] += 1;
         rows.push_back(row);
         progress.advance();
       }
@@ -505,17 +561,25 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--traversal", o->traversal, "Knob values: paper,exact")->delimiter(',')->group("Knobs");
   cmd->add_option("--triangle-test", o->triangle_test, "Knob values: moller,watertight")->delimiter(',')->group("Knobs");
   cmd->add_option("--capacity", o->capacity,
-                  "Knob values: auto (no saturation where the limits allow), percentile (the original 0.99 "
-                  "percentile clamped to 64), or a number of slots")
+                  "Knob values: auto (the default policy), trace-cost, no-saturation (no saturation where the "
+                  "limits allow), percentile (the original 0.99 percentile clamped to 64), or "
+                  "a number of slots")
       ->delimiter(',')->group("Knobs");
   cmd->add_option("--enlargement", o->enlargement, "Knob values: sphere enlargement")->delimiter(',')->group("Knobs");
   cmd->add_option("--elongation", o->elongation, "Knob values: segment elongation (paper)")->delimiter(',')->group("Knobs");
+  cmd->add_option("--aabb-padding", o->padding, "Knob values: cells added on each side of a triangle's AABB (build), or auto (the default)")
+      ->delimiter(',')->group("Knobs");
+  cmd->add_option("--repeats", o->repeats, "Knob values: merge,skip,retest (paper)")->delimiter(',')->group("Knobs");
   cmd->add_option("--gap-fill", o->gap_fill, "Knob values: on,off (paper)")->delimiter(',')->group("Knobs");
   cmd->add_option("--self-hit", o->launch, "Knob values: exclude,keep (the launch triangle)")->delimiter(',')->group("Knobs");
   cmd->add_option("--max-image-dimension", o->max_dim, "Knob values: image limit (4096 lavapipe, 16384 NVIDIA)")
       ->delimiter(',')->group("Knobs");
   cmd->add_option("--threads", o->backend_options.grid.threads, "CPU threads (0: all)");
   cmd->add_option("--density", o->backend_options.grid.density, "Target cells per triangle")->check(CLI::PositiveNumber);
+  cmd->add_option("--cell-visit-cost", o->backend_options.grid.cell_visit_cost,
+                  "trace-cost policy: the cost of visiting a cell, in reference tests");
+  cmd->add_option("--saturation-cost", o->backend_options.grid.saturation_cost,
+                  "trace-cost policy: the cost of a ray meeting a saturated cell, in reference tests");
   cmd->callback([o] { run_sweep(*o); });
 }
 

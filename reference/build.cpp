@@ -7,6 +7,7 @@
 #include "common/shared/transform.h"
 #include "reference/grid.h"
 #include "reference/invocations.h"
+#include "reference/policy.h"
 
 namespace gridrt::reference {
 
@@ -58,40 +59,20 @@ Bounds animation_bounds(const Scene& scene, float time) {
 
 namespace {
 
-// Adds to `counts` the references instance `i` would insert into each cell at `time` (no capacity).
-void count_instance(const Scene& scene, size_t i, float time, const GridParams& g, std::vector<uint32_t>& counts) {
-  const Instance& inst = scene.instances[i];
-  const Mesh& mesh = scene.meshes[inst.mesh];
-  const shared::Affine m = shared::to_affine(inst.transform_at(time));
-  for (const glm::uvec3& tri : mesh.triangles) {
-    const glm::vec3 v0 = shared::transform_point(m, mesh.positions[tri.x]);
-    const glm::vec3 v1 = shared::transform_point(m, mesh.positions[tri.y]);
-    const glm::vec3 v2 = shared::transform_point(m, mesh.positions[tri.z]);
-    const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
-    const float nn = shared::sh_dot(n, n);
-    if (nn == 0.0f) continue;
-    glm::uvec3 lo, hi;
-    shared::triangle_cell_range(g, v0, v1, v2, lo, hi);
-    for (uint32_t z = lo.z; z <= hi.z; ++z)
-      for (uint32_t y = lo.y; y <= hi.y; ++y)
-        for (uint32_t x = lo.x; x <= hi.x; ++x)
-          if (shared::plane_intersects_enlarged_sphere(v0, n, nn, shared::cell_center(g, {x, y, z}), g.sphere_r2))
-            ++counts[(size_t(z) * g.cells.y + y) * g.cells.x + x];
-  }
-}
-
-// Per-cell counts of the references a build would insert (no capacity): the trial that chooses
-// the capacity. Instances that do not move count at `time`; moving ones at `samples` times spread
-// over the longest period of their motions (at most 60 s), per cell the largest of those counts.
-std::vector<uint32_t> trial_counts(const Scene& scene, float time, const GridParams& g, uint32_t samples) {
-  const size_t ncells = size_t(g.cells.x) * g.cells.y * g.cells.z;
-  std::vector<uint32_t> counts(ncells, 0);
+// The trial that chooses the capacity: per cell the references a build would insert (no
+// capacity). Instances that do not move count at `time` (`fixed`, every cell); moving ones, in the
+// box of cells they can reach, at `samples` times spread over the longest period of their motions
+// (at most 60 s): their count at `time` (the first sample) and, per cell, the largest.
+TrialCounts trial_counts(const Scene& scene, float time, const GridParams& g, uint32_t samples) {
+  TrialCounts tc;
+  tc.cells = g.cells;
+  tc.fixed.assign(size_t(g.cells.x) * g.cells.y * g.cells.z, 0u);
   std::vector<size_t> moving;
   double horizon = 0.0;
   for (size_t i = 0; i < scene.instances.size(); ++i) {
     const Instance& inst = scene.instances[i];
     if (!inst.dynamic || !inst.motion.moves()) {
-      count_instance(scene, i, time, g, counts);
+      for_each_triangle_cell(scene, i, time, g, [&](uint32_t, size_t c) { ++tc.fixed[c]; });
       continue;
     }
     moving.push_back(i);
@@ -99,18 +80,46 @@ std::vector<uint32_t> trial_counts(const Scene& scene, float time, const GridPar
     if (mo.path_points.size() > 1) horizon = std::max(horizon, double(mo.path_period));
     if (mo.angular_speed != 0.0f) horizon = std::max(horizon, 2.0 * 3.14159265358979 / std::abs(double(mo.angular_speed)));
   }
-  if (moving.empty()) return counts;
+  if (moving.empty()) return tc;
   horizon = std::min(horizon, 60.0);
   const uint32_t n = std::max(1u, samples);
-  std::vector<uint32_t> dyn_max(ncells, 0), dyn(ncells);
+  std::vector<float> times(n);
+  for (uint32_t k = 0; k < n; ++k) times[k] = float(double(time) + horizon * double(k) / double(n));
+  // The box of cells the moving instances reach (their triangles' cell ranges at every sample),
+  // so that a sample costs its references, not the grid's cells
+  glm::uvec3 lo(~0u), hi(0u);
+  for (float t : times)
+    for (size_t i : moving) {
+      const Instance& inst = scene.instances[i];
+      const Mesh& mesh = scene.meshes[inst.mesh];
+      const shared::Affine m = shared::to_affine(inst.transform_at(t));
+      for (const glm::uvec3& tri : mesh.triangles) {
+        glm::uvec3 a, b;
+        shared::triangle_cell_range(g, shared::transform_point(m, mesh.positions[tri.x]),
+                                    shared::transform_point(m, mesh.positions[tri.y]),
+                                    shared::transform_point(m, mesh.positions[tri.z]), a, b);
+        lo = glm::min(lo, a);
+        hi = glm::max(hi, b);
+      }
+    }
+  if (lo.x > hi.x || lo.y > hi.y || lo.z > hi.z) return tc;
+  tc.box_lo = lo;
+  tc.box_size = hi - lo + 1u;
+  const size_t nbox = size_t(tc.box_size.x) * tc.box_size.y * tc.box_size.z;
+  tc.moving_now.assign(nbox, 0u);
+  tc.moving_max.assign(nbox, 0u);
+  std::vector<uint32_t> dyn(nbox, 0u);
+  const auto box_index = [&](size_t c) {
+    const size_t x = c % g.cells.x, y = (c / g.cells.x) % g.cells.y, z = c / (size_t(g.cells.x) * g.cells.y);
+    return ((z - lo.z) * tc.box_size.y + (y - lo.y)) * tc.box_size.x + (x - lo.x);
+  };
   for (uint32_t k = 0; k < n; ++k) {
     std::fill(dyn.begin(), dyn.end(), 0u);
-    const float t = float(double(time) + horizon * double(k) / double(n));
-    for (size_t i : moving) count_instance(scene, i, t, g, dyn);
-    for (size_t c = 0; c < ncells; ++c) dyn_max[c] = std::max(dyn_max[c], dyn[c]);
+    for (size_t i : moving) for_each_triangle_cell(scene, i, times[k], g, [&](uint32_t, size_t c) { ++dyn[box_index(c)]; });
+    if (k == 0) tc.moving_now = dyn;
+    for (size_t b = 0; b < nbox; ++b) tc.moving_max[b] = std::max(tc.moving_max[b], dyn[b]);
   }
-  for (size_t c = 0; c < ncells; ++c) counts[c] += dyn_max[c];
-  return counts;
+  return tc;
 }
 
 void set_cell_size(GridParams& g, float cell_size, const GridOptions& o) {
@@ -151,8 +160,9 @@ uint32_t capacity_allowed(glm::uvec3 cells, uint32_t axis, const GridOptions& o)
 }
 
 // Weigh one resolution: count, then the capacity that drops nothing if the limits allow it.
+// `counts_out` (may be null) receives the trial's counts.
 GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm::uvec3 cells,
-                    std::optional<uint32_t> cap_over, const GridOptions& o) {
+                    std::optional<uint32_t> cap_over, const GridOptions& o, TrialCounts* counts_out = nullptr) {
   GridCandidate c;
   c.cell_size = cs;
   c.cells = cells;
@@ -163,12 +173,15 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
   if (!c.fits) return c;
   set_cell_size(g, cs, o);
   g.cells = cells;
-  const std::vector<uint32_t> counts = trial_counts(scene, time, g, o.capacity_time_samples);
-  for (uint32_t n : counts) c.max_count = std::max(c.max_count, n);
+  TrialCounts counts = trial_counts(scene, time, g, o.capacity_time_samples);
+  counts.for_each_largest([&](uint32_t n) { c.max_count = std::max(c.max_count, n); });
   c.capacity = cap_over ? *cap_over : std::clamp(c.max_count, o.min_capacity, allowed);
-  for (uint32_t n : counts)
-    if (n > c.capacity) c.dropped += n - c.capacity, c.saturated_cells += 1;
+  if (c.max_count > c.capacity)
+    counts.for_each_largest([&](uint32_t n) {
+      if (n > c.capacity) c.dropped += n - c.capacity, c.saturated_cells += 1;
+    });
   c.texels = uint64_t(cells.x) * cells.y * cells.z * (c.capacity + 1);
+  if (counts_out) *counts_out = std::move(counts);
   return c;
 }
 
@@ -206,7 +219,7 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
   }
   if (!(cs > 0.0f) || !std::isfinite(cs)) throw Error("grid: cell size must be positive and finite");
 
-  g.aabb_padding = o.aabb_padding;
+  g.aabb_padding = o.aabb_padding.value_or(kAabbPadding);
   g.elongation = o.elongation;
   g.self_hit_offset = o.self_hit_offset;
   g.comparison_offset = scene.static_instance_count() << 16;
@@ -224,13 +237,20 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
                  " cells of capacity " + std::to_string(cap) + " exceed the image limits (max dimension " +
                  std::to_string(o.max_image_dimension) + ", max texels " + std::to_string(o.max_texels) + ")");
   };
-  const auto finish = [&](glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis) {
-    set_cell_size(g, cell_size, o);
-    g.cells = cells;
-    g.capacity = cap;
-    g.flags |= axis << shared::kGridSlotAxisShift;
-    g.upper = g.origin + glm::vec3(g.cells) * g.cell_size;
-    g.max_segments = g.cells.x + g.cells.y + g.cells.z + 3u;
+  // The params of `cells` of edge `cell_size`, capacity `cap`, slots along `axis`, AABB padding `padding`
+  const auto params_for = [&](glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis, float padding) {
+    GridParams p = g;
+    p.aabb_padding = padding;
+    set_cell_size(p, cell_size, o);
+    p.cells = cells;
+    p.capacity = cap;
+    p.flags |= axis << shared::kGridSlotAxisShift;
+    p.upper = p.origin + glm::vec3(p.cells) * p.cell_size;
+    p.max_segments = p.cells.x + p.cells.y + p.cells.z + 3u;
+    return p;
+  };
+  const auto finish = [&](glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis, float padding) {
+    g = params_for(cells, cell_size, cap, axis, padding);
     return g;
   };
 
@@ -241,8 +261,9 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
       set_cell_size(g, cs, o);
       g.cells = (res && !cs_over) ? *res : cells_for(e, cs);
       std::vector<uint32_t> nonempty;
-      for (uint32_t c : trial_counts(scene, time, g, o.capacity_time_samples))
+      trial_counts(scene, time, g, o.capacity_time_samples).for_each_largest([&](uint32_t c) {
         if (c) nonempty.push_back(c);
+      });
       uint32_t cap = o.min_capacity;
       if (!nonempty.empty()) {
         const size_t k = std::min(nonempty.size() - 1,
@@ -253,7 +274,7 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
       cap = std::clamp(cap, o.min_capacity, o.max_capacity);
       const uint32_t axis = slot_axis_for(g.cells, o);
       const uint32_t allowed = capacity_allowed(g.cells, axis, o);
-      if (cap <= allowed && allowed > 0) return finish(g.cells, cs, cap, axis);
+      if (cap <= allowed && allowed > 0) return finish(g.cells, cs, cap, axis, g.aabb_padding);
       if ((res && !cs_over) || attempt > 60) throw too_big(g.cells, cap);
       const double along = double(g.cells[axis]) * (cap + 1);
       const double texels = along * double(g.cells.x) * g.cells.y * g.cells.z / g.cells[axis];
@@ -274,44 +295,76 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
     const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o);
     if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity));
     ch.candidates.push_back(c);
-    return finish(c.cells, cs, c.capacity, c.slot_axis);
+    return finish(c.cells, cs, c.capacity, c.slot_axis, c.aabb_padding);
   }
-  // Candidate cell sizes cs * 2^(j/4) around the density target, weighed in the order
-  // j = 0, -1, 1, -2, 2, ... (finer cells first at each distance): the first that drops no
-  // reference wins; else the one dropping fewest. With a cell-size override only j = 0; with a
-  // capacity override the density target unless it does not fit.
+  // Candidate cell sizes cs * 2^(j/4) around the density target. With a cell-size override only
+  // j = 0; with a capacity override the density target unless it does not fit.
+  // no_saturation: weighed in the order j = 0, -1, 1, -2, 2, ... (finer cells first at each
+  // distance): the first that drops no reference wins; else the one dropping fewest.
+  // trace_cost: every j counted (candidates in parallel), each one's work estimated on the frame's
+  // ray sample (reference/policy.h), for the paper traversal without a padding option at two AABB
+  // paddings (kAabbPadding and paper_padding); the cheapest wins.
   const bool search = !cs_over && !cap_over;
+  const bool by_cost = search && o.capacity_policy == GridOptions::CapacityPolicy::trace_cost;
   const int finest = search ? -8 : 0, coarsest = search ? 12 : 0;
-  std::vector<int> order{0};
-  for (int d = 1; d <= std::max(-finest, coarsest); ++d) {
-    if (-d >= finest) order.push_back(-d);
-    if (d <= coarsest) order.push_back(d);
-  }
-  bool done = false;
-  for (int j : order) {
+  std::vector<float> paddings{g.aabb_padding};
+  if (by_cost && !o.aabb_padding && o.traversal == Traversal::paper && o.paper_padding != g.aabb_padding)
+    paddings.push_back(o.paper_padding);
+  WorkSample sample;
+  if (by_cost) sample = work_sample(scene, time, params_for(cells_for(e, cs), cs, 0u, 0u, g.aabb_padding), o);
+  const auto weigh_j = [&](int j, float padding, GridParams& gj) {
     const float c_cs = float(double(cs) * std::exp2(double(j) / 4.0));
-    const GridCandidate c = weigh(scene, time, g, c_cs, cells_for(e, c_cs), cap_over, o);
-    if (!c.fits) continue;
-    ch.candidates.push_back(c);
-    if (c.dropped == 0) {
-      done = true;
-      break;
+    TrialCounts counts;
+    gj.aabb_padding = padding;
+    GridCandidate c = weigh(scene, time, gj, c_cs, cells_for(e, c_cs), cap_over, o, by_cost ? &counts : nullptr);
+    c.aabb_padding = padding;
+    if (c.fits && by_cost) {
+      c.work = estimate_work(params_for(c.cells, c_cs, c.capacity, c.slot_axis, padding), counts, sample);
+      c.cost = work_cost(c.work, o);
+    }
+    return c;
+  };
+  bool done = false;
+  if (by_cost) {
+    const size_t per_pad = size_t(coarsest - finest + 1);
+    std::vector<GridCandidate> all(per_pad * paddings.size());
+    run_invocations(uint32_t(all.size()), thread_count(o), std::nullopt, [&](uint32_t k) {
+      GridParams gk = g;
+      all[k] = weigh_j(finest + int(k % per_pad), paddings[k / per_pad], gk);
+    }, 1);
+    for (const GridCandidate& c : all)
+      if (c.fits) ch.candidates.push_back(c);
+  } else {
+    std::vector<int> order{0};
+    for (int d = 1; d <= std::max(-finest, coarsest); ++d) {
+      if (-d >= finest) order.push_back(-d);
+      if (d <= coarsest) order.push_back(d);
+    }
+    for (int j : order) {
+      const GridCandidate c = weigh_j(j, g.aabb_padding, g);
+      if (!c.fits) continue;
+      ch.candidates.push_back(c);
+      if (c.dropped == 0) {
+        done = true;
+        break;
+      }
     }
   }
   // Nothing fits yet (tiny image limits): coarser cells until something does
   for (int j = coarsest + 1; !done && ch.candidates.empty() && j < coarsest + 80; ++j) {
     if (cs_over) break;
-    const float c_cs = float(double(cs) * std::exp2(double(j) / 4.0));
-    const GridCandidate c = weigh(scene, time, g, c_cs, cells_for(e, c_cs), cap_over, o);
+    const GridCandidate c = weigh_j(j, paddings[0], g);
     if (c.fits) ch.candidates.push_back(c);
   }
   if (ch.candidates.empty()) throw too_big(cells_for(e, cs), cap_over.value_or(o.min_capacity));
   size_t best = 0;
   for (size_t i = 1; i < ch.candidates.size(); ++i)
-    if (ch.candidates[i].dropped < ch.candidates[best].dropped) best = i;
+    if (by_cost ? ch.candidates[i].cost < ch.candidates[best].cost
+                : ch.candidates[i].dropped < ch.candidates[best].dropped)
+      best = i;
   ch.chosen = best;
   const GridCandidate& c = ch.candidates[best];
-  return finish(c.cells, c.cell_size, c.capacity, c.slot_axis);
+  return finish(c.cells, c.cell_size, c.capacity, c.slot_axis, c.aabb_padding);
 }
 
 // ---- Insertion (paper 2.1) ----

@@ -6,6 +6,8 @@
 #include <cstring>
 #include <sstream>
 
+#include "reference/policy.h"
+
 namespace gridrt::reference {
 
 namespace sh = gridrt::shared;
@@ -121,6 +123,71 @@ CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image)
         if (!ok) c.bad.push_back(index);
       }
   return c;
+}
+
+const char* to_string(Difference d) {
+  switch (d) {
+    case Difference::none: return "none";
+    case Difference::tie: return "tie";
+    case Difference::gap_fill: return "gap-fill";
+    case Difference::grid_nearer: return "grid nearer";
+    case Difference::tested: return "tested";
+    case Difference::reported_early: return "reported early";
+    case Difference::dropped: return "dropped";
+    case Difference::window: return "window";
+    case Difference::skipped_cell: return "skipped cell";
+  }
+  return "?";
+}
+
+Difference classify_difference(const GridData& grid, const Ray& ray, const Hit& got, const Hit& want) {
+  const sh::GridParams& g = grid.params;
+  const bool gh = !is_miss(got), wh = !is_miss(want);
+  if (gh == wh && (!gh || (got.instance == want.instance && got.triangle == want.triangle))) return Difference::none;
+  if (gh && (got.flags & sh::kHitGapFill)) return Difference::gap_fill;
+  if (gh && wh && ulp_distance(got.t, want.t) <= 64) return Difference::tie;
+  if (gh && (!wh || got.t < want.t)) return Difference::grid_nearer;
+  // The oracle's triangle W: which cells the build offered it, which kept it
+  const uint32_t w_ref = sh::ref_pack(want.instance, want.triangle);
+  const sh::GridTriangle& tri = grid.triangles[grid.instances[want.instance].tri_offset + want.triangle];
+  const glm::vec3 n = sh::triangle_normal(tri.v0, tri.v1, tri.v2);
+  const float nn = sh::sh_dot(n, n);
+  glm::uvec3 lo, hi;
+  sh::triangle_cell_range(g, tri.v0, tri.v1, tri.v2, lo, hi);
+  const auto offered = [&](glm::uvec3 c) {
+    return nn != 0.0f && glm::all(glm::greaterThanEqual(c, lo)) && glm::all(glm::lessThanEqual(c, hi)) &&
+           sh::plane_intersects_enlarged_sphere(tri.v0, n, nn, sh::cell_center(g, c), g.sphere_r2);
+  };
+  const auto stored = [&](glm::uvec3 c) {
+    for (uint32_t s = 0; s < g.capacity; ++s) {
+      const uint32_t v = imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, c, s)));
+      if (v == sh::kBlank) return false;
+      if (v == w_ref) return true;
+    }
+    return false;
+  };
+  sh::RaySetup rs;
+  sh::ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs);
+  const bool exact = g.traversal == sh::kTraversalExact;
+  uint32_t visit = 0, reachable = UINT32_MAX;
+  bool dropped = false, in_cell = false;
+  for_each_visit(g, ray, [&](glm::uvec3 c, uint32_t k, uint32_t last, float, bool tested) {
+    if (!tested) return true;
+    const float t_lo = exact ? rs.t_lo : std::max(rs.t_lo, sh::segment_elongated_begin(g, rs, k));
+    const float t_hi = exact ? ray.tmax : std::min(ray.tmax, sh::segment_elongated_end(g, rs, last));
+    const bool covers = t_lo < want.t && want.t < t_hi;
+    if (offered(c)) {
+      const bool kept = stored(c);
+      in_cell = in_cell || kept;
+      if (covers && kept && reachable == UINT32_MAX) reachable = visit;
+      if (covers && !kept) dropped = true;
+    }
+    ++visit;
+    return true;
+  });
+  if (reachable != UINT32_MAX) return reachable < got.cells ? Difference::tested : Difference::reported_early;
+  if (dropped) return Difference::dropped;
+  return in_cell ? Difference::window : Difference::skipped_cell;
 }
 
 }  // namespace gridrt::reference

@@ -49,4 +49,22 @@ struct CellCheck {
 };
 CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image);
 
+// Why a ray's grid hit differs from the oracle's (docs/ACCURACY.md, "Why paper mode differs"),
+// judged by walking the ray's visits again without stopping (for_each_visit) with W the oracle's
+// triangle and t_W its distance:
+//   tie           both hit, at distances within 64 ulps (a shared edge or coplanar overlap)
+//   gap_fill      the grid reported a gap-fill voxel (a saturated cell, the paper's design)
+//   grid_nearer   the grid reports a real triangle nearer than the oracle's hit, or one where the
+//                 oracle finds nothing
+//   tested        a visit the trace made stored W and its window covered t_W, yet the test did
+//                 not accept it (float test, alpha) or the tie rule chose another
+//   reported_early W lies in a later visit's cell and window, but a farther hit was reported
+//                 before the trace got there (the "t < segment end" rule)
+//   dropped       a visit whose window covers t_W was offered W, but its saturated cell dropped it
+//   window        W is stored in a visited cell, but no window (elongated segment) covers t_W
+//   skipped_cell  no visited cell holds W: the samples stepped past every cell W was inserted in
+enum class Difference { none, tie, gap_fill, grid_nearer, tested, reported_early, dropped, window, skipped_cell };
+const char* to_string(Difference d);
+Difference classify_difference(const GridData& grid, const Ray& ray, const Hit& got, const Hit& want);
+
 }  // namespace gridrt::reference

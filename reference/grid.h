@@ -24,6 +24,8 @@ namespace gridrt::reference {
 enum class Traversal { paper, exact };
 enum class Insertion { first_empty, sorted };
 
+inline constexpr float kAabbPadding = 1.0e-3f;  // the AABB padding where none is chosen
+
 // Every knob of the grid, with its default (docs/SPEC.md, "Parameters").
 struct GridOptions {
   // Traversal and insertion
@@ -35,7 +37,11 @@ struct GridOptions {
   std::optional<uint64_t> shuffle_seed;
   // Build (2.1)
   float sphere_enlargement = 1.25f;  // cell bounding-sphere radius multiplier (>= 1: conservative)
-  float aabb_padding = 1.0e-3f;      // cell units added on each side of a triangle's AABB
+  // Cell units added on each side of a triangle's AABB. None: kAabbPadding, except that the
+  // trace-cost policy also weighs paper_padding for the paper traversal (its samples then find
+  // triangles whose cells they step past; docs/SPEC.md "Grid placement, resolution and capacity")
+  std::optional<float> aabb_padding;
+  float paper_padding = 0.25f;
   // Trace (2.3)
   float elongation = 0.5f;           // paper: segment elongation on each side, in segment lengths
   float gap_fill_distance = 2.0f;    // paper: cells the segment must be away from the launch surface
@@ -51,11 +57,19 @@ struct GridOptions {
   // Automatic resolution and capacity (overridden by the fields below, then by Scene::grid);
   // docs/SPEC.md, "Grid placement, resolution and capacity"
   float density = 2.0f;                   // target cells per triangle
-  // no_saturation (default): candidate resolutions around the density target are counted and the
-  // one closest to it whose largest cell count fits the limits is taken, capacity = that count (no
-  // cell drops a reference); if none fits, the candidate dropping the fewest references.
+  // trace_cost (default): candidate resolutions around the density target are counted, each with
+  // capacity = min(its largest cell count, what the limits allow), and the one whose estimated
+  // trace cost on a sample of the frame's rays is lowest is taken (work_cost, reference/policy.h).
+  // no_saturation: the candidate closest to the density target whose largest cell count fits the
+  // limits, capacity = that count (no cell drops a reference); if none fits, the candidate
+  // dropping the fewest references.
   // percentile: the original rule, capacity = capacity_percentile of the non-empty cells' counts.
-  enum class CapacityPolicy { no_saturation, percentile } capacity_policy = CapacityPolicy::no_saturation;
+  enum class CapacityPolicy { trace_cost, no_saturation, percentile } capacity_policy = CapacityPolicy::trace_cost;
+  // trace_cost: the cost of a candidate in reference tests per ray: tests + cell_visit_cost *
+  // cells visited + saturation_cost * (expected share of rays whose answer saturation changes)
+  float cell_visit_cost = 1.0f;
+  float saturation_cost = 1.0e5f;
+  uint32_t work_sample_width = 96, work_sample_height = 54;  // the sample's gather buffer (16:9)
   float capacity_percentile = 0.99f;      // percentile policy: capacity = this percentile of counts
   uint32_t min_capacity = 4, max_capacity = 1024;
   // The scene axis laid along the image's x (the slots' axis): automatic = the axis with the fewest
@@ -85,10 +99,25 @@ struct GridData {
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
 
+// The work a trace does per ray on one grid: estimated by the trace-cost policy on its ray sample
+// (estimate_work, reference/policy.h), or measured from hit records (measured_work).
+struct WorkEstimate {
+  size_t rays = 0;
+  double cells = 0.0;    // cells visited per ray
+  double tests = 0.0;    // references tested per ray
+  double at_risk = 0.0;  // share of rays that visit a saturated cell before they end
+  double lost = 0.0;     // share of rays whose answer the grid changes: expected (the hit
+                         // triangle in no visited cell, dropped, a gap-fill voxel), or measured
+                         // (gap-fill hits)
+  double skipped = 0.0;  // expected share of rays whose hit triangle no visited cell was offered
+  double spilled = 0.0;  // per ray: dropped references of the saturated cells it visits
+};
+
 // One resolution choose_grid weighed: its cells, the largest per-cell count over the animation
 // samples, the capacity the limits allow it, and the references it would drop.
 struct GridCandidate {
   float cell_size = 0.0f;
+  float aabb_padding = kAabbPadding;
   glm::uvec3 cells{0};
   uint32_t slot_axis = 0;        // 0 x, 1 y, 2 z
   uint32_t max_count = 0;        // largest per-cell count (static + dynamic over the samples)
@@ -97,6 +126,8 @@ struct GridCandidate {
   uint64_t saturated_cells = 0;  // cells with count > capacity
   uint64_t texels = 0;
   bool fits = false;             // within max_image_dimension and max_texels
+  WorkEstimate work;             // trace_cost policy: the estimated work on its ray sample
+  double cost = 0.0;             // trace_cost policy: work_cost(work)
 };
 // The candidates choose_grid weighed (in the order it weighed them) and the index it took; empty
 // when capacity or resolution is overridden.

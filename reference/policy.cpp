@@ -1,0 +1,324 @@
+// policy.cpp: the ray sample and the work estimates of the trace-cost capacity policy (policy.h).
+#include "reference/policy.h"
+
+#include <algorithm>
+#include <array>
+
+#include "common/camera.h"
+#include "common/gather.h"
+#include "common/shared/alpha.h"
+#include "common/shared/transform.h"
+#include "reference/invocations.h"
+
+namespace gridrt::reference {
+
+using namespace gridrt::shared;
+
+void for_each_triangle_cell(const Scene& scene, size_t instance, float time, const GridParams& g,
+                            const std::function<void(uint32_t, size_t)>& f) {
+  const Instance& inst = scene.instances[instance];
+  const Mesh& mesh = scene.meshes[inst.mesh];
+  const Affine m = to_affine(inst.transform_at(time));
+  for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+    const glm::uvec3 tri = mesh.triangles[t];
+    const vec3 v0 = transform_point(m, mesh.positions[tri.x]);
+    const vec3 v1 = transform_point(m, mesh.positions[tri.y]);
+    const vec3 v2 = transform_point(m, mesh.positions[tri.z]);
+    const vec3 n = triangle_normal(v0, v1, v2);
+    const float nn = sh_dot(n, n);
+    if (nn == 0.0f) continue;
+    uvec3 lo, hi;
+    triangle_cell_range(g, v0, v1, v2, lo, hi);
+    for (uint32_t z = lo.z; z <= hi.z; ++z)
+      for (uint32_t y = lo.y; y <= hi.y; ++y)
+        for (uint32_t x = lo.x; x <= hi.x; ++x)
+          if (plane_intersects_enlarged_sphere(v0, n, nn, cell_center(g, {x, y, z}), g.sphere_r2))
+            f(t, (size_t(z) * g.cells.y + y) * g.cells.x + x);
+  }
+}
+
+namespace {
+
+// The compact grid that finds where the sample rays end: every cell's references in one list
+// (CSR: cell c holds refs[first[c] .. first[c+1])), no capacity, so nothing is dropped; the exact
+// DDA of shared/grid.h, the configured triangle test, alpha keying and the launch triangle
+// excluded, as the reference's exact traversal with no saturated cell would find them.
+class SampleCaster : public Tracer {
+ public:
+  SampleCaster(const GridParams& g, const GridOptions& o) : g_(g), o_(o) {}
+  std::string name() const override { return "policy-sample"; }
+  void update(float) override {}
+
+  void build(const Scene& scene, float time) override {
+    scene_ = &scene;
+    offset_.clear();
+    tris_.clear();
+    for (const Instance& inst : scene.instances) {
+      const Mesh& mesh = scene.meshes[inst.mesh];
+      const Affine m = to_affine(inst.transform_at(time));
+      offset_.push_back(uint32_t(tris_.size()));
+      for (const glm::uvec3& t : mesh.triangles)
+        tris_.push_back({transform_point(m, mesh.positions[t.x]), transform_point(m, mesh.positions[t.y]),
+                         transform_point(m, mesh.positions[t.z])});
+    }
+    const size_t ncells = size_t(g_.cells.x) * g_.cells.y * g_.cells.z;
+    first_.assign(ncells + 1, 0u);
+    for (size_t i = 0; i < scene.instances.size(); ++i)
+      for_each_triangle_cell(scene, i, time, g_, [&](uint32_t, size_t c) { ++first_[c + 1]; });
+    for (size_t c = 0; c < ncells; ++c) first_[c + 1] += first_[c];
+    refs_.assign(first_[ncells], kBlank);
+    std::vector<uint32_t> fill(first_.begin(), first_.end() - 1);
+    for (size_t i = 0; i < scene.instances.size(); ++i)
+      for_each_triangle_cell(scene, i, time, g_,
+                             [&](uint32_t t, size_t c) { refs_[fill[c]++] = ref_pack(uint32_t(i), t); });
+  }
+
+  const std::array<vec3, 3>& triangle(uint32_t instance, uint32_t t) const { return tris_[offset_[instance] + t]; }
+
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
+    run_invocations(uint32_t(rays.size()), thread_count(o_), std::nullopt,
+                    [&](uint32_t i) { hits[i] = cast(rays[i]); }, 64);
+  }
+
+ private:
+  // Whether the alpha mask keeps the hit at barycentrics (u, v) of triangle t of instance i.
+  bool alpha_keeps_hit(uint32_t i, uint32_t t, float u, float v) const {
+    if (!o_.alpha_keying) return true;
+    const Mesh& mesh = scene_->meshes[scene_->instances[i].mesh];
+    if (mesh.materials.empty() || mesh.uvs.empty()) return true;
+    const Material& mat = scene_->materials[mesh.materials[t]];
+    if (!mat.alpha_keyed()) return true;
+    const Texture& tex = scene_->textures[size_t(mat.alpha_texture)];
+    const glm::uvec3 idx = mesh.triangles[t];
+    const vec2 uv = interpolate_uv(mesh.uvs[idx.x], mesh.uvs[idx.y], mesh.uvs[idx.z], u, v);
+    const uvec2 xy = alpha_texel_coords(uv, tex.width, tex.height);
+    return alpha_keeps(tex.rgba[4 * (size_t(xy.y) * tex.width + xy.x) + 3]);
+  }
+
+  Hit cast(const Ray& ray) const {
+    Hit h{};
+    h.t = sh_infinity();
+    h.instance = kNoInstance;
+    RaySetup rs;
+    if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax) || !ray_setup(g_, ray.org, ray.dir, ray.tmin, ray.tmax, rs))
+      return h;
+    const vec3 inv = dda_inverse_direction(ray.dir);
+    uvec3 cell = cell_of_point(g_, point_at(ray.org, ray.dir, rs.t_start));
+    float best = sh_infinity();
+    uint best_ref = kBlank;
+    for (uint k = 0u; k < g_.max_segments; ++k) {
+      const vec3 exits = dda_exits(g_, ray.org, ray.dir, inv, cell);
+      const float t_exit = dda_cell_exit(exits);
+      const size_t c = (size_t(cell.z) * g_.cells.y + cell.y) * g_.cells.x + cell.x;
+      for (uint32_t s = first_[c]; s < first_[c + 1]; ++s) {
+        const uint ref = refs_[s];
+        if (o_.exclude_launch_ref && ref == ray.launch_ref) continue;
+        const uint32_t i = ref_instance(ref), t = ref_triangle(ref);
+        const std::array<vec3, 3>& v = tris_[offset_[i] + t];
+        TriangleTest r;
+        if (triangle_test(g_.triangle_test, ray.org, ray.dir, v[0], v[1], v[2], rs.t_lo, ray.tmax, best, r) !=
+            kTestAccepted)
+          continue;
+        const float th = moller_trumbore_t(r);
+        const vec2 bc = cramer_barycentrics(v[0], v[1], v[2], point_at(ray.org, ray.dir, th));
+        if (!alpha_keeps_hit(i, t, bc.x, bc.y)) continue;
+        if (!(th < best || (th == best && ref < best_ref))) continue;
+        best = th;
+        best_ref = ref;
+        h.u = bc.x;
+        h.v = bc.y;
+        h.flags = r.det < 0.0f ? kHitBackFace : 0u;
+      }
+      if (best_ref != kBlank && best <= t_exit) break;
+      if (t_exit >= rs.t_end || !dda_step(g_, ray.dir, dda_step_axis(exits), cell)) break;
+    }
+    if (best_ref == kBlank) {
+      h.u = h.v = 0.0f;
+      h.flags = 0u;
+      return h;
+    }
+    h.t = best;
+    h.instance = ref_instance(best_ref);
+    h.triangle = ref_triangle(best_ref);
+    return h;
+  }
+
+  GridParams g_;
+  GridOptions o_;
+  const Scene* scene_ = nullptr;
+  std::vector<uint32_t> offset_;              // per instance: its first triangle in tris_
+  std::vector<std::array<vec3, 3>> tris_;     // world-space vertices at the build's time
+  std::vector<uint32_t> first_, refs_;        // CSR cell lists
+};
+
+}  // namespace
+
+WorkSample work_sample(const Scene& scene, float time, const GridParams& base, const GridOptions& o) {
+  GridParams g = base;
+  g.traversal = kTraversalExact;
+  SampleCaster caster(g, o);
+  caster.build(scene, time);
+  const Camera camera = scene.frame_camera();
+  const uint32_t w = std::max(1u, o.work_sample_width), h = std::max(1u, o.work_sample_height);
+  const GatherBuffer gather = make_gather(scene, caster, camera, w, h, time);
+  WorkSample s;
+  for (const Ray& r : bounce_rays(scene, gather, 0))
+    if (!is_unused(r)) s.rays.push_back(r);
+  if (s.rays.empty()) {
+    // No glossy material: the grid traces camera rays (the CPU render's primary rays)
+    s.bounce = false;
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w; ++x) s.rays.push_back(camera_ray(camera, w, h, x, y));
+  }
+  std::vector<Hit> hits(s.rays.size());
+  caster.trace(s.rays, hits);
+  s.t_end.resize(hits.size());
+  s.hit.resize(hits.size());
+  for (size_t i = 0; i < hits.size(); ++i) {
+    s.t_end[i] = is_miss(hits[i]) ? sh_infinity() : hits[i].t;
+    if (!is_miss(hits[i])) s.hit[i] = caster.triangle(hits[i].instance, hits[i].triangle);
+  }
+  return s;
+}
+
+bool for_each_visit(const GridParams& g, const Ray& ray,
+                    const std::function<bool(uvec3 cell, uint k, uint last, float t_report, bool tested)>& f) {
+  RaySetup rs;
+  if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax) || !ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs))
+    return false;
+  if (g.traversal == kTraversalExact) {
+    // trace_exact's DDA
+    const vec3 inv = dda_inverse_direction(ray.dir);
+    uvec3 cell = cell_of_point(g, point_at(ray.org, ray.dir, rs.t_start));
+    for (uint k = 0u; k < g.max_segments; ++k) {
+      const vec3 exits = dda_exits(g, ray.org, ray.dir, inv, cell);
+      const float t_exit = dda_cell_exit(exits);
+      if (!f(cell, k, k, t_exit, true) || t_exit >= rs.t_end || !dda_step(g, ray.dir, dda_step_axis(exits), cell))
+        break;
+    }
+    return true;
+  }
+  // trace_paper's segments: samples at midpoints, repeats merged (or skipped, or re-tested)
+  uvec3 prev = uvec3(0xFFFFFFFFu);
+  uint k = 0u;
+  while (k < g.max_segments) {
+    if (segment_begin(rs, k) >= rs.t_end) break;
+    const uvec3 cell = cell_of_point(g, point_at(ray.org, ray.dir, segment_sample_t(rs, k)));
+    if (cell == prev && g.repeats == kRepeatSkip) {
+      if (!f(cell, k, k, segment_end(rs, k), false)) break;
+      k += 1u;
+      continue;
+    }
+    prev = cell;
+    uint last = k;
+    if (g.repeats == kRepeatMerge)
+      while (last + 1u < g.max_segments && segment_begin(rs, last + 1u) < rs.t_end &&
+             cell_of_point(g, point_at(ray.org, ray.dir, segment_sample_t(rs, last + 1u))) == cell)
+        last += 1u;
+    if (!f(cell, k, last, segment_end(rs, last), true)) break;
+    k = last + 1u;
+  }
+  return true;
+}
+
+WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const WorkSample& sample) {
+  WorkEstimate w;
+  w.rays = sample.rays.size();
+  if (w.rays == 0) return w;
+  const bool exact = g.traversal == kTraversalExact;
+  const bool gap_fill = !exact && (g.flags & kGridGapFill) != 0u;
+  uint64_t cells = 0, tests = 0, at_risk = 0, spilled = 0;
+  double lost = 0.0, skipped = 0.0;
+  for (size_t i = 0; i < sample.rays.size(); ++i) {
+    const Ray& ray = sample.rays[i];
+    const float t_hit = sample.t_end[i];
+    RaySetup rs;
+    ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs);
+    // The hit triangle W: the cells the build offers it (its padded range, the plane test)
+    const std::array<vec3, 3>& w_tri = sample.hit[i];
+    const vec3 n = triangle_normal(w_tri[0], w_tri[1], w_tri[2]);
+    const float nn = sh_dot(n, n);
+    uvec3 lo = uvec3(1u), hi = uvec3(0u);
+    if (sh_finite(t_hit) && nn != 0.0f) triangle_cell_range(g, w_tri[0], w_tri[1], w_tri[2], lo, hi);
+    bool risk = false, voxel = false, offered = false, past = false;
+    double missed = 1.0;  // the probability that no visit so far kept W with a window covering t_hit
+    double lost_here = -1.0;  // set where the walk ends with a loss
+    for_each_visit(g, ray, [&](uvec3 cell, uint k, uint last, float t_report, bool tested) {
+      const bool reach = exact ? t_hit <= t_report : t_hit < t_report;  // the hit lies before the report bound
+      if (!tested) return !(reach && missed == 0.0);
+      const uint32_t c = counts.now(cell);
+      cells += 1;
+      tests += std::min(c, g.capacity);
+      const bool saturated = c > g.capacity;
+      if (saturated) {
+        risk = true;
+        spilled += c - g.capacity;
+      }
+      // W offered to this cell and tested against a window covering t_hit: kept unless dropped
+      const float t_lo = exact ? rs.t_lo : max(rs.t_lo, segment_elongated_begin(g, rs, k));
+      const float t_hi = exact ? ray.tmax : min(ray.tmax, segment_elongated_end(g, rs, last));
+      const bool covers = all(greaterThanEqual(cell, lo)) && all(lessThanEqual(cell, hi)) && t_lo < t_hit &&
+                          t_hit < t_hi && plane_intersects_enlarged_sphere(w_tri[0], n, nn, cell_center(g, cell), g.sphere_r2);
+      if (covers) {
+        offered = true;
+        missed *= saturated ? double(c - g.capacity) / double(c) : 0.0;
+      }
+      // Reported here once found; past the hit, a visit that cannot find W ends the ray (another
+      // triangle, or nothing)
+      if (reach && missed == 0.0) return false;
+      if (past && !covers) {
+        lost_here = missed;
+        return false;
+      }
+      past = past || reach;
+      // Gap-fill: a saturated cell passed beyond the launch surface ends the ray with a voxel
+      if (saturated && gap_fill) {
+        const float t_mid = segment_t(rs, float(k + last + 1u) * 0.5f);
+        vec2 values;
+        if (gap_fill_left_surface(point_at(ray.org, ray.dir, t_mid), ray.org, ray.launch_normal, g.gap_fill_r2,
+                                  values) &&
+            t_mid > rs.t_lo && t_mid < ray.tmax) {
+          voxel = !past;
+          lost_here = past ? missed : 1.0;
+          return false;
+        }
+      }
+      return true;
+    });
+    at_risk += risk;
+    if (lost_here >= 0.0) lost += lost_here;
+    else if (sh_finite(t_hit)) lost += missed;
+    if (!voxel && sh_finite(t_hit) && !offered) skipped += 1.0;
+  }
+  const double n = double(w.rays);
+  w.cells = double(cells) / n;
+  w.tests = double(tests) / n;
+  w.at_risk = double(at_risk) / n;
+  w.lost = lost / n;
+  w.skipped = skipped / n;
+  w.spilled = double(spilled) / n;
+  return w;
+}
+
+double work_cost(const WorkEstimate& w, const GridOptions& o) {
+  return w.tests + double(o.cell_visit_cost) * w.cells + double(o.saturation_cost) * w.lost;
+}
+
+WorkEstimate measured_work(std::span<const Ray> rays, std::span<const Hit> hits) {
+  WorkEstimate w;
+  uint64_t cells = 0, tests = 0, gap = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    if (is_unused(rays[i])) continue;
+    w.rays += 1;
+    cells += hits[i].cells;
+    tests += hits[i].tests;
+    gap += (hits[i].flags & kHitGapFill) != 0u;
+  }
+  if (w.rays == 0) return w;
+  w.cells = double(cells) / double(w.rays);
+  w.tests = double(tests) / double(w.rays);
+  w.lost = double(gap) / double(w.rays);
+  return w;
+}
+
+}  // namespace gridrt::reference
