@@ -67,7 +67,7 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
                   "trace-cost policy: the cost of visiting a cell, in reference tests")
       ->check(CLI::Range(0.0f, 1.0e6f))->group("Grid");
   cmd->add_option("--saturation-cost", g.saturation_cost,
-                  "trace-cost policy: the cost of a ray meeting a saturated cell, in reference tests")
+                  "trace-cost policy: the cost of a ray whose answer the grid changes, in reference tests")
       ->check(CLI::Range(0.0f, 1.0e12f))->group("Grid");
   cmd->add_option_function<std::vector<uint32_t>>(
          "--work-sample",

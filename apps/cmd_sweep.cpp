@@ -47,6 +47,7 @@ struct SweepOptions {
   std::vector<std::string> elongation{"0.5"};
   std::vector<std::string> padding{"auto"};
   std::vector<std::string> repeats{"merge"};
+  std::vector<uint32_t> work_sample;
   std::vector<std::string> gap_fill{"on"};
   std::vector<std::string> launch{"exclude"};
   std::vector<std::string> max_dim{"4096"};
@@ -142,6 +143,10 @@ std::vector<Config> configurations(const SweepOptions& o) {
 BackendOptions backend_options_for(const SweepOptions& o, const Config& c) {
   BackendOptions b = o.backend_options;
   GridOptions& g = b.grid;
+  if (o.work_sample.size() == 2) {
+    g.work_sample_width = o.work_sample[0];
+    g.work_sample_height = o.work_sample[1];
+  }
   g.traversal = c.traversal == "exact" ? reference::Traversal::exact : reference::Traversal::paper;
   g.triangle_test = c.triangle_test == "watertight" ? GridOptions::TriangleTest::watertight : GridOptions::TriangleTest::moller;
   if (c.capacity == "percentile") {
@@ -579,7 +584,9 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--cell-visit-cost", o->backend_options.grid.cell_visit_cost,
                   "trace-cost policy: the cost of visiting a cell, in reference tests");
   cmd->add_option("--saturation-cost", o->backend_options.grid.saturation_cost,
-                  "trace-cost policy: the cost of a ray meeting a saturated cell, in reference tests");
+                  "trace-cost policy: the cost of a ray whose answer the grid changes, in reference tests");
+  cmd->add_option("--work-sample", o->work_sample, "trace-cost policy: the sample's gather buffer W,H")
+      ->delimiter(',')->expected(2);
   cmd->callback([o] { run_sweep(*o); });
 }
 

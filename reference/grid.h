@@ -70,6 +70,7 @@ struct GridOptions {
   float cell_visit_cost = 1.0f;
   float saturation_cost = 1.0e5f;
   uint32_t work_sample_width = 96, work_sample_height = 54;  // the sample's gather buffer (16:9)
+  uint32_t work_sample_frames = 4;  // glossy bounce rays of this many frames off that gather buffer
   float capacity_percentile = 0.99f;      // percentile policy: capacity = this percentile of counts
   uint32_t min_capacity = 4, max_capacity = 1024;
   // The scene axis laid along the image's x (the slots' axis): automatic = the axis with the fewest

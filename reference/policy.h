@@ -61,8 +61,9 @@ struct TrialCounts {
 };
 
 // The policy's ray sample: the glossy bounce rays of a small gather buffer of the scene's frame
-// camera (the rays the paper's frame traces through the grid), or its camera rays where the scene
-// has no glossy material; and where each ray ends (its first hit's t, +inf for a miss), found
+// camera (the rays the paper's frame traces through the grid), of work_sample_frames frames (each
+// frame perturbs the glossy directions anew), or its camera rays where the scene has no glossy
+// material; and where each ray ends (its first hit's t, +inf for a miss), found
 // exactly by a compact grid without a capacity (a CSR cell list, exact DDA, alpha keying).
 struct WorkSample {
   std::vector<Ray> rays;
