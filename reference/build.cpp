@@ -165,6 +165,7 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
                     std::optional<uint32_t> cap_over, const GridOptions& o, TrialCounts* counts_out = nullptr) {
   GridCandidate c;
   c.cell_size = cs;
+  c.aabb_padding = g.aabb_padding;
   c.cells = cells;
   c.slot_axis = slot_axis_for(cells, o);
   const uint32_t allowed = capacity_allowed(cells, c.slot_axis, o);
@@ -310,14 +311,13 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
   std::vector<float> paddings{g.aabb_padding};
   if (by_cost && !o.aabb_padding && o.traversal == Traversal::paper && o.paper_padding != g.aabb_padding)
     paddings.push_back(o.paper_padding);
-  WorkSample sample;
+  WorkSample& sample = ch.sample;
   if (by_cost) sample = work_sample(scene, time, params_for(cells_for(e, cs), cs, 0u, 0u, g.aabb_padding), o);
   const auto weigh_j = [&](int j, float padding, GridParams& gj) {
     const float c_cs = float(double(cs) * std::exp2(double(j) / 4.0));
     TrialCounts counts;
     gj.aabb_padding = padding;
     GridCandidate c = weigh(scene, time, gj, c_cs, cells_for(e, c_cs), cap_over, o, by_cost ? &counts : nullptr);
-    c.aabb_padding = padding;
     if (c.fits && by_cost) {
       c.work = estimate_work(params_for(c.cells, c_cs, c.capacity, c.slot_axis, padding), counts, sample);
       c.cost = work_cost(c.work, o);

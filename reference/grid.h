@@ -6,6 +6,7 @@
 // and ReferenceGridTracer, the gridrt::Tracer over them. docs/SPEC.md states every rule.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -114,6 +115,19 @@ struct WorkEstimate {
   double spilled = 0.0;  // per ray: dropped references of the saturated cells it visits
 };
 
+// The policy's ray sample: the glossy bounce rays of a small gather buffer of the scene's frame
+// camera (the rays the paper's frame traces through the grid), of work_sample_frames frames (each
+// frame perturbs the glossy directions anew), or its camera rays where the scene has no glossy
+// material; and where each ray ends (its first hit's t, +inf for a miss), found
+// exactly by a compact grid without a capacity (a CSR cell list, exact DDA, alpha keying).
+struct WorkSample {
+  std::vector<Ray> rays;
+  std::vector<float> t_end;
+  std::vector<std::array<glm::vec3, 3>> hit;     // the triangle each ray ends on (world space; zeros: a miss)
+  std::vector<std::array<glm::vec3, 3>> launch;  // the ray's launch triangle (zeros: none)
+  bool bounce = true;  // false: camera rays (no glossy material)
+};
+
 // One resolution choose_grid weighed: its cells, the largest per-cell count over the animation
 // samples, the capacity the limits allow it, and the references it would drop.
 struct GridCandidate {
@@ -135,6 +149,7 @@ struct GridCandidate {
 struct GridChoice {
   std::vector<GridCandidate> candidates;
   size_t chosen = 0;
+  WorkSample sample;  // trace_cost: the rays the estimates were made on
 };
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice);
 // World bounds of the scene over its whole animation: static instances at `time`, dynamic ones

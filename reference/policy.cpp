@@ -175,9 +175,13 @@ WorkSample work_sample(const Scene& scene, float time, const GridParams& base, c
   caster.trace(s.rays, hits);
   s.t_end.resize(hits.size());
   s.hit.resize(hits.size());
+  s.launch.resize(hits.size());
   for (size_t i = 0; i < hits.size(); ++i) {
     s.t_end[i] = is_miss(hits[i]) ? sh_infinity() : hits[i].t;
     if (!is_miss(hits[i])) s.hit[i] = caster.triangle(hits[i].instance, hits[i].triangle);
+    const uint ref = s.rays[i].launch_ref;
+    if (ref != kNoRef && ref_instance(ref) < scene.instances.size())
+      s.launch[i] = caster.triangle(ref_instance(ref), ref_triangle(ref));
   }
   return s;
 }
@@ -241,6 +245,13 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
     const float nn = sh_dot(n, n);
     uvec3 lo = uvec3(1u), hi = uvec3(0u);
     if (sh_finite(t_hit) && nn != 0.0f) triangle_cell_range(g, w_tri[0], w_tri[1], w_tri[2], lo, hi);
+    // The launch triangle: the trace skips it uncounted where a visited cell holds it
+    const std::array<vec3, 3>& l_tri = sample.launch[i];
+    const vec3 ln = triangle_normal(l_tri[0], l_tri[1], l_tri[2]);
+    const float lnn = sh_dot(ln, ln);
+    uvec3 llo = uvec3(1u), lhi = uvec3(0u);
+    if ((g.flags & kGridExcludeLaunchRef) != 0u && lnn != 0.0f)
+      triangle_cell_range(g, l_tri[0], l_tri[1], l_tri[2], llo, lhi);
     bool risk = false, voxel = false, offered = false, past = false;
     double missed = 1.0;  // the probability that no visit so far kept W with a window covering t_hit
     double lost_here = -1.0;  // set where the walk ends with a loss
@@ -250,6 +261,9 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
       const uint32_t c = counts.now(cell);
       cells += 1;
       tests += std::min(c, g.capacity);
+      if (c > 0u && all(greaterThanEqual(cell, llo)) && all(lessThanEqual(cell, lhi)) &&
+          plane_intersects_enlarged_sphere(l_tri[0], ln, lnn, cell_center(g, cell), g.sphere_r2))
+        tests -= 1;
       const bool saturated = c > g.capacity;
       if (saturated) {
         risk = true;

@@ -60,17 +60,7 @@ struct TrialCounts {
   }
 };
 
-// The policy's ray sample: the glossy bounce rays of a small gather buffer of the scene's frame
-// camera (the rays the paper's frame traces through the grid), of work_sample_frames frames (each
-// frame perturbs the glossy directions anew), or its camera rays where the scene has no glossy
-// material; and where each ray ends (its first hit's t, +inf for a miss), found
-// exactly by a compact grid without a capacity (a CSR cell list, exact DDA, alpha keying).
-struct WorkSample {
-  std::vector<Ray> rays;
-  std::vector<float> t_end;
-  std::vector<std::array<glm::vec3, 3>> hit;  // the triangle each ray ends on (world space; zeros: a miss)
-  bool bounce = true;  // false: camera rays (no glossy material)
-};
+// The policy's ray sample (WorkSample, reference/grid.h) of `scene` at `time`.
 // `base`: the grid placement (origin, cell size, cells) the compact grid uses.
 WorkSample work_sample(const Scene& scene, float time, const shared::GridParams& base, const GridOptions& o);
 
@@ -78,7 +68,8 @@ WorkSample work_sample(const Scene& scene, float time, const shared::GridParams&
 // capacity, cells, padding, ...), `counts` its trial counts (the references each cell is offered
 // at the sample's time). Per ray, following the traversal's own stepping
 // (for_each_visit) up to the visit that reports the ray's end: cells visited and references
-// tested (min(count, capacity) per visit); the share of rays that visit a saturated cell
+// tested (min(count, capacity) per visit, less the launch triangle where the visited cell holds it:
+// the trace skips it uncounted); the share of rays that visit a saturated cell
 // (at_risk); and the expected share whose answer the grid changes (lost), a ray counting as kept
 // when some visit up to its end was offered its hit triangle (the build's range and plane test)
 // with a window covering the hit (paper: the elongated segment; exact: the whole ray) and kept it

@@ -124,16 +124,17 @@ std::string real_scenes() {
 
 }  // namespace
 
-// Thresholds: measured at the defaults (docs/BENCHMARKS.md, "Accuracy against Embree") minus a
+// Thresholds: measured at the defaults (the trace-cost capacity policy; docs/ACCURACY.md) minus a
 // margin that still catches a regression. Exact mode: every ray but a handful of shared-edge slips.
+// Measured (48x36 camera rays + mirror bounces): cornell and teapot 100 % in both modes; atrium
+// paper 99.44 % (4 holes, 2 gap-fill voxels: its moving teapots saturate a few cells at the
+// 4096-texel limit), exact 100 %.
 TEST_CASE("Grid vs Embree on the built-in scenes (paper and exact)", "[oracle][grid]") {
   struct Case {
     const char* name;
     double paper_min, exact_min;
   };
-  // atrium: its moving teapots saturate 32 cells at the capacity clamp of 64: exact mode loses
-  // the references those cells drop
-  for (const Case c : {Case{"cornell", 0.995, 0.999}, Case{"teapot", 0.985, 0.998}, Case{"atrium", 0.95, 0.99}}) {
+  for (const Case c : {Case{"cornell", 0.999, 0.999}, Case{"teapot", 0.998, 0.999}, Case{"atrium", 0.99, 0.998}}) {
     const Scene scene = make_builtin(c.name);
     const Run r = run_scene(scene, 48, 36);
     INFO(c.name << "\n paper: " << r.paper.text() << "\n exact: " << r.exact.text());
@@ -146,10 +147,12 @@ TEST_CASE("Grid vs Embree on the built-in scenes (paper and exact)", "[oracle][g
   }
 }
 
-// Real scenes at the defaults (lavapipe's 4096-texel image limit): the cells where the detail is
-// saturate at the capacity clamp (Sibenik: ~400 cells over 64 references), which costs exact mode
-// the references dropped and makes paper mode report gap-fill voxels; thresholds are the measured
-// shares (docs/BENCHMARKS.md) minus a margin.
+// Real scenes at the defaults (lavapipe's 4096-texel image limit): no grid of the real scenes fits
+// every cell's references under 4096 texels, so the trace-cost policy accepts some saturated
+// cells where few rays go; they cost exact mode a few dropped references and paper mode a few
+// gap-fill voxels. Measured (32x24 camera rays + mirror bounces): Sponza paper 98.6 %, exact
+// 100 %; Sibenik paper 94.4 %, exact 99.1 % (before the policy: 80-85 / 96-98 % and 42-46 / 66-71
+// %). Thresholds: the measured shares minus a margin.
 TEST_CASE("Grid vs Embree on the real scenes (paper and exact)", "[oracle][grid][scenes]") {
   const std::string dir = real_scenes();
   if (dir.empty()) return;
@@ -158,8 +161,8 @@ TEST_CASE("Grid vs Embree on the real scenes (paper and exact)", "[oracle][grid]
     const Run r = run_scene(scene, 32, 24);
     INFO(name << "\n paper: " << r.paper.text() << "\n exact: " << r.exact.text());
     WARN(name << " paper: " << r.paper.text() << "\n" << name << " exact: " << r.exact.text());
-    CHECK(r.paper.share() >= (name[1] == 'p' ? 0.80 : 0.42));
-    CHECK(r.exact.share() >= (name[1] == 'p' ? 0.96 : 0.66));
+    CHECK(r.paper.share() >= (name[1] == 'p' ? 0.97 : 0.93));
+    CHECK(r.exact.share() >= (name[1] == 'p' ? 0.998 : 0.985));
     CHECK(r.exact.false_hits == 0);
   }
 }

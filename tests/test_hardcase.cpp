@@ -445,3 +445,46 @@ TEST_CASE("hardcase: NaN or infinite rays are rejected, never traced", "[hardcas
     }
   }
 }
+
+// The paper's samples are one cell edge apart: a ray that cuts the corner of a cell without a
+// sample in it never tests a small triangle that lies only there (docs/ACCURACY.md: the main
+// cause of paper-mode disagreement, "skipped cell"). Padding the triangle's AABB by half a cell
+// puts it into the sampled neighbours as well (every point of the ray is within half an edge of
+// a sample; docs/SPEC.md, "AABB padding"), and the paper's mode finds it. Exact mode visits the
+// corner cell and finds it at any padding.
+TEST_CASE("hardcase: a small triangle in a corner cell the paper's samples step past, found with a padded AABB",
+          "[hardcase][vulkan]") {
+  // The ray (0.5, 0.3, 4.52) + s (1, 1, 0)/sqrt(2) crosses the corner of cell (1, 0, 4) between
+  // its samples in cells (0, 0, 4) and (1, 1, 4); the triangle, across the ray at x + y = 2,
+  // lies inside that corner cell
+  const glm::vec3 p(1.1f, 0.9f, 4.5f);
+  const Scene scene = room({{p + glm::vec3(0.05f, -0.05f, 0.0f), p + glm::vec3(-0.05f, 0.05f, 0.0f),
+                             p + glm::vec3(0.0f, 0.0f, 0.1f)}});
+  const std::vector<Ray> rays{ray({0.5f, 0.3f, 4.52f}, glm::normalize(glm::vec3(1.0f, 1.0f, 0.0f)))};
+  const float t_hit = 0.6f * std::sqrt(2.0f);
+  GridOptions fixed{.resolution = glm::uvec3(8, 8, 8)};
+  {
+    GridOptions o = options_for(kPaper, fixed);
+    o.aabb_padding = 1e-3f;
+    const std::vector<Hit> h = trace(scene, o, rays);
+    INFO(describe(rays[0], h[0]));
+    CHECK(!(h[0].instance == 1u && h[0].triangle == 0u));  // skipped: the wall behind it instead
+    ReferenceGridTracer grid(o);
+    grid.build(scene, 0.0f);
+    Hit want{};
+    want.t = t_hit;
+    want.instance = 1u;
+    want.triangle = 0u;
+    CHECK(reference::classify_difference(grid.data(), rays[0], h[0], want) == reference::Difference::skipped_cell);
+  }
+  for (float padding : {0.25f, 0.5f}) {
+    GridOptions o = options_for(kPaper, fixed);
+    o.aabb_padding = padding;
+    INFO("padding " << padding);
+    expect_hit(rays[0], trace(scene, o, rays)[0], 1, 0, t_hit);
+  }
+  for (const Mode& m : {kExactMoller, kExactWatertight}) {
+    INFO(m.name);
+    expect_hit(rays[0], trace(scene, options_for(m, fixed), rays)[0], 1, 0, t_hit);
+  }
+}
