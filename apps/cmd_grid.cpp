@@ -178,6 +178,9 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
   auto t0 = std::chrono::steady_clock::now();
   const sh::GridParams chosen = reference::choose_grid(scene, o.time, go, &choice);
   const double choose_ms = ms_since(t0);
+  if (!choice.sample.rays.empty())
+    std::printf("\ntrace-cost sample: %zu %s rays\n", choice.sample.rays.size(),
+                choice.sample.bounce ? "glossy bounce" : "camera");
   std::printf("\nchoose_grid: %.0f ms, %zu candidates (image limit %u, policy %s)\n", choose_ms,
               choice.candidates.size(), go.max_image_dimension,
               go.capacity_policy == reference::GridOptions::CapacityPolicy::trace_cost      ? "trace-cost"

@@ -42,7 +42,7 @@ struct SweepOptions {
   uint32_t repeat = 3;  // trace timings: the median of this many runs
   std::vector<std::string> traversal{"paper", "exact"};
   std::vector<std::string> triangle_test{"moller", "watertight"};
-  std::vector<std::string> capacity{"auto", "percentile"};
+  std::vector<std::string> capacity{"auto", "no-saturation", "percentile"};
   std::vector<std::string> enlargement{"1.25"};
   std::vector<std::string> elongation{"0.5"};
   std::vector<std::string> padding{"auto"};

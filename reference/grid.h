@@ -71,7 +71,8 @@ struct GridOptions {
   float cell_visit_cost = 1.0f;
   float saturation_cost = 1.0e5f;
   uint32_t work_sample_width = 96, work_sample_height = 54;  // the sample's gather buffer (16:9)
-  uint32_t work_sample_frames = 4;  // glossy bounce rays of this many frames off that gather buffer
+  uint32_t work_sample_frames = 4;     // glossy bounce rays of up to this many frames off that gather
+  uint32_t work_sample_rays = 4000;    // buffer, fewer once this many rays are sampled
   float capacity_percentile = 0.99f;      // percentile policy: capacity = this percentile of counts
   uint32_t min_capacity = 4, max_capacity = 1024;
   // The scene axis laid along the image's x (the slots' axis): automatic = the axis with the fewest
@@ -116,9 +117,9 @@ struct WorkEstimate {
 };
 
 // The policy's ray sample: the glossy bounce rays of a small gather buffer of the scene's frame
-// camera (the rays the paper's frame traces through the grid), of work_sample_frames frames (each
-// frame perturbs the glossy directions anew), or its camera rays where the scene has no glossy
-// material; and where each ray ends (its first hit's t, +inf for a miss), found
+// camera (the rays the paper's frame traces through the grid), of up to work_sample_frames frames
+// (each frame perturbs the glossy directions anew) until work_sample_rays are sampled, or its
+// camera rays where the scene has no glossy material; and where each ray ends (its first hit's t, +inf for a miss), found
 // exactly by a compact grid without a capacity (a CSR cell list, exact DDA, alpha keying).
 struct WorkSample {
   std::vector<Ray> rays;

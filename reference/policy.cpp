@@ -162,7 +162,7 @@ WorkSample work_sample(const Scene& scene, float time, const GridParams& base, c
   const uint32_t w = std::max(1u, o.work_sample_width), h = std::max(1u, o.work_sample_height);
   const GatherBuffer gather = make_gather(scene, caster, camera, w, h, time);
   WorkSample s;
-  for (uint32_t frame = 0; frame < std::max(1u, o.work_sample_frames); ++frame)
+  for (uint32_t frame = 0; frame < std::max(1u, o.work_sample_frames) && s.rays.size() < o.work_sample_rays; ++frame)
     for (const Ray& r : bounce_rays(scene, gather, frame))
       if (!is_unused(r)) s.rays.push_back(r);
   if (s.rays.empty()) {
