@@ -386,7 +386,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
     csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,aabb_padding,elongation,repeats,"
            "gap_fill,self_hit,max_dim,grid,capacity,saturated_cells,rays,differ,ties,holes,false_hits,gap_fill_hits,agree_pct,"
            "median_dt,max_dt,build_ms,update_ms,trace_ms,mrays_per_s,grid_mib,pareto,cells_per_ray,tests_per_ray,"
-           "skipped_cell,window,dropped,reported_early,tested,grid_nearer,gap_fill,tie\n";
+           "why_skipped_cell,why_window,why_dropped,why_reported_early,why_tested,why_grid_nearer,why_gap_fill,why_tie\n";
     for (size_t i = 0; i < rows.size(); ++i) {
       const Row& r = rows[i];
       const Config& c = r.config;
