@@ -237,3 +237,30 @@ TEST_CASE("Vulkan frame: leaving out an effect the scene does not call for chang
   CHECK(checked_alpha + checked_gap > 0);
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
+
+// `gridrt diff --gpu-frame`: the check the GPU machine runs (no test suite travels there), proved
+// here on lavapipe: the frame's own bounce rays and hits, bit for bit the reference's.
+TEST_CASE("CLI: gridrt diff --gpu-frame finds the GPU frame's rays and hits bit-identical", "[vulkan][diff][frame][cli]") {
+  const std::string cmd = std::string(GRIDRT_TOOL) +
+                          " diff builtin:atrium --gpu-frame --width 96 --height 64 --frames 2 --threads 2 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  REQUIRE(pipe != nullptr);
+  std::string out;
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
+  const int status = pclose(pipe);
+  INFO(out);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);
+  CHECK(out.find("AGREE") != std::string::npos);
+  // Both frames ran the GPU frame's passes, and the atrium's glossy floor made bounce rays
+  for (const char* frame : {"frame 0: GPU frame:", "frame 1: GPU frame:"}) {
+    const size_t at = out.find(frame);
+    REQUIRE(at != std::string::npos);
+    const std::string line = out.substr(at, out.find('\n', at) - at);
+    INFO(line);
+    CHECK(line.find(" 0 differ in bits from bounce_rays()") != std::string::npos);
+    CHECK(line.find(" 0 frame hits differ") != std::string::npos);
+    CHECK(line.find("; 0 bounce rays") == std::string::npos);
+  }
+}
