@@ -6,9 +6,15 @@
 // trace the bounce rays of the CPU reference's gather buffer.
 // Vulkan phases are timed with timestamp queries where the device's timestamps bracket the
 // passes (not lavapipe: there the host time from submit to fence is reported, and says so).
+// --rtx puts the device's own ray tracing pipeline beside the grid (vulkan/rtx.h): each frame,
+// after the grid's trace, the acceleration structures are updated and the same bounce rays
+// traced into a second hit buffer, both timed; after the timed frames both hit buffers are read
+// back once and compared ray by ray.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <thread>
@@ -22,6 +28,7 @@
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "vulkan/frame.h"
 #  include "vulkan/grid.h"
+#  include "vulkan/rtx.h"
 #endif
 
 namespace gridrt::app {
@@ -34,6 +41,9 @@ struct BenchOptions {
   uint32_t frames = 20, warmup = 3;
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
   float fps = 30.0f;
+  bool rtx = false;          // vulkan: the device's ray tracing pipeline side by side
+  bool rtx_opaque = false;   // !RtxOptions::any_hit_all
+  bool rtx_rebuild = false;  // RtxOptions::rebuild_dynamic
   std::string json;
   BackendOptions backend_options;
 };
@@ -55,18 +65,85 @@ struct PhaseTimes {
 };
 
 #ifdef GRIDRT_HAVE_VULKAN
+// The grid's hits against the RT pipeline's, ray by ray, over every ray of a frame (absent rays
+// included: both miss) and over the bounce rays alone.
+struct Agreement {
+  size_t rays = 0, bounce = 0;    // rays of the frame; of them, real bounce rays
+  size_t same = 0, same_bounce = 0;  // same (instance, triangle) or both miss
+  size_t grid_only = 0;           // the grid hit, the RT pipeline missed
+  size_t rtx_only = 0;            // the grid missed, the RT pipeline hit
+  size_t different = 0;           // both hit, different triangles
+  size_t different_gap_fill = 0;  // ... of which the grid's hit is a gap-fill voxel
+  size_t rtx_closer = 0;          // ... of which the RT pipeline's hit is nearer
+  size_t rtx_at_origin = 0;       // ... of which at t < 1e-3 of the grid's (next to the ray's origin)
+  size_t both_hit = 0;            // same triangle, both hit
+  size_t t_identical = 0;         // ... with t identical in bits
+  size_t t_within_4_ulps = 0;     // ... with t at most 4 ulps apart
+  double t_max_rel = 0.0;         // ... the largest |t_rtx - t_grid| / t_grid
+  size_t retraced = 0;            // rays the RT pipeline traced again past the launch triangle
+};
+
+Agreement compare_hits(const std::vector<Ray>& rays, const std::vector<Hit>& grid, const std::vector<Hit>& rtx) {
+  Agreement a;
+  a.rays = rays.size();
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Hit& g = grid[i];
+    const Hit& r = rtx[i];
+    const bool real = !is_unused(rays[i]);
+    a.bounce += real;
+    a.retraced += r.tests >= 2;
+    const bool g_hit = g.instance != shared::kNoInstance, r_hit = r.instance != shared::kNoInstance;
+    const bool same = g.instance == r.instance && (!g_hit || g.triangle == r.triangle);
+    a.same += same;
+    a.same_bounce += same && real;
+    if (same && g_hit) {
+      ++a.both_hit;
+      uint32_t gb, rb;
+      std::memcpy(&gb, &g.t, 4);
+      std::memcpy(&rb, &r.t, 4);
+      a.t_identical += gb == rb;
+      a.t_within_4_ulps += (gb > rb ? gb - rb : rb - gb) <= 4u;
+      if (g.t > 0.0f) a.t_max_rel = std::max(a.t_max_rel, std::abs(double(r.t) - double(g.t)) / double(g.t));
+    }
+    if (same) continue;
+    if (g_hit && !r_hit) ++a.grid_only;
+    else if (!g_hit && r_hit) ++a.rtx_only;
+    else {
+      ++a.different;
+      a.different_gap_fill += (g.flags & shared::kHitGapFill) != 0u;
+      a.rtx_closer += r.t < g.t;
+      a.rtx_at_origin += r.t < 1e-3f * g.t;
+    }
+  }
+  return a;
+}
+
+double percent(size_t part, size_t whole) { return whole ? 100.0 * double(part) / double(whole) : 0.0; }
+
 // The whole frame on the GPU: the grid's static build once, then per frame the update (clear,
 // dynamic insert) and VulkanFrame::render (gather, bounce, trace, shade), GPU timestamps.
 void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::json& out) {
   std::unique_ptr<Tracer> tracer = make_backend("vulkan", o.backend_options, scene);
   auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
   if (!vk) throw Error("bench: the vulkan backend is not the Vulkan grid");
+  if (o.rtx)
+    if (const std::string why = vulkan::rtx_unsupported(vk->context()); !why.empty()) throw Error("--rtx: " + why);
   auto t0 = std::chrono::steady_clock::now();
   vk->build(scene, 0.0f);
   const double build_host = ms_since(t0);
   const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
   const double build = stamps ? vk->timings().build_ms : build_host;
   vulkan::VulkanFrame frame(*vk, scene, {.width = o.width, .height = o.height});
+  // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
+  std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
+  vulkan::Buffer rtx_hits;
+  if (o.rtx) {
+    if (!frame.bounce())
+      throw Error("--rtx: " + scene.name + " has no glossy material, so the frame has no bounce rays to trace");
+    rtx = std::make_unique<vulkan::VulkanRtxTracer>(
+        *vk, vulkan::RtxOptions{.any_hit_all = !o.rtx_opaque, .rebuild_dynamic = o.rtx_rebuild});
+    rtx_hits = vk->context().create_buffer(VkDeviceSize(frame.ray_count()) * sizeof(Hit), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  }
   std::map<std::string, std::vector<double>> t;
   size_t rays = 0;
   const bool moves = scene.has_dynamic();
@@ -80,7 +157,16 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
       const std::vector<Ray> r = frame.download_rays();
       rays = size_t(std::count_if(r.begin(), r.end(), [](const Ray& ray) { return !is_unused(ray); }));
     }
+    // The RT pipeline: the acceleration structures after the grid's update, then the same rays
+    if (rtx) rtx->update_and_trace(frame.ray_buffer(), rtx_hits, frame.ray_count());
     if (f < o.warmup) continue;
+    if (rtx) {
+      const vulkan::RtxTimings& rt = rtx->timings();
+      t["rtx_update"].push_back(stamps ? rt.update_ms : rt.host_ms);
+      t["rtx_refit"].push_back(stamps ? rt.refit_ms : 0.0);
+      t["rtx_tlas"].push_back(stamps ? rt.tlas_ms : 0.0);
+      t["rtx_trace"].push_back(stamps ? rt.trace_ms : 0.0);
+    }
     const vulkan::GridTimings& g = vk->timings();
     const vulkan::FrameTimings ft = frame.timings();
     if (o.back_to_back > 1 && stamps) {
@@ -102,6 +188,21 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     t["trace"].push_back(stamps ? ft.trace_ms : 0.0);
     t["shade"].push_back(stamps ? ft.shade_ms : 0.0);
     t["frame"].push_back(update + (stamps ? ft.total_ms : ft.host_ms));
+  }
+  // The RT pipeline's hits against the grid's, the last frame's rays; then the RT tracer goes
+  // (the grid's builds below make new buffers)
+  Agreement agree;
+  vulkan::RtxTimings rtx_first;
+  vulkan::RtxMemory rtx_memory;
+  uint32_t rtx_dynamic = 0;
+  if (rtx) {
+    agree = compare_hits(frame.download_rays(), frame.download_hits(),
+                         vk->context().download<Hit>(rtx_hits, frame.ray_count()));
+    rtx_first = rtx->timings();
+    rtx_memory = rtx->memory();
+    rtx_dynamic = rtx->dynamic_instance_count();
+    rtx.reset();
+    rtx_hits.reset();
   }
   // The static build again, the GPU warm (the first one ran at idle clocks: docs/VULKAN.md), median of 5
   std::vector<double> warm_builds;
@@ -142,12 +243,90 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
   }
+  if (o.rtx) {
+    const double rtx_mrays = m["rtx_trace"] > 0.0 ? double(rays) / (m["rtx_trace"] * 1e3) : 0.0;
+    const double mib = 1.0 / (1 << 20);
+    const char* mode =
+        o.rtx_opaque ? "opaque where unmasked, re-traced past the launch triangle" : "any-hit on every triangle";
+    const char* dynamic = o.rtx_rebuild ? "rebuilt" : "refitted";
+    std::printf("rtx: the device's ray tracing pipeline on the same bounce rays (%s; %u dynamic BLASes %s, the TLAS "
+                "rebuilt, each frame)\n",
+                mode, rtx_dynamic, dynamic);
+    // Side by side: each tracer's static build, per-frame update, trace and structure
+    std::printf("| tracer | build ms, once | update ms per frame | trace ms | update + trace ms | Mrays/s | structure "
+                "MiB |\n|---|---|---|---|---|---|---|\n");
+    std::printf("| grid | %.3f | %.3f (clear %.3f + insert %.3f) | %.3f | %.3f | %.0f | %.1f (image) |\n", build,
+                m["update"], m["clear"], m["insert"], m["trace"], m["update"] + m["trace"], mrays, grid_mib);
+    std::printf("| rtx | %.3f (static BLASes %.3f) | %.3f (dynamic BLASes %.3f + TLAS %.3f) | %.3f | %.3f | %.0f | %.1f "
+                "(static %.1f + dynamic %.1f + TLAS %.2f) |\n",
+                rtx_first.first_build_ms, rtx_first.static_build_ms, m["rtx_update"], m["rtx_refit"], m["rtx_tlas"], m["rtx_trace"],
+                m["rtx_update"] + m["rtx_trace"], rtx_mrays,
+                double(rtx_memory.static_blas + rtx_memory.dynamic_blas + rtx_memory.tlas) * mib,
+                double(rtx_memory.static_blas) * mib, double(rtx_memory.dynamic_blas) * mib, double(rtx_memory.tlas) * mib);
+    std::printf("agree: %.3f %% of all rays, %.3f %% of the bounce rays\n", percent(agree.same, agree.rays),
+                percent(agree.same_bounce, agree.bounce));
+    std::printf("agreement, the last frame: %zu of %zu rays the same (instance, triangle) or both miss; of the %zu bounce "
+                "rays %zu. Differ: grid hit / rtx miss %zu, grid miss / rtx hit %zu, other triangle %zu (the grid's a "
+                "gap-fill voxel: %zu; rtx's nearer: %zu, of which at t < 1e-3 of the grid's: %zu). Same triangle: %zu "
+                "hits, t identical in bits %zu, within 4 ulps %zu, relative difference at most %.2g. Rays traced again "
+                "past their launch triangle: %zu\n\n",
+                agree.same, agree.rays, agree.bounce, agree.same_bounce, agree.grid_only, agree.rtx_only, agree.different,
+                agree.different_gap_fill, agree.rtx_closer, agree.rtx_at_origin, agree.both_hit, agree.t_identical,
+                agree.t_within_4_ulps, agree.t_max_rel, agree.retraced);
+    std::fflush(stdout);
+    j["rtx"] = {{"mode", mode},
+                {"dynamic_blas", dynamic},
+                {"dynamic_instances", rtx_dynamic},
+                {"static_blas_build_ms", rtx_first.static_build_ms},
+                {"first_build_ms", rtx_first.first_build_ms},
+                {"update_ms", m["rtx_update"]},
+                {"refit_ms", m["rtx_refit"]},
+                {"tlas_ms", m["rtx_tlas"]},
+                {"trace_ms", m["rtx_trace"]},
+                {"mrays_per_s", rtx_mrays},
+                {"memory_bytes",
+                 {{"static_blas", rtx_memory.static_blas},
+                  {"dynamic_blas", rtx_memory.dynamic_blas},
+                  {"tlas", rtx_memory.tlas},
+                  {"scratch", rtx_memory.scratch}}},
+                {"agreement",
+                 {{"rays", agree.rays},
+                  {"same", agree.same},
+                  {"bounce_rays", agree.bounce},
+                  {"same_bounce", agree.same_bounce},
+                  {"grid_hit_rtx_miss", agree.grid_only},
+                  {"grid_miss_rtx_hit", agree.rtx_only},
+                  {"other_triangle", agree.different},
+                  {"other_triangle_grid_gap_fill", agree.different_gap_fill},
+                  {"other_triangle_rtx_nearer", agree.rtx_closer},
+                  {"other_triangle_rtx_at_origin", agree.rtx_at_origin},
+                  {"same_triangle_hits", agree.both_hit},
+                  {"t_identical", agree.t_identical},
+                  {"t_within_4_ulps", agree.t_within_4_ulps},
+                  {"t_max_relative_difference", agree.t_max_rel},
+                  {"retraced", agree.retraced}}}};
+  }
+  // With GRIDRT_VALIDATION=1: what the validation layer said (the tool's only way to show it)
+  if (vk->context().validation()) {
+    const std::vector<std::string> msgs = vk->context().messages();
+    std::fprintf(stderr, "validation layer: %zu messages\n", msgs.size());
+    for (size_t i = 0; i < msgs.size() && i < 20; ++i) std::fprintf(stderr, "  %s\n", msgs[i].c_str());
+    j["validation_messages"] = msgs.size();
+  }
   out["backends"]["vulkan"] = j;
 }
 #endif
 
 void run_bench(const BenchOptions& options) {
   BenchOptions o = options;
+  if (o.rtx) {
+#ifndef GRIDRT_HAVE_VULKAN
+    throw Error("--rtx: this build has no Vulkan backend");
+#endif
+    if (std::find(o.backends.begin(), o.backends.end(), "vulkan") == o.backends.end())
+      throw Error("--rtx runs beside the vulkan backend: add --backend vulkan");
+    o.backend_options.ray_tracing = true;
+  }
   resolve_image_limit(o.backend_options, std::find(o.backends.begin(), o.backends.end(), "vulkan") != o.backends.end());
   const Scene scene = load_scene_or_default(o.scene);
   const std::vector<std::string> backends = o.backends.empty() ? std::vector<std::string>{backend_names().front()} : o.backends;
@@ -275,6 +454,18 @@ void add_bench_command(CLI::App& app) {
                   "busy); 1: off")
       ->check(CLI::Range(1u, 64u));
   cmd->add_option("--fps", o->fps, "Scene time step per frame is 1/fps")->check(CLI::PositiveNumber);
+  CLI::Option* rtx =
+      cmd->add_flag("--rtx", o->rtx,
+                    "Vulkan: the device's ray tracing pipeline (VK_KHR_ray_tracing_pipeline) side by side: each frame, "
+                    "after the grid's trace, refit the dynamic instances' BLASes, rebuild the TLAS and trace the same "
+                    "bounce rays; report its times and how many of its hits agree with the grid's");
+  cmd->add_flag("--rtx-opaque", o->rtx_opaque,
+                "With --rtx: opaque geometry where there is no alpha mask, a ray whose closest hit is its launch "
+                "triangle traced again past it (default: every triangle through the any-hit shader, which ignores the "
+                "launch triangle as the grid does)")
+      ->needs(rtx);
+  cmd->add_flag("--rtx-rebuild", o->rtx_rebuild, "With --rtx: rebuild the dynamic BLASes each frame instead of refitting")
+      ->needs(rtx);
   cmd->add_option("--json", o->json, "Also write the figures as JSON to this file");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_bench(*o); });

@@ -63,8 +63,9 @@ SpecConstants spec_for(const GridParams& g, bool explain) {
 }
 
 template <class T>
-Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
-  Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+Buffer make_buffer(Context& ctx, const std::vector<T>& data, VkBufferUsageFlags extra_usage = 0) {
+  Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16),
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | extra_usage);
   ctx.upload(b, data.data(), data.size() * sizeof(T));
   return b;
 }
@@ -86,6 +87,7 @@ namespace {
 ContextOptions context_options(const VulkanGridOptions& vk) {
   ContextOptions o = ContextOptions::from_env();
   o.raster_build = vk.build == BuildMode::raster;
+  o.ray_tracing = vk.ray_tracing;
   return o;
 }
 }  // namespace
@@ -190,7 +192,12 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   Gpu& gpu = *gpu_;
   gpu.params = make_buffer(ctx, std::vector<GridParams>{g});
   gpu.instances = make_buffer(ctx, instances_);
-  gpu.triangles = make_buffer(ctx, triangles);
+  // With ray tracing enabled the geometry buffer is also the vertex input of the acceleration
+  // structures (vulkan/rtx.h): the BLASes are built over the very triangles the grid tests
+  const VkBufferUsageFlags as_input = ctx.ray_tracing() ? VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT |
+                                                              VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR
+                                                        : 0u;
+  gpu.triangles = make_buffer(ctx, triangles, as_input);
   gpu.uvs = make_buffer(ctx, uvs);
   gpu.materials = make_buffer(ctx, materials);
   gpu.texels = make_buffer(ctx, texels);
@@ -400,6 +407,16 @@ const Buffer& VulkanGridTracer::triangle_buffer() const {
 const Buffer& VulkanGridTracer::uv_buffer() const {
   if (!gpu_) throw Error("vulkan-grid: uv_buffer before build");
   return gpu_->uvs;
+}
+
+const Buffer& VulkanGridTracer::material_buffer() const {
+  if (!gpu_) throw Error("vulkan-grid: material_buffer before build");
+  return gpu_->materials;
+}
+
+const Buffer& VulkanGridTracer::texel_buffer() const {
+  if (!gpu_) throw Error("vulkan-grid: texel_buffer before build");
+  return gpu_->texels;
 }
 
 void VulkanGridTracer::bind_ray_buffers(const Buffer& rays, const Buffer& hits) {

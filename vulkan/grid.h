@@ -30,6 +30,7 @@ enum class BuildMode {
 struct VulkanGridOptions {
   BuildMode build = BuildMode::raster;
   uint32_t explain_capacity = 1u << 16;  // events the explain buffer holds
+  bool ray_tracing = false;  // an owned context enables ray tracing where present (vulkan/rtx.h)
 };
 
 // Time of the last build, update and trace, milliseconds: on the device (timestamp queries
@@ -70,10 +71,14 @@ class VulkanGridTracer : public Tracer {
 
   // For passes of other pipelines on the grid's device data (vulkan/frame.h), valid after
   // build(): the instances (GridInstance), the geometry buffer (GridTriangle, world space as the
-  // build and update wrote it) and the triangles' uvs (GridTriangleUv).
+  // build and update wrote it; on a context with ray_tracing() also an acceleration-structure
+  // build input with a device address), the triangles' uvs (GridTriangleUv), the materials
+  // (GridMaterial) and the alpha masks' texels. A later build() makes new buffers.
   const Buffer& instance_buffer() const;
   const Buffer& triangle_buffer() const;
   const Buffer& uv_buffer() const;
+  const Buffer& material_buffer() const;
+  const Buffer& texel_buffer() const;
   // Binds device buffers the caller keeps alive as the rays and hits of record_trace (a later
   // trace() binds its own again).
   void bind_ray_buffers(const Buffer& rays, const Buffer& hits);

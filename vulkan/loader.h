@@ -34,6 +34,7 @@
   X(vkGetPhysicalDeviceImageFormatProperties)    \
   X(vkEnumerateDeviceExtensionProperties)        \
   X(vkCreateDevice)                              \
+  X(vkGetDeviceProcAddr)                         \
   X(vkDestroyDevice)                             \
   X(vkGetDeviceQueue)                            \
   X(vkDeviceWaitIdle)                            \
