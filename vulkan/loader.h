@@ -90,6 +90,7 @@
   X(vkCmdBindDescriptorSets)                     \
   X(vkCmdPushConstants)                          \
   X(vkCmdDispatch)                               \
+  X(vkCmdDispatchIndirect)                       \
   X(vkCmdDraw)                                   \
   X(vkCmdBeginRenderPass)                        \
   X(vkCmdEndRenderPass)                          \
