@@ -80,6 +80,15 @@ DeviceInfo query_info(VkPhysicalDevice pd) {
     info.signed_zero_inf_nan_preserve_f32 = p12.shaderSignedZeroInfNanPreserveFloat32;
     info.subgroup_size = p11.subgroupSize;
     info.max_memory_allocation = p11.maxMemoryAllocationSize;
+    const VkSubgroupFeatureFlags ops = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_ARITHMETIC_BIT |
+                                       VK_SUBGROUP_FEATURE_BALLOT_BIT;
+    info.subgroup_arithmetic_ballot =
+        (p11.subgroupSupportedOperations & ops) == ops && (p11.subgroupSupportedStages & VK_SHADER_STAGE_COMPUTE_BIT);
+    VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    f2.pNext = &f12;
+    vkGetPhysicalDeviceFeatures2(pd, &f2);
+    info.buffer_int64_atomics = f2.features.shaderInt64 && f12.shaderBufferInt64Atomics;
   }
   VkPhysicalDeviceFeatures f{};
   vkGetPhysicalDeviceFeatures(pd, &f);
@@ -149,6 +158,7 @@ std::string DeviceInfo::summary() const {
     << "): maxImageDimension3D " << limits.maxImageDimension3D << ", maxStorageBufferRange "
     << limits.maxStorageBufferRange << ", maxMemoryAllocationSize " << max_memory_allocation
     << ", device-local heap " << device_local_heap << ", geometryShader " << geometry_shader
+    << ", int64 buffer atomics " << buffer_int64_atomics
     << ", vertexPipelineStoresAndAtomics " << vertex_pipeline_stores_and_atomics
     << ", shaderDenormPreserveFloat32 " << denorm_preserve_f32 << ", shaderDenormFlushToZeroFloat32 "
     << denorm_flush_to_zero_f32 << ", shaderSignedZeroInfNanPreserveFloat32 " << signed_zero_inf_nan_preserve_f32
@@ -371,14 +381,18 @@ void Context::create_device(const ContextOptions& options) {
   q.queueCount = 1;
   q.pQueuePriorities = &priority;
 
-  VkPhysicalDeviceFeatures features{};
-  features.geometryShader = options.raster_build ? VK_TRUE : VK_FALSE;
-  features.vertexPipelineStoresAndAtomics = options.raster_build ? VK_TRUE : VK_FALSE;
+  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  f12.shaderBufferInt64Atomics = info_.buffer_int64_atomics ? VK_TRUE : VK_FALSE;
+  VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  features.pNext = &f12;
+  features.features.geometryShader = options.raster_build ? VK_TRUE : VK_FALSE;
+  features.features.vertexPipelineStoresAndAtomics = options.raster_build ? VK_TRUE : VK_FALSE;
+  features.features.shaderInt64 = info_.buffer_int64_atomics ? VK_TRUE : VK_FALSE;
 
   VkDeviceCreateInfo ci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  ci.pNext = &features;
   ci.queueCreateInfoCount = 1;
   ci.pQueueCreateInfos = &q;
-  ci.pEnabledFeatures = &features;
   const VkResult r = vkCreateDevice(physical_, &ci, nullptr, &device_);
   if (r != VK_SUCCESS) {
     device_ = VK_NULL_HANDLE;
