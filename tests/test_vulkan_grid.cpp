@@ -456,6 +456,8 @@ TEST_CASE("Vulkan grid on the built-in scenes: images and every hit identical, p
                                                                                       : BuildMode::compute});
       vk.build(scene, 0.0f);
       CHECK(compare_texels(ref.dump(), vk.dump()) == 0);
+      // The compute build hands long AABB ranges out in runs (the atrium's floor and walls)
+      if (traversal == reference::Traversal::exact && name == "atrium") CHECK(vk.download_build_runs() > 0);
       const Camera cam = scene.frame_camera();
       for (float time : {0.0f, 0.8f, 2.5f}) {
         INFO("time " << time);

@@ -30,7 +30,8 @@ enum Binding : uint32_t {
   kExplain = 12,
   kDirty = 13,
   kRayList = 14,
-  kBindingCount = 15,
+  kBuildList = 15,
+  kBindingCount = 16,
 };
 constexpr uint32_t kStorageBuffersPerStage = kBindingCount - 1;
 
@@ -76,12 +77,14 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
 
 struct VulkanGridTracer::Gpu {
   Buffer params, instances, triangles, uvs, materials, texels, build_instances, positions, indices;
-  Buffer rays, hits, explain, dirty, no_ray_list;
+  Buffer rays, hits, explain, dirty, no_ray_list, build_list;
+  uint32_t build_list_capacity = 0;
   VkBuffer ray_list = VK_NULL_HANDLE;  // bound by bind_ray_buffers (not owned)
   size_t ray_capacity = 0;
   Image3D image;
-  std::unique_ptr<Descriptors> set, dirty_set;
-  std::unique_ptr<Pipeline> init, raster, compute, clear, dirty_dispatch, trace, trace_explain, trace_list;
+  std::unique_ptr<Descriptors> set, dirty_set, build_list_set;
+  std::unique_ptr<Pipeline> init, raster, compute, build_cells, build_list_dispatch, clear, dirty_dispatch, trace,
+      trace_explain, trace_list;
   std::unique_ptr<Timestamps> timestamps, update_timestamps, build_timestamps;
 };
 
@@ -208,12 +211,18 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   gpu.no_ray_list = ctx.create_buffer(sizeof(shared::WorkListHeader), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.dirty = ctx.create_buffer(VkDeviceSize(shared::dirty_list_words(g)) * 4,
                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
+  // The compute build's runs of long cell ranges (build.glsl): at most 2^20 items (8 MiB)
+  gpu.build_list_capacity = vk_.build == BuildMode::compute
+                                ? uint32_t(std::min<uint64_t>((dev.limits.maxStorageBufferRange - 32) / 8, 1u << 20))
+                                : 0u;
+  gpu.build_list = ctx.create_buffer(sizeof(shared::WorkListHeader) + uint64_t(gpu.build_list_capacity) * 8,
+                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
   gpu.image = ctx.create_image3d(shared::grid_image_extent(g));
 
   const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   gpu.set = std::make_unique<Descriptors>(
       ctx, std::initializer_list<VkDescriptorType>{sb, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, sb, sb, sb, sb, sb, sb, sb,
-                                                   sb, sb, sb, sb, sb, sb});
+                                                   sb, sb, sb, sb, sb, sb, sb});
   Descriptors& set = *gpu.set;
   set.bind(kParams, gpu.params);
   set.bind(kImage, gpu.image);
@@ -230,15 +239,22 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   set.bind(kExplain, gpu.explain);
   set.bind(kDirty, gpu.dirty);
   set.bind(kRayList, gpu.no_ray_list);
+  set.bind(kBuildList, gpu.build_list);
   gpu.dirty_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
   gpu.dirty_set->bind(0, gpu.dirty);
 
   gpu.init = std::make_unique<Pipeline>(ctx, "grid_init.comp", set.layout(), 0, spec_for(g, false));
   if (vk_.build == BuildMode::raster)
     gpu.raster = std::make_unique<Pipeline>(ctx, "build.vert", "build.geom", set.layout(), 0, spec_for(g, false));
-  else
+  else {
     gpu.compute = std::make_unique<Pipeline>(ctx, "build.comp", set.layout(), uint32_t(sizeof(shared::BuildPush)),
                                              spec_for(g, false));
+    gpu.build_cells = std::make_unique<Pipeline>(ctx, "build_cells.comp", set.layout(), 0, spec_for(g, false));
+    gpu.build_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
+    gpu.build_list_set->bind(0, gpu.build_list);
+    gpu.build_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.build_list_set->layout(),
+                                                         uint32_t(3 * sizeof(uint32_t)));
+  }
   gpu.clear = std::make_unique<Pipeline>(ctx, "clear_dynamic.comp", set.layout(), uint32_t(sizeof(uint32_t)),
                                          spec_for(g, false));
   gpu.dirty_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.dirty_set->layout(),
@@ -263,6 +279,7 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   ctx.submit([&](VkCommandBuffer cb) {
     if (stamps) stamps->reset(cb), stamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     vkCmdFillBuffer(cb, gpu.dirty.buffer, 0, VK_WHOLE_SIZE, 0u);  // the dirty-cell list empty
+    vkCmdFillBuffer(cb, gpu.build_list.buffer, 0, sizeof(shared::WorkListHeader), 0u);
     gpu.init->bind(cb, set.set());
     vkCmdDispatch(cb, groups(extent.x, 4), groups(extent.y, 4), groups(extent.z, 4));
     barrier(cb);
@@ -284,7 +301,8 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
 }
 
 // Insert the triangles of instances [first, last): the raster pass (one draw per instance,
-// firstInstance = its id) or the compute build (one invocation per triangle).
+// firstInstance = its id) or the compute build (one invocation per triangle, then one per run of
+// kBuildRun cells of the long AABB ranges those appended to the build list).
 void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last) {
   if (first >= last) return;
   Gpu& gpu = *gpu_;
@@ -305,6 +323,14 @@ void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint
     gpu.compute->push(cb, push);
     vkCmdDispatch(cb, groups(push.tri_count, 64), 1, 1);
   }
+  barrier(cb);
+  const uint32_t list_push[3] = {64u, ctx_->info().limits.maxComputeWorkGroupCount[0], gpu.build_list_capacity};
+  gpu.build_list_dispatch->bind(cb, gpu.build_list_set->set());
+  gpu.build_list_dispatch->push(cb, list_push, sizeof list_push);
+  vkCmdDispatch(cb, 1, 1, 1);
+  barrier(cb);
+  gpu.build_cells->bind(cb, gpu.set->set());
+  vkCmdDispatchIndirect(cb, gpu.build_list.buffer, 0);
 }
 
 // ---- Scene update (paper 2.2) ----
@@ -475,6 +501,11 @@ AccelDump VulkanGridTracer::dump() const {
   d.extent = gpu_->image.extent;
   d.texels = ctx_->download(gpu_->image);
   return d;
+}
+
+uint32_t VulkanGridTracer::download_build_runs() const {
+  if (!gpu_) return 0;
+  return ctx_->download<shared::WorkListHeader>(gpu_->build_list, 1)[0].dispatched;
 }
 
 std::vector<uint32_t> VulkanGridTracer::download_dirty_cells() const {

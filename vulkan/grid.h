@@ -64,6 +64,9 @@ class VulkanGridTracer : public Tracer {
   reference::ExplainRecord explain_ray(std::span<const Ray> rays, uint32_t index);
   reference::ExplainRecord explain_ray(const Ray& ray) { return explain_ray(std::span<const Ray>(&ray, 1), 0); }
 
+  // Runs of kBuildRun cells (build.glsl) the compute build and its updates handed out so far
+  // (0 for the raster build).
+  uint32_t download_build_runs() const;
   // The dirty-cell list's cells (as reference::dirty_cells: the cells appended since the last
   // clear pass, in the order the device appended them).
   std::vector<uint32_t> download_dirty_cells() const;

@@ -3,7 +3,7 @@
 // storage buffer: this header, then the items (uint), then whatever the owner keeps beside them.
 //   append     i = atomicAdd(header.appended, 1); items[i] = item
 //   dispatch   one invocation (work_list_dispatch.comp): size = appended, appended = 0, and the
-//              indirect dispatch's group counts for `size` items
+//              indirect dispatch's group counts for `size` items (dispatched += size)
 //   work       invocation k < size takes items[k] (work_list_index)
 // The grid's dirty cells (vulkan/grid.cpp; the reference emulates the same buffer) and the
 // frame's compacted bounce rays (vulkan/frame.cpp) use it.
@@ -20,9 +20,9 @@ struct WorkListHeader {
   uint groups_z;
   uint size;       // items the pass over the list works on (written by the dispatch pass)
   uint appended;   // items appended since the last dispatch pass
+  uint dispatched; // items of every dispatch pass so far (statistics)
   uint pad0;
   uint pad1;
-  uint pad2;
 };
 
 SH_CONST uint kWorkListHeaderWords = 8u;  // the items start at this word of the buffer

@@ -87,10 +87,33 @@ void append_dirty_cell(GridParams g, uvec3 cell) {
   dirty_items[k] = i;
 }
 
+// The compute build's runs (build.comp, build_cells.comp): a triangle whose AABB range holds more
+// than kBuildRun cells leaves them to other invocations, kBuildRun cells each, through this work
+// list of (reference, run) pairs, so that no invocation walks thousands of cells alone (the
+// build's longest chain of dependent atomics, docs/BENCHMARKS.md). Same cells, same insertions.
+const uint kBuildRun = 8u;
+layout(std430, binding = 15) buffer BuildList {
+  WorkListHeader build_header;
+  uint build_items[];
+};
+
+// Insert the reference into the cells [first, last) of the range lo..hi (x fastest) whose enlarged
+// bounding sphere the triangle's plane passes through.
+void insert_range_cells(GridParams g, uint ref, vec3 v0, vec3 n, float nn, uvec3 lo, uvec3 hi, uint first, uint last) {
+  const uvec3 size = hi - lo + 1u;
+  for (uint i = first; i < last; ++i) {
+    const uvec3 cell = lo + uvec3(i % size.x, (i / size.x) % size.y, i / (size.x * size.y));
+    if (!plane_intersects_enlarged_sphere(v0, n, nn, cell_center(g, cell), g.sphere_r2)) continue;
+    if (ref >= g.comparison_offset) append_dirty_cell(g, cell);
+    if (g.insertion == kInsertSorted) insert_sorted(g, cell, ref);
+    else insert_first_empty(g, cell, ref);
+  }
+}
+
 // One build invocation: write the world-space triangle to the geometry buffer, insert its
 // reference into every cell of its AABB range whose enlarged bounding sphere the triangle's plane
-// passes through.
-void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2) {
+// passes through (`split`: the compute build hands ranges of more than kBuildRun cells out in runs).
+void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, bool split) {
   const GridParams g = grid_params();
   // Write the world-space triangle (the material was written by the host)
   const uint k = instances[instance].tri_offset + triangle;
@@ -106,15 +129,22 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2) {
   uvec3 hi;
   triangle_cell_range(g, v0, v1, v2, lo, hi);
   const uint ref = ref_pack(instance, triangle);
-  for (uint z = lo.z; z <= hi.z; ++z)
-    for (uint y = lo.y; y <= hi.y; ++y)
-      for (uint x = lo.x; x <= hi.x; ++x) {
-        const uvec3 cell = uvec3(x, y, z);
-        if (!plane_intersects_enlarged_sphere(v0, n, nn, cell_center(g, cell), g.sphere_r2)) continue;
-        if (ref >= g.comparison_offset) append_dirty_cell(g, cell);
-        if (g.insertion == kInsertSorted) insert_sorted(g, cell, ref);
-        else insert_first_empty(g, cell, ref);
+  const uvec3 size = hi - lo + 1u;
+  const uint count = size.x * size.y * size.z;
+  if (split && count > kBuildRun) {
+    // Long range: runs of kBuildRun cells for build_cells.comp, unless the list is full
+    const uint runs = (count + kBuildRun - 1u) / kBuildRun;
+    const uint capacity = uint(build_items.length()) / 2u;
+    const uint first = atomicAdd(build_header.appended, runs);
+    if (first <= capacity && runs <= capacity - first) {
+      for (uint r = 0u; r < runs; ++r) {
+        build_items[2u * (first + r)] = ref;
+        build_items[2u * (first + r) + 1u] = r;
       }
+      return;
+    }
+  }
+  insert_range_cells(g, ref, v0, n, nn, lo, hi, 0u, count);
 }
 
 #endif

@@ -21,4 +21,5 @@ void main() {
   header.groups_z = groups.z;
   header.size = size;
   header.appended = 0u;
+  header.dispatched += size;
 }
