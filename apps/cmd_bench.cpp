@@ -34,7 +34,7 @@ struct BenchOptions {
   uint32_t frames = 20, warmup = 3;
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
-  bool compact_rays = true;        // vulkan: trace only the pixels with a bounce ray
+  bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
   uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
   float fps = 30.0f;
   std::string json;
@@ -111,7 +111,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   std::vector<Ray> last_rays;
   std::vector<Hit> last_hits;
   float last_time = 0.0f;
-  uint32_t counted = 0;
+  uint32_t counted = 0, gather_tiles = 0;
   for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
     const float time = float(f + 1) / o.fps;
     t0 = std::chrono::steady_clock::now();
@@ -122,6 +122,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
       const std::vector<Ray> r = frame.download_rays();
       rays = size_t(std::count_if(r.begin(), r.end(), [](const Ray& ray) { return !is_unused(ray); }));
     }
+    if (f == 0) gather_tiles = frame.download_gather_tiles();
     if (f < o.warmup) continue;
     const vulkan::GridTimings& g = vk->timings();
     const vulkan::FrameTimings ft = frame.timings();
@@ -201,10 +202,10 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
               grid_mib, frame_mib);
-  std::printf("gather split: visibility (%s) %.3f, copy %.3f, resolve %.3f ms; warm build split (%s build): blank image "
-              "%.3f, static instances %.3f, dynamic instances %.3f ms\n",
-              gather_name, m["visibility"], m["copy"], m["resolve"], o.backend_options.vk_build.c_str(), m["build_init"],
-              m["build_static"], m["build_dynamic"]);
+  std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f, copy %.3f, resolve %.3f ms; warm "
+              "build split (%s build): blank image %.3f, static instances %.3f, dynamic instances %.3f ms\n",
+              gather_name, gather_tiles, m["visibility"], m["copy"], m["resolve"], o.backend_options.vk_build.c_str(),
+              m["build_init"], m["build_static"], m["build_dynamic"]);
   // The trace's counters; bytes the trace requests per ray, estimated from them: the ray (48) and
   // its hit record (32), per visited cell one blank or status texel (4), per test the slot's
   // texel (4), the instance (16) and the triangle (48). Requested, not DRAM traffic (the caches
@@ -230,6 +231,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
                       {"mrays_per_s", mrays}, {"grid_mib", grid_mib}, {"frame_mib", frame_mib},
                       {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity}};
   j["gather_mode"] = gather_name;
+  j["gather_tiles_frame0"] = gather_tiles;
   j["compact_rays"] = o.compact_rays;
   for (auto& [k, v] : t) {
     j[k + "_ms"] = m[k];
@@ -416,8 +418,9 @@ void add_bench_command(CLI::App& app) {
                   "Vulkan: the frame's gather: compute (the CPU gather's ray test, needs 64-bit buffer atomics) or raster "
                   "(the paper's raster pass)")
       ->check(CLI::IsMember({"compute", "raster"}));
-  cmd->add_flag("!--no-compact-rays", o->compact_rays,
-                "Vulkan: trace every pixel, the ones without a bounce ray too (default: only the pixels with one)");
+  cmd->add_flag("--compact-rays", o->compact_rays,
+                "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
+                "empty rays return at once)");
   cmd->add_option("--counter-frames", o->counter_frames,
                   "Vulkan: timed frames whose hit records are read back for the trace's counters")
       ->check(CLI::Range(0u, 1000u));

@@ -510,10 +510,11 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
 
 // ---- Scene update (paper 2.2) ----
 
-// The clear pass over the dirty-cell list, in workgroups of 64 listed cells: the dispatch step
-// takes the cells appended since the last pass (and starts the list again); per listed cell, blank
-// every reference >= the comparison offset, slot by slot from the first one up to the first
-// blank, reset the dynamic saturation bit and take the cell off the list.
+// The clear pass over the dirty-cell list, one workgroup of 64 invocations per listed cell: the
+// dispatch step takes the cells appended since the last pass (and starts the list again); per
+// listed cell, blank every reference >= the comparison offset from the first such slot up to the
+// first blank, the invocations taking every 64th slot; reset the dynamic saturation bit and take
+// the cell off the list.
 void clear_dynamic_references(GridData& grid, const GridOptions& o) {
   const GridParams& g = grid.params;
   // The dispatch step (work_list_dispatch.comp)
@@ -523,17 +524,18 @@ void clear_dynamic_references(GridData& grid, const GridOptions& o) {
   run_invocations(size, thread_count(o), std::nullopt, [&](uint32_t k) {
     const uint32_t i = grid.dirty.load(shared::kWorkListHeaderWords + k);
     const glm::uvec3 cell = shared::cell_of_linear_index(g, i);
-    // Blank the dynamic references up to the first blank (the static ones precede them)
-    for (uint32_t s = first_slot_at_least(grid.image, g, cell, g.comparison_offset); s < g.capacity; ++s) {
-      const glm::ivec3 p(shared::cell_slot_texel(g, cell, s));
-      if (imageLoad(grid.image, p) == kBlank) break;
-      imageAtomicExchange(grid.image, p, kBlank);
-    }
+    // The first dynamic slot (the static references precede the dynamic ones)
+    const uint32_t first_dynamic = first_slot_at_least(grid.image, g, cell, g.comparison_offset);
+    // Blank the dynamic references up to the first blank, every 64th slot per invocation (a slot
+    // found blank ends the invocation's walk: the blanks form the cell's tail)
+    for (uint32_t lane = 0; lane < 64; ++lane)
+      for (uint32_t s = first_dynamic + lane; s < g.capacity; s += 64)
+        if (imageAtomicExchange(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), kBlank) == kBlank) break;
     // Reset the dynamic saturation bit; the static one persists
     imageAtomicAnd(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), ~shared::kStatusDynamic);
     // Off the list
     atomicAnd(grid.dirty, shared::kWorkListHeaderWords + shared::dirty_bit_item(g, i), ~shared::dirty_bit(i));
-  }, 64);
+  }, 1);
 }
 
 std::vector<uint32_t> dirty_cells(const GridData& grid) {

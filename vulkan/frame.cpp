@@ -598,6 +598,11 @@ std::vector<uint32_t> VulkanFrame::download_visibility() const {
   return grid_.context().download<uint32_t>(gpu_->visibility, size_t(options_.width) * options_.height);
 }
 
+uint32_t VulkanFrame::download_gather_tiles() const {
+  if (gather_ != GatherMode::compute) return 0;
+  return grid_.context().download<shared::WorkListHeader>(gpu_->tiles, 1)[0].size;
+}
+
 const Buffer& VulkanFrame::ray_buffer() const { return gpu_->rays; }
 const Buffer& VulkanFrame::hit_buffer() const { return gpu_->hits; }
 

@@ -9,10 +9,10 @@
 //            then gather_resolve.comp turns it into the gather buffer (position, normal, material,
 //            uv, launch reference) with the same shared math as make_gather
 //   bounce   bounce.comp: one glossy bounce ray per pixel, as bounce_rays (common/shared/bounce.h);
-//            compacted (default): the pixels with a ray are appended to a work list, the others
-//            get their (miss) hit at once
-//   trace    the grid's trace pipeline on the device ray buffer: over the work list
-//            (VulkanGridTracer::record_trace_list, an indirect dispatch) or every pixel
+//            compacted (an option): the pixels with a ray are appended to a work list, the
+//            others get their (miss) hit at once
+//   trace    the grid's trace pipeline on the device ray buffer: every pixel, or the work list
+//            (VulkanGridTracer::record_trace_list, an indirect dispatch)
 //   shade    shade.comp: as shade() (no shadow rays) into RGBA8, sRGB-encoded
 // Each phase is bracketed by timestamp queries. Nothing goes through the host between phases.
 //
@@ -57,7 +57,9 @@ struct FrameOptions {
   float ambient = 0.2f, exposure = 1.0f;  // ShadeOptions
   bool bounce = true;   // false: no bounce rays (as a scene without glossy materials)
   GatherMode gather = GatherMode::compute;  // compute falls back to raster without int64 atomics
-  bool compact_rays = true;  // trace only the pixels with a bounce ray (a work list)
+  // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
+  // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
+  bool compact_rays = false;
 };
 
 class VulkanFrame {
@@ -80,6 +82,8 @@ class VulkanFrame {
   std::vector<Hit> download_hits() const;   // their hits
   std::vector<uint8_t> download_rgba() const;  // RGBA8, sRGB-encoded
   std::vector<uint32_t> download_visibility() const;  // the raster pass's reference per pixel
+  // The compute gather's (triangle, 8x8 tile) items of the last render (0 for the raster gather).
+  uint32_t download_gather_tiles() const;
 
   // The device buffers of the bounce rays and hits (another tracer may trace the same rays).
   const Buffer& ray_buffer() const;

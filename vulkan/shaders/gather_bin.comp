@@ -1,7 +1,8 @@
 #version 460
 // gather_bin.comp: the compute gather's first pass (gather_visibility.glsl), one invocation per
-// triangle of the geometry buffer: its screen box, cut into 8x8-pixel tiles appended to the tile
-// list (one atomic per subgroup). Where the list is full, the invocation tests its box itself.
+// triangle of the geometry buffer: its screen box; a box of at most 16 pixels is tested here, a
+// larger one cut into 8x8-pixel tiles appended to the tile list (one atomic per subgroup). Where
+// the list is full, the invocation tests its box itself.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_ballot : require
@@ -23,6 +24,7 @@ void main() {
   uint tiles = 0u;
   uint ref = kNoRef;
   uvec4 box = uvec4(0u);
+  bool here = false;  // a small box, tested by this invocation
   GridTriangle tri;
   if (k < pc.triangle_count) {
     const uint instance = gather_instance_of(k, pc.instance_count);
@@ -30,8 +32,10 @@ void main() {
     tri = triangles[k];
     // Zero-area triangles are never hit (the grid does not insert them)
     const vec3 n = triangle_normal(tri.v0, tri.v1, tri.v2);
-    if (sh_dot(n, n) != 0.0f && gather_box(c, fp.near_plane, tri.v0, tri.v1, tri.v2, box))
-      tiles = ((box.z - box.x) / 8u + 1u) * ((box.w - box.y) / 8u + 1u);
+    if (sh_dot(n, n) != 0.0f && gather_box(c, fp.near_plane, tri.v0, tri.v1, tri.v2, box)) {
+      here = (box.z - box.x + 1u) * (box.w - box.y + 1u) <= 16u;
+      if (!here) tiles = ((box.z - box.x) / 8u + 1u) * ((box.w - box.y) / 8u + 1u);
+    }
   }
   // Append the tiles: one atomic per subgroup
   const uint total = subgroupAdd(tiles);
@@ -39,6 +43,15 @@ void main() {
   uint base = 0u;
   if (subgroupElect()) base = atomicAdd(tile_header.appended, total);
   base = subgroupBroadcastFirst(base);
+  if (here) {
+    for (uint y = box.y; y <= box.w; ++y)
+      for (uint x = box.x; x <= box.z; ++x) {
+        uvec2 key;
+        if (gather_key(ref, k, tri, uvec2(x, y), key))
+          atomicMin(gather_keys64[y * c.width + x], packUint2x32(key));
+      }
+    return;
+  }
   if (tiles == 0u) return;
   const uint first = base + before;
   const uint across = (box.z - box.x) / 8u + 1u;

@@ -2,8 +2,9 @@
 // pixel's camera ray meets first, decided by the ray test the CPU's gather makes (make_gather:
 // primary rays through the exact traversal, common/shared/triangle.h moller_trumbore, the
 // smaller t and then the smaller reference), not by the rasterizer's coverage and depth.
-//   gather_bin.comp    per triangle: the screen box of the pixels its ray test can accept,
-//                      appended to the tile list as 8x8-pixel tiles
+//   gather_bin.comp    per triangle: the screen box of the pixels its ray test can accept (the
+//                      triangle clipped to the view frustum); a box of at most 16 pixels is
+//                      tested there, a larger one appended to the tile list as 8x8-pixel tiles
 //   gather_tiles.comp  per tile, one invocation per pixel: the ray test; an accepted hit takes
 //                      the pixel's key (t bits << 32 | reference) by a 64-bit atomic min
 // The box only limits the work (a pixel of margin on every side); the ray test decides.
@@ -38,40 +39,48 @@ vec2 gather_project(CameraParams c, vec3 q) {
               (1.0f - sy / c.tan_half_fov) * 0.5f * float(c.height));
 }
 
-// The box (x0, y0, x1, y1, inclusive) of the pixels whose centre rays may meet the triangle's part
-// in front of the near plane, a pixel of margin on every side; false when there is none.
+// Clips the convex polygon poly[0, n) to the half-space dot(plane.xyz, p) + plane.w >= 0
+// (Sutherland-Hodgman); returns the new vertex count (at most n + 1).
+uint gather_clip(inout vec3 poly[9], uint n, vec4 plane) {
+  vec3 kept[9];
+  uint m = 0u;
+  for (uint i = 0u; i < n; ++i) {
+    const vec3 a = poly[i], b = poly[i + 1u == n ? 0u : i + 1u];
+    const float da = dot(plane.xyz, a) + plane.w, db = dot(plane.xyz, b) + plane.w;
+    if (da >= 0.0f && m < 9u) kept[m++] = a;
+    if ((da >= 0.0f) != (db >= 0.0f) && m < 9u) kept[m++] = a + (da / (da - db)) * (b - a);
+  }
+  poly = kept;
+  return m;
+}
+
+// The box (x0, y0, x1, y1, inclusive) of the pixels whose centre rays may meet the triangle: its
+// part inside the view frustum (the near plane and the four sides, widened by two pixels) projected,
+// a pixel of margin on every side; false when nothing is left.
 bool gather_box(CameraParams c, float near_plane, vec3 v0, vec3 v1, vec3 v2, out uvec4 box) {
   box = uvec4(0u);
-  vec3 q[3];
-  q[0] = gather_camera_space(c, v0);
-  q[1] = gather_camera_space(c, v1);
-  q[2] = gather_camera_space(c, v2);
+  vec3 poly[9];
+  poly[0] = gather_camera_space(c, v0);
+  poly[1] = gather_camera_space(c, v1);
+  poly[2] = gather_camera_space(c, v2);
+  const float kx = c.tan_half_fov * c.aspect * (1.0f + 4.0f / float(c.width));
+  const float ky = c.tan_half_fov * (1.0f + 4.0f / float(c.height));
+  uint n = gather_clip(poly, 3u, vec4(0.0f, 0.0f, 1.0f, -near_plane));
+  n = n >= 3u ? gather_clip(poly, n, vec4(1.0f, 0.0f, kx, 0.0f)) : 0u;
+  n = n >= 3u ? gather_clip(poly, n, vec4(-1.0f, 0.0f, kx, 0.0f)) : 0u;
+  n = n >= 3u ? gather_clip(poly, n, vec4(0.0f, 1.0f, ky, 0.0f)) : 0u;
+  n = n >= 3u ? gather_clip(poly, n, vec4(0.0f, -1.0f, ky, 0.0f)) : 0u;
+  if (n < 3u) return false;
   vec2 lo = vec2(3.0e38f), hi = vec2(-3.0e38f);
-  bool any = false;
-  for (uint i = 0u; i < 3u; ++i) {
-    const vec3 a = q[i], b = q[(i + 1u) % 3u];
-    // The clipped polygon's corners: the vertices in front, and where an edge crosses the plane
-    if (a.z >= near_plane) {
-      const vec2 p = gather_project(c, a);
-      lo = min(lo, p);
-      hi = max(hi, p);
-      any = true;
-    }
-    if ((a.z < near_plane) != (b.z < near_plane)) {
-      const float s = (near_plane - a.z) / (b.z - a.z);
-      const vec3 m = vec3(a.xy + s * (b.xy - a.xy), near_plane);
-      const vec2 p = gather_project(c, m);
-      lo = min(lo, p);
-      hi = max(hi, p);
-      any = true;
-    }
+  for (uint i = 0u; i < n; ++i) {
+    const vec2 p = gather_project(c, vec3(poly[i].xy, max(poly[i].z, near_plane)));
+    lo = min(lo, p);
+    hi = max(hi, p);
   }
-  if (!any) return false;
   // Pixel centres x + 0.5 in [lo, hi], widened by a pixel, clamped in float before converting
   const vec2 size = vec2(float(c.width), float(c.height));
   const vec2 first = clamp(floor(lo - 0.5f) - 1.0f, vec2(0.0f), size - 1.0f);
   const vec2 last = clamp(ceil(hi - 0.5f) + 1.0f, vec2(0.0f), size - 1.0f);
-  if (hi.x < -2.0f || hi.y < -2.0f || lo.x > size.x + 2.0f || lo.y > size.y + 2.0f) return false;
   if (!(first.x <= last.x && first.y <= last.y)) return false;  // NaN: nothing to test
   box = uvec4(uvec2(first), uvec2(last));
   return true;
