@@ -35,6 +35,7 @@ struct BenchOptions {
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
+  bool gather_cull = true;         // vulkan, compute gather: the depth cull
   uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
   float fps = 30.0f;
   std::string json;
@@ -101,6 +102,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   vulkan::FrameOptions fo{.width = o.width, .height = o.height};
   fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
   fo.compact_rays = o.compact_rays;
+  fo.gather_cull = o.gather_cull;
   vulkan::VulkanFrame frame(*vk, scene, fo);
   std::map<std::string, std::vector<double>> t;
   size_t rays = 0;
@@ -164,6 +166,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     t["gather"].push_back(stamps ? ft.gather_ms : 0.0);
     t["visibility"].push_back(stamps ? ft.visibility_ms : 0.0);
     t["copy"].push_back(stamps ? ft.copy_ms : 0.0);
+    t["bin"].push_back(stamps ? ft.bin_ms : 0.0);
+    t["tiles"].push_back(stamps ? ft.tiles_ms : 0.0);
     t["resolve"].push_back(stamps ? ft.resolve_ms : 0.0);
     t["bounce"].push_back(stamps ? ft.bounce_ms : 0.0);
     t["trace"].push_back(stamps ? ft.trace_ms : 0.0);
@@ -202,10 +206,11 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
               grid_mib, frame_mib);
-  std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f, copy %.3f, resolve %.3f ms; warm "
-              "build split (%s build): blank image %.3f, static instances %.3f, dynamic instances %.3f ms\n",
-              gather_name, gather_tiles, m["visibility"], m["copy"], m["resolve"], o.backend_options.vk_build.c_str(),
-              m["build_init"], m["build_static"], m["build_dynamic"]);
+  std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
+              "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, dynamic instances "
+              "%.3f ms\n",
+              gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
+              o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_dynamic"]);
   // The trace's counters; bytes the trace requests per ray, estimated from them: the ray (48) and
   // its hit record (32), per visited cell one blank or status texel (4), per test the slot's
   // texel (4), the instance (16) and the triangle (48). Requested, not DRAM traffic (the caches
@@ -421,6 +426,8 @@ void add_bench_command(CLI::App& app) {
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");
+  cmd->add_flag("!--no-gather-cull", o->gather_cull,
+                "Vulkan, compute gather: test every tile pixel, also where a nearer hit is already known");
   cmd->add_option("--counter-frames", o->counter_frames,
                   "Vulkan: timed frames whose hit records are read back for the trace's counters")
       ->check(CLI::Range(0u, 1000u));

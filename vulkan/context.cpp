@@ -637,16 +637,14 @@ Image3D Context::create_image3d(glm::uvec3 extent) {
 }
 
 void Context::clear(const Image3D& image, uint32_t value) {
-  submit([&](VkCommandBuffer cb) { record_clear(cb, image, value); });
-}
-
-void Context::record_clear(VkCommandBuffer cb, const Image3D& image, uint32_t value) const {
-  VkClearColorValue c{};
-  c.uint32[0] = c.uint32[1] = c.uint32[2] = c.uint32[3] = value;
-  const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-  transition(cb, image.image, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
-  vkCmdClearColorImage(cb, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &c, 1, &range);
-  transition(cb, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+  submit([&](VkCommandBuffer cb) {
+    VkClearColorValue c{};
+    c.uint32[0] = c.uint32[1] = c.uint32[2] = c.uint32[3] = value;
+    const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    transition(cb, image.image, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
+    vkCmdClearColorImage(cb, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &c, 1, &range);
+    transition(cb, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL);
+  });
 }
 
 void Context::upload(const Image3D& image, std::span<const uint32_t> texels) {

@@ -150,8 +150,6 @@ class Context {
   // format's image limits first.
   Image3D create_image3d(glm::uvec3 extent);
   void clear(const Image3D& image, uint32_t value);
-  // Records the same clear into `cb` (the image back in GENERAL; no barrier after it).
-  void record_clear(VkCommandBuffer cb, const Image3D& image, uint32_t value) const;
   void upload(const Image3D& image, std::span<const uint32_t> texels);
   std::vector<uint32_t> download(const Image3D& image);
 

@@ -401,7 +401,8 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   set.bind(kTileList, gpu.tiles);
   const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
                          (alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
-                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u);
+                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u) |
+                         (gather_ == GatherMode::compute && options_.gather_cull ? shared::kFrameGatherCull : 0u);
   auto spec = [&] {
     SpecConstants s;
     s.add(kSpecFrameFlags, flags);
@@ -464,6 +465,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           vkCmdDispatch(cb, g.x, g.y, 1);
         }
         barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 1);
         const uint32_t list_push[3] = {1u, max_groups_x, gpu.tile_capacity};
         gpu.tile_dispatch->bind(cb, gpu.tile_set->set());
         gpu.tile_dispatch->push(cb, list_push, sizeof list_push);
@@ -472,7 +474,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         gpu.tile_pass->bind(cb, s);
         vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
         barrier(cb);
-        if (timed) gpu.timestamps->write(cb, 1), gpu.timestamps->write(cb, 2);
+        if (timed) gpu.timestamps->write(cb, 2);
       } else {
         // Gather, raster: one draw per instance (firstInstance = its id), then the copy
         VkClearValue clear[2]{};
@@ -536,8 +538,11 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   timings_.host_ms = ms_since(t0);
   if (gpu.timestamps) {
     const std::vector<double> ns = gpu.timestamps->read_ns();
-    timings_.visibility_ms = (ns[1] - ns[0]) * 1e-6;
-    timings_.copy_ms = (ns[2] - ns[1]) * 1e-6;
+    const bool compute = gather_ == GatherMode::compute;
+    timings_.visibility_ms = ((compute ? ns[2] : ns[1]) - ns[0]) * 1e-6;
+    timings_.bin_ms = compute ? (ns[1] - ns[0]) * 1e-6 : 0.0;
+    timings_.tiles_ms = compute ? (ns[2] - ns[1]) * 1e-6 : 0.0;
+    timings_.copy_ms = compute ? 0.0 : (ns[2] - ns[1]) * 1e-6;
     timings_.resolve_ms = (ns[3] - ns[2]) * 1e-6;
     timings_.gather_ms = (ns[3] - ns[0]) * 1e-6;
     timings_.bounce_ms = (ns[4] - ns[3]) * 1e-6;

@@ -41,8 +41,9 @@ namespace gridrt::vulkan {
 struct FrameTimings {
   double gather_ms = 0.0, bounce_ms = 0.0, trace_ms = 0.0, shade_ms = 0.0;
   // The gather's parts: the visibility (raster pass, or the compute passes with the key buffer's
-  // fill), the raster attachment's copy to a buffer (0 for compute), the resolve pass
-  double visibility_ms = 0.0, copy_ms = 0.0, resolve_ms = 0.0;
+  // fill) and its compute passes (bin with the fill, tiles with their dispatch step), the raster
+  // attachment's copy to a buffer, the resolve pass
+  double visibility_ms = 0.0, bin_ms = 0.0, tiles_ms = 0.0, copy_ms = 0.0, resolve_ms = 0.0;
   double total_ms = 0.0;  // gather + bounce + trace + shade
   double host_ms = 0.0;
 };
@@ -60,6 +61,8 @@ struct FrameOptions {
   // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
   // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
   bool compact_rays = false;
+  // Compute gather: skip a pixel already holding a hit nearer than the triangle's smallest depth.
+  bool gather_cull = true;
 };
 
 class VulkanFrame {

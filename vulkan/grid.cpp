@@ -269,19 +269,21 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
 
   // The passes: the image blank with status texels 0, the static instances (their references
   // fill the first slots), then the dynamic ones
-  const glm::uvec3 init_groups =
-      shared::work_list_groups(shared::grid_cell_count(g), 64u, dev.limits.maxComputeWorkGroupCount[0]);
+  const glm::uvec3 extent = gpu.image.extent;
+  const uint32_t* max_groups = dev.limits.maxComputeWorkGroupCount;
+  if (groups(extent.x, 4) > max_groups[0] || groups(extent.y, 4) > max_groups[1] || groups(extent.z, 4) > max_groups[2])
+    throw Error("the grid image needs more workgroups than maxComputeWorkGroupCount on " + dev.name +
+                ": use fewer cells or a smaller capacity, or --backend cpu");
   const auto t0 = std::chrono::steady_clock::now();
   Timestamps* stamps = gpu.build_timestamps.get();
   ctx.submit([&](VkCommandBuffer cb) {
     if (stamps) stamps->reset(cb), stamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     vkCmdFillBuffer(cb, gpu.dirty.buffer, 0, VK_WHOLE_SIZE, 0u);  // the dirty-cell list empty
     vkCmdFillBuffer(cb, gpu.build_list.buffer, 0, sizeof(shared::WorkListHeader), 0u);
-    // Every texel blank (a clear), then the status texels 0
-    ctx.record_clear(cb, gpu.image, shared::kBlank);
-    barrier(cb);
+    // Every slot blank, every status texel 0 (a compute pass: vkCmdClearColorImage and a pass
+    // over the status texels took 5-7 times longer on the H200, docs/BENCHMARKS.md)
     gpu.init->bind(cb, set.set());
-    vkCmdDispatch(cb, init_groups.x, init_groups.y, 1);
+    vkCmdDispatch(cb, groups(extent.x, 4), groups(extent.y, 4), groups(extent.z, 4));
     barrier(cb);
     if (stamps) stamps->write(cb, 1);
     insert_instances(cb, 0, static_instances_);

@@ -20,6 +20,16 @@ void main() {
   const uvec2 px = uvec2(origin & 0xFFFFu, origin >> 16u) + gl_LocalInvocationID.xy;
   if (px.x >= c.width || px.y >= c.height) return;
   const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
+  const GridTriangle tri = triangles[k];
+  const uint p = px.y * c.width + px.x;
+  if ((kFrameFlags & kFrameGatherCull) != 0u) {
+    // Depth cull: a hit on the triangle lies at least its smallest camera depth away along the
+    // unit ray (t >= z); a pixel already holding a nearer hit keeps it (the key only decreases, so
+    // a stale read only lets more through)
+    const float z = min(min(gather_camera_space(c, tri.v0).z, gather_camera_space(c, tri.v1).z),
+                        gather_camera_space(c, tri.v2).z) * 0.99999f;
+    if (z > 0.0f && gather_keys[2u * p + 1u] < floatBitsToUint(z)) return;
+  }
   uvec2 key;
-  if (gather_key(ref, k, triangles[k], px, key)) atomicMin(gather_keys64[px.y * c.width + px.x], packUint2x32(key));
+  if (gather_key(ref, k, tri, px, key)) atomicMin(gather_keys64[p], packUint2x32(key));
 }
