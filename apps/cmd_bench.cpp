@@ -35,7 +35,6 @@ struct BenchOptions {
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
-  bool gather_cull = true;         // vulkan, compute gather: the depth cull
   uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
   float fps = 30.0f;
   std::string json;
@@ -102,7 +101,6 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   vulkan::FrameOptions fo{.width = o.width, .height = o.height};
   fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
   fo.compact_rays = o.compact_rays;
-  fo.gather_cull = o.gather_cull;
   vulkan::VulkanFrame frame(*vk, scene, fo);
   std::map<std::string, std::vector<double>> t;
   size_t rays = 0;
@@ -426,8 +424,6 @@ void add_bench_command(CLI::App& app) {
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");
-  cmd->add_flag("!--no-gather-cull", o->gather_cull,
-                "Vulkan, compute gather: test every tile pixel, also where a nearer hit is already known");
   cmd->add_option("--counter-frames", o->counter_frames,
                   "Vulkan: timed frames whose hit records are read back for the trace's counters")
       ->check(CLI::Range(0u, 1000u));

@@ -98,7 +98,6 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 struct VulkanFrame::Gpu {
   Context* ctx = nullptr;
   Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles;
-  uint32_t tile_capacity = 0;
   Image2D color, depth;
   std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
   std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch;
@@ -358,12 +357,11 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   const size_t header = sizeof(shared::WorkListHeader);
   gpu.ray_list = ctx.create_buffer(compact ? header + pixels * 4 : header, list_usage);
   if (gather_ == GatherMode::compute) {
-    // The tile list: as many (triangle, tile) items as the device's storage-buffer range allows,
-    // at most 2^22 (32 MiB); a triangle whose tiles do not fit tests its box itself
-    const uint64_t range = ctx.info().limits.maxStorageBufferRange;
-    gpu.tile_capacity = uint32_t(std::min<uint64_t>((range - header) / 8, uint64_t(1) << 22));
+    // The large triangles: 4 words for every triangle of the geometry buffer at most
+    const std::vector<shared::GridInstance>& gi = grid.instances();
+    const uint64_t tris = gi.empty() ? 0 : gi.back().tri_offset + gi.back().tri_count;
     gpu.keys = ctx.create_buffer(pixels * 8, sb);
-    gpu.tiles = ctx.create_buffer(header + uint64_t(gpu.tile_capacity) * 8, list_usage);
+    gpu.tiles = ctx.create_buffer(sizeof(shared::GatherTileHeader) + std::max<uint64_t>(tris, 1) * 16, list_usage);
   } else {
     gpu.keys = ctx.create_buffer(16, sb);
     gpu.tiles = ctx.create_buffer(header, list_usage);
@@ -401,8 +399,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   set.bind(kTileList, gpu.tiles);
   const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
                          (alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
-                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u) |
-                         (gather_ == GatherMode::compute && options_.gather_cull ? shared::kFrameGatherCull : 0u);
+                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u);
   auto spec = [&] {
     SpecConstants s;
     s.add(kSpecFrameFlags, flags);
@@ -420,8 +417,9 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   if (gather_ == GatherMode::compute) {
     gpu.tile_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
     gpu.tile_set->bind(0, gpu.tiles);
-    gpu.tile_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.tile_set->layout(), list_push);
-    gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(3 * sizeof(uint32_t)), spec());
+    gpu.tile_dispatch = std::make_unique<Pipeline>(ctx, "gather_tiles_dispatch.comp", gpu.tile_set->layout(),
+                                                   uint32_t(sizeof(uint32_t)));
+    gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(2 * sizeof(uint32_t)), spec());
     gpu.tile_pass = std::make_unique<Pipeline>(ctx, "gather_tiles.comp", set.layout(), 0, spec());
   } else {
     SpecConstants raster_spec = spec();
@@ -459,16 +457,15 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         barrier(cb);
         if (triangles) {
           const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
-          const uint32_t push[3] = {triangles, uint32_t(instances.size()), gpu.tile_capacity};
+          const uint32_t push[2] = {triangles, uint32_t(instances.size())};
           gpu.bin->bind(cb, s);
           gpu.bin->push(cb, push, sizeof push);
           vkCmdDispatch(cb, g.x, g.y, 1);
         }
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 1);
-        const uint32_t list_push[3] = {1u, max_groups_x, gpu.tile_capacity};
         gpu.tile_dispatch->bind(cb, gpu.tile_set->set());
-        gpu.tile_dispatch->push(cb, list_push, sizeof list_push);
+        gpu.tile_dispatch->push(cb, max_groups_x);
         vkCmdDispatch(cb, 1, 1, 1);
         barrier(cb);
         gpu.tile_pass->bind(cb, s);
@@ -605,7 +602,7 @@ std::vector<uint32_t> VulkanFrame::download_visibility() const {
 
 uint32_t VulkanFrame::download_gather_tiles() const {
   if (gather_ != GatherMode::compute) return 0;
-  return grid_.context().download<shared::WorkListHeader>(gpu_->tiles, 1)[0].size;
+  return grid_.context().download<shared::GatherTileHeader>(gpu_->tiles, 1)[0].tiles;
 }
 
 const Buffer& VulkanFrame::ray_buffer() const { return gpu_->rays; }

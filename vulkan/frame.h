@@ -1,9 +1,10 @@
 // frame.h: the paper's frame on the GPU, after the grid's update, in one submission:
 //   gather   the visible triangle per pixel, by one of two passes:
-//            compute (default where the device has 64-bit buffer atomics): gather_bin.comp cuts
-//              each triangle's screen box into 8x8-pixel tiles, gather_tiles.comp tests each
-//              tile's pixel rays with the shared ray test and keeps the smallest (t, reference)
-//              by a 64-bit atomic min (gather_visibility.glsl): the CPU gather's own rule
+//            compute (default where the device has 64-bit buffer atomics): gather_bin.comp clips
+//              each triangle to the view frustum and tests a small screen box itself or lists
+//              the triangle with its 8x8-pixel tiles; gather_tiles.comp tests each tile's pixel
+//              rays with the shared ray test and keeps the smallest (t, reference) by a 64-bit
+//              atomic min (gather_visibility.glsl): the CPU gather's own rule
 //            raster (the paper's): gather.vert + gather.frag, the geometry buffer's world-space
 //              triangles, depth test, the reference into an R32_UINT attachment copied to a buffer
 //            then gather_resolve.comp turns it into the gather buffer (position, normal, material,
@@ -61,8 +62,6 @@ struct FrameOptions {
   // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
   // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
   bool compact_rays = false;
-  // Compute gather: skip a pixel already holding a hit nearer than the triangle's smallest depth.
-  bool gather_cull = true;
 };
 
 class VulkanFrame {
@@ -85,7 +84,7 @@ class VulkanFrame {
   std::vector<Hit> download_hits() const;   // their hits
   std::vector<uint8_t> download_rgba() const;  // RGBA8, sRGB-encoded
   std::vector<uint32_t> download_visibility() const;  // the raster pass's reference per pixel
-  // The compute gather's (triangle, 8x8 tile) items of the last render (0 for the raster gather).
+  // The compute gather's 8x8-pixel tiles of the last render (0 for the raster gather).
   uint32_t download_gather_tiles() const;
 
   // The device buffers of the bounce rays and hits (another tracer may trace the same rays).

@@ -35,9 +35,9 @@ layout(std430, binding = 12) buffer RayList {
 // The compute gather: per pixel a 64-bit key (t bits << 32 | reference), words low then high
 // (gather_tiles.comp declares the same buffer as uint64_t for its atomic min)
 layout(std430, binding = 13) buffer GatherKeys { uint gather_keys[]; };
-// The compute gather's (triangle, tile) work list: items in pairs (reference, tile origin x | y << 16)
+// The compute gather's large triangles (GatherTileHeader, then 4 words per triangle)
 layout(std430, binding = 14) buffer TileList {
-  WorkListHeader tile_header;
+  GatherTileHeader tile_header;
   uint tile_items[];
 };
 

@@ -1,8 +1,9 @@
 #version 460
 // gather_bin.comp: the compute gather's first pass (gather_visibility.glsl), one invocation per
 // triangle of the geometry buffer: its screen box; a box of at most 16 pixels is tested here, a
-// larger one cut into 8x8-pixel tiles appended to the tile list (one atomic per subgroup). Where
-// the list is full, the invocation tests its box itself.
+// larger one appended to the list of large triangles with its count of 8x8-pixel tiles (one 64-bit
+// atomic per subgroup gives each its list index and its first tile; gather_tiles.comp finds a
+// tile's triangle by binary search, so no invocation writes its tiles one by one).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_ballot : require
@@ -12,10 +13,13 @@
 
 layout(local_size_x = 64) in;
 layout(std430, binding = 13) buffer GatherKeys64 { uint64_t gather_keys64[]; };
+layout(std430, binding = 14) buffer TileCounter {
+  uint tile_counter_header[6];
+  uint64_t tile_counter;  // GatherTileHeader::counter_lo, counter_hi
+};
 layout(push_constant) uniform Push {
   uint triangle_count;  // triangles of the geometry buffer
   uint instance_count;
-  uint tile_capacity;   // items the tile list holds
 } pc;
 
 void main() {
@@ -37,37 +41,26 @@ void main() {
       if (!here) tiles = ((box.z - box.x) / 8u + 1u) * ((box.w - box.y) / 8u + 1u);
     }
   }
-  // Append the tiles: one atomic per subgroup
-  const uint total = subgroupAdd(tiles);
-  const uint before = subgroupExclusiveAdd(tiles);
-  uint base = 0u;
-  if (subgroupElect()) base = atomicAdd(tile_header.appended, total);
+  // Append the large triangles: one 64-bit atomic per subgroup (triangles high, tiles low)
+  const uint large = tiles != 0u ? 1u : 0u;
+  const uint total_tiles = subgroupAdd(tiles), total_large = subgroupAdd(large);
+  const uint tiles_before = subgroupExclusiveAdd(tiles), large_before = subgroupExclusiveAdd(large);
+  uvec2 base = uvec2(0u);
+  if (subgroupElect() && total_large != 0u)
+    base = unpackUint2x32(atomicAdd(tile_counter, packUint2x32(uvec2(total_tiles, total_large))));
   base = subgroupBroadcastFirst(base);
-  if (here) {
-    for (uint y = box.y; y <= box.w; ++y)
-      for (uint x = box.x; x <= box.z; ++x) {
-        uvec2 key;
-        if (gather_key(ref, k, tri, uvec2(x, y), key))
-          atomicMin(gather_keys64[y * c.width + x], packUint2x32(key));
-      }
+  if (large != 0u) {
+    const uint j = base.y + large_before;
+    tile_items[4u * j] = ref;
+    tile_items[4u * j + 1u] = base.x + tiles_before;
+    tile_items[4u * j + 2u] = box.x | (box.y << 16u);
+    tile_items[4u * j + 3u] = box.z | (box.w << 16u);
     return;
   }
-  if (tiles == 0u) return;
-  const uint first = base + before;
-  const uint across = (box.z - box.x) / 8u + 1u;
-  if (first <= pc.tile_capacity && tiles <= pc.tile_capacity - first) {
-    for (uint i = 0u; i < tiles; ++i) {
-      const uint x = box.x + 8u * (i % across), y = box.y + 8u * (i / across);
-      tile_items[2u * (first + i)] = ref;
-      tile_items[2u * (first + i) + 1u] = x | (y << 16u);
-    }
-    return;
-  }
-  // The list is full: test the box here
+  if (!here) return;
   for (uint y = box.y; y <= box.w; ++y)
     for (uint x = box.x; x <= box.z; ++x) {
       uvec2 key;
-      if (gather_key(ref, k, tri, uvec2(x, y), key))
-        atomicMin(gather_keys64[y * c.width + x], packUint2x32(key));
+      if (gather_key(ref, k, tri, uvec2(x, y), key)) atomicMin(gather_keys64[y * c.width + x], packUint2x32(key));
     }
 }

@@ -4,7 +4,8 @@
 // smaller t and then the smaller reference), not by the rasterizer's coverage and depth.
 //   gather_bin.comp    per triangle: the screen box of the pixels its ray test can accept (the
 //                      triangle clipped to the view frustum); a box of at most 16 pixels is
-//                      tested there, a larger one appended to the tile list as 8x8-pixel tiles
+//                      tested there, a larger one appended to the list of large triangles with
+//                      its count of 8x8-pixel tiles
 //   gather_tiles.comp  per tile, one invocation per pixel: the ray test; an accepted hit takes
 //                      the pixel's key (t bits << 32 | reference) by a 64-bit atomic min
 // The box only limits the work (a pixel of margin on every side); the ray test decides.
