@@ -2,8 +2,10 @@
 // per frame the update of the dynamic instances and the trace of the glossy bounce rays off a
 // gather buffer, after warm-up; medians over the frames, as a table and as JSON.
 // The vulkan backend runs the whole frame on the GPU (vulkan/frame.h) and times every phase:
-// update (clear + dynamic insert), gather (raster), bounce rays, trace, shade. The CPU backends
-// trace the bounce rays of the CPU reference's gather buffer.
+// update (clear + dynamic insert), gather (visibility, copy, resolve), bounce rays, trace, shade,
+// reads the trace's per-ray counters back from the hit records, and with `embree` among the
+// backends traces the last frame's own bounce rays with Embree (agreement, time). The CPU
+// backends trace the bounce rays of the CPU reference's gather buffer.
 // Vulkan phases are timed with timestamp queries where the device's timestamps bracket the
 // passes (not lavapipe: there the host time from submit to fence is reported, and says so).
 #include <algorithm>
