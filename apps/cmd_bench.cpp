@@ -2,8 +2,10 @@
 // per frame the update of the dynamic instances and the trace of the glossy bounce rays off a
 // gather buffer, after warm-up; medians over the frames, as a table and as JSON.
 // The vulkan backend runs the whole frame on the GPU (vulkan/frame.h) and times every phase:
-// update (clear + dynamic insert), gather (raster), bounce rays, trace, shade. The CPU backends
-// trace the bounce rays of the CPU reference's gather buffer.
+// update (clear + dynamic insert), gather (visibility, copy, resolve), bounce rays, trace, shade,
+// reads the trace's per-ray counters back from the hit records, and with `embree` among the
+// backends traces the last frame's own bounce rays with Embree (agreement, time). The CPU
+// backends trace the bounce rays of the CPU reference's gather buffer.
 // Vulkan phases are timed with timestamp queries where the device's timestamps bracket the
 // passes (not lavapipe: there the host time from submit to fence is reported, and says so).
 // --rtx puts the device's own ray tracing pipeline beside the grid (vulkan/rtx.h): each frame,
@@ -40,6 +42,9 @@ struct BenchOptions {
   uint32_t width = 1920, height = 1080;
   uint32_t frames = 20, warmup = 3;
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
+  std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
+  bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
+  uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
   float fps = 30.0f;
   bool rtx = false;          // vulkan: the device's ray tracing pipeline side by side
   bool rtx_opaque = false;   // !RtxOptions::any_hit_all
@@ -63,6 +68,35 @@ struct PhaseTimes {
   std::vector<double> update, trace;
   std::string clock = "host";  // "gpu timestamps" or "host"
 };
+
+// Distribution of one per-ray counter over the real rays of a frame.
+struct CounterStats {
+  double mean = 0.0, p99 = 0.0, max = 0.0;
+};
+CounterStats counter_stats(std::vector<uint32_t> v) {
+  CounterStats c;
+  if (v.empty()) return c;
+  double sum = 0.0;
+  for (uint32_t x : v) sum += x;
+  c.mean = sum / double(v.size());
+  std::sort(v.begin(), v.end());
+  c.p99 = v[std::min(v.size() - 1, size_t(0.99 * double(v.size())))];
+  c.max = v.back();
+  return c;
+}
+
+// Agreement of two tracers' hits on the real rays: same (instance, triangle), or both miss.
+double agreement_percent(const std::vector<Ray>& rays, const std::vector<Hit>& a, const std::vector<Hit>& b) {
+  size_t n = 0, same = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    if (is_unused(rays[i])) continue;
+    ++n;
+    const bool miss_a = is_miss(a[i]), miss_b = is_miss(b[i]);
+    if ((miss_a && miss_b) || (!miss_a && !miss_b && a[i].instance == b[i].instance && a[i].triangle == b[i].triangle))
+      ++same;
+  }
+  return n ? 100.0 * double(same) / double(n) : 100.0;
+}
 
 #ifdef GRIDRT_HAVE_VULKAN
 // The grid's hits against the RT pipeline's, ray by ray, over every ray of a frame (absent rays
@@ -133,7 +167,10 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const double build_host = ms_since(t0);
   const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
   const double build = stamps ? vk->timings().build_ms : build_host;
-  vulkan::VulkanFrame frame(*vk, scene, {.width = o.width, .height = o.height});
+  vulkan::FrameOptions fo{.width = o.width, .height = o.height};
+  fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
+  fo.compact_rays = o.compact_rays;
+  vulkan::VulkanFrame frame(*vk, scene, fo);
   // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
   std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
   vulkan::Buffer rtx_hits;
@@ -147,6 +184,13 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   std::map<std::string, std::vector<double>> t;
   size_t rays = 0;
   const bool moves = scene.has_dynamic();
+  // Per-ray counters of the trace (cells visited, references tested), read back from the hit
+  // records of the first timed frames; the last frame's rays and hits for the CPU tracers
+  std::map<std::string, std::vector<double>> counters;
+  std::vector<Ray> last_rays;
+  std::vector<Hit> last_hits;
+  float last_time = 0.0f;
+  uint32_t counted = 0, gather_tiles = 0;
   for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
     const float time = float(f + 1) / o.fps;
     t0 = std::chrono::steady_clock::now();
@@ -159,6 +203,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     }
     // The RT pipeline: the acceleration structures after the grid's update, then the same rays
     if (rtx) rtx->update_and_trace(frame.ray_buffer(), rtx_hits, frame.ray_count());
+    if (f == 0) gather_tiles = frame.download_gather_tiles();
     if (f < o.warmup) continue;
     if (rtx) {
       const vulkan::RtxTimings& rt = rtx->timings();
@@ -169,6 +214,27 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     }
     const vulkan::GridTimings& g = vk->timings();
     const vulkan::FrameTimings ft = frame.timings();
+    if (frame.bounce() && (counted < o.counter_frames || f + 1 == o.warmup + o.frames)) {
+      last_rays = frame.download_rays();
+      last_hits = frame.download_hits();
+      last_time = time;
+      if (counted < o.counter_frames) {
+        ++counted;
+        std::vector<uint32_t> cells, tests;
+        for (size_t i = 0; i < last_rays.size(); ++i)
+          if (!is_unused(last_rays[i])) {
+            cells.push_back(last_hits[i].cells);
+            tests.push_back(last_hits[i].tests);
+          }
+        const CounterStats c = counter_stats(cells), tt = counter_stats(tests);
+        counters["cells_mean"].push_back(c.mean);
+        counters["cells_p99"].push_back(c.p99);
+        counters["cells_max"].push_back(c.max);
+        counters["tests_mean"].push_back(tt.mean);
+        counters["tests_p99"].push_back(tt.p99);
+        counters["tests_max"].push_back(tt.max);
+      }
+    }
     if (o.back_to_back > 1 && stamps) {
       // The same frame again, back to back in one submission (the GPU busy), the last timed
       frame.render(f, o.back_to_back);
@@ -184,6 +250,11 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     t["clear"].push_back(moves && stamps ? g.clear_ms : 0.0);
     t["insert"].push_back(moves && stamps ? g.insert_ms : 0.0);
     t["gather"].push_back(stamps ? ft.gather_ms : 0.0);
+    t["visibility"].push_back(stamps ? ft.visibility_ms : 0.0);
+    t["copy"].push_back(stamps ? ft.copy_ms : 0.0);
+    t["bin"].push_back(stamps ? ft.bin_ms : 0.0);
+    t["tiles"].push_back(stamps ? ft.tiles_ms : 0.0);
+    t["resolve"].push_back(stamps ? ft.resolve_ms : 0.0);
     t["bounce"].push_back(stamps ? ft.bounce_ms : 0.0);
     t["trace"].push_back(stamps ? ft.trace_ms : 0.0);
     t["shade"].push_back(stamps ? ft.shade_ms : 0.0);
@@ -209,6 +280,9 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   for (int i = 0; i < 5 && stamps; ++i) {
     vk->build(scene, 0.0f);
     warm_builds.push_back(vk->timings().build_ms);
+    t["build_init"].push_back(vk->timings().build_init_ms);
+    t["build_static"].push_back(vk->timings().build_static_ms);
+    t["build_dynamic"].push_back(vk->timings().build_dynamic_ms);
   }
   const double build_warm = median(warm_builds);
   std::map<std::string, double> m;
@@ -221,8 +295,11 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
                            (1 << 20);
   const std::string device = vk->context().info().name;
   const std::string clock = stamps ? "gpu timestamps" : "host (submit to fence; the frame's phases not split)";
-  std::printf("\nvulkan, the whole frame on the GPU (%s; %s): %zu bounce rays per frame, grid %ux%ux%u capacity %u\n",
-              device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z, gp.capacity);
+  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute" : "raster";
+  std::printf("\nvulkan, the whole frame on the GPU (%s; %s): %zu bounce rays per frame, grid %ux%ux%u capacity %u, "
+              "%s gather, %s trace\n",
+              device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z, gp.capacity, gather_name,
+              o.compact_rays ? "compacted" : "every-pixel");
   std::printf("| build ms (first, warm) | update ms (clear + insert) | gather ms | bounce rays ms | trace ms | shade ms | frame ms "
               "(update..shade) | Mrays/s (trace) | grid MiB | frame buffers MiB |\n"
               "|---|---|---|---|---|---|---|---|---|---|\n");
@@ -230,6 +307,26 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
               grid_mib, frame_mib);
+  std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
+              "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, dynamic instances "
+              "%.3f ms\n",
+              gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
+              o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_dynamic"]);
+  // The trace's counters; bytes the trace requests per ray, estimated from them: the ray (48) and
+  // its hit record (32), per visited cell one blank or status texel (4), per test the slot's
+  // texel (4), the instance (16) and the triangle (48). Requested, not DRAM traffic (the caches
+  // serve most of it); ignores the few uv, material and alpha reads of accepted hits.
+  std::map<std::string, double> cm;
+  for (auto& [k, v] : counters) cm[k] = median(v);
+  const double bytes_per_ray = 80.0 + 4.0 * cm["cells_mean"] + 68.0 * cm["tests_mean"];
+  const double rays_per_s = m["trace"] > 0.0 ? double(rays) / (m["trace"] * 1e-3) : 0.0;
+  if (!counters.empty())
+    std::printf("| trace: rays | rays/s | cells visited mean / p99 / max | refs tested mean / p99 / max | bytes read per ray "
+                "(estimate) | GB/s requested |\n|---|---|---|---|---|---|\n"
+                "| %zu | %.3g | %.2f / %.0f / %.0f | %.2f / %.0f / %.0f | %.0f | %.0f |\n"
+                "(counters: medians over the first %u timed frames of each frame's mean / p99 / max over its real rays)\n\n",
+                rays, rays_per_s, cm["cells_mean"], cm["cells_p99"], cm["cells_max"], cm["tests_mean"], cm["tests_p99"],
+                cm["tests_max"], bytes_per_ray, rays_per_s * bytes_per_ray * 1e-9, counted);
   if (t.count("b2b_frame"))
     std::printf("back to back (%u frames per submission, the last timed; update as above): gather %.3f, bounce %.3f, "
                 "trace %.3f, shade %.3f, frame (update..shade) %.3f ms, %.0f Mrays/s\n\n",
@@ -239,6 +336,9 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   nlohmann::json j = {{"device", device}, {"clock", clock},       {"build_ms", build}, {"build_warm_ms", build_warm}, {"rays_per_frame", rays},
                       {"mrays_per_s", mrays}, {"grid_mib", grid_mib}, {"frame_mib", frame_mib},
                       {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity}};
+  j["gather_mode"] = gather_name;
+  j["gather_tiles_frame0"] = gather_tiles;
+  j["compact_rays"] = o.compact_rays;
   for (auto& [k, v] : t) {
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
@@ -313,7 +413,47 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     for (size_t i = 0; i < msgs.size() && i < 20; ++i) std::fprintf(stderr, "  %s\n", msgs[i].c_str());
     j["validation_messages"] = msgs.size();
   }
+  if (!counters.empty()) {
+    nlohmann::json c = {{"frames", counted}, {"rays_per_s", rays_per_s}, {"bytes_per_ray_estimate", bytes_per_ray}};
+    for (auto& [k, v] : cm) c[k] = v;
+    j["trace_counters"] = c;
+  }
   out["backends"]["vulkan"] = j;
+
+  // Embree on the CPU, on the last frame's own bounce rays, at that frame's time
+  if (std::find(o.backends.begin(), o.backends.end(), "embree") != o.backends.end() && !last_rays.empty()) {
+    std::unique_ptr<Tracer> embree = make_backend("embree", o.backend_options, scene);
+    t0 = std::chrono::steady_clock::now();
+    embree->build(scene, 0.0f);
+    embree->update(last_time);
+    const double embree_build = ms_since(t0);
+    std::vector<Ray> real;
+    std::vector<size_t> index;
+    for (size_t i = 0; i < last_rays.size(); ++i)
+      if (!is_unused(last_rays[i])) real.push_back(last_rays[i]), index.push_back(i);
+    std::vector<Hit> hits(real.size());
+    std::vector<double> times;
+    for (int r = 0; r < 3; ++r) {
+      t0 = std::chrono::steady_clock::now();
+      embree->trace(real, hits);
+      times.push_back(ms_since(t0));
+    }
+    std::vector<Hit> embree_hits(last_rays.size(), Hit{});
+    for (size_t k = 0; k < index.size(); ++k) embree_hits[index[k]] = hits[k];
+    const double ms = median(times), agree = agreement_percent(last_rays, last_hits, embree_hits);
+    size_t gap = 0;
+    for (size_t i : index) gap += (last_hits[i].flags & shared::kHitGapFill) != 0;
+    const unsigned threads = std::thread::hardware_concurrency();
+    std::printf("embree on the same bounce rays (CPU, %u threads; the last frame, t = %.3f): %zu rays in %.2f ms (median of 3), "
+                "%.1f Mrays/s; the GPU grid agrees on %.3f %% (same instance and triangle, or both miss; %zu gap-fill hits); "
+                "embree build + update %.0f ms\n\n",
+                threads, last_time, real.size(), ms, double(real.size()) / (ms * 1e3), agree, gap, embree_build);
+    out["backends"]["embree_on_frame_rays"] = {{"device", "CPU, " + std::to_string(threads) + " threads"},
+                                               {"rays", real.size()},       {"trace_ms", ms},
+                                               {"trace_ms_all", times},     {"mrays_per_s", double(real.size()) / (ms * 1e3)},
+                                               {"agree_percent", agree},    {"gpu_gap_fill_hits", gap},
+                                               {"build_ms", embree_build},  {"time", last_time}};
+  }
 }
 #endif
 
@@ -333,7 +473,10 @@ void run_bench(const BenchOptions& options) {
 
   // The gather buffer, once, by the exact traversal of the reference grid (CPU), for the
   // backends that trace on the CPU (the vulkan backend makes its own, every frame, on the GPU).
-  const bool cpu_rays = std::any_of(backends.begin(), backends.end(), [](const std::string& b) { return b != "vulkan"; });
+  // (with the vulkan backend, embree traces the GPU frame's own bounce rays instead)
+  const bool with_vulkan = std::find(backends.begin(), backends.end(), "vulkan") != backends.end();
+  auto on_cpu_rays = [&](const std::string& b) { return b != "vulkan" && !(with_vulkan && b == "embree"); };
+  const bool cpu_rays = std::any_of(backends.begin(), backends.end(), on_cpu_rays);
   reference::GridOptions exact = grid_options_for(o.backend_options, scene);
   exact.traversal = reference::Traversal::exact;
   reference::ReferenceGridTracer gather_tracer(exact);
@@ -373,6 +516,7 @@ void run_bench(const BenchOptions& options) {
       continue;
     }
 #endif
+    if (!on_cpu_rays(name)) continue;
     std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
     PhaseTimes times;
     std::string device = "CPU, " + std::to_string(std::thread::hardware_concurrency()) + " threads";
@@ -466,6 +610,16 @@ void add_bench_command(CLI::App& app) {
       ->needs(rtx);
   cmd->add_flag("--rtx-rebuild", o->rtx_rebuild, "With --rtx: rebuild the dynamic BLASes each frame instead of refitting")
       ->needs(rtx);
+  cmd->add_option("--gather", o->gather,
+                  "Vulkan: the frame's gather: compute (the CPU gather's ray test, needs 64-bit buffer atomics) or raster "
+                  "(the paper's raster pass)")
+      ->check(CLI::IsMember({"compute", "raster"}));
+  cmd->add_flag("--compact-rays", o->compact_rays,
+                "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
+                "empty rays return at once)");
+  cmd->add_option("--counter-frames", o->counter_frames,
+                  "Vulkan: timed frames whose hit records are read back for the trace's counters")
+      ->check(CLI::Range(0u, 1000u));
   cmd->add_option("--json", o->json, "Also write the figures as JSON to this file");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_bench(*o); });

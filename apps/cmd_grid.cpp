@@ -176,8 +176,9 @@ struct DiffOptions : GridVerbOptions {
 };
 
 // What the GPU frame's passes (vulkan/frame.h) make of one frame, against the reference: the
-// raster gather's launch triangles against the reference's primary rays (they differ only where
-// the rasterizer's tie rules decide: reported, not a failure); the bounce rays the GPU makes from
+// gather's launch triangles against the reference's primary rays (reported, not a failure: the
+// raster gather differs where the rasterizer's tie rules decide, the compute gather tests the
+// triangles themselves where the reference walks its grid); the bounce rays the GPU makes from
 // its own gather against bounce_rays() of that same gather (bits); the frame's trace of those rays
 // against the reference's trace of the same rays (bits). Returns the records that differ.
 struct FrameDiff {
@@ -286,10 +287,12 @@ void run_diff(const DiffOptions& options) {
       if (!gpu_frame)
         gpu_frame = std::make_unique<vulkan::VulkanFrame>(gpu, scene, vulkan::FrameOptions{.width = o.width, .height = o.height});
       const FrameDiff f = diff_gpu_frame(scene, grid, ref, *gpu_frame, frame, time);
-      std::printf("frame %u: GPU frame: raster gather %zu of %zu pixels with the reference's launch triangle (the rest: "
-                  "rasterizer tie rules); %zu bounce rays: %zu differ in bits from bounce_rays() of the GPU's gather, "
-                  "%zu frame hits differ in bits from the reference's trace\n",
-                  frame, f.same_launch, f.pixels, f.rays_used, f.ray_mismatch, f.hit_mismatch);
+      const bool raster = gpu_frame->gather_mode() == vulkan::GatherMode::raster;
+      std::printf("frame %u: GPU frame: %s gather %zu of %zu pixels with the reference's launch triangle%s; %zu bounce "
+                  "rays: %zu differ in bits from bounce_rays() of the GPU's gather, %zu frame hits differ in bits from "
+                  "the reference's trace\n",
+                  frame, raster ? "raster" : "compute", f.same_launch, f.pixels,
+                  raster ? " (the rest: the rasterizer's tie rules)" : "", f.rays_used, f.ray_mismatch, f.hit_mismatch);
       frame_mismatch += f.ray_mismatch + f.hit_mismatch;
     }
 

@@ -114,6 +114,15 @@ DeviceInfo query_info(VkPhysicalDevice pd) {
     info.signed_zero_inf_nan_preserve_f32 = p12.shaderSignedZeroInfNanPreserveFloat32;
     info.subgroup_size = p11.subgroupSize;
     info.max_memory_allocation = p11.maxMemoryAllocationSize;
+    const VkSubgroupFeatureFlags ops = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_ARITHMETIC_BIT |
+                                       VK_SUBGROUP_FEATURE_BALLOT_BIT;
+    info.subgroup_arithmetic_ballot =
+        (p11.subgroupSupportedOperations & ops) == ops && (p11.subgroupSupportedStages & VK_SHADER_STAGE_COMPUTE_BIT);
+    VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    f2.pNext = &f12;
+    vkGetPhysicalDeviceFeatures2(pd, &f2);
+    info.buffer_int64_atomics = f2.features.shaderInt64 && f12.shaderBufferInt64Atomics;
   }
   VkPhysicalDeviceFeatures f{};
   vkGetPhysicalDeviceFeatures(pd, &f);
@@ -184,6 +193,7 @@ std::string DeviceInfo::summary() const {
     << "): maxImageDimension3D " << limits.maxImageDimension3D << ", maxStorageBufferRange "
     << limits.maxStorageBufferRange << ", maxMemoryAllocationSize " << max_memory_allocation
     << ", device-local heap " << device_local_heap << ", geometryShader " << geometry_shader
+    << ", int64 buffer atomics " << buffer_int64_atomics
     << ", vertexPipelineStoresAndAtomics " << vertex_pipeline_stores_and_atomics
     << ", shaderDenormPreserveFloat32 " << denorm_preserve_f32 << ", shaderDenormFlushToZeroFloat32 "
     << denorm_flush_to_zero_f32 << ", shaderSignedZeroInfNanPreserveFloat32 " << signed_zero_inf_nan_preserve_f32
@@ -407,32 +417,30 @@ void Context::create_device(const ContextOptions& options) {
   q.queueCount = 1;
   q.pQueuePriorities = &priority;
 
-  VkPhysicalDeviceFeatures features{};
-  features.geometryShader = options.raster_build ? VK_TRUE : VK_FALSE;
-  features.vertexPipelineStoresAndAtomics = options.raster_build ? VK_TRUE : VK_FALSE;
+  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  f12.shaderBufferInt64Atomics = info_.buffer_int64_atomics ? VK_TRUE : VK_FALSE;
+  VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  features.pNext = &f12;
+  features.features.geometryShader = options.raster_build ? VK_TRUE : VK_FALSE;
+  features.features.vertexPipelineStoresAndAtomics = options.raster_build ? VK_TRUE : VK_FALSE;
+  features.features.shaderInt64 = info_.buffer_int64_atomics ? VK_TRUE : VK_FALSE;
 
   VkDeviceCreateInfo ci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  ci.pNext = &features;
   ci.queueCreateInfoCount = 1;
   ci.pQueueCreateInfos = &q;
-  ci.pEnabledFeatures = &features;
 
-  // Ray tracing, only when asked and present: the extensions, and the features through
-  // VkPhysicalDeviceFeatures2 (which then carries the core features instead of pEnabledFeatures)
+  // Ray tracing, only when asked and present: the extensions, and their features chained after
+  // the Vulkan 1.2 features (buffer device address)
   ray_tracing_ = options.ray_tracing && info_.ray_tracing_missing.empty();
   VkPhysicalDeviceRayTracingPipelineFeaturesKHR rtp{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
   VkPhysicalDeviceAccelerationStructureFeaturesKHR as{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
-  VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
-  VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   if (ray_tracing_) {
     rtp.rayTracingPipeline = VK_TRUE;
     as.accelerationStructure = VK_TRUE;
     as.pNext = &rtp;
-    v12.bufferDeviceAddress = VK_TRUE;
-    v12.pNext = &as;
-    f2.features = features;
-    f2.pNext = &v12;
-    ci.pNext = &f2;
-    ci.pEnabledFeatures = nullptr;
+    f12.bufferDeviceAddress = VK_TRUE;
+    f12.pNext = &as;
     ci.enabledExtensionCount = uint32_t(std::size(kRayTracingExtensions));
     ci.ppEnabledExtensionNames = kRayTracingExtensions;
   }

@@ -91,6 +91,7 @@
   X(vkCmdBindDescriptorSets)                     \
   X(vkCmdPushConstants)                          \
   X(vkCmdDispatch)                               \
+  X(vkCmdDispatchIndirect)                       \
   X(vkCmdDraw)                                   \
   X(vkCmdBeginRenderPass)                        \
   X(vkCmdEndRenderPass)                          \

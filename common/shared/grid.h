@@ -11,6 +11,7 @@
 
 #include "compat.h"
 #include "rounding.h"
+#include "worklist.h"
 
 SH_BEGIN
 
@@ -139,6 +140,24 @@ SH_INLINE uvec3 cell_slot_texel(SH_IN(GridParams) g, SH_IN(uvec3) cell, uint slo
 SH_INLINE uvec3 cell_status_texel(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
   return status_texel(image_cell(g, cell), g.capacity);
 }
+// ---- The dirty-cell list of scene update (a work list, worklist.h; docs/SPEC.md "Scene update") ----
+// Items: the linear indices of the cells the dynamic instances reached (x fastest), each once;
+// after the items (one per cell at most) one bit per cell says whether it is listed.
+SH_INLINE uint grid_cell_count(SH_IN(GridParams) g) { return g.cells.x * g.cells.y * g.cells.z; }
+SH_INLINE uint cell_linear_index(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
+  return (cell.z * g.cells.y + cell.y) * g.cells.x + cell.x;
+}
+SH_INLINE uvec3 cell_of_linear_index(SH_IN(GridParams) g, uint i) {
+  return uvec3(i % g.cells.x, (i / g.cells.x) % g.cells.y, i / (g.cells.x * g.cells.y));
+}
+// The item (word after the header) holding cell i's listed bit, and the bit.
+SH_INLINE uint dirty_bit_item(SH_IN(GridParams) g, uint i) { return grid_cell_count(g) + i / 32u; }
+SH_INLINE uint dirty_bit(uint i) { return 1u << (i % 32u); }
+// Words of the whole buffer: header, items, bits.
+SH_INLINE uint dirty_list_words(SH_IN(GridParams) g) {
+  return kWorkListHeaderWords + grid_cell_count(g) + (grid_cell_count(g) + 31u) / 32u;
+}
+
 // Linear index of a texel, x fastest (the layout of AccelDump::texels).
 SH_INLINE uint texel_index(SH_IN(uvec3) texel, SH_IN(uvec3) extent) {
   return (texel.z * extent.y + texel.y) * extent.x + texel.x;

@@ -17,6 +17,13 @@ layout(std430, binding = 12) buffer Explain {
   uint explain_pad2;
   ExplainEvent explain_events[];
 };
+// Compacted rays (specialization constant 7): invocation k traces the ray ray_list[k] of the
+// frame's work list of real bounce rays (common/shared/worklist.h), dispatched indirectly.
+layout(constant_id = 7) const bool kTraceList = false;
+layout(std430, binding = 14) readonly buffer RayList {
+  WorkListHeader ray_list_header;
+  uint ray_list[];
+};
 layout(push_constant) uniform Push {
   uint ray_offset;        // index of invocation 0's ray
   uint ray_count;         // rays of this dispatch
@@ -279,6 +286,13 @@ HitRecord scene_trace(GridParams g, RayRecord ray) {
 }
 
 void main() {
+  if (kTraceList) {
+    const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
+    if (k >= ray_list_header.size) return;
+    const uint r = ray_list[k];
+    hits[r] = scene_trace(grid_params(), rays[r]);
+    return;
+  }
   if (gl_GlobalInvocationID.x >= pc.ray_count) return;
   const uint i = pc.ray_offset + gl_GlobalInvocationID.x;
   explaining = kExplain && i == pc.explain_ray;
