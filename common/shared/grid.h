@@ -148,7 +148,7 @@ SH_INLINE uint cell_linear_index(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
   return (cell.z * g.cells.y + cell.y) * g.cells.x + cell.x;
 }
 SH_INLINE uvec3 cell_of_linear_index(SH_IN(GridParams) g, uint i) {
-  return uvec3(i % g.cells.x, (i / g.cells.x) % g.cells.y, i / (g.cells.x * g.cells.y));
+  return uvec3(i % g.cells.x, sh_udiv(i, g.cells.x) % g.cells.y, sh_udiv(i, g.cells.x * g.cells.y));
 }
 // The item (word after the header) holding cell i's listed bit, and the bit.
 SH_INLINE uint dirty_bit_item(SH_IN(GridParams) g, uint i) { return grid_cell_count(g) + i / 32u; }

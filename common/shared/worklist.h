@@ -32,9 +32,9 @@ SH_CONST uint kWorkListAppendedWord = 4u; // WorkListHeader::appended as a word 
 // The dispatch pass: group counts covering `size` items in workgroups of `group_size`, as a 2D
 // grid when one row would exceed `max_groups_x` (maxComputeWorkGroupCount[0]).
 SH_INLINE uvec3 work_list_groups(uint size, uint group_size, uint max_groups_x) {
-  const uint groups = size / group_size + (size % group_size != 0u ? 1u : 0u);
+  const uint groups = sh_udiv(size, group_size) + (size % group_size != 0u ? 1u : 0u);
   if (groups <= max_groups_x) return uvec3(groups, 1u, 1u);
-  return uvec3(max_groups_x, groups / max_groups_x + (groups % max_groups_x != 0u ? 1u : 0u), 1u);
+  return uvec3(max_groups_x, sh_udiv(groups, max_groups_x) + (groups % max_groups_x != 0u ? 1u : 0u), 1u);
 }
 
 // The item an invocation of the pass over the list takes: workgroup (x, y) of a grid

@@ -3,7 +3,7 @@
 # `normalize` or `length` built-in, whose results differ by ulps between devices; sh_div, sh_rcp,
 # sh_sqrt and sh_normalize are correctly rounded everywhere (docs/SPEC.md, "Division and square
 # root"). rounding.h implements them and compat.h maps names, so both are exempt. Integer division
-# by an unsigned literal (`/ 2u`) is exact and allowed.
+# is written sh_udiv(a, b) (compat.h), or `/` by an unsigned literal (`/ 2u`).
 #   cmake -DSHARED_DIR=<common/shared> -P shared_math.cmake
 cmake_minimum_required(VERSION 3.20)
 if(NOT SHARED_DIR)
