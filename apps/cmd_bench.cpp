@@ -44,6 +44,24 @@ double median(std::vector<double> v) {
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
+// The spill list after the last update, as a line and as JSON (an overflow is never silent).
+std::string spill_text(const shared::SpillHeader& h, uint32_t flags) {
+  const uint32_t stored = std::min(h.count, h.capacity), lost = h.count > h.capacity ? h.count - h.capacity : 0u;
+  char buf[256];
+  if (flags & shared::kGridSpill)
+    std::snprintf(buf, sizeof buf, "spill list on: %u entries of %u (%u static)%s", stored, h.capacity, h.static_count,
+                  lost ? (", OVERFLOW: " + std::to_string(lost) + " references lost").c_str() : ", no overflow");
+  else
+    std::snprintf(buf, sizeof buf, "spill list off: %u references found no slot (dropped); gap-fill %s", h.count,
+                  (flags & shared::kGridGapFill) ? "on" : "off");
+  return buf;
+}
+nlohmann::json spill_json(const shared::SpillHeader& h, uint32_t flags) {
+  return {{"on", (flags & shared::kGridSpill) != 0u}, {"appended", h.count}, {"static", h.static_count},
+          {"capacity", h.capacity}, {"stored", std::min(h.count, h.capacity)},
+          {"overflow", (flags & shared::kGridSpill) && h.count > h.capacity ? h.count - h.capacity : 0u}, {"gap_fill", (flags & shared::kGridGapFill) != 0u}};
+}
+
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -103,6 +121,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     t["shade"].push_back(stamps ? ft.shade_ms : 0.0);
     t["frame"].push_back(update + (stamps ? ft.total_ms : ft.host_ms));
   }
+  const shared::SpillHeader spill = vk->spill_header();
+  const uint32_t spill_flags = vk->params().flags;
   // The static build again, the GPU warm (the first one ran at idle clocks: docs/VULKAN.md), median of 5
   std::vector<double> warm_builds;
   for (int i = 0; i < 5 && stamps; ++i) {
@@ -129,6 +149,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
               grid_mib, frame_mib);
+  std::printf("%s (after the last frame's update)\n\n", spill_text(spill, spill_flags).c_str());
   if (t.count("b2b_frame"))
     std::printf("back to back (%u frames per submission, the last timed; update as above): gather %.3f, bounce %.3f, "
                 "trace %.3f, shade %.3f, frame (update..shade) %.3f ms, %.0f Mrays/s\n\n",
@@ -137,7 +158,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   std::fflush(stdout);
   nlohmann::json j = {{"device", device}, {"clock", clock},       {"build_ms", build}, {"build_warm_ms", build_warm}, {"rays_per_frame", rays},
                       {"mrays_per_s", mrays}, {"grid_mib", grid_mib}, {"frame_mib", frame_mib},
-                      {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity}};
+                      {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity},
+                      {"spill", spill_json(spill, spill_flags)}};
   for (auto& [k, v] : t) {
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
@@ -187,6 +209,7 @@ void run_bench(const BenchOptions& options) {
   if (cpu_rays)
     std::printf("\n| backend | device | clock | build ms | update ms (median) | trace ms (median) | Mrays/s | grid MiB |\n"
                 "|---|---|---|---|---|---|---|---|\n");
+  std::vector<std::string> notes;  // printed under the table
   for (const std::string& name : backends) {
 #ifdef GRIDRT_HAVE_VULKAN
     if (name == "vulkan") {
@@ -240,16 +263,33 @@ void run_bench(const BenchOptions& options) {
       times.update.push_back(update_ms);
       times.trace.push_back(trace_ms);
     }
+    shared::SpillHeader spill{};
+    uint32_t spill_flags = 0;
+    if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
+      spill = ref->data().spill_header;
+      spill_flags = ref->params().flags;
+    }
+#ifdef GRIDRT_HAVE_VULKAN
+    if (vk) {
+      spill = vk->spill_header();
+      spill_flags = vk->params().flags;
+    }
+#endif
     const double update = median(times.update), trace = median(times.trace);
     const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
     std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
                 times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
+    const bool grid = !dump.texels.empty();
+    if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
     std::fflush(stdout);
     out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
                              {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
                              {"grid_mib", grid_mib},    {"update_ms_all", times.update},
                              {"trace_ms_all", times.trace}};
+    if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
   }
+  if (!notes.empty()) std::printf("\n");
+  for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
   if (!o.json.empty()) {
     std::ofstream f(o.json);
     if (!f) throw Error("cannot write '" + o.json + "'");

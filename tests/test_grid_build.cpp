@@ -17,7 +17,6 @@ using reference::Insertion;
 
 namespace {
 
-size_t cell_index(const sh::GridParams& g, glm::uvec3 c) { return (size_t(c.z) * g.cells.y + c.y) * g.cells.x + c.x; }
 
 // Per cell, the references the build must consider (recomputed independently of the build's
 // invocations, from the scene's own transforms): the candidates.

@@ -5,7 +5,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstddef>
 #include <cstring>
+#include <map>
 
 namespace gridrt::vulkan {
 
@@ -28,7 +30,9 @@ enum Binding : uint32_t {
   kRays = 10,
   kHits = 11,
   kExplain = 12,
-  kBindingCount = 13,
+  kSpill = 13,
+  kSpillHeads = 14,
+  kBindingCount = 15,
 };
 constexpr uint32_t kStorageBuffersPerStage = kBindingCount - 1;
 
@@ -73,11 +77,13 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
 
 struct VulkanGridTracer::Gpu {
   Buffer params, instances, triangles, uvs, materials, texels, build_instances, positions, indices;
-  Buffer rays, hits, explain;
+  Buffer rays, hits, explain, spill, spill_heads;
   size_t ray_capacity = 0;
   Image3D image;
   std::unique_ptr<Descriptors> set;
-  std::unique_ptr<Pipeline> init, raster, compute, clear, trace, trace_explain;
+  std::unique_ptr<Pipeline> init, raster, compute, clear, order;
+  uint32_t spill_capacity = 0;
+  std::map<uint64_t, std::unique_ptr<Pipeline>> traces;  // by (explain, flags)
   std::unique_ptr<Timestamps> timestamps, update_timestamps;
 };
 
@@ -124,8 +130,11 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   // The grid the reference would choose, within this device's image limit
   reference::GridOptions o = options_;
   o.max_image_dimension = std::min(o.max_image_dimension, dev.limits.maxImageDimension3D);
-  params_ = reference::choose_grid(scene, time, o);
+  reference::GridChoice choice;
+  params_ = reference::choose_grid(scene, time, o, &choice);
+  requested_flags_ = params_.flags;
   const GridParams& g = params_;
+  const uint32_t spill_capacity = reference::choose_spill_capacity(scene, time, o, g, choice);
 
   // Tables: instances, materials and their alpha masks, the geometry buffer (reference/build.cpp)
   static_instances_ = scene.static_instance_count();
@@ -202,11 +211,24 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   gpu.rays = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.hits = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.image = ctx.create_image3d(shared::grid_image_extent(g));
+  gpu.spill = ctx.create_buffer(sizeof(shared::SpillHeader) + VkDeviceSize(std::max(spill_capacity, 1u)) *
+                                                                  sizeof(shared::SpillEntry),
+                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  spill_header_ = shared::SpillHeader{0u, spill_capacity, 0u, 0u};
+  ctx.upload(gpu.spill, &spill_header_, sizeof spill_header_);
+  const bool spill_on = (g.flags & shared::kGridSpill) != 0u;
+  const VkDeviceSize heads_bytes = spill_on ? 4 * VkDeviceSize(g.cells.x) * g.cells.y * g.cells.z * sizeof(uint32_t) : 16;
+  gpu.spill_capacity = spill_on ? spill_capacity : 0u;
+  if (uint64_t(gpu.spill_capacity) > uint64_t(dev.limits.maxComputeWorkGroupCount[0]) * 64u)
+    throw Error("a spill list of " + std::to_string(gpu.spill_capacity) + " entries needs more workgroups than "
+                "maxComputeWorkGroupCount on " + dev.name + ": use a smaller --spill-capacity");
+  gpu.spill_heads = ctx.create_buffer(heads_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  overflow_warned_ = false;
 
   const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   gpu.set = std::make_unique<Descriptors>(
       ctx, std::initializer_list<VkDescriptorType>{sb, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, sb, sb, sb, sb, sb, sb, sb,
-                                                   sb, sb, sb, sb});
+                                                   sb, sb, sb, sb, sb, sb});
   Descriptors& set = *gpu.set;
   set.bind(kParams, gpu.params);
   set.bind(kImage, gpu.image);
@@ -221,6 +243,8 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   set.bind(kRays, gpu.rays);
   set.bind(kHits, gpu.hits);
   set.bind(kExplain, gpu.explain);
+  set.bind(kSpill, gpu.spill);
+  set.bind(kSpillHeads, gpu.spill_heads);
 
   gpu.init = std::make_unique<Pipeline>(ctx, "grid_init.comp", set.layout(), 0, spec_for(g, false));
   if (vk_.build == BuildMode::raster)
@@ -230,8 +254,9 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
                                              spec_for(g, false));
   gpu.clear = std::make_unique<Pipeline>(ctx, "clear_dynamic.comp", set.layout(), uint32_t(sizeof(uint32_t)),
                                          spec_for(g, false));
-  gpu.trace = std::make_unique<Pipeline>(ctx, "trace.comp", set.layout(), uint32_t(sizeof(TracePush)),
-                                         spec_for(g, false));
+  if (gpu.spill_capacity)
+    gpu.order = std::make_unique<Pipeline>(ctx, "spill_order.comp", set.layout(), uint32_t(sizeof(uint32_t)),
+                                           spec_for(g, false));
   if (dev.timestamp_valid_bits) {
     gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
     gpu.update_timestamps = std::make_unique<Timestamps>(ctx, 3);  // begin, after the clear, end
@@ -249,14 +274,57 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
     if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     gpu.init->bind(cb, set.set());
     vkCmdDispatch(cb, groups(extent.x, 4), groups(extent.y, 4), groups(extent.z, 4));
+    vkCmdFillBuffer(cb, gpu.spill_heads.buffer, 0, VK_WHOLE_SIZE, shared::kSpillEnd);  // every spill list empty
     barrier(cb);
     insert_instances(cb, 0, static_instances_);
     barrier(cb);
+    // The static references' spill count: what the update's clear pass resets the counter to
+    const VkBufferCopy count_to_static{offsetof(shared::SpillHeader, count), offsetof(shared::SpillHeader, static_count),
+                                       sizeof(uint32_t)};
+    vkCmdCopyBuffer(cb, gpu.spill.buffer, gpu.spill.buffer, 1, &count_to_static);
+    barrier(cb);
+    record_spill_order(cb, false);
     insert_instances(cb, static_instances_, uint32_t(scene.instances.size()));
+    barrier(cb);
+    record_spill_order(cb, true);
     if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
   timings_.build_host_ms = ms_since(t0);
   timings_.build_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
+  after_insert();
+}
+
+// The spill list's order pass over the static entries (after the static pass) or the dynamic ones,
+// one invocation per entry the list can hold (those past the stored count return at once), then a
+// barrier. Nothing without the spill list.
+void VulkanGridTracer::record_spill_order(VkCommandBuffer cb, bool dynamic) {
+  Gpu& gpu = *gpu_;
+  if (!gpu.order) return;
+  gpu.order->bind(cb, gpu.set->set());
+  gpu.order->push(cb, uint32_t(dynamic));
+  const uint32_t max_groups = ctx_->info().limits.maxComputeWorkGroupCount[0];
+  vkCmdDispatch(cb, std::min(groups(gpu.spill_capacity, 64), max_groups), 1, 1);  // checked at build
+  barrier(cb);
+}
+
+void VulkanGridTracer::after_insert() {
+  ctx_->download(gpu_->spill, &spill_header_, sizeof spill_header_);
+  // Gap-fill only while some cell is saturated (the trace pipeline follows the flags)
+  params_.flags = reference::trace_flags(requested_flags_, options_, spill_header_.count);
+  reference::SpillDump d;
+  d.on = (params_.flags & shared::kGridSpill) != 0u;
+  d.header = spill_header_;
+  reference::warn_spill_overflow(d, name(), overflow_warned_);
+}
+
+const Pipeline& VulkanGridTracer::trace_pipeline(bool explain) {
+  Gpu& gpu = *gpu_;
+  const uint64_t key = uint64_t(explain) << 32 | params_.flags;
+  std::unique_ptr<Pipeline>& p = gpu.traces[key];
+  if (!p)
+    p = std::make_unique<Pipeline>(*ctx_, "trace.comp", gpu.set->layout(), uint32_t(sizeof(TracePush)),
+                                   spec_for(params_, explain));
+  return *p;
 }
 
 // Insert the triangles of instances [first, last): the raster pass (one draw per instance,
@@ -309,11 +377,14 @@ void VulkanGridTracer::update(float time) {
     vkCmdDispatch(cb, groups(g.cells.x, 4), groups(g.cells.y, 4), groups(g.cells.z, 4));
     barrier(cb);
     if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
-    // Insert the dynamic instances at their new transforms
+    // Insert the dynamic instances at their new transforms, then order their spill lists
     insert_instances(cb, static_instances_, n);
+    barrier(cb);
+    record_spill_order(cb, true);
     if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 2, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
   timings_.update_host_ms = ms_since(t0);
+  after_insert();
   if (gpu.update_timestamps) {
     const std::vector<double> ns = gpu.update_timestamps->read_ns();
     timings_.update_ms = (ns[2] - ns[0]) * 1e-6;
@@ -340,10 +411,7 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
   }
   ctx.upload(gpu.rays, rays.data(), rays.size_bytes());
   const bool explain = explain_index != kNoExplain;
-  if (explain && !gpu.trace_explain)
-    gpu.trace_explain = std::make_unique<Pipeline>(ctx, "trace.comp", gpu.set->layout(), uint32_t(sizeof(TracePush)),
-                                                   spec_for(params_, true));
-  const Pipeline& pipe = explain ? *gpu.trace_explain : *gpu.trace;
+  const Pipeline& pipe = trace_pipeline(explain);
   const uint32_t n = uint32_t(rays.size());
   const uint32_t chunk = ctx.info().limits.maxComputeWorkGroupCount[0] * 64u;
   const auto t0 = std::chrono::steady_clock::now();
@@ -412,10 +480,11 @@ void VulkanGridTracer::bind_ray_buffers(const Buffer& rays, const Buffer& hits) 
 void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count) {
   if (!gpu_) throw Error("vulkan-grid: record_trace before build");
   const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
-  gpu_->trace->bind(cb, gpu_->set->set());
+  const Pipeline& pipe = trace_pipeline(false);
+  pipe.bind(cb, gpu_->set->set());
   for (uint32_t first = 0; first < count; first += std::min(chunk, count - first)) {
     const TracePush push{first, std::min(chunk, count - first), kNoExplain, vk_.explain_capacity};
-    gpu_->trace->push(cb, push);
+    pipe.push(cb, push);
     vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
   }
 }
@@ -426,6 +495,16 @@ AccelDump VulkanGridTracer::dump() const {
   d.kind = "grid";
   d.extent = gpu_->image.extent;
   d.texels = ctx_->download(gpu_->image);
+  return d;
+}
+
+reference::SpillDump VulkanGridTracer::spill() const {
+  if (!gpu_) return {};
+  reference::SpillDump d;
+  d.on = (params_.flags & shared::kGridSpill) != 0u;
+  ctx_->download(gpu_->spill, &d.header, sizeof d.header);
+  d.entries = ctx_->download<shared::SpillEntry>(gpu_->spill, d.stored(), sizeof(shared::SpillHeader));
+  if (d.on) d.heads = ctx_->download<uint32_t>(gpu_->spill_heads, gpu_->spill_heads.size / sizeof(uint32_t));
   return d;
 }
 

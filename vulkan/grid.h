@@ -1,8 +1,10 @@
 // grid.h: the Vulkan port of the fixed-capacity grid, behind the same interface as the reference
 // (reference/grid.h) and held to it bit for bit (docs/VULKAN.md):
 //   scene_build  (2.1)  grid_init.comp, then the raster pass (build.vert + build.geom, one draw
-//                       per instance) or the compute build (build.comp), static then dynamic
-//   scene_update (2.2)  clear_dynamic.comp (4x4x4 workgroups), then the dynamic instances again
+//                       per instance) or the compute build (build.comp), static then dynamic;
+//                       references no slot takes go to the spill list (kGridSpill)
+//   scene_update (2.2)  clear_dynamic.comp (4x4x4 workgroups; resets the spill counter to the
+//                       static count), then the dynamic instances again
 //   scene_trace  (2.3)  trace.comp, one invocation per ray; the explain ray records its events
 // The grid (placement, resolution, capacity) is chosen by reference::choose_grid, so both
 // tracers build the same grid from the same GridOptions.
@@ -63,6 +65,10 @@ class VulkanGridTracer : public Tracer {
 
   // The geometry buffer as the build wrote it (for tests against GridData::triangles).
   std::vector<shared::GridTriangle> download_triangles() const;
+  // The spill list as the device holds it: the header and the stored entries (append order).
+  reference::SpillDump spill() const;
+  // The spill list's header as read back after the last build or update.
+  const shared::SpillHeader& spill_header() const { return spill_header_; }
 
   const shared::GridParams& params() const { return params_; }
   const reference::GridOptions& options() const { return options_; }
@@ -86,6 +92,12 @@ class VulkanGridTracer : public Tracer {
  private:
   struct Gpu;  // buffers, image, descriptors, pipelines
   void insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last);
+  // Reads the spill header back, sets the trace's flags from it (reference::trace_flags) and
+  // warns once on an overflow.
+  void after_insert();
+  void record_spill_order(VkCommandBuffer cb, bool dynamic);
+  // The trace pipeline for the current flags (made on first use: gap-fill comes and goes).
+  const Pipeline& trace_pipeline(bool explain);
   void upload_transforms(float time, uint32_t first, uint32_t last);
   void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index);
 
@@ -95,6 +107,9 @@ class VulkanGridTracer : public Tracer {
   VulkanGridOptions vk_;
   const Scene* scene_ = nullptr;
   shared::GridParams params_{};
+  uint32_t requested_flags_ = 0;  // params_.flags as choose_grid chose them
+  shared::SpillHeader spill_header_{};
+  bool overflow_warned_ = false;
   uint32_t static_instances_ = 0;
   std::vector<shared::GridInstance> instances_;
   std::vector<shared::BuildInstance> build_instances_;
