@@ -161,6 +161,7 @@ double median(std::vector<double> v) {
 // Accuracy of one tracer's hits against the oracle's.
 struct Accuracy {
   size_t rays = 0, differ = 0, ties = 0, holes = 0, false_hits = 0, gap_fill = 0;
+  uint32_t max_tie_ulps = 0;             // the largest |t - t_oracle| in ulps over the ties
   double median_dt = 0.0, max_dt = 0.0;  // |t - t_oracle| over rays with the same triangle
   double agree() const { return rays ? 100.0 * double(rays - differ) / double(rays) : 100.0; }
 };
@@ -188,7 +189,8 @@ Accuracy accuracy(std::span<const Hit> want, std::span<const Hit> got) {
     }
     if (w.instance != g.instance || w.triangle != g.triangle) {
       ++a.differ;
-      if (!(g.flags & shared::kHitGapFill) && reference::ulp_distance(w.t, g.t) <= kTieUlps) ++a.ties;
+      const uint32_t ulps = reference::ulp_distance(w.t, g.t);
+      if (!(g.flags & shared::kHitGapFill) && ulps <= kTieUlps) ++a.ties, a.max_tie_ulps = std::max(a.max_tie_ulps, ulps);
       continue;
     }
     dts.push_back(std::abs(double(g.t) - double(w.t)));
@@ -346,7 +348,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
     std::ofstream csv(dir + "/" + stem + ".csv");
     if (!csv) throw Error("cannot write '" + dir + "/" + stem + ".csv'");
     csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,elongation,gap_fill,spill,self_hit,"
-           "max_dim,grid,capacity,saturated_cells,spill_entries,spill_overflow,rays,differ,ties,holes,false_hits,gap_fill_hits,agree_pct,"
+           "max_dim,grid,capacity,saturated_cells,spill_entries,spill_overflow,rays,differ,ties,max_tie_ulps,holes,false_hits,gap_fill_hits,agree_pct,"
            "median_dt,max_dt,build_ms,update_ms,trace_ms,mrays_per_s,grid_mib,pareto\n";
     for (size_t i = 0; i < rows.size(); ++i) {
       const Row& r = rows[i];
@@ -355,7 +357,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
           << c.capacity << "," << c.enlargement << "," << c.elongation << "," << c.gap_fill << ","
           << (r.spill_on ? "on" : "off") << "," << c.launch << "," << c.max_dim << "," << r.grid << "," << r.capacity
           << "," << r.saturated << "," << r.spill_stored << "," << r.spill_overflow << "," << r.acc.rays << ","
-          << r.acc.differ << "," << r.acc.ties << "," << r.acc.holes << "," << r.acc.false_hits << ","
+          << r.acc.differ << "," << r.acc.ties << "," << r.acc.max_tie_ulps << "," << r.acc.holes << "," << r.acc.false_hits << ","
           << r.acc.gap_fill << "," << fmt(r.acc.agree(), 3) << "," << r.acc.median_dt << "," << r.acc.max_dt << ","
           << fmt(r.build_ms, 2) << "," << fmt(r.update_ms, 2) << "," << fmt(r.trace_ms, 2) << "," << fmt(r.mrays, 3)
           << "," << fmt(r.grid_mib, 2) << "," << (front[i] ? 1 : 0) << "\n";
@@ -365,7 +367,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
   if (!md) throw Error("cannot write '" + dir + "/" + stem + ".md'");
   md << header << "\n\n"
      << "| # | backend | traversal | test | capacity | enl | elo | gap-fill | spill | self-hit | grid | cap | sat. cells | "
-        "spilled | agree % | differ | ties | holes | false hits | gap-fill hits | median dt | max dt | build ms | update ms | "
+        "spilled | agree % | differ | ties (max ulps) | holes | false hits | gap-fill hits | median dt | max dt | build ms | update ms | "
         "trace ms | Mrays/s | MiB | front |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   char dt[64];
@@ -380,7 +382,8 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
        << " | " << r.grid << " | " << r.capacity << " | " << r.saturated << " | "
        << (r.spill_on ? std::to_string(r.spill_stored) + (r.spill_overflow ? " (+" + std::to_string(r.spill_overflow) + " lost)" : "")
                       : "-")
-       << " | " << fmt(r.acc.agree(), 2) << " | " << r.acc.differ << " | " << r.acc.ties << " | "
+       << " | " << fmt(r.acc.agree(), 2) << " | " << r.acc.differ << " | " << r.acc.ties
+       << (r.acc.ties ? " (" + std::to_string(r.acc.max_tie_ulps) + ")" : "") << " | "
        << r.acc.holes << " | " << r.acc.false_hits << " | " << r.acc.gap_fill << " | " << dt << " | "
        << fmt(r.build_ms, 1) << " | " << fmt(r.update_ms, 1) << " | " << fmt(r.trace_ms, 1) << " | "
        << fmt(r.mrays, 2) << " | " << fmt(r.grid_mib, 1) << " | " << (front[i] ? "*" : "") << " |\n";

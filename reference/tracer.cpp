@@ -141,8 +141,8 @@ std::string to_text(const GridStats& s) {
      << (s.cell_count ? 100.0 * double(s.empty_cells) / double(s.cell_count) : 0.0) << "%), saturated by static "
      << s.saturated_static << ", by dynamic " << s.saturated_dynamic << "\n";
   if (s.spill_on)
-    os << "spill list: " << s.spill_stored << " of " << s.spill_capacity << " entries (" << s.spill_static
-       << " static), " << s.spill_appended << " references found no slot, " << s.spill_overflow
+    os << "spill list: " << s.spill_appended << " references found no slot (" << s.spill_static << " static); "
+       << s.spill_stored << " stored of " << s.spill_capacity << " entries, " << s.spill_overflow
        << " lost to overflow" << (s.spill_overflow ? " (WARNING: holes are possible; raise --spill-capacity)" : "")
        << "\n";
   else
