@@ -369,7 +369,7 @@ void spill_reference(GridData& grid, glm::uvec3 cell, uint32_t ref) {
   const GridParams& g = grid.params;
   const uint32_t i = atomicAdd(grid.spill_header.count, 1u);
   if ((g.flags & shared::kGridSpill) == 0u || i >= grid.spill_header.capacity) return;
-  const uint32_t c = shared::cell_index(g, cell);
+  const uint32_t c = shared::cell_linear_index(g, cell);
   grid.spill[i].cell = c;
   grid.spill[i].ref = ref;
   grid.spill[i].arrival = atomicExchange(grid.spill_heads[shared::spill_arrival_index(c, ref >= g.comparison_offset)], i);
@@ -402,11 +402,42 @@ void spill_order(GridData& grid, const GridOptions& o, uint32_t first) {
   }, 64);
 }
 
+// The first slot of `cell` holding a value >= `bound`, where the slots holding smaller values are
+// a prefix that stays one through the pass (docs/SPEC.md, "Insert"): during a pass a slot's value
+// only decreases (atomic min) or leaves blank once (compare-and-swap), the cells stay sorted
+// (sorted insertion) or filled from slot 0 without gaps (first-empty), and static references
+// precede dynamic ones; so a slot seen below `bound` stays below it, with every slot before it,
+// whatever other invocations do meanwhile. Plain loads, galloping (slots 0, 2, 6, 14, ...) then
+// halving: about 2 log2(n) loads for n references, where a walk from slot 0 costs n.
+uint32_t first_slot_at_least(const Image3D& image, const GridParams& g, glm::uvec3 cell, uint32_t bound) {
+  const auto below = [&](uint32_t s) {
+    return imageLoad(image, glm::ivec3(shared::cell_slot_texel(g, cell, s))) < bound;
+  };
+  // Gallop until a slot that is not below the bound
+  uint32_t lo = 0, hi = g.capacity;
+  for (uint32_t span = 1; lo < hi; span *= 2) {
+    const uint32_t probe = std::min(lo + span - 1, hi - 1);
+    if (!below(probe)) {
+      hi = probe;
+      break;
+    }
+    lo = probe + 1;
+  }
+  // Halve [lo, hi): the slots before lo are below the bound, slot hi (if any) is not
+  while (lo < hi) {
+    const uint32_t mid = (lo + hi) / 2;
+    if (below(mid)) lo = mid + 1;
+    else hi = mid;
+  }
+  return lo;
+}
+
 // Paper: compare-and-swap blank -> ref into the first slot that takes it; when none does, flag
 // the cell saturated (static or dynamic bit by the reference's kind) and spill the reference.
 void insert_first_empty(GridData& grid, glm::uvec3 cell, uint32_t ref) {
   const GridParams& g = grid.params;
-  for (uint32_t s = 0; s < g.capacity; ++s) {
+  // The filled slots would refuse the reference: start at the first blank
+  for (uint32_t s = first_slot_at_least(grid.image, g, cell, kBlank); s < g.capacity; ++s) {
     const uint32_t old = imageAtomicCompSwap(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), kBlank, ref);
     if (old == kBlank) return;
   }
@@ -424,7 +455,8 @@ void insert_first_empty(GridData& grid, glm::uvec3 cell, uint32_t ref) {
 void insert_sorted(GridData& grid, glm::uvec3 cell, uint32_t ref) {
   const GridParams& g = grid.params;
   uint32_t v = ref;
-  for (uint32_t s = 0; s < g.capacity; ++s) {
+  // The slots holding smaller references would pass v on unchanged: start after them
+  for (uint32_t s = first_slot_at_least(grid.image, g, cell, ref); s < g.capacity; ++s) {
     const uint32_t old = imageAtomicMin(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), v);
     v = std::max(old, v);
     if (v == kBlank) return;
@@ -442,6 +474,17 @@ SpillDump spill_dump(const GridData& grid) {
   d.entries.assign(grid.spill.begin(), grid.spill.begin() + ptrdiff_t(d.stored()));
   d.heads = grid.spill_heads;
   return d;
+}
+
+// The dirty-cell list (scene update): the first dynamic reference to reach a cell in a pass sets
+// the cell's listed bit and appends the cell, so the list holds every cell a dynamic reference
+// reached (stored or dropped), once.
+void append_dirty_cell(WordBuffer& dirty, const GridParams& g, glm::uvec3 cell) {
+  const uint32_t i = shared::cell_linear_index(g, cell);
+  const uint32_t old = atomicOr(dirty, shared::kWorkListHeaderWords + shared::dirty_bit_item(g, i), shared::dirty_bit(i));
+  if ((old & shared::dirty_bit(i)) != 0u) return;
+  const uint32_t k = atomicAdd(dirty, shared::kWorkListAppendedWord, 1u);
+  dirty.store(shared::kWorkListHeaderWords + k, i);
 }
 
 namespace {
@@ -478,6 +521,7 @@ void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t i
         const glm::uvec3 cell(x, y, z);
         if (!shared::plane_intersects_enlarged_sphere(v0, n, nn, shared::cell_center(g, cell), g.sphere_r2))
           continue;
+        if (ref >= g.comparison_offset) append_dirty_cell(grid.dirty, g, cell);
         if (g.insertion == shared::kInsertSorted) insert_sorted(grid, cell, ref);
         else insert_first_empty(grid, cell, ref);
       }
@@ -558,8 +602,9 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
     }
     grid.materials.push_back(gm);
   }
-  // The image, every texel blank; status texels 0
+  // The image, every texel blank; status texels 0; the dirty-cell list empty
   grid.image = Image3D(shared::grid_image_extent(g), kBlank);
+  grid.dirty = WordBuffer(shared::dirty_list_words(g), 0u);
   run_invocations(g.cells.x * g.cells.y * g.cells.z, thread_count(o), std::nullopt, [&](uint32_t c) {
     const glm::uvec3 cell(c % g.cells.x, (c / g.cells.x) % g.cells.y, c / (g.cells.x * g.cells.y));
     imageStore(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), 0u);
@@ -577,39 +622,50 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
 
 // ---- Scene update (paper 2.2) ----
 
-// The clear pass, in workgroups of 4x4x4 cells: per cell, blank every reference >= the comparison
-// offset, slot by slot up to the first blank, reset the dynamic saturation bit and empty the
-// cell's dynamic spill list; the first invocation resets the spill counter to the static
-// references' count (the dynamic ones were appended after them).
+// The clear pass over the dirty-cell list, one workgroup of 64 invocations per listed cell: the
+// dispatch step takes the cells appended since the last pass (and starts the list again); per
+// listed cell, blank every reference >= the comparison offset from the first such slot up to the
+// first blank, the invocations taking every 64th slot; reset the dynamic saturation bit, empty the
+// cell's dynamic spill list and take the cell off the list. Before it, the spill counter goes back
+// to the static references' count (Vulkan: a copy of static_count onto count): the dynamic entries
+// were appended after them.
 void clear_dynamic_references(GridData& grid, const GridOptions& o) {
   const GridParams& g = grid.params;
-  const glm::uvec3 groups = (g.cells + glm::uvec3(3u)) / 4u;
-  run_invocations(groups.x * groups.y * groups.z, thread_count(o), std::nullopt, [&](uint32_t w) {
-    // Drop the dynamic references' spill entries
-    if (w == 0u) grid.spill_header.count = grid.spill_header.static_count;
-    const glm::uvec3 wg(w % groups.x, (w / groups.x) % groups.y, w / (groups.x * groups.y));
-    for (uint32_t lz = 0; lz < 4; ++lz)
-      for (uint32_t ly = 0; ly < 4; ++ly)
-        for (uint32_t lx = 0; lx < 4; ++lx) {
-          const glm::uvec3 cell = wg * 4u + glm::uvec3(lx, ly, lz);
-          if (cell.x >= g.cells.x || cell.y >= g.cells.y || cell.z >= g.cells.z) continue;
-          // Blank the dynamic references up to the first blank
-          for (uint32_t s = 0; s < g.capacity; ++s) {
-            const glm::ivec3 p(shared::cell_slot_texel(g, cell, s));
-            const uint32_t ref = imageLoad(grid.image, p);
-            if (ref == kBlank) break;
-            if (ref >= g.comparison_offset) imageAtomicExchange(grid.image, p, kBlank);
-          }
-          // Reset the dynamic saturation bit; the static one persists
-          imageAtomicAnd(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), ~shared::kStatusDynamic);
-          // Empty the dynamic spill list; the static one persists
-          if ((g.flags & shared::kGridSpill) != 0u) {
-            const uint32_t c = shared::cell_index(g, cell);
-            grid.spill_heads[shared::spill_head_index(c, true)] = shared::kSpillEnd;
-            grid.spill_heads[shared::spill_arrival_index(c, true)] = shared::kSpillEnd;
-          }
-        }
-  }, 4);
+  // Drop the dynamic references' spill entries
+  grid.spill_header.count = grid.spill_header.static_count;
+  // The dispatch step (work_list_dispatch.comp)
+  const uint32_t size = grid.dirty.load(shared::kWorkListAppendedWord);
+  grid.dirty.store(shared::kWorkListSizeWord, size);
+  grid.dirty.store(shared::kWorkListAppendedWord, 0u);
+  run_invocations(size, thread_count(o), std::nullopt, [&](uint32_t k) {
+    const uint32_t i = grid.dirty.load(shared::kWorkListHeaderWords + k);
+    const glm::uvec3 cell = shared::cell_of_linear_index(g, i);
+    // The first dynamic slot (the static references precede the dynamic ones)
+    const uint32_t first_dynamic = first_slot_at_least(grid.image, g, cell, g.comparison_offset);
+    // Blank the dynamic references up to the first blank, every 64th slot per invocation (a slot
+    // found blank ends the invocation's walk: the blanks form the cell's tail)
+    for (uint32_t lane = 0; lane < 64; ++lane)
+      for (uint32_t s = first_dynamic + lane; s < g.capacity; s += 64)
+        if (imageAtomicExchange(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), kBlank) == kBlank) break;
+    // Reset the dynamic saturation bit; the static one persists
+    imageAtomicAnd(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), ~shared::kStatusDynamic);
+    // Empty the dynamic spill list; the static one persists (every cell a dynamic reference was
+    // spilled in is listed: the reference reached it)
+    if ((g.flags & shared::kGridSpill) != 0u) {
+      grid.spill_heads[shared::spill_head_index(i, true)] = shared::kSpillEnd;
+      grid.spill_heads[shared::spill_arrival_index(i, true)] = shared::kSpillEnd;
+    }
+    // Off the list
+    atomicAnd(grid.dirty, shared::kWorkListHeaderWords + shared::dirty_bit_item(g, i), ~shared::dirty_bit(i));
+  }, 1);
+}
+
+std::vector<uint32_t> dirty_cells(const GridData& grid) {
+  if (grid.dirty.size == 0) return {};
+  const uint32_t n = grid.dirty.load(shared::kWorkListAppendedWord);
+  std::vector<uint32_t> out(n);
+  for (uint32_t k = 0; k < n; ++k) out[k] = grid.dirty.load(shared::kWorkListHeaderWords + k);
+  return out;
 }
 
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& o) {

@@ -83,6 +83,7 @@ struct GridOptions {
 struct GridData {
   shared::GridParams params{};
   Image3D image;                                 // the 3D image of references
+  WordBuffer dirty;                              // the dirty-cell list (shared::dirty_list_words)
   std::vector<shared::GridInstance> instances;   // per instance: triangle offset, count, flags
   std::vector<shared::GridTriangle> triangles;   // world-space triangles (geometry buffer)
   std::vector<shared::GridTriangleUv> uvs;       // per triangle texture coordinates
@@ -148,6 +149,12 @@ void insert_sorted(GridData& grid, glm::uvec3 cell, uint32_t ref);
 void spill_reference(GridData& grid, glm::uvec3 cell, uint32_t ref);
 void spill_order(GridData& grid, const GridOptions& options, uint32_t first);
 
+uint32_t first_slot_at_least(const Image3D& image, const shared::GridParams& g, glm::uvec3 cell, uint32_t bound);
+void append_dirty_cell(WordBuffer& dirty, const shared::GridParams& g, glm::uvec3 cell);
+// The dirty-cell list's cells (linear indices, shared::cell_linear_index) in list order: the
+// cells appended since the last clear pass.
+std::vector<uint32_t> dirty_cells(const GridData& grid);
+
 // The spill list as plain data: the header, the stored entries [0, min(count, capacity)) in the
 // order they were appended (which differs between runs and backends: compare them as multisets,
 // and the lists walked from the heads, which are in ascending reference order), and the heads.
@@ -192,6 +199,15 @@ struct GridStats {
   uint64_t triangles = 0, degenerate_triangles = 0;
   double references_per_triangle_mean = 0.0;      // over non-degenerate triangles
   uint32_t references_per_triangle_max = 0;
+  // The build's work (docs/BENCHMARKS.md, "Static build"): cells of each triangle's AABB range
+  // (each gets the plane test); the sorted insertion's slot accesses had every insertion walked
+  // from slot 0 to the first blank (a cell of n references costs n(n+1)/2, in any order), in
+  // total and along the longest chain of one build invocation (the sum over its cells of their
+  // final n); the galloping search's loads along that invocation (2 ceil(log2(n + 1)) per cell)
+  double range_cells_per_triangle_mean = 0.0;
+  uint64_t range_cells_per_triangle_max = 0;
+  uint64_t walk_accesses = 0;
+  uint64_t walk_chain_max = 0, search_chain_max = 0;
   double build_ms = 0.0, update_ms = 0.0;         // last build / update, wall clock
 };
 GridStats grid_stats(const GridData& grid);

@@ -119,7 +119,7 @@ void test_spilled(const GridData& grid, TraceState& st, uvec3 cell, uint step, f
        vec4(0.0f));
   uint k = 0u;
   for (uint list = 0u; list < 2u; ++list) {
-    uint i = grid.spill_heads[spill_head_index(cell_index(g, cell), list == 1u)];
+    uint i = grid.spill_heads[spill_head_index(cell_linear_index(g, cell), list == 1u)];
     while (i != kSpillEnd && k < grid.spill_header.capacity) {
       const SpillEntry e = grid.spill[i];
       emit(st, kEvSpilled, 0u, e.ref, step, cell, k, vec4(0.0f), vec4(0.0f));

@@ -89,16 +89,28 @@ GridStats grid_stats(const GridData& grid) {
   s.occupancy.assign(g.capacity + 1, 0);
   s.triangles = grid.triangles.size();
   std::vector<uint32_t> per_triangle(grid.triangles.size(), 0);
+  std::vector<uint64_t> walk_chain(grid.triangles.size(), 0), search_chain(grid.triangles.size(), 0);
+  std::vector<uint32_t> refs;
   for (uint32_t z = 0; z < g.cells.z; ++z)
     for (uint32_t y = 0; y < g.cells.y; ++y)
       for (uint32_t x = 0; x < g.cells.x; ++x) {
         const glm::uvec3 cell(x, y, z);
         uint32_t n = 0;
+        refs.clear();
         for (; n < g.capacity; ++n) {
           const uint32_t ref = imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, n)));
           if (ref == shared::kBlank) break;
-          ++per_triangle[grid.instances[shared::ref_instance(ref)].tri_offset + shared::ref_triangle(ref)];
+          const uint32_t k = grid.instances[shared::ref_instance(ref)].tri_offset + shared::ref_triangle(ref);
+          ++per_triangle[k];
+          refs.push_back(k);
         }
+        uint32_t log2n = 0;
+        while ((1ull << log2n) < uint64_t(n) + 1) ++log2n;
+        for (uint32_t k : refs) {
+          walk_chain[k] += n;
+          search_chain[k] += 2 * log2n;
+        }
+        s.walk_accesses += uint64_t(n) * (n + 1) / 2;
         s.occupancy[n] += 1;
         s.references += n;
         if (n == 0) ++s.empty_cells;
@@ -114,7 +126,7 @@ GridStats grid_stats(const GridData& grid) {
   s.spill_stored = spill.stored();
   s.spill_overflow = spill.overflow();
   s.gap_fill_active = (g.flags & shared::kGridGapFill) != 0u && g.traversal == shared::kTraversalPaper;
-  uint64_t sum = 0, counted = 0;
+  uint64_t sum = 0, counted = 0, range_sum = 0;
   for (size_t i = 0; i < grid.triangles.size(); ++i) {
     const shared::GridTriangle& t = grid.triangles[i];
     const glm::vec3 n = shared::triangle_normal(t.v0, t.v1, t.v2);
@@ -125,8 +137,16 @@ GridStats grid_stats(const GridData& grid) {
     sum += per_triangle[i];
     ++counted;
     s.references_per_triangle_max = std::max(s.references_per_triangle_max, per_triangle[i]);
+    s.walk_chain_max = std::max(s.walk_chain_max, walk_chain[i]);
+    s.search_chain_max = std::max(s.search_chain_max, search_chain[i]);
+    glm::uvec3 lo, hi;
+    shared::triangle_cell_range(g, t.v0, t.v1, t.v2, lo, hi);
+    const uint64_t range = uint64_t(hi.x - lo.x + 1) * (hi.y - lo.y + 1) * (hi.z - lo.z + 1);
+    range_sum += range;
+    s.range_cells_per_triangle_max = std::max(s.range_cells_per_triangle_max, range);
   }
   s.references_per_triangle_mean = counted ? double(sum) / double(counted) : 0.0;
+  s.range_cells_per_triangle_mean = counted ? double(range_sum) / double(counted) : 0.0;
   return s;
 }
 
@@ -151,6 +171,10 @@ std::string to_text(const GridStats& s) {
   os << "references: " << s.references << " for " << s.triangles << " triangles (" << s.degenerate_triangles
      << " zero-area, never inserted); per triangle mean " << s.references_per_triangle_mean << ", max "
      << s.references_per_triangle_max << "\n";
+  os << "build work: AABB range cells per triangle mean " << s.range_cells_per_triangle_mean << ", max "
+     << s.range_cells_per_triangle_max << "; slot accesses of insertions walked from slot 0: " << s.walk_accesses
+     << " in total, " << s.walk_chain_max << " along the longest invocation; galloping search loads along it: "
+     << s.search_chain_max << "\n";
   os << "occupancy (references per cell: cells):";
   for (size_t k = 0; k < s.occupancy.size(); ++k)
     if (s.occupancy[k]) os << " " << k << ":" << s.occupancy[k];

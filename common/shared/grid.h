@@ -11,6 +11,7 @@
 
 #include "compat.h"
 #include "rounding.h"
+#include "worklist.h"
 
 SH_BEGIN
 
@@ -122,7 +123,7 @@ struct SpillHeader {
   uint pad0;          // std430 padding
 };
 struct SpillEntry {
-  uint cell;     // the cell's linear index (cell_index)
+  uint cell;     // the cell's linear index (cell_linear_index)
   uint ref;      // the reference no slot of it took
   uint arrival;  // the entry pushed before it onto the same arrival list, kSpillEnd at the end
   uint next;     // the entry with the next larger reference in the same list (the order pass)
@@ -165,13 +166,27 @@ SH_INLINE uvec3 cell_slot_texel(SH_IN(GridParams) g, SH_IN(uvec3) cell, uint slo
 SH_INLINE uvec3 cell_status_texel(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
   return status_texel(image_cell(g, cell), g.capacity);
 }
-// Linear index of a scene cell, x fastest (SpillEntry::cell, the trial counts' order).
-SH_INLINE uint cell_index(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
+// ---- The dirty-cell list of scene update (a work list, worklist.h; docs/SPEC.md "Scene update") ----
+// Items: the linear indices of the cells the dynamic instances reached (x fastest), each once;
+// after the items (one per cell at most) one bit per cell says whether it is listed.
+SH_INLINE uint grid_cell_count(SH_IN(GridParams) g) { return g.cells.x * g.cells.y * g.cells.z; }
+SH_INLINE uint cell_linear_index(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
   return (cell.z * g.cells.y + cell.y) * g.cells.x + cell.x;
 }
+SH_INLINE uvec3 cell_of_linear_index(SH_IN(GridParams) g, uint i) {
+  return uvec3(i % g.cells.x, (i / g.cells.x) % g.cells.y, i / (g.cells.x * g.cells.y));
+}
+// The item (word after the header) holding cell i's listed bit, and the bit.
+SH_INLINE uint dirty_bit_item(SH_IN(GridParams) g, uint i) { return grid_cell_count(g) + i / 32u; }
+SH_INLINE uint dirty_bit(uint i) { return 1u << (i % 32u); }
+// Words of the whole buffer: header, items, bits.
+SH_INLINE uint dirty_list_words(SH_IN(GridParams) g) {
+  return kWorkListHeaderWords + grid_cell_count(g) + (grid_cell_count(g) + 31u) / 32u;
+}
+
 // The spill heads buffer, per cell: the smallest entry of its static list, of its dynamic list
 // (what the trace walks), then the last arrival of each (what the build pushes onto).
-// `cell` is the linear index (cell_index, SpillEntry::cell).
+// `cell` is the linear index (cell_linear_index, SpillEntry::cell).
 SH_INLINE uint spill_head_index(uint cell, bool dynamic) { return 4u * cell + (dynamic ? 1u : 0u); }
 SH_INLINE uint spill_arrival_index(uint cell, bool dynamic) { return 4u * cell + (dynamic ? 3u : 2u); }
 // Linear index of a texel, x fastest (the layout of AccelDump::texels).

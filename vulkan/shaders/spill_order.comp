@@ -8,11 +8,11 @@
 #include "grid_common.glsl"
 
 layout(local_size_x = 64) in;
-layout(std430, binding = 13) buffer Spill {
+layout(std430, binding = 16) buffer Spill {
   SpillHeader spill_header;
   SpillEntry spill_entries[];
 };
-layout(std430, binding = 14) buffer SpillHeads { uint spill_heads[]; };
+layout(std430, binding = 17) buffer SpillHeads { uint spill_heads[]; };
 layout(push_constant) uniform Push { uint dynamic; } pc;
 
 void main() {

@@ -11,17 +11,24 @@ layout(binding = 1, r32ui) uniform readonly uimage3D grid_image;
 layout(std430, binding = 10) readonly buffer Rays { RayRecord rays[]; };
 layout(std430, binding = 11) writeonly buffer Hits { HitRecord hits[]; };
 // The spill list and its heads (kGridSpill): read only here.
-layout(std430, binding = 13) readonly buffer Spill {
+layout(std430, binding = 16) readonly buffer Spill {
   SpillHeader spill_header;
   SpillEntry spill_entries[];
 };
-layout(std430, binding = 14) readonly buffer SpillHeads { uint spill_heads[]; };
+layout(std430, binding = 17) readonly buffer SpillHeads { uint spill_heads[]; };
 layout(std430, binding = 12) buffer Explain {
   uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
   uint explain_pad0;
   uint explain_pad1;
   uint explain_pad2;
   ExplainEvent explain_events[];
+};
+// Compacted rays (specialization constant 7): invocation k traces the ray ray_list[k] of the
+// frame's work list of real bounce rays (common/shared/worklist.h), dispatched indirectly.
+layout(constant_id = 7) const bool kTraceList = false;
+layout(std430, binding = 14) readonly buffer RayList {
+  WorkListHeader ray_list_header;
+  uint ray_list[];
 };
 layout(push_constant) uniform Push {
   uint ray_offset;        // index of invocation 0's ray
@@ -138,7 +145,7 @@ void test_spilled(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
   emit(kEvSpillScan, min(appended, spill_header.capacity), kBlank, step, cell, appended, vec4(0.0f), vec4(0.0f));
   uint k = 0u;
   for (uint list = 0u; list < 2u; ++list) {
-    uint i = spill_heads[spill_head_index(cell_index(g, cell), list == 1u)];
+    uint i = spill_heads[spill_head_index(cell_linear_index(g, cell), list == 1u)];
     while (i != kSpillEnd && k < spill_header.capacity) {
       const SpillEntry e = spill_entries[i];
       emit(kEvSpilled, 0u, e.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
@@ -313,6 +320,13 @@ HitRecord scene_trace(GridParams g, RayRecord ray) {
 }
 
 void main() {
+  if (kTraceList) {
+    const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
+    if (k >= ray_list_header.size) return;
+    const uint r = ray_list[k];
+    hits[r] = scene_trace(grid_params(), rays[r]);
+    return;
+  }
   if (gl_GlobalInvocationID.x >= pc.ray_count) return;
   const uint i = pc.ray_offset + gl_GlobalInvocationID.x;
   explaining = kExplain && i == pc.explain_ray;
