@@ -462,18 +462,18 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     }
     std::vector<Hit> embree_hits(last_rays.size(), Hit{});
     for (size_t k = 0; k < index.size(); ++k) embree_hits[index[k]] = hits[k];
-    const double ms = median(times), agree = agreement_percent(last_rays, last_hits, embree_hits);
+    const double ms = median(times), agree_pct = agreement_percent(last_rays, last_hits, embree_hits);
     size_t gap = 0;
     for (size_t i : index) gap += (last_hits[i].flags & shared::kHitGapFill) != 0;
     const unsigned threads = std::thread::hardware_concurrency();
     std::printf("embree on the same bounce rays (CPU, %u threads; the last frame, t = %.3f): %zu rays in %.2f ms (median of 3), "
                 "%.1f Mrays/s; the GPU grid agrees on %.3f %% (same instance and triangle, or both miss; %zu gap-fill hits); "
                 "embree build + update %.0f ms\n\n",
-                threads, last_time, real.size(), ms, double(real.size()) / (ms * 1e3), agree, gap, embree_build);
+                threads, last_time, real.size(), ms, double(real.size()) / (ms * 1e3), agree_pct, gap, embree_build);
     out["backends"]["embree_on_frame_rays"] = {{"device", "CPU, " + std::to_string(threads) + " threads"},
                                                {"rays", real.size()},       {"trace_ms", ms},
                                                {"trace_ms_all", times},     {"mrays_per_s", double(real.size()) / (ms * 1e3)},
-                                               {"agree_percent", agree},    {"gpu_gap_fill_hits", gap},
+                                               {"agree_percent", agree_pct},    {"gpu_gap_fill_hits", gap},
                                                {"build_ms", embree_build},  {"time", last_time}};
   }
 }
