@@ -59,6 +59,24 @@ double median(std::vector<double> v) {
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
+// The spill list after the last update, as a line and as JSON (an overflow is never silent).
+std::string spill_text(const shared::SpillHeader& h, uint32_t flags) {
+  const uint32_t stored = std::min(h.count, h.capacity), lost = h.count > h.capacity ? h.count - h.capacity : 0u;
+  char buf[256];
+  if (flags & shared::kGridSpill)
+    std::snprintf(buf, sizeof buf, "spill list on: %u entries of %u (%u static)%s", stored, h.capacity, h.static_count,
+                  lost ? (", OVERFLOW: " + std::to_string(lost) + " references lost").c_str() : ", no overflow");
+  else
+    std::snprintf(buf, sizeof buf, "spill list off: %u references found no slot (dropped); gap-fill %s", h.count,
+                  (flags & shared::kGridGapFill) ? "on" : "off");
+  return buf;
+}
+nlohmann::json spill_json(const shared::SpillHeader& h, uint32_t flags) {
+  return {{"on", (flags & shared::kGridSpill) != 0u}, {"appended", h.count}, {"static", h.static_count},
+          {"capacity", h.capacity}, {"stored", std::min(h.count, h.capacity)},
+          {"overflow", (flags & shared::kGridSpill) && h.count > h.capacity ? h.count - h.capacity : 0u}, {"gap_fill", (flags & shared::kGridGapFill) != 0u}};
+}
+
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -260,6 +278,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     t["shade"].push_back(stamps ? ft.shade_ms : 0.0);
     t["frame"].push_back(update + (stamps ? ft.total_ms : ft.host_ms));
   }
+  const shared::SpillHeader spill = vk->spill_header();
+  const uint32_t spill_flags = vk->params().flags;
   // The RT pipeline's hits against the grid's, the last frame's rays; then the RT tracer goes
   // (the grid's builds below make new buffers)
   Agreement agree;
@@ -307,6 +327,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
               grid_mib, frame_mib);
+  std::printf("%s (after the last frame's update)\n\n", spill_text(spill, spill_flags).c_str());
   std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
               "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, dynamic instances "
               "%.3f ms\n",
@@ -335,7 +356,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   std::fflush(stdout);
   nlohmann::json j = {{"device", device}, {"clock", clock},       {"build_ms", build}, {"build_warm_ms", build_warm}, {"rays_per_frame", rays},
                       {"mrays_per_s", mrays}, {"grid_mib", grid_mib}, {"frame_mib", frame_mib},
-                      {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity}};
+                      {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity},
+                      {"spill", spill_json(spill, spill_flags)}};
   j["gather_mode"] = gather_name;
   j["gather_tiles_frame0"] = gather_tiles;
   j["compact_rays"] = o.compact_rays;
@@ -440,18 +462,18 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     }
     std::vector<Hit> embree_hits(last_rays.size(), Hit{});
     for (size_t k = 0; k < index.size(); ++k) embree_hits[index[k]] = hits[k];
-    const double ms = median(times), agree = agreement_percent(last_rays, last_hits, embree_hits);
+    const double ms = median(times), agree_pct = agreement_percent(last_rays, last_hits, embree_hits);
     size_t gap = 0;
     for (size_t i : index) gap += (last_hits[i].flags & shared::kHitGapFill) != 0;
     const unsigned threads = std::thread::hardware_concurrency();
     std::printf("embree on the same bounce rays (CPU, %u threads; the last frame, t = %.3f): %zu rays in %.2f ms (median of 3), "
                 "%.1f Mrays/s; the GPU grid agrees on %.3f %% (same instance and triangle, or both miss; %zu gap-fill hits); "
                 "embree build + update %.0f ms\n\n",
-                threads, last_time, real.size(), ms, double(real.size()) / (ms * 1e3), agree, gap, embree_build);
+                threads, last_time, real.size(), ms, double(real.size()) / (ms * 1e3), agree_pct, gap, embree_build);
     out["backends"]["embree_on_frame_rays"] = {{"device", "CPU, " + std::to_string(threads) + " threads"},
                                                {"rays", real.size()},       {"trace_ms", ms},
                                                {"trace_ms_all", times},     {"mrays_per_s", double(real.size()) / (ms * 1e3)},
-                                               {"agree_percent", agree},    {"gpu_gap_fill_hits", gap},
+                                               {"agree_percent", agree_pct},    {"gpu_gap_fill_hits", gap},
                                                {"build_ms", embree_build},  {"time", last_time}};
   }
 }
@@ -509,6 +531,7 @@ void run_bench(const BenchOptions& options) {
   if (cpu_rays)
     std::printf("\n| backend | device | clock | build ms | update ms (median) | trace ms (median) | Mrays/s | grid MiB |\n"
                 "|---|---|---|---|---|---|---|---|\n");
+  std::vector<std::string> notes;  // printed under the table
   for (const std::string& name : backends) {
 #ifdef GRIDRT_HAVE_VULKAN
     if (name == "vulkan") {
@@ -563,16 +586,33 @@ void run_bench(const BenchOptions& options) {
       times.update.push_back(update_ms);
       times.trace.push_back(trace_ms);
     }
+    shared::SpillHeader spill{};
+    uint32_t spill_flags = 0;
+    if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
+      spill = ref->data().spill_header;
+      spill_flags = ref->params().flags;
+    }
+#ifdef GRIDRT_HAVE_VULKAN
+    if (vk) {
+      spill = vk->spill_header();
+      spill_flags = vk->params().flags;
+    }
+#endif
     const double update = median(times.update), trace = median(times.trace);
     const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
     std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
                 times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
+    const bool grid = !dump.texels.empty();
+    if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
     std::fflush(stdout);
     out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
                              {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
                              {"grid_mib", grid_mib},    {"update_ms_all", times.update},
                              {"trace_ms_all", times.trace}};
+    if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
   }
+  if (!notes.empty()) std::printf("\n");
+  for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
   if (!o.json.empty()) {
     std::ofstream f(o.json);
     if (!f) throw Error("cannot write '" + o.json + "'");

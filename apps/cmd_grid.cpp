@@ -221,8 +221,9 @@ FrameDiff diff_gpu_frame(const Scene& scene, const reference::GridOptions& grid,
 
 // Grid images: sorted texel for texel; first-empty per cell as multisets. Returns false on a
 // difference, after printing the first one.
-bool diff_images(const reference::ReferenceGridTracer& ref, Tracer& gpu, uint32_t frame) {
+bool diff_images(const reference::ReferenceGridTracer& ref, vulkan::VulkanGridTracer& gpu, uint32_t frame) {
   const AccelDump want = ref.dump(), got = gpu.dump();
+  const reference::SpillDump spill = gpu.spill();
   const sh::GridParams& g = ref.params();
   if (ref.options().insertion == reference::Insertion::sorted) {
     const reference::TexelDiff d = reference::compare_texels(want, got);
@@ -237,7 +238,8 @@ bool diff_images(const reference::ReferenceGridTracer& ref, Tracer& gpu, uint32_
                 tx % (g.capacity + 1), want.texels[i], got.texels[i]);
     return false;
   }
-  const reference::CellCheck c = reference::check_cells_as_multisets(ref.data(), got);
+  const reference::CellCheck c = reference::check_cells_as_multisets(
+      ref.data(), got, (ref.params().flags & sh::kGridSpill) ? &spill : nullptr);
   std::printf("frame %u: first-empty grid: %zu of %zu cells break the multiset rule (%zu saturated)\n", frame,
               c.bad.size(), c.cells, c.saturated);
   if (c.bad.empty()) return true;
@@ -245,6 +247,30 @@ bool diff_images(const reference::ReferenceGridTracer& ref, Tracer& gpu, uint32_
   std::printf("  first: cell (%zu, %zu, %zu)\n", i % g.cells.x, (i / g.cells.x) % g.cells.y,
               i / (size_t(g.cells.x) * g.cells.y));
   return false;
+}
+
+// The spill lists: the headers equal (the counter counts every dropped reference, with spill off
+// too); with spill on, sorted insertion, the entries equal as multisets of (cell, ref) (the order
+// of appends differs by design; first-empty spills another choice, checked per cell above).
+bool diff_spill(const reference::ReferenceGridTracer& ref, vulkan::VulkanGridTracer& gpu, uint32_t frame) {
+  const reference::SpillDump want = ref.spill(), got = gpu.spill();
+  const bool sorted = ref.options().insertion == reference::Insertion::sorted;
+  const bool on = (ref.params().flags & sh::kGridSpill) != 0u;
+  const reference::SpillDiff d = reference::compare_spill(want, got);
+  const bool same_counts = want.header.count == got.header.count && want.header.static_count == got.header.static_count &&
+                           want.header.capacity == got.header.capacity;
+  const bool ok = same_counts && (!on || !sorted || d.same());
+  std::printf("frame %u: spill list %s: %u references found no slot (%u static); reference %u, vulkan %u; %u stored of "
+              "%u%s%s\n",
+              frame, on ? "on" : "off (counted only)", want.header.count, want.header.static_count, want.header.count,
+              got.header.count, want.stored(), want.header.capacity,
+              on && sorted ? (d.same() ? ", entries equal as multisets of (cell, ref)"
+                                       : (", entries differ: " + std::to_string(d.only_want.size()) + " only in the reference, " +
+                                          std::to_string(d.only_got.size()) + " only in vulkan")
+                                             .c_str())
+                           : "",
+              want.overflow() ? " (OVERFLOW: references lost)" : "");
+  return ok;
 }
 
 void run_diff(const DiffOptions& options) {
@@ -256,10 +282,11 @@ void run_diff(const DiffOptions& options) {
   vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
   vulkan::VulkanGridTracer gpu(grid, vk);
   reference::ReferenceGridTracer ref(grid);
-  std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, Vulkan device %s (%s build)\n",
+  std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, spill %s, Vulkan device %s (%s build)\n",
               scene.name.c_str(), o.width, o.height, o.frames,
               grid.traversal == reference::Traversal::paper ? "paper" : "exact",
               grid.insertion == reference::Insertion::sorted ? "sorted" : "first-empty",
+              reference::spill_enabled(grid) ? "on" : "off",
               gpu.context().info().name.c_str(), o.backend_options.vk_build.c_str());
   bool all_same = true;
   size_t total_rays = 0, total_identical = 0, total_discrete = 0, total_beyond = 0;
@@ -282,6 +309,7 @@ void run_diff(const DiffOptions& options) {
       gpu.update(time);
     }
     all_same = diff_images(ref, gpu, frame) && all_same;
+    all_same = diff_spill(ref, gpu, frame) && all_same;
 
     if (o.gpu_frame) {
       if (!gpu_frame)

@@ -1,5 +1,6 @@
 // tracer.cpp: ReferenceGridTracer (the gridrt::Tracer over the reference) and grid statistics.
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <sstream>
 
@@ -21,6 +22,8 @@ void ReferenceGridTracer::build(const Scene& scene, float time) {
   scene_ = &scene;
   scene_build(grid_, scene, time, options_);
   build_ms_ = ms_since(t0);
+  overflow_warned_ = false;
+  warn_spill_overflow(spill_dump(grid_), name(), overflow_warned_);
 }
 
 void ReferenceGridTracer::update(float time) {
@@ -28,6 +31,16 @@ void ReferenceGridTracer::update(float time) {
   const auto t0 = std::chrono::steady_clock::now();
   scene_update(grid_, *scene_, time, options_);
   update_ms_ = ms_since(t0);
+  warn_spill_overflow(spill_dump(grid_), name(), overflow_warned_);
+}
+
+void warn_spill_overflow(const SpillDump& spill, const std::string& who, bool& warned) {
+  if (spill.overflow() == 0 || warned) return;
+  warned = true;
+  std::fprintf(stderr,
+               "gridrt: warning: %s: the spill list overflowed: %u references found no slot, %u fit the list, "
+               "%u were lost (holes are possible in saturated cells); raise --spill-capacity\n",
+               who.c_str(), spill.header.count, spill.header.capacity, spill.overflow());
 }
 
 void ReferenceGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
@@ -105,6 +118,14 @@ GridStats grid_stats(const GridData& grid) {
         if (status & shared::kStatusStatic) ++s.saturated_static;
         if (status & shared::kStatusDynamic) ++s.saturated_dynamic;
       }
+  const SpillDump spill = spill_dump(grid);
+  s.spill_on = (g.flags & shared::kGridSpill) != 0u;
+  s.spill_appended = spill.header.count;
+  s.spill_static = spill.header.static_count;
+  s.spill_capacity = spill.header.capacity;
+  s.spill_stored = spill.stored();
+  s.spill_overflow = spill.overflow();
+  s.gap_fill_active = (g.flags & shared::kGridGapFill) != 0u && g.traversal == shared::kTraversalPaper;
   uint64_t sum = 0, counted = 0, range_sum = 0;
   for (size_t i = 0; i < grid.triangles.size(); ++i) {
     const shared::GridTriangle& t = grid.triangles[i];
@@ -139,6 +160,14 @@ std::string to_text(const GridStats& s) {
   os << "cells: " << s.cell_count << ", empty " << s.empty_cells << " ("
      << (s.cell_count ? 100.0 * double(s.empty_cells) / double(s.cell_count) : 0.0) << "%), saturated by static "
      << s.saturated_static << ", by dynamic " << s.saturated_dynamic << "\n";
+  if (s.spill_on)
+    os << "spill list: " << s.spill_appended << " references found no slot (" << s.spill_static << " static); "
+       << s.spill_stored << " stored of " << s.spill_capacity << " entries, " << s.spill_overflow
+       << " lost to overflow" << (s.spill_overflow ? " (WARNING: holes are possible; raise --spill-capacity)" : "")
+       << "\n";
+  else
+    os << "spill list: off; " << s.spill_appended << " references found no slot (dropped)"
+       << (s.gap_fill_active ? "; gap-fill on" : "") << "\n";
   os << "references: " << s.references << " for " << s.triangles << " triangles (" << s.degenerate_triangles
      << " zero-area, never inserted); per triangle mean " << s.references_per_triangle_mean << ", max "
      << s.references_per_triangle_max << "\n";

@@ -1,9 +1,12 @@
 // grid.h: the Vulkan port of the fixed-capacity grid, behind the same interface as the reference
 // (reference/grid.h) and held to it bit for bit (docs/VULKAN.md):
 //   scene_build  (2.1)  grid_init.comp, then the raster pass (build.vert + build.geom, one draw
-//                       per instance) or the compute build (build.comp), static then dynamic
-//   scene_update (2.2)  clear_dynamic.comp over the dirty-cell list (dispatched indirectly), then
-//                       the dynamic instances again (which append the cells they reach)
+//                       per instance) or the compute build (build.comp), static then dynamic;
+//                       references no slot takes go to the spill list (kGridSpill), whose
+//                       lists spill_order.comp orders after each pass
+//   scene_update (2.2)  clear_dynamic.comp over the dirty-cell list (dispatched indirectly; the
+//                       spill counter back to the static count first), then the dynamic instances
+//                       again (which append the cells they reach)
 //   scene_trace  (2.3)  trace.comp, one invocation per ray; the explain ray records its events
 // The grid (placement, resolution, capacity) is chosen by reference::choose_grid, so both
 // tracers build the same grid from the same GridOptions.
@@ -73,6 +76,10 @@ class VulkanGridTracer : public Tracer {
   std::vector<uint32_t> download_dirty_cells() const;
   // The geometry buffer as the build wrote it (for tests against GridData::triangles).
   std::vector<shared::GridTriangle> download_triangles() const;
+  // The spill list as the device holds it: the header and the stored entries (append order).
+  reference::SpillDump spill() const;
+  // The spill list's header as read back after the last build or update.
+  const shared::SpillHeader& spill_header() const { return spill_header_; }
 
   const shared::GridParams& params() const { return params_; }
   const reference::GridOptions& options() const { return options_; }
@@ -104,6 +111,13 @@ class VulkanGridTracer : public Tracer {
  private:
   struct Gpu;  // buffers, image, descriptors, pipelines
   void insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last);
+  // Reads the spill header back, sets the trace's flags from it (reference::trace_flags) and
+  // warns once on an overflow.
+  void after_insert();
+  void record_spill_order(VkCommandBuffer cb, bool dynamic);
+  // The trace pipeline for the current flags, with explain or on a ray list (made on first use:
+  // gap-fill comes and goes with saturation).
+  const Pipeline& trace_pipeline(bool explain, bool list = false);
   void upload_transforms(float time, uint32_t first, uint32_t last);
   void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index);
 
@@ -113,6 +127,9 @@ class VulkanGridTracer : public Tracer {
   VulkanGridOptions vk_;
   const Scene* scene_ = nullptr;
   shared::GridParams params_{};
+  uint32_t requested_flags_ = 0;  // params_.flags as choose_grid chose them
+  shared::SpillHeader spill_header_{};
+  bool overflow_warned_ = false;
   uint32_t static_instances_ = 0;
   std::vector<shared::GridInstance> instances_;
   std::vector<shared::BuildInstance> build_instances_;

@@ -7,6 +7,25 @@
 #include "grid_common.glsl"
 
 layout(binding = 1, r32ui) uniform coherent uimage3D grid_image;
+// The spill list (kGridSpill; the counter always) and its per-cell heads
+layout(std430, binding = 16) buffer Spill {
+  SpillHeader spill_header;
+  SpillEntry spill_entries[];
+};
+layout(std430, binding = 17) buffer SpillHeads { uint spill_heads[]; };
+
+// A reference no slot of `cell` took: counted, and with kGridSpill stored as (cell, ref) in the
+// entry the counter gave it and pushed onto the arrival list of the cell's static or dynamic
+// references (one exchange of the head: no loop, no order), while the list has room (past its
+// capacity it is lost: the count says how many). The order pass links it in ascending order.
+void spill_reference(GridParams g, uvec3 cell, uint ref) {
+  const uint i = atomicAdd(spill_header.count, 1u);
+  if ((g.flags & kGridSpill) == 0u || i >= spill_header.capacity) return;
+  const uint c = cell_linear_index(g, cell);
+  spill_entries[i].cell = c;
+  spill_entries[i].ref = ref;
+  spill_entries[i].arrival = atomicExchange(spill_heads[spill_arrival_index(c, ref >= g.comparison_offset)], i);
+}
 
 // The dirty-cell list (common/shared/worklist.h, grid.h): header, items, listed bits.
 layout(std430, binding = 13) buffer Dirty {
@@ -47,7 +66,7 @@ uint first_slot_at_least(GridParams g, uvec3 cell, uint bound) {
 }
 
 // Paper: compare-and-swap blank -> ref into the first slot that takes it; when none does, flag
-// the cell saturated (static or dynamic bit by the reference's kind).
+// the cell saturated (static or dynamic bit by the reference's kind) and spill the reference.
 void insert_first_empty(GridParams g, uvec3 cell, uint ref) {
   // The filled slots would refuse the reference: start at the first blank
   for (uint s = first_slot_at_least(g, cell, kBlank); s < g.capacity; ++s) {
@@ -57,12 +76,14 @@ void insert_first_empty(GridParams g, uvec3 cell, uint ref) {
   // Saturated: no slot took the reference
   const uint bit = ref < g.comparison_offset ? kStatusStatic : kStatusDynamic;
   imageAtomicOr(grid_image, ivec3(cell_status_texel(g, cell)), bit);
+  spill_reference(g, cell, ref);
 }
 
 // Ours: an atomic-min cascade. The carried value v takes the smaller of itself and each slot in
 // turn (old = atomicMin(slot, v); v = max(old, v)) until it is blank; the cell ends holding its
 // `capacity` smallest references in ascending order whatever the timing. A value pushed out of
-// the last slot is dropped and flags the cell (static bit if it is static, else dynamic).
+// the last slot is dropped: it flags the cell (static bit if it is static, else dynamic) and is
+// spilled.
 void insert_sorted(GridParams g, uvec3 cell, uint ref) {
   uint v = ref;
   // The slots holding smaller references would pass v on unchanged: start after them
@@ -74,6 +95,7 @@ void insert_sorted(GridParams g, uvec3 cell, uint ref) {
   // Saturated: the dropped value names the bit
   const uint bit = v < g.comparison_offset ? kStatusStatic : kStatusDynamic;
   imageAtomicOr(grid_image, ivec3(cell_status_texel(g, cell)), bit);
+  spill_reference(g, cell, v);
 }
 
 // The dirty-cell list (scene update): the first dynamic reference to reach a cell in a pass sets

@@ -3,8 +3,9 @@
 // workgroup of 64 invocations per listed cell, dispatched indirectly (work_list_dispatch.comp
 // made the dispatch); the comparison offset (static_instance_count << 16) as a push constant: per
 // listed cell, blank every reference >= the comparison offset from the first such slot up to the
-// first blank, the invocations taking every 64th slot; reset the dynamic saturation bit, take the
-// cell off the list. Same name and headings as reference/build.cpp.
+// first blank, the invocations taking every 64th slot; reset the dynamic saturation bit, empty the
+// cell's dynamic spill list, take the cell off the list (the spill counter went back to the static
+// count by a copy before the pass). Same name and headings as reference/build.cpp.
 #extension GL_GOOGLE_include_directive : require
 #include "build.glsl"
 
@@ -30,6 +31,12 @@ void main() {
   if (lane != 0u) return;
   // Reset the dynamic saturation bit; the static one persists
   imageAtomicAnd(grid_image, ivec3(cell_status_texel(g, cell)), ~kStatusDynamic);
+  // Empty the dynamic spill list; the static one persists (every cell a dynamic reference was
+  // spilled in is listed: the reference reached it)
+  if ((g.flags & kGridSpill) != 0u) {
+    spill_heads[spill_head_index(i, true)] = kSpillEnd;
+    spill_heads[spill_arrival_index(i, true)] = kSpillEnd;
+  }
   // Off the list
   atomicAnd(dirty_items[dirty_bit_item(g, i)], ~dirty_bit(i));
 }
