@@ -46,6 +46,18 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
   cmd->add_option("--self-hit-offset", g.self_hit_offset, "Hits need t|dir| > this many cells")
       ->check(CLI::Range(0.0f, 1e6f))->group("Grid");
   cmd->add_flag("--no-gap-fill{false}", g.gap_fill, "Disable gap-fill in saturated cells")->group("Grid");
+  const std::map<std::string, reference::GridOptions::Spill> spills{{"auto", reference::GridOptions::Spill::automatic},
+                                                                    {"on", reference::GridOptions::Spill::on},
+                                                                    {"off", reference::GridOptions::Spill::off}};
+  cmd->add_option("--spill", g.spill,
+                  "Spill list: references no slot takes are kept and traced in saturated cells (on), or dropped "
+                  "(off); auto: on for the exact traversal, off for the paper's (which gap-fills instead)")
+      ->transform(CLI::CheckedTransformer(spills, CLI::ignore_case))
+      ->group("Grid");
+  cmd->add_option("--spill-capacity", g.spill_capacity,
+                  "Entries of the spill list (default: the references the capacity trial drops, plus a quarter "
+                  "and 64); an overflow is reported")
+      ->check(CLI::Range(0u, 1u << 28))->group("Grid");
   const std::map<std::string, reference::GridOptions::TriangleTest> tests{
       {"moller", reference::GridOptions::TriangleTest::moller},
       {"watertight", reference::GridOptions::TriangleTest::watertight}};
@@ -154,6 +166,8 @@ reference::GridOptions grid_options_for(const BackendOptions& o, const Scene& sc
     // Simulate only what the scene calls for (DESIGN.md): no alpha keying without masks.
     const Features f = Features::for_scene(scene);
     g.alpha_keying = g.alpha_keying && f.alpha_keying;
+  } else {
+    g.gap_fill_if_saturated = false;  // gap-fill compiled in even while no cell is saturated
   }
   return g;
 }
@@ -164,6 +178,7 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
   if (name == "vulkan") {
     vulkan::VulkanGridOptions vk;
     vk.build = o.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+    vk.ray_tracing = o.ray_tracing;
     try {
       return std::make_unique<vulkan::VulkanGridTracer>(grid_options_for(o, scene), vk);
     } catch (const Error& e) {

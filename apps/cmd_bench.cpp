@@ -2,13 +2,21 @@
 // per frame the update of the dynamic instances and the trace of the glossy bounce rays off a
 // gather buffer, after warm-up; medians over the frames, as a table and as JSON.
 // The vulkan backend runs the whole frame on the GPU (vulkan/frame.h) and times every phase:
-// update (clear + dynamic insert), gather (raster), bounce rays, trace, shade. The CPU backends
-// trace the bounce rays of the CPU reference's gather buffer.
+// update (clear + dynamic insert), gather (visibility, copy, resolve), bounce rays, trace, shade,
+// reads the trace's per-ray counters back from the hit records, and with `embree` among the
+// backends traces the last frame's own bounce rays with Embree (agreement, time). The CPU
+// backends trace the bounce rays of the CPU reference's gather buffer.
 // Vulkan phases are timed with timestamp queries where the device's timestamps bracket the
 // passes (not lavapipe: there the host time from submit to fence is reported, and says so).
+// --rtx puts the device's own ray tracing pipeline beside the grid (vulkan/rtx.h): each frame,
+// after the grid's trace, the acceleration structures are updated and the same bounce rays
+// traced into a second hit buffer, both timed; after the timed frames both hit buffers are read
+// back once and compared ray by ray.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <thread>
@@ -22,6 +30,7 @@
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "vulkan/frame.h"
 #  include "vulkan/grid.h"
+#  include "vulkan/rtx.h"
 #endif
 
 namespace gridrt::app {
@@ -33,7 +42,13 @@ struct BenchOptions {
   uint32_t width = 1920, height = 1080;
   uint32_t frames = 20, warmup = 3;
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
+  std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
+  bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
+  uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
   float fps = 30.0f;
+  bool rtx = false;          // vulkan: the device's ray tracing pipeline side by side
+  bool rtx_opaque = false;   // !RtxOptions::any_hit_all
+  bool rtx_rebuild = false;  // RtxOptions::rebuild_dynamic
   std::string json;
   BackendOptions backend_options;
 };
@@ -42,6 +57,24 @@ double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+// The spill list after the last update, as a line and as JSON (an overflow is never silent).
+std::string spill_text(const shared::SpillHeader& h, uint32_t flags) {
+  const uint32_t stored = std::min(h.count, h.capacity), lost = h.count > h.capacity ? h.count - h.capacity : 0u;
+  char buf[256];
+  if (flags & shared::kGridSpill)
+    std::snprintf(buf, sizeof buf, "spill list on: %u entries of %u (%u static)%s", stored, h.capacity, h.static_count,
+                  lost ? (", OVERFLOW: " + std::to_string(lost) + " references lost").c_str() : ", no overflow");
+  else
+    std::snprintf(buf, sizeof buf, "spill list off: %u references found no slot (dropped); gap-fill %s", h.count,
+                  (flags & shared::kGridGapFill) ? "on" : "off");
+  return buf;
+}
+nlohmann::json spill_json(const shared::SpillHeader& h, uint32_t flags) {
+  return {{"on", (flags & shared::kGridSpill) != 0u}, {"appended", h.count}, {"static", h.static_count},
+          {"capacity", h.capacity}, {"stored", std::min(h.count, h.capacity)},
+          {"overflow", (flags & shared::kGridSpill) && h.count > h.capacity ? h.count - h.capacity : 0u}, {"gap_fill", (flags & shared::kGridGapFill) != 0u}};
 }
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
@@ -54,22 +87,128 @@ struct PhaseTimes {
   std::string clock = "host";  // "gpu timestamps" or "host"
 };
 
+// Distribution of one per-ray counter over the real rays of a frame.
+struct CounterStats {
+  double mean = 0.0, p99 = 0.0, max = 0.0;
+};
+CounterStats counter_stats(std::vector<uint32_t> v) {
+  CounterStats c;
+  if (v.empty()) return c;
+  double sum = 0.0;
+  for (uint32_t x : v) sum += x;
+  c.mean = sum / double(v.size());
+  std::sort(v.begin(), v.end());
+  c.p99 = v[std::min(v.size() - 1, size_t(0.99 * double(v.size())))];
+  c.max = v.back();
+  return c;
+}
+
+// Agreement of two tracers' hits on the real rays: same (instance, triangle), or both miss.
+double agreement_percent(const std::vector<Ray>& rays, const std::vector<Hit>& a, const std::vector<Hit>& b) {
+  size_t n = 0, same = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    if (is_unused(rays[i])) continue;
+    ++n;
+    const bool miss_a = is_miss(a[i]), miss_b = is_miss(b[i]);
+    if ((miss_a && miss_b) || (!miss_a && !miss_b && a[i].instance == b[i].instance && a[i].triangle == b[i].triangle))
+      ++same;
+  }
+  return n ? 100.0 * double(same) / double(n) : 100.0;
+}
+
 #ifdef GRIDRT_HAVE_VULKAN
+// The grid's hits against the RT pipeline's, ray by ray, over every ray of a frame (absent rays
+// included: both miss) and over the bounce rays alone.
+struct Agreement {
+  size_t rays = 0, bounce = 0;    // rays of the frame; of them, real bounce rays
+  size_t same = 0, same_bounce = 0;  // same (instance, triangle) or both miss
+  size_t grid_only = 0;           // the grid hit, the RT pipeline missed
+  size_t rtx_only = 0;            // the grid missed, the RT pipeline hit
+  size_t different = 0;           // both hit, different triangles
+  size_t different_gap_fill = 0;  // ... of which the grid's hit is a gap-fill voxel
+  size_t rtx_closer = 0;          // ... of which the RT pipeline's hit is nearer
+  size_t rtx_at_origin = 0;       // ... of which at t < 1e-3 of the grid's (next to the ray's origin)
+  size_t both_hit = 0;            // same triangle, both hit
+  size_t t_identical = 0;         // ... with t identical in bits
+  size_t t_within_4_ulps = 0;     // ... with t at most 4 ulps apart
+  double t_max_rel = 0.0;         // ... the largest |t_rtx - t_grid| / t_grid
+  size_t retraced = 0;            // rays the RT pipeline traced again past the launch triangle
+};
+
+Agreement compare_hits(const std::vector<Ray>& rays, const std::vector<Hit>& grid, const std::vector<Hit>& rtx) {
+  Agreement a;
+  a.rays = rays.size();
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Hit& g = grid[i];
+    const Hit& r = rtx[i];
+    const bool real = !is_unused(rays[i]);
+    a.bounce += real;
+    a.retraced += r.tests >= 2;
+    const bool g_hit = g.instance != shared::kNoInstance, r_hit = r.instance != shared::kNoInstance;
+    const bool same = g.instance == r.instance && (!g_hit || g.triangle == r.triangle);
+    a.same += same;
+    a.same_bounce += same && real;
+    if (same && g_hit) {
+      ++a.both_hit;
+      uint32_t gb, rb;
+      std::memcpy(&gb, &g.t, 4);
+      std::memcpy(&rb, &r.t, 4);
+      a.t_identical += gb == rb;
+      a.t_within_4_ulps += (gb > rb ? gb - rb : rb - gb) <= 4u;
+      if (g.t > 0.0f) a.t_max_rel = std::max(a.t_max_rel, std::abs(double(r.t) - double(g.t)) / double(g.t));
+    }
+    if (same) continue;
+    if (g_hit && !r_hit) ++a.grid_only;
+    else if (!g_hit && r_hit) ++a.rtx_only;
+    else {
+      ++a.different;
+      a.different_gap_fill += (g.flags & shared::kHitGapFill) != 0u;
+      a.rtx_closer += r.t < g.t;
+      a.rtx_at_origin += r.t < 1e-3f * g.t;
+    }
+  }
+  return a;
+}
+
+double percent(size_t part, size_t whole) { return whole ? 100.0 * double(part) / double(whole) : 0.0; }
+
 // The whole frame on the GPU: the grid's static build once, then per frame the update (clear,
 // dynamic insert) and VulkanFrame::render (gather, bounce, trace, shade), GPU timestamps.
 void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::json& out) {
   std::unique_ptr<Tracer> tracer = make_backend("vulkan", o.backend_options, scene);
   auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
   if (!vk) throw Error("bench: the vulkan backend is not the Vulkan grid");
+  if (o.rtx)
+    if (const std::string why = vulkan::rtx_unsupported(vk->context()); !why.empty()) throw Error("--rtx: " + why);
   auto t0 = std::chrono::steady_clock::now();
   vk->build(scene, 0.0f);
   const double build_host = ms_since(t0);
   const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
   const double build = stamps ? vk->timings().build_ms : build_host;
-  vulkan::VulkanFrame frame(*vk, scene, {.width = o.width, .height = o.height});
+  vulkan::FrameOptions fo{.width = o.width, .height = o.height};
+  fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
+  fo.compact_rays = o.compact_rays;
+  vulkan::VulkanFrame frame(*vk, scene, fo);
+  // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
+  std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
+  vulkan::Buffer rtx_hits;
+  if (o.rtx) {
+    if (!frame.bounce())
+      throw Error("--rtx: " + scene.name + " has no glossy material, so the frame has no bounce rays to trace");
+    rtx = std::make_unique<vulkan::VulkanRtxTracer>(
+        *vk, vulkan::RtxOptions{.any_hit_all = !o.rtx_opaque, .rebuild_dynamic = o.rtx_rebuild});
+    rtx_hits = vk->context().create_buffer(VkDeviceSize(frame.ray_count()) * sizeof(Hit), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  }
   std::map<std::string, std::vector<double>> t;
   size_t rays = 0;
   const bool moves = scene.has_dynamic();
+  // Per-ray counters of the trace (cells visited, references tested), read back from the hit
+  // records of the first timed frames; the last frame's rays and hits for the CPU tracers
+  std::map<std::string, std::vector<double>> counters;
+  std::vector<Ray> last_rays;
+  std::vector<Hit> last_hits;
+  float last_time = 0.0f;
+  uint32_t counted = 0, gather_tiles = 0;
   for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
     const float time = float(f + 1) / o.fps;
     t0 = std::chrono::steady_clock::now();
@@ -80,9 +219,40 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
       const std::vector<Ray> r = frame.download_rays();
       rays = size_t(std::count_if(r.begin(), r.end(), [](const Ray& ray) { return !is_unused(ray); }));
     }
+    // The RT pipeline: the acceleration structures after the grid's update, then the same rays
+    if (rtx) rtx->update_and_trace(frame.ray_buffer(), rtx_hits, frame.ray_count());
+    if (f == 0) gather_tiles = frame.download_gather_tiles();
     if (f < o.warmup) continue;
+    if (rtx) {
+      const vulkan::RtxTimings& rt = rtx->timings();
+      t["rtx_update"].push_back(stamps ? rt.update_ms : rt.host_ms);
+      t["rtx_refit"].push_back(stamps ? rt.refit_ms : 0.0);
+      t["rtx_tlas"].push_back(stamps ? rt.tlas_ms : 0.0);
+      t["rtx_trace"].push_back(stamps ? rt.trace_ms : 0.0);
+    }
     const vulkan::GridTimings& g = vk->timings();
     const vulkan::FrameTimings ft = frame.timings();
+    if (frame.bounce() && (counted < o.counter_frames || f + 1 == o.warmup + o.frames)) {
+      last_rays = frame.download_rays();
+      last_hits = frame.download_hits();
+      last_time = time;
+      if (counted < o.counter_frames) {
+        ++counted;
+        std::vector<uint32_t> cells, tests;
+        for (size_t i = 0; i < last_rays.size(); ++i)
+          if (!is_unused(last_rays[i])) {
+            cells.push_back(last_hits[i].cells);
+            tests.push_back(last_hits[i].tests);
+          }
+        const CounterStats c = counter_stats(cells), tt = counter_stats(tests);
+        counters["cells_mean"].push_back(c.mean);
+        counters["cells_p99"].push_back(c.p99);
+        counters["cells_max"].push_back(c.max);
+        counters["tests_mean"].push_back(tt.mean);
+        counters["tests_p99"].push_back(tt.p99);
+        counters["tests_max"].push_back(tt.max);
+      }
+    }
     if (o.back_to_back > 1 && stamps) {
       // The same frame again, back to back in one submission (the GPU busy), the last timed
       frame.render(f, o.back_to_back);
@@ -98,16 +268,41 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     t["clear"].push_back(moves && stamps ? g.clear_ms : 0.0);
     t["insert"].push_back(moves && stamps ? g.insert_ms : 0.0);
     t["gather"].push_back(stamps ? ft.gather_ms : 0.0);
+    t["visibility"].push_back(stamps ? ft.visibility_ms : 0.0);
+    t["copy"].push_back(stamps ? ft.copy_ms : 0.0);
+    t["bin"].push_back(stamps ? ft.bin_ms : 0.0);
+    t["tiles"].push_back(stamps ? ft.tiles_ms : 0.0);
+    t["resolve"].push_back(stamps ? ft.resolve_ms : 0.0);
     t["bounce"].push_back(stamps ? ft.bounce_ms : 0.0);
     t["trace"].push_back(stamps ? ft.trace_ms : 0.0);
     t["shade"].push_back(stamps ? ft.shade_ms : 0.0);
     t["frame"].push_back(update + (stamps ? ft.total_ms : ft.host_ms));
+  }
+  const shared::SpillHeader spill = vk->spill_header();
+  const uint32_t spill_flags = vk->params().flags;
+  // The RT pipeline's hits against the grid's, the last frame's rays; then the RT tracer goes
+  // (the grid's builds below make new buffers)
+  Agreement agree;
+  vulkan::RtxTimings rtx_first;
+  vulkan::RtxMemory rtx_memory;
+  uint32_t rtx_dynamic = 0;
+  if (rtx) {
+    agree = compare_hits(frame.download_rays(), frame.download_hits(),
+                         vk->context().download<Hit>(rtx_hits, frame.ray_count()));
+    rtx_first = rtx->timings();
+    rtx_memory = rtx->memory();
+    rtx_dynamic = rtx->dynamic_instance_count();
+    rtx.reset();
+    rtx_hits.reset();
   }
   // The static build again, the GPU warm (the first one ran at idle clocks: docs/VULKAN.md), median of 5
   std::vector<double> warm_builds;
   for (int i = 0; i < 5 && stamps; ++i) {
     vk->build(scene, 0.0f);
     warm_builds.push_back(vk->timings().build_ms);
+    t["build_init"].push_back(vk->timings().build_init_ms);
+    t["build_static"].push_back(vk->timings().build_static_ms);
+    t["build_dynamic"].push_back(vk->timings().build_dynamic_ms);
   }
   const double build_warm = median(warm_builds);
   std::map<std::string, double> m;
@@ -120,8 +315,11 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
                            (1 << 20);
   const std::string device = vk->context().info().name;
   const std::string clock = stamps ? "gpu timestamps" : "host (submit to fence; the frame's phases not split)";
-  std::printf("\nvulkan, the whole frame on the GPU (%s; %s): %zu bounce rays per frame, grid %ux%ux%u capacity %u\n",
-              device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z, gp.capacity);
+  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute" : "raster";
+  std::printf("\nvulkan, the whole frame on the GPU (%s; %s): %zu bounce rays per frame, grid %ux%ux%u capacity %u, "
+              "%s gather, %s trace\n",
+              device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z, gp.capacity, gather_name,
+              o.compact_rays ? "compacted" : "every-pixel");
   std::printf("| build ms (first, warm) | update ms (clear + insert) | gather ms | bounce rays ms | trace ms | shade ms | frame ms "
               "(update..shade) | Mrays/s (trace) | grid MiB | frame buffers MiB |\n"
               "|---|---|---|---|---|---|---|---|---|---|\n");
@@ -129,6 +327,27 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
               grid_mib, frame_mib);
+  std::printf("%s (after the last frame's update)\n\n", spill_text(spill, spill_flags).c_str());
+  std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
+              "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, dynamic instances "
+              "%.3f ms\n",
+              gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
+              o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_dynamic"]);
+  // The trace's counters; bytes the trace requests per ray, estimated from them: the ray (48) and
+  // its hit record (32), per visited cell one blank or status texel (4), per test the slot's
+  // texel (4), the instance (16) and the triangle (48). Requested, not DRAM traffic (the caches
+  // serve most of it); ignores the few uv, material and alpha reads of accepted hits.
+  std::map<std::string, double> cm;
+  for (auto& [k, v] : counters) cm[k] = median(v);
+  const double bytes_per_ray = 80.0 + 4.0 * cm["cells_mean"] + 68.0 * cm["tests_mean"];
+  const double rays_per_s = m["trace"] > 0.0 ? double(rays) / (m["trace"] * 1e-3) : 0.0;
+  if (!counters.empty())
+    std::printf("| trace: rays | rays/s | cells visited mean / p99 / max | refs tested mean / p99 / max | bytes read per ray "
+                "(estimate) | GB/s requested |\n|---|---|---|---|---|---|\n"
+                "| %zu | %.3g | %.2f / %.0f / %.0f | %.2f / %.0f / %.0f | %.0f | %.0f |\n"
+                "(counters: medians over the first %u timed frames of each frame's mean / p99 / max over its real rays)\n\n",
+                rays, rays_per_s, cm["cells_mean"], cm["cells_p99"], cm["cells_max"], cm["tests_mean"], cm["tests_p99"],
+                cm["tests_max"], bytes_per_ray, rays_per_s * bytes_per_ray * 1e-9, counted);
   if (t.count("b2b_frame"))
     std::printf("back to back (%u frames per submission, the last timed; update as above): gather %.3f, bounce %.3f, "
                 "trace %.3f, shade %.3f, frame (update..shade) %.3f ms, %.0f Mrays/s\n\n",
@@ -137,24 +356,149 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   std::fflush(stdout);
   nlohmann::json j = {{"device", device}, {"clock", clock},       {"build_ms", build}, {"build_warm_ms", build_warm}, {"rays_per_frame", rays},
                       {"mrays_per_s", mrays}, {"grid_mib", grid_mib}, {"frame_mib", frame_mib},
-                      {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity}};
+                      {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity},
+                      {"spill", spill_json(spill, spill_flags)}};
+  j["gather_mode"] = gather_name;
+  j["gather_tiles_frame0"] = gather_tiles;
+  j["compact_rays"] = o.compact_rays;
   for (auto& [k, v] : t) {
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
   }
+  if (o.rtx) {
+    const double rtx_mrays = m["rtx_trace"] > 0.0 ? double(rays) / (m["rtx_trace"] * 1e3) : 0.0;
+    const double mib = 1.0 / (1 << 20);
+    const char* mode =
+        o.rtx_opaque ? "opaque where unmasked, re-traced past the launch triangle" : "any-hit on every triangle";
+    const char* dynamic = o.rtx_rebuild ? "rebuilt" : "refitted";
+    std::printf("rtx: the device's ray tracing pipeline on the same bounce rays (%s; %u dynamic BLASes %s, the TLAS "
+                "rebuilt, each frame)\n",
+                mode, rtx_dynamic, dynamic);
+    // Side by side: each tracer's static build, per-frame update, trace and structure
+    std::printf("| tracer | build ms, once | update ms per frame | trace ms | update + trace ms | Mrays/s | structure "
+                "MiB |\n|---|---|---|---|---|---|---|\n");
+    std::printf("| grid | %.3f | %.3f (clear %.3f + insert %.3f) | %.3f | %.3f | %.0f | %.1f (image) |\n", build,
+                m["update"], m["clear"], m["insert"], m["trace"], m["update"] + m["trace"], mrays, grid_mib);
+    std::printf("| rtx | %.3f (static BLASes %.3f) | %.3f (dynamic BLASes %.3f + TLAS %.3f) | %.3f | %.3f | %.0f | %.1f "
+                "(static %.1f + dynamic %.1f + TLAS %.2f) |\n",
+                rtx_first.first_build_ms, rtx_first.static_build_ms, m["rtx_update"], m["rtx_refit"], m["rtx_tlas"], m["rtx_trace"],
+                m["rtx_update"] + m["rtx_trace"], rtx_mrays,
+                double(rtx_memory.static_blas + rtx_memory.dynamic_blas + rtx_memory.tlas) * mib,
+                double(rtx_memory.static_blas) * mib, double(rtx_memory.dynamic_blas) * mib, double(rtx_memory.tlas) * mib);
+    std::printf("agree: %.3f %% of all rays, %.3f %% of the bounce rays\n", percent(agree.same, agree.rays),
+                percent(agree.same_bounce, agree.bounce));
+    std::printf("agreement, the last frame: %zu of %zu rays the same (instance, triangle) or both miss; of the %zu bounce "
+                "rays %zu. Differ: grid hit / rtx miss %zu, grid miss / rtx hit %zu, other triangle %zu (the grid's a "
+                "gap-fill voxel: %zu; rtx's nearer: %zu, of which at t < 1e-3 of the grid's: %zu). Same triangle: %zu "
+                "hits, t identical in bits %zu, within 4 ulps %zu, relative difference at most %.2g. Rays traced again "
+                "past their launch triangle: %zu\n\n",
+                agree.same, agree.rays, agree.bounce, agree.same_bounce, agree.grid_only, agree.rtx_only, agree.different,
+                agree.different_gap_fill, agree.rtx_closer, agree.rtx_at_origin, agree.both_hit, agree.t_identical,
+                agree.t_within_4_ulps, agree.t_max_rel, agree.retraced);
+    std::fflush(stdout);
+    j["rtx"] = {{"mode", mode},
+                {"dynamic_blas", dynamic},
+                {"dynamic_instances", rtx_dynamic},
+                {"static_blas_build_ms", rtx_first.static_build_ms},
+                {"first_build_ms", rtx_first.first_build_ms},
+                {"update_ms", m["rtx_update"]},
+                {"refit_ms", m["rtx_refit"]},
+                {"tlas_ms", m["rtx_tlas"]},
+                {"trace_ms", m["rtx_trace"]},
+                {"mrays_per_s", rtx_mrays},
+                {"memory_bytes",
+                 {{"static_blas", rtx_memory.static_blas},
+                  {"dynamic_blas", rtx_memory.dynamic_blas},
+                  {"tlas", rtx_memory.tlas},
+                  {"scratch", rtx_memory.scratch}}},
+                {"agreement",
+                 {{"rays", agree.rays},
+                  {"same", agree.same},
+                  {"bounce_rays", agree.bounce},
+                  {"same_bounce", agree.same_bounce},
+                  {"grid_hit_rtx_miss", agree.grid_only},
+                  {"grid_miss_rtx_hit", agree.rtx_only},
+                  {"other_triangle", agree.different},
+                  {"other_triangle_grid_gap_fill", agree.different_gap_fill},
+                  {"other_triangle_rtx_nearer", agree.rtx_closer},
+                  {"other_triangle_rtx_at_origin", agree.rtx_at_origin},
+                  {"same_triangle_hits", agree.both_hit},
+                  {"t_identical", agree.t_identical},
+                  {"t_within_4_ulps", agree.t_within_4_ulps},
+                  {"t_max_relative_difference", agree.t_max_rel},
+                  {"retraced", agree.retraced}}}};
+  }
+  // With GRIDRT_VALIDATION=1: what the validation layer said (the tool's only way to show it)
+  if (vk->context().validation()) {
+    const std::vector<std::string> msgs = vk->context().messages();
+    std::fprintf(stderr, "validation layer: %zu messages\n", msgs.size());
+    for (size_t i = 0; i < msgs.size() && i < 20; ++i) std::fprintf(stderr, "  %s\n", msgs[i].c_str());
+    j["validation_messages"] = msgs.size();
+  }
+  if (!counters.empty()) {
+    nlohmann::json c = {{"frames", counted}, {"rays_per_s", rays_per_s}, {"bytes_per_ray_estimate", bytes_per_ray}};
+    for (auto& [k, v] : cm) c[k] = v;
+    j["trace_counters"] = c;
+  }
   out["backends"]["vulkan"] = j;
+
+  // Embree on the CPU, on the last frame's own bounce rays, at that frame's time
+  if (std::find(o.backends.begin(), o.backends.end(), "embree") != o.backends.end() && !last_rays.empty()) {
+    std::unique_ptr<Tracer> embree = make_backend("embree", o.backend_options, scene);
+    t0 = std::chrono::steady_clock::now();
+    embree->build(scene, 0.0f);
+    embree->update(last_time);
+    const double embree_build = ms_since(t0);
+    std::vector<Ray> real;
+    std::vector<size_t> index;
+    for (size_t i = 0; i < last_rays.size(); ++i)
+      if (!is_unused(last_rays[i])) real.push_back(last_rays[i]), index.push_back(i);
+    std::vector<Hit> hits(real.size());
+    std::vector<double> times;
+    for (int r = 0; r < 3; ++r) {
+      t0 = std::chrono::steady_clock::now();
+      embree->trace(real, hits);
+      times.push_back(ms_since(t0));
+    }
+    std::vector<Hit> embree_hits(last_rays.size(), Hit{});
+    for (size_t k = 0; k < index.size(); ++k) embree_hits[index[k]] = hits[k];
+    const double ms = median(times), agree_pct = agreement_percent(last_rays, last_hits, embree_hits);
+    size_t gap = 0;
+    for (size_t i : index) gap += (last_hits[i].flags & shared::kHitGapFill) != 0;
+    const unsigned threads = std::thread::hardware_concurrency();
+    std::printf("embree on the same bounce rays (CPU, %u threads; the last frame, t = %.3f): %zu rays in %.2f ms (median of 3), "
+                "%.1f Mrays/s; the GPU grid agrees on %.3f %% (same instance and triangle, or both miss; %zu gap-fill hits); "
+                "embree build + update %.0f ms\n\n",
+                threads, last_time, real.size(), ms, double(real.size()) / (ms * 1e3), agree_pct, gap, embree_build);
+    out["backends"]["embree_on_frame_rays"] = {{"device", "CPU, " + std::to_string(threads) + " threads"},
+                                               {"rays", real.size()},       {"trace_ms", ms},
+                                               {"trace_ms_all", times},     {"mrays_per_s", double(real.size()) / (ms * 1e3)},
+                                               {"agree_percent", agree_pct},    {"gpu_gap_fill_hits", gap},
+                                               {"build_ms", embree_build},  {"time", last_time}};
+  }
 }
 #endif
 
 void run_bench(const BenchOptions& options) {
   BenchOptions o = options;
+  if (o.rtx) {
+#ifndef GRIDRT_HAVE_VULKAN
+    throw Error("--rtx: this build has no Vulkan backend");
+#endif
+    if (std::find(o.backends.begin(), o.backends.end(), "vulkan") == o.backends.end())
+      throw Error("--rtx runs beside the vulkan backend: add --backend vulkan");
+    o.backend_options.ray_tracing = true;
+  }
   resolve_image_limit(o.backend_options, std::find(o.backends.begin(), o.backends.end(), "vulkan") != o.backends.end());
   const Scene scene = load_scene_or_default(o.scene);
   const std::vector<std::string> backends = o.backends.empty() ? std::vector<std::string>{backend_names().front()} : o.backends;
 
   // The gather buffer, once, by the exact traversal of the reference grid (CPU), for the
   // backends that trace on the CPU (the vulkan backend makes its own, every frame, on the GPU).
-  const bool cpu_rays = std::any_of(backends.begin(), backends.end(), [](const std::string& b) { return b != "vulkan"; });
+  // (with the vulkan backend, embree traces the GPU frame's own bounce rays instead)
+  const bool with_vulkan = std::find(backends.begin(), backends.end(), "vulkan") != backends.end();
+  auto on_cpu_rays = [&](const std::string& b) { return b != "vulkan" && !(with_vulkan && b == "embree"); };
+  const bool cpu_rays = std::any_of(backends.begin(), backends.end(), on_cpu_rays);
   reference::GridOptions exact = grid_options_for(o.backend_options, scene);
   exact.traversal = reference::Traversal::exact;
   reference::ReferenceGridTracer gather_tracer(exact);
@@ -187,6 +531,7 @@ void run_bench(const BenchOptions& options) {
   if (cpu_rays)
     std::printf("\n| backend | device | clock | build ms | update ms (median) | trace ms (median) | Mrays/s | grid MiB |\n"
                 "|---|---|---|---|---|---|---|---|\n");
+  std::vector<std::string> notes;  // printed under the table
   for (const std::string& name : backends) {
 #ifdef GRIDRT_HAVE_VULKAN
     if (name == "vulkan") {
@@ -194,6 +539,7 @@ void run_bench(const BenchOptions& options) {
       continue;
     }
 #endif
+    if (!on_cpu_rays(name)) continue;
     std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
     PhaseTimes times;
     std::string device = "CPU, " + std::to_string(std::thread::hardware_concurrency()) + " threads";
@@ -240,16 +586,33 @@ void run_bench(const BenchOptions& options) {
       times.update.push_back(update_ms);
       times.trace.push_back(trace_ms);
     }
+    shared::SpillHeader spill{};
+    uint32_t spill_flags = 0;
+    if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
+      spill = ref->data().spill_header;
+      spill_flags = ref->params().flags;
+    }
+#ifdef GRIDRT_HAVE_VULKAN
+    if (vk) {
+      spill = vk->spill_header();
+      spill_flags = vk->params().flags;
+    }
+#endif
     const double update = median(times.update), trace = median(times.trace);
     const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
     std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
                 times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
+    const bool grid = !dump.texels.empty();
+    if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
     std::fflush(stdout);
     out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
                              {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
                              {"grid_mib", grid_mib},    {"update_ms_all", times.update},
                              {"trace_ms_all", times.trace}};
+    if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
   }
+  if (!notes.empty()) std::printf("\n");
+  for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
   if (!o.json.empty()) {
     std::ofstream f(o.json);
     if (!f) throw Error("cannot write '" + o.json + "'");
@@ -275,6 +638,28 @@ void add_bench_command(CLI::App& app) {
                   "busy); 1: off")
       ->check(CLI::Range(1u, 64u));
   cmd->add_option("--fps", o->fps, "Scene time step per frame is 1/fps")->check(CLI::PositiveNumber);
+  CLI::Option* rtx =
+      cmd->add_flag("--rtx", o->rtx,
+                    "Vulkan: the device's ray tracing pipeline (VK_KHR_ray_tracing_pipeline) side by side: each frame, "
+                    "after the grid's trace, refit the dynamic instances' BLASes, rebuild the TLAS and trace the same "
+                    "bounce rays; report its times and how many of its hits agree with the grid's");
+  cmd->add_flag("--rtx-opaque", o->rtx_opaque,
+                "With --rtx: opaque geometry where there is no alpha mask, a ray whose closest hit is its launch "
+                "triangle traced again past it (default: every triangle through the any-hit shader, which ignores the "
+                "launch triangle as the grid does)")
+      ->needs(rtx);
+  cmd->add_flag("--rtx-rebuild", o->rtx_rebuild, "With --rtx: rebuild the dynamic BLASes each frame instead of refitting")
+      ->needs(rtx);
+  cmd->add_option("--gather", o->gather,
+                  "Vulkan: the frame's gather: compute (the CPU gather's ray test, needs 64-bit buffer atomics) or raster "
+                  "(the paper's raster pass)")
+      ->check(CLI::IsMember({"compute", "raster"}));
+  cmd->add_flag("--compact-rays", o->compact_rays,
+                "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
+                "empty rays return at once)");
+  cmd->add_option("--counter-frames", o->counter_frames,
+                  "Vulkan: timed frames whose hit records are read back for the trace's counters")
+      ->check(CLI::Range(0u, 1000u));
   cmd->add_option("--json", o->json, "Also write the figures as JSON to this file");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_bench(*o); });

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <sstream>
 
@@ -19,6 +20,7 @@
 #include "reference/grid.h"
 #include "reference/policy.h"
 #ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/frame.h"
 #  include "vulkan/grid.h"
 #endif
 #ifdef GRIDRT_HAVE_EMBREE
@@ -268,12 +270,58 @@ struct DiffOptions : GridVerbOptions {
   float fps = 30.0f;
   uint32_t ulps_t = 0;   // float fields of otherwise equal hits may differ by this many ulps in t
   float abs_uv = 0.0f;   // ... and by this much in u and v (absolute)
+  bool gpu_frame = false;  // also the GPU frame's own passes: raster gather, bounce rays, trace
 };
+
+// What the GPU frame's passes (vulkan/frame.h) make of one frame, against the reference: the
+// gather's launch triangles against the reference's primary rays (reported, not a failure: the
+// raster gather differs where the rasterizer's tie rules decide, the compute gather tests the
+// triangles themselves where the reference walks its grid); the bounce rays the GPU makes from
+// its own gather against bounce_rays() of that same gather (bits); the frame's trace of those rays
+// against the reference's trace of the same rays (bits). Returns the records that differ.
+struct FrameDiff {
+  size_t pixels = 0, same_launch = 0, rays_used = 0, ray_mismatch = 0, hit_mismatch = 0;
+};
+FrameDiff diff_gpu_frame(const Scene& scene, const reference::GridOptions& grid, reference::ReferenceGridTracer& ref,
+                         vulkan::VulkanFrame& frame, uint32_t frame_number, float time) {
+  FrameDiff r;
+  frame.render(frame_number);
+  const uint32_t w = frame.options().width, h = frame.options().height;
+  GatherBuffer gpu = frame.download_gather();
+  gpu.time = time;
+  const GatherBuffer cpu = reference_gather(scene, grid, w, h, time);
+  r.pixels = cpu.size();
+  for (size_t p = 0; p < cpu.size(); ++p) r.same_launch += cpu.launch_ref[p] == gpu.launch_ref[p];
+  const std::vector<Ray> want_rays = bounce_rays(scene, gpu, frame_number);
+  if (!frame.bounce()) return r;  // no glossy material: the bounce is specialized away
+  const std::vector<Ray> got_rays = frame.download_rays();
+  for (size_t p = 0; p < want_rays.size(); ++p) {
+    const Ray& a = want_rays[p];
+    const Ray& b = got_rays[p];
+    r.rays_used += !is_unused(a);
+    if (std::memcmp(&a, &b, sizeof a) != 0 && ++r.ray_mismatch == 1)
+      std::printf("  first bounce ray that differs: pixel %zu: reference %s\n  vulkan    %s\n", p,
+                  reference::hex_ray(a).c_str(), reference::hex_ray(b).c_str());
+  }
+  std::vector<Hit> want(want_rays.size());
+  ref.trace(want_rays, want);
+  const std::vector<Hit> got = frame.download_hits();
+  const reference::HitDiff d = reference::compare_hits(want, got);
+  r.hit_mismatch = d.rays - d.identical;
+  if (!d.differing.empty()) {
+    const size_t i = d.differing.front();
+    std::printf("  first frame hit that differs: pixel %zu: %s\n  reference %s\n  vulkan    %s\n", i,
+                reference::hex_ray(want_rays[i]).c_str(), reference::hex_hit(want[i]).c_str(),
+                reference::hex_hit(got[i]).c_str());
+  }
+  return r;
+}
 
 // Grid images: sorted texel for texel; first-empty per cell as multisets. Returns false on a
 // difference, after printing the first one.
-bool diff_images(const reference::ReferenceGridTracer& ref, Tracer& gpu, uint32_t frame) {
+bool diff_images(const reference::ReferenceGridTracer& ref, vulkan::VulkanGridTracer& gpu, uint32_t frame) {
   const AccelDump want = ref.dump(), got = gpu.dump();
+  const reference::SpillDump spill = gpu.spill();
   const sh::GridParams& g = ref.params();
   if (ref.options().insertion == reference::Insertion::sorted) {
     const reference::TexelDiff d = reference::compare_texels(want, got);
@@ -288,7 +336,8 @@ bool diff_images(const reference::ReferenceGridTracer& ref, Tracer& gpu, uint32_
                 tx % (g.capacity + 1), want.texels[i], got.texels[i]);
     return false;
   }
-  const reference::CellCheck c = reference::check_cells_as_multisets(ref.data(), got);
+  const reference::CellCheck c = reference::check_cells_as_multisets(
+      ref.data(), got, (ref.params().flags & sh::kGridSpill) ? &spill : nullptr);
   std::printf("frame %u: first-empty grid: %zu of %zu cells break the multiset rule (%zu saturated)\n", frame,
               c.bad.size(), c.cells, c.saturated);
   if (c.bad.empty()) return true;
@@ -296,6 +345,30 @@ bool diff_images(const reference::ReferenceGridTracer& ref, Tracer& gpu, uint32_
   std::printf("  first: cell (%zu, %zu, %zu)\n", i % g.cells.x, (i / g.cells.x) % g.cells.y,
               i / (size_t(g.cells.x) * g.cells.y));
   return false;
+}
+
+// The spill lists: the headers equal (the counter counts every dropped reference, with spill off
+// too); with spill on, sorted insertion, the entries equal as multisets of (cell, ref) (the order
+// of appends differs by design; first-empty spills another choice, checked per cell above).
+bool diff_spill(const reference::ReferenceGridTracer& ref, vulkan::VulkanGridTracer& gpu, uint32_t frame) {
+  const reference::SpillDump want = ref.spill(), got = gpu.spill();
+  const bool sorted = ref.options().insertion == reference::Insertion::sorted;
+  const bool on = (ref.params().flags & sh::kGridSpill) != 0u;
+  const reference::SpillDiff d = reference::compare_spill(want, got);
+  const bool same_counts = want.header.count == got.header.count && want.header.static_count == got.header.static_count &&
+                           want.header.capacity == got.header.capacity;
+  const bool ok = same_counts && (!on || !sorted || d.same());
+  std::printf("frame %u: spill list %s: %u references found no slot (%u static); reference %u, vulkan %u; %u stored of "
+              "%u%s%s\n",
+              frame, on ? "on" : "off (counted only)", want.header.count, want.header.static_count, want.header.count,
+              got.header.count, want.stored(), want.header.capacity,
+              on && sorted ? (d.same() ? ", entries equal as multisets of (cell, ref)"
+                                       : (", entries differ: " + std::to_string(d.only_want.size()) + " only in the reference, " +
+                                          std::to_string(d.only_got.size()) + " only in vulkan")
+                                             .c_str())
+                           : "",
+              want.overflow() ? " (OVERFLOW: references lost)" : "");
+  return ok;
 }
 
 void run_diff(const DiffOptions& options) {
@@ -307,13 +380,16 @@ void run_diff(const DiffOptions& options) {
   vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
   vulkan::VulkanGridTracer gpu(grid, vk);
   reference::ReferenceGridTracer ref(grid);
-  std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, Vulkan device %s (%s build)\n",
+  std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, spill %s, Vulkan device %s (%s build)\n",
               scene.name.c_str(), o.width, o.height, o.frames,
               grid.traversal == reference::Traversal::paper ? "paper" : "exact",
               grid.insertion == reference::Insertion::sorted ? "sorted" : "first-empty",
+              reference::spill_enabled(grid) ? "on" : "off",
               gpu.context().info().name.c_str(), o.backend_options.vk_build.c_str());
   bool all_same = true;
   size_t total_rays = 0, total_identical = 0, total_discrete = 0, total_beyond = 0;
+  size_t frame_mismatch = 0;
+  std::unique_ptr<vulkan::VulkanFrame> gpu_frame;
   bool first_discrete = false;
   struct FloatDiff {
     uint32_t frame = 0;
@@ -331,6 +407,20 @@ void run_diff(const DiffOptions& options) {
       gpu.update(time);
     }
     all_same = diff_images(ref, gpu, frame) && all_same;
+    all_same = diff_spill(ref, gpu, frame) && all_same;
+
+    if (o.gpu_frame) {
+      if (!gpu_frame)
+        gpu_frame = std::make_unique<vulkan::VulkanFrame>(gpu, scene, vulkan::FrameOptions{.width = o.width, .height = o.height});
+      const FrameDiff f = diff_gpu_frame(scene, grid, ref, *gpu_frame, frame, time);
+      const bool raster = gpu_frame->gather_mode() == vulkan::GatherMode::raster;
+      std::printf("frame %u: GPU frame: %s gather %zu of %zu pixels with the reference's launch triangle%s; %zu bounce "
+                  "rays: %zu differ in bits from bounce_rays() of the GPU's gather, %zu frame hits differ in bits from "
+                  "the reference's trace\n",
+                  frame, raster ? "raster" : "compute", f.same_launch, f.pixels,
+                  raster ? " (the rest: the rasterizer's tie rules)" : "", f.rays_used, f.ray_mismatch, f.hit_mismatch);
+      frame_mismatch += f.ray_mismatch + f.hit_mismatch;
+    }
 
     // Every hit: the primary rays and the glossy bounce off the reference's gather buffer.
     const GatherBuffer gather = reference_gather(scene, grid, o.width, o.height, time);
@@ -386,7 +476,7 @@ void run_diff(const DiffOptions& options) {
     std::printf("first ray beyond the float bounds: frame %u ray %zu: %s\n  reference %s\n  vulkan    %s\n",
                 first_beyond.frame, first_beyond.index, reference::hex_ray(first_beyond.ray).c_str(),
                 reference::hex_hit(first_beyond.want).c_str(), reference::hex_hit(first_beyond.got).c_str());
-  all_same = all_same && total_discrete == 0 && total_beyond == 0;
+  all_same = all_same && total_discrete == 0 && total_beyond == 0 && frame_mismatch == 0;
   std::printf("%s: %zu of %zu hit records identical in bits, %zu with another hit, %zu beyond the float bounds, "
               "over the frames compared\n",
               all_same ? "AGREE" : "DIFFER", total_identical, total_rays, total_discrete, total_beyond);
@@ -436,6 +526,9 @@ void add_grid_commands(CLI::App& app) {
                     "Allow t of otherwise identical hits to differ by this many ulps (drivers whose division is "
                     "not correctly rounded; default 0: bit for bit)");
     cmd->add_option("--uv-tolerance", o->abs_uv, "Allow u and v of otherwise identical hits to differ by this much");
+    cmd->add_flag("--gpu-frame", o->gpu_frame,
+                  "Also run the GPU frame's own passes (raster gather, bounce, trace) and compare its bounce rays "
+                  "and hits, bit for bit, with the reference's from the same gather");
     cmd->callback([o] { run_diff(*o); });
   }
 #endif

@@ -49,6 +49,7 @@ struct SweepOptions {
   std::vector<std::string> repeats{"merge"};
   std::vector<uint32_t> work_sample;
   std::vector<std::string> gap_fill{"on"};
+  std::vector<std::string> spill{"auto"};
   std::vector<std::string> launch{"exclude"};
   std::vector<std::string> max_dim{"4096"};
   BackendOptions backend_options;
@@ -56,7 +57,7 @@ struct SweepOptions {
 
 // One point of the grid of knobs.
 struct Config {
-  std::string traversal, triangle_test, capacity, launch, gap_fill, repeats = "merge";
+  std::string traversal, triangle_test, capacity, launch, gap_fill, spill, repeats = "merge";
   float enlargement = 1.25f, elongation = 0.5f;
   std::optional<float> padding;  // none: automatic
   uint32_t max_dim = 4096;
@@ -70,7 +71,7 @@ struct Config {
     std::ostringstream s;
     s << traversal << " " << triangle_test << " cap=" << capacity << " enl=" << enlargement << " pad=" << padding_text();
     if (traversal == "paper") s << " elo=" << elongation << " rep=" << repeats << " gap=" << gap_fill;
-    s << " self=" << launch << " dim=" << max_dim;
+    s << " spill=" << spill << " self=" << launch << " dim=" << max_dim;
     return s.str();
   }
 };
@@ -105,6 +106,7 @@ std::vector<Config> configurations(const SweepOptions& o) {
   check_member("traversal", o.traversal, {"paper", "exact"});
   check_member("triangle-test", o.triangle_test, {"moller", "watertight"});
   check_member("gap-fill", o.gap_fill, {"on", "off"});
+  check_member("spill", o.spill, {"auto", "on", "off"});
   check_member("self-hit", o.launch, {"exclude", "keep"});
   check_member("repeats", o.repeats, {"merge", "skip", "retest"});
   for (const auto* list : {&o.capacity, &o.enlargement, &o.elongation, &o.padding, &o.max_dim})
@@ -121,6 +123,7 @@ std::vector<Config> configurations(const SweepOptions& o) {
           for (size_t ei = 0; ei < o.elongation.size(); ++ei)
           for (size_t ri = 0; ri < o.repeats.size(); ++ri)
             for (size_t gi = 0; gi < o.gap_fill.size(); ++gi)
+              for (const std::string& sp : o.spill)
               for (const std::string& la : o.launch)
                 for (const std::string& md : o.max_dim) {
                   if (tr == "exact" && (ei > 0 || gi > 0 || ri > 0)) continue;
@@ -133,6 +136,7 @@ std::vector<Config> configurations(const SweepOptions& o) {
                   c.enlargement = parse_float("enlargement", en, 0.0f, 16.0f);
                   c.elongation = parse_float("elongation", o.elongation[ei], 0.0f, 16.0f);
                   c.gap_fill = o.gap_fill[gi];
+                  c.spill = sp;
                   c.launch = la;
                   c.max_dim = uint32_t(parse_float("max-image-dimension", md, 2.0f, 65536.0f));
                   out.push_back(c);
@@ -167,6 +171,7 @@ BackendOptions backend_options_for(const SweepOptions& o, const Config& c) {
               : c.repeats == "retest" ? GridOptions::Repeats::retest
                                       : GridOptions::Repeats::merge;
   g.gap_fill = c.gap_fill == "on";
+  g.spill = c.spill == "on" ? GridOptions::Spill::on : c.spill == "off" ? GridOptions::Spill::off : GridOptions::Spill::automatic;
   g.exclude_launch_ref = c.launch == "exclude";
   g.max_image_dimension = c.max_dim;
   return b;
@@ -185,6 +190,7 @@ double median(std::vector<double> v) {
 // Accuracy of one tracer's hits against the oracle's.
 struct Accuracy {
   size_t rays = 0, differ = 0, ties = 0, holes = 0, false_hits = 0, gap_fill = 0;
+  uint32_t max_tie_ulps = 0;             // the largest |t - t_oracle| in ulps over the ties
   double median_dt = 0.0, max_dt = 0.0;  // |t - t_oracle| over rays with the same triangle
   double agree() const { return rays ? 100.0 * double(rays - differ) / double(rays) : 100.0; }
 };
@@ -212,7 +218,8 @@ Accuracy accuracy(std::span<const Hit> want, std::span<const Hit> got) {
     }
     if (w.instance != g.instance || w.triangle != g.triangle) {
       ++a.differ;
-      if (!(g.flags & shared::kHitGapFill) && reference::ulp_distance(w.t, g.t) <= kTieUlps) ++a.ties;
+      const uint32_t ulps = reference::ulp_distance(w.t, g.t);
+      if (!(g.flags & shared::kHitGapFill) && ulps <= kTieUlps) ++a.ties, a.max_tie_ulps = std::max(a.max_tie_ulps, ulps);
       continue;
     }
     dts.push_back(std::abs(double(g.t) - double(w.t)));
@@ -231,6 +238,8 @@ struct Row {
   std::string backend, grid;
   uint32_t capacity = 0;
   uint64_t saturated = 0;
+  bool spill_on = false;
+  uint64_t spill_stored = 0, spill_overflow = 0;  // after the build
   double build_ms = 0, update_ms = 0, trace_ms = 0, mrays = 0, grid_mib = 0;
   Accuracy acc;
   // Differing rays by cause (reference::classify_difference; CPU rows only), and the measured work
@@ -384,17 +393,19 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
     std::ofstream csv(dir + "/" + stem + ".csv");
     if (!csv) throw Error("cannot write '" + dir + "/" + stem + ".csv'");
     csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,aabb_padding,elongation,repeats,"
-           "gap_fill,self_hit,max_dim,grid,capacity,saturated_cells,rays,differ,ties,holes,false_hits,gap_fill_hits,agree_pct,"
-           "median_dt,max_dt,build_ms,update_ms,trace_ms,mrays_per_s,grid_mib,pareto,cells_per_ray,tests_per_ray,"
-           "why_skipped_cell,why_window,why_dropped,why_reported_early,why_tested,why_grid_nearer,why_gap_fill,why_tie\n";
+           "gap_fill,spill,self_hit,max_dim,grid,capacity,saturated_cells,spill_entries,spill_overflow,rays,differ,ties,"
+           "max_tie_ulps,holes,false_hits,gap_fill_hits,agree_pct,median_dt,max_dt,build_ms,update_ms,trace_ms,"
+           "mrays_per_s,grid_mib,pareto,cells_per_ray,tests_per_ray,why_skipped_cell,why_window,why_dropped,"
+           "why_reported_early,why_tested,why_grid_nearer,why_gap_fill,why_tie\n";
     for (size_t i = 0; i < rows.size(); ++i) {
       const Row& r = rows[i];
       const Config& c = r.config;
       csv << r.index << "," << title << "," << r.backend << "," << c.traversal << "," << c.triangle_test << ","
           << c.capacity << "," << c.enlargement << "," << r.padding << "," << c.elongation << "," << c.repeats << ","
-          << c.gap_fill << "," << c.launch << ","
-          << c.max_dim << "," << r.grid << "," << r.capacity << "," << r.saturated << "," << r.acc.rays << ","
-          << r.acc.differ << "," << r.acc.ties << "," << r.acc.holes << "," << r.acc.false_hits << ","
+          << c.gap_fill << "," << (r.spill_on ? "on" : "off") << "," << c.launch << "," << c.max_dim << "," << r.grid
+          << "," << r.capacity << "," << r.saturated << "," << r.spill_stored << "," << r.spill_overflow << ","
+          << r.acc.rays << "," << r.acc.differ << "," << r.acc.ties << "," << r.acc.max_tie_ulps << "," << r.acc.holes
+          << "," << r.acc.false_hits << ","
           << r.acc.gap_fill << "," << fmt(r.acc.agree(), 3) << "," << r.acc.median_dt << "," << r.acc.max_dt << ","
           << fmt(r.build_ms, 2) << "," << fmt(r.update_ms, 2) << "," << fmt(r.trace_ms, 2) << "," << fmt(r.mrays, 3)
           << "," << fmt(r.grid_mib, 2) << "," << (front[i] ? 1 : 0) << "," << fmt(r.work.cells, 2) << ","
@@ -409,11 +420,11 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
   std::ofstream md(dir + "/" + stem + ".md");
   if (!md) throw Error("cannot write '" + dir + "/" + stem + ".md'");
   md << header << "\n\n"
-     << "| # | backend | traversal | test | capacity | enl | pad | elo | repeats | gap-fill | self-hit | grid | cap | "
-        "sat. cells | agree % | differ | ties | holes | false hits | gap-fill hits | median dt | max dt | build ms | "
-        "update ms | trace ms | Mrays/s | MiB | cells/ray | tests/ray | causes | front |\n"
+     << "| # | backend | traversal | test | capacity | enl | pad | elo | repeats | gap-fill | spill | self-hit | grid | "
+        "cap | sat. cells | spilled | agree % | differ | ties (max ulps) | holes | false hits | gap-fill hits | "
+        "median dt | max dt | build ms | update ms | trace ms | Mrays/s | MiB | cells/ray | tests/ray | causes | front |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
-        "---|---|---|\n";
+        "---|---|---|---|---|\n";
   char dt[64];
   for (size_t i = 0; i < rows.size(); ++i) {
     const Row& r = rows[i];
@@ -421,9 +432,14 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
     const bool paper = c.traversal == "paper";
     std::snprintf(dt, sizeof dt, "%.1e | %.1e", r.acc.median_dt, r.acc.max_dt);
     md << "| " << r.index << " | " << r.backend << " | " << c.traversal << " | " << c.triangle_test << " | "
-       << c.capacity << " | " << c.enlargement << " | " << (c.padding ? "" : "auto ") << r.padding << " | " << (paper ? fmt(c.elongation, 2) : "-")
-       << " | " << (paper ? c.repeats : "-") << " | " << (paper ? c.gap_fill : "-") << " | " << c.launch << " | " << r.grid << " | " << r.capacity << " | "
-       << r.saturated << " | " << fmt(r.acc.agree(), 2) << " | " << r.acc.differ << " | " << r.acc.ties << " | "
+       << c.capacity << " | " << c.enlargement << " | " << (c.padding ? "" : "auto ") << r.padding << " | "
+       << (paper ? fmt(c.elongation, 2) : "-") << " | " << (paper ? c.repeats : "-") << " | "
+       << (paper && !r.spill_on ? c.gap_fill : "-") << " | " << (r.spill_on ? "on" : "off") << " | " << c.launch
+       << " | " << r.grid << " | " << r.capacity << " | " << r.saturated << " | "
+       << (r.spill_on ? std::to_string(r.spill_stored) + (r.spill_overflow ? " (+" + std::to_string(r.spill_overflow) + " lost)" : "")
+                      : "-")
+       << " | " << fmt(r.acc.agree(), 2) << " | " << r.acc.differ << " | " << r.acc.ties
+       << (r.acc.ties ? " (" + std::to_string(r.acc.max_tie_ulps) + ")" : "") << " | "
        << r.acc.holes << " | " << r.acc.false_hits << " | " << r.acc.gap_fill << " | " << dt << " | "
        << fmt(r.build_ms, 1) << " | " << fmt(r.update_ms, 1) << " | " << fmt(r.trace_ms, 1) << " | "
        << fmt(r.mrays, 2) << " | " << fmt(r.grid_mib, 1) << " | " << fmt(r.work.cells, 1) << " | "
@@ -508,6 +524,9 @@ void run_sweep(const SweepOptions& o) {
         if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
           const reference::GridStats s = ref->stats();
           row.saturated = s.saturated_static + s.saturated_dynamic;
+          row.spill_on = s.spill_on;
+          row.spill_stored = s.spill_stored;
+          row.spill_overflow = s.spill_overflow;
           row.capacity = s.capacity;
           row.grid = std::to_string(s.cells.x) + "x" + std::to_string(s.cells.y) + "x" + std::to_string(s.cells.z);
           row.padding = ref->params().aabb_padding;
@@ -517,6 +536,10 @@ void run_sweep(const SweepOptions& o) {
           // Host times on lavapipe; timestamps where the device has them
           if (vk->timings().build_ms > 0.0) row.build_ms = vk->timings().build_ms;
           const shared::GridParams g = reference::choose_grid(scene, 0.0f, go);
+          const shared::SpillHeader& sh = vk->spill_header();
+          row.spill_on = (vk->params().flags & shared::kGridSpill) != 0u;
+          row.spill_stored = std::min(sh.count, sh.capacity);
+          row.spill_overflow = row.spill_on && sh.count > sh.capacity ? sh.count - sh.capacity : 0u;
           row.capacity = g.capacity;
           row.padding = g.aabb_padding;
           row.grid = std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" + std::to_string(g.cells.z);
@@ -576,6 +599,8 @@ void add_sweep_command(CLI::App& app) {
       ->delimiter(',')->group("Knobs");
   cmd->add_option("--repeats", o->repeats, "Knob values: merge,skip,retest (paper)")->delimiter(',')->group("Knobs");
   cmd->add_option("--gap-fill", o->gap_fill, "Knob values: on,off (paper)")->delimiter(',')->group("Knobs");
+  cmd->add_option("--spill", o->spill, "Knob values: auto,on,off (the spill list; auto: on for exact)")
+      ->delimiter(',')->group("Knobs");
   cmd->add_option("--self-hit", o->launch, "Knob values: exclude,keep (the launch triangle)")->delimiter(',')->group("Knobs");
   cmd->add_option("--max-image-dimension", o->max_dim, "Knob values: image limit (4096 lavapipe, 16384 NVIDIA)")
       ->delimiter(',')->group("Knobs");

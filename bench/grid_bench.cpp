@@ -1,10 +1,11 @@
 // grid_bench: the reference grid's build, update and trace times, rays/s and memory on built-in
 // and scene-file scenes, beside Embree on the same rays, and its agreement with Embree.
 //   gridrt_grid_bench [--threads N] [--size WxH] [--repeat R] [--exact] [--first-empty]
-//                     [--max-dim D] SCENE...        (SCENE: builtin:NAME, a .json, .obj, ...)
+//                     [--max-dim D] [--spill auto|on|off] SCENE...   (SCENE: builtin:NAME, a .json, ...)
 // Rays: the camera's primary rays, then one mirror bounce per primary hit off the gather buffer
 // (the paper's use). Times: the best of R runs, wall clock.
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -72,15 +73,23 @@ int main(int argc, char** argv) {
     else if (a == "--max-dim" && i + 1 < argc) o.max_image_dimension = uint32_t(std::atoi(argv[++i]));
     else if (a == "--exact") o.traversal = reference::Traversal::exact;
     else if (a == "--first-empty") o.insertion = reference::Insertion::first_empty;
+    else if (a == "--spill" && i + 1 < argc) {
+      const std::string v = argv[++i];
+      o.spill = v == "on" ? reference::GridOptions::Spill::on
+                : v == "off" ? reference::GridOptions::Spill::off
+                             : reference::GridOptions::Spill::automatic;
+    }
     else scenes.push_back(a);
   }
   if (scenes.empty()) scenes = {"builtin:cornell", "builtin:teapot", "builtin:atrium"};
   const unsigned threads = reference::thread_count(o);
-  std::printf("threads %u, %ux%u camera rays + mirror bounces, best of %d, traversal %s, insertion %s, max image dim %u\n",
+  std::printf("threads %u, %ux%u camera rays + mirror bounces, best of %d, traversal %s, insertion %s, max image dim %u, "
+              "spill %s\n",
               threads, w, h, repeat, o.traversal == reference::Traversal::exact ? "exact" : "paper",
-              o.insertion == reference::Insertion::sorted ? "sorted" : "first-empty", o.max_image_dimension);
-  std::printf("| scene | triangles | cells | capacity | image MiB | geometry MiB | build ms | update ms | rays | grid Mrays/s | embree Mrays/s | agree %% | gap-fill %% | saturated cells |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+              o.insertion == reference::Insertion::sorted ? "sorted" : "first-empty", o.max_image_dimension,
+              reference::spill_enabled(o) ? "on" : "off");
+  std::printf("| scene | triangles | cells | capacity | image MiB | geometry MiB | build ms | update ms | rays | grid Mrays/s | embree Mrays/s | agree %% | differ | ties (max ulps) | holes | gap-fill %% | saturated cells | spilled (lost) |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const std::string& spec : scenes) {
     const Scene scene = load_scene(spec);
     reference::ReferenceGridTracer grid(o);
@@ -98,6 +107,8 @@ int main(int argc, char** argv) {
     std::vector<Hit> hits(rays.size()), want(rays.size());
     const double trace = best_ms(repeat, [&] { grid.trace(rays, hits); });
     double etrace = 0.0, agree = 0.0;
+    size_t holes = 0, ties = 0, differ = 0;
+    uint32_t tie_ulps = 0;  // ties: another triangle at a t within 64 ulps of Embree's
 #ifdef GRIDRT_BENCH_EMBREE
     etrace = best_ms(repeat, [&] { embree.trace(rays, want); });
     size_t same = 0;
@@ -106,16 +117,27 @@ int main(int argc, char** argv) {
               (!is_miss(hits[i]) && !is_miss(want[i]) && !(hits[i].flags & shared::kHitGapFill) &&
                hits[i].instance == want[i].instance && hits[i].triangle == want[i].triangle);
     agree = 100.0 * double(same) / double(rays.size());
+    differ = rays.size() - same;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      holes += is_miss(hits[i]) && !is_miss(want[i]);
+      if (!is_miss(hits[i]) && !is_miss(want[i]) && !(hits[i].flags & shared::kHitGapFill) &&
+          (hits[i].instance != want[i].instance || hits[i].triangle != want[i].triangle)) {
+        const uint32_t a = std::bit_cast<uint32_t>(hits[i].t), b = std::bit_cast<uint32_t>(want[i].t);
+        const uint32_t ulps = a > b ? a - b : b - a;
+        if (ulps <= 64u) ++ties, tie_ulps = std::max(tie_ulps, ulps);
+      }
+    }
 #endif
     size_t gaps = 0;
     for (const Hit& hit : hits) gaps += (hit.flags & shared::kHitGapFill) != 0;
     const reference::GridStats s = grid.stats();
-    std::printf("| %s | %llu | %ux%ux%u | %u | %.1f | %.1f | %.1f | %.2f | %zu | %.2f | %.2f | %.1f | %.1f | %llu+%llu |\n",
+    std::printf("| %s | %llu | %ux%ux%u | %u | %.1f | %.1f | %.1f | %.2f | %zu | %.3f | %.2f | %.2f | %zu | %zu (%u) | %zu | %.1f | %llu+%llu | %s |\n",
                 spec.c_str(), (unsigned long long)s.triangles, s.cells.x, s.cells.y, s.cells.z, s.capacity,
                 double(s.image_bytes) / 1048576.0, double(s.geometry_bytes) / 1048576.0, build, update,
                 rays.size(), double(rays.size()) / trace / 1e3, etrace > 0 ? double(rays.size()) / etrace / 1e3 : 0.0,
-                agree, 100.0 * double(gaps) / double(rays.size()), (unsigned long long)s.saturated_static,
-                (unsigned long long)s.saturated_dynamic);
+                agree, differ, ties, tie_ulps, holes, 100.0 * double(gaps) / double(rays.size()), (unsigned long long)s.saturated_static,
+                (unsigned long long)s.saturated_dynamic,
+                s.spill_on ? (std::to_string(s.spill_stored) + " (" + std::to_string(s.spill_overflow) + ")").c_str() : "off");
     std::fflush(stdout);
   }
   return 0;

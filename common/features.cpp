@@ -10,7 +10,8 @@ Features Features::for_scene(const Scene& scene) {
   f.update = scene.has_dynamic();
   f.glossy = scene.has_glossy();
   f.shadows = !scene.lights.empty();
-  f.gap_fill = true;  // only the grid knows whether a cell saturates
+  f.gap_fill = true;  // only the grid knows whether a cell saturates: it decides after each build
+                      // and update (reference::trace_flags)
   return f;
 }
 

@@ -229,7 +229,8 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
   g.triangle_test = o.triangle_test == GridOptions::TriangleTest::watertight ? shared::kTriangleWatertight
                                                                               : shared::kTriangleMoller;
   g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
-            (o.alpha_keying ? shared::kGridAlphaKeying : 0u) | (o.gap_fill ? shared::kGridGapFill : 0u);
+            (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
+            (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u));
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
@@ -367,34 +368,177 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
   return finish(c.cells, c.cell_size, c.capacity, c.slot_axis, c.aabb_padding);
 }
 
+// ---- The spill list's capacity, and which effects the trace runs ----
+
+bool spill_enabled(const GridOptions& o) {
+  switch (o.spill) {
+    case GridOptions::Spill::on: return true;
+    case GridOptions::Spill::off: return false;
+    case GridOptions::Spill::automatic: break;
+  }
+  return o.traversal == Traversal::exact;
+}
+
+uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions& o, const GridParams& g,
+                               const GridChoice& choice) {
+  if ((g.flags & shared::kGridSpill) == 0u) return 0;
+  if (o.spill_capacity) return *o.spill_capacity;
+  uint64_t dropped = 0;
+  if (!choice.candidates.empty()) {
+    dropped = choice.candidates[choice.chosen].dropped;
+  } else {
+    // The percentile policy weighs no candidate: count on the chosen grid
+    trial_counts(scene, time, g, o.capacity_time_samples).for_each_largest([&](uint32_t n) {
+      if (n > g.capacity) dropped += n - g.capacity;
+    });
+  }
+  const uint64_t cap = dropped + dropped / 4 + 64;
+  return uint32_t(std::min<uint64_t>(cap, uint64_t(1) << 28));
+}
+
+uint32_t trace_flags(uint32_t requested, const GridOptions& o, uint32_t spill_count) {
+  // Simulate only what the scene calls for: gap-fill while some cell is saturated
+  if (o.gap_fill_if_saturated && spill_count == 0u) return requested & ~shared::kGridGapFill;
+  return requested;
+}
+
 // ---- Insertion (paper 2.1) ----
 
+namespace {
+// GLSL's atomics on a storage buffer's uint (the spill list's counter and arrival heads), relaxed
+// as on the GPU; the passes that read what they wrote come after a join (a barrier).
+uint32_t atomicAdd(uint32_t& mem, uint32_t data) {
+  return std::atomic_ref<uint32_t>(mem).fetch_add(data, std::memory_order_relaxed);
+}
+uint32_t atomicExchange(uint32_t& mem, uint32_t data) {
+  return std::atomic_ref<uint32_t>(mem).exchange(data, std::memory_order_relaxed);
+}
+}  // namespace
+
+// A reference no slot of `cell` took: counted, and with kGridSpill stored as (cell, ref) in the
+// entry the counter gave it and pushed onto the arrival list of the cell's static or dynamic
+// references (one exchange of the head: no loop, no order), while the list has room (past its
+// capacity it is lost: the count says how many). The order pass links it in ascending order.
+void spill_reference(GridData& grid, glm::uvec3 cell, uint32_t ref) {
+  const GridParams& g = grid.params;
+  const uint32_t i = atomicAdd(grid.spill_header.count, 1u);
+  if ((g.flags & shared::kGridSpill) == 0u || i >= grid.spill_header.capacity) return;
+  const uint32_t c = shared::cell_linear_index(g, cell);
+  grid.spill[i].cell = c;
+  grid.spill[i].ref = ref;
+  grid.spill[i].arrival = atomicExchange(grid.spill_heads[shared::spill_arrival_index(c, ref >= g.comparison_offset)], i);
+}
+
+// The order pass, one invocation per entry of [first, stored): walk the entry's arrival list for
+// the smallest larger reference (its successor in ascending order) and link to it; the entry
+// with no smaller reference becomes the list's head. References in a list are distinct (a
+// triangle visits a cell once), so every entry finds its own place whatever the arrival order:
+// the lists the trace walks are the same on every backend. After the build's static pass with
+// first = 0, after every dynamic pass with first = static_count.
+void spill_order(GridData& grid, const GridOptions& o, uint32_t first) {
+  const GridParams& g = grid.params;
+  const uint32_t stored = std::min(grid.spill_header.count, grid.spill_header.capacity);
+  if ((g.flags & shared::kGridSpill) == 0u || first >= stored) return;
+  run_invocations(stored - first, thread_count(o), std::nullopt, [&](uint32_t invocation) {
+    const uint32_t i = first + invocation;
+    const shared::SpillEntry e = grid.spill[i];
+    const bool dynamic = e.ref >= g.comparison_offset;
+    uint32_t next = shared::kSpillEnd, next_ref = kBlank;
+    bool smallest = true;
+    for (uint32_t j = grid.spill_heads[shared::spill_arrival_index(e.cell, dynamic)]; j != shared::kSpillEnd;
+         j = grid.spill[j].arrival) {
+      const uint32_t r = grid.spill[j].ref;
+      if (r < e.ref) smallest = false;
+      if (r > e.ref && r < next_ref) next = j, next_ref = r;
+    }
+    grid.spill[i].next = next;
+    if (smallest) grid.spill_heads[shared::spill_head_index(e.cell, dynamic)] = i;
+  }, 64);
+}
+
+// The first slot of `cell` holding a value >= `bound`, where the slots holding smaller values are
+// a prefix that stays one through the pass (docs/SPEC.md, "Insert"): during a pass a slot's value
+// only decreases (atomic min) or leaves blank once (compare-and-swap), the cells stay sorted
+// (sorted insertion) or filled from slot 0 without gaps (first-empty), and static references
+// precede dynamic ones; so a slot seen below `bound` stays below it, with every slot before it,
+// whatever other invocations do meanwhile. Plain loads, galloping (slots 0, 2, 6, 14, ...) then
+// halving: about 2 log2(n) loads for n references, where a walk from slot 0 costs n.
+uint32_t first_slot_at_least(const Image3D& image, const GridParams& g, glm::uvec3 cell, uint32_t bound) {
+  const auto below = [&](uint32_t s) {
+    return imageLoad(image, glm::ivec3(shared::cell_slot_texel(g, cell, s))) < bound;
+  };
+  // Gallop until a slot that is not below the bound
+  uint32_t lo = 0, hi = g.capacity;
+  for (uint32_t span = 1; lo < hi; span *= 2) {
+    const uint32_t probe = std::min(lo + span - 1, hi - 1);
+    if (!below(probe)) {
+      hi = probe;
+      break;
+    }
+    lo = probe + 1;
+  }
+  // Halve [lo, hi): the slots before lo are below the bound, slot hi (if any) is not
+  while (lo < hi) {
+    const uint32_t mid = (lo + hi) / 2;
+    if (below(mid)) lo = mid + 1;
+    else hi = mid;
+  }
+  return lo;
+}
+
 // Paper: compare-and-swap blank -> ref into the first slot that takes it; when none does, flag
-// the cell saturated (static or dynamic bit by the reference's kind).
-void insert_first_empty(Image3D& image, const GridParams& g, glm::uvec3 cell, uint32_t ref) {
-  for (uint32_t s = 0; s < g.capacity; ++s) {
-    const uint32_t old = imageAtomicCompSwap(image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), kBlank, ref);
+// the cell saturated (static or dynamic bit by the reference's kind) and spill the reference.
+void insert_first_empty(GridData& grid, glm::uvec3 cell, uint32_t ref) {
+  const GridParams& g = grid.params;
+  // The filled slots would refuse the reference: start at the first blank
+  for (uint32_t s = first_slot_at_least(grid.image, g, cell, kBlank); s < g.capacity; ++s) {
+    const uint32_t old = imageAtomicCompSwap(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), kBlank, ref);
     if (old == kBlank) return;
   }
   // Saturated: no slot took the reference
   const uint32_t bit = ref < g.comparison_offset ? shared::kStatusStatic : shared::kStatusDynamic;
-  imageAtomicOr(image, glm::ivec3(shared::cell_status_texel(g, cell)), bit);
+  imageAtomicOr(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), bit);
+  spill_reference(grid, cell, ref);
 }
 
 // Ours: an atomic-min cascade. The carried value v takes the smaller of itself and each slot in
 // turn (old = atomicMin(slot, v); v = max(old, v)) until it is blank; the cell ends holding its
 // `capacity` smallest references in ascending order whatever the timing. A value pushed out of
-// the last slot is dropped and flags the cell (static bit if it is static, else dynamic).
-void insert_sorted(Image3D& image, const GridParams& g, glm::uvec3 cell, uint32_t ref) {
+// the last slot is dropped: it flags the cell (static bit if it is static, else dynamic) and is
+// spilled.
+void insert_sorted(GridData& grid, glm::uvec3 cell, uint32_t ref) {
+  const GridParams& g = grid.params;
   uint32_t v = ref;
-  for (uint32_t s = 0; s < g.capacity; ++s) {
-    const uint32_t old = imageAtomicMin(image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), v);
+  // The slots holding smaller references would pass v on unchanged: start after them
+  for (uint32_t s = first_slot_at_least(grid.image, g, cell, ref); s < g.capacity; ++s) {
+    const uint32_t old = imageAtomicMin(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), v);
     v = std::max(old, v);
     if (v == kBlank) return;
   }
   // Saturated: the dropped value names the bit
   const uint32_t bit = v < g.comparison_offset ? shared::kStatusStatic : shared::kStatusDynamic;
-  imageAtomicOr(image, glm::ivec3(shared::cell_status_texel(g, cell)), bit);
+  imageAtomicOr(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), bit);
+  spill_reference(grid, cell, v);
+}
+
+SpillDump spill_dump(const GridData& grid) {
+  SpillDump d;
+  d.on = (grid.params.flags & shared::kGridSpill) != 0u;
+  d.header = grid.spill_header;
+  d.entries.assign(grid.spill.begin(), grid.spill.begin() + ptrdiff_t(d.stored()));
+  d.heads = grid.spill_heads;
+  return d;
+}
+
+// The dirty-cell list (scene update): the first dynamic reference to reach a cell in a pass sets
+// the cell's listed bit and appends the cell, so the list holds every cell a dynamic reference
+// reached (stored or dropped), once.
+void append_dirty_cell(WordBuffer& dirty, const GridParams& g, glm::uvec3 cell) {
+  const uint32_t i = shared::cell_linear_index(g, cell);
+  const uint32_t old = atomicOr(dirty, shared::kWorkListHeaderWords + shared::dirty_bit_item(g, i), shared::dirty_bit(i));
+  if ((old & shared::dirty_bit(i)) != 0u) return;
+  const uint32_t k = atomicAdd(dirty, shared::kWorkListAppendedWord, 1u);
+  dirty.store(shared::kWorkListHeaderWords + k, i);
 }
 
 namespace {
@@ -431,8 +575,9 @@ void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t i
         const glm::uvec3 cell(x, y, z);
         if (!shared::plane_intersects_enlarged_sphere(v0, n, nn, shared::cell_center(g, cell), g.sphere_r2))
           continue;
-        if (g.insertion == shared::kInsertSorted) insert_sorted(grid.image, g, cell, ref);
-        else insert_first_empty(grid.image, g, cell, ref);
+        if (ref >= g.comparison_offset) append_dirty_cell(grid.dirty, g, cell);
+        if (g.insertion == shared::kInsertSorted) insert_sorted(grid, cell, ref);
+        else insert_first_empty(grid, cell, ref);
       }
 }
 
@@ -464,8 +609,14 @@ void insert_instances(GridData& grid, const Scene& scene, float time, const Grid
 
 void scene_build(GridData& grid, const Scene& scene, float time, const GridOptions& o) {
   grid = GridData{};
-  grid.params = choose_grid(scene, time, o);
+  GridChoice choice;
+  grid.params = choose_grid(scene, time, o, &choice);
+  grid.requested_flags = grid.params.flags;
   const GridParams& g = grid.params;
+  // The spill list: empty, room for the references the trial would drop
+  grid.spill_header = shared::SpillHeader{0u, choose_spill_capacity(scene, time, o, g, choice), 0u, 0u};
+  grid.spill.assign(grid.spill_header.capacity, shared::SpillEntry{0u, kBlank, shared::kSpillEnd, shared::kSpillEnd});
+  if (g.flags & shared::kGridSpill) grid.spill_heads.assign(4 * size_t(g.cells.x) * g.cells.y * g.cells.z, shared::kSpillEnd);
   // Tables: instances, materials and their alpha masks, the geometry buffer
   grid.static_instances = scene.static_instance_count();
   uint32_t offset = 0;
@@ -505,48 +656,79 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
     }
     grid.materials.push_back(gm);
   }
-  // The image, every texel blank; status texels 0
+  // The image, every texel blank; status texels 0; the dirty-cell list empty
   grid.image = Image3D(shared::grid_image_extent(g), kBlank);
+  grid.dirty = WordBuffer(shared::dirty_list_words(g), 0u);
   run_invocations(g.cells.x * g.cells.y * g.cells.z, thread_count(o), std::nullopt, [&](uint32_t c) {
     const glm::uvec3 cell(c % g.cells.x, (c / g.cells.x) % g.cells.y, c / (g.cells.x * g.cells.y));
     imageStore(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), 0u);
   }, 4096);
-  // Static instances first (their references fill the first slots), then the dynamic ones
+  // Static instances first (their references fill the first slots and are spilled first), then
+  // the dynamic ones
   insert_instances(grid, scene, time, o, 0, grid.static_instances);
+  grid.spill_header.static_count = grid.spill_header.count;
+  spill_order(grid, o, 0);
   insert_instances(grid, scene, time, o, grid.static_instances, uint32_t(scene.instances.size()));
+  spill_order(grid, o, grid.spill_header.static_count);
+  // Gap-fill only if some cell saturated
+  grid.params.flags = trace_flags(grid.requested_flags, o, grid.spill_header.count);
 }
 
 // ---- Scene update (paper 2.2) ----
 
-// The clear pass, in workgroups of 4x4x4 cells: per cell, blank every reference >= the comparison
-// offset, slot by slot up to the first blank, and reset the dynamic saturation bit.
+// The clear pass over the dirty-cell list, one workgroup of 64 invocations per listed cell: the
+// dispatch step takes the cells appended since the last pass (and starts the list again); per
+// listed cell, blank every reference >= the comparison offset from the first such slot up to the
+// first blank, the invocations taking every 64th slot; reset the dynamic saturation bit, empty the
+// cell's dynamic spill list and take the cell off the list. Before it, the spill counter goes back
+// to the static references' count (Vulkan: a copy of static_count onto count): the dynamic entries
+// were appended after them.
 void clear_dynamic_references(GridData& grid, const GridOptions& o) {
   const GridParams& g = grid.params;
-  const glm::uvec3 groups = (g.cells + glm::uvec3(3u)) / 4u;
-  run_invocations(groups.x * groups.y * groups.z, thread_count(o), std::nullopt, [&](uint32_t w) {
-    const glm::uvec3 wg(w % groups.x, (w / groups.x) % groups.y, w / (groups.x * groups.y));
-    for (uint32_t lz = 0; lz < 4; ++lz)
-      for (uint32_t ly = 0; ly < 4; ++ly)
-        for (uint32_t lx = 0; lx < 4; ++lx) {
-          const glm::uvec3 cell = wg * 4u + glm::uvec3(lx, ly, lz);
-          if (cell.x >= g.cells.x || cell.y >= g.cells.y || cell.z >= g.cells.z) continue;
-          // Blank the dynamic references up to the first blank
-          for (uint32_t s = 0; s < g.capacity; ++s) {
-            const glm::ivec3 p(shared::cell_slot_texel(g, cell, s));
-            const uint32_t ref = imageLoad(grid.image, p);
-            if (ref == kBlank) break;
-            if (ref >= g.comparison_offset) imageAtomicExchange(grid.image, p, kBlank);
-          }
-          // Reset the dynamic saturation bit; the static one persists
-          imageAtomicAnd(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), ~shared::kStatusDynamic);
-        }
-  }, 4);
+  // Drop the dynamic references' spill entries
+  grid.spill_header.count = grid.spill_header.static_count;
+  // The dispatch step (work_list_dispatch.comp)
+  const uint32_t size = grid.dirty.load(shared::kWorkListAppendedWord);
+  grid.dirty.store(shared::kWorkListSizeWord, size);
+  grid.dirty.store(shared::kWorkListAppendedWord, 0u);
+  run_invocations(size, thread_count(o), std::nullopt, [&](uint32_t k) {
+    const uint32_t i = grid.dirty.load(shared::kWorkListHeaderWords + k);
+    const glm::uvec3 cell = shared::cell_of_linear_index(g, i);
+    // The first dynamic slot (the static references precede the dynamic ones)
+    const uint32_t first_dynamic = first_slot_at_least(grid.image, g, cell, g.comparison_offset);
+    // Blank the dynamic references up to the first blank, every 64th slot per invocation (a slot
+    // found blank ends the invocation's walk: the blanks form the cell's tail)
+    for (uint32_t lane = 0; lane < 64; ++lane)
+      for (uint32_t s = first_dynamic + lane; s < g.capacity; s += 64)
+        if (imageAtomicExchange(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, s)), kBlank) == kBlank) break;
+    // Reset the dynamic saturation bit; the static one persists
+    imageAtomicAnd(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), ~shared::kStatusDynamic);
+    // Empty the dynamic spill list; the static one persists (every cell a dynamic reference was
+    // spilled in is listed: the reference reached it)
+    if ((g.flags & shared::kGridSpill) != 0u) {
+      grid.spill_heads[shared::spill_head_index(i, true)] = shared::kSpillEnd;
+      grid.spill_heads[shared::spill_arrival_index(i, true)] = shared::kSpillEnd;
+    }
+    // Off the list
+    atomicAnd(grid.dirty, shared::kWorkListHeaderWords + shared::dirty_bit_item(g, i), ~shared::dirty_bit(i));
+  }, 1);
+}
+
+std::vector<uint32_t> dirty_cells(const GridData& grid) {
+  if (grid.dirty.size == 0) return {};
+  const uint32_t n = grid.dirty.load(shared::kWorkListAppendedWord);
+  std::vector<uint32_t> out(n);
+  for (uint32_t k = 0; k < n; ++k) out[k] = grid.dirty.load(shared::kWorkListHeaderWords + k);
+  return out;
 }
 
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& o) {
   if (grid.static_instances == scene.instances.size()) return;
   clear_dynamic_references(grid, o);
   insert_instances(grid, scene, time, o, grid.static_instances, uint32_t(scene.instances.size()));
+  spill_order(grid, o, grid.spill_header.static_count);
+  // Gap-fill only while some cell is saturated
+  grid.params.flags = trace_flags(grid.requested_flags, o, grid.spill_header.count);
 }
 
 }  // namespace gridrt::reference

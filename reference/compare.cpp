@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <iterator>
 #include <sstream>
 
 #include "reference/policy.h"
@@ -93,9 +94,74 @@ std::vector<std::vector<uint32_t>> cell_candidates(const GridData& grid) {
   return out;
 }
 
-CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image) {
+std::vector<SpillList> walk_spill_lists(const SpillDump& spill, std::string* problem) {
+  std::vector<SpillList> out;
+  std::string local;
+  std::string& p = problem ? *problem : local;
+  p.clear();
+  const auto fail = [&](const std::string& what) {
+    if (p.empty()) p = what;
+  };
+  std::vector<uint8_t> seen(spill.entries.size(), 0);
+  for (uint32_t h = 0; h < spill.heads.size(); ++h) {
+    if (h % 4 >= 2) continue;  // the arrival heads: their order is the order of the appends
+    uint32_t i = spill.heads[h];
+    if (i == sh::kSpillEnd) continue;
+    SpillList list{h, {}};
+    while (i != sh::kSpillEnd) {
+      if (i >= spill.entries.size()) {
+        fail("head " + std::to_string(h) + ": a link to entry " + std::to_string(i) + " past the stored entries");
+        break;
+      }
+      if (seen[i]++) {
+        fail("entry " + std::to_string(i) + " is reached twice");
+        break;
+      }
+      const sh::SpillEntry& e = spill.entries[i];
+      if (e.cell != h / 4) fail("entry " + std::to_string(i) + " of cell " + std::to_string(e.cell) + " in cell " + std::to_string(h / 4) + "'s list");
+      if (!list.refs.empty() && e.ref <= list.refs.back()) fail("head " + std::to_string(h) + ": not in ascending order");
+      list.refs.push_back(e.ref);
+      i = e.next;
+    }
+    out.push_back(std::move(list));
+  }
+  if (spill.on && spill.overflow() == 0)
+    for (size_t i = 0; i < seen.size(); ++i)
+      if (!seen[i]) fail("entry " + std::to_string(i) + " is in no list");
+  return out;
+}
+
+SpillDiff compare_spill(const SpillDump& want, const SpillDump& got) {
+  SpillDiff d;
+  if (want.on || got.on) {
+    const std::vector<SpillList> a = walk_spill_lists(want, &d.problem_want), b = walk_spill_lists(got, &d.problem_got);
+    if (want.overflow() == 0 && got.overflow() == 0) {
+      d.same_lists = a.size() == b.size();
+      for (size_t i = 0; d.same_lists && i < a.size(); ++i) d.same_lists = a[i].head == b[i].head && a[i].refs == b[i].refs;
+    }
+  }
+  d.same_header = std::memcmp(&want.header, &got.header, sizeof(sh::SpillHeader)) == 0;
+  d.entries = want.entries.size();
+  const auto key = [](const sh::SpillEntry& e) { return uint64_t(e.cell) << 32 | e.ref; };
+  const auto less = [&](const sh::SpillEntry& a, const sh::SpillEntry& b) { return key(a) < key(b); };
+  std::vector<sh::SpillEntry> a = want.entries, b = got.entries;
+  std::sort(a.begin(), a.end(), less);
+  std::sort(b.begin(), b.end(), less);
+  std::set_difference(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(d.only_want), less);
+  std::set_difference(b.begin(), b.end(), a.begin(), a.end(), std::back_inserter(d.only_got), less);
+  return d;
+}
+
+CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image, const SpillDump* spill) {
   const sh::GridParams& g = grid.params;
   const std::vector<std::vector<uint32_t>> cand = cell_candidates(grid);
+  std::vector<std::vector<uint32_t>> spilled;
+  if (spill) {
+    spilled.resize(cand.size());
+    for (const sh::SpillEntry& e : spill->entries)
+      if (e.cell < spilled.size()) spilled[e.cell].push_back(e.ref);
+      else return CellCheck{cand.size(), 0, {size_t(e.cell)}};
+  }
   CellCheck c;
   c.cells = cand.size();
   for (uint32_t z = 0; z < g.cells.z; ++z)
@@ -119,7 +185,15 @@ CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image)
           ++c.saturated;
           ok = have.size() == g.capacity && std::adjacent_find(have.begin(), have.end()) == have.end() &&
                std::includes(want.begin(), want.end(), have.begin(), have.end()) && status != 0u;
+          if (spill && spill->overflow() == 0) {
+            // The slots and the spilled entries together: every candidate once
+            std::vector<uint32_t> all = have;
+            all.insert(all.end(), spilled[index].begin(), spilled[index].end());
+            std::sort(all.begin(), all.end());
+            ok = ok && all == want;
+          }
         }
+        if (spill && want.size() <= g.capacity && !spilled[index].empty()) ok = false;
         if (!ok) c.bad.push_back(index);
       }
   return c;

@@ -42,12 +42,39 @@ TexelDiff compare_texels(const AccelDump& want, const AccelDump& got);
 std::vector<std::vector<uint32_t>> cell_candidates(const GridData& grid);
 
 // First-empty images: an unsaturated cell holds exactly its candidates (any slot order) and a
-// clear status; a saturated one `capacity` distinct candidates and a set status.
+// clear status; a saturated one `capacity` distinct candidates and a set status, and with `spill`
+// (a list that did not overflow) its slots and its spilled entries together are exactly its
+// candidates.
 struct CellCheck {
   size_t cells = 0, saturated = 0;
   std::vector<size_t> bad;  // cell indices that break the rule
 };
-CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image);
+CellCheck check_cells_as_multisets(const GridData& grid, const AccelDump& image, const SpillDump* spill = nullptr);
+
+// The spill lists walked from their heads: per non-empty head (spill_head_index order) the
+// references in list order. `problem` (may be null) receives the first broken rule: a list not in
+// ascending order, an entry of another cell, an entry reached twice or never, a link out of range.
+struct SpillList {
+  uint32_t head = 0;            // spill_head_index: 4 * cell + (dynamic ? 1 : 0)
+  std::vector<uint32_t> refs;   // in list order
+};
+std::vector<SpillList> walk_spill_lists(const SpillDump& spill, std::string* problem);
+
+// Two spill lists: the headers (count, capacity, static count), the stored entries as multisets
+// of (cell, ref) (the order of appends differs by design), and the lists walked from the heads
+// (ascending, so equal whatever the order of appends) where neither overflowed.
+struct SpillDiff {
+  bool same_header = false;
+  size_t entries = 0;                // entries of `want`
+  std::vector<shared::SpillEntry> only_want, only_got;  // the multisets' differences
+  std::string problem_want, problem_got;  // walk_spill_lists' findings
+  bool same_lists = true;
+  bool same() const {
+    return same_header && only_want.empty() && only_got.empty() && problem_want.empty() && problem_got.empty() &&
+           same_lists;
+  }
+};
+SpillDiff compare_spill(const SpillDump& want, const SpillDump& got);
 
 // Why a ray's grid hit differs from the oracle's (docs/ACCURACY.md, "Why paper mode differs"),
 // judged by walking the ray's visits again without stopping (for_each_visit) with W the oracle's

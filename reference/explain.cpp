@@ -64,7 +64,9 @@ std::string to_text(const ExplainRecord& rec) {
   os << "grid: " << g.cells.x << "x" << g.cells.y << "x" << g.cells.z << " cells of " << num(g.cell_size)
      << ", origin " << vec(g.origin) << ", capacity " << g.capacity << ", traversal "
      << (exact ? "exact (3D DDA)" : "paper (cell-sized segments)") << ", insertion "
-     << (g.insertion == kInsertSorted ? "sorted" : "first-empty") << "\n";
+     << (g.insertion == kInsertSorted ? "sorted" : "first-empty")
+     << ((g.flags & kGridSpill) ? ", spill list on" : "")
+     << ((g.flags & kGridGapFill) ? ", gap-fill on" : "") << "\n";
   for (const ExplainEvent& e : rec.events) {
     switch (e.kind) {
       case kEvRay:
@@ -121,6 +123,17 @@ std::string to_text(const ExplainRecord& rec) {
         os << "  status texel: " << e.code << ((e.code & kStatusStatic) ? " saturated-by-static" : "")
            << ((e.code & kStatusDynamic) ? " saturated-by-dynamic" : "") << (e.code ? "" : " (not saturated)")
            << "\n";
+        break;
+      case kEvSpillScan:
+        os << "  spill list: the cell dropped references; its static and dynamic lists follow (the list stores "
+           << e.code << " entries in all)"
+           << (e.slot > e.code ? " (the list overflowed: " + std::to_string(e.slot - e.code) +
+                                     " dropped references were lost, holes are possible)"
+                               : "")
+           << "\n";
+        break;
+      case kEvSpilled:
+        os << "  spilled " << e.slot << ": " << refstr(e.ref) << "\n";
         break;
       case kEvGapFill:
         os << "  gap-fill: the cell is saturated and no hit was reported; left the launch surface? "

@@ -50,6 +50,16 @@ struct GridOptions {
   bool exclude_launch_ref = true;    // never accept the launch triangle (RayRecord::launch_ref)
   bool alpha_keying = true;          // alpha-keyed materials cut holes (Features::alpha_keying)
   bool gap_fill = true;              // paper: gap-fill in saturated cells (Features::gap_fill)
+  // Gap-fill runs (is compiled into the trace shader) only while some cell is saturated, that is
+  // while the spill counter says a reference was dropped; false keeps it always (--all-effects).
+  bool gap_fill_if_saturated = true;
+  // The spill list (docs/SPEC.md, "Spill list"): references no slot took are kept as (cell, ref) and
+  // the trace tests a saturated cell's spilled references too. automatic: on for the exact
+  // traversal, off for the paper's (which answers saturation with gap-fill; spill on turns
+  // gap-fill off). spill_capacity: entries the list holds; default: the references choose_grid's
+  // trial would drop, with margin (choose_spill_capacity).
+  enum class Spill { automatic, on, off } spill = Spill::automatic;
+  std::optional<uint32_t> spill_capacity;
   // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
   // skip (the literal reading of visited-cell tracking), retest (a second visit)
   enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
@@ -90,6 +100,7 @@ struct GridOptions {
 struct GridData {
   shared::GridParams params{};
   Image3D image;                                 // the 3D image of references
+  WordBuffer dirty;                              // the dirty-cell list (shared::dirty_list_words)
   std::vector<shared::GridInstance> instances;   // per instance: triangle offset, count, flags
   std::vector<shared::GridTriangle> triangles;   // world-space triangles (geometry buffer)
   std::vector<shared::GridTriangleUv> uvs;       // per triangle texture coordinates
@@ -97,7 +108,18 @@ struct GridData {
   std::vector<uint32_t> texels;                  // alpha masks, RGBA8 packed (a << 24)
   uint32_t static_instances = 0;
   uint32_t static_triangles = 0;                 // triangles of the static instances (first)
+  // The spill list: the header (its count is updated with atomics), `capacity` entries, and per
+  // cell the heads of its static and dynamic lists, ordered and arrival (spill_head_index,
+  // spill_arrival_index; empty with spill off)
+  shared::SpillHeader spill_header{};
+  std::vector<shared::SpillEntry> spill;
+  std::vector<uint32_t> spill_heads;
+  uint32_t requested_flags = 0;                  // GridParams::flags as chosen; params.flags is what
+                                                 // the trace runs (trace_flags)
 };
+
+// Whether `o` turns the spill list on (Spill::automatic: for the exact traversal).
+bool spill_enabled(const GridOptions& o);
 
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
@@ -153,6 +175,15 @@ struct GridChoice {
   WorkSample sample;  // trace_cost: the rays the estimates were made on
 };
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice);
+// The spill list's capacity for grid `g` (chosen by choose_grid with `choice`): 0 with spill off;
+// else the option, or the references the trial would drop (the chosen candidate's `dropped`, or a
+// count on `g` where choose_grid weighed no candidate) plus a quarter and 64 (the trial samples
+// moving instances at 16 times: a bound it is not).
+uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions& options, const shared::GridParams& g,
+                               const GridChoice& choice);
+// The flags the trace runs with: `requested` (GridParams::flags as chosen) without gap-fill while no
+// reference is dropped (`spill_count` == 0: no cell is saturated), unless gap_fill_if_saturated is off.
+uint32_t trace_flags(uint32_t requested, const GridOptions& options, uint32_t spill_count);
 // World bounds of the scene over its whole animation: static instances at `time`, dynamic ones
 // swept over their motion; not padded.
 Bounds animation_bounds(const Scene& scene, float time);
@@ -161,8 +192,29 @@ Bounds animation_bounds(const Scene& scene, float time);
 void scene_build(GridData& grid, const Scene& scene, float time, const GridOptions& options);
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& options);
 void clear_dynamic_references(GridData& grid, const GridOptions& options);
-void insert_first_empty(Image3D& image, const shared::GridParams& g, glm::uvec3 cell, uint32_t ref);
-void insert_sorted(Image3D& image, const shared::GridParams& g, glm::uvec3 cell, uint32_t ref);
+void insert_first_empty(GridData& grid, glm::uvec3 cell, uint32_t ref);
+void insert_sorted(GridData& grid, glm::uvec3 cell, uint32_t ref);
+void spill_reference(GridData& grid, glm::uvec3 cell, uint32_t ref);
+void spill_order(GridData& grid, const GridOptions& options, uint32_t first);
+
+uint32_t first_slot_at_least(const Image3D& image, const shared::GridParams& g, glm::uvec3 cell, uint32_t bound);
+void append_dirty_cell(WordBuffer& dirty, const shared::GridParams& g, glm::uvec3 cell);
+// The dirty-cell list's cells (linear indices, shared::cell_linear_index) in list order: the
+// cells appended since the last clear pass.
+std::vector<uint32_t> dirty_cells(const GridData& grid);
+
+// The spill list as plain data: the header, the stored entries [0, min(count, capacity)) in the
+// order they were appended (which differs between runs and backends: compare them as multisets,
+// and the lists walked from the heads, which are in ascending reference order), and the heads.
+struct SpillDump {
+  bool on = false;  // kGridSpill: with spill off the count only counts, and nothing overflows
+  shared::SpillHeader header{};
+  std::vector<shared::SpillEntry> entries;
+  std::vector<uint32_t> heads;
+  uint32_t stored() const { return header.count < header.capacity ? header.count : header.capacity; }
+  uint32_t overflow() const { return on && header.count > header.capacity ? header.count - header.capacity : 0u; }
+};
+SpillDump spill_dump(const GridData& grid);
 
 // The explanation of one ray: the events in order, and the hit.
 struct ExplainRecord {
@@ -185,11 +237,25 @@ struct GridStats {
   uint64_t image_bytes = 0, geometry_bytes = 0;   // the image; triangles + uvs + tables + masks
   uint64_t cell_count = 0, empty_cells = 0;
   uint64_t saturated_static = 0, saturated_dynamic = 0;  // cells with that status bit
+  // The spill list: references that found no slot (appended, with spill off only counted), of
+  // them static, the list's capacity, entries stored, lost to overflow; whether it is on
+  bool spill_on = false;
+  uint64_t spill_appended = 0, spill_static = 0, spill_capacity = 0, spill_stored = 0, spill_overflow = 0;
+  bool gap_fill_active = false;                   // the trace runs gap-fill (trace_flags)
   std::vector<uint64_t> occupancy;                // occupancy[k]: cells holding k references
   uint64_t references = 0;                        // non-blank slots
   uint64_t triangles = 0, degenerate_triangles = 0;
   double references_per_triangle_mean = 0.0;      // over non-degenerate triangles
   uint32_t references_per_triangle_max = 0;
+  // The build's work (docs/BENCHMARKS.md, "Static build"): cells of each triangle's AABB range
+  // (each gets the plane test); the sorted insertion's slot accesses had every insertion walked
+  // from slot 0 to the first blank (a cell of n references costs n(n+1)/2, in any order), in
+  // total and along the longest chain of one build invocation (the sum over its cells of their
+  // final n); the galloping search's loads along that invocation (2 ceil(log2(n + 1)) per cell)
+  double range_cells_per_triangle_mean = 0.0;
+  uint64_t range_cells_per_triangle_max = 0;
+  uint64_t walk_accesses = 0;
+  uint64_t walk_chain_max = 0, search_chain_max = 0;
   double build_ms = 0.0, update_ms = 0.0;         // last build / update, wall clock
 };
 GridStats grid_stats(const GridData& grid);
@@ -207,6 +273,7 @@ class ReferenceGridTracer : public Tracer {
 
   ExplainRecord explain_ray(const Ray& ray) const;
   GridStats stats() const;
+  SpillDump spill() const { return spill_dump(grid_); }
   const GridOptions& options() const { return options_; }
   const GridData& data() const { return grid_; }
   const shared::GridParams& params() const { return grid_.params; }
@@ -216,7 +283,12 @@ class ReferenceGridTracer : public Tracer {
   const Scene* scene_ = nullptr;
   GridData grid_;
   double build_ms_ = 0.0, update_ms_ = 0.0;
+  bool overflow_warned_ = false;
 };
+
+// A one-time warning on stderr when the spill list overflowed (references lost: holes possible);
+// `warned` keeps it to once per tracer.
+void warn_spill_overflow(const SpillDump& spill, const std::string& who, bool& warned);
 
 // Helpers shared by the reference's passes and tests
 unsigned thread_count(const GridOptions& options);

@@ -1,8 +1,9 @@
 // image3d.h: the emulated Vulkan 3D image of single-channel uint32 texels, accessed only through
 // functions named and shaped like the GLSL image built-ins (imageLoad, imageAtomicCompSwap,
 // imageAtomicMin, imageAtomicExchange, imageAtomicOr, imageAtomicAnd, imageStore), so that the
-// reference reads like the shader. Atomics are relaxed, as GPU image atomics are; passes are
-// separated by thread joins (the emulated pipeline barriers).
+// reference reads like the shader; and an emulated storage buffer of uint32 words with the
+// buffer atomics (atomicAdd, atomicOr, atomicAnd). Atomics are relaxed, as GPU atomics are;
+// passes are separated by thread joins (the emulated pipeline barriers).
 #pragma once
 
 #include <atomic>
@@ -61,6 +62,34 @@ inline uint32_t imageAtomicOr(Image3D& image, glm::ivec3 p, uint32_t data) {
 }
 inline uint32_t imageAtomicAnd(Image3D& image, glm::ivec3 p, uint32_t data) {
   return image.at(p).fetch_and(data, std::memory_order_relaxed);
+}
+
+// A storage buffer of uint32 words (the grid's dirty-cell list, common/shared/worklist.h).
+struct WordBuffer {
+  size_t size = 0;
+  std::unique_ptr<std::atomic<uint32_t>[]> words;
+
+  WordBuffer() = default;
+  WordBuffer(size_t n, uint32_t fill) : size(n), words(new std::atomic<uint32_t>[n]) {
+    for (size_t i = 0; i < n; ++i) words[i].store(fill, std::memory_order_relaxed);
+  }
+  uint32_t load(size_t i) const { return words[i].load(std::memory_order_relaxed); }
+  void store(size_t i, uint32_t v) { words[i].store(v, std::memory_order_relaxed); }
+  std::vector<uint32_t> snapshot() const {
+    std::vector<uint32_t> out(size);
+    for (size_t i = 0; i < size; ++i) out[i] = load(i);
+    return out;
+  }
+};
+
+inline uint32_t atomicAdd(WordBuffer& b, size_t i, uint32_t data) {
+  return b.words[i].fetch_add(data, std::memory_order_relaxed);
+}
+inline uint32_t atomicOr(WordBuffer& b, size_t i, uint32_t data) {
+  return b.words[i].fetch_or(data, std::memory_order_relaxed);
+}
+inline uint32_t atomicAnd(WordBuffer& b, size_t i, uint32_t data) {
+  return b.words[i].fetch_and(data, std::memory_order_relaxed);
 }
 
 }  // namespace gridrt::reference

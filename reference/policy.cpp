@@ -232,6 +232,9 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
   if (w.rays == 0) return w;
   const bool exact = g.traversal == kTraversalExact;
   const bool gap_fill = !exact && (g.flags & kGridGapFill) != 0u;
+  // With the spill list a saturated cell's dropped references are tested too (test_spilled): no
+  // reference is lost, and no gap-fill runs
+  const bool spill = (g.flags & kGridSpill) != 0u;
   uint64_t cells = 0, tests = 0, at_risk = 0, spilled = 0;
   double lost = 0.0, skipped = 0.0;
   for (size_t i = 0; i < sample.rays.size(); ++i) {
@@ -260,7 +263,7 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
       if (!tested) return !(reach && missed == 0.0);
       const uint32_t c = counts.now(cell);
       cells += 1;
-      tests += std::min(c, g.capacity);
+      tests += spill ? c : std::min(c, g.capacity);
       if (c > 0u && all(greaterThanEqual(cell, llo)) && all(lessThanEqual(cell, lhi)) &&
           plane_intersects_enlarged_sphere(l_tri[0], ln, lnn, cell_center(g, cell), g.sphere_r2))
         tests -= 1;
@@ -276,7 +279,7 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
                           t_hit < t_hi && plane_intersects_enlarged_sphere(w_tri[0], n, nn, cell_center(g, cell), g.sphere_r2);
       if (covers) {
         offered = true;
-        missed *= saturated ? double(c - g.capacity) / double(c) : 0.0;
+        missed *= saturated && !spill ? double(c - g.capacity) / double(c) : 0.0;
       }
       // Reported here once found; past the hit, a visit that cannot find W ends the ray (another
       // triangle, or nothing)

@@ -104,6 +104,32 @@ uint test_cell(const GridData& grid, TraceState& st, uvec3 cell, uint step, floa
   return last;
 }
 
+// The spilled references of a saturated cell (kGridSpill): the status texel says whether the cell
+// dropped any; then its static and its dynamic spill lists are walked, each in ascending
+// reference order (linked so by the order pass, whatever the order of the appends), and every entry is
+// tested like a slot's reference. So the cell's references are all tested, in an order the same on
+// every backend: after the slots', ascending.
+void test_spilled(const GridData& grid, TraceState& st, uvec3 cell, uint step, float t_lo, float t_hi) {
+  const GridParams& g = grid.params;
+  const uint status = imageLoad(grid.image, ivec3(cell_status_texel(g, cell)));
+  emit(st, kEvStatus, status, kBlank, step, cell, g.capacity, vec4(0.0f), vec4(0.0f));
+  if (status == 0u) return;
+  const uint appended = grid.spill_header.count;
+  emit(st, kEvSpillScan, min(appended, grid.spill_header.capacity), kBlank, step, cell, appended, vec4(0.0f),
+       vec4(0.0f));
+  uint k = 0u;
+  for (uint list = 0u; list < 2u; ++list) {
+    uint i = grid.spill_heads[spill_head_index(cell_linear_index(g, cell), list == 1u)];
+    while (i != kSpillEnd && k < grid.spill_header.capacity) {
+      const SpillEntry e = grid.spill[i];
+      emit(st, kEvSpilled, 0u, e.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
+      test_reference(grid, st, e.ref, step, cell, k, t_lo, t_hi);
+      k += 1u;
+      i = e.next;
+    }
+  }
+}
+
 Hit report(TraceState& st, uint step) {
   Hit h{};
   h.t = st.best_t;
@@ -195,6 +221,8 @@ Hit trace_paper(const GridData& grid, TraceState& st) {
     const float t_hi = min(st.tmax, segment_elongated_end(g, st.rs, last));
     emit(st, kEvCell, last - k, kBlank, k, cell, 0u, vec4(sample, t_mid), vec4(seg_begin, seg_end, t_lo, t_hi));
     const uint last_ref = test_cell(grid, st, cell, k, t_lo, t_hi);
+    // A saturated cell's spilled references
+    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(grid, st, cell, k, t_lo, t_hi);
     // Report the closest hit once it lies before the segment's end ("t < 1")
     if (st.has_best && st.best_t < seg_end) return report(st, k);
     // Gap-fill in a saturated cell
@@ -223,7 +251,9 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
     // Test the cell's references against the whole ray
     emit(st, kEvCell, 0u, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
          vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
-    test_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
+    const uint last_ref = test_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
+    // A saturated cell's spilled references
+    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(grid, st, cell, k, st.rs.t_lo, st.tmax);
     // Report the closest hit once it lies inside this cell or before
     if (st.has_best && st.best_t <= t_exit) return report(st, k);
     if (t_exit >= st.rs.t_end) return finish(st, t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);

@@ -1,5 +1,6 @@
 // tracer.cpp: ReferenceGridTracer (the gridrt::Tracer over the reference) and grid statistics.
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <sstream>
 
@@ -21,6 +22,8 @@ void ReferenceGridTracer::build(const Scene& scene, float time) {
   scene_ = &scene;
   scene_build(grid_, scene, time, options_);
   build_ms_ = ms_since(t0);
+  overflow_warned_ = false;
+  warn_spill_overflow(spill_dump(grid_), name(), overflow_warned_);
 }
 
 void ReferenceGridTracer::update(float time) {
@@ -28,6 +31,16 @@ void ReferenceGridTracer::update(float time) {
   const auto t0 = std::chrono::steady_clock::now();
   scene_update(grid_, *scene_, time, options_);
   update_ms_ = ms_since(t0);
+  warn_spill_overflow(spill_dump(grid_), name(), overflow_warned_);
+}
+
+void warn_spill_overflow(const SpillDump& spill, const std::string& who, bool& warned) {
+  if (spill.overflow() == 0 || warned) return;
+  warned = true;
+  std::fprintf(stderr,
+               "gridrt: warning: %s: the spill list overflowed: %u references found no slot, %u fit the list, "
+               "%u were lost (holes are possible in saturated cells); raise --spill-capacity\n",
+               who.c_str(), spill.header.count, spill.header.capacity, spill.overflow());
 }
 
 void ReferenceGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
@@ -76,16 +89,28 @@ GridStats grid_stats(const GridData& grid) {
   s.occupancy.assign(g.capacity + 1, 0);
   s.triangles = grid.triangles.size();
   std::vector<uint32_t> per_triangle(grid.triangles.size(), 0);
+  std::vector<uint64_t> walk_chain(grid.triangles.size(), 0), search_chain(grid.triangles.size(), 0);
+  std::vector<uint32_t> refs;
   for (uint32_t z = 0; z < g.cells.z; ++z)
     for (uint32_t y = 0; y < g.cells.y; ++y)
       for (uint32_t x = 0; x < g.cells.x; ++x) {
         const glm::uvec3 cell(x, y, z);
         uint32_t n = 0;
+        refs.clear();
         for (; n < g.capacity; ++n) {
           const uint32_t ref = imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, n)));
           if (ref == shared::kBlank) break;
-          ++per_triangle[grid.instances[shared::ref_instance(ref)].tri_offset + shared::ref_triangle(ref)];
+          const uint32_t k = grid.instances[shared::ref_instance(ref)].tri_offset + shared::ref_triangle(ref);
+          ++per_triangle[k];
+          refs.push_back(k);
         }
+        uint32_t log2n = 0;
+        while ((1ull << log2n) < uint64_t(n) + 1) ++log2n;
+        for (uint32_t k : refs) {
+          walk_chain[k] += n;
+          search_chain[k] += 2 * log2n;
+        }
+        s.walk_accesses += uint64_t(n) * (n + 1) / 2;
         s.occupancy[n] += 1;
         s.references += n;
         if (n == 0) ++s.empty_cells;
@@ -93,7 +118,15 @@ GridStats grid_stats(const GridData& grid) {
         if (status & shared::kStatusStatic) ++s.saturated_static;
         if (status & shared::kStatusDynamic) ++s.saturated_dynamic;
       }
-  uint64_t sum = 0, counted = 0;
+  const SpillDump spill = spill_dump(grid);
+  s.spill_on = (g.flags & shared::kGridSpill) != 0u;
+  s.spill_appended = spill.header.count;
+  s.spill_static = spill.header.static_count;
+  s.spill_capacity = spill.header.capacity;
+  s.spill_stored = spill.stored();
+  s.spill_overflow = spill.overflow();
+  s.gap_fill_active = (g.flags & shared::kGridGapFill) != 0u && g.traversal == shared::kTraversalPaper;
+  uint64_t sum = 0, counted = 0, range_sum = 0;
   for (size_t i = 0; i < grid.triangles.size(); ++i) {
     const shared::GridTriangle& t = grid.triangles[i];
     const glm::vec3 n = shared::triangle_normal(t.v0, t.v1, t.v2);
@@ -104,8 +137,16 @@ GridStats grid_stats(const GridData& grid) {
     sum += per_triangle[i];
     ++counted;
     s.references_per_triangle_max = std::max(s.references_per_triangle_max, per_triangle[i]);
+    s.walk_chain_max = std::max(s.walk_chain_max, walk_chain[i]);
+    s.search_chain_max = std::max(s.search_chain_max, search_chain[i]);
+    glm::uvec3 lo, hi;
+    shared::triangle_cell_range(g, t.v0, t.v1, t.v2, lo, hi);
+    const uint64_t range = uint64_t(hi.x - lo.x + 1) * (hi.y - lo.y + 1) * (hi.z - lo.z + 1);
+    range_sum += range;
+    s.range_cells_per_triangle_max = std::max(s.range_cells_per_triangle_max, range);
   }
   s.references_per_triangle_mean = counted ? double(sum) / double(counted) : 0.0;
+  s.range_cells_per_triangle_mean = counted ? double(range_sum) / double(counted) : 0.0;
   return s;
 }
 
@@ -119,9 +160,21 @@ std::string to_text(const GridStats& s) {
   os << "cells: " << s.cell_count << ", empty " << s.empty_cells << " ("
      << (s.cell_count ? 100.0 * double(s.empty_cells) / double(s.cell_count) : 0.0) << "%), saturated by static "
      << s.saturated_static << ", by dynamic " << s.saturated_dynamic << "\n";
+  if (s.spill_on)
+    os << "spill list: " << s.spill_appended << " references found no slot (" << s.spill_static << " static); "
+       << s.spill_stored << " stored of " << s.spill_capacity << " entries, " << s.spill_overflow
+       << " lost to overflow" << (s.spill_overflow ? " (WARNING: holes are possible; raise --spill-capacity)" : "")
+       << "\n";
+  else
+    os << "spill list: off; " << s.spill_appended << " references found no slot (dropped)"
+       << (s.gap_fill_active ? "; gap-fill on" : "") << "\n";
   os << "references: " << s.references << " for " << s.triangles << " triangles (" << s.degenerate_triangles
      << " zero-area, never inserted); per triangle mean " << s.references_per_triangle_mean << ", max "
      << s.references_per_triangle_max << "\n";
+  os << "build work: AABB range cells per triangle mean " << s.range_cells_per_triangle_mean << ", max "
+     << s.range_cells_per_triangle_max << "; slot accesses of insertions walked from slot 0: " << s.walk_accesses
+     << " in total, " << s.walk_chain_max << " along the longest invocation; galloping search loads along it: "
+     << s.search_chain_max << "\n";
   os << "occupancy (references per cell: cells):";
   for (size_t k = 0; k < s.occupancy.size(); ++k)
     if (s.occupancy[k]) os << " " << k << ":" << s.occupancy[k];

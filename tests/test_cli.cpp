@@ -122,6 +122,22 @@ TEST_CASE("CLI: the portal backend renders a tile map and explains a pixel again
   CHECK_THAT(bad.output, Catch::Contains("outside"));
 }
 
+TEST_CASE("CLI: the spill list - stats report it, an overflow warns, a bad value is refused", "[cli][grid]") {
+  const Run on = run_tool("stats builtin:teapot --capacity 4 --traversal exact");
+  INFO(on.output);
+  REQUIRE(on.exit_code == 0);
+  CHECK_THAT(on.output, Catch::Contains("spill list: ") && Catch::Contains(", 0 lost to overflow"));
+  const Run over = run_tool("stats builtin:teapot --capacity 4 --spill on --spill-capacity 2");
+  INFO(over.output);
+  REQUIRE(over.exit_code == 0);
+  CHECK_THAT(over.output, Catch::Contains("warning: reference-grid: the spill list overflowed") &&
+                              Catch::Contains("lost to overflow (WARNING"));
+  const Run off = run_tool("stats builtin:teapot --capacity 4 --spill off");
+  INFO(off.output);
+  CHECK_THAT(off.output, Catch::Contains("spill list: off") && Catch::Contains("gap-fill on"));
+  CHECK(run_tool("stats builtin:teapot --spill sometimes").exit_code == 2);
+}
+
 TEST_CASE("CLI: explain and stats describe the grid of a built-in scene", "[cli][grid]") {
   const Run s = run_tool("stats builtin:cornell");
   INFO(s.output);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 
 #include "common/shared/transform.h"
 #include "test_grid_util.h"
@@ -259,4 +260,46 @@ TEST_CASE("Automatic resolution respects the image limits and the overrides", "[
   CHECK(glm::all(glm::greaterThanEqual(gr.upper, scene.bounds(0.0f).hi)));
   GridOptions too_big{.max_image_dimension = 16, .resolution = glm::uvec3(64, 5, 3)};
   CHECK_THROWS_AS(reference::choose_grid(scene, 0.0f, too_big), Error);
+}
+
+TEST_CASE("The dirty-cell list holds every cell with dynamic references once, through updates", "[grid]") {
+  const Scene scene = random_scene(300, 0.8f, 8.0f, 24, 120);
+  for (Insertion ins : {Insertion::sorted, Insertion::first_empty})
+    for (std::optional<uint32_t> capacity : {std::optional<uint32_t>(5), std::optional<uint32_t>()}) {
+      GridOptions o{.insertion = ins, .threads = 3, .capacity = capacity};
+      GridData g = build(scene, 0.0f, o);
+      const sh::GridParams& p = g.params;
+      size_t dropped_only = 0;  // listed cells whose dynamic references were all dropped (saturated)
+      for (float time : {0.0f, 0.3f, 1.1f, 2.9f}) {
+        if (time > 0.0f) reference::scene_update(g, scene, time, o);
+        INFO("time " << time << (ins == Insertion::sorted ? " sorted" : " first-empty") << ", capacity "
+                     << (capacity ? std::to_string(*capacity) : "automatic"));
+        std::vector<uint32_t> list = reference::dirty_cells(g);
+        std::sort(list.begin(), list.end());
+        CHECK(std::adjacent_find(list.begin(), list.end()) == list.end());  // each cell once
+        // The independent truth: the cells with a dynamic candidate (recomputed from the scene)
+        const auto cand = candidates(scene, p, time);
+        std::vector<uint32_t> want;
+        for (uint32_t c = 0; c < cand.size(); ++c)
+          if (!cand[c].empty() && cand[c].back() >= p.comparison_offset) want.push_back(c);
+        CHECK(!want.empty());
+        CHECK(list == want);
+        // In the image: a listed cell holds a dynamic reference or has the dynamic saturation bit
+        for (uint32_t c : list) {
+          const CellContent cell = read_cell(g, sh::cell_of_linear_index(p, c));
+          const bool holds = std::any_of(cell.refs.begin(), cell.refs.end(), [&](uint32_t r) { return r >= p.comparison_offset; });
+          CHECK((holds || (cell.status & sh::kStatusDynamic) != 0));
+          dropped_only += !holds;
+        }
+        // The listed bits say the same
+        size_t bits = 0;
+        for (uint32_t c = 0; c < sh::grid_cell_count(p); ++c) {
+          const bool bit = (g.dirty.load(sh::kWorkListHeaderWords + sh::dirty_bit_item(p, c)) & sh::dirty_bit(c)) != 0;
+          bits += bit;
+          if (bit != std::binary_search(list.begin(), list.end(), c)) FAIL("cell " << c << ": listed bit " << bit);
+        }
+        CHECK(bits == list.size());
+      }
+      if (capacity) CHECK(dropped_only > 0);  // the saturated case is exercised
+    }
 }

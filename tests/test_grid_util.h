@@ -97,6 +97,66 @@ inline RefHit brute_force(const reference::GridData& g, const Ray& r) {
   return best;
 }
 
+// A closed cone of 2n triangles: n around its apex and n around the centre of its base disk (two
+// vertices of valence n: the case no uniform grid escapes, every triangle in the apex's cell). The
+// base lies `height` below the apex (-z), a ring of `radius`.
+inline Mesh fan_mesh(glm::vec3 apex, float radius, float height, uint32_t n, const char* name = "fan") {
+  Mesh m;
+  m.name = name;
+  const glm::vec3 base = apex - glm::vec3(0.0f, 0.0f, height);
+  m.positions = {apex, base};
+  for (uint32_t i = 0; i < n; ++i) {
+    const double a = 2.0 * 3.14159265358979 * double(i) / double(n);
+    m.positions.push_back(base + glm::vec3(radius * float(std::cos(a)), radius * float(std::sin(a)), 0.0f));
+  }
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t a = 2 + i, b = 2 + (i + 1) % n;
+    m.triangles.push_back({0, a, b});
+    m.triangles.push_back({1, b, a});
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  return m;
+}
+
+// The closed box [lo, hi] seen from inside: 12 triangles.
+inline Mesh box_mesh(glm::vec3 lo, glm::vec3 hi, const char* name = "room") {
+  Mesh m;
+  m.name = name;
+  for (int k = 0; k < 8; ++k) m.positions.push_back({(k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z});
+  const uint32_t quads[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+  for (const auto& q : quads) {
+    m.triangles.push_back({q[0], q[1], q[2]});
+    m.triangles.push_back({q[0], q[2], q[3]});
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  return m;
+}
+
+// The room [0, 8]^3 with a static fan (fan_mesh) of 2n triangles about (4.3, 4.3, 4.6) and, with
+// `moving`, a second fan of 2 * moving triangles, dynamic, that moves along x from 2 cells away into
+// the first one's cell and back (path period 4 s: there at t = 2).
+inline Scene fan_scene(uint32_t n, uint32_t moving = 0) {
+  Scene s;
+  s.name = "fan";
+  s.meshes.push_back(box_mesh(glm::vec3(0.0f), glm::vec3(8.0f)));
+  s.meshes.push_back(fan_mesh({4.3f, 4.3f, 4.6f}, 0.45f, 0.5f, n));
+  s.instances.push_back(Instance{.name = "room", .mesh = 0});
+  s.instances.push_back(Instance{.name = "fan", .mesh = 1});
+  if (moving) {
+    s.meshes.push_back(fan_mesh({2.6f, 4.45f, 4.5f}, 0.3f, 0.4f, moving, "moving fan"));
+    Instance d{.name = "moving fan", .mesh = 2, .dynamic = true};
+    d.motion.path_points = {glm::vec3(0.0f), glm::vec3(2.0f, 0.0f, 0.0f)};
+    d.motion.path_period = 4.0f;
+    s.instances.push_back(d);
+  }
+  s.finalize();
+  return s;
+}
+
+// Rays at the fans: from random points of the room towards random points of random fan triangles
+// (of the grid's geometry buffer, instances >= 1), and random rays through the middle of the room.
+inline std::vector<Ray> fan_rays(const reference::GridData& g, uint32_t count, uint32_t seed);
+
 inline Ray make_ray(glm::vec3 o, glm::vec3 d, float tmin = 0.0f, float tmax = INFINITY) {
   Ray r{};
   r.org = o;
@@ -106,6 +166,27 @@ inline Ray make_ray(glm::vec3 o, glm::vec3 d, float tmin = 0.0f, float tmax = IN
   r.launch_normal = glm::vec3(0.0f);
   r.launch_ref = shared::kNoRef;
   return r;
+}
+
+inline std::vector<Ray> fan_rays(const reference::GridData& g, uint32_t count, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(0.3f, 7.7f), unit(0.0f, 1.0f);
+  std::vector<Ray> rays;
+  const uint32_t first = g.instances.size() > 1 ? g.instances[1].tri_offset : 0u;
+  const uint32_t tris = uint32_t(g.triangles.size()) - first;
+  for (uint32_t i = 0; i < count; ++i) {
+    const glm::vec3 o(pos(rng), pos(rng), pos(rng));
+    glm::vec3 target(pos(rng), pos(rng), pos(rng));
+    if (i % 4 != 3 && tris > 0) {
+      const shared::GridTriangle& t = g.triangles[first + std::uniform_int_distribution<uint32_t>(0, tris - 1)(rng)];
+      float a = unit(rng), b = unit(rng);
+      if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+      target = t.v0 + a * (t.v1 - t.v0) + b * (t.v2 - t.v0);
+    }
+    const glm::vec3 d = target - o;
+    rays.push_back(make_ray(o, glm::dot(d, d) > 1e-6f ? d : glm::vec3(0.0f, 0.0f, 1.0f)));
+  }
+  return rays;
 }
 
 }  // namespace gridtest

@@ -57,6 +57,40 @@ VKAPI_ATTR VkBool32 VKAPI_CALL debug_callback(VkDebugUtilsMessageSeverityFlagBit
   return VK_FALSE;
 }
 
+// The device extensions the ray tracing side by side needs (vulkan/rtx.h).
+constexpr const char* kRayTracingExtensions[] = {VK_KHR_ACCELERATION_STRUCTURE_EXTENSION_NAME,
+                                                  VK_KHR_RAY_TRACING_PIPELINE_EXTENSION_NAME,
+                                                  VK_KHR_DEFERRED_HOST_OPERATIONS_EXTENSION_NAME};
+
+// What `pd` lacks of them (extensions, then features), "" if nothing. Features are queried only
+// where the extensions are present, so nothing unknown is chained on other devices.
+std::string ray_tracing_missing(VkPhysicalDevice pd, const DeviceInfo& info) {
+  if (info.api_version < VK_API_VERSION_1_2) return "Vulkan 1.2";
+  uint32_t n = 0;
+  vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, nullptr);
+  std::vector<VkExtensionProperties> exts(n);
+  vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, exts.data());
+  exts.resize(n);
+  std::string missing;
+  for (const char* want : kRayTracingExtensions)
+    if (std::none_of(exts.begin(), exts.end(),
+                     [&](const VkExtensionProperties& e) { return std::strcmp(e.extensionName, want) == 0; }))
+      missing += std::string(missing.empty() ? "" : ", ") + want;
+  if (!missing.empty()) return missing;
+  VkPhysicalDeviceRayTracingPipelineFeaturesKHR rtp{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
+  VkPhysicalDeviceAccelerationStructureFeaturesKHR as{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+  as.pNext = &rtp;
+  VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  v12.pNext = &as;
+  VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  f2.pNext = &v12;
+  vkGetPhysicalDeviceFeatures2(pd, &f2);
+  if (!v12.bufferDeviceAddress) missing += "feature bufferDeviceAddress";
+  if (!as.accelerationStructure) missing += std::string(missing.empty() ? "" : ", ") + "feature accelerationStructure";
+  if (!rtp.rayTracingPipeline) missing += std::string(missing.empty() ? "" : ", ") + "feature rayTracingPipeline";
+  return missing;
+}
+
 DeviceInfo query_info(VkPhysicalDevice pd) {
   DeviceInfo info;
   VkPhysicalDeviceVulkan12Properties p12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_PROPERTIES};
@@ -80,6 +114,15 @@ DeviceInfo query_info(VkPhysicalDevice pd) {
     info.signed_zero_inf_nan_preserve_f32 = p12.shaderSignedZeroInfNanPreserveFloat32;
     info.subgroup_size = p11.subgroupSize;
     info.max_memory_allocation = p11.maxMemoryAllocationSize;
+    const VkSubgroupFeatureFlags ops = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_ARITHMETIC_BIT |
+                                       VK_SUBGROUP_FEATURE_BALLOT_BIT;
+    info.subgroup_arithmetic_ballot =
+        (p11.subgroupSupportedOperations & ops) == ops && (p11.subgroupSupportedStages & VK_SHADER_STAGE_COMPUTE_BIT);
+    VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    f2.pNext = &f12;
+    vkGetPhysicalDeviceFeatures2(pd, &f2);
+    info.buffer_int64_atomics = f2.features.shaderInt64 && f12.shaderBufferInt64Atomics;
   }
   VkPhysicalDeviceFeatures f{};
   vkGetPhysicalDeviceFeatures(pd, &f);
@@ -91,6 +134,7 @@ DeviceInfo query_info(VkPhysicalDevice pd) {
   for (uint32_t h = 0; h < mem.memoryHeapCount; ++h)
     if (mem.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
       info.device_local_heap = std::max(info.device_local_heap, mem.memoryHeaps[h].size);
+  info.ray_tracing_missing = ray_tracing_missing(pd, info);
   return info;
 }
 
@@ -149,11 +193,13 @@ std::string DeviceInfo::summary() const {
     << "): maxImageDimension3D " << limits.maxImageDimension3D << ", maxStorageBufferRange "
     << limits.maxStorageBufferRange << ", maxMemoryAllocationSize " << max_memory_allocation
     << ", device-local heap " << device_local_heap << ", geometryShader " << geometry_shader
+    << ", int64 buffer atomics " << buffer_int64_atomics
     << ", vertexPipelineStoresAndAtomics " << vertex_pipeline_stores_and_atomics
     << ", shaderDenormPreserveFloat32 " << denorm_preserve_f32 << ", shaderDenormFlushToZeroFloat32 "
     << denorm_flush_to_zero_f32 << ", shaderSignedZeroInfNanPreserveFloat32 " << signed_zero_inf_nan_preserve_f32
     << ", subgroup size " << subgroup_size << ", timestamp valid bits " << timestamp_valid_bits
-    << ", timestampPeriod " << limits.timestampPeriod << " ns";
+    << ", timestampPeriod " << limits.timestampPeriod << " ns, ray tracing pipeline "
+    << (ray_tracing_missing.empty() ? std::string("yes") : "no (" + ray_tracing_missing + ")");
   return s.str();
 }
 
@@ -371,14 +417,33 @@ void Context::create_device(const ContextOptions& options) {
   q.queueCount = 1;
   q.pQueuePriorities = &priority;
 
-  VkPhysicalDeviceFeatures features{};
-  features.geometryShader = options.raster_build ? VK_TRUE : VK_FALSE;
-  features.vertexPipelineStoresAndAtomics = options.raster_build ? VK_TRUE : VK_FALSE;
+  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  f12.shaderBufferInt64Atomics = info_.buffer_int64_atomics ? VK_TRUE : VK_FALSE;
+  VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  features.pNext = &f12;
+  features.features.geometryShader = options.raster_build ? VK_TRUE : VK_FALSE;
+  features.features.vertexPipelineStoresAndAtomics = options.raster_build ? VK_TRUE : VK_FALSE;
+  features.features.shaderInt64 = info_.buffer_int64_atomics ? VK_TRUE : VK_FALSE;
 
   VkDeviceCreateInfo ci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  ci.pNext = &features;
   ci.queueCreateInfoCount = 1;
   ci.pQueueCreateInfos = &q;
-  ci.pEnabledFeatures = &features;
+
+  // Ray tracing, only when asked and present: the extensions, and their features chained after
+  // the Vulkan 1.2 features (buffer device address)
+  ray_tracing_ = options.ray_tracing && info_.ray_tracing_missing.empty();
+  VkPhysicalDeviceRayTracingPipelineFeaturesKHR rtp{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
+  VkPhysicalDeviceAccelerationStructureFeaturesKHR as{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+  if (ray_tracing_) {
+    rtp.rayTracingPipeline = VK_TRUE;
+    as.accelerationStructure = VK_TRUE;
+    as.pNext = &rtp;
+    f12.bufferDeviceAddress = VK_TRUE;
+    f12.pNext = &as;
+    ci.enabledExtensionCount = uint32_t(std::size(kRayTracingExtensions));
+    ci.ppEnabledExtensionNames = kRayTracingExtensions;
+  }
   const VkResult r = vkCreateDevice(physical_, &ci, nullptr, &device_);
   if (r != VK_SUCCESS) {
     device_ = VK_NULL_HANDLE;
@@ -459,7 +524,7 @@ uint32_t Context::memory_type(uint32_t type_bits, VkMemoryPropertyFlags required
   return fallback;
 }
 
-VkDeviceMemory Context::allocate(const VkMemoryRequirements& req, Memory where, void** mapped) {
+VkDeviceMemory Context::allocate(const VkMemoryRequirements& req, Memory where, void** mapped, bool device_address) {
   const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
   uint32_t type = where == Memory::Host
                       ? memory_type(req.memoryTypeBits, host, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT)
@@ -469,6 +534,9 @@ VkDeviceMemory Context::allocate(const VkMemoryRequirements& req, Memory where, 
   VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
   ai.allocationSize = req.size;
   ai.memoryTypeIndex = type;
+  VkMemoryAllocateFlagsInfo flags{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
+  flags.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
+  if (device_address) ai.pNext = &flags;
   VkDeviceMemory mem = VK_NULL_HANDLE;
   const VkResult r = vkAllocateMemory(device_, &ai, nullptr, &mem);
   if (r != VK_SUCCESS)
@@ -514,7 +582,10 @@ Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, Memor
   GRIDRT_VK_CHECK(vkCreateBuffer(device_, &ci, nullptr, &b.buffer));
   VkMemoryRequirements req{};
   vkGetBufferMemoryRequirements(device_, b.buffer, &req);
-  b.memory = allocate(req, where, &b.mapped);
+  const bool device_address = (usage & VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT) != 0;
+  if (device_address && !ray_tracing_)
+    throw Error("a buffer with a device address needs bufferDeviceAddress, enabled only with ray tracing");
+  b.memory = allocate(req, where, &b.mapped, device_address);
   GRIDRT_VK_CHECK(vkBindBufferMemory(device_, b.buffer, b.memory, 0));
   return b;
 }

@@ -33,6 +33,10 @@ struct ContextOptions {
   int device_index = -1;         // physical device by index (env GRIDRT_VK_DEVICE); -1: best
   std::string loader_path;       // "" = libvulkan.so.1 (env GRIDRT_VK_LOADER)
   bool raster_build = true;      // need geometryShader + vertexPipelineStoresAndAtomics
+  // Enable the device's ray tracing (VK_KHR_acceleration_structure, VK_KHR_ray_tracing_pipeline,
+  // VK_KHR_deferred_host_operations, bufferDeviceAddress) for vulkan/rtx.h, where the device has
+  // all of it; never required (the device choice does not change), never enabled unless asked.
+  bool ray_tracing = false;
 
   // Defaults overridden by GRIDRT_VALIDATION, GRIDRT_VK_DEVICE and GRIDRT_VK_LOADER.
   static ContextOptions from_env();
@@ -49,6 +53,10 @@ struct DeviceInfo {
   bool geometry_shader = false;
   bool vertex_pipeline_stores_and_atomics = false;
   bool fragment_stores_and_atomics = false;
+  // shaderInt64 + shaderBufferInt64Atomics (enabled when present: the compute gather's key)
+  bool buffer_int64_atomics = false;
+  // Subgroup arithmetic and ballot in compute shaders (the compute gather's appends)
+  bool subgroup_arithmetic_ballot = false;
   // Float controls (VkPhysicalDeviceFloatControlsProperties), 32-bit floats.
   bool denorm_preserve_f32 = false;
   bool denorm_flush_to_zero_f32 = false;
@@ -57,6 +65,9 @@ struct DeviceInfo {
   uint32_t timestamp_valid_bits = 0;   // of the queue family, 0: no timestamps
   VkDeviceSize max_memory_allocation = 0;
   VkDeviceSize device_local_heap = 0;  // the largest device-local heap, bytes
+  // What the device lacks for the ray tracing side by side (vulkan/rtx.h): the missing
+  // extensions and features by name, "" when it has everything.
+  std::string ray_tracing_missing;
 
   std::string summary() const;         // one paragraph for logs and docs
 };
@@ -117,6 +128,8 @@ class Context {
   uint32_t queue_family() const { return queue_family_; }
   const DeviceInfo& info() const { return info_; }
   bool validation() const { return validation_; }
+  // Whether the ray tracing extensions and features are enabled (asked for and present).
+  bool ray_tracing() const { return ray_tracing_; }
 
   // Validation messages (warnings and errors) received since the last clear_messages().
   std::vector<std::string> messages() const;
@@ -127,7 +140,8 @@ class Context {
   // final barrier makes every device write visible to the host.
   void submit(const std::function<void(VkCommandBuffer)>& record);
 
-  // Buffers. Usage gets TRANSFER_SRC|TRANSFER_DST added. Throws Error on a limit.
+  // Buffers. Usage gets TRANSFER_SRC|TRANSFER_DST added; SHADER_DEVICE_ADDRESS usage (only with
+  // ray_tracing()) allocates with the device-address flag. Throws Error on a limit.
   Buffer create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, Memory where = Memory::Device);
   void upload(const Buffer& dst, const void* data, size_t bytes, VkDeviceSize offset = 0);
   void download(const Buffer& src, void* data, size_t bytes, VkDeviceSize offset = 0);
@@ -166,9 +180,10 @@ class Context {
   void create_instance(const ContextOptions& options);
   void choose_physical_device(const ContextOptions& options);
   void create_device(const ContextOptions& options);
-  VkDeviceMemory allocate(const VkMemoryRequirements& req, Memory where, void** mapped);
+  VkDeviceMemory allocate(const VkMemoryRequirements& req, Memory where, void** mapped, bool device_address = false);
 
   bool validation_ = false;
+  bool ray_tracing_ = false;
   VkInstance instance_ = VK_NULL_HANDLE;
   VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
   PFN_vkDestroyDebugUtilsMessengerEXT destroy_messenger_ = nullptr;

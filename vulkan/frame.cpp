@@ -27,7 +27,10 @@ enum FrameBinding : uint32_t {
   kRays = 9,
   kHits = 10,
   kImage = 11,
-  kBindingCount = 12,
+  kRayList = 12,
+  kGatherKeys = 13,
+  kTileList = 14,
+  kBindingCount = 15,
 };
 constexpr uint32_t kSpecFrameFlags = 10;
 
@@ -94,10 +97,10 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 
 struct VulkanFrame::Gpu {
   Context* ctx = nullptr;
-  Buffer params, visibility, gather, materials, texels, lights, rays, hits, image;
+  Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles;
   Image2D color, depth;
-  std::unique_ptr<Descriptors> set;
-  std::unique_ptr<Pipeline> resolve, bounce, shade;
+  std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
+  std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch;
   std::unique_ptr<Timestamps> timestamps;
   // The raster gather
   VkPipelineLayout layout = VK_NULL_HANDLE;
@@ -257,6 +260,11 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   const uint32_t w = options_.width, h = options_.height;
   if (w == 0 || h == 0) throw Error("vulkan frame: image size must be at least 1 x 1");
   bounce_ = options_.bounce && scene.has_glossy();
+  gather_ = options_.gather;
+  if (gather_ == GatherMode::compute &&
+      !(ctx.info().buffer_int64_atomics && ctx.info().subgroup_arithmetic_ballot))
+    gather_ = GatherMode::raster;
+  const bool compact = bounce_ && options_.compact_rays;
   gpu_ = std::make_unique<Gpu>();
   Gpu& gpu = *gpu_;
   gpu.ctx = &ctx;
@@ -345,15 +353,33 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   gpu.rays = ctx.create_buffer(pixels * sizeof(Ray), sb);
   gpu.hits = ctx.create_buffer(pixels * sizeof(Hit), sb);
   gpu.image = ctx.create_buffer(pixels * 4, sb);
-  create_image2d(ctx, gpu.color, VK_FORMAT_R32_UINT, w, h,
-                 VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
-  create_image2d(ctx, gpu.depth, VK_FORMAT_D32_SFLOAT, w, h, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
-                 VK_IMAGE_ASPECT_DEPTH_BIT);
+  const VkBufferUsageFlags list_usage = sb | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT;
+  const size_t header = sizeof(shared::WorkListHeader);
+  gpu.ray_list = ctx.create_buffer(compact ? header + pixels * 4 : header, list_usage);
+  if (gather_ == GatherMode::compute) {
+    // The large triangles: 4 words for every triangle of the geometry buffer at most
+    const std::vector<shared::GridInstance>& gi = grid.instances();
+    const uint64_t tris = gi.empty() ? 0 : gi.back().tri_offset + gi.back().tri_count;
+    gpu.keys = ctx.create_buffer(pixels * 8, sb);
+    gpu.tiles = ctx.create_buffer(sizeof(shared::GatherTileHeader) + std::max<uint64_t>(tris, 1) * 16, list_usage);
+  } else {
+    gpu.keys = ctx.create_buffer(16, sb);
+    gpu.tiles = ctx.create_buffer(header, list_usage);
+    create_image2d(ctx, gpu.color, VK_FORMAT_R32_UINT, w, h,
+                   VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
+    create_image2d(ctx, gpu.depth, VK_FORMAT_D32_SFLOAT, w, h, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
+                   VK_IMAGE_ASPECT_DEPTH_BIT);
+  }
+  // The work lists start empty
+  ctx.submit([&](VkCommandBuffer cb) {
+    vkCmdFillBuffer(cb, gpu.ray_list.buffer, 0, VK_WHOLE_SIZE, 0u);
+    vkCmdFillBuffer(cb, gpu.tiles.buffer, 0, header, 0u);
+  });
 
   // The descriptor set, the pipelines (specialized: bounce, textures)
   const VkDescriptorType t = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   gpu.set = std::make_unique<Descriptors>(
-      ctx, std::initializer_list<VkDescriptorType>{t, t, t, t, t, t, t, t, t, t, t, t},
+      ctx, std::initializer_list<VkDescriptorType>{t, t, t, t, t, t, t, t, t, t, t, t, t, t, t},
       VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
   Descriptors& set = *gpu.set;
   set.bind(kParams, gpu.params);
@@ -368,8 +394,12 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   set.bind(kRays, gpu.rays);
   set.bind(kHits, gpu.hits);
   set.bind(kImage, gpu.image);
+  set.bind(kRayList, gpu.ray_list);
+  set.bind(kGatherKeys, gpu.keys);
+  set.bind(kTileList, gpu.tiles);
   const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
-                         (alpha ? shared::kFrameAlpha : 0u);
+                         (alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
+                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u);
   auto spec = [&] {
     SpecConstants s;
     s.add(kSpecFrameFlags, flags);
@@ -378,9 +408,24 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   gpu.resolve = std::make_unique<Pipeline>(ctx, "gather_resolve.comp", set.layout(), 0, spec());
   gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
   gpu.shade = std::make_unique<Pipeline>(ctx, "shade.comp", set.layout(), 0, spec());
-  SpecConstants raster_spec = spec();
-  gpu.create_raster(w, h, raster_spec.info());
-  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 5);
+  const uint32_t list_push = 3 * sizeof(uint32_t);
+  if (compact) {
+    gpu.ray_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
+    gpu.ray_list_set->bind(0, gpu.ray_list);
+    gpu.ray_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.ray_list_set->layout(), list_push);
+  }
+  if (gather_ == GatherMode::compute) {
+    gpu.tile_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
+    gpu.tile_set->bind(0, gpu.tiles);
+    gpu.tile_dispatch = std::make_unique<Pipeline>(ctx, "gather_tiles_dispatch.comp", gpu.tile_set->layout(),
+                                                   uint32_t(sizeof(uint32_t)));
+    gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(2 * sizeof(uint32_t)), spec());
+    gpu.tile_pass = std::make_unique<Pipeline>(ctx, "gather_tiles.comp", set.layout(), 0, spec());
+  } else {
+    SpecConstants raster_spec = spec();
+    gpu.create_raster(w, h, raster_spec.info());
+  }
+  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 7);
 }
 
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
@@ -389,10 +434,13 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   Context& ctx = grid_.context();
   Gpu& gpu = *gpu_;
   const uint32_t w = options_.width, h = options_.height;
+  const bool compact = bool(gpu.ray_list_dispatch);
+  const uint32_t max_groups_x = ctx.info().limits.maxComputeWorkGroupCount[0];
   repeats = std::max(repeats, 1u);
   ctx.upload(gpu.params, &frame, sizeof frame, offsetof(shared::FrameParams, frame));
-  if (bounce_) grid_.bind_ray_buffers(gpu.rays, gpu.hits);
+  if (bounce_) grid_.bind_ray_buffers(gpu.rays, gpu.hits, compact ? &gpu.ray_list : nullptr);
   const std::vector<shared::GridInstance>& instances = grid_.instances();
+  const uint32_t triangles = instances.empty() ? 0u : instances.back().tri_offset + instances.back().tri_count;
   const auto t0 = std::chrono::steady_clock::now();
   ctx.submit([&](VkCommandBuffer cb) {
     barrier(cb);  // the grid's update and the parameters, before anything reads them
@@ -402,62 +450,102 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
       const bool timed = gpu.timestamps && rep + 1 == repeats;
       if (rep > 0) barrier(cb);
       if (timed) gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
-      // Gather: the raster pass, one draw per instance (firstInstance = its id)
-      VkClearValue clear[2]{};
-      clear[0].color.uint32[0] = shared::kNoRef;
-      clear[1].depthStencil = {0.0f, 0};
-      VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
-      bi.renderPass = gpu.pass;
-      bi.framebuffer = gpu.framebuffer;
-      bi.renderArea = {{0, 0}, {w, h}};
-      bi.clearValueCount = 2;
-      bi.pClearValues = clear;
-      vkCmdBeginRenderPass(cb, &bi, VK_SUBPASS_CONTENTS_INLINE);
-      vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.raster);
       const VkDescriptorSet s = gpu.set->set();
-      vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.layout, 0, 1, &s, 0, nullptr);
-      for (uint32_t i = 0; i < instances.size(); ++i)
-        if (instances[i].tri_count) vkCmdDraw(cb, 3 * instances[i].tri_count, 1, 0, i);
-      vkCmdEndRenderPass(cb);
-      VkBufferImageCopy region{};
-      region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-      region.imageExtent = {w, h, 1};
-      vkCmdCopyImageToBuffer(cb, gpu.color.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, gpu.visibility.buffer, 1,
-                             &region);
-      barrier(cb);
+      if (gather_ == GatherMode::compute) {
+        // Gather, compute: every key "nothing" (all ones), the triangles' tiles, their pixels
+        vkCmdFillBuffer(cb, gpu.keys.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
+        barrier(cb);
+        if (triangles) {
+          const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
+          const uint32_t push[2] = {triangles, uint32_t(instances.size())};
+          gpu.bin->bind(cb, s);
+          gpu.bin->push(cb, push, sizeof push);
+          vkCmdDispatch(cb, g.x, g.y, 1);
+        }
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 1);
+        gpu.tile_dispatch->bind(cb, gpu.tile_set->set());
+        gpu.tile_dispatch->push(cb, max_groups_x);
+        vkCmdDispatch(cb, 1, 1, 1);
+        barrier(cb);
+        gpu.tile_pass->bind(cb, s);
+        vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 2);
+      } else {
+        // Gather, raster: one draw per instance (firstInstance = its id), then the copy
+        VkClearValue clear[2]{};
+        clear[0].color.uint32[0] = shared::kNoRef;
+        clear[1].depthStencil = {0.0f, 0};
+        VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+        bi.renderPass = gpu.pass;
+        bi.framebuffer = gpu.framebuffer;
+        bi.renderArea = {{0, 0}, {w, h}};
+        bi.clearValueCount = 2;
+        bi.pClearValues = clear;
+        vkCmdBeginRenderPass(cb, &bi, VK_SUBPASS_CONTENTS_INLINE);
+        vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.raster);
+        vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.layout, 0, 1, &s, 0, nullptr);
+        for (uint32_t i = 0; i < instances.size(); ++i)
+          if (instances[i].tri_count) vkCmdDraw(cb, 3 * instances[i].tri_count, 1, 0, i);
+        vkCmdEndRenderPass(cb);
+        if (timed) gpu.timestamps->write(cb, 1);
+        VkBufferImageCopy region{};
+        region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        region.imageExtent = {w, h, 1};
+        vkCmdCopyImageToBuffer(cb, gpu.color.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, gpu.visibility.buffer, 1,
+                               &region);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 2);
+      }
       // Gather: position, normal, material, uv from the visible triangle
       gpu.resolve->bind(cb, s);
       vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
       barrier(cb);
-      if (timed) gpu.timestamps->write(cb, 1);
+      if (timed) gpu.timestamps->write(cb, 3);
       if (bounce_) {
         // Bounce rays
         gpu.bounce->bind(cb, s);
         vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
         barrier(cb);
-        if (timed) gpu.timestamps->write(cb, 2);
-        // Trace through the grid
-        grid_.record_trace(cb, w * h);
+        if (timed) gpu.timestamps->write(cb, 4);
+        // Trace through the grid: the listed rays (the list's dispatch step first), or every pixel
+        if (compact) {
+          const uint32_t list_push[3] = {64u, max_groups_x, w * h};
+          gpu.ray_list_dispatch->bind(cb, gpu.ray_list_set->set());
+          gpu.ray_list_dispatch->push(cb, list_push, sizeof list_push);
+          vkCmdDispatch(cb, 1, 1, 1);
+          barrier(cb);
+          grid_.record_trace_list(cb);
+        } else {
+          grid_.record_trace(cb, w * h);
+        }
         barrier(cb);
-        if (timed) gpu.timestamps->write(cb, 3);
+        if (timed) gpu.timestamps->write(cb, 5);
       } else if (timed) {
-        gpu.timestamps->write(cb, 2);
-        gpu.timestamps->write(cb, 3);
+        gpu.timestamps->write(cb, 4);
+        gpu.timestamps->write(cb, 5);
       }
       // Shade
       gpu.shade->bind(cb, s);
       vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
-      if (timed) gpu.timestamps->write(cb, 4);
+      if (timed) gpu.timestamps->write(cb, 6);
     }
   });
   timings_.host_ms = ms_since(t0);
   if (gpu.timestamps) {
     const std::vector<double> ns = gpu.timestamps->read_ns();
-    timings_.gather_ms = (ns[1] - ns[0]) * 1e-6;
-    timings_.bounce_ms = (ns[2] - ns[1]) * 1e-6;
-    timings_.trace_ms = (ns[3] - ns[2]) * 1e-6;
-    timings_.shade_ms = (ns[4] - ns[3]) * 1e-6;
-    timings_.total_ms = (ns[4] - ns[0]) * 1e-6;
+    const bool compute = gather_ == GatherMode::compute;
+    timings_.visibility_ms = ((compute ? ns[2] : ns[1]) - ns[0]) * 1e-6;
+    timings_.bin_ms = compute ? (ns[1] - ns[0]) * 1e-6 : 0.0;
+    timings_.tiles_ms = compute ? (ns[2] - ns[1]) * 1e-6 : 0.0;
+    timings_.copy_ms = compute ? 0.0 : (ns[2] - ns[1]) * 1e-6;
+    timings_.resolve_ms = (ns[3] - ns[2]) * 1e-6;
+    timings_.gather_ms = (ns[3] - ns[0]) * 1e-6;
+    timings_.bounce_ms = (ns[4] - ns[3]) * 1e-6;
+    timings_.trace_ms = (ns[5] - ns[4]) * 1e-6;
+    timings_.shade_ms = (ns[6] - ns[5]) * 1e-6;
+    timings_.total_ms = (ns[6] - ns[0]) * 1e-6;
   }
 }
 
@@ -510,6 +598,11 @@ std::vector<uint8_t> VulkanFrame::download_rgba() const {
 
 std::vector<uint32_t> VulkanFrame::download_visibility() const {
   return grid_.context().download<uint32_t>(gpu_->visibility, size_t(options_.width) * options_.height);
+}
+
+uint32_t VulkanFrame::download_gather_tiles() const {
+  if (gather_ != GatherMode::compute) return 0;
+  return grid_.context().download<shared::GatherTileHeader>(gpu_->tiles, 1)[0].tiles;
 }
 
 const Buffer& VulkanFrame::ray_buffer() const { return gpu_->rays; }

@@ -1,13 +1,24 @@
 // frame.h: the paper's frame on the GPU, after the grid's update, in one submission:
-//   gather   a raster pass (gather.vert + gather.frag: the geometry buffer's world-space triangles,
-//            depth test, the visible triangle's reference per pixel into an R32_UINT attachment),
-//            copied to a buffer; gather_resolve.comp turns it into the gather buffer (position,
-//            normal, material, uv, launch reference) with the same shared math as make_gather
-//   bounce   bounce.comp: one glossy bounce ray per pixel, as bounce_rays (common/shared/bounce.h)
-//   trace    the grid's trace pipeline (VulkanGridTracer::record_trace) on the device ray buffer
+//   gather   the visible triangle per pixel, by one of two passes:
+//            compute (default where the device has 64-bit buffer atomics): gather_bin.comp clips
+//              each triangle to the view frustum and tests a small screen box itself or lists
+//              the triangle with its 8x8-pixel tiles; gather_tiles.comp tests each tile's pixel
+//              rays with the shared ray test and keeps the smallest (t, reference) by a 64-bit
+//              atomic min (gather_visibility.glsl): the CPU gather's own rule
+//            raster (the paper's): gather.vert + gather.frag, the geometry buffer's world-space
+//              triangles, depth test, the reference into an R32_UINT attachment copied to a buffer
+//            then gather_resolve.comp turns it into the gather buffer (position, normal, material,
+//            uv, launch reference) with the same shared math as make_gather
+//   bounce   bounce.comp: one glossy bounce ray per pixel, as bounce_rays (common/shared/bounce.h);
+//            compacted (an option): the pixels with a ray are appended to a work list, the
+//            others get their (miss) hit at once
+//   trace    the grid's trace pipeline on the device ray buffer: every pixel, or the work list
+//            (VulkanGridTracer::record_trace_list, an indirect dispatch)
 //   shade    shade.comp: as shade() (no shadow rays) into RGBA8, sRGB-encoded
 // Each phase is bracketed by timestamp queries. Nothing goes through the host between phases.
 //
+// The compute gather decides each pixel as the CPU's primary ray does (closest accepted t, then
+// the smaller reference); it leaves out only hits within the near plane (scene extent * 1e-6).
 // The tie rule of the raster gather: the rasterizer covers a pixel centre by Vulkan's rules (the
 // top-left rule on shared edges) and keeps the nearest interpolated depth; the CPU gather keeps the
 // ray's closest accepted hit (ties: the smaller reference). They pick different triangles only
@@ -30,14 +41,27 @@ namespace gridrt::vulkan {
 // submit-to-fence time of the whole (on lavapipe the one to read: docs/VULKAN.md).
 struct FrameTimings {
   double gather_ms = 0.0, bounce_ms = 0.0, trace_ms = 0.0, shade_ms = 0.0;
+  // The gather's parts: the visibility (raster pass, or the compute passes with the key buffer's
+  // fill) and its compute passes (bin with the fill, tiles with their dispatch step), the raster
+  // attachment's copy to a buffer, the resolve pass
+  double visibility_ms = 0.0, bin_ms = 0.0, tiles_ms = 0.0, copy_ms = 0.0, resolve_ms = 0.0;
   double total_ms = 0.0;  // gather + bounce + trace + shade
   double host_ms = 0.0;
+};
+
+enum class GatherMode {
+  compute,  // gather_bin/gather_tiles.comp: the CPU gather's ray test (needs 64-bit buffer atomics)
+  raster,   // the paper's raster pass
 };
 
 struct FrameOptions {
   uint32_t width = 1920, height = 1080;
   float ambient = 0.2f, exposure = 1.0f;  // ShadeOptions
   bool bounce = true;   // false: no bounce rays (as a scene without glossy materials)
+  GatherMode gather = GatherMode::compute;  // compute falls back to raster without int64 atomics
+  // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
+  // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
+  bool compact_rays = false;
 };
 
 class VulkanFrame {
@@ -60,6 +84,8 @@ class VulkanFrame {
   std::vector<Hit> download_hits() const;   // their hits
   std::vector<uint8_t> download_rgba() const;  // RGBA8, sRGB-encoded
   std::vector<uint32_t> download_visibility() const;  // the raster pass's reference per pixel
+  // The compute gather's 8x8-pixel tiles of the last render (0 for the raster gather).
+  uint32_t download_gather_tiles() const;
 
   // The device buffers of the bounce rays and hits (another tracer may trace the same rays).
   const Buffer& ray_buffer() const;
@@ -67,6 +93,8 @@ class VulkanFrame {
   uint32_t ray_count() const { return options_.width * options_.height; }
   // Whether the bounce runs (the scene has glossy materials, and options.bounce).
   bool bounce() const { return bounce_; }
+  // The gather this frame runs (options.gather, unless the device lacks what compute needs).
+  GatherMode gather_mode() const { return gather_; }
 
   const FrameTimings& timings() const { return timings_; }
   const FrameOptions& options() const { return options_; }
@@ -77,6 +105,7 @@ class VulkanFrame {
   const Scene& scene_;
   FrameOptions options_;
   bool bounce_ = true;
+  GatherMode gather_ = GatherMode::compute;
   std::unique_ptr<Gpu> gpu_;
   FrameTimings timings_;
 };

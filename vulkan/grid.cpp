@@ -5,7 +5,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstddef>
 #include <cstring>
+#include <map>
 
 namespace gridrt::vulkan {
 
@@ -28,7 +30,12 @@ enum Binding : uint32_t {
   kRays = 10,
   kHits = 11,
   kExplain = 12,
-  kBindingCount = 13,
+  kDirty = 13,
+  kRayList = 14,
+  kBuildList = 15,
+  kSpill = 16,
+  kSpillHeads = 17,
+  kBindingCount = 18,
 };
 constexpr uint32_t kStorageBuffersPerStage = kBindingCount - 1;
 
@@ -41,6 +48,7 @@ enum SpecId : uint32_t {
   kSpecExplain = 4,
   kSpecRepeats = 5,
   kSpecTriangleTest = 6,
+  kSpecTraceList = 7,
 };
 
 // Push constants of trace.comp.
@@ -63,8 +71,9 @@ SpecConstants spec_for(const GridParams& g, bool explain) {
 }
 
 template <class T>
-Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
-  Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+Buffer make_buffer(Context& ctx, const std::vector<T>& data, VkBufferUsageFlags extra_usage = 0) {
+  Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16),
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | extra_usage);
   ctx.upload(b, data.data(), data.size() * sizeof(T));
   return b;
 }
@@ -73,12 +82,16 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
 
 struct VulkanGridTracer::Gpu {
   Buffer params, instances, triangles, uvs, materials, texels, build_instances, positions, indices;
-  Buffer rays, hits, explain;
+  Buffer rays, hits, explain, dirty, no_ray_list, build_list, spill, spill_heads;
+  uint32_t spill_capacity = 0;  // entries the spill list holds (0: spill off)
+  uint32_t build_list_capacity = 0;
+  VkBuffer ray_list = VK_NULL_HANDLE;  // bound by bind_ray_buffers (not owned)
   size_t ray_capacity = 0;
   Image3D image;
-  std::unique_ptr<Descriptors> set;
-  std::unique_ptr<Pipeline> init, raster, compute, clear, trace, trace_explain;
-  std::unique_ptr<Timestamps> timestamps, update_timestamps;
+  std::unique_ptr<Descriptors> set, dirty_set, build_list_set;
+  std::unique_ptr<Pipeline> init, raster, compute, build_cells, build_list_dispatch, clear, dirty_dispatch, order;
+  std::map<uint64_t, std::unique_ptr<Pipeline>> traces;  // by (ray list, explain, flags): trace_pipeline
+  std::unique_ptr<Timestamps> timestamps, update_timestamps, build_timestamps;
 };
 
 namespace {
@@ -86,6 +99,7 @@ namespace {
 ContextOptions context_options(const VulkanGridOptions& vk) {
   ContextOptions o = ContextOptions::from_env();
   o.raster_build = vk.build == BuildMode::raster;
+  o.ray_tracing = vk.ray_tracing;
   return o;
 }
 }  // namespace
@@ -124,8 +138,11 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   // The grid the reference would choose, within this device's image limit
   reference::GridOptions o = options_;
   o.max_image_dimension = std::min(o.max_image_dimension, dev.limits.maxImageDimension3D);
-  params_ = reference::choose_grid(scene, time, o);
+  reference::GridChoice choice;
+  params_ = reference::choose_grid(scene, time, o, &choice);
+  requested_flags_ = params_.flags;
   const GridParams& g = params_;
+  const uint32_t spill_capacity = reference::choose_spill_capacity(scene, time, o, g, choice);
 
   // Tables: instances, materials and their alpha masks, the geometry buffer (reference/build.cpp)
   static_instances_ = scene.static_instance_count();
@@ -190,7 +207,12 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   Gpu& gpu = *gpu_;
   gpu.params = make_buffer(ctx, std::vector<GridParams>{g});
   gpu.instances = make_buffer(ctx, instances_);
-  gpu.triangles = make_buffer(ctx, triangles);
+  // With ray tracing enabled the geometry buffer is also the vertex input of the acceleration
+  // structures (vulkan/rtx.h): the BLASes are built over the very triangles the grid tests
+  const VkBufferUsageFlags as_input = ctx.ray_tracing() ? VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT |
+                                                              VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR
+                                                        : 0u;
+  gpu.triangles = make_buffer(ctx, triangles, as_input);
   gpu.uvs = make_buffer(ctx, uvs);
   gpu.materials = make_buffer(ctx, materials);
   gpu.texels = make_buffer(ctx, texels);
@@ -201,12 +223,35 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.rays = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.hits = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  gpu.no_ray_list = ctx.create_buffer(sizeof(shared::WorkListHeader), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  gpu.dirty = ctx.create_buffer(VkDeviceSize(shared::dirty_list_words(g)) * 4,
+                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
+  // The compute build's runs of long cell ranges (build.glsl): at most 2^20 items (8 MiB)
+  gpu.build_list_capacity = vk_.build == BuildMode::compute
+                                ? uint32_t(std::min<uint64_t>((dev.limits.maxStorageBufferRange - 32) / 8, 1u << 20))
+                                : 0u;
+  gpu.build_list = ctx.create_buffer(sizeof(shared::WorkListHeader) + uint64_t(gpu.build_list_capacity) * 8,
+                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
   gpu.image = ctx.create_image3d(shared::grid_image_extent(g));
+  // The spill list: the header (count 0), the entries, four heads per cell (docs/SPEC.md)
+  gpu.spill = ctx.create_buffer(sizeof(shared::SpillHeader) + VkDeviceSize(std::max(spill_capacity, 1u)) *
+                                                                  sizeof(shared::SpillEntry),
+                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  spill_header_ = shared::SpillHeader{0u, spill_capacity, 0u, 0u};
+  ctx.upload(gpu.spill, &spill_header_, sizeof spill_header_);
+  const bool spill_on = (g.flags & shared::kGridSpill) != 0u;
+  gpu.spill_capacity = spill_on ? spill_capacity : 0u;
+  if (uint64_t(gpu.spill_capacity) > uint64_t(dev.limits.maxComputeWorkGroupCount[0]) * 64u)
+    throw Error("a spill list of " + std::to_string(gpu.spill_capacity) + " entries needs more workgroups than "
+                "maxComputeWorkGroupCount on " + dev.name + ": use a smaller --spill-capacity");
+  gpu.spill_heads = ctx.create_buffer(spill_on ? 4 * VkDeviceSize(shared::grid_cell_count(g)) * sizeof(uint32_t) : 16,
+                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  overflow_warned_ = false;
 
   const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   gpu.set = std::make_unique<Descriptors>(
       ctx, std::initializer_list<VkDescriptorType>{sb, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, sb, sb, sb, sb, sb, sb, sb,
-                                                   sb, sb, sb, sb});
+                                                   sb, sb, sb, sb, sb, sb, sb, sb, sb});
   Descriptors& set = *gpu.set;
   set.bind(kParams, gpu.params);
   set.bind(kImage, gpu.image);
@@ -221,20 +266,37 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   set.bind(kRays, gpu.rays);
   set.bind(kHits, gpu.hits);
   set.bind(kExplain, gpu.explain);
+  set.bind(kDirty, gpu.dirty);
+  set.bind(kRayList, gpu.no_ray_list);
+  set.bind(kBuildList, gpu.build_list);
+  set.bind(kSpill, gpu.spill);
+  set.bind(kSpillHeads, gpu.spill_heads);
+  gpu.dirty_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
+  gpu.dirty_set->bind(0, gpu.dirty);
 
   gpu.init = std::make_unique<Pipeline>(ctx, "grid_init.comp", set.layout(), 0, spec_for(g, false));
   if (vk_.build == BuildMode::raster)
     gpu.raster = std::make_unique<Pipeline>(ctx, "build.vert", "build.geom", set.layout(), 0, spec_for(g, false));
-  else
+  else {
     gpu.compute = std::make_unique<Pipeline>(ctx, "build.comp", set.layout(), uint32_t(sizeof(shared::BuildPush)),
                                              spec_for(g, false));
+    gpu.build_cells = std::make_unique<Pipeline>(ctx, "build_cells.comp", set.layout(), 0, spec_for(g, false));
+    gpu.build_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
+    gpu.build_list_set->bind(0, gpu.build_list);
+    gpu.build_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.build_list_set->layout(),
+                                                         uint32_t(3 * sizeof(uint32_t)));
+  }
   gpu.clear = std::make_unique<Pipeline>(ctx, "clear_dynamic.comp", set.layout(), uint32_t(sizeof(uint32_t)),
                                          spec_for(g, false));
-  gpu.trace = std::make_unique<Pipeline>(ctx, "trace.comp", set.layout(), uint32_t(sizeof(TracePush)),
-                                         spec_for(g, false));
+  gpu.dirty_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.dirty_set->layout(),
+                                                  uint32_t(3 * sizeof(uint32_t)));
+  if (gpu.spill_capacity)
+    gpu.order = std::make_unique<Pipeline>(ctx, "spill_order.comp", set.layout(), uint32_t(sizeof(uint32_t)),
+                                           spec_for(g, false));
   if (dev.timestamp_valid_bits) {
     gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
     gpu.update_timestamps = std::make_unique<Timestamps>(ctx, 3);  // begin, after the clear, end
+    gpu.build_timestamps = std::make_unique<Timestamps>(ctx, 4);   // begin, after init, static, dynamic
   }
 
   // The passes: the image blank with status texels 0, the static instances (their references
@@ -245,22 +307,81 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
     throw Error("the grid image needs more workgroups than maxComputeWorkGroupCount on " + dev.name +
                 ": use fewer cells or a smaller capacity, or --backend cpu");
   const auto t0 = std::chrono::steady_clock::now();
+  Timestamps* stamps = gpu.build_timestamps.get();
   ctx.submit([&](VkCommandBuffer cb) {
-    if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+    if (stamps) stamps->reset(cb), stamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
+    vkCmdFillBuffer(cb, gpu.dirty.buffer, 0, VK_WHOLE_SIZE, 0u);  // the dirty-cell list empty
+    vkCmdFillBuffer(cb, gpu.build_list.buffer, 0, sizeof(shared::WorkListHeader), 0u);
+    // Every slot blank, every status texel 0 (a compute pass: vkCmdClearColorImage and a pass
+    // over the status texels took 5-7 times longer on the H200, docs/BENCHMARKS.md)
     gpu.init->bind(cb, set.set());
     vkCmdDispatch(cb, groups(extent.x, 4), groups(extent.y, 4), groups(extent.z, 4));
+    vkCmdFillBuffer(cb, gpu.spill_heads.buffer, 0, VK_WHOLE_SIZE, shared::kSpillEnd);  // every spill list empty
     barrier(cb);
+    if (stamps) stamps->write(cb, 1);
     insert_instances(cb, 0, static_instances_);
     barrier(cb);
+    // The static references' spill count (what the update's clear pass resets the counter to),
+    // then their spill lists in order
+    const VkBufferCopy count_to_static{offsetof(shared::SpillHeader, count), offsetof(shared::SpillHeader, static_count),
+                                       sizeof(uint32_t)};
+    vkCmdCopyBuffer(cb, gpu.spill.buffer, gpu.spill.buffer, 1, &count_to_static);
+    barrier(cb);
+    record_spill_order(cb, false);
+    if (stamps) stamps->write(cb, 2);
     insert_instances(cb, static_instances_, uint32_t(scene.instances.size()));
-    if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+    barrier(cb);
+    record_spill_order(cb, true);
+    if (stamps) stamps->write(cb, 3, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
   timings_.build_host_ms = ms_since(t0);
-  timings_.build_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
+  if (stamps) {
+    const std::vector<double> ns = stamps->read_ns();
+    timings_.build_ms = (ns[3] - ns[0]) * 1e-6;
+    timings_.build_init_ms = (ns[1] - ns[0]) * 1e-6;
+    timings_.build_static_ms = (ns[2] - ns[1]) * 1e-6;
+    timings_.build_dynamic_ms = (ns[3] - ns[2]) * 1e-6;
+  }
+  after_insert();
+}
+
+// The spill list's order pass over the static entries (after the static pass) or the dynamic ones,
+// one invocation per entry the list can hold (those past the stored count return at once), then a
+// barrier. Nothing without the spill list.
+void VulkanGridTracer::record_spill_order(VkCommandBuffer cb, bool dynamic) {
+  Gpu& gpu = *gpu_;
+  if (!gpu.order) return;
+  gpu.order->bind(cb, gpu.set->set());
+  gpu.order->push(cb, uint32_t(dynamic));
+  vkCmdDispatch(cb, groups(gpu.spill_capacity, 64), 1, 1);  // within maxComputeWorkGroupCount: checked at build
+  barrier(cb);
+}
+
+void VulkanGridTracer::after_insert() {
+  ctx_->download(gpu_->spill, &spill_header_, sizeof spill_header_);
+  // Gap-fill only while some cell is saturated (the trace pipeline follows the flags)
+  params_.flags = reference::trace_flags(requested_flags_, options_, spill_header_.count);
+  reference::SpillDump d;
+  d.on = (params_.flags & shared::kGridSpill) != 0u;
+  d.header = spill_header_;
+  reference::warn_spill_overflow(d, name(), overflow_warned_);
+}
+
+const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list) {
+  Gpu& gpu = *gpu_;
+  const uint64_t key = uint64_t(list) << 33 | uint64_t(explain) << 32 | params_.flags;
+  std::unique_ptr<Pipeline>& p = gpu.traces[key];
+  if (!p) {
+    SpecConstants spec = spec_for(params_, explain);
+    if (list) spec.add(kSpecTraceList, true);
+    p = std::make_unique<Pipeline>(*ctx_, "trace.comp", gpu.set->layout(), uint32_t(sizeof(TracePush)), std::move(spec));
+  }
+  return *p;
 }
 
 // Insert the triangles of instances [first, last): the raster pass (one draw per instance,
-// firstInstance = its id) or the compute build (one invocation per triangle).
+// firstInstance = its id) or the compute build (one invocation per triangle, then one per run of
+// kBuildRun cells of the long AABB ranges those appended to the build list).
 void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last) {
   if (first >= last) return;
   Gpu& gpu = *gpu_;
@@ -281,6 +402,14 @@ void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint
     gpu.compute->push(cb, push);
     vkCmdDispatch(cb, groups(push.tri_count, 64), 1, 1);
   }
+  barrier(cb);
+  const uint32_t list_push[3] = {64u, ctx_->info().limits.maxComputeWorkGroupCount[0], gpu.build_list_capacity};
+  gpu.build_list_dispatch->bind(cb, gpu.build_list_set->set());
+  gpu.build_list_dispatch->push(cb, list_push, sizeof list_push);
+  vkCmdDispatch(cb, 1, 1, 1);
+  barrier(cb);
+  gpu.build_cells->bind(cb, gpu.set->set());
+  vkCmdDispatchIndirect(cb, gpu.build_list.buffer, 0);
 }
 
 // ---- Scene update (paper 2.2) ----
@@ -303,17 +432,29 @@ void VulkanGridTracer::update(float time) {
   const auto t0 = std::chrono::steady_clock::now();
   ctx_->submit([&](VkCommandBuffer cb) {
     if (gpu.update_timestamps) gpu.update_timestamps->reset(cb), gpu.update_timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
-    // Clear the dynamic references, 4x4x4 cells per workgroup
+    // The spill counter back to the static references' count: the dynamic entries are dropped
+    const VkBufferCopy static_to_count{offsetof(shared::SpillHeader, static_count), offsetof(shared::SpillHeader, count),
+                                       sizeof(uint32_t)};
+    vkCmdCopyBuffer(cb, gpu.spill.buffer, gpu.spill.buffer, 1, &static_to_count);
+    // Clear the dynamic references of the cells on the dirty-cell list, a workgroup per cell
+    const uint32_t dispatch_push[3] = {1u, ctx_->info().limits.maxComputeWorkGroupCount[0], shared::grid_cell_count(g)};
+    gpu.dirty_dispatch->bind(cb, gpu.dirty_set->set());
+    gpu.dirty_dispatch->push(cb, dispatch_push, sizeof dispatch_push);
+    vkCmdDispatch(cb, 1, 1, 1);
+    barrier(cb);
     gpu.clear->bind(cb, gpu.set->set());
     gpu.clear->push(cb, g.comparison_offset);
-    vkCmdDispatch(cb, groups(g.cells.x, 4), groups(g.cells.y, 4), groups(g.cells.z, 4));
+    vkCmdDispatchIndirect(cb, gpu.dirty.buffer, 0);
     barrier(cb);
     if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
-    // Insert the dynamic instances at their new transforms
+    // Insert the dynamic instances at their new transforms, then order their spill lists
     insert_instances(cb, static_instances_, n);
+    barrier(cb);
+    record_spill_order(cb, true);
     if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 2, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
   timings_.update_host_ms = ms_since(t0);
+  after_insert();
   if (gpu.update_timestamps) {
     const std::vector<double> ns = gpu.update_timestamps->read_ns();
     timings_.update_ms = (ns[2] - ns[0]) * 1e-6;
@@ -337,13 +478,12 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
     gpu.ray_capacity = rays.size();
     gpu.set->bind(kRays, gpu.rays);
     gpu.set->bind(kHits, gpu.hits);
+    gpu.set->bind(kRayList, gpu.no_ray_list);
+    gpu.ray_list = VK_NULL_HANDLE;
   }
   ctx.upload(gpu.rays, rays.data(), rays.size_bytes());
   const bool explain = explain_index != kNoExplain;
-  if (explain && !gpu.trace_explain)
-    gpu.trace_explain = std::make_unique<Pipeline>(ctx, "trace.comp", gpu.set->layout(), uint32_t(sizeof(TracePush)),
-                                                   spec_for(params_, true));
-  const Pipeline& pipe = explain ? *gpu.trace_explain : *gpu.trace;
+  const Pipeline& pipe = trace_pipeline(explain);
   const uint32_t n = uint32_t(rays.size());
   const uint32_t chunk = ctx.info().limits.maxComputeWorkGroupCount[0] * 64u;
   const auto t0 = std::chrono::steady_clock::now();
@@ -402,20 +542,43 @@ const Buffer& VulkanGridTracer::uv_buffer() const {
   return gpu_->uvs;
 }
 
-void VulkanGridTracer::bind_ray_buffers(const Buffer& rays, const Buffer& hits) {
+const Buffer& VulkanGridTracer::material_buffer() const {
+  if (!gpu_) throw Error("vulkan-grid: material_buffer before build");
+  return gpu_->materials;
+}
+
+const Buffer& VulkanGridTracer::texel_buffer() const {
+  if (!gpu_) throw Error("vulkan-grid: texel_buffer before build");
+  return gpu_->texels;
+}
+
+void VulkanGridTracer::bind_ray_buffers(const Buffer& rays, const Buffer& hits, const Buffer* ray_list) {
   if (!gpu_) throw Error("vulkan-grid: bind_ray_buffers before build");
-  gpu_->set->bind(kRays, rays);
-  gpu_->set->bind(kHits, hits);
-  gpu_->ray_capacity = 0;  // the next trace() makes and binds its own buffers again
+  Gpu& gpu = *gpu_;
+  gpu.set->bind(kRays, rays);
+  gpu.set->bind(kHits, hits);
+  gpu.set->bind(kRayList, ray_list ? *ray_list : gpu.no_ray_list);
+  gpu.ray_list = ray_list ? ray_list->buffer : VK_NULL_HANDLE;
+  gpu.ray_capacity = 0;  // the next trace() makes and binds its own buffers again
+}
+
+void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
+  if (!gpu_ || !gpu_->ray_list) throw Error("vulkan-grid: record_trace_list without a bound ray list");
+  const Pipeline& pipe = trace_pipeline(false, true);
+  pipe.bind(cb, gpu_->set->set());
+  const TracePush push{0u, 0u, kNoExplain, vk_.explain_capacity};
+  pipe.push(cb, push);
+  vkCmdDispatchIndirect(cb, gpu_->ray_list, 0);
 }
 
 void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count) {
   if (!gpu_) throw Error("vulkan-grid: record_trace before build");
   const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
-  gpu_->trace->bind(cb, gpu_->set->set());
+  const Pipeline& pipe = trace_pipeline(false);
+  pipe.bind(cb, gpu_->set->set());
   for (uint32_t first = 0; first < count; first += std::min(chunk, count - first)) {
     const TracePush push{first, std::min(chunk, count - first), kNoExplain, vk_.explain_capacity};
-    gpu_->trace->push(cb, push);
+    pipe.push(cb, push);
     vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
   }
 }
@@ -426,6 +589,27 @@ AccelDump VulkanGridTracer::dump() const {
   d.kind = "grid";
   d.extent = gpu_->image.extent;
   d.texels = ctx_->download(gpu_->image);
+  return d;
+}
+
+uint32_t VulkanGridTracer::download_build_runs() const {
+  if (!gpu_) return 0;
+  return ctx_->download<shared::WorkListHeader>(gpu_->build_list, 1)[0].dispatched;
+}
+
+std::vector<uint32_t> VulkanGridTracer::download_dirty_cells() const {
+  if (!gpu_) return {};
+  const shared::WorkListHeader header = ctx_->download<shared::WorkListHeader>(gpu_->dirty, 1)[0];
+  return ctx_->download<uint32_t>(gpu_->dirty, header.appended, sizeof(shared::WorkListHeader));
+}
+
+reference::SpillDump VulkanGridTracer::spill() const {
+  if (!gpu_) return {};
+  reference::SpillDump d;
+  d.on = (params_.flags & shared::kGridSpill) != 0u;
+  ctx_->download(gpu_->spill, &d.header, sizeof d.header);
+  d.entries = ctx_->download<shared::SpillEntry>(gpu_->spill, d.stored(), sizeof(shared::SpillHeader));
+  if (d.on) d.heads = ctx_->download<uint32_t>(gpu_->spill_heads, gpu_->spill_heads.size / sizeof(uint32_t));
   return d;
 }
 

@@ -1,8 +1,12 @@
 // grid.h: the Vulkan port of the fixed-capacity grid, behind the same interface as the reference
 // (reference/grid.h) and held to it bit for bit (docs/VULKAN.md):
 //   scene_build  (2.1)  grid_init.comp, then the raster pass (build.vert + build.geom, one draw
-//                       per instance) or the compute build (build.comp), static then dynamic
-//   scene_update (2.2)  clear_dynamic.comp (4x4x4 workgroups), then the dynamic instances again
+//                       per instance) or the compute build (build.comp), static then dynamic;
+//                       references no slot takes go to the spill list (kGridSpill), whose
+//                       lists spill_order.comp orders after each pass
+//   scene_update (2.2)  clear_dynamic.comp over the dirty-cell list (dispatched indirectly; the
+//                       spill counter back to the static count first), then the dynamic instances
+//                       again (which append the cells they reach)
 //   scene_trace  (2.3)  trace.comp, one invocation per ray; the explain ray records its events
 // The grid (placement, resolution, capacity) is chosen by reference::choose_grid, so both
 // tracers build the same grid from the same GridOptions.
@@ -30,6 +34,7 @@ enum class BuildMode {
 struct VulkanGridOptions {
   BuildMode build = BuildMode::raster;
   uint32_t explain_capacity = 1u << 16;  // events the explain buffer holds
+  bool ray_tracing = false;  // an owned context enables ray tracing where present (vulkan/rtx.h)
 };
 
 // Time of the last build, update and trace, milliseconds: on the device (timestamp queries
@@ -40,6 +45,8 @@ struct GridTimings {
   double build_ms = 0.0, update_ms = 0.0, trace_ms = 0.0;
   double build_host_ms = 0.0, update_host_ms = 0.0, trace_host_ms = 0.0;
   double clear_ms = 0.0, insert_ms = 0.0;  // the update's two passes (device), update_ms = their sum
+  // The build's passes (device): the blank image, the static instances, the dynamic ones
+  double build_init_ms = 0.0, build_static_ms = 0.0, build_dynamic_ms = 0.0;
 };
 
 class VulkanGridTracer : public Tracer {
@@ -61,8 +68,18 @@ class VulkanGridTracer : public Tracer {
   reference::ExplainRecord explain_ray(std::span<const Ray> rays, uint32_t index);
   reference::ExplainRecord explain_ray(const Ray& ray) { return explain_ray(std::span<const Ray>(&ray, 1), 0); }
 
+  // Runs of kBuildRun cells (build.glsl) the compute build and its updates handed out so far
+  // (0 for the raster build).
+  uint32_t download_build_runs() const;
+  // The dirty-cell list's cells (as reference::dirty_cells: the cells appended since the last
+  // clear pass, in the order the device appended them).
+  std::vector<uint32_t> download_dirty_cells() const;
   // The geometry buffer as the build wrote it (for tests against GridData::triangles).
   std::vector<shared::GridTriangle> download_triangles() const;
+  // The spill list as the device holds it: the header and the stored entries (append order).
+  reference::SpillDump spill() const;
+  // The spill list's header as read back after the last build or update.
+  const shared::SpillHeader& spill_header() const { return spill_header_; }
 
   const shared::GridParams& params() const { return params_; }
   const reference::GridOptions& options() const { return options_; }
@@ -70,15 +87,23 @@ class VulkanGridTracer : public Tracer {
 
   // For passes of other pipelines on the grid's device data (vulkan/frame.h), valid after
   // build(): the instances (GridInstance), the geometry buffer (GridTriangle, world space as the
-  // build and update wrote it) and the triangles' uvs (GridTriangleUv).
+  // build and update wrote it; on a context with ray_tracing() also an acceleration-structure
+  // build input with a device address), the triangles' uvs (GridTriangleUv), the materials
+  // (GridMaterial) and the alpha masks' texels. A later build() makes new buffers.
   const Buffer& instance_buffer() const;
   const Buffer& triangle_buffer() const;
   const Buffer& uv_buffer() const;
+  const Buffer& material_buffer() const;
+  const Buffer& texel_buffer() const;
   // Binds device buffers the caller keeps alive as the rays and hits of record_trace (a later
-  // trace() binds its own again).
-  void bind_ray_buffers(const Buffer& rays, const Buffer& hits);
+  // trace() binds its own again), and optionally a work list of ray indices
+  // (common/shared/worklist.h, usage INDIRECT_BUFFER too) for record_trace_list.
+  void bind_ray_buffers(const Buffer& rays, const Buffer& hits, const Buffer* ray_list = nullptr);
   // Records the trace of rays [0, count) of the bound buffers into `cb` (no barriers).
   void record_trace(VkCommandBuffer cb, uint32_t count);
+  // Records the trace of the rays the bound ray list names, dispatched indirectly on the list
+  // (its dispatch step must have run; no barriers). The other rays' hits are not written.
+  void record_trace_list(VkCommandBuffer cb);
   uint32_t static_instance_count() const { return static_instances_; }
   const std::vector<shared::GridInstance>& instances() const { return instances_; }
   Context& context() const { return *ctx_; }
@@ -86,6 +111,13 @@ class VulkanGridTracer : public Tracer {
  private:
   struct Gpu;  // buffers, image, descriptors, pipelines
   void insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last);
+  // Reads the spill header back, sets the trace's flags from it (reference::trace_flags) and
+  // warns once on an overflow.
+  void after_insert();
+  void record_spill_order(VkCommandBuffer cb, bool dynamic);
+  // The trace pipeline for the current flags, with explain or on a ray list (made on first use:
+  // gap-fill comes and goes with saturation).
+  const Pipeline& trace_pipeline(bool explain, bool list = false);
   void upload_transforms(float time, uint32_t first, uint32_t last);
   void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index);
 
@@ -95,6 +127,9 @@ class VulkanGridTracer : public Tracer {
   VulkanGridOptions vk_;
   const Scene* scene_ = nullptr;
   shared::GridParams params_{};
+  uint32_t requested_flags_ = 0;  // params_.flags as choose_grid chose them
+  shared::SpillHeader spill_header_{};
+  bool overflow_warned_ = false;
   uint32_t static_instances_ = 0;
   std::vector<shared::GridInstance> instances_;
   std::vector<shared::BuildInstance> build_instances_;

@@ -34,6 +34,7 @@
   X(vkGetPhysicalDeviceImageFormatProperties)    \
   X(vkEnumerateDeviceExtensionProperties)        \
   X(vkCreateDevice)                              \
+  X(vkGetDeviceProcAddr)                         \
   X(vkDestroyDevice)                             \
   X(vkGetDeviceQueue)                            \
   X(vkDeviceWaitIdle)                            \
@@ -90,6 +91,7 @@
   X(vkCmdBindDescriptorSets)                     \
   X(vkCmdPushConstants)                          \
   X(vkCmdDispatch)                               \
+  X(vkCmdDispatchIndirect)                       \
   X(vkCmdDraw)                                   \
   X(vkCmdBeginRenderPass)                        \
   X(vkCmdEndRenderPass)                          \

@@ -188,6 +188,21 @@ void Descriptors::bind(uint32_t binding, VkImageView view, VkImageLayout layout)
   vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
 }
 
+void Descriptors::bind(uint32_t binding, VkAccelerationStructureKHR structure) {
+  if (binding >= types_.size() || types_[binding] != VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR)
+    throw Error("descriptor binding " + std::to_string(binding) + " is not an acceleration structure");
+  VkWriteDescriptorSetAccelerationStructureKHR as{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
+  as.accelerationStructureCount = 1;
+  as.pAccelerationStructures = &structure;
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.pNext = &as;
+  w.dstSet = set_;
+  w.dstBinding = binding;
+  w.descriptorCount = 1;
+  w.descriptorType = types_[binding];
+  vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
+}
+
 // ---- Pipeline ----
 
 VkShaderModule Pipeline::module(std::string_view name) {

@@ -71,6 +71,8 @@ class Descriptors {
   // A sampled or storage image by its view, in `layout` (e.g. the portal's textures, sampled in
   // SHADER_READ_ONLY_OPTIMAL).
   void bind(uint32_t binding, VkImageView view, VkImageLayout layout);
+  // An acceleration structure (vulkan/rtx.h; only on a context with ray_tracing()).
+  void bind(uint32_t binding, VkAccelerationStructureKHR structure);
   VkDescriptorSetLayout layout() const { return layout_; }
   VkDescriptorSet set() const { return set_; }
 

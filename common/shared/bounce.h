@@ -13,6 +13,7 @@
 #define GRIDRT_SHARED_BOUNCE_H
 
 #include "compat.h"
+#include "rounding.h"
 
 SH_BEGIN
 
@@ -39,11 +40,12 @@ struct GatherTexel {
   uint pad0;
 };
 
-// v / |v|, as glm::normalize computes it: v * (1 / sqrt(dot(v, v))).
+// v / |v|, as glm::normalize computes it: v * (1 / sqrt(dot(v, v))), with the correctly rounded
+// sh_sqrt and sh_rcp (IEEE sqrt and / on the CPU; the GLSL built-ins are not exact on every device).
 SH_INLINE vec3 sh_normalize(SH_IN(vec3) v) {
   SH_PRECISE float dd = sh_dot(v, v);
-  SH_PRECISE float len = sqrt(dd);
-  SH_PRECISE float inv = 1.0f / len;
+  SH_PRECISE float len = sh_sqrt(dd);
+  SH_PRECISE float inv = sh_rcp(len);
   SH_PRECISE vec3 r = v * inv;
   return r;
 }
@@ -51,9 +53,9 @@ SH_INLINE vec3 sh_normalize(SH_IN(vec3) v) {
 // The unit direction of the ray through the centre of pixel (x, y), row 0 at the top
 // (camera_ray: sx and sy in the order it computes them).
 SH_INLINE vec3 camera_direction(SH_IN(CameraParams) c, uint x, uint y) {
-  SH_PRECISE float fx = (2.0f * (float(x) + 0.5f)) / float(c.width);
+  SH_PRECISE float fx = sh_div(2.0f * (float(x) + 0.5f), float(c.width));
   SH_PRECISE float sx = ((fx - 1.0f) * c.tan_half_fov) * c.aspect;
-  SH_PRECISE float fy = (2.0f * (float(y) + 0.5f)) / float(c.height);
+  SH_PRECISE float fy = sh_div(2.0f * (float(y) + 0.5f), float(c.height));
   SH_PRECISE float sy = (1.0f - fy) * c.tan_half_fov;
   SH_PRECISE vec3 a = c.right * sx;
   SH_PRECISE vec3 b = c.up * sy;
@@ -69,9 +71,9 @@ SH_INLINE vec4 gather_normal(SH_IN(vec3) a, SH_IN(vec3) b, SH_IN(vec3) c, SH_IN(
   SH_PRECISE vec3 e2 = c - a;
   vec3 n = sh_cross(e1, e2);
   SH_PRECISE float dd = sh_dot(n, n);
-  SH_PRECISE float len = sqrt(dd);
+  SH_PRECISE float len = sh_sqrt(dd);
   if (!(len > 0.0f)) return vec4(0.0f);
-  SH_PRECISE vec3 u = n / len;
+  SH_PRECISE vec3 u = vec3(sh_div(n.x, len), sh_div(n.y, len), sh_div(n.z, len));
   if (sh_dot(u, dir) > 0.0f) u = -u;  // facing the viewer
   return vec4(u, 1.0f);
 }
@@ -87,8 +89,8 @@ SH_INLINE uint pcg_hash(uint v) {
 SH_INLINE vec2 pixel_random(uint x, uint y, uint frame) {
   uint h1 = pcg_hash(x ^ pcg_hash(y ^ pcg_hash(frame)));
   uint h2 = pcg_hash(h1);
-  SH_PRECISE float a = float(h1 >> 8u) * (1.0f / 16777216.0f);
-  SH_PRECISE float b = float(h2 >> 8u) * (1.0f / 16777216.0f);
+  SH_PRECISE float a = float(h1 >> 8u) * 5.96046448e-8f;  // 2^-24 exactly
+  SH_PRECISE float b = float(h2 >> 8u) * 5.96046448e-8f;
   return vec2(a, b);
 }
 
@@ -123,12 +125,12 @@ SH_INLINE vec3 bounce_direction(SH_IN(vec3) d, SH_IN(vec3) n, float gloss, float
   if (!(gloss < 1.0f)) return mirror;
   // Uniform direction in the cone about the mirror direction
   SH_PRECISE float cos_t = 1.0f - xi.x * (1.0f - cos_max);
-  SH_PRECISE float sin_t = sqrt(max(0.0f, 1.0f - cos_t * cos_t));
+  SH_PRECISE float sin_t = sh_sqrt(max(0.0f, 1.0f - cos_t * cos_t));
   SH_PRECISE float phi = 6.28318548f * xi.y;
   vec2 sc = sh_sin_cos(phi);
   // An orthonormal basis (t, b) around the mirror direction (Duff et al. 2017)
   SH_PRECISE float sgn = (floatBitsToUint(mirror.z) & 0x80000000u) != 0u ? -1.0f : 1.0f;
-  SH_PRECISE float ia = -1.0f / (sgn + mirror.z);
+  SH_PRECISE float ia = sh_div(-1.0f, sgn + mirror.z);
   SH_PRECISE float ic = (mirror.x * mirror.y) * ia;
   SH_PRECISE vec3 t = vec3(1.0f + ((sgn * mirror.x) * mirror.x) * ia, sgn * ic, -sgn * mirror.x);
   SH_PRECISE vec3 b = vec3(ic, sgn + (mirror.y * mirror.y) * ia, -mirror.y);

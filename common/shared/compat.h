@@ -7,6 +7,7 @@
 //  - Decisions use + - * and comparisons only; a division appears only in reported values.
 //  - No float `/`, `sqrt` or `inversesqrt`: sh_div, sh_rcp and sh_sqrt (rounding.h) are correctly
 //    rounded on every device, the built-ins are not (2.5 ulp in Vulkan).
+//    Unsigned integer division is sh_udiv (or `/` by a `u` literal); tests/lint/shared_math.cmake checks.
 //  - Every float temporary that feeds a decision or a reported value is SH_PRECISE, so that the
 //    GLSL compiler and driver do not contract a*b+c into an FMA (the C++ side is built with
 //    -ffp-contract=off). dot/cross are written out as ordered sums (sh_dot, sh_cross).
@@ -44,6 +45,10 @@
 SH_BEGIN
 
 // Dot and cross products as explicit, ordered sums: (x + y) + z, never fused.
+// Unsigned integer division, exact on every device: named so that the shared math's one float
+// rule (no float `/`, checked by tests/lint/shared_math.cmake) can tell it from a float division.
+SH_INLINE uint sh_udiv(uint a, uint b) { return a / b; }
+
 SH_INLINE float sh_dot(SH_IN(vec3) a, SH_IN(vec3) b) {
   SH_PRECISE float xy = a.x * b.x + a.y * b.y;
   SH_PRECISE float r = xy + a.z * b.z;

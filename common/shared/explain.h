@@ -32,6 +32,12 @@ SH_CONST uint kEvGapFill = 11u;   // gap-fill decision: code = kGap*, ref = last
                                   // f0 = (lhs, rhs, t of the sample, 0)
 SH_CONST uint kEvReport = 12u;    // the hit: ref, code = hit flags, f0 = (t, u, v, 0), step
 SH_CONST uint kEvMiss = 13u;      // the miss: code = kMiss*, step
+SH_CONST uint kEvSpillScan = 14u; // a saturated cell's spill lists are walked (kGridSpill): cell,
+                                  // code = entries the list stores, slot = references appended
+                                  // (more than stored: the list overflowed, some were lost)
+SH_CONST uint kEvSpilled = 15u;   // a spilled reference of the cell, in ascending reference order:
+                                  // ref, cell, slot = its place among the cell's spilled
+                                  // references; its kEvTest follows
 
 // kEvGapFill codes
 SH_CONST uint kGapApplied = 0u;      // saturated, no hit reported in the cell, left the surface

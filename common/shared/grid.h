@@ -11,6 +11,7 @@
 
 #include "compat.h"
 #include "rounding.h"
+#include "worklist.h"
 
 SH_BEGIN
 
@@ -31,6 +32,8 @@ SH_CONST uint kTriangleWatertight = 1u; // Woop, Benthin, Wald 2013: watertight,
 SH_CONST uint kGridExcludeLaunchRef = 1u;  // never accept the ray's launch triangle (by ref)
 SH_CONST uint kGridAlphaKeying = 2u;       // alpha-keyed materials cut holes
 SH_CONST uint kGridGapFill = 4u;           // paper-mode gap-fill in saturated cells
+SH_CONST uint kGridSpill = 8u;             // references no slot took go to the spill list, and
+                                           // the trace tests a saturated cell's spilled ones too
 // Bits 8-9: the scene axis laid along the image's x, the axis that carries the slots (0 x, 1 y,
 // 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis"). The
 // image swaps that axis with x; every other axis keeps its place.
@@ -102,6 +105,30 @@ struct GridMaterial {
   uint pad0;          // std430 padding
 };
 
+// The spill list (kGridSpill): every reference that finds no slot is appended as (cell, ref) to one
+// storage buffer (a header, then the entries). Each cell has two lists of its entries, static and
+// dynamic references, so that the update forgets the dynamic ones by resetting heads: the build
+// pushes an entry onto its list's arrival list (one atomic exchange: the order of arrival), and
+// the order pass (spill_order) links each list in ascending reference order, which the trace
+// walks. The spill heads buffer holds per cell four heads (spill_head_index, spill_arrival_index).
+// The counter counts every reference no slot took, with spill off too (then nothing is stored):
+// it is how the grid knows whether a cell saturated.
+SH_CONST uint kSpillEnd = 0xFFFFFFFFu;  // the end of a list (an empty head)
+struct SpillHeader {
+  uint count;         // references appended (atomic); entries [0, min(count, capacity)) are stored,
+                      // count > capacity: the list overflowed and count - capacity are lost
+  uint capacity;      // entries the buffer holds (0 with spill off), written by the host
+  uint static_count;  // count after the build's static pass: the update's clear pass resets count
+                      // to it (a dynamic reference never evicts a static one)
+  uint pad0;          // std430 padding
+};
+struct SpillEntry {
+  uint cell;     // the cell's linear index (cell_linear_index)
+  uint ref;      // the reference no slot of it took
+  uint arrival;  // the entry pushed before it onto the same arrival list, kSpillEnd at the end
+  uint next;     // the entry with the next larger reference in the same list (the order pass)
+};
+
 // ---- References: (instance << 16) | triangle ----
 SH_INLINE uint ref_pack(uint instance, uint triangle) {
   return (instance << 16u) | (triangle & 0xFFFFu);
@@ -139,6 +166,29 @@ SH_INLINE uvec3 cell_slot_texel(SH_IN(GridParams) g, SH_IN(uvec3) cell, uint slo
 SH_INLINE uvec3 cell_status_texel(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
   return status_texel(image_cell(g, cell), g.capacity);
 }
+// ---- The dirty-cell list of scene update (a work list, worklist.h; docs/SPEC.md "Scene update") ----
+// Items: the linear indices of the cells the dynamic instances reached (x fastest), each once;
+// after the items (one per cell at most) one bit per cell says whether it is listed.
+SH_INLINE uint grid_cell_count(SH_IN(GridParams) g) { return g.cells.x * g.cells.y * g.cells.z; }
+SH_INLINE uint cell_linear_index(SH_IN(GridParams) g, SH_IN(uvec3) cell) {
+  return (cell.z * g.cells.y + cell.y) * g.cells.x + cell.x;
+}
+SH_INLINE uvec3 cell_of_linear_index(SH_IN(GridParams) g, uint i) {
+  return uvec3(i % g.cells.x, sh_udiv(i, g.cells.x) % g.cells.y, sh_udiv(i, g.cells.x * g.cells.y));
+}
+// The item (word after the header) holding cell i's listed bit, and the bit.
+SH_INLINE uint dirty_bit_item(SH_IN(GridParams) g, uint i) { return grid_cell_count(g) + i / 32u; }
+SH_INLINE uint dirty_bit(uint i) { return 1u << (i % 32u); }
+// Words of the whole buffer: header, items, bits.
+SH_INLINE uint dirty_list_words(SH_IN(GridParams) g) {
+  return kWorkListHeaderWords + grid_cell_count(g) + (grid_cell_count(g) + 31u) / 32u;
+}
+
+// The spill heads buffer, per cell: the smallest entry of its static list, of its dynamic list
+// (what the trace walks), then the last arrival of each (what the build pushes onto).
+// `cell` is the linear index (cell_linear_index, SpillEntry::cell).
+SH_INLINE uint spill_head_index(uint cell, bool dynamic) { return 4u * cell + (dynamic ? 1u : 0u); }
+SH_INLINE uint spill_arrival_index(uint cell, bool dynamic) { return 4u * cell + (dynamic ? 3u : 2u); }
 // Linear index of a texel, x fastest (the layout of AccelDump::texels).
 SH_INLINE uint texel_index(SH_IN(uvec3) texel, SH_IN(uvec3) extent) {
   return (texel.z * extent.y + texel.y) * extent.x + texel.x;
@@ -388,6 +438,8 @@ static_assert(sizeof(gridrt::shared::GridInstance) == 16, "std430 layout of Grid
 static_assert(sizeof(gridrt::shared::GridTriangle) == 48, "std430 layout of GridTriangle");
 static_assert(sizeof(gridrt::shared::GridTriangleUv) == 24, "std430 layout of GridTriangleUv");
 static_assert(sizeof(gridrt::shared::GridMaterial) == 16, "std430 layout of GridMaterial");
+static_assert(sizeof(gridrt::shared::SpillHeader) == 16, "std430 layout of SpillHeader");
+static_assert(sizeof(gridrt::shared::SpillEntry) == 16, "std430 layout of SpillEntry");
 #endif
 
 #endif

@@ -1,6 +1,9 @@
 #version 460
 // bounce.comp: one glossy bounce ray per pixel off the gather buffer, as common/gather.cpp's
-// bounce_rays makes it (common/shared/bounce.h); unused pixels get the empty ray.
+// bounce_rays makes it (common/shared/bounce.h); unused pixels get the empty ray. Compacted
+// (kFrameCompact): a pixel with a ray appends its index to the ray list, which the trace takes;
+// an unused pixel gets here the hit the trace would give its empty ray (a miss: the empty
+// interval, no cell visited, no test), so the trace never sees it.
 #extension GL_GOOGLE_include_directive : require
 #include "frame_common.glsl"
 
@@ -22,4 +25,11 @@ void main() {
     }
   }
   rays[p] = ray;
+  if ((kFrameFlags & kFrameCompact) != 0u) {
+    if (ray.tmax > 0.0f) {
+      ray_list[atomicAdd(ray_list_header.appended, 1u)] = p;
+    } else {
+      hits[p] = HitRecord(sh_infinity(), kNoInstance, 0u, 0.0f, 0.0f, 0u, 0u, 0u);
+    }
+  }
 }

@@ -21,5 +21,5 @@ void main() {
   const uint instance = lo;
   const uint triangle = global - instances[instance].tri_offset;
   build_invocation(instance, triangle, world_vertex(instance, triangle, 0u),
-                   world_vertex(instance, triangle, 1u), world_vertex(instance, triangle, 2u));
+                   world_vertex(instance, triangle, 1u), world_vertex(instance, triangle, 2u), true);
 }

@@ -11,4 +11,4 @@ layout(location = 0) in vec3 world[];
 layout(location = 1) flat in uint instance_id[];
 layout(location = 2) flat in uint triangle_id[];
 
-void main() { build_invocation(instance_id[0], triangle_id[0], world[0], world[1], world[2]); }
+void main() { build_invocation(instance_id[0], triangle_id[0], world[0], world[1], world[2], false); }

@@ -10,6 +10,7 @@
 #include "common/shared/grid.h"
 #include "common/shared/triangle.h"
 #include "common/shared/bounce.h"
+#include "common/shared/worklist.h"
 #include "vulkan/shaders/frame_input.h"
 
 layout(constant_id = 10) const uint kFrameFlags = 3u;  // kFrame* bits
@@ -26,5 +27,18 @@ layout(std430, binding = 8) readonly buffer Lights { FrameLight lights[]; };
 layout(std430, binding = 9) buffer Rays { RayRecord rays[]; };
 layout(std430, binding = 10) buffer Hits { HitRecord hits[]; };
 layout(std430, binding = 11) buffer Image { uint image[]; };  // RGBA8, sRGB-encoded
+// The compacted bounce rays: a work list of the indices of the pixels with a bounce ray
+layout(std430, binding = 12) buffer RayList {
+  WorkListHeader ray_list_header;
+  uint ray_list[];
+};
+// The compute gather: per pixel a 64-bit key (t bits << 32 | reference), words low then high
+// (gather_tiles.comp declares the same buffer as uint64_t for its atomic min)
+layout(std430, binding = 13) buffer GatherKeys { uint gather_keys[]; };
+// The compute gather's large triangles (GatherTileHeader, then 4 words per triangle)
+layout(std430, binding = 14) buffer TileList {
+  GatherTileHeader tile_header;
+  uint tile_items[];
+};
 
 #endif

@@ -13,6 +13,8 @@ SH_BEGIN
 SH_CONST uint kFrameBounce = 1u;    // glossy materials: make and shade bounce rays
 SH_CONST uint kFrameTextures = 2u;  // some material has a diffuse texture
 SH_CONST uint kFrameAlpha = 4u;     // alpha keying: some material has a mask (and the grid keys them)
+SH_CONST uint kFrameCompact = 8u;   // the bounce appends its real rays to a list; the trace takes only those
+SH_CONST uint kFrameComputeGather = 16u;  // the gather's visibility by compute (gather_bin/tiles.comp), not raster
 
 struct FrameParams {
   CameraParams camera;   // the primary rays' camera
@@ -26,6 +28,20 @@ struct FrameParams {
   uint pad0;
   uint pad1;
   uint pad2;
+};
+
+// The compute gather's list of large triangles (gather_bin.comp appends, gather_tiles.comp reads):
+// this header, then per triangle 4 words: reference, its first tile, box corners x0 | y0 << 16 and
+// x1 | y1 << 16 (inclusive). The triangles' tiles are numbered consecutively in list order.
+struct GatherTileHeader {
+  uint groups_x;    // VkDispatchIndirectCommand of the tile pass: one workgroup per tile
+  uint groups_y;
+  uint groups_z;
+  uint tiles;       // tiles of the frame (written by the dispatch step)
+  uint triangles;   // large triangles of the frame (written by the dispatch step)
+  uint pad0;
+  uint counter_lo;  // the append counter, 64 bits: tiles (low word) and triangles (high word),
+  uint counter_hi;  // so one atomic gives a triangle both its list index and its first tile
 };
 
 // A material as shading reads it.
@@ -56,6 +72,7 @@ SH_END
 static_assert(sizeof(gridrt::shared::FrameParams) == 112, "std430 layout of FrameParams");
 static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
+static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");
 #endif
 
 #endif

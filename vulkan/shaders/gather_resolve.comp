@@ -1,5 +1,6 @@
 #version 460
-// gather_resolve.comp: the gather buffer from the raster pass's visible triangle per pixel. The
+// gather_resolve.comp: the gather buffer from the visible triangle per pixel (the raster pass's,
+// copied to the visibility buffer; or the compute gather's key, whose low word it is). The
 // pixel's camera ray (common/shared/bounce.h, camera_direction) meets that triangle where the
 // shared Moller-Trumbore test puts it, so position, normal, uv and material are computed exactly
 // as common/gather.cpp computes them from a traced primary hit (make_gather).
@@ -15,7 +16,13 @@ void main() {
   const uint p = px.y * c.width + px.x;
   const vec3 dir = camera_direction(c, px.x, px.y);
   GatherTexel g = GatherTexel(vec3(0.0f), 0xFFFFFFFFu, vec3(0.0f), kNoRef, vec2(0.0f), 0.0f, 0u);
-  const uint ref = visibility[p];
+  uint ref;
+  if ((kFrameFlags & kFrameComputeGather) != 0u) {
+    ref = gather_keys[2u * p];  // the key's low word; untouched keys are all ones: kNoRef
+    visibility[p] = ref;
+  } else {
+    ref = visibility[p];
+  }
   if (ref != kNoRef) {
     const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
     const GridTriangle tri = triangles[k];

@@ -10,12 +10,25 @@ layout(local_size_x = 64) in;
 layout(binding = 1, r32ui) uniform readonly uimage3D grid_image;
 layout(std430, binding = 10) readonly buffer Rays { RayRecord rays[]; };
 layout(std430, binding = 11) writeonly buffer Hits { HitRecord hits[]; };
+// The spill list and its heads (kGridSpill): read only here.
+layout(std430, binding = 16) readonly buffer Spill {
+  SpillHeader spill_header;
+  SpillEntry spill_entries[];
+};
+layout(std430, binding = 17) readonly buffer SpillHeads { uint spill_heads[]; };
 layout(std430, binding = 12) buffer Explain {
   uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
   uint explain_pad0;
   uint explain_pad1;
   uint explain_pad2;
   ExplainEvent explain_events[];
+};
+// Compacted rays (specialization constant 7): invocation k traces the ray ray_list[k] of the
+// frame's work list of real bounce rays (common/shared/worklist.h), dispatched indirectly.
+layout(constant_id = 7) const bool kTraceList = false;
+layout(std430, binding = 14) readonly buffer RayList {
+  WorkListHeader ray_list_header;
+  uint ray_list[];
 };
 layout(push_constant) uniform Push {
   uint ray_offset;        // index of invocation 0's ray
@@ -119,6 +132,30 @@ uint test_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
   return last;
 }
 
+// The spilled references of a saturated cell (kGridSpill): the status texel says whether the cell
+// dropped any; then its static and its dynamic spill lists are walked, each in ascending
+// reference order (linked so by the order pass, whatever the order of the appends), and every entry is
+// tested like a slot's reference. So the cell's references are all tested, in an order the same on
+// every backend: after the slots', ascending.
+void test_spilled(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
+  const uint status = imageLoad(grid_image, ivec3(cell_status_texel(g, cell))).x;
+  emit(kEvStatus, status, kBlank, step, cell, g.capacity, vec4(0.0f), vec4(0.0f));
+  if (status == 0u) return;
+  const uint appended = spill_header.count;
+  emit(kEvSpillScan, min(appended, spill_header.capacity), kBlank, step, cell, appended, vec4(0.0f), vec4(0.0f));
+  uint k = 0u;
+  for (uint list = 0u; list < 2u; ++list) {
+    uint i = spill_heads[spill_head_index(cell_linear_index(g, cell), list == 1u)];
+    while (i != kSpillEnd && k < spill_header.capacity) {
+      const SpillEntry e = spill_entries[i];
+      emit(kEvSpilled, 0u, e.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
+      test_reference(g, e.ref, step, cell, k, t_lo, t_hi);
+      k += 1u;
+      i = e.next;
+    }
+  }
+}
+
 HitRecord report(uint step) {
   HitRecord h;
   h.t = st.best_t;
@@ -210,6 +247,8 @@ HitRecord trace_paper(GridParams g) {
     const float t_hi = min(st.tmax, segment_elongated_end(g, st.rs, last));
     emit(kEvCell, last - k, kBlank, k, cell, 0u, vec4(sample_point, t_mid), vec4(seg_begin, seg_end, t_lo, t_hi));
     const uint last_ref = test_cell(g, cell, k, t_lo, t_hi);
+    // A saturated cell's spilled references
+    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(g, cell, k, t_lo, t_hi);
     // Report the closest hit once it lies before the segment's end ("t < 1")
     if (st.has_best && st.best_t < seg_end) return report(k);
     // Gap-fill in a saturated cell
@@ -237,7 +276,9 @@ HitRecord trace_exact(GridParams g) {
     // Test the cell's references against the whole ray
     emit(kEvCell, 0u, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
          vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
-    test_cell(g, cell, k, st.rs.t_lo, st.tmax);
+    const uint last_ref = test_cell(g, cell, k, st.rs.t_lo, st.tmax);
+    // A saturated cell's spilled references
+    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(g, cell, k, st.rs.t_lo, st.tmax);
     // Report the closest hit once it lies inside this cell or before
     if (st.has_best && st.best_t <= t_exit) return report(k);
     if (t_exit >= st.rs.t_end) return finish(t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
@@ -279,6 +320,13 @@ HitRecord scene_trace(GridParams g, RayRecord ray) {
 }
 
 void main() {
+  if (kTraceList) {
+    const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
+    if (k >= ray_list_header.size) return;
+    const uint r = ray_list[k];
+    hits[r] = scene_trace(grid_params(), rays[r]);
+    return;
+  }
   if (gl_GlobalInvocationID.x >= pc.ray_count) return;
   const uint i = pc.ray_offset + gl_GlobalInvocationID.x;
   explaining = kExplain && i == pc.explain_ray;

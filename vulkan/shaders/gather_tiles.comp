@@ -1,0 +1,36 @@
+#version 460
+// gather_tiles.comp: the compute gather's second pass (gather_visibility.glsl), one workgroup per
+// 8x8-pixel tile of the large triangles, dispatched indirectly, one invocation per pixel: the
+// tile's triangle by binary search over the triangles' first tiles, then the pixel's camera ray
+// against it; an accepted hit takes the pixel's key by a 64-bit atomic min, so the pixel ends with
+// the smallest t, then the smallest reference.
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_shader_atomic_int64 : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#include "gather_visibility.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(std430, binding = 13) buffer GatherKeys64 { uint64_t gather_keys64[]; };
+
+void main() {
+  const CameraParams c = fp.camera;
+  const uint tile = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 1u, 0u);
+  if (tile >= tile_header.tiles) return;
+  // The triangle whose tiles hold this one: the last whose first tile is <= tile
+  uint lo = 0u;
+  uint hi = tile_header.triangles;
+  while (hi - lo > 1u) {
+    const uint mid = (lo + hi) / 2u;
+    if (tile_items[4u * mid + 1u] <= tile) lo = mid;
+    else hi = mid;
+  }
+  const uint ref = tile_items[4u * lo];
+  const uint t = tile - tile_items[4u * lo + 1u];
+  const uint x0 = tile_items[4u * lo + 2u] & 0xFFFFu, y0 = tile_items[4u * lo + 2u] >> 16u;
+  const uint across = ((tile_items[4u * lo + 3u] & 0xFFFFu) - x0) / 8u + 1u;
+  const uvec2 px = uvec2(x0 + 8u * (t % across), y0 + 8u * (t / across)) + gl_LocalInvocationID.xy;
+  if (px.x >= c.width || px.y >= c.height) return;
+  const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
+  uvec2 key;
+  if (gather_key(ref, k, triangles[k], px, key)) atomicMin(gather_keys64[px.y * c.width + px.x], packUint2x32(key));
+}

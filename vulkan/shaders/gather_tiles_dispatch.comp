@@ -1,0 +1,22 @@
+#version 460
+// gather_tiles_dispatch.comp: the dispatch step of the compute gather's tile pass, one invocation:
+// the tiles and large triangles gather_bin.comp appended (GatherTileHeader), one workgroup per
+// tile, and the append counter again at 0.
+#extension GL_GOOGLE_include_directive : require
+#include "common/shared/worklist.h"
+#include "vulkan/shaders/frame_input.h"
+
+layout(local_size_x = 1) in;
+layout(std430, binding = 0) buffer TileList { GatherTileHeader header; };
+layout(push_constant) uniform Push { uint max_groups_x; } pc;
+
+void main() {
+  const uvec3 groups = work_list_groups(header.counter_lo, 1u, pc.max_groups_x);
+  header.groups_x = groups.x;
+  header.groups_y = groups.y;
+  header.groups_z = groups.z;
+  header.tiles = header.counter_lo;
+  header.triangles = header.counter_hi;
+  header.counter_lo = 0u;
+  header.counter_hi = 0u;
+}

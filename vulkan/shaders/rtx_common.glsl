@@ -1,0 +1,28 @@
+// rtx_common.glsl: what the ray tracing shaders share: the shared headers, the push constants and
+// the one descriptor set (vulkan/rtx.cpp, RtxBinding): the top-level acceleration structure, the
+// frame's rays and the second hit buffer, and the grid's own tables (instances, the world-space
+// geometry buffer the BLASes are built over, uvs, materials and alpha-mask texels).
+#ifndef GRIDRT_RTX_COMMON_GLSL
+#define GRIDRT_RTX_COMMON_GLSL
+
+#extension GL_EXT_ray_tracing : require
+
+#include "common/shared/compat.h"
+#include "common/shared/records.h"
+#include "common/shared/alpha.h"
+#include "common/shared/grid.h"
+#include "common/shared/triangle.h"
+#include "vulkan/shaders/rtx_input.h"
+
+layout(binding = 0) uniform accelerationStructureEXT tlas;
+layout(std430, binding = 1) readonly buffer Rays { RayRecord rays[]; };
+layout(std430, binding = 2) writeonly buffer Hits { HitRecord hits[]; };
+layout(std430, binding = 3) readonly buffer Instances { GridInstance instances[]; };
+layout(std430, binding = 4) readonly buffer Triangles { GridTriangle triangles[]; };
+layout(std430, binding = 5) readonly buffer Uvs { GridTriangleUv uvs[]; };
+layout(std430, binding = 6) readonly buffer Materials { GridMaterial materials[]; };
+layout(std430, binding = 7) readonly buffer Texels { uint texels[]; };
+
+layout(push_constant) uniform Push { RtxPush pc; };
+
+#endif

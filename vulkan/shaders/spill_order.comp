@@ -1,0 +1,39 @@
+#version 460
+// spill_order.comp: the spill list's order pass (reference/build.cpp, spill_order), one invocation
+// per entry of [first, stored): walk the entry's arrival list for the smallest larger reference
+// (its successor in ascending order) and link to it; the entry with no smaller reference becomes
+// the list's head. After the build's static pass (first = 0) and after every dynamic pass
+// (first = static_count, push constant `dynamic` = 1).
+#extension GL_GOOGLE_include_directive : require
+#include "grid_common.glsl"
+
+layout(local_size_x = 64) in;
+layout(std430, binding = 16) buffer Spill {
+  SpillHeader spill_header;
+  SpillEntry spill_entries[];
+};
+layout(std430, binding = 17) buffer SpillHeads { uint spill_heads[]; };
+layout(push_constant) uniform Push { uint dynamic; } pc;
+
+void main() {
+  const GridParams g = grid_params();
+  const uint first = pc.dynamic != 0u ? spill_header.static_count : 0u;
+  const uint stored = min(spill_header.count, spill_header.capacity);
+  const uint i = first + gl_GlobalInvocationID.x;
+  if (i >= stored) return;
+  const SpillEntry e = spill_entries[i];
+  const bool dynamic = e.ref >= g.comparison_offset;
+  uint next = kSpillEnd;
+  uint next_ref = kBlank;
+  bool smallest = true;
+  for (uint j = spill_heads[spill_arrival_index(e.cell, dynamic)]; j != kSpillEnd; j = spill_entries[j].arrival) {
+    const uint r = spill_entries[j].ref;
+    if (r < e.ref) smallest = false;
+    if (r > e.ref && r < next_ref) {
+      next = j;
+      next_ref = r;
+    }
+  }
+  spill_entries[i].next = next;
+  if (smallest) spill_heads[spill_head_index(e.cell, dynamic)] = i;
+}
