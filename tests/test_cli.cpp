@@ -7,25 +7,13 @@
 #include <fstream>
 #include <string>
 
+#include "tests/run_tool.h"
+
 namespace fs = std::filesystem;
+using gridrt::test::Run;
+using gridrt::test::run_tool;
 
 namespace {
-
-struct Run {
-  int exit_code;
-  std::string output;  // stdout and stderr together
-};
-
-Run run_tool(const std::string& args) {
-  const std::string cmd = std::string(GRIDRT_TOOL) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  REQUIRE(pipe != nullptr);
-  std::string out;
-  std::array<char, 4096> buf{};
-  while (size_t n = fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
 
 fs::path scratch(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / "gridrt_test_cli";

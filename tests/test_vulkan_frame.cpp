@@ -15,6 +15,7 @@
 #include "common/shade.h"
 #include "common/shared/triangle.h"
 #include "reference/grid.h"
+#include "tests/run_tool.h"
 #include "tests/vulkan_test_util.h"
 #include "vulkan/frame.h"
 
@@ -258,17 +259,10 @@ TEST_CASE("Vulkan frame: leaving out an effect the scene does not call for chang
 // `gridrt diff --gpu-frame`: the check the GPU machine runs (no test suite travels there), proved
 // here on lavapipe: the frame's own bounce rays and hits, bit for bit the reference's.
 TEST_CASE("CLI: gridrt diff --gpu-frame finds the GPU frame's rays and hits bit-identical", "[vulkan][diff][frame][cli]") {
-  const std::string cmd = std::string(GRIDRT_TOOL) +
-                          " diff builtin:atrium --gpu-frame --width 96 --height 64 --frames 2 --threads 2 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  REQUIRE(pipe != nullptr);
-  std::string out;
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
-  const int status = pclose(pipe);
+  const Run r = run_tool("diff builtin:atrium --gpu-frame --width 96 --height 64 --frames 2 --threads 2");
+  const std::string& out = r.output;
   INFO(out);
-  REQUIRE(WIFEXITED(status));
-  CHECK(WEXITSTATUS(status) == 0);
+  CHECK(r.exit_code == 0);
   CHECK(out.find("AGREE") != std::string::npos);
   // Both frames ran the GPU frame's passes, and the atrium's glossy floor made bounce rays
   for (const char* frame : {"frame 0: GPU frame:", "frame 1: GPU frame:"}) {

@@ -13,6 +13,7 @@
 #include "common/builtin/builtin.h"
 #include "common/camera.h"
 #include "common/gather.h"
+#include "tests/run_tool.h"
 #include "tests/vulkan_test_util.h"
 #include "vulkan/rtx.h"
 
@@ -24,22 +25,6 @@ using gridrt::vulkan::VulkanRtxTracer;
 namespace {
 
 bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
-
-struct Run {
-  int exit_code;
-  std::string output;  // stdout and stderr together
-};
-
-Run run_tool(const std::string& args) {
-  const std::string cmd = std::string(GRIDRT_TOOL) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  REQUIRE(pipe != nullptr);
-  std::string out;
-  std::array<char, 4096> buf{};
-  while (size_t n = fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
 
 // A validated context that asks for ray tracing (the [vulkan] tests' shared one does not).
 vulkan::Context& rt_context() {
