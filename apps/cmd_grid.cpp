@@ -14,6 +14,7 @@
 
 #include "apps/backends.h"
 #include "apps/commands.h"
+#include "apps/slices.h"
 #include "common/camera.h"
 #include "common/gather.h"
 #include "reference/compare.h"
@@ -165,6 +166,8 @@ struct StatsOptions : GridVerbOptions {
   bool candidates = false;  // print the candidates choose_grid weighed
   bool measure = false;     // ... and trace the frame's rays through each of them
   uint32_t repeat = 3;
+  std::string slices;       // a folder for the occupancy contact sheet
+  std::string slice_axis = "z";
 };
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
@@ -259,6 +262,7 @@ void run_stats(const StatsOptions& o) {
   std::printf("scene %s: %llu triangles in %zu instances (%u static)\n%s", scene.name.c_str(),
               (unsigned long long)scene.triangle_count(), scene.instances.size(), scene.static_instance_count(),
               reference::to_text(ref.stats()).c_str());
+  if (!o.slices.empty()) write_slices(ref, scene.name, o.slices, o.slice_axis[0]);
   if (o.candidates || o.measure) print_candidates(o, scene, go);
 }
 
@@ -509,6 +513,11 @@ void add_grid_commands(CLI::App& app) {
                   "Also build every candidate and trace the frame's bounce rays (--width x --height gather buffer) "
                   "through it: measured cells and tests per ray and trace time beside the estimates");
     cmd->add_option("--repeat", o->repeat, "--measure: trace this many times (median)")->check(CLI::Range(1u, 100u));
+    cmd->add_option("--slices", o->slices,
+                    "Also draw the grid slice by slice into this folder (occupancy.png: references per cell, "
+                    "saturated cells, with a legend)");
+    cmd->add_option("--slice-axis", o->slice_axis, "--slices: the axis the slices are cut along")
+        ->check(CLI::IsMember({"x", "y", "z"}))->type_name("x|y|z");
     cmd->callback([o] { run_stats(*o); });
   }
 #ifdef GRIDRT_HAVE_VULKAN

@@ -239,8 +239,8 @@ void add_portal_command(CLI::App& app) {
     CLI::App* cmd = portal_cmd->add_subcommand("explain", "Every div, face and texel one pixel's primary ray visits");
     cmd->add_option("world", *spec, "A tile map (.map), builtin:level (default), or a scene to voxelize");
     cmd->add_option("--voxels", *voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 255u));
-    cmd->add_option("--size", *size, "Image size W,H the pixel lies in")->delimiter(',')->expected(2)
-        ->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--width", (*size)[0], "Width of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--height", (*size)[1], "Height of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--pixel,-p", *pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
     cmd->add_option("--backend", *backend,
                     "Tracer: " + portal_backends() + " (portal-vulkan: the shader's own record beside the reference's)");
@@ -272,9 +272,9 @@ void add_portal_command(CLI::App& app) {
         "bench", "Rays/s and steps per ray: portal-cpu, voxel-dda, portal-vulkan; the renderer as FSM and three loops");
     cmd->add_option("world", *spec, "A tile map (.map), builtin:level (default), or a scene to voxelize");
     cmd->add_option("--voxels", *voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 255u));
-    cmd->add_option("--size", *size, "Image size W,H (the seed's: 720,360)")->delimiter(',')->expected(2)
-        ->check(CLI::Range(1u, 16384u));
-    cmd->add_option("--repeats", *repeats, "Best of this many runs")->check(CLI::Range(1u, 1000u));
+    cmd->add_option("--width", (*size)[0], "Image width (the paper's: 720)")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--height", (*size)[1], "Image height (the paper's: 360)")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--repeat", *repeats, "Best of this many runs")->check(CLI::Range(1u, 1000u));
     cmd->add_flag("--vulkan-only", *vulkan_only, "Measure portal-vulkan only");
     cmd->callback([=] { run_portal_bench(*spec, *voxels, (*size)[0], (*size)[1], *repeats, *vulkan_only); });
   }

@@ -2,9 +2,11 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
+#include "apps/backends.h"
 #include "common/scene.h"
 
 namespace gridrt::app {
@@ -25,6 +27,19 @@ struct PortalRenderOptions {
 };
 void run_portal_render(const PortalRenderOptions& options);  // cmd_portal.cpp
 void add_sweep_command(CLI::App& app);    // cmd_sweep.cpp: accuracy against Embree vs time
+
+// render --view (views.cpp): a per-pixel picture of the grid's work with a colour bar or legend.
+struct ViewOptions {
+  std::string view = "shaded";   // one of view_names()
+  std::string scene, backend, output;
+  uint32_t width = 0, height = 0;
+  float time = 0.0f;
+  bool primary = false;          // camera rays instead of the glossy bounce
+  int scale = 1;                 // pixels per image pixel in the figure
+  BackendOptions backend_options;
+};
+const std::vector<std::string>& view_names();  // shaded (the plain render) first
+void run_view(const ViewOptions& options);
 
 // The scene named by SCENE (a scene file, a bare mesh, builtin:NAME), or the embedded default
 // when `spec` is empty. Prints how long loading took when it took over a second.
