@@ -517,7 +517,7 @@ void add_grid_commands(CLI::App& app) {
                     "Also draw the grid slice by slice into this folder (occupancy.png: references per cell, "
                     "saturated cells, with a legend)");
     cmd->add_option("--slice-axis", o->slice_axis, "--slices: the axis the slices are cut along")
-        ->check(CLI::IsMember({"x", "y", "z"}))->type_name("x|y|z");
+        ->check(CLI::IsMember({"x", "y", "z"}).description(""))->type_name("x|y|z");
     cmd->callback([o] { run_stats(*o); });
   }
 #ifdef GRIDRT_HAVE_VULKAN

@@ -173,11 +173,11 @@ void add_render_command(CLI::App& app) {
                   "(visited), tests (references tested), saturation (saturated cells visited), gap-fill (a gap-fill "
                   "voxel answered), spill (a spilled reference answered), diff (CPU reference vs Vulkan shader; "
                   "needs --backend vulkan)")
-      ->check(CLI::IsMember(view_names()))->type_name("NAME")->group("Views");
+      ->check(CLI::IsMember(view_names()).description(""))->type_name("shaded|cells|tests|saturation|gap-fill|spill|diff")->group("Views");
   cmd->add_option("--rays", o->rays,
                   "--view: which ray of each pixel: bounce (its glossy bounce, as the frame traces it; the camera "
                   "rays where the scene has no glossy material) or primary (the camera ray, through the grid)")
-      ->check(CLI::IsMember({"bounce", "primary"}))->type_name("bounce|primary")->group("Views");
+      ->check(CLI::IsMember({"bounce", "primary"}).description(""))->type_name("bounce|primary")->group("Views");
   cmd->add_option("--scale", o->scale, "--view: figure pixels per image pixel")->check(CLI::Range(1, 16))->group("Views");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_render(*o); });

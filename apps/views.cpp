@@ -169,6 +169,7 @@ void run_view(const ViewOptions& options) {
     char t[160];
     std::snprintf(t, sizeof t, "%s (mean %.2f, max %.0f per ray)", title.c_str(), sum / double(used), hi);
     f.title = t;
+    std::printf("view %s: %zu rays, mean %.3f, max %.0f per ray\n", o.view.c_str(), used, sum / double(used), hi);
     f.has_bar = true;
     f.bar = {float(lo), float(std::max(hi, 1.0)), label, true};
     if (used < n) f.legend.push_back(no_ray);
@@ -185,6 +186,7 @@ void run_view(const ViewOptions& options) {
     char t[160];
     std::snprintf(t, sizeof t, "%s: %zu of %zu rays", title.c_str(), count, used);
     f.title = t;
+    std::printf("view %s: %zu of %zu rays\n", o.view.c_str(), count, used);
     f.legend = {{yes_color, yes}, {plot::colors::white, "another hit"}, {plot::colors::dark_grey, "miss"}};
     if (used < n) f.legend.push_back(no_ray);
     (void)hits;
