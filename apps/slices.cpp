@@ -1,7 +1,8 @@
 // gridrt stats --slices DIR: the grid's occupancy and saturation slice by slice, as one contact
 // sheet (DIR/occupancy.png): a panel per slice along an axis, each cell coloured by the references
 // its slots hold (viridis, 1 .. capacity), empty cells light, saturated cells (a reference found no
-// slot: the status texel's bits) red for static, magenta for dynamic references.
+// slot: the status texel's bits) red for static, magenta for dynamic references; cells holding a
+// moving (dynamic) instance's references outlined orange.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -36,6 +37,8 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
     uint64_t empty = 0, saturated_static = 0, saturated_dynamic = 0;
   } counts;
   std::vector<std::vector<glm::vec3>> panels(ns, std::vector<glm::vec3>(size_t(nu) * nv));
+  std::vector<std::vector<uint8_t>> moving(ns, std::vector<uint8_t>(size_t(nu) * nv, 0));
+  bool any_moving = false;
   uint32_t largest = 0;
   for (uint32_t s = 0; s < ns; ++s)
     for (uint32_t j = 0; j < nv; ++j)
@@ -43,9 +46,10 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
         glm::uvec3 cell(0);
         cell[a] = s, cell[u] = i, cell[v] = j;
         uint32_t n = 0;
-        while (n < g.capacity &&
-               reference::imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, cell, n))) != sh::kBlank)
-          ++n;
+        for (uint32_t ref; n < g.capacity &&
+                           (ref = reference::imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, cell, n)))) != sh::kBlank;
+             ++n)
+          if (ref >= g.comparison_offset) moving[s][size_t(nv - 1 - j) * nu + i] = 1, any_moving = true;
         largest = std::max(largest, n);
         const uint32_t status = reference::imageLoad(grid.image, glm::ivec3(sh::cell_status_texel(g, cell)));
         glm::vec3 c = n == 0 ? plot::colors::light_grey
@@ -55,7 +59,8 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
         else if (status & sh::kStatusDynamic) c = plot::colors::magenta, ++counts.saturated_dynamic;
         panels[s][size_t(nv - 1 - j) * nu + i] = c;  // v up
       }
-  const int title_h = 56, side = 230, pad = 12;
+  const int title_h = 56, pad = 12;
+  const int side = 60 + plot::Canvas::text_width("outlined: holds a moving instance", 13);
   const int sheet_w = pad + int(cols) * (pw + gap) + side, sheet_h = title_h + int(rows) * (ph + gap + label_h) + pad;
   plot::Canvas c(uint32_t(std::max(sheet_w, 560)), uint32_t(std::max(sheet_h, title_h + 330)));
   char t[200];
@@ -73,6 +78,12 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
     std::snprintf(t, sizeof t, "%c = %u", names[a], s);
     c.text(x, y - 4, t, plot::colors::black, 11);
     c.image(x, y, nu, nv, panels[s], cell_px);
+    if (cell_px >= 4)
+      for (uint32_t k = 0; k < nu * nv; ++k)
+        if (moving[s][k]) {
+          const int cx = x + int(k % nu) * cell_px, cy = y + int(k / nu) * cell_px;
+          c.frame(cx, cy, cx + cell_px, cy + cell_px, plot::colors::orange);
+        }
     c.frame(x - 1, y - 1, x + pw + 1, y + ph + 1, plot::colors::grey);
   }
   const int sx = pad + int(cols) * (pw + gap) + 10;
@@ -80,7 +91,8 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
   plot::draw_legend(c, sx, title_h + 230,
                     {{plot::colors::light_grey, "empty"},
                      {plot::colors::red, "saturated (static)"},
-                     {plot::colors::magenta, "saturated (dynamic)"}});
+                     {plot::colors::magenta, "saturated (dynamic)"},
+                     {plot::colors::orange, any_moving ? "outlined: holds a moving instance" : "(no moving instance)"}});
   const std::string path = (std::filesystem::path(dir) / "occupancy.png").string();
   c.write(path);
   std::printf("slices: %s\n", path.c_str());
