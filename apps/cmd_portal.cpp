@@ -228,7 +228,11 @@ void add_portal_command(CLI::App& app) {
     cmd->add_flag("--separate-loops", o->separate_loops, "Three loops (primary, shadow 1, shadow 2), not the state machine");
     cmd->add_option("--backend", o->backend, "Tracer: " + portal_backends());
     cmd->add_option("-o,--output", o->output, "Image file");
-    cmd->callback([o] { run_portal_render(*o); });
+    cmd->add_option("--view", o->view,
+                    "What the picture shows: shaded (the render), or per pixel with a colour bar: divs (divs the "
+                    "portal traversal visits per camera ray) or dda (voxels an exact voxel DDA steps through)")
+        ->check(CLI::IsMember({"shaded", "divs", "dda"}).description(""))->type_name("shaded|divs|dda");
+    cmd->callback([o] { o->view == "shaded" ? run_portal_render(*o) : run_portal_view(*o); });
   }
   {
     auto spec = std::make_shared<std::string>();

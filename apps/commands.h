@@ -24,8 +24,10 @@ struct PortalRenderOptions {
   uint32_t width = 720, height = 360;  // the seed's resolution
   uint32_t voxels = 64;
   bool separate_loops = false;
+  std::string view = "shaded";   // shaded, or divs / dda: per-pixel work (portal_views.cpp)
 };
 void run_portal_render(const PortalRenderOptions& options);  // cmd_portal.cpp
+void run_portal_view(const PortalRenderOptions& options);    // portal_views.cpp
 void add_sweep_command(CLI::App& app);    // cmd_sweep.cpp: accuracy against Embree vs time
 
 // render --view (views.cpp): a per-pixel picture of the grid's work with a colour bar or legend.

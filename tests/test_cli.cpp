@@ -215,6 +215,21 @@ TEST_CASE("CLI: render --view pictures agree with what the grid does", "[cli][vi
   CHECK_THAT(diff.output, Catch::Contains("--backend vulkan"));
 }
 
+TEST_CASE("CLI: portal render --view: the divs save the voxel DDA's steps", "[cli][views][portal]") {
+  const fs::path out = scratch("portal_view.png");
+  auto mean = [&](const std::string& view) {
+    const Run r = run_tool("portal render builtin:level --width 40 --height 20 --view " + view + " -o " + out.string());
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    const size_t p = r.output.find("mean ");
+    REQUIRE(p != std::string::npos);
+    return std::stod(r.output.substr(p + 5));
+  };
+  const double divs = mean("divs"), voxels = mean("dda");
+  CHECK(divs >= 1.0);
+  CHECK(divs < voxels);  // a div holds at least one empty voxel: never more divs than voxels per ray
+}
+
 TEST_CASE("CLI: stats --slices draws the grid slice by slice", "[cli][views]") {
   const fs::path dir = scratch("slices");
   fs::remove_all(dir);
