@@ -285,7 +285,7 @@ void plot_agreement(const std::string& path, const std::string& title, const std
     std::printf("  plot: skipped (this build has no OpenImageIO or no DejaVu font)\n");
     return;
   }
-  plot::Canvas cv(760, 520);
+  plot::Canvas cv(760, 545);
   double tmax = 0.0, amin = 100.0;
   for (const Row& r : rows) tmax = std::max(tmax, r.trace_ms), amin = std::min(amin, r.acc.agree());
   tmax = tmax > 0.0 ? tmax * 1.1 : 1.0;
@@ -308,7 +308,7 @@ void plot_agreement(const std::string& path, const std::string& title, const std
     cv.marker(x, y, 3, c);
     cv.text(x + 6, y - 6, std::to_string(rows[i].index), c, 11);
   }
-  plot::draw_legend(cv, 90, 478,
+  plot::draw_legend(cv, 90, 496,
                     {{plot::colors::red, "Pareto front (no row is both faster and more accurate)"},
                      {plot::colors::blue, "other configurations (numbers: the rows of the table)"}},
                     12);

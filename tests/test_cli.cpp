@@ -241,3 +241,18 @@ TEST_CASE("CLI: stats --slices draws the grid slice by slice", "[cli][views]") {
   const Run missing = run_tool("stats builtin:cornell --width 16 --height 9 --slices /nonexistent/dir");
   CHECK(missing.exit_code == 1);
 }
+
+#ifdef GRIDRT_WITH_VULKAN
+TEST_CASE("CLI: render --view diff finds the shader's bounce hits bit-identical", "[cli][views][vulkan]") {
+  const fs::path out = scratch("view_diff.png");
+  fs::remove(out);
+  const Run r = run_tool("render builtin:atrium --width 48 --height 27 --threads 2 --view diff --backend vulkan -o " +
+                         out.string());
+  INFO(r.output);
+  REQUIRE(r.exit_code == 0);
+  CHECK(fs::exists(out));
+  // The atrium's glossy floor makes bounce rays; every one of them agrees bit for bit
+  CHECK_THAT(r.output, !Catch::Contains("diff: 0 rays"));
+  CHECK_THAT(r.output, Catch::Contains("0 differ in floats only, 0 differ in the hit"));
+}
+#endif
