@@ -168,6 +168,7 @@ struct StatsOptions : GridVerbOptions {
   uint32_t repeat = 3;
   std::string slices;       // a folder for the occupancy contact sheet
   std::string slice_axis = "z";
+  std::vector<uint32_t> ray_pixel;  // --slices: the camera ray of this pixel drawn in
 };
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
@@ -262,7 +263,20 @@ void run_stats(const StatsOptions& o) {
   std::printf("scene %s: %llu triangles in %zu instances (%u static)\n%s", scene.name.c_str(),
               (unsigned long long)scene.triangle_count(), scene.instances.size(), scene.static_instance_count(),
               reference::to_text(ref.stats()).c_str());
-  if (!o.slices.empty()) write_slices(ref, scene.name, o.slices, o.slice_axis[0]);
+  if (!o.slices.empty()) {
+    std::optional<reference::ExplainRecord> ray;
+    std::string ray_name;
+    if (!o.ray_pixel.empty()) {
+      const uint32_t x = o.ray_pixel[0], y = o.ray_pixel[1];
+      if (x >= o.width || y >= o.height)
+        throw Error("--ray-pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
+                    std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
+      ray = ref.explain_ray(camera_ray(scene.frame_camera(), o.width, o.height, x, y));
+      ray_name = "camera ray of pixel " + std::to_string(x) + "," + std::to_string(y) + " of " +
+                 std::to_string(o.width) + "x" + std::to_string(o.height);
+    }
+    write_slices(ref, scene.name, o.slices, o.slice_axis[0], ray ? &*ray : nullptr, ray_name);
+  }
   if (o.candidates || o.measure) print_candidates(o, scene, go);
 }
 
@@ -518,6 +532,10 @@ void add_grid_commands(CLI::App& app) {
                     "saturated cells, with a legend)");
     cmd->add_option("--slice-axis", o->slice_axis, "--slices: the axis the slices are cut along")
         ->check(CLI::IsMember({"x", "y", "z"}).description(""))->type_name("x|y|z");
+    cmd->add_option("--ray-pixel", o->ray_pixel,
+                    "--slices: also draw the camera ray of pixel X,Y (of --width x --height): the cells its traversal "
+                    "visits and its samples")
+        ->delimiter(',')->expected(2)->type_name("X,Y");
     cmd->callback([o] { run_stats(*o); });
   }
 #ifdef GRIDRT_HAVE_VULKAN

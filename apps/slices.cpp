@@ -17,7 +17,7 @@ namespace gridrt::app {
 namespace sh = gridrt::shared;
 
 void write_slices(const reference::ReferenceGridTracer& ref, const std::string& scene_name, const std::string& dir,
-                  char axis) {
+                  char axis, const reference::ExplainRecord* ray, const std::string& ray_name) {
   if (!plot::available())
     throw Error("--slices needs OpenImageIO and the DejaVu fonts (Debian: libopenimageio-dev, fonts-dejavu-core)");
   if (!std::filesystem::is_directory(dir)) throw Error("--slices: folder '" + dir + "' does not exist");
@@ -59,7 +59,7 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
         else if (status & sh::kStatusDynamic) c = plot::colors::magenta, ++counts.saturated_dynamic;
         panels[s][size_t(nv - 1 - j) * nu + i] = c;  // v up
       }
-  const int title_h = 56, pad = 12;
+  const int title_h = ray ? 74 : 56, pad = 12;
   const int side = 60 + plot::Canvas::text_width("outlined: holds a moving instance", 13);
   const int sheet_w = pad + int(cols) * (pw + gap) + side, sheet_h = title_h + int(rows) * (ph + gap + label_h) + pad;
   plot::Canvas c(uint32_t(std::max(sheet_w, 560)), uint32_t(std::max(sheet_h, title_h + 330)));
@@ -85,6 +85,30 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
           c.frame(cx, cy, cx + cell_px, cy + cell_px, plot::colors::orange);
         }
     c.frame(x - 1, y - 1, x + pw + 1, y + ph + 1, plot::colors::grey);
+  }
+  // The ray: its visited cells outlined, its samples as dots (in cell units from the origin)
+  size_t visits = 0;
+  if (ray)
+    for (const sh::ExplainEvent& e : ray->events) {
+      if (e.kind != sh::kEvCell) continue;
+      ++visits;
+      const uint32_t s = e.cell[a];
+      const int x = pad + int(s % cols) * (pw + gap), y = title_h + int(s / cols) * (ph + gap + label_h) + label_h;
+      const int cx = x + int(e.cell[u]) * cell_px, cy = y + int(nv - 1 - e.cell[v]) * cell_px;
+      c.frame(cx, cy, cx + cell_px, cy + cell_px, plot::colors::black);
+      if (cell_px >= 6) c.frame(cx + 1, cy + 1, cx + cell_px - 1, cy + cell_px - 1, plot::colors::black);
+      const glm::vec3 p = (glm::vec3(e.f0) - g.origin) / g.cell_size;  // sample / entry point
+      const int ps = std::clamp(int(std::floor(p[a])), 0, int(ns) - 1);
+      const int px = pad + int(uint32_t(ps) % cols) * (pw + gap) + int(std::lround(p[u] * float(cell_px)));
+      const int py = title_h + int(uint32_t(ps) / cols) * (ph + gap + label_h) + label_h +
+                     int(std::lround((float(nv) - p[v]) * float(cell_px)));
+      c.marker(px, py, 2, plot::colors::black);
+      c.marker(px, py, 1, plot::colors::white);
+    }
+  if (ray) {
+    std::snprintf(t, sizeof t, "%s: %zu cells visited (outlined), %s (dots)", ray_name.c_str(), visits,
+                  g.traversal == sh::kTraversalPaper ? "midpoint samples" : "entry points");
+    c.text(pad, 60, t, plot::colors::black, 12);
   }
   const int sx = pad + int(cols) * (pw + gap) + 10;
   plot::draw_color_bar(c, sx, title_h + 24, 20, 180, {1.0f, float(std::max(g.capacity, 2u)), "references", true});
