@@ -18,7 +18,7 @@
 #include "common/gather.h"
 #include "reference/compare.h"
 #include "reference/grid.h"
-#include "reference/policy.h"
+#include "plan/policy.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "vulkan/frame.h"
 #  include "vulkan/grid.h"

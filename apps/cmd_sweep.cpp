@@ -20,7 +20,7 @@
 #include "common/image_io.h"
 #include "reference/compare.h"
 #include "reference/grid.h"
-#include "reference/policy.h"
+#include "plan/policy.h"
 #ifdef GRIDRT_HAVE_EMBREE
 #  include "common/embree/embree_tracer.h"
 #endif

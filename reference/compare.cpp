@@ -7,7 +7,7 @@
 #include <iterator>
 #include <sstream>
 
-#include "reference/policy.h"
+#include "plan/policy.h"
 
 namespace gridrt::reference {
 

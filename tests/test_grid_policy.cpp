@@ -9,7 +9,7 @@
 #include "common/camera.h"
 #include "common/embree/embree_tracer.h"
 #include "reference/compare.h"
-#include "reference/policy.h"
+#include "plan/policy.h"
 #include "test_grid_util.h"
 
 using namespace gridrt;

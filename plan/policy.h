@@ -9,7 +9,7 @@
 #include <span>
 #include <vector>
 
-#include "reference/grid.h"
+#include "plan/plan.h"
 
 namespace gridrt::reference {
 

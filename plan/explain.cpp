@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <sstream>
 
-#include "reference/grid.h"
+#include "plan/records.h"
 
 namespace gridrt::reference {
 

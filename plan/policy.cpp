@@ -1,5 +1,5 @@
 // policy.cpp: the ray sample and the work estimates of the trace-cost capacity policy (policy.h).
-#include "reference/policy.h"
+#include "plan/policy.h"
 
 #include <algorithm>
 #include <array>
@@ -8,7 +8,7 @@
 #include "common/gather.h"
 #include "common/shared/alpha.h"
 #include "common/shared/transform.h"
-#include "reference/invocations.h"
+#include "common/invocations.h"
 
 namespace gridrt::reference {
 
