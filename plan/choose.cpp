@@ -5,14 +5,15 @@
 #include <thread>
 
 #include "common/invocations.h"
+#include "common/shared/transform.h"
 #include "plan/plan.h"
 #include "plan/policy.h"
 
-namespace gridrt::reference {
+namespace gridrt::plan {
 
 using shared::GridParams;
 
-unsigned thread_count(const GridOptions& options) {
+unsigned thread_count(const EmulationOptions& options) {
   if (options.threads) return options.threads;
   return std::max(1u, std::thread::hardware_concurrency());
 }
@@ -190,9 +191,17 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
   return choose_grid(scene, time, o, nullptr);
 }
 
-GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, GridChoice* choice) {
-  GridParams g{};
-  // Grid bounds: the animation's bounds, padded by 1e-3 of the largest extent on every side
+GridOptions settle_overrides(GridOptions o, const Scene& scene) {
+  if (!o.resolution) o.resolution = scene.grid.resolution;
+  if (!o.cell_size) o.cell_size = scene.grid.cell_size;
+  if (!o.capacity) o.capacity = scene.grid.capacity;
+  return o;
+}
+
+namespace {
+
+// The grid's box: the animation's bounds, padded by 1e-3 of the largest extent on every side.
+Bounds grid_box(const Scene& scene, float time) {
   Bounds b = animation_bounds(scene, time);
   if (b.empty()) throw Error("grid: the scene has no vertices");
   const glm::vec3 ext = b.extent();
@@ -200,24 +209,29 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
   const float pad = 1e-3f * big;
   b.lo -= glm::vec3(pad);
   b.hi += glm::vec3(pad);
-  const glm::vec3 e = b.extent();
-  g.origin = b.lo;
+  return b;
+}
 
-  // Resolution: density cells per triangle, cubic cells, or the overrides
-  const std::optional<glm::uvec3> res = o.resolution ? o.resolution : scene.grid.resolution;
-  const std::optional<float> cs_over = o.cell_size ? o.cell_size : scene.grid.cell_size;
-  const std::optional<uint32_t> cap_over = o.capacity ? o.capacity : scene.grid.capacity;
+// The cell size to start from: the override, the resolution's, or density cells per triangle
+// (cubic cells) over a box of extent `e`.
+float target_cell_size(const Scene& scene, const GridOptions& o, glm::vec3 e) {
   float cs;
-  if (cs_over) {
-    cs = *cs_over;
-  } else if (res) {
-    cs = std::max({e.x / float(res->x), e.y / float(res->y), e.z / float(res->z)});
+  if (o.cell_size) {
+    cs = *o.cell_size;
+  } else if (o.resolution) {
+    const glm::uvec3 res = *o.resolution;
+    cs = std::max({e.x / float(res.x), e.y / float(res.y), e.z / float(res.z)});
   } else {
     const double target = std::max(1.0, double(o.density) * double(scene.triangle_count()));
     cs = float(std::cbrt(double(e.x) * double(e.y) * double(e.z) / target));
   }
   if (!(cs > 0.0f) || !std::isfinite(cs)) throw Error("grid: cell size must be positive and finite");
+  return cs;
+}
 
+// The GridParams fields the algorithm's knobs decide (traversal, insertion, flags, ...).
+GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
+  GridParams g{};
   g.aabb_padding = o.aabb_padding.value_or(kAabbPadding);
   g.elongation = o.elongation;
   g.self_hit_offset = o.self_hit_offset;
@@ -232,60 +246,71 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
-  const auto too_big = [&](glm::uvec3 cells, uint32_t cap) {
-    return Error("grid: " + std::to_string(cells.x) + "x" + std::to_string(cells.y) + "x" + std::to_string(cells.z) +
-                 " cells of capacity " + std::to_string(cap) + " exceed the image limits (max dimension " +
-                 std::to_string(o.max_image_dimension) + ", max texels " + std::to_string(o.max_texels) + ")");
-  };
-  // The params of `cells` of edge `cell_size`, capacity `cap`, slots along `axis`, AABB padding `padding`
-  const auto params_for = [&](glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis, float padding) {
-    GridParams p = g;
-    p.aabb_padding = padding;
-    set_cell_size(p, cell_size, o);
-    p.cells = cells;
-    p.capacity = cap;
-    p.flags |= axis << shared::kGridSlotAxisShift;
-    p.upper = p.origin + glm::vec3(p.cells) * p.cell_size;
-    p.max_segments = p.cells.x + p.cells.y + p.cells.z + 3u;
-    return p;
-  };
-  const auto finish = [&](glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis, float padding) {
-    g = params_for(cells, cell_size, cap, axis, padding);
-    return g;
-  };
+  return g;
+}
 
-  if (o.capacity_policy == GridOptions::CapacityPolicy::percentile && !cap_over) {
-    // The original rule: a percentile of the trial's non-empty cells, clamped; larger cells until
-    // the image fits
-    for (int attempt = 0;; ++attempt) {
-      set_cell_size(g, cs, o);
-      g.cells = (res && !cs_over) ? *res : cells_for(e, cs);
-      std::vector<uint32_t> nonempty;
-      trial_counts(scene, time, g, o.capacity_time_samples).for_each_largest([&](uint32_t c) {
-        if (c) nonempty.push_back(c);
-      });
-      uint32_t cap = o.min_capacity;
-      if (!nonempty.empty()) {
-        const size_t k = std::min(nonempty.size() - 1,
-                                  size_t(std::ceil(double(o.capacity_percentile) * double(nonempty.size()))) - 1);
-        std::nth_element(nonempty.begin(), nonempty.begin() + ptrdiff_t(k), nonempty.end());
-        cap = nonempty[k];
-      }
-      cap = std::clamp(cap, o.min_capacity, o.max_capacity);
-      const uint32_t axis = slot_axis_for(g.cells, o);
-      const uint32_t allowed = capacity_allowed(g.cells, axis, o);
-      if (cap <= allowed && allowed > 0) return finish(g.cells, cs, cap, axis, g.aabb_padding);
-      if ((res && !cs_over) || attempt > 60) throw too_big(g.cells, cap);
-      const double along = double(g.cells[axis]) * (cap + 1);
-      const double texels = along * double(g.cells.x) * g.cells.y * g.cells.z / g.cells[axis];
-      const double ratio = std::max({along / o.max_image_dimension, double(g.cells.x) / o.max_image_dimension,
-                                     double(g.cells.y) / o.max_image_dimension,
-                                     double(g.cells.z) / o.max_image_dimension,
-                                     std::cbrt(texels / double(o.max_texels)), 1.1});
-      cs = float(double(cs) * std::min(ratio, 2.0));
+Error too_big(glm::uvec3 cells, uint32_t cap, const GridOptions& o) {
+  return Error("grid: " + std::to_string(cells.x) + "x" + std::to_string(cells.y) + "x" + std::to_string(cells.z) +
+               " cells of capacity " + std::to_string(cap) + " exceed the image limits (max dimension " +
+               std::to_string(o.max_image_dimension) + ", max texels " + std::to_string(o.max_texels) + ")");
+}
+
+// `base` with `cells` of edge `cell_size`, capacity `cap`, slots along `axis`, AABB padding `padding`.
+GridParams sized_params(const GridParams& base, glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis,
+                        float padding, const GridOptions& o) {
+  GridParams p = base;
+  p.aabb_padding = padding;
+  set_cell_size(p, cell_size, o);
+  p.cells = cells;
+  p.capacity = cap;
+  p.flags |= axis << shared::kGridSlotAxisShift;
+  p.upper = p.origin + glm::vec3(p.cells) * p.cell_size;
+  p.max_segments = p.cells.x + p.cells.y + p.cells.z + 3u;
+  return p;
+}
+
+// The percentile policy: capacity = a percentile of the trial's non-empty cells, clamped; larger
+// cells until the image fits.
+GridParams choose_by_percentile(const Scene& scene, float time, const GridOptions& o, GridParams g, glm::vec3 e,
+                                float cs) {
+  const std::optional<glm::uvec3> res = o.resolution;
+  const std::optional<float> cs_over = o.cell_size;
+  for (int attempt = 0;; ++attempt) {
+    set_cell_size(g, cs, o);
+    g.cells = (res && !cs_over) ? *res : cells_for(e, cs);
+    std::vector<uint32_t> nonempty;
+    trial_counts(scene, time, g, o.capacity_time_samples).for_each_largest([&](uint32_t c) {
+      if (c) nonempty.push_back(c);
+    });
+    uint32_t cap = o.min_capacity;
+    if (!nonempty.empty()) {
+      const size_t k = std::min(nonempty.size() - 1,
+                                size_t(std::ceil(double(o.capacity_percentile) * double(nonempty.size()))) - 1);
+      std::nth_element(nonempty.begin(), nonempty.begin() + ptrdiff_t(k), nonempty.end());
+      cap = nonempty[k];
     }
+    cap = std::clamp(cap, o.min_capacity, o.max_capacity);
+    const uint32_t axis = slot_axis_for(g.cells, o);
+    const uint32_t allowed = capacity_allowed(g.cells, axis, o);
+    if (cap <= allowed && allowed > 0) return sized_params(g, g.cells, cs, cap, axis, g.aabb_padding, o);
+    if ((res && !cs_over) || attempt > 60) throw too_big(g.cells, cap, o);
+    const double along = double(g.cells[axis]) * (cap + 1);
+    const double texels = along * double(g.cells.x) * g.cells.y * g.cells.z / g.cells[axis];
+    const double ratio = std::max({along / o.max_image_dimension, double(g.cells.x) / o.max_image_dimension,
+                                   double(g.cells.y) / o.max_image_dimension,
+                                   double(g.cells.z) / o.max_image_dimension,
+                                   std::cbrt(texels / double(o.max_texels)), 1.1});
+    cs = float(double(cs) * std::min(ratio, 2.0));
   }
+}
 
+// The candidate search of the no_saturation and trace_cost policies (and the one candidate of a
+// resolution, cell-size or capacity override).
+GridParams choose_by_candidates(const Scene& scene, float time, const GridOptions& o, GridParams g, glm::vec3 e,
+                                float cs, GridChoice* choice) {
+  const std::optional<glm::uvec3> res = o.resolution;
+  const std::optional<float> cs_over = o.cell_size;
+  const std::optional<uint32_t> cap_over = o.capacity;
   // Fixed cells (a resolution or cell-size override, or a capacity override): one candidate, an
   // error if it does not fit
   GridChoice local;
@@ -293,16 +318,16 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
   ch = GridChoice{};
   if (res && !cs_over) {
     const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o);
-    if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity));
+    if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity), o);
     ch.candidates.push_back(c);
-    return finish(c.cells, cs, c.capacity, c.slot_axis, c.aabb_padding);
+    return sized_params(g, c.cells, cs, c.capacity, c.slot_axis, c.aabb_padding, o);
   }
   // Candidate cell sizes cs * 2^(j/4) around the density target. With a cell-size override only
   // j = 0; with a capacity override the density target unless it does not fit.
   // no_saturation: weighed in the order j = 0, -1, 1, -2, 2, ... (finer cells first at each
   // distance): the first that drops no reference wins; else the one dropping fewest.
   // trace_cost: every j counted (candidates in parallel), each one's work estimated on the frame's
-  // ray sample (reference/policy.h), for the paper traversal without a padding option at two AABB
+  // ray sample (plan/policy.h), for the paper traversal without a padding option at two AABB
   // paddings (kAabbPadding and paper_padding); the cheapest wins.
   const bool search = !cs_over && !cap_over;
   const bool by_cost = search && o.capacity_policy == GridOptions::CapacityPolicy::trace_cost;
@@ -311,14 +336,14 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
   if (by_cost && !o.aabb_padding && o.traversal == Traversal::paper && o.paper_padding != g.aabb_padding)
     paddings.push_back(o.paper_padding);
   WorkSample& sample = ch.sample;
-  if (by_cost) sample = work_sample(scene, time, params_for(cells_for(e, cs), cs, 0u, 0u, g.aabb_padding), o);
+  if (by_cost) sample = work_sample(scene, time, sized_params(g, cells_for(e, cs), cs, 0u, 0u, g.aabb_padding, o), o);
   const auto weigh_j = [&](int j, float padding, GridParams& gj) {
     const float c_cs = float(double(cs) * std::exp2(double(j) / 4.0));
     TrialCounts counts;
     gj.aabb_padding = padding;
     GridCandidate c = weigh(scene, time, gj, c_cs, cells_for(e, c_cs), cap_over, o, by_cost ? &counts : nullptr);
     if (c.fits && by_cost) {
-      c.work = estimate_work(params_for(c.cells, c_cs, c.capacity, c.slot_axis, padding), counts, sample);
+      c.work = estimate_work(sized_params(g, c.cells, c_cs, c.capacity, c.slot_axis, padding, o), counts, sample);
       c.cost = work_cost(c.work, o);
     }
     return c;
@@ -355,7 +380,7 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
     const GridCandidate c = weigh_j(j, paddings[0], g);
     if (c.fits) ch.candidates.push_back(c);
   }
-  if (ch.candidates.empty()) throw too_big(cells_for(e, cs), cap_over.value_or(o.min_capacity));
+  if (ch.candidates.empty()) throw too_big(cells_for(e, cs), cap_over.value_or(o.min_capacity), o);
   size_t best = 0;
   for (size_t i = 1; i < ch.candidates.size(); ++i)
     if (by_cost ? ch.candidates[i].cost < ch.candidates[best].cost
@@ -363,12 +388,27 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
       best = i;
   ch.chosen = best;
   const GridCandidate& c = ch.candidates[best];
-  return finish(c.cells, c.cell_size, c.capacity, c.slot_axis, c.aabb_padding);
+  return sized_params(g, c.cells, c.cell_size, c.capacity, c.slot_axis, c.aabb_padding, o);
+}
+
+}  // namespace
+
+GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice) {
+  const GridOptions o = settle_overrides(options, scene);
+  const Bounds b = grid_box(scene, time);
+  const glm::vec3 e = b.extent();
+  // Resolution: density cells per triangle, cubic cells, or the overrides
+  const float cs = target_cell_size(scene, o, e);
+  GridParams g = algorithm_params(o, scene);
+  g.origin = b.lo;
+  if (o.capacity_policy == GridOptions::CapacityPolicy::percentile && !o.capacity)
+    return choose_by_percentile(scene, time, o, g, e, cs);
+  return choose_by_candidates(scene, time, o, g, e, cs, choice);
 }
 
 // ---- The spill list's capacity, and which effects the trace runs ----
 
-bool spill_enabled(const GridOptions& o) {
+bool spill_enabled(const AlgorithmOptions& o) {
   switch (o.spill) {
     case GridOptions::Spill::on: return true;
     case GridOptions::Spill::off: return false;
@@ -394,10 +434,18 @@ uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions
   return uint32_t(std::min<uint64_t>(cap, uint64_t(1) << 28));
 }
 
-uint32_t trace_flags(uint32_t requested, const GridOptions& o, uint32_t spill_count) {
+uint32_t trace_flags(uint32_t requested, const AlgorithmOptions& o, uint32_t spill_count) {
   // Simulate only what the scene calls for: gap-fill while some cell is saturated
   if (o.gap_fill_if_saturated && spill_count == 0u) return requested & ~shared::kGridGapFill;
   return requested;
 }
 
-}  // namespace gridrt::reference
+GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options) {
+  GridPlan plan;
+  plan.params = choose_grid(scene, time, options, &plan.choice);
+  plan.spill_capacity = choose_spill_capacity(scene, time, options, plan.params, plan.choice);
+  plan.tables = pack_tables(scene);
+  return plan;
+}
+
+}  // namespace gridrt::plan

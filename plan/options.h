@@ -1,4 +1,8 @@
-// options.h: every knob of the grid (docs/SPEC.md, "Parameters").
+// options.h: every knob of the grid, with its default (docs/SPEC.md, "Parameters"), grouped by
+// purpose: the algorithm's knobs (what becomes shared::GridParams and the trace's flags), the
+// plan's (how choose_grid picks the resolution and capacity, the limits, the overrides) and the
+// CPU emulation's (threads, shuffled invocation order). GridOptions holds all three; a function
+// takes the group it reads.
 #pragma once
 
 #include <cstdint>
@@ -6,22 +10,20 @@
 
 #include <glm/glm.hpp>
 
-namespace gridrt::reference {
+#include "common/scene.h"
+
+namespace gridrt::plan {
 
 enum class Traversal { paper, exact };
 enum class Insertion { first_empty, sorted };
 
 inline constexpr float kAabbPadding = 1.0e-3f;  // the AABB padding where none is chosen
 
-// Every knob of the grid, with its default (docs/SPEC.md, "Parameters").
-struct GridOptions {
+// The algorithm: what GridParams and the trace's flags are made of (make_params, trace_flags).
+struct AlgorithmOptions {
   // Traversal and insertion
   Traversal traversal = Traversal::paper;
   Insertion insertion = Insertion::sorted;  // sorted: images independent of thread timing
-  // Emulated invocations: 0 threads = std::thread::hardware_concurrency(); a seed runs the
-  // build/update invocations in a seeded shuffled order (on any thread count)
-  unsigned threads = 0;
-  std::optional<uint64_t> shuffle_seed;
   // Build (2.1)
   float sphere_enlargement = 1.25f;  // cell bounding-sphere radius multiplier (>= 1: conservative)
   // Cell units added on each side of a triangle's AABB. None: kAabbPadding, except that the
@@ -42,21 +44,22 @@ struct GridOptions {
   // The spill list (docs/SPEC.md, "Spill list"): references no slot took are kept as (cell, ref) and
   // the trace tests a saturated cell's spilled references too. automatic: on for the exact
   // traversal, off for the paper's (which answers saturation with gap-fill; spill on turns
-  // gap-fill off). spill_capacity: entries the list holds; default: the references choose_grid's
-  // trial would drop, with margin (choose_spill_capacity).
+  // gap-fill off). Its capacity is a plan knob (PlanOptions::spill_capacity).
   enum class Spill { automatic, on, off } spill = Spill::automatic;
-  std::optional<uint32_t> spill_capacity;
   // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
   // skip (the literal reading of visited-cell tracking), retest (a second visit)
   enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
   // Triangle test: Moller-Trumbore (fast, not watertight) or Woop-Benthin-Wald (watertight)
   enum class TriangleTest { moller, watertight } triangle_test = TriangleTest::moller;
-  // Automatic resolution and capacity (overridden by the fields below, then by Scene::grid);
-  // docs/SPEC.md, "Grid placement, resolution and capacity"
+};
+
+// The plan: how choose_grid picks resolution and capacity (docs/SPEC.md, "Grid placement,
+// resolution and capacity"), the limits it keeps within, and the overrides.
+struct PlanOptions {
   float density = 2.0f;                   // target cells per triangle
   // trace_cost (default): candidate resolutions around the density target are counted, each with
   // capacity = min(its largest cell count, what the limits allow), and the one whose estimated
-  // trace cost on a sample of the frame's rays is lowest is taken (work_cost, reference/policy.h).
+  // trace cost on a sample of the frame's rays is lowest is taken (work_cost, plan/policy.h).
   // no_saturation: the candidate closest to the density target whose largest cell count fits the
   // limits, capacity = that count (no cell drops a reference); if none fits, the candidate
   // dropping the fewest references.
@@ -77,11 +80,31 @@ struct GridOptions {
   uint32_t max_image_dimension = 4096;    // 4096 on lavapipe, 16384 on NVIDIA
   uint64_t max_texels = uint64_t(1) << 28;  // the memory budget: 2^28 texels = 1 GiB of image
   uint32_t capacity_time_samples = 16;    // dynamic instances counted at this many times of their motion
+  // The spill list's entries; default: the references choose_grid's trial would drop, with margin
+  // (choose_spill_capacity).
+  std::optional<uint32_t> spill_capacity;
+  // Overrides of the automatic resolution and capacity. Where one is unset the scene's own
+  // (Scene::grid) applies: settle_overrides, the one place that decides.
   std::optional<glm::uvec3> resolution;   // cells per axis
   std::optional<uint32_t> capacity;       // slots per cell
   std::optional<float> cell_size;         // world units
 };
 
-unsigned thread_count(const GridOptions& options);
+// The CPU emulation: invocations on threads (0 = std::thread::hardware_concurrency()); a seed
+// runs the build/update invocations in a seeded shuffled order (on any thread count). The plan's
+// own parallel work (the policy's candidates and sample) uses the same threads.
+struct EmulationOptions {
+  unsigned threads = 0;
+  std::optional<uint64_t> shuffle_seed;
+};
 
-}  // namespace gridrt::reference
+struct GridOptions : AlgorithmOptions, PlanOptions, EmulationOptions {};
+
+// The options with every override settled: the resolution, capacity and cell size of `o` where
+// set, else the scene's (Scene::grid). (The command line's --resolution and image limit are
+// written into GridOptions by the tool before this.)
+GridOptions settle_overrides(GridOptions o, const Scene& scene);
+
+unsigned thread_count(const EmulationOptions& options);
+
+}  // namespace gridrt::plan

@@ -11,16 +11,16 @@
 #include "common/tracer.h"
 #include "plan/options.h"
 
-namespace gridrt::reference {
+namespace gridrt::plan {
 
 // Whether `o` turns the spill list on (Spill::automatic: for the exact traversal).
-bool spill_enabled(const GridOptions& o);
+bool spill_enabled(const AlgorithmOptions& o);
 
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
 
 // The work a trace does per ray on one grid: estimated by the trace-cost policy on its ray sample
-// (estimate_work, reference/policy.h), or measured from hit records (measured_work).
+// (estimate_work, plan/policy.h), or measured from hit records (measured_work).
 struct WorkEstimate {
   size_t rays = 0;
   double cells = 0.0;    // cells visited per ray
@@ -78,9 +78,37 @@ uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions
                                const GridChoice& choice);
 // The flags the trace runs with: `requested` (GridParams::flags as chosen) without gap-fill while no
 // reference is dropped (`spill_count` == 0: no cell is saturated), unless gap_fill_if_saturated is off.
-uint32_t trace_flags(uint32_t requested, const GridOptions& options, uint32_t spill_count);
+uint32_t trace_flags(uint32_t requested, const AlgorithmOptions& options, uint32_t spill_count);
 // World bounds of the scene over its whole animation: static instances at `time`, dynamic ones
 // swept over their motion; not padded.
 Bounds animation_bounds(const Scene& scene, float time);
 
-}  // namespace gridrt::reference
+
+// The grid's tables as the build's geometry buffer and the trace read them: per instance its
+// triangle offset, count and flags; per triangle its material (positions are the build's to
+// write) and texture coordinates; per material its alpha mask in `texels` (RGBA8 packed, a << 24).
+struct GridTables {
+  std::vector<shared::GridInstance> instances;
+  std::vector<shared::GridTriangle> triangles;
+  std::vector<shared::GridTriangleUv> uvs;
+  std::vector<shared::GridMaterial> materials;
+  std::vector<uint32_t> texels;
+  uint32_t static_instances = 0;
+  uint32_t static_triangles = 0;  // triangles of the static instances (first)
+};
+GridTables pack_tables(const Scene& scene);
+// Appends the texels of `tex` to `texels`, RGBA8 packed (r | g << 8 | b << 16 | a << 24).
+void append_rgba8(const Texture& tex, std::vector<uint32_t>& texels);
+
+// Everything a backend needs to build the grid: the params (flags as requested; the trace runs
+// trace_flags of them), the spill list's capacity, the choice behind them and the tables.
+struct GridPlan {
+  shared::GridParams params{};
+  uint32_t spill_capacity = 0;
+  GridChoice choice;
+  GridTables tables;
+};
+// The plan of `scene` at `time` under `options` (overrides settled here).
+GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options);
+
+}  // namespace gridrt::plan

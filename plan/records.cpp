@@ -4,7 +4,7 @@
 
 #include "plan/records.h"
 
-namespace gridrt::reference {
+namespace gridrt::plan {
 
 void warn_spill_overflow(const SpillDump& spill, const std::string& who, bool& warned) {
   if (spill.overflow() == 0 || warned) return;
@@ -23,4 +23,4 @@ std::string hex(float f) {
   return buf;
 }
 
-}  // namespace gridrt::reference
+}  // namespace gridrt::plan

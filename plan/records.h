@@ -9,7 +9,7 @@
 #include "common/shared/grid.h"
 #include "common/tracer.h"
 
-namespace gridrt::reference {
+namespace gridrt::plan {
 
 // The spill list as plain data: the header, the stored entries [0, min(count, capacity)) in the
 // order they were appended (which differs between runs and backends: compare them as multisets,
@@ -37,4 +37,4 @@ void warn_spill_overflow(const SpillDump& spill, const std::string& who, bool& w
 // Hex bits of a float, e.g. "0x3f800000".
 std::string hex(float f);
 
-}  // namespace gridrt::reference
+}  // namespace gridrt::plan

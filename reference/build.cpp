@@ -4,9 +4,9 @@
 #include <cmath>
 #include <thread>
 
+#include "common/invocations.h"
 #include "common/shared/transform.h"
 #include "reference/grid.h"
-#include "common/invocations.h"
 #include "plan/policy.h"
 
 namespace gridrt::reference {
@@ -222,53 +222,22 @@ void insert_instances(GridData& grid, const Scene& scene, float time, const Grid
 
 void scene_build(GridData& grid, const Scene& scene, float time, const GridOptions& o) {
   grid = GridData{};
-  GridChoice choice;
-  grid.params = choose_grid(scene, time, o, &choice);
+  plan::GridPlan plan = plan::plan_grid(scene, time, o);
+  grid.params = plan.params;
   grid.requested_flags = grid.params.flags;
   const GridParams& g = grid.params;
   // The spill list: empty, room for the references the trial would drop
-  grid.spill_header = shared::SpillHeader{0u, choose_spill_capacity(scene, time, o, g, choice), 0u, 0u};
+  grid.spill_header = shared::SpillHeader{0u, plan.spill_capacity, 0u, 0u};
   grid.spill.assign(grid.spill_header.capacity, shared::SpillEntry{0u, kBlank, shared::kSpillEnd, shared::kSpillEnd});
   if (g.flags & shared::kGridSpill) grid.spill_heads.assign(4 * size_t(g.cells.x) * g.cells.y * g.cells.z, shared::kSpillEnd);
   // Tables: instances, materials and their alpha masks, the geometry buffer
-  grid.static_instances = scene.static_instance_count();
-  uint32_t offset = 0;
-  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
-    const Instance& inst = scene.instances[i];
-    const Mesh& mesh = scene.meshes[inst.mesh];
-    shared::GridInstance gi{offset, mesh.triangle_count(), inst.dynamic ? shared::kInstanceDynamic : 0u, 0u};
-    for (uint32_t m : mesh.materials)
-      if (scene.materials[m].alpha_keyed()) gi.flags |= shared::kInstanceAlphaKeyed;
-    grid.instances.push_back(gi);
-    if (i < grid.static_instances) grid.static_triangles = offset + mesh.triangle_count();
-    offset += mesh.triangle_count();
-  }
-  grid.triangles.assign(offset, shared::GridTriangle{});
-  grid.uvs.assign(offset, shared::GridTriangleUv{});
-  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
-    const Mesh& mesh = scene.meshes[scene.instances[i].mesh];
-    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
-      const uint32_t k = grid.instances[i].tri_offset + t;
-      grid.triangles[k].material = mesh.materials.empty() ? 0u : mesh.materials[t];
-      if (!mesh.uvs.empty()) {
-        const glm::uvec3 idx = mesh.triangles[t];
-        grid.uvs[k] = {mesh.uvs[idx.x], mesh.uvs[idx.y], mesh.uvs[idx.z]};
-      }
-    }
-  }
-  for (const Material& mat : scene.materials) {
-    shared::GridMaterial gm{};
-    if (mat.alpha_keyed()) {
-      const Texture& tex = scene.textures[size_t(mat.alpha_texture)];
-      gm.alpha_offset = uint32_t(grid.texels.size());
-      gm.alpha_width = tex.width;
-      gm.alpha_height = tex.height;
-      for (size_t p = 0; p < size_t(tex.width) * tex.height; ++p)
-        grid.texels.push_back(uint32_t(tex.rgba[4 * p]) | uint32_t(tex.rgba[4 * p + 1]) << 8 |
-                              uint32_t(tex.rgba[4 * p + 2]) << 16 | uint32_t(tex.rgba[4 * p + 3]) << 24);
-    }
-    grid.materials.push_back(gm);
-  }
+  grid.static_instances = plan.tables.static_instances;
+  grid.static_triangles = plan.tables.static_triangles;
+  grid.instances = std::move(plan.tables.instances);
+  grid.triangles = std::move(plan.tables.triangles);
+  grid.uvs = std::move(plan.tables.uvs);
+  grid.materials = std::move(plan.tables.materials);
+  grid.texels = std::move(plan.tables.texels);
   // The image, every texel blank; status texels 0; the dirty-cell list empty
   grid.image = Image3D(shared::grid_image_extent(g), kBlank);
   grid.dirty = WordBuffer(shared::dirty_list_words(g), 0u);

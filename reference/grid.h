@@ -19,10 +19,38 @@
 #include "common/shared/triangle.h"
 #include "common/tracer.h"
 #include "plan/plan.h"
+#include "plan/policy.h"
 #include "plan/records.h"
 #include "reference/image3d.h"
 
 namespace gridrt::reference {
+
+// The plan (plan/): the options, choose_grid and the records, shared with the Vulkan port.
+using plan::AlgorithmOptions;
+using plan::animation_bounds;
+using plan::choose_grid;
+using plan::choose_spill_capacity;
+using plan::EmulationOptions;
+using plan::ExplainRecord;
+using plan::for_each_visit;
+using plan::GridCandidate;
+using plan::GridChoice;
+using plan::GridOptions;
+using plan::GridPlan;
+using plan::hex;
+using plan::Insertion;
+using plan::kAabbPadding;
+using plan::measured_work;
+using plan::PlanOptions;
+using plan::spill_enabled;
+using plan::SpillDump;
+using plan::thread_count;
+using plan::to_text;
+using plan::trace_flags;
+using plan::Traversal;
+using plan::warn_spill_overflow;
+using plan::WorkEstimate;
+using plan::WorkSample;
 
 
 // Everything the GPU holds, as the shaders see it.
