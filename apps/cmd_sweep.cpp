@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "apps/backends.h"
+#include "common/util.h"
 #include "apps/commands.h"
 #include "common/gather.h"
 #include "common/image_io.h"
@@ -175,10 +176,6 @@ BackendOptions backend_options_for(const SweepOptions& o, const Config& c) {
   g.exclude_launch_ref = c.launch == "exclude";
   g.max_image_dimension = c.max_dim;
   return b;
-}
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 double median(std::vector<double> v) {

@@ -5,15 +5,11 @@
 #include <sstream>
 
 #include "reference/grid.h"
+#include "common/util.h"
 #include "common/invocations.h"
 
 namespace gridrt::reference {
 
-namespace {
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-}  // namespace
 
 ReferenceGridTracer::ReferenceGridTracer(GridOptions options) : options_(std::move(options)) {}
 
