@@ -1,4 +1,4 @@
-// gridrt sweep: what accuracy costs in time (issue 5). For each scene and each configuration of a
+// gridrt sweep: what accuracy costs in time. For each scene and each configuration of a
 // grid over the knobs, on the glossy-bounce rays of the paper's frame (a gather buffer made by
 // primary rays through the exact grid, as the other grid verbs do): accuracy against the Embree
 // oracle and time (build, update, trace; rays/s; memory). Writes per scene a CSV file, a Markdown

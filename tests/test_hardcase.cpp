@@ -1,4 +1,4 @@
-// test_hardcase.cpp: hard cases that must stay numerically stable (issue 5). Every case builds its
+// test_hardcase.cpp: hard cases that must stay numerically stable. Every case builds its
 // scene in code, states the exact expected outcome, runs on the CPU reference in the modes that
 // matter (paper / exact traversal, Moller-Trumbore / watertight test) and on the Vulkan port
 // (lavapipe, validation on), which must agree with the reference bit for bit. Where the paper's

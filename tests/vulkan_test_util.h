@@ -37,7 +37,7 @@ inline vulkan::Context& vk_context() {
 }
 
 // Whether this device is held to the reference bit for bit in everything, denormals included:
-// lavapipe (DESIGN.md).
+// lavapipe (docs/VULKAN.md).
 inline bool bit_exact_device(const vulkan::Context& ctx) {
   return ctx.info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE;
 }

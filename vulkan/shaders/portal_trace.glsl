@@ -1,4 +1,4 @@
-// portal_trace.glsl: the portal tracer on the GPU (seeds/002: stackless traversal of divs, only
+// portal_trace.glsl: the portal tracer on the GPU ("A Novel Raytracing Algorithm for GPU": stackless traversal of divs, only
 // the current div index as state). It follows reference/portal/trace.cpp function by function,
 // with the same names and heading comments; the per-ray math is common/shared/portal.h, the same
 // functions the reference calls. The textures are the reference's PackedPortal as the seed stores
