@@ -13,13 +13,14 @@
 #include <sstream>
 
 #include "apps/backends.h"
+#include "common/util.h"
 #include "apps/commands.h"
 #include "apps/slices.h"
 #include "common/camera.h"
 #include "common/gather.h"
 #include "reference/compare.h"
 #include "reference/grid.h"
-#include "reference/policy.h"
+#include "plan/policy.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "vulkan/frame.h"
 #  include "vulkan/grid.h"
@@ -170,10 +171,6 @@ struct StatsOptions : GridVerbOptions {
   std::string slice_axis = "z";
   std::vector<uint32_t> ray_pixel;  // --slices: the camera ray of this pixel drawn in
 };
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The candidates choose_grid weighed, with the trace-cost policy's estimates; with `measure`, each
 // candidate built (its cell size and capacity as overrides) and the frame's glossy bounce rays of a

@@ -46,10 +46,10 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
         glm::uvec3 cell(0);
         cell[a] = s, cell[u] = i, cell[v] = j;
         uint32_t n = 0;
-        for (uint32_t ref; n < g.capacity &&
-                           (ref = reference::imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, cell, n)))) != sh::kBlank;
+        for (uint32_t r; n < g.capacity &&
+                           (r = reference::imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, cell, n)))) != sh::kBlank;
              ++n)
-          if (ref >= g.comparison_offset) moving[s][size_t(nv - 1 - j) * nu + i] = 1, any_moving = true;
+          if (r >= g.comparison_offset) moving[s][size_t(nv - 1 - j) * nu + i] = 1, any_moving = true;
         largest = std::max(largest, n);
         const uint32_t status = reference::imageLoad(grid.image, glm::ivec3(sh::cell_status_texel(g, cell)));
         glm::vec3 c = n == 0 ? plot::colors::light_grey

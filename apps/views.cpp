@@ -11,15 +11,14 @@
 // through the grid; pixels without one are grey), or with --rays primary the camera rays, traced
 // through the grid as the options set it (the frame itself rasterizes them).
 #include <algorithm>
-#include <atomic>
 #include <cstdio>
 #include <cstring>
-#include <thread>
 
 #include "apps/backends.h"
 #include "apps/commands.h"
 #include "common/camera.h"
 #include "common/gather.h"
+#include "common/parallel.h"
 #include "common/plot.h"
 #include "reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
@@ -66,19 +65,6 @@ PixelRecord summarize(const reference::ExplainRecord& r, const reference::GridDa
   }
   p.spill = !is_miss(r.hit) && !(r.hit.flags & sh::kHitGapFill) && candidate_spilled;
   return p;
-}
-
-// f(i) for i in [0, n) on `threads` threads.
-template <class F>
-void parallel_for(size_t n, unsigned threads, F&& f) {
-  std::atomic<size_t> next{0};
-  std::vector<std::thread> pool;
-  for (unsigned t = 0; t < std::max(1u, threads); ++t)
-    pool.emplace_back([&] {
-      for (size_t i; (i = next.fetch_add(256)) < n;)
-        for (size_t k = i; k < std::min(n, i + 256); ++k) f(k);
-    });
-  for (std::thread& t : pool) t.join();
 }
 
 std::string traversal_name(const reference::GridOptions& g) {
