@@ -101,11 +101,11 @@ TEST_CASE("CLI: the portal backend renders a tile map and explains a pixel again
   INFO(r.output);
   REQUIRE(r.exit_code == 0);
   CHECK(fs::exists(out));
-  const Run e = run_tool("portal explain --size 24,12 --pixel 12,6");
+  const Run e = run_tool("portal explain --width 24 --height 12 --pixel 12,6");
   INFO(e.output);
   REQUIRE(e.exit_code == 0);
   CHECK_THAT(e.output, Catch::Contains("(agrees)"));
-  const Run bad = run_tool("portal explain --size 24,12 --pixel 30,6");
+  const Run bad = run_tool("portal explain --width 24 --height 12 --pixel 30,6");
   CHECK(bad.exit_code == 1);
   CHECK_THAT(bad.output, Catch::Contains("outside"));
 }
