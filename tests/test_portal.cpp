@@ -509,7 +509,11 @@ TEST_CASE("Portal: the bounded choice never beats the exact one and agrees with 
     PortalOptions exact{1024, 1024, 0, false};
     exact.choice = DivChoice::exact;
     const PortalBuild e = build_portal(w, exact);
-    const PortalBuild b = build_portal(w, PortalOptions{1024, 1024, 0, false});
+    for (const uint32_t per_run : {2u, 3u}) {
+    PortalOptions bounded{1024, 1024, 0, false};
+    bounded.choice_per_run = per_run;
+    INFO(per_run << " greedy boxes per run");
+    const PortalBuild b = build_portal(w, bounded);
     REQUIRE(b.stats.choice == DivChoice::bounded);
     REQUIRE(b.maximal.size() <= e.maximal.size());
     for (const Box& box : b.maximal) REQUIRE(std::find(e.maximal.begin(), e.maximal.end(), box) != e.maximal.end());
@@ -533,9 +537,11 @@ TEST_CASE("Portal: the bounded choice never beats the exact one and agrees with 
       REQUIRE(float(cb) >= float(ce) * (1.0f - 1e-5f));
     }
     CHECK(both > 100);
-    WARN(w.name << ": bounded and exact choose the same div at " << same << " of " << both << " faces");
+    WARN(w.name << ", " << per_run << " per run: bounded and exact choose the same div at " << same << " of " << both
+                << " faces");
     const Compare c = compare_with_dda(b, 1000, false, 11);
     CHECK(c.hits > 200);
+    }
   }
 }
 

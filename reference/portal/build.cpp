@@ -544,6 +544,32 @@ Box grow_greedy(const MediumSat& sat, Box B, glm::ivec3 order) {
   return B;
 }
 
+// Grow along axes b1 and b2 one layer at a time in turn (b1 down, b1 up, b2 down, b2 up), until
+// no layer can be added: a squarer maximal box than the greedy ones (the box can no longer grow
+// along the run's axis, blocked at its thinnest stage).
+Box grow_alternating(const MediumSat& sat, Box B, int b1, int b2) {
+  auto full = [&](glm::ivec3 lo, glm::ivec3 hi) {
+    const glm::ivec3 s = hi - lo;
+    return sat.count(lo, hi) == int64_t(s.x) * s.y * s.z;
+  };
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const int a : {b1, b2}) {
+      if (B.lo[a] > 0) {
+        glm::ivec3 l = B.lo, h = B.hi;
+        h[a] = B.lo[a], l[a] = B.lo[a] - 1;
+        if (full(l, h)) B.lo[a] -= 1, grew = true;
+      }
+      if (B.hi[a] < sat.d[a]) {
+        glm::ivec3 l = B.lo, h = B.hi;
+        l[a] = B.hi[a], h[a] = B.hi[a] + 1;
+        if (full(l, h)) B.hi[a] += 1, grew = true;
+      }
+    }
+  }
+  return B;
+}
+
 bool box_less(const Box& a, const Box& b) {
   if (a.medium != b.medium) return a.medium < b.medium;
   for (int i = 2; i >= 0; --i)
@@ -562,6 +588,7 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
   const size_t N = w.voxel_count();
   const size_t stride[3] = {1, size_t(dims.x), size_t(dims.x) * dims.y};
   const bool timing = std::getenv("GRIDRT_PORTAL_TIMING") != nullptr;
+  const uint32_t K = opt.choice_per_run >= 3 ? 3 : 2;  // greedy boxes per run
   auto tick = Clock::now();
   auto phase = [&](const char* what) {
     if (timing) std::fprintf(stderr, "portal build (bounded): %s %.3f s\n", what, since(tick));
@@ -619,35 +646,42 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
     parallel_for((R + 4095) / 4096, T, [&](size_t c) {
       for (size_t r = c * 4096; r < std::min(R, (c + 1) * 4096); ++r) end[r] = uint32_t(run_end(uint32_t(r)));
     });
-    std::vector<uint32_t> root(2 * R);
+    std::vector<uint32_t> root(K * R);
     std::vector<uint32_t> roots;
     for (uint32_t r = 0; r < R; ++r)
-      for (int k = 0; k < 2; ++k) {
+      for (int k = 0; k < K; ++k) {
+        if (k == 2) {  // the alternating box: no stack argument, grown for every run
+          root[K * r + k] = K * r + k;
+          roots.push_back(K * r + k);
+          continue;
+        }
         const int second = k ? b2 : b1;
         const size_t i = run_start[a][r];
         const glm::ivec3 v = coords(i);
-        uint32_t src = 2 * r + k;
+        uint32_t src = K * r + k;
         if (v[second] > 0) {
           const size_t j = i - stride[second];
           const uint32_t q = run_id[a][j];
-          if (q != kNone && run_start[a][q] == j && end[q] == end[r] && media.m[j] == media.m[i]) src = root[2 * q + k];
+          if (q != kNone && run_start[a][q] == j && end[q] == end[r] && media.m[j] == media.m[i]) src = root[K * q + k];
         }
-        root[2 * r + k] = src;
-        if (src == 2 * r + k) roots.push_back(src);
+        root[K * r + k] = src;
+        if (src == K * r + k) roots.push_back(src);
       }
-    grown[a].resize(2 * R);
+    grown[a].resize(K * R);
     const size_t chunk = 256, n = (roots.size() + chunk - 1) / chunk;
     parallel_for(n, T, [&](size_t c) {
       for (size_t x = c * chunk; x < std::min(roots.size(), (c + 1) * chunk); ++x) {
-        const uint32_t r = roots[x] / 2, k = roots[x] % 2;
+        const uint32_t r = roots[x] / K, k = roots[x] % K;
         const glm::ivec3 v = coords(run_start[a][r]);
         const uint32_t m = media.m[run_start[a][r]];
         glm::ivec3 hi = v + 1;
         hi[a] = int(end[r]);
-        grown[a][roots[x]] = grow_greedy(sat_of(m), Box{v, hi, m}, k ? glm::ivec3(a, b2, b1) : glm::ivec3(a, b1, b2));
+        grown[a][roots[x]] = k == 2   ? grow_alternating(sat_of(m), Box{v, hi, m}, b1, b2)
+                             : k == 1 ? grow_greedy(sat_of(m), Box{v, hi, m}, glm::ivec3(a, b2, b1))
+                                      : grow_greedy(sat_of(m), Box{v, hi, m}, glm::ivec3(a, b1, b2));
       }
     });
-    for (size_t x = 0; x < 2 * R; ++x) grown[a][x] = grown[a][root[x]];
+    for (size_t x = 0; x < K * R; ++x) grown[a][x] = grown[a][root[x]];
   }
   sats.clear();
   phase("greedy boxes");
@@ -656,7 +690,7 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
       if (x == 0 || !(grown[a][x] == grown[a][x - 1])) b.maximal.push_back(grown[a][x]);  // copies are adjacent often
   std::sort(b.maximal.begin(), b.maximal.end(), box_less);
   b.maximal.erase(std::unique(b.maximal.begin(), b.maximal.end()), b.maximal.end());
-  std::vector<uint32_t> run_box[3];  // [2 * run + k]: index into b.maximal
+  std::vector<uint32_t> run_box[3];  // [K * run + k]: index into b.maximal
   for (int a = 0; a < 3; ++a) {
     run_box[a].resize(grown[a].size());
     for (size_t k = 0; k < grown[a].size(); ++k)
@@ -665,12 +699,12 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
   }
   b.stats.maximal = b.maximal.size();
   phase("sort");
-  // Candidates of voxel i: up to six distinct indices, ascending.
-  auto candidates = [&](size_t i, uint32_t out[6]) {
+  // Candidates of voxel i: up to 3 K distinct indices, ascending.
+  auto candidates = [&](size_t i, uint32_t out[9]) {
     int n = 0;
     for (int a = 0; a < 3; ++a)
-      for (int k = 0; k < 2; ++k) {
-        const uint32_t c = run_box[a][2 * size_t(run_id[a][i]) + k];
+      for (int k = 0; k < K; ++k) {
+        const uint32_t c = run_box[a][K * size_t(run_id[a][i]) + k];
         if (std::find(out, out + n, c) == out + n) out[n++] = c;
       }
     std::sort(out, out + n);
@@ -683,7 +717,7 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
   b.start_box.assign(N, kNone);
   {
     std::vector<uint8_t> in_cover(b.maximal.size(), 0);
-    uint32_t c[6];
+    uint32_t c[9];
     for (size_t i = 0; i < N; ++i) {
       if (media.m[i] == World::kOpaque) continue;
       const int n = candidates(i, c);
@@ -719,7 +753,7 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
     const int a = int(f / 2), ta = int(shared::portal_tangent0(f / 2)), tb = int(shared::portal_tangent1(f / 2));
     glm::ivec3 r = u;
     const int a0 = u[ta] / block * block, b0 = u[tb] / block * block;
-    uint32_t other[6];
+    uint32_t other[9];
     for (int jb = b0; jb < std::min(b0 + block, dims[tb]); ++jb)
       for (int ia = a0; ia < std::min(a0 + block, dims[ta]); ++ia) {
         r[ta] = ia, r[tb] = jb;
@@ -738,7 +772,7 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
     const size_t key = w.index(glm::uvec3(u)) * 6 + f;
     uint32_t c = choice[key].load(std::memory_order_relaxed);
     if (c != kNone) return c;
-    uint32_t cand[6];
+    uint32_t cand[9];
     const int n = candidates(w.index(glm::uvec3(u)), cand);
     uint64_t best = ~0ull;
     const glm::ivec3 rep = n == 1 ? u : representative(u, f, cand, n);

@@ -92,6 +92,9 @@ struct PortalOptions {
   // Bounded: the flux integrals (p_open, p_wall) over faces up to this many voxels from the entry
   // voxel (0: the table's whole range, 64); the expected length always uses the whole table.
   uint32_t choice_range = 0;
+  // Bounded: greedy boxes per axis run: 2 (the run, then the other two axes in either order) or 3
+  // (also both other axes grown a layer at a time in turn: squarer boxes; up to nine candidates).
+  uint32_t choice_per_run = 2;
 };
 DivChoice parse_div_choice(const std::string& name);  // "bounded" | "exact"; Error otherwise
 const char* div_choice_name(DivChoice c);
@@ -128,6 +131,9 @@ struct BuildStats {
   // Bounded: the flux integrals (p_open, p_wall) over faces up to this many voxels from the entry
   // voxel (0: the table's whole range, 64); the expected length always uses the whole table.
   uint32_t choice_range = 0;
+  // Bounded: greedy boxes per axis run: 2 (the run, then the other two axes in either order) or 3
+  // (also both other axes grown a layer at a time in turn: squarer boxes; up to nine candidates).
+  uint32_t choice_per_run = 2;
 };
 
 struct PortalBuild {

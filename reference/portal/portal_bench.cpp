@@ -1,7 +1,7 @@
 // portal_bench: steps per ray and rays/s of the portal tracer against the voxel DDA on the same
 // worlds, build time and memory (docs/PORTAL.md, "Measurements"). Not a test.
 //   portal_bench [--width W] [--height H] [--threads T] [--resolution N] [--choice bounded|exact|both]
-//                [--no-render] [--atlas-width N] [--choice-block B] [--choice-range R]
+//                [--no-render] [--atlas-width N] [--choice-block B] [--choice-range R] [--per-run 2|3]
 //                [WORLD...]
 // WORLD: "builtin" (the built-in level), a .map file, or any scene spec load_scene accepts
 // (builtin:teapot, data/scenes/bunny.json, ...), voxelized at --resolution (default 64).
@@ -27,7 +27,7 @@ int main(int argc, char** argv) try {
   unsigned threads = 0;
   std::vector<DivChoice> choices{DivChoice::bounded};
   bool no_render = false;
-  uint32_t atlas_width = 1024, choice_block = 1, choice_range = 0;
+  uint32_t atlas_width = 1024, choice_block = 1, choice_range = 0, per_run = 2;
   std::vector<std::string> worlds;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -44,6 +44,7 @@ int main(int argc, char** argv) try {
     else if (a == "--atlas-width") atlas_width = uint32_t(std::stoul(next()));
     else if (a == "--choice-block") choice_block = uint32_t(std::stoul(next()));
     else if (a == "--choice-range") choice_range = uint32_t(std::stoul(next()));
+    else if (a == "--per-run") per_run = uint32_t(std::stoul(next()));
     else worlds.push_back(a);
   }
   if (worlds.empty()) worlds = {"builtin", "builtin:teapot"};
@@ -67,6 +68,7 @@ int main(int argc, char** argv) try {
     po.atlas_width = atlas_width;
     po.choice_block = choice_block;
     po.choice_range = choice_range;
+    po.choice_per_run = per_run;
     PortalTracer pt(build_portal(w, po), po);
     const double t_build = now() - t0;
     const PortalBuild& b = pt.portal();
