@@ -579,6 +579,6 @@ TEST_CASE("Portal: build limits fail fast with the limit named", "[portal][unit]
   exact.choice = DivChoice::exact;
   CHECK_THAT(msg([&] { build_portal(open, exact); }), Catch::Contains("exact div choice takes at most"));
   // A random world of small walls needs more divs than 15-bit indices address.
-  const World noise = random_world({120, 120, 120}, 0.3f, 1);
+  const World noise = random_world({96, 96, 96}, 0.3f, 1);
   CHECK_THAT(msg([&] { build_portal(noise, PortalOptions{1024, 1024, 0, false}); }), Catch::Contains("32768"));
 }
