@@ -513,7 +513,7 @@ struct MediumSat {
 };
 
 // Grow the box [lo, hi) of medium m along order[0], order[1], order[2] in turn, each as far as the
-// layers beyond are entirely of m (one O(1) query per layer).
+// layers beyond are entirely of m: a binary search over the layer count, one O(1) query per probe.
 Box grow_greedy(const MediumSat& sat, Box B, glm::ivec3 order) {
   // Grow by the largest k whose k layers beyond are all of m (monotone in k: binary search).
   auto full = [&](glm::ivec3 lo, glm::ivec3 hi) {
@@ -617,10 +617,9 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
   phase("runs");
   // Media present, one summed-area table each.
   std::vector<uint32_t> media_present;
-  for (int a = 0; a < 1; ++a)
-    for (uint32_t i : run_start[0])
-      if (std::find(media_present.begin(), media_present.end(), media.m[i]) == media_present.end())
-        media_present.push_back(media.m[i]);
+  for (uint32_t i : run_start[0])
+    if (std::find(media_present.begin(), media_present.end(), media.m[i]) == media_present.end())
+      media_present.push_back(media.m[i]);
   std::sort(media_present.begin(), media_present.end());
   std::vector<std::unique_ptr<MediumSat>> sats;
   for (uint32_t m : media_present) sats.push_back(std::make_unique<MediumSat>(media, m));
