@@ -1,6 +1,7 @@
 // commands.h: the tool's verbs, each registered on the CLI11 app by one function.
 #pragma once
 
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,13 @@ struct PortalRenderOptions {
   uint32_t voxels = 64;
   bool separate_loops = false;
   std::string view = "shaded";   // shaded, or divs / dda: per-pixel work (portal_views.cpp)
+  std::string div_choice = "bounded";  // bounded | exact (reference/portal/build.h)
+  uint32_t atlas_width = 1024;
+};
+
+// Thrown by a diff whose two sides disagree: the tool exits with 3 (1 is bad input, 2 the command line).
+struct Differs : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 void run_portal_render(const PortalRenderOptions& options);  // cmd_portal.cpp
 void run_portal_view(const PortalRenderOptions& options);    // portal_views.cpp

@@ -27,6 +27,8 @@ void run_portal_view(const PortalRenderOptions& o) {
   const Camera camera = world.camera;
   portal::PortalOptions options;
   options.progress = false;
+  options.choice = portal::parse_div_choice(o.div_choice);
+  options.atlas_width = o.atlas_width;
   portal::PortalBuild build = portal::build_portal(std::move(world), options);
   const size_t n = size_t(o.width) * o.height;
   std::vector<Ray> rays;
