@@ -59,10 +59,12 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
                   "and 64); an overflow is reported")
       ->check(CLI::Range(0u, 1u << 28))->group("Grid");
   const std::map<std::string, reference::GridOptions::TriangleTest> tests{
+      {"auto", reference::GridOptions::TriangleTest::automatic},
       {"moller", reference::GridOptions::TriangleTest::moller},
       {"watertight", reference::GridOptions::TriangleTest::watertight}};
   cmd->add_option("--triangle-test", g.triangle_test,
-                  "Ray/triangle test: moller (Moller-Trumbore) or watertight (Woop, Benthin, Wald 2013)")
+                  "Ray/triangle test: moller (Moller-Trumbore), watertight (Woop, Benthin, Wald 2013) or auto (watertight for "
+                  "the exact traversal, moller for the paper's)")
       ->transform(CLI::CheckedTransformer(tests, CLI::ignore_case))
       ->group("Grid");
   const std::map<std::string, reference::GridOptions::CapacityPolicy> policies{

@@ -25,6 +25,7 @@ struct PortalRenderOptions {
 };
 void run_portal_render(const PortalRenderOptions& options);  // cmd_portal.cpp
 void add_sweep_command(CLI::App& app);    // cmd_sweep.cpp: accuracy against Embree vs time
+void add_verify_command(CLI::App& app);   // cmd_verify.cpp: adversarial rays, the exact referee
 
 // The scene named by SCENE (a scene file, a bare mesh, builtin:NAME), or the embedded default
 // when `spec` is empty. Prints how long loading took when it took over a second.

@@ -63,8 +63,10 @@ struct GridOptions {
   // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
   // skip (the literal reading of visited-cell tracking), retest (a second visit)
   enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
-  // Triangle test: Moller-Trumbore (fast, not watertight) or Woop-Benthin-Wald (watertight)
-  enum class TriangleTest { moller, watertight } triangle_test = TriangleTest::moller;
+  // Triangle test: Moller-Trumbore (fast, not watertight) or Woop-Benthin-Wald (watertight);
+  // automatic: watertight for the exact traversal (no ray through a shared edge or vertex passes
+  // between its triangles), Moller-Trumbore for the paper's (docs/SPEC.md, "Triangle test")
+  enum class TriangleTest { automatic, moller, watertight } triangle_test = TriangleTest::automatic;
   // Automatic resolution and capacity (overridden by the fields below, then by Scene::grid);
   // docs/SPEC.md, "Grid placement, resolution and capacity"
   float density = 2.0f;                   // target cells per triangle
@@ -120,6 +122,11 @@ struct GridData {
 
 // Whether `o` turns the spill list on (Spill::automatic: for the exact traversal).
 bool spill_enabled(const GridOptions& o);
+
+// The narrowest cell the domain allows (docs/SPEC.md, "Domain"): kMinCellUlps ulps of the
+// largest coordinate magnitude `reach` of the grid box.
+inline constexpr float kMinCellUlps = 64.0f;
+inline float min_cell_size(float reach) { return reach * (kMinCellUlps * 0x1p-23f); }
 
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
