@@ -92,8 +92,10 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
            "Insertion: sorted (atomic-min cascade, timing-independent) or first-empty (the paper's CAS)")
       ->group(kExpert);
   add_enum(cmd, "--triangle-test", g.triangle_test,
-           {{"moller", GO::TriangleTest::moller}, {"watertight", GO::TriangleTest::watertight}},
-           "Ray/triangle test: moller (Moller-Trumbore) or watertight (Woop, Benthin, Wald 2013)")
+           {{"auto", GO::TriangleTest::automatic}, {"moller", GO::TriangleTest::moller},
+            {"watertight", GO::TriangleTest::watertight}},
+           "Ray/triangle test: auto (watertight for the exact traversal, moller for the paper's), moller "
+           "(Moller-Trumbore) or watertight (Woop, Benthin, Wald 2013)")
       ->group(kExpert);
   add_enum(cmd, "--revisit", g.repeats,
            {{"merge", GO::Repeats::merge}, {"skip", GO::Repeats::skip}, {"retest", GO::Repeats::retest}},

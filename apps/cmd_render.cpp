@@ -138,6 +138,13 @@ void run_render(const RenderOptions& options) {
       traced.trace(rays, hits);
     }
     progress.finish();
+    // Rays outside the domain (shared::ray_domain) are not traced: say how many
+    size_t rejected = 0;
+    for (const Hit& h : gather.hit) rejected += (h.flags & shared::kHitRejected) != 0;
+    for (const Hit& h : hits) rejected += (h.flags & shared::kHitRejected) != 0;
+    if (rejected)
+      std::fprintf(stderr, "%s: frame %u: %zu rays outside the domain (docs/SPEC.md, \"Domain\") were rejected, not traced\n",
+                   tracer->name().c_str(), frame, rejected);
     ShadeOptions shade_options;
     if (o.shadows) shade_options.shadow_tracer = tracer.get();
     const std::vector<glm::vec3> rgb = shade(scene, gather, rays, hits, shade_options);

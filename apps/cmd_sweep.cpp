@@ -24,6 +24,7 @@
 #include "reference/grid.h"
 #include "plan/policy.h"
 #ifdef GRIDRT_HAVE_EMBREE
+#include "verify/rays.h"
 #  include "common/embree/embree_tracer.h"
 #endif
 #ifdef GRIDRT_HAVE_VULKAN
@@ -54,6 +55,7 @@ struct SweepOptions {
   std::vector<std::string> spill{"auto"};
   std::vector<std::string> launch{"exclude"};
   std::vector<std::string> max_dim{"4096"};
+  std::string rays = "auto";  // auto (glossy, else diffuse), glossy, primary, diffuse, random, a family
   BackendOptions backend_options;
 };
 
@@ -408,17 +410,30 @@ void run_sweep(const SweepOptions& o) {
       gather = make_gather(scene, traced, scene.frame_camera(), o.width, o.height, 0.0f);
     }
     std::vector<Ray> rays;
-    for (const Ray& r : bounce_rays(scene, gather, 0))
-      if (!is_unused(r)) rays.push_back(r);
-    if (rays.empty()) throw Error("sweep: " + scene.name + " has no glossy bounce rays in its frame");
+    if (o.rays == "auto" || o.rays == "glossy")
+      for (const Ray& r : bounce_rays(scene, gather, 0))
+        if (!is_unused(r)) rays.push_back(r);
+    if (rays.empty() && o.rays == "glossy") throw Error("sweep: " + scene.name + " has no glossy bounce rays in its frame");
     EmbreeTracer embree(0);
     embree.build(scene, 0.0f);
+    std::string kind = "glossy bounce";
+    if (rays.empty()) {
+      // Any scene: the chosen kind of rays (auto without glossy materials: diffuse bounces)
+      kind = o.rays == "auto" ? "diffuse" : o.rays;
+      GridOptions aim = grid_options_for(o.backend_options, scene);
+      aim.traversal = reference::Traversal::exact;
+      reference::ReferenceGridTracer aimer(aim);
+      aimer.build(scene, 0.0f);
+      rays = verify::rays_of_kind(kind, scene, aimer.data(), embree, size_t(o.width) * o.height);
+      if (o.rays == "auto") std::printf("sweep: %s has no glossy material: %s rays instead\n", scene.name.c_str(), kind.c_str());
+      if (rays.empty()) throw Error("sweep: " + scene.name + " gives no " + kind + " rays");
+    }
     std::vector<Hit> want(rays.size());
     auto t0 = std::chrono::steady_clock::now();
     embree.trace(rays, want);
     const double embree_ms = ms_since(t0);
-    std::printf("%s: %llu triangles, %zu glossy bounce rays; Embree traces them in %.1f ms\n", scene.name.c_str(),
-                (unsigned long long)scene.triangle_count(), rays.size(), embree_ms);
+    std::printf("%s: %llu triangles, %zu %s rays; Embree traces them in %.1f ms\n", scene.name.c_str(),
+                (unsigned long long)scene.triangle_count(), rays.size(), kind.c_str(), embree_ms);
 
     std::vector<Row> rows;
     Progress progress("sweep " + scene.name, configs.size() * o.backends.size());
@@ -496,7 +511,7 @@ void run_sweep(const SweepOptions& o) {
     const std::string stem = file_stem(spec);
     std::ostringstream header;
     header << "Scene `" << scene.name << "`: " << scene.triangle_count() << " triangles, " << rays.size()
-           << " glossy bounce rays of a " << o.width << "x" << o.height << " gather buffer (frame 0, t = 0); Embree "
+           << " " << kind << " rays of a " << o.width << "x" << o.height << " gather buffer (frame 0, t = 0); Embree "
            << fmt(embree_ms, 1) << " ms on " << std::thread::hardware_concurrency()
            << " hardware threads. agree = same triangle or both miss; ties = differing rays whose t is within "
            << kTieUlps << " ulps of Embree's; dt = |t - t_embree| over same-triangle hits; times: medians, host clock.";
@@ -518,6 +533,9 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--width", o->width, "Gather buffer width")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Gather buffer height")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--out,-o", o->out, "Output folder (per scene: NAME.csv, NAME.md, NAME.png)");
+  cmd->add_option("--rays", o->rays,
+                  "The rays swept: auto (the frame's glossy bounce rays, else diffuse bounces), glossy, primary, "
+                  "diffuse, or a verify family (random, surface, edge, ...); about WIDTH x HEIGHT of them");
   cmd->add_option("--repeat", o->repeat, "Trace each configuration this many times (median)")
       ->check(CLI::Range(1u, 1000u));
   cmd->add_option("--traversal", o->traversal, "Knob values: paper,exact")->delimiter(',')->group("Knobs");

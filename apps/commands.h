@@ -37,6 +37,7 @@ struct Differs : std::runtime_error {
 void run_portal_render(const PortalRenderOptions& options);  // cmd_portal.cpp
 void run_portal_view(const PortalRenderOptions& options);    // portal_views.cpp
 void add_sweep_command(CLI::App& app);    // cmd_sweep.cpp: accuracy against Embree vs time
+void add_verify_command(CLI::App& app);   // cmd_verify.cpp: adversarial rays, the exact referee
 
 // render --view (views.cpp): a per-pixel picture of the grid's work with a colour bar or legend.
 struct ViewOptions {

@@ -51,6 +51,9 @@ int main(int argc, char** argv) {
   app::add_bench_command(app);
   app::add_portal_command(app);
   app::add_sweep_command(app);
+#ifdef GRIDRT_HAVE_VERIFY
+  app::add_verify_command(app);
+#endif
   try {
     app.parse(argc, argv);
     return 0;

@@ -214,7 +214,8 @@ Bounds grid_box(const Scene& scene, float time) {
 
 // The cell size to start from: the override, the resolution's, or density cells per triangle
 // (cubic cells) over a box of extent `e`.
-float target_cell_size(const Scene& scene, const GridOptions& o, glm::vec3 e) {
+float target_cell_size(const Scene& scene, const GridOptions& o, const Bounds& b) {
+  const glm::vec3 e = b.extent();
   float cs;
   if (o.cell_size) {
     cs = *o.cell_size;
@@ -226,6 +227,21 @@ float target_cell_size(const Scene& scene, const GridOptions& o, glm::vec3 e) {
     cs = float(std::cbrt(double(e.x) * double(e.y) * double(e.z) / target));
   }
   if (!(cs > 0.0f) || !std::isfinite(cs)) throw Error("grid: cell size must be positive and finite");
+  // The domain (docs/SPEC.md, "Domain"): coordinates within 2^24, and cells no narrower than
+  // kMinCellUlps ulps of the largest coordinate (else the DDA's cell boundaries, rounded to the
+  // coordinates' ulps, could step past the cell of a hit): an automatic size is coarsened (its
+  // finest trace-cost candidate, a quarter of it, included), an override refused.
+  const float reach = std::max({std::abs(b.lo.x), std::abs(b.lo.y), std::abs(b.lo.z), std::abs(b.hi.x),
+                                std::abs(b.hi.y), std::abs(b.hi.z)});
+  if (!(reach <= shared::kDomainMaxCoordinate))
+    throw Error("grid: the scene reaches " + std::to_string(reach) + " from the origin; the domain ends at 2^24 = " +
+                std::to_string(shared::kDomainMaxCoordinate) + " (move it nearer the origin or scale it down)");
+  const float min_cs = min_cell_size(reach);
+  if (cs < min_cs && (o.cell_size || o.resolution))
+    throw Error("grid: cells of " + std::to_string(cs) + " are narrower than " + std::to_string(kMinCellUlps) +
+                " ulps of the scene's coordinates (" + std::to_string(min_cs) + " at " + std::to_string(reach) +
+                " from the origin); choose coarser cells or move the scene nearer the origin");
+  if (!o.cell_size && !o.resolution) cs = std::max(cs, 4.0f * min_cs);
   return cs;
 }
 
@@ -238,8 +254,9 @@ GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
   g.comparison_offset = scene.static_instance_count() << 16;
   g.insertion = o.insertion == Insertion::sorted ? shared::kInsertSorted : shared::kInsertFirstEmpty;
   g.traversal = o.traversal == Traversal::exact ? shared::kTraversalExact : shared::kTraversalPaper;
-  g.triangle_test = o.triangle_test == GridOptions::TriangleTest::watertight ? shared::kTriangleWatertight
-                                                                              : shared::kTriangleMoller;
+  const bool watertight = o.triangle_test == GridOptions::TriangleTest::watertight ||
+                          (o.triangle_test == GridOptions::TriangleTest::automatic && o.traversal == Traversal::exact);
+  g.triangle_test = watertight ? shared::kTriangleWatertight : shared::kTriangleMoller;
   g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
             (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u));
@@ -398,7 +415,7 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
   const Bounds b = grid_box(scene, time);
   const glm::vec3 e = b.extent();
   // Resolution: density cells per triangle, cubic cells, or the overrides
-  const float cs = target_cell_size(scene, o, e);
+  const float cs = target_cell_size(scene, o, b);
   GridParams g = algorithm_params(o, scene);
   g.origin = b.lo;
   if (o.capacity_policy == GridOptions::CapacityPolicy::percentile && !o.capacity)

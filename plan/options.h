@@ -49,8 +49,10 @@ struct AlgorithmOptions {
   // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
   // skip (the literal reading of visited-cell tracking), retest (a second visit)
   enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
-  // Triangle test: Moller-Trumbore (fast, not watertight) or Woop-Benthin-Wald (watertight)
-  enum class TriangleTest { moller, watertight } triangle_test = TriangleTest::moller;
+  // Triangle test: Moller-Trumbore (fast, not watertight) or Woop-Benthin-Wald (watertight);
+  // automatic: watertight for the exact traversal (no ray through a shared edge or vertex passes
+  // between its triangles), Moller-Trumbore for the paper's (docs/SPEC.md, "Triangle test")
+  enum class TriangleTest { automatic, moller, watertight } triangle_test = TriangleTest::automatic;
 };
 
 // The plan: how choose_grid picks resolution and capacity (docs/SPEC.md, "Grid placement,

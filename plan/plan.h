@@ -15,6 +15,11 @@ namespace gridrt::plan {
 
 // Whether `o` turns the spill list on (Spill::automatic: for the exact traversal).
 bool spill_enabled(const AlgorithmOptions& o);
+// The narrowest cell the domain allows (docs/SPEC.md, "Domain"): kMinCellUlps ulps of the
+// largest coordinate magnitude `reach` of the grid box.
+inline constexpr float kMinCellUlps = 64.0f;
+inline float min_cell_size(float reach) { return reach * (kMinCellUlps * 0x1p-23f); }
+
 
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);

@@ -207,7 +207,7 @@ Difference classify_difference(const GridData& grid, const Ray& ray, const Hit& 
   const bool gh = !is_miss(got), wh = !is_miss(want);
   if (gh == wh && (!gh || (got.instance == want.instance && got.triangle == want.triangle))) return Difference::none;
   if (gh && (got.flags & sh::kHitGapFill)) return Difference::gap_fill;
-  if (gh && wh && ulp_distance(got.t, want.t) <= 64) return Difference::tie;
+  if (gh && wh && ulp_distance(got.t, want.t) <= kTieUlps) return Difference::tie;
   if (gh && (!wh || got.t < want.t)) return Difference::grid_nearer;
   // The oracle's triangle W: which cells the build offered it, which kept it
   const uint32_t w_ref = sh::ref_pack(want.instance, want.triangle);

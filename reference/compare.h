@@ -78,7 +78,10 @@ SpillDiff compare_spill(const SpillDump& want, const SpillDump& got);
 // Why a ray's grid hit differs from the oracle's (docs/ACCURACY.md, "Why paper mode differs"),
 // judged by walking the ray's visits again without stopping (for_each_visit) with W the oracle's
 // triangle and t_W its distance:
-//   tie           both hit, at distances within 64 ulps (a shared edge or coplanar overlap)
+//   tie           both hit, at distances within kTieUlps (a shared edge or coplanar overlap): Embree's
+//                 t is within 2 ulps of the exact one, the watertight test's within a few
+//                 (docs/ACCURACY.md, "Exact referee"); Moller-Trumbore's t on slivers can be
+//                 hundreds of ulps off, and such a case is no tie (`gridrt verify` judges it exactly)
 //   gap_fill      the grid reported a gap-fill voxel (a saturated cell, the paper's design)
 //   grid_nearer   the grid reports a real triangle nearer than the oracle's hit, or one where the
 //                 oracle finds nothing
@@ -89,6 +92,7 @@ SpillDiff compare_spill(const SpillDump& want, const SpillDump& got);
 //   dropped       a visit whose window covers t_W was offered W, but its saturated cell dropped it
 //   window        W is stored in a visited cell, but no window (elongated segment) covers t_W
 //   skipped_cell  no visited cell holds W: the samples stepped past every cell W was inserted in
+inline constexpr uint32_t kTieUlps = 8;
 enum class Difference { none, tie, gap_fill, grid_nearer, tested, reported_early, dropped, window, skipped_cell };
 const char* to_string(Difference d);
 Difference classify_difference(const GridData& grid, const Ray& ray, const Hit& got, const Hit& want);

@@ -272,7 +272,7 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain) {
   TraceState st{};
   st.org = ray.org;
   st.dir = ray.dir;
-  st.tmin = ray.tmin;
+  st.tmin = origin_tmin(ray.org, ray.dir, ray.tmin);  // the origin epsilon
   st.tmax = ray.tmax;
   st.launch_normal = ray.launch_normal;
   st.launch_ref = ray.launch_ref;

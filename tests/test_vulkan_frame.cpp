@@ -63,6 +63,7 @@ TEST_CASE("Vulkan frame: raster gather, bounce rays, trace and shade agree with 
     // CPU: the gather by primary rays through the exact traversal (as gridrt bench makes it)
     GridOptions oe = o;
     oe.traversal = reference::Traversal::exact;
+    oe.triangle_test = GridOptions::TriangleTest::moller;  // the GPU gather's test (gather.frag)
     ReferenceGridTracer gather_tracer(oe);
     ReferenceGridTracer ref(o);
     VulkanGridTracer vk(ctx, o);

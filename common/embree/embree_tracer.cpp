@@ -19,6 +19,7 @@ using glm::max;
 using glm::min;
 }  // namespace gridrt::shared
 #include "common/shared/alpha.h"
+#include "common/shared/grid.h"
 #include "common/shared/transform.h"
 
 namespace gridrt {
@@ -46,6 +47,23 @@ void self_filter(const RTCFilterFunctionNArguments* args) {
     if (args->valid[i] != -1) continue;
     const uint32_t ref = (RTCHitN_geomID(args->hit, args->N, i) << 16) | RTCHitN_primID(args->hit, args->N, i);
     if (ref == ctx->launch_ref) args->valid[i] = 0;
+  }
+}
+
+// hits_along: the context of a ray whose every hit is recorded and then refused (so Embree goes on).
+struct CollectContext {
+  RTCIntersectContext rtc;
+  uint32_t launch_ref;
+  std::vector<uint32_t>* refs;
+};
+
+void collect_filter(const RTCFilterFunctionNArguments* args) {
+  const CollectContext* ctx = reinterpret_cast<const CollectContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const uint32_t ref = (RTCHitN_geomID(args->hit, args->N, i) << 16) | RTCHitN_primID(args->hit, args->N, i);
+    if (ref != ctx->launch_ref) ctx->refs->push_back(ref);
+    args->valid[i] = 0;
   }
 }
 
@@ -85,6 +103,7 @@ struct EmbreeTracer::Impl {
   RTCScene rtc_scene = nullptr;
   const Scene* scene = nullptr;
   std::string last_error;
+  mutable std::atomic<uint64_t> rejected{0};  // rays outside the domain, never handed to Embree
   std::vector<RTCGeometry> geometries;        // per instance
   std::vector<GeometryData> data;             // per instance (stable addresses)
   std::vector<std::vector<glm::vec3>> world;  // per instance, world-space vertices
@@ -126,18 +145,19 @@ struct EmbreeTracer::Impl {
     Hit hit{};
     hit.t = kInf;
     hit.instance = shared::kNoInstance;
-    // Reject what no tracer can trace.
-    if (!finite3(ray.org) || !finite3(ray.dir) || ray.dir == glm::vec3(0.0f) || std::isnan(ray.tmin) ||
-        std::isnan(ray.tmax)) {
+    // Reject rays outside the domain (shared::ray_domain, the grid's rule; it also keeps every
+    // component far below Embree 3's validity limit of about 1.8e18, whose assertion aborts).
+    if (shared::ray_domain(ray.org, ray.dir, ray.tmin, ray.tmax) != shared::kDomainOk || !finite3(ray.org)) {
       hit.flags = shared::kHitRejected;
+      rejected.fetch_add(1, std::memory_order_relaxed);
       return hit;
     }
-    if (!(ray.tmin < ray.tmax)) return hit;
+    if (!(shared::origin_tmin(ray.org, ray.dir, ray.tmin) < ray.tmax)) return hit;
     // Strict interval: Embree accepts tnear <= t <= tfar.
     RTCRayHit rh{};
     rh.ray.org_x = ray.org.x, rh.ray.org_y = ray.org.y, rh.ray.org_z = ray.org.z;
     rh.ray.dir_x = ray.dir.x, rh.ray.dir_y = ray.dir.y, rh.ray.dir_z = ray.dir.z;
-    rh.ray.tnear = ray.tmin < 0.0f ? 0.0f : std::nextafter(ray.tmin, kInf);
+    rh.ray.tnear = std::nextafter(shared::origin_tmin(ray.org, ray.dir, ray.tmin), kInf);
     rh.ray.tfar = std::isinf(ray.tmax) ? kInf : std::nextafter(ray.tmax, -kInf);
     if (!(rh.ray.tnear <= rh.ray.tfar)) return hit;
     rh.ray.mask = 0xFFFFFFFFu;
@@ -231,6 +251,33 @@ void EmbreeTracer::update(float time) {
   rtcCommitScene(d.rtc_scene);
   d.check();
 }
+
+std::vector<uint32_t> EmbreeTracer::hits_along(const Ray& ray) const {
+  const Impl& d = *impl_;
+  if (!d.rtc_scene) throw Error("EmbreeTracer::hits_along before build");
+  std::vector<uint32_t> refs;
+  if (shared::ray_domain(ray.org, ray.dir, ray.tmin, ray.tmax) != shared::kDomainOk || !(ray.tmin < ray.tmax))
+    return refs;
+  RTCRayHit rh{};
+  rh.ray.org_x = ray.org.x, rh.ray.org_y = ray.org.y, rh.ray.org_z = ray.org.z;
+  rh.ray.dir_x = ray.dir.x, rh.ray.dir_y = ray.dir.y, rh.ray.dir_z = ray.dir.z;
+  rh.ray.tnear = shared::origin_tmin(ray.org, ray.dir, ray.tmin);
+  rh.ray.tfar = ray.tmax;
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  CollectContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.launch_ref = ray.launch_ref;
+  ctx.refs = &refs;
+  ctx.rtc.filter = collect_filter;
+  rtcIntersect1(d.rtc_scene, &ctx.rtc, &rh);
+  std::sort(refs.begin(), refs.end());
+  refs.erase(std::unique(refs.begin(), refs.end()), refs.end());
+  return refs;
+}
+
+uint64_t EmbreeTracer::rejected_rays() const { return impl_->rejected.load(); }
 
 Hit EmbreeTracer::trace_one(const Ray& ray) const {
   if (!impl_->rtc_scene) throw Error("EmbreeTracer::trace before build");

@@ -11,11 +11,14 @@
 //   flags: kHitBackFace when (v1-v0) x (v2-v0) of the world-space triangle has a positive dot
 //   product with the ray direction. cells = 0, tests = 0 (Embree does not count).
 // - Misses: instance = shared::kNoInstance, triangle = 0, t = +inf, u = v = 0.
-// - Ray interval: hits need tmin < t < tmax, strictly, for the t Embree reports (its inclusive
-//   [tnear, tfar] is narrowed by one ulp at each end; a negative tmin acts as 0). tmin >= tmax:
+// - Ray interval: hits need tmin < t < tmax, strictly (tmin raised by the origin epsilon,
+//   shared::origin_tmin), for the t Embree reports (its inclusive
+//   [tnear, tfar] is narrowed by one ulp at each end). tmin >= tmax:
 //   a miss.
-// - Rejected rays: a NaN or infinite component of org or dir, a zero direction, or a NaN tmin or
-//   tmax: flags = kHitRejected, a miss; never handed to Embree.
+// - Rejected rays: those outside the domain (shared::ray_domain: a NaN or infinite component, the
+//   largest |dir| component outside [2^-20, 2^20], an |org| component above 2^24, tmin < 0 or a
+//   NaN tmin or tmax): flags = kHitRejected, a miss; never handed to Embree (whose validity
+//   assertion aborts the process on components above about 1.8e18), and counted (rejected_rays).
 // - Self-hits: a ray with launch_ref != kNoRef ignores exactly that triangle (instance, triangle)
 //   wherever along the ray it would be hit (a context filter function); other triangles of the
 //   same instance are hit normally.
@@ -26,7 +29,9 @@
 // - trace() runs on all hardware threads, in blocks of rays; results do not depend on threads.
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "common/tracer.h"
 
@@ -47,6 +52,11 @@ class EmbreeTracer : public Tracer {
 
   // Closest hit of one ray, on the calling thread.
   Hit trace_one(const Ray& ray) const;
+  // Every triangle (instance << 16 | triangle) Embree intersects along the ray within its
+  // interval, in no particular order (the launch triangle excluded; alpha masks applied).
+  std::vector<uint32_t> hits_along(const Ray& ray) const;
+  // Rays rejected since construction (outside the domain; not passed to Embree).
+  uint64_t rejected_rays() const;
 
  private:
   struct Impl;

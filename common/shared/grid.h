@@ -10,6 +10,7 @@
 #define GRIDRT_SHARED_GRID_H
 
 #include "compat.h"
+#include "records.h"
 #include "rounding.h"
 #include "worklist.h"
 
@@ -272,13 +273,53 @@ SH_INLINE bool sh_nan(float x) {
 }
 SH_INLINE float sh_infinity() { return uintBitsToFloat(0x7F800000u); }
 
-// A ray is traced iff org and dir are finite, tmin and tmax are not NaN, and dot(dir, dir) is
-// finite and > 0. Others miss with kHitRejected.
+// ---- The domain (docs/SPEC.md, "Domain") ----
+// A ray is traced iff ray_domain() is kDomainOk; others miss with kHitRejected on every backend
+// (the Embree oracle applies the same rule). Inside the domain every product the triangle tests
+// form stays finite (watertight: |v - org| <= 2^25 and the largest |dir| component <= 2^20 give
+// |T| < 2^121) and an accepted hit has T > 0 (tmin >= 0), so no test yields a NaN t.
+SH_CONST float kDomainMaxCoordinate = 16777216.0f;     // 2^24: |org| and scene vertex components
+SH_CONST float kDomainMinDirection = 9.5367431640625e-07f;  // 2^-20: the largest |dir| component,
+SH_CONST float kDomainMaxDirection = 1048576.0f;       // 2^20:  at least / at most
+SH_CONST uint kDomainOk = 0u;
+SH_CONST uint kDomainNonFinite = 1u;   // a NaN or infinite component of org or dir
+SH_CONST uint kDomainDirection = 2u;   // the largest |dir| component outside [2^-20, 2^20] (a zero dir)
+SH_CONST uint kDomainOrigin = 3u;      // an |org| component above 2^24
+SH_CONST uint kDomainInterval = 4u;    // tmin or tmax NaN, or tmin < 0
+
+SH_INLINE uint ray_domain(SH_IN(vec3) org, SH_IN(vec3) dir, float tmin, float tmax) {
+  if (!(sh_finite(org.x) && sh_finite(org.y) && sh_finite(org.z) && sh_finite(dir.x) && sh_finite(dir.y) &&
+        sh_finite(dir.z)))
+    return kDomainNonFinite;
+  SH_PRECISE vec3 ad = abs(dir);
+  SH_PRECISE float m = max(max(ad.x, ad.y), ad.z);
+  if (!(m >= kDomainMinDirection && m <= kDomainMaxDirection)) return kDomainDirection;
+  SH_PRECISE vec3 ao = abs(org);
+  if (!(max(max(ao.x, ao.y), ao.z) <= kDomainMaxCoordinate)) return kDomainOrigin;
+  if (sh_nan(tmin) || sh_nan(tmax) || tmin < 0.0f) return kDomainInterval;
+  return kDomainOk;
+}
+
+// Whether the ray is traced (inside the domain).
 SH_INLINE bool ray_valid(SH_IN(vec3) org, SH_IN(vec3) dir, float tmin, float tmax) {
-  bool ok = sh_finite(org.x) && sh_finite(org.y) && sh_finite(org.z) && sh_finite(dir.x) &&
-            sh_finite(dir.y) && sh_finite(dir.z) && !sh_nan(tmin) && !sh_nan(tmax);
-  SH_PRECISE float dd = sh_dot(dir, dir);
-  return ok && dd > 0.0f && sh_finite(dd);
+  return ray_domain(org, dir, tmin, tmax) == kDomainOk;
+}
+
+// The origin epsilon (docs/SPEC.md, "Origin epsilon"): a ray's origin is a float point, often
+// one rounded onto a surface (a bounce's launch point, an origin on a wall); the triangles through
+// it (the launch triangle's neighbours across an edge or a vertex, a coplanar overlapping face, the
+// wall) contain the exact origin, so the exact ray meets them at t = 0, which is no hit (t > tmin),
+// while a float test finds them at a t just above 0. Every ray therefore needs
+// t > kOriginEpsilon * (largest |org| component) / (largest |dir| component): 8 ulps of the
+// origin's largest coordinate, along the ray.
+SH_CONST float kOriginEpsilon = 9.5367431640625e-07f;  // 2^-20
+SH_INLINE float origin_tmin(SH_IN(vec3) org, SH_IN(vec3) dir, float tmin) {
+  SH_PRECISE vec3 ao = abs(org);
+  SH_PRECISE vec3 ad = abs(dir);
+  SH_PRECISE float m = max(max(ao.x, ao.y), ao.z) * kOriginEpsilon;
+  SH_PRECISE float d = max(max(ad.x, ad.y), ad.z);
+  SH_PRECISE float eps = sh_div(m, d);
+  return max(tmin, eps);
 }
 
 SH_INLINE vec3 point_at(SH_IN(vec3) org, SH_IN(vec3) dir, float t) {

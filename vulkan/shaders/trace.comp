@@ -288,7 +288,7 @@ HitRecord trace_exact(GridParams g) {
 HitRecord scene_trace(GridParams g, RayRecord ray) {
   st.org = ray.org;
   st.dir = ray.dir;
-  st.tmin = ray.tmin;
+  st.tmin = origin_tmin(ray.org, ray.dir, ray.tmin);  // the origin epsilon
   st.tmax = ray.tmax;
   st.launch_normal = ray.launch_normal;
   st.launch_ref = ray.launch_ref;

@@ -1,0 +1,97 @@
+// referee.h: the exact referee. A ray and a triangle, both given as floats, are intersected in
+// exact integer arithmetic (GMP): every float is an integer times 2^-175 at most (denormals
+// included), so scaling by 2^175 makes org, dir and the vertices integers and the Moller-Trumbore
+// quantities det = e1 . (dir x e2), U = s . (dir x e2), V = dir . (s x e1), T = e2 . (s x e1)
+// exact integers; t = T / det is compared as a fraction, never rounded. A hit is a closed one
+// (u >= 0, v >= 0, u + v <= 1) with tmin < t < tmax; det == 0 (the ray parallel to the plane, or
+// in it) is no hit. Differences between a tracer and Embree are judged against the exact closest
+// hit among candidate triangles (both answers, every triangle Embree finds along the ray, the
+// triangles aimed at, and those sharing a vertex with any of them).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/tracer.h"
+#include "verify/rays.h"
+
+namespace gridrt {
+class EmbreeTracer;
+}
+
+namespace gridrt::verify {
+
+// One ray against one triangle, exactly.
+struct ExactTest {
+  bool hit = false;       // closed triangle, tmin < t < tmax
+  bool boundary = false;  // a hit exactly on an edge or a vertex (a barycentric exactly 0)
+  bool parallel = false;  // det == 0
+  double t = 0.0;         // t rounded to double (hits only)
+  double plane_t = 0.0;   // where the ray meets the triangle's plane, rounded (det != 0)
+  double margin = 0.0;    // min(u, v, 1 - u - v), rounded (det != 0): < 0 outside
+  std::shared_ptr<const struct Fraction> exact;  // t = T / det as exact integers (hits only)
+};
+ExactTest exact_test(const Ray& ray, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2);
+// -1, 0, 1 as a's t is smaller, equal, larger than b's (both hits).
+int compare_t(const ExactTest& a, const ExactTest& b);
+// t of a hit rounded to float (round to nearest, from the exact fraction).
+float exact_t_float(const ExactTest& a);
+
+// How one ray's answer compares with Embree's, judged exactly.
+enum class Verdict {
+  agree,          // the same record (triangle, or both miss; both rejected)
+  tie,            // different triangles, both exactly at the closest t (a shared edge or vertex,
+                  // or coplanar overlapping faces)
+  near,           // one answer is the same point within rounding, on another triangle: its
+                  // triangle is met within kNearMargin of its boundary (or hit exactly) at a t
+                  // within kNearT (relative) of the exact closest, or passes within kNearUlps of
+                  // the exact hit point (not wrong: float tests cannot tell them apart)
+  embree_wrong,   // the tracer is exactly right, Embree is not
+  grid_wrong,     // the tracer is wrong (and it is no crack), or rejects what the domain accepts
+                  // or the reverse, or reports a NaN t
+  crack,          // the exact closest hit lies on an edge or vertex, and the tracer reports
+                  // nothing or something farther
+  unresolved,     // the tracer is not exactly right, but kNearUlps ulps of the origin's largest
+                  // coordinate exceed the longest edge of the triangles involved: the float
+                  // inputs (v - org) cannot resolve them (a far origin, a tiny model); counted,
+                  // not failed
+};
+inline constexpr size_t kVerdicts = 7;
+const char* to_string(Verdict v);
+
+struct Judgement {
+  Verdict verdict = Verdict::agree;
+  bool exact_hit = false;   // the exact closest hit exists (among the candidates)
+  uint32_t exact_ref = 0;   // its triangle
+  double exact_t = 0.0;
+  std::string why;          // one line for reports
+};
+
+class Referee {
+ public:
+  Referee(const reference::GridData& grid, const Topology& topo, EmbreeTracer& embree);
+  // Judges `got` (the tracer) against `want` (Embree) on `ray`; `aimed` are extra candidates.
+  Judgement judge(const Ray& ray, const Hit& got, const Hit& want, const std::vector<uint32_t>& aimed) const;
+  // The exact test of one ref.
+  ExactTest test(const Ray& ray, uint32_t ref) const;
+
+ private:
+  const reference::GridData& grid_;
+  const Topology& topo_;
+  EmbreeTracer& embree_;
+};
+
+// The t bound on well-conditioned hits (docs/ACCURACY.md, "Exact referee"): |t - exact| in ulps
+// of the float t, where the ray meets the triangle's plane at more than kWellConditionedCos.
+inline constexpr double kWellConditionedCos = 0.1;
+// The "near" verdict's tolerances: barycentric margin and relative t.
+inline constexpr double kNearMargin = 1.0e-5;
+inline constexpr double kNearT = 1.0e-5;
+// ... or the answer's triangle passes within kNearUlps ulps (of the largest coordinate of the
+// origin and the exact hit point) of the exact hit point, at a t as close: the rounding of the
+// ray's inputs (v - org), which no float test avoids (far origins, scenes far from the origin).
+inline constexpr double kNearUlps = 16.0;
+
+}  // namespace gridrt::verify
