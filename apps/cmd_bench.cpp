@@ -534,9 +534,7 @@ void run_bench(const BenchOptions& options) {
   const bool with_vulkan = std::find(backends.begin(), backends.end(), "vulkan") != backends.end();
   auto on_cpu_rays = [&](const std::string& b) { return b != "vulkan" && !(with_vulkan && b == "embree"); };
   const bool cpu_rays = std::any_of(backends.begin(), backends.end(), on_cpu_rays);
-  reference::GridOptions exact = grid_options_for(o.backend_options, scene);
-  exact.traversal = reference::Traversal::exact;
-  reference::ReferenceGridTracer gather_tracer(exact);
+  reference::ReferenceGridTracer gather_tracer(plan::gather_options(grid_options_for(o.backend_options, scene)));
   GatherBuffer gather;
   size_t bounce_count = 0;
   if (cpu_rays) {

@@ -73,9 +73,7 @@ class OneRayTracer : public Tracer {
 
 GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
                               float time, std::optional<size_t> only_pixel = std::nullopt) {
-  reference::GridOptions exact = grid;
-  exact.traversal = reference::Traversal::exact;
-  reference::ReferenceGridTracer tracer(exact);
+  reference::ReferenceGridTracer tracer(plan::gather_options(grid));
   tracer.build(scene, time);
   if (only_pixel) {
     OneRayTracer one(tracer, *only_pixel);

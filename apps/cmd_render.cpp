@@ -87,7 +87,7 @@ void run_render(const RenderOptions& options) {
   std::unique_ptr<Tracer> gather_tracer;
   if (backend != "embree" && o.backend_options.grid.traversal == reference::Traversal::paper) {
     BackendOptions exact = o.backend_options;
-    exact.grid.traversal = reference::Traversal::exact;
+    exact.grid = plan::gather_options(exact.grid);
     gather_tracer = make_backend(backend, exact, scene);
     gather_tracer->build(scene, o.time);
   }

@@ -401,9 +401,7 @@ void run_sweep(const SweepOptions& o) {
     // The gather buffer and its glossy bounce rays (only the used ones are traced and timed)
     GatherBuffer gather;
     {
-      GridOptions exact = grid_options_for(o.backend_options, scene);
-      exact.traversal = reference::Traversal::exact;
-      reference::ReferenceGridTracer tracer(exact);
+      reference::ReferenceGridTracer tracer(plan::gather_options(grid_options_for(o.backend_options, scene)));
       tracer.build(scene, 0.0f);
       Progress progress("gather buffer (" + scene.name + ")", size_t(o.width) * o.height);
       ProgressTracer traced(tracer, progress);

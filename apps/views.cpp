@@ -106,9 +106,7 @@ void run_view(const ViewOptions& options) {
   if (o.primary) {
     camera_rays();
   } else {
-    reference::GridOptions exact = grid;
-    exact.traversal = reference::Traversal::exact;
-    reference::ReferenceGridTracer gather_tracer(exact);
+    reference::ReferenceGridTracer gather_tracer(plan::gather_options(grid));
     gather_tracer.build(scene, o.time);
     Progress progress("gather buffer", n);
     ProgressTracer traced(gather_tracer, progress);

@@ -109,4 +109,14 @@ GridOptions settle_overrides(GridOptions o, const Scene& scene);
 
 unsigned thread_count(const EmulationOptions& options);
 
+// The options of the grid that makes a frame's gather buffer on the CPU: the exact traversal
+// (the paper rasterizes its gather buffer, so primary visibility is exact) with the GPU gather's
+// own ray test, Moller-Trumbore (gather_visibility.glsl), unless a test is chosen explicitly: the
+// CPU and GPU gathers then agree in bits (docs/SPEC.md, "Triangle test").
+inline GridOptions gather_options(GridOptions o) {
+  o.traversal = Traversal::exact;
+  if (o.triangle_test == AlgorithmOptions::TriangleTest::automatic) o.triangle_test = AlgorithmOptions::TriangleTest::moller;
+  return o;
+}
+
 }  // namespace gridrt::plan
