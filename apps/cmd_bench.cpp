@@ -480,6 +480,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
 #endif
 
 void run_bench(const BenchOptions& options) {
+  check_frame_size(options.width, options.height);
   BenchOptions o = options;
   if (o.rtx) {
 #ifndef GRIDRT_HAVE_VULKAN

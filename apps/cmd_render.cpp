@@ -1,6 +1,7 @@
 // gridrt render: a frame (or an animation) of a scene through one backend: primary rays into a
 // gather buffer, one glossy bounce off it, simple shading, an image file.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -45,6 +46,9 @@ std::string frame_path(const std::string& output, uint32_t frame, uint32_t frame
 
 void run_render(const RenderOptions& options) {
   RenderOptions o = options;
+  check_frame_size(o.width, o.height);
+  if (!(std::abs(o.time) <= 1.0e6f)) throw Error("--time must be a finite number of seconds within +-1e6");
+  if (!(o.fps >= 1.0e-3f && o.fps <= 1.0e6f)) throw Error("--fps must lie in [0.001, 1e6]");
   resolve_image_limit(o.backend_options, o.backend == "vulkan");
   if (o.backend.rfind("portal", 0) == 0) {
     // The portal-div raytracer renders worlds of voxels with its own shading (cmd_portal.cpp).
