@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "common/image_io.h"
@@ -104,7 +105,7 @@ TEST_CASE("sweep -o at an existing file is a clean error", "[badinput][cli]") {
   std::ofstream(d / "file") << "x";
   const auto r = run_tool("sweep builtin:cornell -o " + (d / "file").string());
   CHECK(r.exit_code == 1);
-  CHECK_THAT(r.output, Contains("not a folder"));
+  CHECK_THAT(r.output, Contains("output folder") && Contains("Not a directory"));
 }
 
 TEST_CASE("A failed rename reports the system's reason, not 'Success'", "[badinput]") {
@@ -149,7 +150,7 @@ TEST_CASE("Every output format on a full disk: exit 1, the old file intact, no t
 
 TEST_CASE("sweep's CSV, Markdown and PNG on a full disk: exit 1, no empty files", "[badinput][cli]") {
   const fs::path d = scratch("sweep");
-  const std::string args = "sweep builtin:cornell --width 8 --height 6 --traversal exact --capacity 8 -o " + d.string();
+  const std::string args = "sweep builtin:atrium --width 16 --height 12 --traversal exact --capacity 8 -o " + d.string();
   const auto r = run_full_disk(args);
   if (r.output.find("needs the Embree oracle") != std::string::npos) {
     WARN("skipped: no Embree in this build");

@@ -19,9 +19,15 @@ for k in "${kinds[@]}"; do
   [ "$k" = glb ] && seeds=tests/corpus/gltf
   mkdir -p build/fuzz/corpus/$k
   echo "== fuzz_$k for $secs s"
-  ASAN_OPTIONS=detect_leaks=0:allocator_may_return_null=0 \
-  build/fuzz/tests/fuzz/fuzz_$k -max_total_time="$secs" -timeout=10 -rss_limit_mb=2560 -max_len=262144 \
-    -artifact_prefix=build/fuzz/artifacts/$k- -print_final_stats=1 \
-    build/fuzz/corpus/$k $seeds data/fixtures 2>&1 | grep -E "^#|ERROR|SUMMARY|Done|stat::number_of_executed_units|artifact" | tail -8 || status=1
+  log=build/fuzz/fuzz_$k.log
+  if ASAN_OPTIONS=detect_leaks=0:allocator_may_return_null=0 \
+     build/fuzz/tests/fuzz/fuzz_$k -max_total_time="$secs" -timeout=10 -rss_limit_mb=2560 -max_len=262144 \
+       -artifact_prefix=build/fuzz/artifacts/$k- -print_final_stats=1 \
+       build/fuzz/corpus/$k $seeds data/fixtures >"$log" 2>&1; then
+    grep -E "stat::number_of_executed_units|stat::peak_rss_mb|Done" "$log" | tr '\n' ' '; echo
+  else
+    status=1
+    grep -E -A30 "ERROR|SUMMARY|Test unit written" "$log" | head -60
+  fi
 done
 exit $status
