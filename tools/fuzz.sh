@@ -17,13 +17,13 @@ status=0
 for k in "${kinds[@]}"; do
   seeds=tests/corpus/$k
   [ "$k" = glb ] && seeds=tests/corpus/gltf
-  mkdir -p build/fuzz/corpus/$k
+  mkdir -p build/fuzz/corpus/$k tests/fuzz/seeds/$k
   echo "== fuzz_$k for $secs s"
   log=build/fuzz/fuzz_$k.log
   if ASAN_OPTIONS=detect_leaks=0:allocator_may_return_null=0 \
-     build/fuzz/tests/fuzz/fuzz_$k -max_total_time="$secs" -timeout=10 -rss_limit_mb=2560 -max_len=262144 \
+     build/fuzz/tests/fuzz/fuzz_$k -max_total_time="$secs" -timeout=30 -rss_limit_mb=2560 -max_len=262144 \
        -artifact_prefix=build/fuzz/artifacts/$k- -print_final_stats=1 \
-       build/fuzz/corpus/$k $seeds data/fixtures >"$log" 2>&1; then
+       build/fuzz/corpus/$k $seeds tests/fuzz/seeds/$k data/fixtures >"$log" 2>&1; then
     grep -E "stat::number_of_executed_units|stat::peak_rss_mb|Done" "$log" | tr '\n' ' '; echo
   else
     status=1
