@@ -30,6 +30,7 @@ CLI::Option* add_enum(CLI::App* cmd, const std::string& name, E& value, const st
 
 constexpr const char* kGrid = "Grid";
 constexpr const char* kExpert = "Grid (expert)";
+constexpr uint64_t kMaxWorkSamplePixels = 256 * 144;  // the trace-cost sample, traced once per candidate
 
 }  // namespace
 
@@ -104,7 +105,7 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
       ->group(kExpert);
   cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units")->check(CLI::PositiveNumber)->group(kExpert);
   cmd->add_option("--density", g.density, "Target cells per triangle for the automatic resolution")
-      ->check(CLI::PositiveNumber)->group(kExpert);
+      ->check(CLI::Range(1.0e-3f, 1.0e3f))->group(kExpert);
   cmd->add_option("--max-image-dimension", o.max_image_dimension,
                   "Largest image side the grid may use (default: the Vulkan device's limit when the vulkan "
                   "backend runs, else 4096)")
@@ -144,10 +145,16 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
   cmd->add_option_function<std::vector<uint32_t>>(
          "--work-sample",
          [&g](const std::vector<uint32_t>& wh) {
+           // The sample is traced once per candidate resolution: its size bounds the choice's time.
+           if (uint64_t(wh[0]) * wh[1] > kMaxWorkSamplePixels)
+             throw CLI::ValidationError("--work-sample", std::to_string(wh[0]) + "," + std::to_string(wh[1]) +
+                                                             " is more than the limit of " +
+                                                             std::to_string(kMaxWorkSamplePixels) + " pixels (e.g. 256,144)");
            g.work_sample_width = wh[0];
            g.work_sample_height = wh[1];
          },
-         "trace-cost policy: the gather buffer W,H whose rays sample the trace's work (default 96,54)")
+         "trace-cost policy: the gather buffer W,H whose rays sample the trace's work (default 96,54; at most "
+         "36864 pixels)")
       ->delimiter(',')->expected(2)->check(CLI::Range(1u, 4096u))->type_name("W,H")->group(kExpert);
   cmd->add_flag("--all-effects", o.all_effects,
                 "Simulate every effect (alpha keying, gap-fill) even where the scene does not call for it")

@@ -27,6 +27,7 @@
 #include "common/util.h"
 #include "apps/commands.h"
 #include "common/gather.h"
+#include "common/safe_io.h"
 #include "reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "vulkan/frame.h"
@@ -515,6 +516,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
 #endif
 
 void run_bench(const BenchOptions& options) {
+  check_frame_size(options.width, options.height);
   BenchOptions o = options;
   if (o.rtx) {
 #ifndef GRIDRT_HAVE_VULKAN
@@ -646,11 +648,7 @@ void run_bench(const BenchOptions& options) {
   }
   if (!notes.empty()) std::printf("\n");
   for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
-  if (!o.json.empty()) {
-    std::ofstream f(o.json);
-    if (!f) throw Error("cannot write '" + o.json + "'");
-    f << out.dump(2) << "\n";
-  }
+  if (!o.json.empty()) write_file_atomically(o.json, "JSON report", out.dump(2) + "\n");
 }
 
 }  // namespace

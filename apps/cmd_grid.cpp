@@ -101,6 +101,7 @@ struct ExplainOptions : GridVerbOptions {
 };
 
 void run_explain(const ExplainOptions& options) {
+  check_frame_size(options.width, options.height);
   ExplainOptions o = options;
   resolve_image_limit(o.backend_options, o.backend == "vulkan");
   const Scene scene = load_scene_or_default(o.scene);
@@ -251,6 +252,7 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
 }
 
 void run_stats(const StatsOptions& o) {
+  check_frame_size(o.width, o.height);
   const Scene scene = load_scene_or_default(o.scene);
   const reference::GridOptions go = grid_options_for(o.backend_options, scene);
   reference::ReferenceGridTracer ref(go);
@@ -385,6 +387,7 @@ bool diff_spill(const reference::ReferenceGridTracer& ref, vulkan::VulkanGridTra
 }
 
 void run_diff(const DiffOptions& options) {
+  check_frame_size(options.width, options.height);
   DiffOptions o = options;
   resolve_image_limit(o.backend_options, true);
   const Scene scene = load_scene_or_default(o.scene);

@@ -58,6 +58,7 @@ portal::World load_world(const std::string& spec, uint32_t voxels) {
 }
 
 void run_portal_render(const PortalRenderOptions& o) {
+  check_frame_size(o.width, o.height);
   check_output_path(o.output);
   check_image_extension(o.output);
   check_portal_backend(o.backend);

@@ -1,6 +1,7 @@
 // gridrt render: a frame (or an animation) of a scene through one backend: primary rays into a
 // gather buffer, one glossy bounce off it, simple shading, an image file.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -48,6 +49,9 @@ std::string frame_path(const std::string& output, uint32_t frame, uint32_t frame
 
 void run_render(const RenderOptions& options) {
   RenderOptions o = options;
+  check_frame_size(o.width, o.height);
+  if (!(std::abs(o.time) <= 1.0e6f)) throw Error("--time must be a finite number of seconds within +-1e6");
+  if (!(o.fps >= 1.0e-3f && o.fps <= 1.0e6f)) throw Error("--fps must lie in [0.001, 1e6]");
   if (o.view != "shaded") {
     if (o.frames > 1) throw Error("--view " + o.view + " makes one picture: leave out --frames");
     ViewOptions v;

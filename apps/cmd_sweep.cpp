@@ -17,6 +17,7 @@
 #include "apps/backends.h"
 #include "common/util.h"
 #include "apps/commands.h"
+#include "common/safe_io.h"
 #include "common/gather.h"
 #include "common/image_io.h"
 #include "common/plot.h"
@@ -152,6 +153,9 @@ BackendOptions backend_options_for(const SweepOptions& o, const Config& c) {
   BackendOptions b = o.backend_options;
   GridOptions& g = b.grid;
   if (o.work_sample.size() == 2) {
+    if (o.work_sample[0] == 0 || o.work_sample[1] == 0 || uint64_t(o.work_sample[0]) * o.work_sample[1] > 256u * 144u)
+      throw Error("--work-sample: " + std::to_string(o.work_sample[0]) + "," + std::to_string(o.work_sample[1]) +
+                  " must be at least 1,1 and at most 36864 pixels (e.g. 256,144)");
     g.work_sample_width = o.work_sample[0];
     g.work_sample_height = o.work_sample[1];
   }
@@ -326,8 +330,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
                    const std::vector<Row>& rows, const std::string& header) {
   const std::vector<bool> front = pareto(rows);
   {
-    std::ofstream csv(dir + "/" + stem + ".csv");
-    if (!csv) throw Error("cannot write '" + dir + "/" + stem + ".csv'");
+    std::ostringstream csv;  // written atomically and checked below (safe_io.h)
     csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,aabb_padding,elongation,revisit,"
            "gap_fill,spill,self_hit,max_dim,grid,capacity,saturated_cells,spill_entries,spill_overflow,rays,differ,ties,"
            "max_tie_ulps,holes,false_hits,gap_fill_hits,agree_pct,median_dt,max_dt,build_ms,update_ms,trace_ms,"
@@ -352,9 +355,9 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
         csv << "," << r.why[size_t(d)];
       csv << "\n";
     }
+    write_file_atomically(dir + "/" + stem + ".csv", "CSV table", csv.str());
   }
-  std::ofstream md(dir + "/" + stem + ".md");
-  if (!md) throw Error("cannot write '" + dir + "/" + stem + ".md'");
+  std::ostringstream md;
   md << header << "\n\n"
      << "| # | backend | traversal | test | capacity | enl | pad | elo | revisit | gap-fill | spill | self-hit | grid | "
         "cap | sat. cells | spilled | agree % | differ | ties (max ulps) | holes | false hits | gap-fill hits | "
@@ -381,6 +384,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
        << fmt(r.mrays, 2) << " | " << fmt(r.grid_mib, 1) << " | " << fmt(r.work.cells, 1) << " | "
        << fmt(r.work.tests, 1) << " | " << causes(r) << " | " << (front[i] ? "*" : "") << " |\n";
   }
+  write_file_atomically(dir + "/" + stem + ".md", "Markdown table", md.str());
   std::printf("  table: %s/%s.md, data: %s/%s.csv\n", dir.c_str(), stem.c_str(), dir.c_str(), stem.c_str());
 }
 
@@ -392,8 +396,15 @@ void run_sweep(const SweepOptions& o) {
   if (o.backends.empty()) throw Error("--backend: the list is empty");
   for (const std::string& b : o.backends)
     if (b != "cpu" && b != "vulkan") throw Error("--backend: '" + b + "' cannot be swept (cpu, vulkan)");
+  check_frame_size(o.width, o.height);
   const std::vector<Config> configs = configurations(o);
-  std::filesystem::create_directories(o.out);
+  {
+    std::error_code ec;
+    std::filesystem::create_directories(o.out, ec);
+    if (!std::filesystem::is_directory(o.out))
+      throw Error("sweep: cannot use '" + o.out + "' as the output folder: " +
+                  (ec ? ec.message() : std::string("it exists and is not a folder")));
+  }
   std::printf("sweep: %zu configurations x %zu backend(s) per scene, %ux%u gather buffer, trace medians of %u\n",
               configs.size(), o.backends.size(), o.width, o.height, o.repeat);
   for (const std::string& spec : o.scenes) {
@@ -555,7 +566,7 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--max-image-dimension", o->max_dim, "Knob values: image limit (4096 lavapipe, 16384 NVIDIA)")
       ->delimiter(',')->group("Knobs");
   cmd->add_option("--threads", o->backend_options.grid.threads, "CPU threads (0: all)");
-  cmd->add_option("--density", o->backend_options.grid.density, "Target cells per triangle")->check(CLI::PositiveNumber);
+  cmd->add_option("--density", o->backend_options.grid.density, "Target cells per triangle")->check(CLI::Range(1.0e-3f, 1.0e3f));
   cmd->add_option("--cell-visit-cost", o->backend_options.grid.cell_visit_cost,
                   "trace-cost policy: the cost of visiting a cell, in reference tests");
   cmd->add_option("--saturation-cost", o->backend_options.grid.saturation_cost,

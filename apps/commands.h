@@ -56,7 +56,16 @@ void run_view(const ViewOptions& options);
 // when `spec` is empty. Prints how long loading took when it took over a second.
 Scene load_scene_or_default(const std::string& spec);
 
-// Error unless the folder of `path` exists (checked before hours of work, not after).
+// Error unless the folder of `path` exists and `path` is not a folder (checked before hours of
+// work, not after).
 void check_output_path(const std::string& path);
+
+// The frame-buffer limit (--max-pixels): width x height of any image a verb renders or gathers.
+struct FrameLimits {
+  uint64_t max_pixels = uint64_t(1) << 25;  // 33.5 Mpixel, e.g. 8192 x 4096: about 3 GiB of frame buffers
+};
+FrameLimits& frame_limits();
+// Error naming --max-pixels when width x height exceeds it.
+void check_frame_size(uint32_t width, uint32_t height);
 
 }  // namespace gridrt::app

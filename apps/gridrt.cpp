@@ -3,6 +3,8 @@
 // Exit codes: 0 success, 1 a user error (bad input, limits, no device), 2 bad command line,
 // 3 an internal error (a bug: please report it).
 #include <chrono>
+#include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -14,6 +16,7 @@
 #include "apps/commands.h"
 #include "common/builtin/builtin.h"
 #include "common/scene.h"
+#include "common/safe_io.h"
 #include "common/scene_io.h"
 
 using namespace gridrt;
@@ -29,12 +32,55 @@ Scene load_scene_or_default(const std::string& spec) {
   return scene;
 }
 
+FrameLimits& frame_limits() {
+  static FrameLimits limits;
+  return limits;
+}
+
+void check_frame_size(uint32_t width, uint32_t height) {
+  const uint64_t pixels = uint64_t(width) * height;
+  if (pixels > frame_limits().max_pixels)
+    throw Error("an image of " + std::to_string(width) + " x " + std::to_string(height) + " = " + std::to_string(pixels) +
+                " pixels exceeds the limit of " + std::to_string(frame_limits().max_pixels) +
+                " pixels (--max-pixels; each pixel takes about 100 bytes of frame buffers)");
+}
+
 void check_output_path(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path p(path);
   const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
   if (!fs::is_directory(dir)) throw Error("cannot write '" + path + "': folder '" + dir.string() + "' does not exist");
+  if (fs::is_directory(p)) throw Error("cannot write '" + path + "': it is a folder");
 }
+
+namespace {
+
+// Every number on the command line must be finite: CLI11's range and positivity checks let NaN
+// through (every comparison with NaN is false), and "1e999" converts to infinity. A token
+// (or the value after '=', or an element of a comma list) that reads in full as a number and is
+// not a finite float is rejected before parsing.
+std::string non_finite_argument(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    std::string a = argv[i];
+    if (const size_t eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) a = a.substr(eq + 1);
+    size_t start = 0;
+    while (start <= a.size()) {
+      size_t end = a.find(',', start);
+      if (end == std::string::npos) end = a.size();
+      const std::string part = a.substr(start, end - start);
+      if (!part.empty()) {
+        char* stop = nullptr;
+        const double v = std::strtod(part.c_str(), &stop);
+        if (stop && *stop == '\0' && stop != part.c_str() && !(std::isfinite(v) && std::fabs(v) <= 3.4e38))
+          return argv[i];
+      }
+      start = end + 1;
+    }
+  }
+  return "";
+}
+
+}  // namespace
 
 }  // namespace gridrt::app
 
@@ -54,6 +100,26 @@ int main(int argc, char** argv) {
 #ifdef GRIDRT_HAVE_VERIFY
   app::add_verify_command(app);
 #endif
+  // Resource limits (safe_io.h, commands.h), before or after the verb.
+  app.fallthrough();
+  InputLimits& limits = input_limits();
+  app.add_option_function<double>(
+         "--max-input-mib", [&limits](double mib) { limits.max_file_bytes = uint64_t(mib * 1024.0 * 1024.0); },
+         "Largest input file (scene, model, buffer, texture) in MiB (default 4096)")
+      ->check(CLI::Range(0.001, 1.0e6))->group("Limits");
+  app.add_option("--max-texture-pixels", limits.max_texture_pixels,
+                 "Largest texture in pixels, checked from the image's header before decoding (default 67108864)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
+  app.add_option("--max-triangles", limits.max_triangles, "Most triangles in a scene, over all instances (default 33554432)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
+  app.add_option("--max-pixels", app::frame_limits().max_pixels,
+                 "Largest rendered image (width x height) in pixels (default 33554432)")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
+  if (const std::string bad = app::non_finite_argument(argc, argv); !bad.empty()) {
+    std::fprintf(stderr, "gridrt: error: '%s': numbers on the command line must be finite (no nan, inf or overflow)\n",
+                 bad.c_str());
+    return 2;
+  }
   try {
     app.parse(argc, argv);
     return 0;
@@ -65,6 +131,12 @@ int main(int argc, char** argv) {
     return 3;
   } catch (const Error& e) {
     std::fprintf(stderr, "gridrt: error: %s\n", e.what());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    // A resource limit, not a bug: the limits above bound what files and options may ask for,
+    // so this means the machine has less memory than they allow.
+    std::fprintf(stderr, "gridrt: error: out of memory (lower --max-pixels, --max-triangles, --memory-budget or "
+                         "--max-texture-pixels)\n");
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gridrt: internal error: %s\n", e.what());

@@ -1,5 +1,7 @@
 #include "common/image_io.h"
 
+#include "common/safe_io.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +12,7 @@
 #include <unistd.h>
 
 #ifdef GRIDRT_WITH_OIIO
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #endif
 
@@ -24,33 +27,6 @@ std::string lower_extension(const std::string& path) {
   return ext;
 }
 
-// The temporary sibling of `path`: same folder, hidden, same extension (OpenImageIO chooses the
-// format by extension).
-fs::path temp_sibling(const fs::path& path) {
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  return dir / ("." + path.filename().string() + ".tmp" + std::to_string(::getpid()) +
-                path.extension().string());
-}
-
-// Write through `write(tmp)` and rename tmp over path; remove tmp on any failure.
-template <class WriteFn>
-void write_atomically(const std::string& path, WriteFn write) {
-  const fs::path tmp = temp_sibling(path);
-  try {
-    write(tmp.string());
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw Error("cannot write image '" + path + "': rename of the temporary file failed: " + ec.message());
-  }
-}
-
 void check_size(const std::string& path, uint32_t width, uint32_t height, size_t have, size_t per_pixel) {
   if (width == 0 || height == 0)
     throw Error("cannot write image '" + path + "': zero size (" + std::to_string(width) + " x " +
@@ -61,31 +37,52 @@ void check_size(const std::string& path, uint32_t width, uint32_t height, size_t
 }
 
 // Binary PPM (P6, 8-bit) or PFM (PF, little-endian float, rows bottom to top as the format says).
-void write_netpbm(const std::string& path, const std::string& tmp, uint32_t width, uint32_t height,
-                  bool pfm, const std::vector<uint8_t>& bytes8, const std::vector<float>& floats) {
-  std::ofstream f(tmp, std::ios::binary);
-  if (!f) throw Error("cannot write image '" + path + "': cannot create '" + tmp + "'");
+std::string netpbm_bytes(uint32_t width, uint32_t height, bool pfm, const std::vector<uint8_t>& bytes8,
+                         const std::vector<float>& floats) {
+  std::string out = (pfm ? "PF\n" : "P6\n") + std::to_string(width) + " " + std::to_string(height) +
+                    (pfm ? "\n-1.0\n" : "\n255\n");
   if (pfm) {
-    f << "PF\n" << width << " " << height << "\n-1.0\n";
     for (uint32_t y = height; y-- > 0;)
-      f.write(reinterpret_cast<const char*>(floats.data() + size_t(y) * width * 3),
-              std::streamsize(size_t(width) * 3 * sizeof(float)));
+      out.append(reinterpret_cast<const char*>(floats.data() + size_t(y) * width * 3), size_t(width) * 3 * sizeof(float));
   } else {
-    f << "P6\n" << width << " " << height << "\n255\n";
-    f.write(reinterpret_cast<const char*>(bytes8.data()), std::streamsize(bytes8.size()));
+    out.append(reinterpret_cast<const char*>(bytes8.data()), bytes8.size());
   }
-  f.close();
-  if (!f) throw Error("cannot write image '" + path + "': write failed");
+  return out;
 }
 
 #ifdef GRIDRT_WITH_OIIO
-void write_oiio(const std::string& path, const std::string& tmp, uint32_t width, uint32_t height,
-                int channels, OIIO::TypeDesc type, const void* data) {
-  auto out = OIIO::ImageOutput::create(tmp);
+// Encodes into memory where the format's writer takes an I/O proxy (PNG, JPEG, EXR, HDR, TIFF,
+// ...): then no disk error can happen inside the library (OpenImageIO's PNG writer does not
+// report failed writes, and libjpeg's exits the process), and the bytes go out through
+// write_file_atomically, which checks every write. A format without proxy support is written
+// to the temporary file by the library and read back in full before the rename.
+void write_oiio(const std::string& path, uint32_t width, uint32_t height, int channels, OIIO::TypeDesc type,
+                const void* data) {
+  const std::string ext = lower_extension(path);
+  auto out = OIIO::ImageOutput::create(ext.substr(1));
   if (!out) throw Error("cannot write image '" + path + "': " + OIIO::geterror());
   OIIO::ImageSpec spec(int(width), int(height), channels, type);
-  if (!out->open(tmp, spec) || !out->write_image(type, data) || !out->close())
-    throw Error("cannot write image '" + path + "': " + out->geterror());
+  if (out->supports("ioproxy")) {
+    std::vector<unsigned char> buffer;
+    OIIO::Filesystem::IOVecOutput proxy(buffer);
+    if (!out->set_ioproxy(&proxy) || !out->open(path, spec) || !out->write_image(type, data) || !out->close())
+      throw Error("cannot write image '" + path + "': " + out->geterror());
+    out.reset();
+    write_file_atomically(path, "image",
+                          std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
+    return;
+  }
+  write_file_atomically(path, "image", [&](const std::string& tmp) {
+    if (!out->open(tmp, spec) || !out->write_image(type, data) || !out->close())
+      throw Error("cannot write image '" + path + "': " + out->geterror());
+    out.reset();
+    // Read it back: a writer that swallowed a failed write leaves a file that does not decode.
+    auto in = OIIO::ImageInput::open(tmp);
+    std::vector<float> check(size_t(width) * height * size_t(channels));
+    if (!in || in->spec().width != int(width) || in->spec().height != int(height) ||
+        !in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, check.data()))
+      throw Error("cannot write image '" + path + "': the written file does not read back (disk full?)");
+  });
 }
 #endif
 
@@ -136,13 +133,12 @@ void write_image(const std::string& path, uint32_t width, uint32_t height, const
     for (const glm::vec3& c : rgb)
       bytes.insert(bytes.end(), {linear_to_srgb8(c.x), linear_to_srgb8(c.y), linear_to_srgb8(c.z)});
   }
-  write_atomically(path, [&](const std::string& tmp) {
-    if (ext == ".ppm" || ext == ".pfm") return write_netpbm(path, tmp, width, height, ext == ".pfm", bytes, floats);
+  if (ext == ".ppm" || ext == ".pfm")
+    return write_file_atomically(path, "image", netpbm_bytes(width, height, ext == ".pfm", bytes, floats));
 #ifdef GRIDRT_WITH_OIIO
-    if (is_float_format(ext)) write_oiio(path, tmp, width, height, 3, OIIO::TypeDesc::FLOAT, floats.data());
-    else write_oiio(path, tmp, width, height, 3, OIIO::TypeDesc::UINT8, bytes.data());
+  if (is_float_format(ext)) write_oiio(path, width, height, 3, OIIO::TypeDesc::FLOAT, floats.data());
+  else write_oiio(path, width, height, 3, OIIO::TypeDesc::UINT8, bytes.data());
 #endif
-  });
 }
 
 void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgba) {
@@ -159,19 +155,19 @@ void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
     for (size_t i = 0; i < n; ++i)
       for (int k = 0; k < 3; ++k) bytes.push_back(rgba[i * 4 + k]);
   }
-  write_atomically(path, [&](const std::string& tmp) {
-    if (ext == ".ppm" || ext == ".pfm") return write_netpbm(path, tmp, width, height, ext == ".pfm", bytes, floats);
+  if (ext == ".ppm" || ext == ".pfm")
+    return write_file_atomically(path, "image", netpbm_bytes(width, height, ext == ".pfm", bytes, floats));
 #ifdef GRIDRT_WITH_OIIO
-    if (is_float_format(ext)) write_oiio(path, tmp, width, height, 3, OIIO::TypeDesc::FLOAT, floats.data());
-    else write_oiio(path, tmp, width, height, 4, OIIO::TypeDesc::UINT8, rgba.data());
+  if (is_float_format(ext)) write_oiio(path, width, height, 3, OIIO::TypeDesc::FLOAT, floats.data());
+  else write_oiio(path, width, height, 4, OIIO::TypeDesc::UINT8, rgba.data());
 #endif
-  });
 }
 
 Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_channel) {
 #ifdef GRIDRT_WITH_OIIO
   // Keep colour and alpha as stored (OpenImageIO premultiplies by default): a masked-out texel
   // still has its colour.
+  check_input_file(path, "texture");  // a regular file (not /dev/zero, a FIFO, a directory), bounded
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
   auto in = OIIO::ImageInput::open(path, &config);
@@ -184,6 +180,12 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
   const int nch = spec.nchannels;
   if (spec.width <= 0 || spec.height <= 0 || nch <= 0 || spec.depth > 1)
     throw Error("cannot load texture '" + path + "': not a 2D image with channels");
+  // The header's size, checked before anything is allocated for the pixels.
+  const uint64_t declared = uint64_t(spec.width) * uint64_t(spec.height);
+  if (declared > input_limits().max_texture_pixels || nch > 64)
+    throw Error("cannot load texture '" + path + "': its header declares " + std::to_string(spec.width) + " x " +
+                std::to_string(spec.height) + " pixels of " + std::to_string(nch) + " channels, more than the limit of " +
+                std::to_string(input_limits().max_texture_pixels) + " pixels (--max-texture-pixels)");
   Texture tex;
   tex.path = path;
   tex.width = uint32_t(spec.width);

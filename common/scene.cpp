@@ -7,6 +7,8 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "common/safe_io.h"
+
 namespace gridrt {
 
 glm::mat4 Motion::at(float time) const {
@@ -16,6 +18,7 @@ glm::mat4 Motion::at(float time) const {
     const float n = float(path_points.size());
     float phase = std::fmod(time / path_period, 1.0f);
     if (phase < 0.0f) phase += 1.0f;
+    if (!(phase >= 0.0f && phase < 1.0f)) phase = 0.0f;  // a non-finite time (rejected by the callers)
     const float s = phase * n;
     const size_t i = std::min(size_t(s), path_points.size() - 1);
     const size_t j = (i + 1) % path_points.size();
@@ -96,6 +99,11 @@ void Scene::finalize() {
            << ", " << m.positions[i].y << ", " << m.positions[i].z << ")";
         throw Error(os.str());
       }
+    for (size_t i = 0; i < m.normals.size(); ++i)
+      if (!finite(m.normals[i])) throw Error(where + ": normal " + std::to_string(i) + " has a non-finite component");
+    for (size_t i = 0; i < m.uvs.size(); ++i)
+      if (!std::isfinite(m.uvs[i].x) || !std::isfinite(m.uvs[i].y))
+        throw Error(where + ": texture coordinate " + std::to_string(i) + " is not finite");
     for (size_t t = 0; t < m.triangles.size(); ++t)
       for (int k = 0; k < 3; ++k)
         if (m.triangles[t][k] >= m.positions.size())
@@ -106,7 +114,31 @@ void Scene::finalize() {
         throw Error(where + ": material index " + std::to_string(mat) + " of " +
                     std::to_string(materials.size()));
   }
+  {
+    uint64_t vertices = 0;
+    for (const Mesh& m : meshes) vertices += m.positions.size();
+    if (vertices > input_limits().max_vertices)
+      throw Error("scene '" + name + "' has " + std::to_string(vertices) + " vertices, more than the limit of " +
+                  std::to_string(input_limits().max_vertices));
+  }
+  for (const Texture& t : textures) {
+    const std::string where = "scene '" + name + "', texture '" + t.path + "'";
+    if (t.width == 0 || t.height == 0 || uint64_t(t.width) * t.height > input_limits().max_texture_pixels)
+      throw Error(where + ": size " + std::to_string(t.width) + " x " + std::to_string(t.height) +
+                  " is zero or above the limit of " + std::to_string(input_limits().max_texture_pixels) +
+                  " pixels (--max-texture-pixels)");
+    if (t.rgba.size() != uint64_t(t.width) * t.height * 4)
+      throw Error(where + ": " + std::to_string(t.rgba.size()) + " bytes for " + std::to_string(t.width) + " x " +
+                  std::to_string(t.height) + " RGBA8 texels");
+  }
   for (const Material& mat : materials) {
+    const std::string where = "scene '" + name + "', material '" + mat.name + "'";
+    if (!finite(mat.diffuse) || mat.diffuse.x < 0.0f || mat.diffuse.y < 0.0f || mat.diffuse.z < 0.0f)
+      throw Error(where + ": the diffuse colour must be finite and not negative");
+    if (!(mat.opacity >= 0.0f && mat.opacity <= 1.0f))
+      throw Error(where + ": opacity must lie in [0, 1]");
+    for (int32_t tex : {mat.diffuse_texture, mat.alpha_texture})
+      if (tex < -1) throw Error(where + ": texture index " + std::to_string(tex) + " (only -1 means none)");
     for (int32_t tex : {mat.diffuse_texture, mat.alpha_texture})
       if (tex >= int32_t(textures.size()))
         throw Error("material '" + mat.name + "' uses texture " + std::to_string(tex) + " of " +
@@ -125,6 +157,10 @@ void Scene::finalize() {
       if (!finite(p)) throw Error("instance '" + inst.name + "' has a non-finite path point");
     if (inst.motion.angular_speed != 0.0f && glm::length(inst.motion.axis) == 0.0f)
       throw Error("instance '" + inst.name + "' rotates about a zero axis");
+    if (std::abs(inst.motion.angular_speed) > kMaxAngularSpeed)
+      throw Error("instance '" + inst.name + "': angular speed beyond +-1e6 radians per second");
+    if (inst.motion.path_points.size() > 1 && !(inst.motion.path_period >= kMinPathPeriod))
+      throw Error("instance '" + inst.name + "': path period must be at least 0.001 seconds");
   }
 
   // Split meshes at the 16-bit triangle limit; every instance of a split mesh becomes one
@@ -161,15 +197,36 @@ void Scene::finalize() {
                 " instances after splitting meshes at 65,536 triangles; the 16-bit instance "
                 "field of a reference holds at most 65,535");
   if (triangle_count() == 0) throw Error("scene '" + name + "' is empty: it has no triangles");
+  if (triangle_count() > input_limits().max_triangles)
+    throw Error("scene '" + name + "' has " + std::to_string(triangle_count()) +
+                " triangles over its instances, more than the limit of " + std::to_string(input_limits().max_triangles) +
+                " (--max-triangles)");
+  {
+    const Bounds b = bounds(0.0f);
+    const glm::vec3 e = b.extent();
+    if (!finite(b.lo) || !finite(b.hi) || !finite(e) || !std::isfinite(glm::length(e)))
+      throw Error("scene '" + name + "': the geometry's world bounds overflow single precision (coordinates too large)");
+    if (std::max({e.x, e.y, e.z}) <= 0.0f)
+      throw Error("scene '" + name + "': every vertex lies at one point (the geometry has no extent)");
+  }
   if (camera) {
     if (!finite(camera->eye) || !finite(camera->target) || !finite(camera->up) ||
         !(camera->vfov_degrees > 0.0f && camera->vfov_degrees < 180.0f))
       throw Error("scene '" + name + "': camera has non-finite values or a field of view outside (0, 180)");
     if (camera->eye == camera->target) throw Error("scene '" + name + "': camera eye equals its target");
   }
-  for (const Light& l : lights)
+  for (size_t i = 0; i < lights.size(); ++i) {
+    const Light& l = lights[i];
+    const std::string where = "scene '" + name + "', light " + std::to_string(i);
     if (!finite(l.position) || !finite(l.color) || !std::isfinite(l.intensity))
-      throw Error("scene '" + name + "': a light has non-finite values");
+      throw Error(where + ": non-finite values");
+    if (l.intensity < 0.0f || l.color.x < 0.0f || l.color.y < 0.0f || l.color.z < 0.0f)
+      throw Error(where + ": negative intensity or colour");
+    if (l.directional && !(glm::length(l.position) > 0.0f))
+      throw Error(where + ": zero direction (a directional light needs a direction towards the light)");
+  }
+  if (!finite(background) || background.x < 0.0f || background.y < 0.0f || background.z < 0.0f)
+    throw Error("scene '" + name + "': the background colour must be finite and not negative");
   if (grid.capacity && (*grid.capacity == 0 || *grid.capacity > 1024))
     throw Error("scene '" + name + "': grid capacity must lie in [1, 1024]");
   if (grid.resolution && (grid.resolution->x == 0 || grid.resolution->y == 0 || grid.resolution->z == 0))

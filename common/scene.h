@@ -23,6 +23,8 @@ namespace gridrt {
 
 inline constexpr uint32_t kMaxTrianglesPerMesh = 65536;  // triangle index fits in 16 bits
 inline constexpr uint32_t kMaxInstances = 65535;         // 0xFFFF is reserved: 0xFFFFFFFF is blank
+inline constexpr float kMaxAngularSpeed = 1.0e6f;        // radians per second (finalize checks)
+inline constexpr float kMinPathPeriod = 1.0e-3f;         // seconds (finalize checks)
 
 // Every failure the user can cause (bad files, bad values, limits) is reported as this.
 class Error : public std::runtime_error {

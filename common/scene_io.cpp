@@ -18,6 +18,7 @@
 
 #include "common/builtin/builtin.h"
 #include "common/loaders/loaders.h"
+#include "common/safe_io.h"
 
 #ifndef GRIDRT_DEFAULT_SCENES
 #define GRIDRT_DEFAULT_SCENES "../shared/data/scenes"
@@ -35,13 +36,7 @@ std::string lower_extension(std::string_view path) {
   return ext;
 }
 
-std::string read_text(const std::string& path, const char* what) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error(std::string("cannot open ") + what + " '" + path + "'" + (fs::exists(path) ? "" : ": no such file"));
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
+std::string read_text(const std::string& path, const char* what) { return read_input_file(path, what); }
 
 // ---------------------------------------------------------------------------------------------
 // JSON scene files
@@ -54,8 +49,12 @@ class SceneFileReader {
   Scene read() {
     const std::string text = read_text(path_, "scene file");
     json root;
+    check_json_depth(text, path_, input_limits().max_json_depth);
     try {
       root = json::parse(text);
+    } catch (const json::out_of_range& e) {
+      // e.g. an integer of 400 digits ("number overflow")
+      throw Error(path_ + ": JSON number out of range: " + e.what());
     } catch (const json::parse_error& e) {
       // nlohmann gives the byte position (1-based, just past the offending character).
       const size_t at = std::min(e.byte > 0 ? e.byte - 1 : 0, text.size());
@@ -144,6 +143,7 @@ class SceneFileReader {
     }
     fs::path fp(out);
     if (fp.is_relative()) fp = dir_ / fp;
+    if (std::error_code ec; fs::is_directory(fp, ec)) fail(where, "'" + fp.string() + "' is a directory, not a file");
     if (!fs::exists(fp))
       fail(where, "file '" + fp.string() + "' not found" +
                       (real ? std::string(" (the real scenes folder is $GRIDRT_SCENES, else ") + GRIDRT_DEFAULT_SCENES + ")" : ""));
@@ -450,7 +450,11 @@ Scene load_model_scene(const std::string& path) {
   else if (ext == ".gltf" || ext == ".glb") parts = load_gltf(path, scene, textures);
   else throw Error("cannot load model '" + path + "': unknown extension '" + ext + "' (expected .obj, .gltf or .glb)");
   for (Instance& inst : parts) scene.instances.push_back(std::move(inst));
-  scene.finalize();
+  try {
+    scene.finalize();
+  } catch (const Error& e) {
+    throw Error("model '" + path + "': " + e.what());
+  }
   // A camera that frames it, and a light above and in front, bright enough at the centre.
   const Camera cam = scene.frame_camera();
   scene.camera = cam;
@@ -471,6 +475,8 @@ Scene load_scene(std::string_view spec) {
   }
   const std::string path(spec);
   const std::string ext = lower_extension(path);
+  if (std::error_code ec; fs::is_directory(path, ec))
+    throw Error("cannot load scene '" + path + "': it is a directory, not a scene file");
   if (ext == ".json") return load_scene_file(path);
   if (ext == ".gridscene") return load_scene_binary(path);
   if (ext == ".obj" || ext == ".gltf" || ext == ".glb") return load_model_scene(path);
@@ -544,27 +550,8 @@ void save_scene_binary(const Scene& s, const std::string& path) {
   w.pod(s.grid.cell_size.value_or(0.0f));
   w.out.append(kEndMagic, 8);
 
-  // Temp file beside the target, then rename: never a half-written cache.
-  const fs::path target(path);
-  const fs::path tmp = (target.has_parent_path() ? target.parent_path() : fs::path(".")) /
-                       ("." + target.filename().string() + ".tmp" + std::to_string(::getpid()));
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    if (!f) throw Error("cannot write scene cache '" + path + "': cannot create '" + tmp.string() + "'");
-    f.write(w.out.data(), std::streamsize(w.out.size()));
-    f.close();
-    if (!f) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw Error("cannot write scene cache '" + path + "': write failed");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw Error("cannot write scene cache '" + path + "': " + ec.message());
-  }
+  // Temp file beside the target, checked, synced, then renamed: never a half-written cache.
+  write_file_atomically(path, "scene cache", w.out);
 }
 
 Scene load_scene_binary(const std::string& path) {
@@ -603,6 +590,10 @@ Scene load_scene_binary(const std::string& path) {
     t.width = r.pod<uint32_t>("a texture width");
     t.height = r.pod<uint32_t>("a texture height");
     t.has_alpha = r.flag("a texture alpha flag");
+    if (t.width == 0 || t.height == 0 || uint64_t(t.width) * t.height > input_limits().max_texture_pixels)
+      r.fail("texture '" + t.path + "': size " + std::to_string(t.width) + " x " + std::to_string(t.height) +
+             " is zero or above the limit of " + std::to_string(input_limits().max_texture_pixels) +
+             " pixels (--max-texture-pixels)");
     t.rgba = r.vec<uint8_t>("texels");
     if (t.rgba.size() != uint64_t(t.width) * t.height * 4)
       r.fail("texture '" + t.path + "': " + std::to_string(t.rgba.size()) + " bytes for " + std::to_string(t.width) + " x " +

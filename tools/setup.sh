@@ -9,7 +9,8 @@ pkgs=(build-essential cmake ninja-build pkg-config
       libglm-dev libembree-dev libgmp-dev libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers
       vulkan-tools glslang-tools spirv-tools catch2 libopenimageio-dev openimageio-tools
       libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libcli11-dev libbenchmark-dev
-      fonts-dejavu-core)
+      fonts-dejavu-core
+      clang-14 libclang-rt-14-dev)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")

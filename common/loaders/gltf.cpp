@@ -13,6 +13,7 @@
 #include <tiny_gltf.h>
 
 #include "common/loaders/loaders.h"
+#include "common/safe_io.h"
 
 namespace gridrt {
 namespace fs = std::filesystem;
@@ -58,17 +59,26 @@ void for_each_element(const Ctx& c, int accessor_index, const char* what, int wa
   const int ncomp = tinygltf::GetNumComponentsInType(uint32_t(a.type));
   if (comp == 0 || ncomp <= 0) c.fail(where + ": unknown component type");
   const size_t elem = comp * size_t(ncomp);
+  if (view.byteStride != 0 && view.byteStride < elem)
+    c.fail(where + ": buffer view " + std::to_string(a.bufferView) + " has byteStride " + std::to_string(view.byteStride) +
+           ", smaller than its " + std::to_string(elem) + "-byte elements");
   const int stride_i = a.ByteStride(view);
   if (stride_i <= 0) c.fail(where + ": invalid byte stride");
   const size_t stride = size_t(stride_i);
+  // Overflow-safe: every sum and product is checked against the buffer's size before it is
+  // formed, so that a count near 2^63 cannot wrap past the check.
+  const size_t size = buffer.data.size();
+  if (view.byteOffset > size || view.byteLength > size - view.byteOffset)
+    c.fail(where + ": buffer view " + std::to_string(a.bufferView) + " (offset " + std::to_string(view.byteOffset) +
+           ", length " + std::to_string(view.byteLength) + ") runs past the end of its buffer (" + std::to_string(size) +
+           " bytes)");
+  if (a.byteOffset > view.byteLength)
+    c.fail(where + ": byteOffset " + std::to_string(a.byteOffset) + " lies past the end of its buffer view");
   const size_t start = view.byteOffset + a.byteOffset;
-  const size_t view_end = view.byteOffset + view.byteLength;
-  if (a.count > 0) {
-    const size_t last = start + stride * (a.count - 1) + elem;
-    if (last > view_end || view_end > buffer.data.size() || last < start)
-      c.fail(where + ": " + std::to_string(a.count) + " elements run past the end of the buffer (" +
-             std::to_string(buffer.data.size()) + " bytes)");
-  }
+  const size_t room = view.byteLength - a.byteOffset;  // bytes from the first element to the view's end
+  if (a.count > 0 && (room < elem || a.count - 1 > (room - elem) / stride))
+    c.fail(where + ": " + std::to_string(a.count) + " elements of " + std::to_string(elem) + " bytes every " +
+           std::to_string(stride) + " run past the end of the buffer view (" + std::to_string(room) + " bytes)");
   count_out = a.count;
   component_type_out = a.componentType;
   normalized_out = a.normalized;
@@ -176,17 +186,103 @@ glm::mat4 local_matrix(const tinygltf::Node& n) {
   return m;
 }
 
+// The JSON chunk of a GLB (the whole data when the header does not parse: TinyGLTF then reports
+// what is wrong).
+std::string_view glb_json_chunk(const std::string& data) {
+  if (data.size() < 20 || data.compare(0, 4, "glTF") != 0) return data;
+  uint32_t len = 0;
+  std::memcpy(&len, data.data() + 12, 4);
+  return std::string_view(data).substr(20, std::min<size_t>(len, data.size() - 20));
+}
+
+// External buffers and images: regular files within the size bound only (a directory or a
+// device as a uri is an error, not an allocation failure or a hang).
+bool read_external(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+  try {
+    const std::string bytes = read_input_file(path, "glTF resource");
+    out->assign(bytes.begin(), bytes.end());
+    return true;
+  } catch (const Error& e) {
+    if (err) *err += std::string(e.what()) + "\n";
+    return false;
+  }
+}
+
+// Width and height from a PNG or JPEG header; false for anything else.
+bool image_header_size(const unsigned char* p, size_t n, uint64_t& w, uint64_t& h) {
+  auto be16 = [&](size_t i) { return uint32_t(p[i]) << 8 | p[i + 1]; };
+  auto be32 = [&](size_t i) { return be16(i) << 16 | be16(i + 2); };
+  if (n >= 24 && std::memcmp(p, "\x89PNG\r\n\x1a\n", 8) == 0 && std::memcmp(p + 12, "IHDR", 4) == 0) {
+    w = be32(16);
+    h = be32(20);
+    return true;
+  }
+  if (n >= 4 && p[0] == 0xFF && p[1] == 0xD8) {
+    size_t i = 2;
+    while (i + 9 < n) {
+      if (p[i] != 0xFF) return false;
+      const unsigned char m = p[i + 1];
+      if (m == 0xFF) { ++i; continue; }
+      if (m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC) {
+        h = be16(i + 5);
+        w = be16(i + 7);
+        return true;
+      }
+      if (m == 0xD8 || (m >= 0xD0 && m <= 0xD7) || m == 0x01) { i += 2; continue; }
+      i += 2 + be16(i + 2);
+    }
+  }
+  return false;
+}
+
+// TinyGLTF's image decoder, after the header's size was checked against the pixel limit.
+bool load_image_checked(tinygltf::Image* image, const int index, std::string* err, std::string* warn, int req_w,
+                        int req_h, const unsigned char* bytes, int size, void* user) {
+  uint64_t w = 0, h = 0;
+  if (size <= 0 || !image_header_size(bytes, size_t(size), w, h)) {
+    if (err) *err += "image " + std::to_string(index) + ": not a PNG or JPEG with a readable header\n";
+    return false;
+  }
+  if (w == 0 || h == 0 || w * h > input_limits().max_texture_pixels) {
+    if (err)
+      *err += "image " + std::to_string(index) + ": its header declares " + std::to_string(w) + " x " + std::to_string(h) +
+              " pixels, zero or more than the limit of " + std::to_string(input_limits().max_texture_pixels) +
+              " (--max-texture-pixels)\n";
+    return false;
+  }
+  return tinygltf::LoadImageData(image, index, err, warn, req_w, req_h, bytes, size, user);
+}
+
 }  // namespace
 
 std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCache& textures) {
-  if (!fs::is_regular_file(path)) throw Error("cannot open glTF '" + path + "': no such file");
+  // Read the file here (a regular file within the size bound), check the JSON's nesting depth
+  // before TinyGLTF's recursive parser sees it, and let TinyGLTF read external buffers and
+  // decode images only through the checked callbacks below.
+  const std::string data = read_input_file(path, "glTF");
   tinygltf::TinyGLTF loader;
   tinygltf::Model model;
   std::string err, warn;
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
-  const bool ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
-                                : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+  const bool binary = ext == ".glb";
+  check_json_depth(binary ? glb_json_chunk(data) : std::string_view(data), path, input_limits().max_json_depth);
+  if (data.size() > UINT32_MAX) throw Error("cannot load glTF '" + path + "': larger than 4 GiB");
+  tinygltf::FsCallbacks fs_callbacks{&tinygltf::FileExists, &tinygltf::ExpandFilePath, &read_external, nullptr, nullptr};
+  loader.SetFsCallbacks(fs_callbacks);
+  loader.SetImageLoader(&load_image_checked, nullptr);
+  std::string base_dir = fs::path(path).parent_path().string();
+  if (base_dir.empty()) base_dir = ".";
+  bool ok = false;
+  try {
+    ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(data.data()),
+                                              unsigned(data.size()), base_dir)
+                : loader.LoadASCIIFromString(&model, &err, &warn, data.data(), unsigned(data.size()), base_dir);
+  } catch (const std::bad_alloc&) {
+    throw Error("cannot load glTF '" + path + "': out of memory while parsing");
+  } catch (const std::length_error& e) {
+    throw Error("cannot load glTF '" + path + "': a size in the file is too large (" + e.what() + ")");
+  }
   if (!ok || !err.empty()) {
     while (!err.empty() && err.back() == '\n') err.pop_back();
     throw Error("cannot load glTF '" + path + "': " + (err.empty() ? std::string("TinyGLTF failed") : err));
@@ -323,7 +419,10 @@ std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCa
   std::vector<int> depth_of(model.nodes.size(), -1);
   std::function<void(int, const glm::mat4&, int)> visit = [&](int ni, const glm::mat4& parent, int depth) {
     if (ni < 0 || size_t(ni) >= model.nodes.size()) c.fail("node " + std::to_string(ni) + " does not exist");
-    if (depth_of[size_t(ni)] >= 0 || depth > 1000) c.fail("node " + std::to_string(ni) + " is reached twice (a cycle or a shared child)");
+    if (depth > int(input_limits().max_node_depth))
+      c.fail("node " + std::to_string(ni) + ": the node hierarchy is deeper than " +
+             std::to_string(input_limits().max_node_depth) + " levels (the limit)");
+    if (depth_of[size_t(ni)] >= 0) c.fail("node " + std::to_string(ni) + " is reached twice (a cycle or a shared child)");
     depth_of[size_t(ni)] = depth;
     const tinygltf::Node& node = model.nodes[size_t(ni)];
     const glm::mat4 world = parent * local_matrix(node);

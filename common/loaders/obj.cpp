@@ -15,6 +15,7 @@
 #include <tiny_obj_loader.h>
 
 #include "common/loaders/loaders.h"
+#include "common/safe_io.h"
 
 namespace gridrt {
 namespace fs = std::filesystem;
@@ -39,12 +40,11 @@ int32_t TextureCache::load(Scene& scene, const std::string& path, AlphaSource al
 
 namespace {
 
+// The file's text with the one line-break rule applied (safe_io.h: CR, LF and CR LF end a line;
+// a UTF-8 byte-order mark is dropped). The checks below and tinyobjloader both read this text,
+// so they see the same lines.
 std::string read_file(const std::string& path, const std::string& what) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error("cannot open " + what + " '" + path + "'" + (fs::exists(path) ? "" : ": no such file"));
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
+  return normalize_text(read_input_file(path, what));
 }
 
 std::vector<std::string_view> split_ws(std::string_view line) {
@@ -146,6 +146,9 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
     else if (k == "vn") { check_numbers(path, line, tok, 3); ++counts[2]; }
     else if (k == "f") {
       if (tok.size() < 4) fail_at(path, line, "face with fewer than 3 vertices");
+      if (tok.size() - 1 > input_limits().max_face_vertices)
+        fail_at(path, line, "face with " + std::to_string(tok.size() - 1) + " vertices, more than the limit of " +
+                                std::to_string(input_limits().max_face_vertices));
       for (size_t i = 1; i < tok.size(); ++i) {
         std::string_view t = tok[i];
         for (int slot = 0; slot < 3 && !t.empty(); ++slot) {
@@ -180,8 +183,8 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
 
 // MTL lines tinyobjloader reads leniently: scalar and colour statements must hold numbers,
 // texture statements a file name.
-void scan_mtl(const std::string& path) {
-  const std::string text = read_file(path, "material library");
+std::string scan_mtl(const std::string& path) {
+  std::string text = read_file(path, "material library");
   for_each_line(text, [&](size_t line, const std::vector<std::string_view>& tok) {
     const std::string_view k = tok[0];
     if (k == "Kd" || k == "Ka" || k == "Ks" || k == "Ke" || k == "Tf") {
@@ -193,6 +196,7 @@ void scan_mtl(const std::string& path) {
       if (tok.size() < 2) fail_at(path, line, std::string(k) + " without a file name");
     }
   });
+  return text;
 }
 
 std::string texture_path(const fs::path& dir, std::string name) {
@@ -215,19 +219,23 @@ std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCac
   const std::string text = read_file(path, "OBJ file");
   const ObjScan scan = scan_obj(path, text);
   const fs::path dir = fs::path(path).parent_path();
+  std::string mtl_text;  // every library, checked and normalized, in order
+  std::set<std::string> mtl_seen;
   for (const auto& [name, line] : scan.mtllibs) {
     const fs::path mtl = dir / name;
-    if (!fs::is_regular_file(mtl)) fail_at(path, line, "material library '" + mtl.string() + "' not found");
-    scan_mtl(mtl.string());
+    if (!fs::exists(mtl)) fail_at(path, line, "material library '" + mtl.string() + "' not found");
+    if (!mtl_seen.insert(mtl.lexically_normal().string()).second) continue;
+    mtl_text += scan_mtl(mtl.string());
+    mtl_text += "\n";
   }
 
-  // Parse with tinyobjloader.
+  // Parse with tinyobjloader, from the same normalized text the checks read (the libraries'
+  // text is handed to it for every mtllib statement).
   tinyobj::ObjReaderConfig config;
   config.triangulate = true;
   config.vertex_color = false;
-  config.mtl_search_path = dir.string();
   tinyobj::ObjReader file_reader;
-  if (!file_reader.ParseFromFile(path, config) || !file_reader.Error().empty()) {
+  if (!file_reader.ParseFromString(text, mtl_text, config) || !file_reader.Error().empty()) {
     std::string err = file_reader.Error();
     while (!err.empty() && err.back() == '\n') err.pop_back();
     throw Error("cannot load OBJ '" + path + "': " + (err.empty() ? "tinyobjloader failed" : err));

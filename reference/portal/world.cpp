@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/safe_io.h"
 #include "common/shared/portal.h"
 #include "common/shared/transform.h"
 
@@ -136,6 +137,13 @@ World parse_tile_map(std::string_view text, const std::string& name, bool requir
       if (a > kMaxWorldAxis || b > kMaxWorldAxis || c + 2 > kMaxWorldAxis)
         fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) +
                                " exceeds the div format's 255 voxels per axis (height + 2 for floor and ceiling)");
+      // The portal build's time grows with the world's volume (a legal 255 x 255 x 253 map takes
+      // minutes before the atlas limit stops it): a stated bound, checked before any work.
+      const uint64_t volume = uint64_t(a) * uint64_t(b) * uint64_t(c + 2);
+      if (volume > kMaxTileMapVoxels)
+        fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) + " makes " +
+                               std::to_string(volume) + " voxels with floor and ceiling, more than the limit of " +
+                               std::to_string(kMaxTileMapVoxels));
       W = uint32_t(a), D = uint32_t(b), H = uint32_t(c);
       have_size = true;
     } else if (key == "material") {
@@ -143,11 +151,14 @@ World parse_tile_map(std::string_view text, const std::string& name, bool requir
       float r, g, b;
       if (!(ls >> c >> mname >> r >> g >> b) || c.size() != 1)
         fail(name, lineno, "expected 'material CHAR NAME R G B [glass IOR]'");
+      if (!std::isfinite(r) || !std::isfinite(g) || !std::isfinite(b) || r < 0.0f || g < 0.0f || b < 0.0f)
+        fail(name, lineno, "material colour must be finite and not negative");
       if (c[0] == '.' || c[0] == 'E' || c[0] == 'L' || c[0] == ' ') fail(name, lineno, "'" + c + "' is reserved");
       WallMaterial m{mname, glm::vec3(r, g, b), false, 1.5f, glm::vec3(1.0f)};
       std::string opt;
       if (ls >> opt) {
-        if (opt != "glass" || !(ls >> m.ior) || !(m.ior > 0.0f)) fail(name, lineno, "expected 'glass IOR' after the colour");
+        if (opt != "glass" || !(ls >> m.ior) || !(m.ior > 0.0f) || !std::isfinite(m.ior))
+          fail(name, lineno, "expected 'glass IOR' (a positive finite number) after the colour");
         m.glass = true;
         m.filter = m.color;
       }
@@ -228,11 +239,8 @@ World parse_tile_map(std::string_view text, const std::string& name, bool requir
 }
 
 World load_tile_map(const std::string& path, bool require_eye) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error("tile map " + path + ": cannot open");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parse_tile_map(ss.str(), path, require_eye);
+  // A regular file within the size bound, with safe_io.h's line-break rule and no BOM.
+  return parse_tile_map(normalize_text(read_input_file(path, "tile map")), path, require_eye);
 }
 
 std::string_view builtin_level_text() { return kBuiltinLevel; }

@@ -15,6 +15,9 @@ namespace gridrt::portal {
 
 inline constexpr uint16_t kEmpty = 0xFFFF;      // a voxel of empty space
 inline constexpr uint32_t kMaxWorldAxis = 255;  // div sizes and origins are 8-bit (seed's format)
+// The largest tile map, in voxels with floor and ceiling: the portal build's time and memory
+// grow with the volume (128 x 128 x 62 fits; the div format's 255 x 255 x 253 would take minutes).
+inline constexpr uint64_t kMaxTileMapVoxels = uint64_t(1) << 20;
 
 struct WallMaterial {
   std::string name;

@@ -1,0 +1,65 @@
+// safe_io.h: bounded input and atomic output, for every file the tool reads or writes.
+//
+// Input: only regular files are read (a directory, a FIFO or a device such as /dev/zero is an
+// Error naming it), and only up to a size bound. Everything that sizes an allocation from a file
+// (element counts, image dimensions, nesting depth, face sizes) is checked against InputLimits
+// with overflow-safe arithmetic before the allocation.
+//
+// Output: write_file_atomically writes a temporary file in the target's folder, checks every
+// write, fsyncs and closes it, and renames it over the target only when all of that succeeded;
+// on failure the temporary file is removed and the Error names the target and the system's
+// reason (errno is kept across the clean-up). An existing file is replaced only by a complete one.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+
+#include "common/scene.h"
+
+namespace gridrt {
+
+// Resource limits on what a file may make the tool allocate. Process-wide; the command line
+// sets them (--max-texture-pixels, --max-triangles, --max-input-mib), the defaults are safe.
+struct InputLimits {
+  uint64_t max_file_bytes = uint64_t(4) << 30;      // any one input file
+  uint64_t max_texture_pixels = uint64_t(1) << 26;  // any one texture (67 Mpixel, 256 MiB RGBA8)
+  uint64_t max_triangles = uint64_t(1) << 25;       // a scene, over all instances (33.5 M)
+  uint64_t max_vertices = uint64_t(1) << 26;        // a scene's meshes together
+  uint32_t max_face_vertices = 1024;                // one OBJ polygon (triangulated as a fan)
+  uint32_t max_json_depth = 256;                    // nesting of arrays and objects (JSON, glTF)
+  uint32_t max_node_depth = 1000;                   // glTF node hierarchy
+};
+InputLimits& input_limits();
+
+// The bytes of the regular file at `path`. Error ("cannot open <what> '<path>': ...") when it is
+// missing, not a regular file (directory, FIFO, device), larger than max_file_bytes or unreadable.
+std::string read_input_file(const std::string& path, const std::string& what);
+
+// The same checks without reading: for files a library opens itself (images through
+// OpenImageIO). Returns the file's size.
+uint64_t check_input_file(const std::string& path, const std::string& what);
+
+// Error unless `text` nests arrays and objects at most `max_depth` deep (strings skipped). Run
+// before a recursive JSON parser sees the text, so that deep nesting cannot exhaust the stack.
+void check_json_depth(std::string_view text, const std::string& where, uint32_t max_depth);
+
+// The one line-break rule of the text formats: CR LF, a bare CR and LF all end a line. Returns
+// the text with every line break as LF and a leading UTF-8 byte-order mark removed.
+std::string normalize_text(std::string text);
+
+// a * b, or Error("<what>: ... overflows") when the product does not fit 64 bits.
+uint64_t checked_mul(uint64_t a, uint64_t b, const std::string& what);
+
+// Write `bytes` to `path` atomically (see above). `what` names the kind of file in messages
+// ("image", "scene cache", "CSV table").
+void write_file_atomically(const std::string& path, const std::string& what, std::string_view bytes);
+
+// For writers that insist on a file name: `write(tmp)` writes the temporary file (and throws on
+// failure); then it is synced and renamed as above. A writer that does not report errors must
+// not be used with this (the caller verifies, see image_io.cpp).
+void write_file_atomically(const std::string& path, const std::string& what,
+                           const std::function<void(const std::string& tmp)>& write);
+
+}  // namespace gridrt

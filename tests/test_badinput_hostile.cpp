@@ -1,0 +1,162 @@
+// Hostile input to the tool and its outputs: limits named in messages, exit 1 for bad input and
+// 2 for the command line (never 3, never a crash), and every output format on a full disk
+// (ulimit -f 0, SIGXFSZ ignored so that writes fail with EFBIG): exit 1, the old file intact,
+// no temporary file left. The malformed-file corpus itself runs in gridrt_replay (tests/fuzz).
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "common/image_io.h"
+#include "common/safe_io.h"
+#include "common/scene_io.h"
+#include "tests/run_tool.h"
+
+using namespace gridrt;
+using gridrt::test::run_tool;
+using Catch::Contains;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("gridrt-hostile-" + std::to_string(::getpid())) / name;
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+// Files in `dir` other than `keep`.
+std::vector<std::string> others(const fs::path& dir, const std::string& keep) {
+  std::vector<std::string> out;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename() != keep) out.push_back(e.path().filename().string());
+  return out;
+}
+
+// The tool under a file-size limit of 0 (a full disk for every write), SIGXFSZ ignored.
+gridrt::test::Run run_full_disk(const std::string& args) {
+  return run_tool("--version >/dev/null; (trap '' XFSZ; ulimit -f 0; exec " + std::string(GRIDRT_TOOL) + " " + args + ")");
+}
+
+}  // namespace
+
+TEST_CASE("Command-line numbers: NaN, infinity and values past the limits are exit 2, never 3", "[badinput][cli]") {
+  for (const char* args : {"render --density nan", "render --density 1e30", "render --time nan", "render --fps nan",
+                           "render --fps inf", "render --cell-size nan", "render --time=1e999",
+                           "render --work-sample 4096,4096", "render --resolution 1,nan,1"}) {
+    INFO(args);
+    const auto r = run_tool(std::string(args) + " -o /nonexistent/x.png");
+    CHECK(r.exit_code == 2);
+  }
+}
+
+TEST_CASE("An image larger than --max-pixels is refused before any work, naming the limit", "[badinput][cli]") {
+  const auto r = run_tool("render builtin:cornell --width 16384 --height 16384 -o /tmp/never.png");
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("--max-pixels"));
+  const auto r2 = run_tool("--max-pixels 100 render builtin:cornell --width 11 --height 10 -o /tmp/never.png");
+  CHECK(r2.exit_code == 1);
+  CHECK_THAT(r2.output, Contains("110 pixels exceeds the limit of 100"));
+}
+
+TEST_CASE("A folder, a FIFO or a device as the input is named as such", "[badinput][cli]") {
+  const fs::path d = scratch("kinds");
+  fs::create_directories(d / "model.obj");
+  const auto r = run_tool("convert " + (d / "model.obj").string() + " -o " + (d / "x.gridscene").string());
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("model.obj") && Contains("a directory"));
+  REQUIRE(::mkfifo((d / "pipe.json").c_str(), 0600) == 0);
+  const auto r2 = run_tool("convert " + (d / "pipe.json").string() + " -o " + (d / "x.gridscene").string());
+  CHECK(r2.exit_code == 1);
+  CHECK_THAT(r2.output, Contains("a FIFO"));
+  REQUIRE_THROWS_WITH(read_input_file("/dev/zero", "texture"), Contains("/dev/zero") && Contains("character device"));
+  REQUIRE_THROWS_WITH(load_texture("/dev/zero"), Contains("character device"));
+}
+
+TEST_CASE("The input limits are options, and their messages name them", "[badinput][cli]") {
+  const fs::path d = scratch("limits");
+  const auto r = run_tool("--max-triangles 10 convert builtin:cornell -o " + (d / "x.gridscene").string());
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("--max-triangles"));
+  const auto r2 = run_tool("--max-input-mib 0.001 convert " + std::string(GRIDRT_DATA_DIR) + "/fixtures/quad.gltf -o " +
+                           (d / "x.gridscene").string());
+  CHECK(r2.exit_code == 1);
+  CHECK_THAT(r2.output, Contains("--max-input-mib"));
+  const auto r3 = run_tool("--max-texture-pixels 4 convert " + std::string(GRIDRT_DATA_DIR) +
+                           "/fixtures/quad.obj -o " + (d / "x.gridscene").string());
+  CHECK(r3.exit_code == 1);
+  CHECK_THAT(r3.output, Contains("--max-texture-pixels"));
+}
+
+TEST_CASE("sweep -o at an existing file is a clean error", "[badinput][cli]") {
+  const fs::path d = scratch("sweep-file");
+  std::ofstream(d / "file") << "x";
+  const auto r = run_tool("sweep builtin:cornell -o " + (d / "file").string());
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("output folder") && Contains("Not a directory"));
+}
+
+TEST_CASE("A failed rename reports the system's reason, not 'Success'", "[badinput]") {
+  const fs::path d = scratch("rename");
+  fs::create_directories(d / "target.ppm" / "inside");
+  const std::vector<glm::vec3> px(4, glm::vec3(0.5f));
+  try {
+    write_image((d / "target.ppm").string(), 2, 2, px);
+    FAIL("no error");
+  } catch (const Error& e) {
+    CHECK_THAT(e.what(), Contains("rename") && !Contains("Success"));
+  }
+  CHECK(others(d, "target.ppm").empty());  // no temporary file left
+}
+
+TEST_CASE("Every output format on a full disk: exit 1, the old file intact, no temporary left", "[badinput][cli]") {
+  const fs::path d = scratch("full-disk");
+  for (const std::string ext : {"png", "jpg", "exr", "hdr", "tif", "ppm", "pfm"}) {
+    INFO(ext);
+    const fs::path out = d / ("out." + ext);
+    const std::string render = "render builtin:cornell --width 48 --height 32 --no-bounce -o " + out.string();
+    REQUIRE(run_tool(render).exit_code == 0);
+    const std::string before = slurp(out);
+    REQUIRE(before.size() > 0);
+    const auto r = run_full_disk(render);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("cannot write image") && Contains("File too large"));
+    CHECK(slurp(out) == before);
+    CHECK(others(d, "out." + ext).empty());
+    fs::remove(out);
+  }
+  // The scene cache.
+  const fs::path cache = d / "scene.gridscene";
+  REQUIRE(run_tool("convert builtin:cornell -o " + cache.string()).exit_code == 0);
+  const std::string before = slurp(cache);
+  const auto r = run_full_disk("convert builtin:cornell -o " + cache.string());
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("cannot write scene cache") && Contains("File too large"));
+  CHECK(slurp(cache) == before);
+  CHECK(others(d, "scene.gridscene").empty());
+}
+
+TEST_CASE("sweep's CSV, Markdown and PNG on a full disk: exit 1, no empty files", "[badinput][cli]") {
+  const fs::path d = scratch("sweep");
+  const std::string args = "sweep builtin:atrium --width 16 --height 12 --traversal exact --capacity 8 -o " + d.string();
+  const auto r = run_full_disk(args);
+  if (r.output.find("needs the Embree oracle") != std::string::npos) {
+    WARN("skipped: no Embree in this build");
+    return;
+  }
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("File too large"));
+  CHECK(others(d, "").empty());
+}
