@@ -1,7 +1,7 @@
 // gridrt: the command-line tool. Verbs: render, convert (and, with the grid, explain, stats, diff).
 //
 // Exit codes: 0 success, 1 a user error (bad input, limits, no device), 2 bad command line,
-// 3 an internal error (a bug: please report it).
+// 5 an internal error (a bug: please report it); diff also 3 (differs) and 4 (validation messages).
 #include <chrono>
 #include <cstdio>
 #include <exception>
@@ -19,6 +19,8 @@
 using namespace gridrt;
 
 namespace gridrt::app {
+
+std::vector<std::string> command_line;
 
 Scene load_scene_or_default(const std::string& spec) {
   const std::string s = spec.empty() ? "builtin:" + std::string(kDefaultScene) : spec;
@@ -48,20 +50,24 @@ int main(int argc, char** argv) {
   app::add_render_command(app);
   app::add_convert_command(app);
   app::add_grid_commands(app);
+  app::add_diff_command(app);
   app::add_bench_command(app);
   app::add_portal_command(app);
   app::add_sweep_command(app);
+  app::command_line.assign(argv, argv + argc);
   try {
     app.parse(argc, argv);
     return 0;
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);  // prints help, version or the parse error
     return code == 0 ? 0 : 2;
+  } catch (const app::ExitStatus& e) {
+    return e.code;
   } catch (const Error& e) {
     std::fprintf(stderr, "gridrt: error: %s\n", e.what());
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gridrt: internal error: %s\n", e.what());
-    return 3;
+    return 5;
   }
 }
