@@ -7,7 +7,8 @@ the pristine file, applies the mutant, rebuilds (-j1 by default) and runs the Ca
 mutant names (its `tests:` filter, the real-scene tests left out unless --scenes). A mutant is
   stillborn  its original text is not found exactly once, or the build fails (a shader that does
              not compile);
-  killed     the tests fail (or time out);
+  killed     the tests fail;
+  timeout    the tests ran past --timeout (inconclusive on a loaded machine: not counted);
   survived   the tests pass.
 Writes a table to stdout and, with --report FILE, a JSON report. Exit 0 when every non-equivalent
 mutant that compiled was killed, 3 otherwise.
@@ -100,7 +101,7 @@ def main():
     ap.add_argument("--only", help="comma-separated mutant ids")
     ap.add_argument("--work", default=os.path.join(ROOT, "build/mutate/src"), help="the copy of the tree")
     ap.add_argument("-j", type=int, default=1, help="build jobs")
-    ap.add_argument("--timeout", type=int, default=900, help="seconds per mutant's test run")
+    ap.add_argument("--timeout", type=int, default=1800, help="seconds per mutant's test run")
     ap.add_argument("--scenes", action="store_true", help="also run the real-scene tests ([scenes])")
     ap.add_argument("--report", help="write a JSON report here")
     a = ap.parse_args()
@@ -145,10 +146,12 @@ def main():
                 rc, out = run([binary, filt, "--abort"], work, timeout=a.timeout, env=env)
                 if rc == 0:
                     r.update(status="survived")
+                elif rc == 124:
+                    r.update(status="timeout", why=f"tests ran past {a.timeout} s")
                 else:
                     fail = re.findall(r"^(.*?) FAILED:|^-{5,}\n(.*)$", out, re.M)
                     lines = [l for l in out.splitlines() if l.strip()]
-                    r.update(status="killed", why="timeout" if rc == 124 else (lines[-2] if len(lines) > 1 else ""))
+                    r.update(status="killed", why=lines[-2] if len(lines) > 1 else "")
                     names = re.findall(r"^-{70,}\n(.+)\n", out, re.M)
                     if names:
                         r["by"] = names[0]
@@ -160,11 +163,12 @@ def main():
     # Leave the copy built as the tree is
     run(["cmake", "--build", "--preset", "release", f"-j{a.j}"], work, env=env)
 
-    counted = [r for r in results if r["status"] != "stillborn" and not r["equivalent"]]
+    counted = [r for r in results if r["status"] in ("killed", "survived") and not r["equivalent"]]
     killed = sum(r["status"] == "killed" for r in counted)
     survivors = [r["id"] for r in counted if r["status"] == "survived"]
-    print(f"\nscore: {killed} of {len(counted)} killed ({len(results) - len(counted)} stillborn or equivalent)"
-          + (f"; survivors: {', '.join(survivors)}" if survivors else ""))
+    print(f"\nscore: {killed} of {len(counted)} killed ({len(results) - len(counted)} stillborn, equivalent or timed out)"
+          + (f"; survivors: {', '.join(survivors)}" if survivors else "")
+          + "".join(f"; timeout: {r['id']}" for r in results if r["status"] == "timeout"))
     if a.report:
         tmp = a.report + ".tmp"
         with open(tmp, "w") as f:
