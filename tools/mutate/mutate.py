@@ -129,7 +129,7 @@ def main():
     results = []
     for m in mutants:
         path = os.path.join(work, m["file"])
-        pristine = open(os.path.join(ROOT, m["file"])).read()
+        pristine = open(path).read()  # the copy's own file (restored after every mutant)
         mutated = apply(pristine, m)
         t0 = time.time()
         r = {"id": m["id"], "file": m["file"], "description": m["description"], "equivalent": m["equivalent"]}
