@@ -14,7 +14,18 @@ namespace gridrt::app {
 
 void add_render_command(CLI::App& app);   // cmd_render.cpp
 void add_convert_command(CLI::App& app);  // cmd_convert.cpp
-void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: explain, stats, diff
+void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: explain, stats
+void add_diff_command(CLI::App& app);     // cmd_diff.cpp: the reference against the Vulkan port
+
+// Thrown by a verb to end the tool with this exit status after it has reported (diff: 3 differ,
+// 4 validation messages).
+struct ExitStatus {
+  int code;
+};
+
+// The tool's command line as given (gridrt.cpp sets it before parsing; diff repeats its grid flags
+// in the explain command it prints).
+extern std::vector<std::string> command_line;
 void add_bench_command(CLI::App& app);    // cmd_bench.cpp
 void add_portal_command(CLI::App& app);   // cmd_portal.cpp: portal render, portal explain
 

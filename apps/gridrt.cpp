@@ -1,7 +1,7 @@
 // gridrt: the command-line tool. Verbs: render, convert (and, with the grid, explain, stats, diff).
 //
 // Exit codes: 0 success, 1 a user error (bad input, limits, no device), 2 bad command line,
-// 3 an internal error (a bug: please report it).
+// 5 an internal error (a bug: please report it); diff also 3 (differs) and 4 (validation messages).
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -22,6 +22,8 @@
 using namespace gridrt;
 
 namespace gridrt::app {
+
+std::vector<std::string> command_line;
 
 Scene load_scene_or_default(const std::string& spec) {
   const std::string s = spec.empty() ? "builtin:" + std::string(kDefaultScene) : spec;
@@ -94,6 +96,7 @@ int main(int argc, char** argv) {
   app::add_render_command(app);
   app::add_convert_command(app);
   app::add_grid_commands(app);
+  app::add_diff_command(app);
   app::add_bench_command(app);
   app::add_portal_command(app);
   app::add_sweep_command(app);
@@ -120,6 +123,7 @@ int main(int argc, char** argv) {
                  bad.c_str());
     return 2;
   }
+  app::command_line.assign(argv, argv + argc);
   try {
     app.parse(argc, argv);
     return 0;
@@ -129,6 +133,8 @@ int main(int argc, char** argv) {
   } catch (const app::Differs& e) {
     std::fprintf(stderr, "gridrt: %s\n", e.what());
     return 3;
+  } catch (const app::ExitStatus& e) {
+    return e.code;
   } catch (const Error& e) {
     std::fprintf(stderr, "gridrt: error: %s\n", e.what());
     return 1;
@@ -140,6 +146,6 @@ int main(int argc, char** argv) {
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gridrt: internal error: %s\n", e.what());
-    return 3;
+    return 5;
   }
 }

@@ -178,6 +178,14 @@ TEST_CASE("Vulkan spill: overflow counted like the reference's, and gap-fill's p
     CHECK(got.overflow() == ref.spill().overflow());
     CHECK(got.overflow() > 0);
     CHECK(got.entries.size() == 20);
+    // No entry stored past the list, no head or link beyond it: the stored 20 linked in order
+    std::string problem;
+    const std::vector<reference::SpillList> lists = reference::walk_spill_lists(got, &problem);
+    INFO(problem);
+    CHECK(problem.empty());
+    size_t linked = 0;
+    for (const reference::SpillList& l : lists) linked += l.refs.size();
+    CHECK(linked == 20);
     reference::SpillDump part = all.spill();
     part.header = got.header;
     CHECK(reference::compare_spill(part, got).only_got.empty());  // a choice of the spilled references

@@ -177,6 +177,8 @@ std::string unsuitable(VkPhysicalDevice pd, const DeviceInfo& info, const Contex
 ContextOptions ContextOptions::from_env() {
   ContextOptions o;
   o.validation = env_flag("GRIDRT_VALIDATION");
+  if (const char* v = std::getenv("GRIDRT_VALIDATION"); v && std::strcmp(v, "best-practices") == 0)
+    o.validation = o.best_practices = true;
   if (const char* d = std::getenv("GRIDRT_VK_DEVICE"); d && *d) {
     char* end = nullptr;
     const long v = std::strtol(d, &end, 10);
@@ -323,7 +325,8 @@ void Context::create_instance(const ContextOptions& options) {
     vkEnumerateInstanceExtensionProperties(kValidationLayer, &m, exts.data());
     for (const VkExtensionProperties& e : exts)
       if (std::strcmp(e.extensionName, VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME) == 0) validation_features = true;
-    if (validation_features && options.sync_validation) extensions.push_back(VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME);
+    if (validation_features && (options.sync_validation || options.best_practices))
+      extensions.push_back(VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME);
   }
 
   VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
@@ -338,10 +341,12 @@ void Context::create_instance(const ContextOptions& options) {
   messenger.pfnUserCallback = debug_callback;
   messenger.pUserData = this;
 
-  const VkValidationFeatureEnableEXT enables[] = {VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
+  std::vector<VkValidationFeatureEnableEXT> enables;
+  if (options.sync_validation) enables.push_back(VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT);
+  if (options.best_practices) enables.push_back(VK_VALIDATION_FEATURE_ENABLE_BEST_PRACTICES_EXT);
   VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
-  features.enabledValidationFeatureCount = 1;
-  features.pEnabledValidationFeatures = enables;
+  features.enabledValidationFeatureCount = uint32_t(enables.size());
+  features.pEnabledValidationFeatures = enables.data();
 
   VkInstanceCreateInfo ci{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
   ci.pApplicationInfo = &app;
@@ -352,7 +357,7 @@ void Context::create_instance(const ContextOptions& options) {
   if (validation_) {
     // Messages from vkCreateInstance/vkDestroyInstance themselves come through this one.
     ci.pNext = &messenger;
-    if (validation_features && options.sync_validation) messenger.pNext = &features;
+    if (validation_features && !enables.empty()) messenger.pNext = &features;
   }
   const VkResult r = vkCreateInstance(&ci, nullptr, &instance_);
   if (r != VK_SUCCESS) {

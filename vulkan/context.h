@@ -30,6 +30,8 @@ void check(VkResult r, const char* what);
 struct ContextOptions {
   bool validation = false;       // Khronos validation layer + messenger (env GRIDRT_VALIDATION=1)
   bool sync_validation = true;   // with validation: synchronization validation as well
+  bool best_practices = false;   // with validation: the layer's best-practices checks as well
+                                 // (env GRIDRT_VALIDATION=best-practices)
   int device_index = -1;         // physical device by index (env GRIDRT_VK_DEVICE); -1: best
   std::string loader_path;       // "" = libvulkan.so.1 (env GRIDRT_VK_LOADER)
   bool raster_build = true;      // need geometryShader + vertexPipelineStoresAndAtomics

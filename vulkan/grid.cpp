@@ -180,10 +180,8 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   gpu.no_ray_list = ctx.create_buffer(sizeof(shared::WorkListHeader), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.dirty = ctx.create_buffer(VkDeviceSize(shared::dirty_list_words(g)) * 4,
                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
-  // The compute build's runs of long cell ranges (build.glsl): at most 2^20 items (8 MiB)
-  gpu.build_list_capacity = vk_.build == BuildMode::compute
-                                ? uint32_t(std::min<uint64_t>((dev.limits.maxStorageBufferRange - 32) / 8, 1u << 20))
-                                : 0u;
+  // The runs of long cell ranges, both builds (build.glsl): at most 2^20 items (8 MiB)
+  gpu.build_list_capacity = uint32_t(std::min<uint64_t>((dev.limits.maxStorageBufferRange - 32) / 8, 1u << 20));
   gpu.build_list = ctx.create_buffer(sizeof(shared::WorkListHeader) + uint64_t(gpu.build_list_capacity) * 8,
                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
   gpu.image = ctx.create_image3d(shared::grid_image_extent(g));
@@ -238,15 +236,14 @@ void VulkanGridTracer::create_pipelines() {
   gpu.init = std::make_unique<Pipeline>(ctx, "grid_init.comp", set.layout(), 0, spec_for(g, false));
   if (vk_.build == BuildMode::raster)
     gpu.raster = std::make_unique<Pipeline>(ctx, "build.vert", "build.geom", set.layout(), 0, spec_for(g, false));
-  else {
+  else
     gpu.compute = std::make_unique<Pipeline>(ctx, "build.comp", set.layout(), uint32_t(sizeof(shared::BuildPush)),
                                              spec_for(g, false));
-    gpu.build_cells = std::make_unique<Pipeline>(ctx, "build_cells.comp", set.layout(), 0, spec_for(g, false));
-    gpu.build_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
-    gpu.build_list_set->bind(0, gpu.build_list);
-    gpu.build_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.build_list_set->layout(),
-                                                         uint32_t(sizeof(shared::WorkListDispatchPush)));
-  }
+  gpu.build_cells = std::make_unique<Pipeline>(ctx, "build_cells.comp", set.layout(), 0, spec_for(g, false));
+  gpu.build_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
+  gpu.build_list_set->bind(0, gpu.build_list);
+  gpu.build_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.build_list_set->layout(),
+                                                       uint32_t(sizeof(shared::WorkListDispatchPush)));
   gpu.clear = std::make_unique<Pipeline>(ctx, "clear_dynamic.comp", set.layout(), uint32_t(sizeof(shared::ClearPush)),
                                          spec_for(g, false));
   gpu.dirty_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.dirty_set->layout(),
@@ -347,8 +344,9 @@ const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list) {
 }
 
 // Insert the triangles of instances [first, last): the raster pass (one draw per instance,
-// firstInstance = its id) or the compute build (one invocation per triangle, then one per run of
-// kBuildRun cells of the long AABB ranges those appended to the build list).
+// firstInstance = its id) or the compute build (one invocation per triangle), then, in both, one
+// invocation per run of kBuildRun cells of the long AABB ranges those appended to the build list
+// (build.glsl: no invocation walks a long range alone, which lavapipe cuts short, docs/VULKAN.md).
 void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last) {
   if (first >= last) return;
   Gpu& gpu = *gpu_;
@@ -358,16 +356,16 @@ void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint
     for (uint32_t i = first; i < last; ++i)
       if (instances_[i].tri_count) vkCmdDraw(cb, 3 * instances_[i].tri_count, 1, 0, i);
     gpu.raster->end_pass(cb);
-    return;
-  }
-  const uint32_t begin = instances_[first].tri_offset;
-  const uint32_t end = instances_[last - 1].tri_offset + instances_[last - 1].tri_count;
-  const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
-  gpu.compute->bind(cb, gpu.set->set());
-  for (uint32_t t = begin; t < end; t += std::min(chunk, end - t)) {
-    const shared::BuildPush push{first, last, t, std::min(chunk, end - t)};
-    gpu.compute->push(cb, push);
-    vkCmdDispatch(cb, groups(push.tri_count, 64), 1, 1);
+  } else {
+    const uint32_t begin = instances_[first].tri_offset;
+    const uint32_t end = instances_[last - 1].tri_offset + instances_[last - 1].tri_count;
+    const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
+    gpu.compute->bind(cb, gpu.set->set());
+    for (uint32_t t = begin; t < end; t += std::min(chunk, end - t)) {
+      const shared::BuildPush push{first, last, t, std::min(chunk, end - t)};
+      gpu.compute->push(cb, push);
+      vkCmdDispatch(cb, groups(push.tri_count, 64), 1, 1);
+    }
   }
   barrier(cb);
   const shared::WorkListDispatchPush list_push{64u, ctx_->info().limits.maxComputeWorkGroupCount[0],

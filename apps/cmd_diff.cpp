@@ -1,0 +1,607 @@
+// gridrt diff: the CPU reference against the Vulkan port, for a person and for CI. Grid images
+// (sorted: texel for texel; first-empty: every cell's slots as a multiset of its candidates), the
+// spill list, every hit record of the camera rays and of the glossy bounce off the reference's
+// gather buffer, over frames (a build, then updates), with the validation layer listening.
+//
+// Exit codes: 0 agree, 1 bad input (no such scene, no device, ...), 2 bad command line, 3 the port
+// differs, 4 the validation layer reported something (whatever the comparison found).
+// --json FILE and --junit FILE write reports, each atomically (a temporary file renamed over FILE).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "apps/backends.h"
+#include "apps/commands.h"
+#include "common/camera.h"
+#include "common/gather.h"
+#include "reference/compare.h"
+#include "reference/grid.h"
+#ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/context.h"
+#  include "vulkan/frame.h"
+#  include "vulkan/grid.h"
+#endif
+
+namespace gridrt::app {
+
+#ifdef GRIDRT_HAVE_VULKAN
+namespace {
+
+namespace sh = gridrt::shared;
+using nlohmann::json;
+
+struct DiffOptions {
+  std::string scene;
+  uint32_t width = 160, height = 90;
+  float time = 0.0f;
+  BackendOptions backend_options;
+  uint32_t frames = 3;
+  float fps = 30.0f;
+  uint32_t ulps_t = 0;   // float fields of otherwise equal hits may differ by this many ulps in t
+  float abs_uv = 0.0f;   // ... and by this much in u and v (absolute)
+  bool gpu_frame = false;  // also the GPU frame's own passes: gather, bounce rays, trace
+  std::string validation = "on";  // on, best-practices, off
+  std::string json_path, junit_path;
+  std::string explain_flags;  // the grid flags given, for the printed explain command
+  std::string inject;         // testing the reports: "texel" or "hit" changes one of the port's values
+};
+
+// One check of the run: a JUnit test case, a JSON entry.
+struct Check {
+  std::string name;
+  bool ok = true;
+  std::string detail;   // what was compared (passed or not)
+  std::string failure;  // the first difference
+};
+
+// The first difference found, where a person starts looking.
+struct FirstDifference {
+  std::string what;     // "texel", "cell", "spill", "hit", "gpu-frame"
+  uint32_t frame = 0;
+  std::optional<glm::uvec3> cell;  // scene cell (x, y, z), not the image's texel order
+  std::optional<glm::uvec2> pixel;
+  std::string ray_kind;  // "primary" or "bounce"
+  std::string text;
+  std::string explain;   // a gridrt explain command that shows it
+};
+
+std::string cell_text(const glm::uvec3& c) {
+  return "(" + std::to_string(c.x) + ", " + std::to_string(c.y) + ", " + std::to_string(c.z) + ")";
+}
+
+GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
+                              float time) {
+  reference::ReferenceGridTracer tracer(plan::gather_options(grid));
+  tracer.build(scene, time);
+  Progress progress("gather buffer", size_t(w) * h);
+  ProgressTracer traced(tracer, progress);
+  return make_gather(scene, traced, scene.frame_camera(), w, h, time);
+}
+
+std::string shell_quote(const std::string& s) {
+  if (!s.empty() && s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.,/:+=") ==
+                        std::string::npos)
+    return s;
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string explain_command(const DiffOptions& o, uint32_t x, uint32_t y, bool primary, float time) {
+  std::ostringstream os;
+  os << "gridrt explain " << shell_quote(o.scene.empty() ? "builtin:atrium" : o.scene) << " --pixel " << x << ","
+     << y << " --width " << o.width << " --height " << o.height;
+  if (time != 0.0f) os << " --time " << time;
+  os << o.explain_flags << " --backend vulkan" << (primary ? " --primary" : "");
+  return os.str();
+}
+
+std::string xml_escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      default:
+        if (uint8_t(c) < 0x20 && c != '\n' && c != '\t') out += ' ';
+        else out += c;
+    }
+  }
+  return out;
+}
+
+// Writes `text` to `path` through a temporary file in the same folder, renamed over it.
+void write_atomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f << text;
+    f.flush();
+    if (!f) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw Error("cannot write '" + path + "'");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw Error("cannot write '" + path + "': " + ec.message());
+  }
+}
+
+class DiffRun {
+ public:
+  explicit DiffRun(const DiffOptions& o) : o_(o) {}
+  int run();
+
+ private:
+  void check(const std::string& name, bool ok, const std::string& detail, const std::string& failure = "") {
+    checks_.push_back(Check{name, ok, detail, failure});
+  }
+  void first(FirstDifference d) {
+    if (!first_) first_ = std::move(d);
+  }
+  void diff_images(uint32_t frame, float time);
+  void diff_spill(uint32_t frame);
+  void diff_hits(uint32_t frame, float time);
+  void diff_gpu_frame(uint32_t frame, float time);
+  void write_reports(int code, double seconds);
+
+  const DiffOptions& o_;
+  Scene scene_;
+  reference::GridOptions grid_;
+  std::unique_ptr<vulkan::Context> ctx_;
+  std::unique_ptr<vulkan::VulkanGridTracer> gpu_;
+  std::unique_ptr<reference::ReferenceGridTracer> ref_;
+  std::unique_ptr<vulkan::VulkanFrame> gpu_frame_;
+  std::vector<Check> checks_;
+  std::optional<FirstDifference> first_;
+  std::vector<std::string> messages_;
+  size_t total_rays_ = 0, total_identical_ = 0, total_discrete_ = 0, total_beyond_ = 0;
+};
+
+// Grid images: sorted texel for texel; first-empty per cell as multisets.
+void DiffRun::diff_images(uint32_t frame, float time) {
+  const sh::GridParams& g = ref_->params();
+  const std::string name = "frame " + std::to_string(frame) + ": grid image";
+  if (grid_.insertion == reference::Insertion::sorted) {
+    const AccelDump want = ref_->dump();
+    AccelDump got = gpu_->dump();
+    if (o_.inject == "texel" && frame == 0) {  // the last slot of the middle cell
+      const glm::uvec3 c = sh::image_cell(g, g.cells / 2u);
+      const glm::uvec3 t = sh::slot_texel(c, g.capacity - 1u, g.capacity);
+      got.texels[(size_t(t.z) * got.extent.y + t.y) * got.extent.x + t.x] ^= 1u;
+    }
+    const reference::TexelDiff d = reference::compare_texels(want, got);
+    char line[256];
+    std::snprintf(line, sizeof line, "grid image %ux%ux%u: %zu of %zu texels differ", want.extent.x, want.extent.y,
+                  want.extent.z, d.differing.size(), d.texels);
+    std::printf("frame %u: %s\n", frame, line);
+    if (d.differing.empty()) return check(name, true, line);
+    const size_t i = d.differing.front();
+    const uint32_t tx = uint32_t(i % want.extent.x), ty = uint32_t((i / want.extent.x) % want.extent.y),
+                   tz = uint32_t(i / (size_t(want.extent.x) * want.extent.y));
+    const glm::uvec3 cell = sh::image_cell(g, glm::uvec3(tx / (g.capacity + 1), ty, tz));
+    const uint32_t slot = tx % (g.capacity + 1);
+    char f[384];
+    std::snprintf(f, sizeof f, "first: scene cell %s %s %u (texel (%u, %u, %u)): reference 0x%08x, vulkan 0x%08x",
+                  cell_text(cell).c_str(), slot == g.capacity ? "status" : "slot", slot, tx, ty, tz, want.texels[i],
+                  got.texels[i]);
+    std::printf("  %s\n", f);
+    check(name, false, line, f);
+    first(FirstDifference{.what = "texel", .frame = frame, .cell = cell, .text = f});
+    (void)time;
+    return;
+  }
+  const reference::SpillDump spill = gpu_->spill();
+  const AccelDump got = gpu_->dump();
+  const reference::CellCheck c =
+      reference::check_cells_as_multisets(ref_->data(), got, (g.flags & sh::kGridSpill) ? &spill : nullptr);
+  char line[256];
+  std::snprintf(line, sizeof line, "first-empty grid: %zu of %zu cells break the multiset rule (%zu saturated)",
+                c.bad.size(), c.cells, c.saturated);
+  std::printf("frame %u: %s\n", frame, line);
+  if (c.bad.empty()) return check(name, true, line);
+  const size_t i = c.bad.front();
+  const glm::uvec3 cell(uint32_t(i % g.cells.x), uint32_t((i / g.cells.x) % g.cells.y),
+                        uint32_t(i / (size_t(g.cells.x) * g.cells.y)));
+  const std::string f = "first: scene cell " + cell_text(cell);
+  std::printf("  %s\n", f.c_str());
+  check(name, false, line, f);
+  first(FirstDifference{.what = "cell", .frame = frame, .cell = cell, .text = f});
+}
+
+// The spill lists: the headers equal (the counter counts every dropped reference, with spill off
+// too); with spill on, sorted insertion, the entries equal as multisets of (cell, ref) (the order
+// of appends differs by design; first-empty spills another choice, checked per cell above).
+void DiffRun::diff_spill(uint32_t frame) {
+  const reference::SpillDump want = ref_->spill(), got = gpu_->spill();
+  const bool sorted = grid_.insertion == reference::Insertion::sorted;
+  const bool on = (ref_->params().flags & sh::kGridSpill) != 0u;
+  const reference::SpillDiff d = reference::compare_spill(want, got);
+  const bool same_counts = want.header.count == got.header.count &&
+                           want.header.static_count == got.header.static_count &&
+                           want.header.capacity == got.header.capacity;
+  const bool ok = same_counts && (!on || !sorted || d.same());
+  std::string line = std::string("spill list ") + (on ? "on" : "off (counted only)") + ": " +
+                     std::to_string(want.header.count) + " references found no slot (" +
+                     std::to_string(want.header.static_count) + " static); reference " +
+                     std::to_string(want.header.count) + ", vulkan " + std::to_string(got.header.count) + "; " +
+                     std::to_string(want.stored()) + " stored of " + std::to_string(want.header.capacity);
+  if (on && sorted)
+    line += d.same() ? ", entries equal as multisets of (cell, ref)"
+                     : ", entries differ: " + std::to_string(d.only_want.size()) + " only in the reference, " +
+                           std::to_string(d.only_got.size()) + " only in vulkan";
+  if (want.overflow()) line += " (OVERFLOW: references lost)";
+  std::printf("frame %u: %s\n", frame, line.c_str());
+  std::string f;
+  std::optional<glm::uvec3> cell;
+  if (!ok) {
+    const sh::GridParams& g = ref_->params();
+    const std::vector<sh::SpillEntry>& side = d.only_want.empty() ? d.only_got : d.only_want;
+    if (!side.empty()) {
+      const size_t c = side.front().cell;
+      cell = glm::uvec3(uint32_t(c % g.cells.x), uint32_t((c / g.cells.x) % g.cells.y),
+                        uint32_t(c / (size_t(g.cells.x) * g.cells.y)));
+      f = "first: scene cell " + cell_text(*cell) + " reference 0x" +
+          [](uint32_t v) { char b[16]; std::snprintf(b, sizeof b, "%08x", v); return std::string(b); }(side.front().ref) +
+          (d.only_want.empty() ? " only in vulkan" : " only in the reference");
+    } else {
+      f = "the headers differ" + (d.problem_got.empty() ? std::string() : ": vulkan: " + d.problem_got);
+    }
+    std::printf("  %s\n", f.c_str());
+    first(FirstDifference{.what = "spill", .frame = frame, .cell = cell, .text = f});
+  }
+  check("frame " + std::to_string(frame) + ": spill list", ok, line, f);
+}
+
+// Every hit: the glossy bounce off the reference's gather buffer (ray i = pixel i, unused where
+// the pixel has none) and the primary rays (ray w*h + i = pixel i).
+void DiffRun::diff_hits(uint32_t frame, float time) {
+  const uint32_t w = o_.width, h = o_.height;
+  const size_t pixels = size_t(w) * h;
+  const GatherBuffer gather = reference_gather(scene_, grid_, w, h, time);
+  std::vector<Ray> rays = bounce_rays(scene_, gather, frame);
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) rays.push_back(camera_ray(scene_.frame_camera(), w, h, x, y));
+  std::vector<Hit> want(rays.size()), got(rays.size());
+  {
+    Progress progress("frame " + std::to_string(frame) + ": reference trace", rays.size());
+    ProgressTracer traced(*ref_, progress);
+    traced.trace(rays, want);
+  }
+  gpu_->trace(rays, got);
+  if (o_.inject == "hit" && frame == 0)  // the first primary ray that hits: another triangle
+    for (size_t i = pixels; i < rays.size(); ++i)
+      if (!is_miss(got[i])) {
+        got[i].triangle ^= 1u;
+        break;
+      }
+  const reference::HitDiff d = reference::compare_hits(want, got);
+  total_rays_ += d.rays;
+  total_identical_ += d.identical;
+  total_discrete_ += d.discrete.size();
+  // Float-only differences: within the stated bounds or not.
+  size_t beyond = 0;
+  std::optional<size_t> first_beyond;
+  float max_duv = 0.0f;
+  for (size_t i : d.differing) {
+    const Hit& a = want[i];
+    const Hit& b = got[i];
+    if (a.instance != b.instance || a.triangle != b.triangle || a.flags != b.flags || a.cells != b.cells ||
+        a.tests != b.tests)
+      continue;
+    const float duv = std::max(std::abs(a.u - b.u), std::abs(a.v - b.v));
+    max_duv = std::max(max_duv, duv);
+    if (reference::ulp_distance(a.t, b.t) > o_.ulps_t || duv > o_.abs_uv) {
+      if (!first_beyond) first_beyond = i;
+      ++beyond;
+    }
+  }
+  total_beyond_ += beyond;
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "%zu rays: %zu identical in bits; %zu differ only in floats (t within %u ulps, u/v within %.3g), %zu "
+                "of them beyond the bounds (%u ulps in t, %.3g in u/v); %zu differ in the hit itself (instance, "
+                "triangle, flags, cells or tests)",
+                d.rays, d.identical, d.same_discrete - d.identical, d.max_ulps_t, double(max_duv), beyond, o_.ulps_t,
+                double(o_.abs_uv), d.discrete.size());
+  std::printf("frame %u: %s\n", frame, line);
+  const bool ok = d.discrete.empty() && beyond == 0;
+  std::string f;
+  if (!ok) {
+    const size_t i = !d.discrete.empty() ? d.discrete.front() : *first_beyond;
+    const bool bounce = i < pixels;
+    const size_t p = i % pixels;
+    const uint32_t x = uint32_t(p % w), y = uint32_t(p / w);
+    const sh::GridParams& g = ref_->params();
+    // The scene cell of the hit the reference reports (or the port's, where the reference misses)
+    const Hit& at = !is_miss(want[i]) ? want[i] : got[i];
+    std::optional<glm::uvec3> cell;
+    if (!is_miss(at) && std::isfinite(at.t)) cell = sh::cell_of_point(g, rays[i].org + at.t * rays[i].dir);
+    f = std::string("first: pixel (") + std::to_string(x) + ", " + std::to_string(y) + "), " +
+        (bounce ? "bounce" : "primary") + " ray" +
+        (cell ? ", the " + std::string(!is_miss(want[i]) ? "reference's" : "port's") + " hit in scene cell " +
+                    cell_text(*cell)
+              : std::string(", both miss")) +
+        ": " + reference::hex_ray(rays[i]) + "\n  reference " + reference::hex_hit(want[i]) + "\n  vulkan    " +
+        reference::hex_hit(got[i]);
+    FirstDifference fd{.what = "hit", .frame = frame, .cell = cell, .pixel = glm::uvec2(x, y),
+                       .ray_kind = bounce ? "bounce" : "primary", .text = f,
+                       .explain = explain_command(o_, x, y, !bounce, time)};
+    if (frame > 0 && bounce)
+      fd.explain += "   # explain draws frame 0's bounce; this is frame " + std::to_string(frame) + "'s";
+    std::printf("  %s\n  shown by: %s\n", f.c_str(), fd.explain.c_str());
+    if (!first_) {
+      const reference::ExplainRecord a = ref_->explain_ray(rays[i]);
+      const reference::ExplainRecord b = gpu_->explain_ray(rays[i]);
+      std::printf("== reference's account ==\n%s\n== shader's account ==\n%s\n", reference::to_text(a).c_str(),
+                  reference::to_text(b).c_str());
+    }
+    first(std::move(fd));
+  }
+  check("frame " + std::to_string(frame) + ": hit records", ok, line, f);
+}
+
+// The GPU frame's own passes (vulkan/frame.h): the bounce rays it makes from its own gather
+// against bounce_rays() of that gather (bits), and its trace of them against the reference's.
+void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
+  if (!gpu_frame_)
+    gpu_frame_ = std::make_unique<vulkan::VulkanFrame>(*gpu_, scene_,
+                                                       vulkan::FrameOptions{.width = o_.width, .height = o_.height});
+  vulkan::VulkanFrame& fr = *gpu_frame_;
+  fr.render(frame);
+  const uint32_t w = o_.width;
+  GatherBuffer gpu_gather = fr.download_gather();
+  gpu_gather.time = time;
+  const GatherBuffer cpu = reference_gather(scene_, grid_, o_.width, o_.height, time);
+  size_t same_launch = 0, rays_used = 0, ray_mismatch = 0, hit_mismatch = 0;
+  for (size_t p = 0; p < cpu.size(); ++p) same_launch += cpu.launch_ref[p] == gpu_gather.launch_ref[p];
+  std::string f;
+  if (fr.bounce()) {
+    const std::vector<Ray> want_rays = bounce_rays(scene_, gpu_gather, frame);
+    const std::vector<Ray> got_rays = fr.download_rays();
+    std::optional<size_t> first_ray;
+    for (size_t p = 0; p < want_rays.size(); ++p) {
+      rays_used += !is_unused(want_rays[p]);
+      if (std::memcmp(&want_rays[p], &got_rays[p], sizeof(Ray)) != 0 && ray_mismatch++ == 0) first_ray = p;
+    }
+    std::vector<Hit> want(want_rays.size());
+    ref_->trace(want_rays, want);
+    const std::vector<Hit> got = fr.download_hits();
+    const reference::HitDiff d = reference::compare_hits(want, got);
+    hit_mismatch = d.rays - d.identical;
+    if (first_ray || !d.differing.empty()) {
+      const size_t p = first_ray ? *first_ray : d.differing.front();
+      f = std::string("first: pixel (") + std::to_string(p % w) + ", " + std::to_string(p / w) + "), bounce " +
+          (first_ray ? "ray: reference " + reference::hex_ray(want_rays[p]) + "\n  vulkan    " +
+                           reference::hex_ray(got_rays[p])
+                     : "hit: " + reference::hex_ray(want_rays[p]) + "\n  reference " + reference::hex_hit(want[p]) +
+                           "\n  vulkan    " + reference::hex_hit(got[p]));
+      first(FirstDifference{.what = "gpu-frame", .frame = frame, .pixel = glm::uvec2(uint32_t(p % w), uint32_t(p / w)),
+                            .ray_kind = "bounce", .text = f});
+    }
+  }
+  const bool raster = fr.gather_mode() == vulkan::GatherMode::raster;
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "GPU frame: %s gather %zu of %zu pixels with the reference's launch triangle%s; %zu bounce rays: %zu "
+                "differ in bits from bounce_rays() of the GPU's gather, %zu frame hits differ in bits from the "
+                "reference's trace",
+                raster ? "raster" : "compute", same_launch, cpu.size(),
+                raster ? " (the rest: the rasterizer's tie rules)" : "", rays_used, ray_mismatch, hit_mismatch);
+  std::printf("frame %u: %s\n", frame, line);
+  if (!f.empty()) std::printf("  %s\n", f.c_str());
+  check("frame " + std::to_string(frame) + ": GPU frame", ray_mismatch + hit_mismatch == 0, line, f);
+}
+
+void DiffRun::write_reports(int code, double seconds) {
+  const char* verdict = code == 0 ? "agree" : code == 3 ? "differ" : "validation";
+  if (!o_.json_path.empty()) {
+    json j = {{"scene", scene_.name},
+              {"device", ctx_->info().name},
+              {"build", o_.backend_options.vk_build},
+              {"traversal", grid_.traversal == reference::Traversal::paper ? "paper" : "exact"},
+              {"insertion", grid_.insertion == reference::Insertion::sorted ? "sorted" : "first-empty"},
+              {"width", o_.width},
+              {"height", o_.height},
+              {"frames", o_.frames},
+              {"verdict", verdict},
+              {"exit_code", code},
+              {"rays", total_rays_},
+              {"identical", total_identical_},
+              {"another_hit", total_discrete_},
+              {"beyond_float_bounds", total_beyond_},
+              {"validation", o_.validation},
+              {"validation_messages", messages_},
+              {"seconds", seconds}};
+    json checks = json::array();
+    for (const Check& c : checks_)
+      checks.push_back({{"name", c.name}, {"ok", c.ok}, {"detail", c.detail}, {"failure", c.failure}});
+    j["checks"] = checks;
+    if (first_) {
+      json f = {{"what", first_->what}, {"frame", first_->frame}, {"text", first_->text}};
+      if (first_->cell) f["cell"] = {first_->cell->x, first_->cell->y, first_->cell->z};
+      if (first_->pixel) f["pixel"] = {first_->pixel->x, first_->pixel->y};
+      if (!first_->ray_kind.empty()) f["ray_kind"] = first_->ray_kind;
+      if (!first_->explain.empty()) f["explain"] = first_->explain;
+      j["first_difference"] = f;
+    } else {
+      j["first_difference"] = nullptr;
+    }
+    write_atomically(o_.json_path, j.dump(2) + "\n");
+  }
+  if (!o_.junit_path.empty()) {
+    size_t failures = 0;
+    for (const Check& c : checks_) failures += !c.ok;
+    std::ostringstream x;
+    const std::string suite = "gridrt diff " + scene_.name + " (" + o_.backend_options.vk_build + " build, " +
+                              (grid_.traversal == reference::Traversal::paper ? "paper" : "exact") + ", " +
+                              (grid_.insertion == reference::Insertion::sorted ? "sorted" : "first-empty") + ")";
+    x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n  <testsuite name=\"" << xml_escape(suite)
+      << "\" tests=\"" << checks_.size() << "\" failures=\"" << failures << "\" errors=\"0\" time=\"" << seconds
+      << "\">\n";
+    for (const Check& c : checks_) {
+      x << "    <testcase classname=\"gridrt.diff\" name=\"" << xml_escape(c.name) << "\">\n";
+      if (!c.ok)
+        x << "      <failure message=\"" << xml_escape(c.detail) << "\">" << xml_escape(c.failure) << "</failure>\n";
+      x << "      <system-out>" << xml_escape(c.detail) << "</system-out>\n    </testcase>\n";
+    }
+    x << "  </testsuite>\n</testsuites>\n";
+    write_atomically(o_.junit_path, x.str());
+  }
+}
+
+int DiffRun::run() {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!o_.json_path.empty()) check_output_path(o_.json_path);
+  if (!o_.junit_path.empty()) check_output_path(o_.junit_path);
+  check_frame_size(o_.width, o_.height);
+  DiffOptions o = o_;
+  resolve_image_limit(o.backend_options, true);
+  scene_ = load_scene_or_default(o.scene);
+  grid_ = grid_options_for(o.backend_options, scene_);
+  vulkan::ContextOptions co = vulkan::ContextOptions::from_env();
+  co.validation = o.validation != "off";
+  co.best_practices = o.validation == "best-practices";
+  co.raster_build = o.backend_options.vk_build != "compute";
+  ctx_ = std::make_unique<vulkan::Context>(co);
+  vulkan::VulkanGridOptions vk;
+  vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+  gpu_ = std::make_unique<vulkan::VulkanGridTracer>(*ctx_, grid_, vk);
+  ref_ = std::make_unique<reference::ReferenceGridTracer>(grid_);
+  std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, spill %s, Vulkan device %s (%s build), "
+              "validation %s\n",
+              scene_.name.c_str(), o.width, o.height, o.frames,
+              grid_.traversal == reference::Traversal::paper ? "paper" : "exact",
+              grid_.insertion == reference::Insertion::sorted ? "sorted" : "first-empty",
+              reference::spill_enabled(grid_) ? "on" : "off", ctx_->info().name.c_str(),
+              o.backend_options.vk_build.c_str(), o.validation.c_str());
+  for (uint32_t frame = 0; frame < o.frames; ++frame) {
+    const float time = o.time + float(frame) / o.fps;
+    if (frame == 0) {
+      ref_->build(scene_, time);
+      gpu_->build(scene_, time);
+    } else {
+      ref_->update(time);
+      gpu_->update(time);
+    }
+    diff_images(frame, time);
+    diff_spill(frame);
+    if (o.gpu_frame) diff_gpu_frame(frame, time);
+    diff_hits(frame, time);
+  }
+  // The validation layer: every message printed, any one fails the run
+  if (ctx_->validation()) {
+    messages_ = ctx_->messages();
+    for (const std::string& m : messages_) std::printf("validation: %s\n", m.c_str());
+    check("validation layer", messages_.empty(),
+          std::to_string(messages_.size()) + " message(s) from the validation layer" +
+              (o.validation == "best-practices" ? " (with best practices)" : ""),
+          messages_.empty() ? "" : messages_.front());
+  }
+  bool same = true;
+  for (const Check& c : checks_)
+    if (c.name != "validation layer") same = same && c.ok;
+  std::printf("%s: %zu of %zu hit records identical in bits, %zu with another hit, %zu beyond the float bounds, over "
+              "the frames compared; %zu validation message(s)\n",
+              same ? "AGREE" : "DIFFER", total_identical_, total_rays_, total_discrete_, total_beyond_,
+              messages_.size());
+  if (first_) {
+    std::printf("first difference: frame %u, %s%s%s\n", first_->frame, first_->what.c_str(),
+                first_->cell ? (", scene cell " + cell_text(*first_->cell)).c_str() : "",
+                first_->pixel ? (", pixel (" + std::to_string(first_->pixel->x) + ", " +
+                                 std::to_string(first_->pixel->y) + "), " + first_->ray_kind + " ray")
+                                    .c_str()
+                              : "");
+    if (!first_->explain.empty()) std::printf("  %s\n", first_->explain.c_str());
+  }
+  const int code = !messages_.empty() ? 4 : !same ? 3 : 0;
+  write_reports(code, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  return code;
+}
+
+// The grid flags given on the command line after the verb, as explain takes them (the verb's own
+// flags and the scene left out), each as typed.
+std::string given_grid_flags(const CLI::App* cmd) {
+  static const char* const kOwn[] = {"--width", "--height", "--time", "-t", "--frames", "--fps", "--ulps",
+                                     "--uv-tolerance", "--gpu-frame", "--validation", "--json", "--junit",
+                                     "--inject-difference"};
+  const std::vector<std::string>& args = command_line;
+  size_t k = 0;
+  while (k < args.size() && args[k] != "diff") ++k;
+  std::string out;
+  for (++k; k < args.size(); ++k) {
+    const std::string& a = args[k];
+    if (a.size() < 2 || a[0] != '-') continue;  // the scene
+    const std::string name = a.substr(0, a.find('='));
+    const CLI::Option* opt = cmd->get_option_no_throw(name);
+    const bool takes_value = opt && opt->get_expected_min() > 0 && a.find('=') == std::string::npos;
+    const bool own = std::find(std::begin(kOwn), std::end(kOwn), name) != std::end(kOwn);
+    if (!own) out += " " + shell_quote(a);
+    if (takes_value && k + 1 < args.size()) {
+      ++k;
+      if (!own) out += " " + shell_quote(args[k]);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+#endif
+
+void add_diff_command(CLI::App& app) {
+#ifdef GRIDRT_HAVE_VULKAN
+  auto o = std::make_shared<DiffOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "diff",
+      "Run the CPU reference and the Vulkan port on a scene: grid images and every hit, over frames, with the "
+      "validation layer on. Exit 0 agree, 1 bad input, 2 bad command line, 3 differ, 4 validation messages");
+  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  cmd->add_option("--width", o->width, "Image width of the gather buffer")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--height", o->height, "Image height of the gather buffer")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--time,-t", o->time, "Scene time in seconds");
+  add_backend_options(cmd, o->backend_options);
+  cmd->add_option("--frames", o->frames, "Animated frames to compare (the first is a build, then updates)")
+      ->check(CLI::Range(1u, 10000u));
+  cmd->add_option("--fps", o->fps, "Frames per second")->check(CLI::PositiveNumber);
+  cmd->add_option("--ulps", o->ulps_t,
+                  "Allow t of otherwise identical hits to differ by this many ulps (drivers whose division is "
+                  "not correctly rounded; default 0: bit for bit)");
+  cmd->add_option("--uv-tolerance", o->abs_uv, "Allow u and v of otherwise identical hits to differ by this much");
+  cmd->add_flag("--gpu-frame", o->gpu_frame,
+                "Also run the GPU frame's own passes (gather, bounce, trace) and compare its bounce rays "
+                "and hits, bit for bit, with the reference's from the same gather");
+  cmd->add_option("--validation", o->validation,
+                  "The Khronos validation layer (with synchronization validation): on (default; any message "
+                  "fails the run with exit 4), best-practices (also the layer's best-practices checks), off")
+      ->check(CLI::IsMember({"on", "best-practices", "off"}));
+  cmd->add_option("--inject-difference", o->inject,
+                  "For testing the reports: change one texel or one hit record of the port's before comparing")
+      ->check(CLI::IsMember({"texel", "hit"}))
+      ->group("");  // hidden
+  cmd->add_option("--json", o->json_path, "Also write the result as JSON to this file");
+  cmd->add_option("--junit", o->junit_path, "Also write the result as a JUnit XML report to this file");
+  cmd->callback([o, cmd] {
+    o->explain_flags = given_grid_flags(cmd);
+    const int code = DiffRun(*o).run();
+    if (code != 0) throw ExitStatus{code};
+  });
+#else
+  (void)app;
+#endif
+}
+
+}  // namespace gridrt::app

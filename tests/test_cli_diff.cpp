@@ -1,0 +1,147 @@
+// test_cli_diff.cpp: `gridrt diff` as CI uses it: its exit codes (0 agree, 1 bad input, 2 command
+// line, 3 differ, 4 validation messages), its --json and --junit reports, and the first difference
+// named by pixel, ray kind and scene cell with an explain command that shows it. A difference is
+// planted with the hidden --inject-difference (one texel or one hit record of the port's changed
+// before the comparison), so the report paths run without a broken port.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "tests/run_tool.h"
+#include "vulkan/context.h"
+
+using namespace gridrt::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string read_file(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+fs::path temp_dir() {
+  const fs::path d = fs::temp_directory_path() / ("gridrt-cli-diff-" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+const char* const kSmall = "builtin:cornell --width 24 --height 16 --threads 2";
+
+}  // namespace
+
+TEST_CASE("CLI: gridrt diff - exit 0 on agreement, with JSON and JUnit reports", "[vulkan][diff][cli]") {
+  const fs::path d = temp_dir();
+  const fs::path json_path = d / "agree.json", junit_path = d / "agree.xml";
+  // An existing report is replaced by a complete new one
+  std::ofstream(json_path) << "old";
+  const Run r = run_tool(std::string("diff ") + kSmall + " --frames 2 --json " + json_path.string() + " --junit " +
+                         junit_path.string());
+  INFO(r.output);
+  CHECK(r.exit_code == 0);
+  CHECK(r.output.find("AGREE") != std::string::npos);
+  CHECK(r.output.find("0 validation message(s)") != std::string::npos);
+  const nlohmann::json j = nlohmann::json::parse(read_file(json_path));
+  CHECK(j["verdict"] == "agree");
+  CHECK(j["exit_code"] == 0);
+  CHECK(j["validation"] == "on");
+  CHECK(j["validation_messages"].empty());
+  CHECK(j["first_difference"].is_null());
+  CHECK(j["rays"].get<size_t>() == 2u * 2u * 24u * 16u);  // two frames of bounce and primary rays
+  CHECK(j["identical"] == j["rays"]);
+  size_t checks = 0;
+  for (const auto& c : j["checks"]) checks += c["ok"].get<bool>();
+  CHECK(checks == j["checks"].size());
+  CHECK(checks == 7);  // per frame: image, spill list, hits; the validation layer
+  const std::string x = read_file(junit_path);
+  CHECK(x.rfind("<?xml", 0) == 0);
+  CHECK(x.find("tests=\"7\" failures=\"0\"") != std::string::npos);
+  CHECK(x.find("<failure") == std::string::npos);
+  CHECK(x.find("name=\"frame 1: grid image\"") != std::string::npos);
+  CHECK(!fs::exists(json_path.string() + ".tmp"));
+  fs::remove_all(d);
+}
+
+TEST_CASE("CLI: gridrt diff - a differing texel and hit exit 3, named by scene cell, pixel and ray kind",
+          "[vulkan][diff][cli]") {
+  const fs::path d = temp_dir();
+  {
+    const fs::path json_path = d / "texel.json", junit_path = d / "texel.xml";
+    const Run r = run_tool(std::string("diff ") + kSmall + " --frames 1 --inject-difference texel --json " + json_path.string() +
+                           " --junit " + junit_path.string());
+    INFO(r.output);
+    CHECK(r.exit_code == 3);
+    CHECK(r.output.find("DIFFER") != std::string::npos);
+    const nlohmann::json j = nlohmann::json::parse(read_file(json_path));
+    CHECK(j["verdict"] == "differ");
+    CHECK(j["first_difference"]["what"] == "texel");
+    // The planted texel is the last slot of the middle cell, named in scene axes
+    const auto& cell = j["first_difference"]["cell"];
+    REQUIRE(cell.size() == 3);
+    CHECK(r.output.find("scene cell (" + std::to_string(cell[0].get<int>()) + ", " + std::to_string(cell[1].get<int>()) +
+                        ", " + std::to_string(cell[2].get<int>()) + ")") != std::string::npos);
+    const std::string x = read_file(junit_path);
+    CHECK(x.find("failures=\"1\"") != std::string::npos);
+    CHECK(x.find("<failure message=\"grid image") != std::string::npos);
+  }
+  {
+    const fs::path json_path = d / "hit.json";
+    const Run r = run_tool(std::string("diff ") + kSmall + " --frames 1 --traversal exact --inject-difference hit --json " +
+                           json_path.string());
+    INFO(r.output);
+    CHECK(r.exit_code == 3);
+    const nlohmann::json j = nlohmann::json::parse(read_file(json_path));
+    const auto& f = j["first_difference"];
+    CHECK(f["what"] == "hit");
+    CHECK(f["ray_kind"] == "primary");
+    REQUIRE(f["pixel"].size() == 2);
+    REQUIRE(f["cell"].size() == 3);
+    // The explain command repeats the grid flags and names the pixel; it runs and shows the ray
+    const std::string cmd = f["explain"];
+    const std::string pixel = std::to_string(f["pixel"][0].get<int>()) + "," + std::to_string(f["pixel"][1].get<int>());
+    CHECK(cmd.find("gridrt explain builtin:cornell --pixel " + pixel + " --width 24 --height 16") == 0);
+    CHECK(cmd.find("--traversal exact") != std::string::npos);
+    CHECK(cmd.find("--primary") != std::string::npos);
+    CHECK(cmd.find("--inject") == std::string::npos);
+    const Run e = run_tool(cmd.substr(std::string("gridrt ").size()));
+    INFO(e.output);
+    CHECK(e.exit_code == 0);
+    CHECK(e.output.find("pixel " + pixel) != std::string::npos);
+    CHECK(e.output.find("the primary ray") != std::string::npos);
+  }
+  fs::remove_all(d);
+}
+
+TEST_CASE("CLI: gridrt diff - validation messages exit 4, bad input 1, bad command line 2", "[vulkan][diff][cli]") {
+  const fs::path d = temp_dir();
+  const fs::path json_path = d / "bp.json";
+  // The layer's best-practices checks report lavapipe's small allocations (performance warnings):
+  // every message is printed and the run fails with 4, although the images and hits agree
+  const Run r = run_tool(std::string("diff ") + kSmall + " --frames 1 --validation best-practices --json " + json_path.string());
+  INFO(r.output);
+  CHECK(r.exit_code == 4);
+  CHECK(r.output.find("validation: ") != std::string::npos);
+  CHECK(r.output.find("AGREE") != std::string::npos);
+  const nlohmann::json j = nlohmann::json::parse(read_file(json_path));
+  CHECK(j["verdict"] == "validation");
+  CHECK(!j["validation_messages"].empty());
+  // Bad input: no such scene (1), and no report written
+  const fs::path none = d / "none.json";
+  const Run missing = run_tool("diff " + (d / "no-such-scene.obj").string() + " --json " + none.string());
+  INFO(missing.output);
+  CHECK(missing.exit_code == 1);
+  CHECK(missing.output.find("no such file") != std::string::npos);
+  CHECK(!fs::exists(none));
+  // A report into a folder that does not exist: bad input before any work
+  CHECK(run_tool(std::string("diff ") + kSmall + " --frames 1 --json " + (d / "no" / "such" / "x.json").string()).exit_code == 1);
+  // Command line: an unknown flag, a bad value
+  CHECK(run_tool("diff builtin:cornell --bogus").exit_code == 2);
+  CHECK(run_tool("diff builtin:cornell --validation loud").exit_code == 2);
+  fs::remove_all(d);
+}
