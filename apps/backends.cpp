@@ -194,4 +194,13 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
   throw Error("unknown backend '" + name + "' (this build has: " + backend_list() + ")");
 }
 
+void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
+  const std::map<std::string, ShadowMode> names{
+      {"on", ShadowMode::on}, {"off", ShadowMode::off}, {"auto", ShadowMode::automatic}};
+  cmd->add_option("--shadows", mode,
+                  "Shadow rays from the gather to each light (at most 8 lights): on, off, or auto = on iff the scene "
+                  "has lights (default: auto)")
+      ->transform(CLI::CheckedTransformer(names, CLI::ignore_case));
+}
+
 }  // namespace gridrt::app

@@ -278,7 +278,34 @@ struct DiffOptions : GridVerbOptions {
 // against the reference's trace of the same rays (bits). Returns the records that differ.
 struct FrameDiff {
   size_t pixels = 0, same_launch = 0, rays_used = 0, ray_mismatch = 0, hit_mismatch = 0;
+  // The shadow pass (a scene with lights): shadow_rays() of the GPU's gather against the frame's
+  // (bits), and the reference's trace of them against the frame's shadow hits (bits)
+  size_t shadow_rays = 0, shadow_used = 0, shadow_ray_mismatch = 0, shadow_hit_mismatch = 0;
 };
+
+// Rays and hits of one kind against the reference's: counts what differs in bits, prints the first.
+void diff_rays_and_hits(const char* kind, const std::vector<Ray>& want_rays, const std::vector<Ray>& got_rays,
+                        reference::ReferenceGridTracer& ref, const std::vector<Hit>& got, size_t& used,
+                        size_t& ray_mismatch, size_t& hit_mismatch) {
+  for (size_t p = 0; p < want_rays.size(); ++p) {
+    const Ray& a = want_rays[p];
+    const Ray& b = got_rays[p];
+    used += !is_unused(a);
+    if (std::memcmp(&a, &b, sizeof a) != 0 && ++ray_mismatch == 1)
+      std::printf("  first %s ray that differs: index %zu: reference %s\n  vulkan    %s\n", kind, p,
+                  reference::hex_ray(a).c_str(), reference::hex_ray(b).c_str());
+  }
+  std::vector<Hit> want(want_rays.size());
+  ref.trace(want_rays, want);
+  const reference::HitDiff d = reference::compare_hits(want, got);
+  hit_mismatch = d.rays - d.identical;
+  if (!d.differing.empty()) {
+    const size_t i = d.differing.front();
+    std::printf("  first %s hit that differs: index %zu: %s\n  reference %s\n  vulkan    %s\n", kind, i,
+                reference::hex_ray(want_rays[i]).c_str(), reference::hex_hit(want[i]).c_str(),
+                reference::hex_hit(got[i]).c_str());
+  }
+}
 FrameDiff diff_gpu_frame(const Scene& scene, const reference::GridOptions& grid, reference::ReferenceGridTracer& ref,
                          vulkan::VulkanFrame& frame, uint32_t frame_number, float time) {
   FrameDiff r;
@@ -289,28 +316,15 @@ FrameDiff diff_gpu_frame(const Scene& scene, const reference::GridOptions& grid,
   const GatherBuffer cpu = reference_gather(scene, grid, w, h, time);
   r.pixels = cpu.size();
   for (size_t p = 0; p < cpu.size(); ++p) r.same_launch += cpu.launch_ref[p] == gpu.launch_ref[p];
-  const std::vector<Ray> want_rays = bounce_rays(scene, gpu, frame_number);
+  if (frame.shadows()) {
+    const std::vector<Ray> want = shadow_rays(scene, gpu);
+    r.shadow_rays = want.size();
+    diff_rays_and_hits("shadow", want, frame.download_shadow_rays(), ref, frame.download_shadow_hits(), r.shadow_used,
+                       r.shadow_ray_mismatch, r.shadow_hit_mismatch);
+  }
   if (!frame.bounce()) return r;  // no glossy material: the bounce is specialized away
-  const std::vector<Ray> got_rays = frame.download_rays();
-  for (size_t p = 0; p < want_rays.size(); ++p) {
-    const Ray& a = want_rays[p];
-    const Ray& b = got_rays[p];
-    r.rays_used += !is_unused(a);
-    if (std::memcmp(&a, &b, sizeof a) != 0 && ++r.ray_mismatch == 1)
-      std::printf("  first bounce ray that differs: pixel %zu: reference %s\n  vulkan    %s\n", p,
-                  reference::hex_ray(a).c_str(), reference::hex_ray(b).c_str());
-  }
-  std::vector<Hit> want(want_rays.size());
-  ref.trace(want_rays, want);
-  const std::vector<Hit> got = frame.download_hits();
-  const reference::HitDiff d = reference::compare_hits(want, got);
-  r.hit_mismatch = d.rays - d.identical;
-  if (!d.differing.empty()) {
-    const size_t i = d.differing.front();
-    std::printf("  first frame hit that differs: pixel %zu: %s\n  reference %s\n  vulkan    %s\n", i,
-                reference::hex_ray(want_rays[i]).c_str(), reference::hex_hit(want[i]).c_str(),
-                reference::hex_hit(got[i]).c_str());
-  }
+  diff_rays_and_hits("bounce", bounce_rays(scene, gpu, frame_number), frame.download_rays(), ref, frame.download_hits(),
+                     r.rays_used, r.ray_mismatch, r.hit_mismatch);
   return r;
 }
 
@@ -416,7 +430,14 @@ void run_diff(const DiffOptions& options) {
                   "the reference's trace\n",
                   frame, raster ? "raster" : "compute", f.same_launch, f.pixels,
                   raster ? " (the rest: the rasterizer's tie rules)" : "", f.rays_used, f.ray_mismatch, f.hit_mismatch);
-      frame_mismatch += f.ray_mismatch + f.hit_mismatch;
+      if (gpu_frame->shadows())
+        std::printf("frame %u: GPU frame: %zu shadow rays (%zu light(s), %zu used): %zu differ in bits from shadow_rays() "
+                    "of the GPU's gather, %zu shadow hits differ in bits from the reference's trace\n",
+                    frame, f.shadow_rays, scene.lights.size(), f.shadow_used, f.shadow_ray_mismatch, f.shadow_hit_mismatch);
+      else
+        std::printf("frame %u: GPU frame: no shadow pass (%s)\n", frame,
+                    scene.lights.empty() ? "the scene has no lights" : "--shadows off");
+      frame_mismatch += f.ray_mismatch + f.hit_mismatch + f.shadow_ray_mismatch + f.shadow_hit_mismatch;
     }
 
     // Every hit: the primary rays and the glossy bounce off the reference's gather buffer.
