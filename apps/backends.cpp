@@ -195,12 +195,14 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
 }
 
 void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
-  const std::map<std::string, ShadowMode> names{
-      {"on", ShadowMode::on}, {"off", ShadowMode::off}, {"auto", ShadowMode::automatic}};
-  cmd->add_option("--shadows", mode,
-                  "Shadow rays from the gather to each light (at most 8 lights): on, off, or auto = on iff the scene "
-                  "has lights (default: auto)")
-      ->transform(CLI::CheckedTransformer(names, CLI::ignore_case));
+  cmd->add_option_function<std::string>(
+         "--shadows",
+         [&mode](const std::string& v) {
+           mode = v == "on" ? ShadowMode::on : v == "off" ? ShadowMode::off : ShadowMode::automatic;
+         },
+         "Shadow rays from the gather to each light (at most 8 lights): on, off, or auto = on iff the scene has "
+         "lights (default: auto)")
+      ->check(CLI::IsMember({"on", "off", "auto"}));
 }
 
 }  // namespace gridrt::app

@@ -446,8 +446,10 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const shared::GridParams& gp = vk->params();
   const glm::uvec3 ext = shared::grid_image_extent(gp);
   const double grid_mib = double(ext.x) * ext.y * ext.z * 4.0 / (1 << 20);
-  const double frame_mib = double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + sizeof(Ray) + sizeof(Hit) + 4) /
-                           (1 << 20);
+  const size_t frame_rays = 1 + (frame.shadows() ? scene.lights.size() : 0);  // bounce, then shadow rays
+  const double frame_mib =
+      double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + frame_rays * (sizeof(Ray) + sizeof(Hit)) + 4) /
+      (1 << 20);
   const std::string device = vk->context().info().name;
   const std::string clock = stamps ? "gpu timestamps" : "host (submit to fence; the frame's phases not split)";
   const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute" : "raster";
@@ -462,12 +464,16 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
               grid_mib, frame_mib);
-  if (frame.shadows())
-    std::printf("shadow pass: %zu shadow rays per frame (%zu lights x %ux%u), rays %.3f + trace %.3f = %.3f ms "
-                "(in the frame above, between trace and shade)%s\n\n",
+  if (frame.shadows() && stamps)
+    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u): rays %.3f + trace %.3f = %.3f ms (in "
+                "the frame above, between trace and shade)%s\n\n",
                 scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height,
                 m["shadow"] - m["shadow_trace"], m["shadow_trace"], m["shadow"],
                 t.count("b2b_shadow") ? (", back to back " + std::to_string(m["b2b_shadow"]) + " ms").c_str() : "");
+  else if (frame.shadows())
+    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u), in the frame above (host clock: not "
+                "split; --shadows off gives the frame without it)\n\n",
+                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height);
   else
     std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
   std::printf("%s (after the last frame's update)\n\n", spill_text(spill, spill_flags).c_str());
@@ -587,6 +593,7 @@ void run_bench(const BenchOptions& options) {
     std::printf("\n| backend | device | clock | build ms | update ms (median) | trace ms (median) | Mrays/s | grid MiB |\n"
                 "|---|---|---|---|---|---|---|---|\n");
   std::vector<std::string> notes;  // printed under the table
+  std::vector<std::string> shadow_notes;
   for (const std::string& name : backends) {
 #ifdef GRIDRT_HAVE_VULKAN
     if (name == "vulkan") {
@@ -670,10 +677,12 @@ void run_bench(const BenchOptions& options) {
                 times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
     const bool grid = !dump.texels.empty();
     if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
-    if (!shadow.empty())
-      notes.push_back(name + ": shadow rays " + std::to_string(shadow.size()) + " per frame (" +
-                      std::to_string(scene.lights.size()) + " lights), their trace " + std::to_string(median(shadow_ms)) +
-                      " ms (median; not in the table's trace)");
+    if (!shadow.empty()) {
+      char line[256];
+      std::snprintf(line, sizeof line, "%s: shadow pass: %zu shadow rays per frame (%zu light(s)), their trace %.3f ms "
+                    "(median; not in the table's trace)", name.c_str(), shadow.size(), scene.lights.size(), median(shadow_ms));
+      shadow_notes.push_back(line);
+    }
     std::fflush(stdout);
     out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
                              {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
@@ -684,6 +693,7 @@ void run_bench(const BenchOptions& options) {
   }
   if (!notes.empty()) std::printf("\n");
   for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
+  for (const std::string& n : shadow_notes) std::printf("%s\n", n.c_str());
   if (!o.json.empty()) {
     std::ofstream f(o.json);
     if (!f) throw Error("cannot write '" + o.json + "'");

@@ -571,8 +571,8 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     timings_.gather_ms = (ns[3] - ns[0]) * 1e-6;
     timings_.bounce_ms = (ns[4] - ns[3]) * 1e-6;
     timings_.trace_ms = (ns[5] - ns[4]) * 1e-6;
-    timings_.shadow_ms = (ns[7] - ns[5]) * 1e-6;
-    timings_.shadow_trace_ms = (ns[7] - ns[6]) * 1e-6;
+    timings_.shadow_ms = shadows_ ? (ns[7] - ns[5]) * 1e-6 : 0.0;
+    timings_.shadow_trace_ms = shadows_ ? (ns[7] - ns[6]) * 1e-6 : 0.0;
     timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;
     timings_.total_ms = (ns[8] - ns[0]) * 1e-6;
   }
