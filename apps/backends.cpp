@@ -240,4 +240,15 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
   throw Error("unknown backend '" + name + "' (this build has: " + backend_list() + ")");
 }
 
+void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
+  cmd->add_option_function<std::string>(
+         "--shadows",
+         [&mode](const std::string& v) {
+           mode = v == "on" ? ShadowMode::on : v == "off" ? ShadowMode::off : ShadowMode::automatic;
+         },
+         "Shadow rays from the gather to each light (at most 8 lights): on, off, or auto = on iff the scene has "
+         "lights (default: auto)")
+      ->check(CLI::IsMember({"on", "off", "auto"}));
+}
+
 }  // namespace gridrt::app

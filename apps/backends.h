@@ -10,6 +10,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "common/gather.h"
 #include "common/progress.h"
 #include "common/tracer.h"
 #include "reference/grid.h"
@@ -74,5 +75,8 @@ class ProgressTracer : public Tracer {
   Tracer& inner_;
   Progress& progress_;
 };
+
+// --shadows on|off|auto (auto: on iff the scene has lights; shadows_for, common/gather.h).
+void add_shadows_option(CLI::App* cmd, ShadowMode& mode);
 
 }  // namespace gridrt::app

@@ -46,6 +46,7 @@ struct BenchOptions {
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
+  ShadowMode shadows = ShadowMode::automatic;  // shadow rays to the lights (auto: iff the scene has some)
   uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
   float fps = 30.0f;
   bool rtx = false;          // vulkan: the device's ray tracing pipeline side by side
@@ -249,6 +250,7 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
       t["b2b_bounce"].push_back(bb.bounce_ms);
       t["b2b_trace"].push_back(bb.trace_ms);
       t["b2b_shade"].push_back(bb.shade_ms);
+      t["b2b_shadow"].push_back(bb.shadow_ms);
       t["b2b_frame"].push_back((moves ? g.update_ms : 0.0) + bb.total_ms);
     }
     const double update = moves ? (stamps ? g.update_ms : update_host) : 0.0;
@@ -264,6 +266,8 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
     t["bounce"].push_back(stamps ? ft.bounce_ms : 0.0);
     t["trace"].push_back(stamps ? ft.trace_ms : 0.0);
     t["shade"].push_back(stamps ? ft.shade_ms : 0.0);
+    t["shadow"].push_back(stamps ? ft.shadow_ms : 0.0);
+    t["shadow_trace"].push_back(stamps ? ft.shadow_trace_ms : 0.0);
     t["frame"].push_back(update + (stamps ? ft.total_ms : ft.host_ms));
   }
   return run;
@@ -393,6 +397,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   vulkan::FrameOptions fo{.width = o.width, .height = o.height};
   fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
   fo.compact_rays = o.compact_rays;
+  fo.shadows = shadows_for(o.shadows, scene);
   vulkan::VulkanFrame frame(*vk, scene, fo);
   // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
   std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
@@ -442,8 +447,10 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const shared::GridParams& gp = vk->params();
   const glm::uvec3 ext = shared::grid_image_extent(gp);
   const double grid_mib = double(ext.x) * ext.y * ext.z * 4.0 / (1 << 20);
-  const double frame_mib = double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + sizeof(Ray) + sizeof(Hit) + 4) /
-                           (1 << 20);
+  const size_t frame_rays = 1 + (frame.shadows() ? scene.lights.size() : 0);  // bounce, then shadow rays
+  const double frame_mib =
+      double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + frame_rays * (sizeof(Ray) + sizeof(Hit)) + 4) /
+      (1 << 20);
   const std::string device = vk->context().info().name;
   const std::string clock = stamps ? "gpu timestamps" : "host (submit to fence; the frame's phases not split)";
   const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute" : "raster";
@@ -458,6 +465,18 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
               grid_mib, frame_mib);
+  if (frame.shadows() && stamps)
+    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u): rays %.3f + trace %.3f = %.3f ms (in "
+                "the frame above, between trace and shade)%s\n\n",
+                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height,
+                m["shadow"] - m["shadow_trace"], m["shadow_trace"], m["shadow"],
+                t.count("b2b_shadow") ? (", back to back " + std::to_string(m["b2b_shadow"]) + " ms").c_str() : "");
+  else if (frame.shadows())
+    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u), in the frame above (host clock: not "
+                "split; --shadows off gives the frame without it)\n\n",
+                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height);
+  else
+    std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
   std::printf("%s (after the last frame's update)\n\n", spill_text(spill, spill_flags).c_str());
   std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
               "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, dynamic instances "
@@ -492,6 +511,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   j["gather_mode"] = gather_name;
   j["gather_tiles_frame0"] = gather_tiles;
   j["compact_rays"] = o.compact_rays;
+  j["shadows"] = frame.shadows();
+  j["shadow_rays_per_frame"] = frame.shadows() ? scene.lights.size() * o.width * o.height : 0;
   for (auto& [k, v] : t) {
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
@@ -547,15 +568,20 @@ void run_bench(const BenchOptions& options) {
     const std::vector<Ray> r = bounce_rays(scene, gather, 0);
     bounce_count = size_t(std::count_if(r.begin(), r.end(), [](const Ray& ray) { return !is_unused(ray); }));
   }
+  // The gather's shadow rays (the same each frame), traced after the bounce as their own phase
+  const bool shadows = shadows_for(o.shadows, scene);
+  std::vector<Ray> shadow;
+  if (cpu_rays && shadows) shadow = shadow_rays(scene, gather);
+  else if (shadows) check_shadow_lights(scene);
   const Features features = Features::for_scene(scene);
   std::printf("bench: %s, %llu triangles, %zu instances (%zu dynamic), %ux%u, %s glossy bounce rays per frame, "
               "%u frames after %u warm-up\n",
               scene.name.c_str(), (unsigned long long)scene.triangle_count(), scene.instances.size(),
               scene.instances.size() - scene.static_instance_count(), o.width, o.height,
               cpu_rays ? std::to_string(bounce_count).c_str() : "(GPU gather)", o.frames, o.warmup);
-  std::printf("machine: %u hardware threads; effects the scene calls for: alpha keying %s, update %s, glossy %s\n",
+  std::printf("machine: %u hardware threads; effects the scene calls for: alpha keying %s, update %s, glossy %s, shadows %s\n",
               std::thread::hardware_concurrency(), features.alpha_keying ? "yes" : "no", features.update ? "yes" : "no",
-              features.glossy ? "yes" : "no");
+              features.glossy ? "yes" : "no", features.shadows ? "yes" : "no");
 
   nlohmann::json out;
   out["scene"] = scene.name;
@@ -567,6 +593,7 @@ void run_bench(const BenchOptions& options) {
     std::printf("\n| backend | device | clock | build ms | update ms (median) | trace ms (median) | Mrays/s | grid MiB |\n"
                 "|---|---|---|---|---|---|---|---|\n");
   std::vector<std::string> notes;  // printed under the table
+  std::vector<std::string> shadow_notes;
   for (const std::string& name : backends) {
 #ifdef GRIDRT_HAVE_VULKAN
     if (name == "vulkan") {
@@ -597,7 +624,8 @@ void run_bench(const BenchOptions& options) {
     const AccelDump dump = tracer->dump();
     if (!dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
 
-    std::vector<Hit> hits;
+    std::vector<Hit> hits, shadow_hits(shadow.size());
+    std::vector<double> shadow_ms;
     for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
       const float time = float(f + 1) / o.fps;
       const std::vector<Ray> rays = bounce_rays(scene, gather, f);
@@ -617,9 +645,19 @@ void run_bench(const BenchOptions& options) {
         trace_ms = vk->timings().trace_host_ms;
       }
 #endif
+      double shadow_trace_ms = 0.0;
+      if (!shadow.empty()) {
+        t0 = std::chrono::steady_clock::now();
+        tracer->trace(shadow, shadow_hits);
+        shadow_trace_ms = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+        if (vk) shadow_trace_ms = times.clock == "gpu timestamps" ? vk->timings().trace_ms : vk->timings().trace_host_ms;
+#endif
+      }
       if (f < o.warmup) continue;
       times.update.push_back(update_ms);
       times.trace.push_back(trace_ms);
+      shadow_ms.push_back(shadow_trace_ms);
     }
     shared::SpillHeader spill{};
     uint32_t spill_flags = 0;
@@ -639,15 +677,23 @@ void run_bench(const BenchOptions& options) {
                 times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
     const bool grid = !dump.texels.empty();
     if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
+    if (!shadow.empty()) {
+      char line[256];
+      std::snprintf(line, sizeof line, "%s: shadow pass: %zu shadow rays per frame (%zu light(s)), their trace %.3f ms "
+                    "(median; not in the table's trace)", name.c_str(), shadow.size(), scene.lights.size(), median(shadow_ms));
+      shadow_notes.push_back(line);
+    }
     std::fflush(stdout);
     out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
                              {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
                              {"grid_mib", grid_mib},    {"update_ms_all", times.update},
-                             {"trace_ms_all", times.trace}};
+                             {"trace_ms_all", times.trace}, {"shadow_rays", shadow.size()},
+                             {"shadow_trace_ms", median(shadow_ms)}, {"shadow_trace_ms_all", shadow_ms}};
     if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
   }
   if (!notes.empty()) std::printf("\n");
   for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
+  for (const std::string& n : shadow_notes) std::printf("%s\n", n.c_str());
   if (!o.json.empty()) write_file_atomically(o.json, "JSON report", out.dump(2) + "\n");
 }
 
@@ -691,6 +737,7 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--counter-frames", o->counter_frames,
                   "Vulkan: timed frames whose hit records are read back for the trace's counters")
       ->check(CLI::Range(0u, 1000u));
+  add_shadows_option(cmd, o->shadows);
   cmd->add_option("--json", o->json, "Also write the figures as JSON to this file");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_bench(*o); });

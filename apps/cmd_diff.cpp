@@ -356,7 +356,8 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
 }
 
 // The GPU frame's own passes (vulkan/frame.h): the bounce rays it makes from its own gather
-// against bounce_rays() of that gather (bits), and its trace of them against the reference's.
+// against bounce_rays() of that gather (bits), its shadow rays (a scene with lights) against
+// shadow_rays() of that gather (bits), and its trace of each against the reference's.
 void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   if (!gpu_frame_)
     gpu_frame_ = std::make_unique<vulkan::VulkanFrame>(*gpu_, scene_,
@@ -364,47 +365,67 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   vulkan::VulkanFrame& fr = *gpu_frame_;
   fr.render(frame);
   const uint32_t w = o_.width;
+  const size_t pixels = size_t(o_.width) * o_.height;
   GatherBuffer gpu_gather = fr.download_gather();
   gpu_gather.time = time;
   const GatherBuffer cpu = reference_gather(scene_, grid_, o_.width, o_.height, time);
-  size_t same_launch = 0, rays_used = 0, ray_mismatch = 0, hit_mismatch = 0;
+  size_t same_launch = 0;
   for (size_t p = 0; p < cpu.size(); ++p) same_launch += cpu.launch_ref[p] == gpu_gather.launch_ref[p];
   std::string f;
-  if (fr.bounce()) {
-    const std::vector<Ray> want_rays = bounce_rays(scene_, gpu_gather, frame);
-    const std::vector<Ray> got_rays = fr.download_rays();
+  // One kind of the frame's rays (index % pixels = the pixel) and their hits against the reference's.
+  struct Count {
+    size_t used = 0, ray_mismatch = 0, hit_mismatch = 0;
+  };
+  auto compare = [&](const char* kind, const std::vector<Ray>& want_rays, const std::vector<Ray>& got_rays,
+                     const std::vector<Hit>& got) {
+    Count c;
     std::optional<size_t> first_ray;
     for (size_t p = 0; p < want_rays.size(); ++p) {
-      rays_used += !is_unused(want_rays[p]);
-      if (std::memcmp(&want_rays[p], &got_rays[p], sizeof(Ray)) != 0 && ray_mismatch++ == 0) first_ray = p;
+      c.used += !is_unused(want_rays[p]);
+      if (std::memcmp(&want_rays[p], &got_rays[p], sizeof(Ray)) != 0 && c.ray_mismatch++ == 0) first_ray = p;
     }
     std::vector<Hit> want(want_rays.size());
     ref_->trace(want_rays, want);
-    const std::vector<Hit> got = fr.download_hits();
     const reference::HitDiff d = reference::compare_hits(want, got);
-    hit_mismatch = d.rays - d.identical;
-    if (first_ray || !d.differing.empty()) {
-      const size_t p = first_ray ? *first_ray : d.differing.front();
-      f = std::string("first: pixel (") + std::to_string(p % w) + ", " + std::to_string(p / w) + "), bounce " +
-          (first_ray ? "ray: reference " + reference::hex_ray(want_rays[p]) + "\n  vulkan    " +
-                           reference::hex_ray(got_rays[p])
-                     : "hit: " + reference::hex_ray(want_rays[p]) + "\n  reference " + reference::hex_hit(want[p]) +
-                           "\n  vulkan    " + reference::hex_hit(got[p]));
+    c.hit_mismatch = d.rays - d.identical;
+    if (f.empty() && (first_ray || !d.differing.empty())) {
+      const size_t i = first_ray ? *first_ray : d.differing.front();
+      const size_t p = i % pixels;
+      f = std::string("first: pixel (") + std::to_string(p % w) + ", " + std::to_string(p / w) + "), " + kind + " " +
+          (first_ray ? "ray: reference " + reference::hex_ray(want_rays[i]) + "\n  vulkan    " +
+                           reference::hex_ray(got_rays[i])
+                     : "hit: " + reference::hex_ray(want_rays[i]) + "\n  reference " + reference::hex_hit(want[i]) +
+                           "\n  vulkan    " + reference::hex_hit(got[i]));
       first(FirstDifference{.what = "gpu-frame", .frame = frame, .pixel = glm::uvec2(uint32_t(p % w), uint32_t(p / w)),
-                            .ray_kind = "bounce", .text = f});
+                            .ray_kind = kind, .text = f});
     }
-  }
+    return c;
+  };
+  Count bounce, shadow;
+  if (fr.bounce())
+    bounce = compare("bounce", bounce_rays(scene_, gpu_gather, frame), fr.download_rays(), fr.download_hits());
+  if (fr.shadows())
+    shadow = compare("shadow", shadow_rays(scene_, gpu_gather), fr.download_shadow_rays(), fr.download_shadow_hits());
   const bool raster = fr.gather_mode() == vulkan::GatherMode::raster;
-  char line[512];
+  char line[768];
   std::snprintf(line, sizeof line,
                 "GPU frame: %s gather %zu of %zu pixels with the reference's launch triangle%s; %zu bounce rays: %zu "
                 "differ in bits from bounce_rays() of the GPU's gather, %zu frame hits differ in bits from the "
-                "reference's trace",
+                "reference's trace; %s",
                 raster ? "raster" : "compute", same_launch, cpu.size(),
-                raster ? " (the rest: the rasterizer's tie rules)" : "", rays_used, ray_mismatch, hit_mismatch);
+                raster ? " (the rest: the rasterizer's tie rules)" : "", bounce.used, bounce.ray_mismatch,
+                bounce.hit_mismatch,
+                fr.shadows() ? (std::to_string(shadow.used) + " shadow rays (" + std::to_string(scene_.lights.size()) +
+                                " light(s)): " + std::to_string(shadow.ray_mismatch) +
+                                " differ in bits from shadow_rays(), " + std::to_string(shadow.hit_mismatch) +
+                                " shadow hits differ in bits")
+                                   .c_str()
+                             : (scene_.lights.empty() ? "no shadow pass (the scene has no lights)"
+                                                      : "no shadow pass (--shadows off)"));
   std::printf("frame %u: %s\n", frame, line);
   if (!f.empty()) std::printf("  %s\n", f.c_str());
-  check("frame " + std::to_string(frame) + ": GPU frame", ray_mismatch + hit_mismatch == 0, line, f);
+  check("frame " + std::to_string(frame) + ": GPU frame",
+        bounce.ray_mismatch + bounce.hit_mismatch + shadow.ray_mismatch + shadow.hit_mismatch == 0, line, f);
 }
 
 void DiffRun::write_reports(int code, double seconds) {

@@ -26,7 +26,7 @@ struct RenderOptions {
   float time = 0.0f;
   uint32_t frames = 1;
   float fps = 30.0f;
-  bool shadows = false;
+  ShadowMode shadows = ShadowMode::automatic;  // auto: on iff the scene has lights
   bool no_bounce = false;
   std::string view = "shaded";
   std::string rays = "bounce";
@@ -84,6 +84,8 @@ void run_render(const RenderOptions& options) {
   check_image_extension(o.output);
   const Scene scene = load_scene_or_default(o.scene);
   const std::string backend = o.backend.empty() ? backend_names().front() : o.backend;
+  const bool shadows = shadows_for(o.shadows, scene);
+  if (shadows) check_shadow_lights(scene);
   std::unique_ptr<Tracer> tracer = make_backend(backend, o.backend_options, scene);
   // The paper rasterizes its gather buffer: primary visibility is exact, only the bounce goes
   // through the paper's segments (and may meet gap-fill voxels). A grid backend in paper mode
@@ -103,9 +105,9 @@ void run_render(const RenderOptions& options) {
                seconds_since(t0));
 #ifdef GRIDRT_HAVE_VULKAN
   // The Vulkan grid renders the whole frame on the GPU (vulkan/frame.h): raster gather, bounce,
-  // trace and shade, read back once as RGBA8. Shadow rays are the CPU path's only.
-  if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get()); vk && !o.shadows) {
-    vulkan::VulkanFrame gpu_frame(*vk, scene, {.width = o.width, .height = o.height, .bounce = !o.no_bounce});
+  // trace, shadow rays and shade, read back once as RGBA8.
+  if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get())) {
+    vulkan::VulkanFrame gpu_frame(*vk, scene, {.width = o.width, .height = o.height, .bounce = !o.no_bounce, .shadows = shadows});
     for (uint32_t frame = 0; frame < o.frames; ++frame) {
       const float time = o.time + float(frame) / o.fps;
       if (frame > 0) vk->update(time);
@@ -114,9 +116,9 @@ void run_render(const RenderOptions& options) {
       const std::string path = frame_path(o.output, frame, o.frames);
       write_image_rgba8(path, o.width, o.height, gpu_frame.download_rgba());
       std::fprintf(stderr, "%s: frame %u (t = %.3f s) rendered on the GPU in %.2f s (device: gather %.3f, bounce %.3f, "
-                   "trace %.3f, shade %.3f ms) -> %s\n", tracer->name().c_str(), frame, time, seconds_since(t0),
+                   "trace %.3f, shadow %.3f, shade %.3f ms) -> %s\n", tracer->name().c_str(), frame, time, seconds_since(t0),
                    gpu_frame.timings().gather_ms, gpu_frame.timings().bounce_ms, gpu_frame.timings().trace_ms,
-                   gpu_frame.timings().shade_ms, path.c_str());
+                   gpu_frame.timings().shadow_ms, gpu_frame.timings().shade_ms, path.c_str());
     }
     return;
   }
@@ -130,7 +132,8 @@ void run_render(const RenderOptions& options) {
     }
     const size_t pixels = size_t(o.width) * o.height;
     t0 = std::chrono::steady_clock::now();
-    Progress progress("frame " + std::to_string(frame) + ": tracing", pixels * (o.no_bounce ? 1 : 2));
+    Progress progress("frame " + std::to_string(frame) + ": tracing",
+                      pixels * ((o.no_bounce ? 1 : 2) + (shadows ? scene.lights.size() : 0)));
     ProgressTracer traced(*tracer, progress);
     ProgressTracer gather_traced(gather_tracer ? *gather_tracer : *tracer, progress);
     const GatherBuffer gather = make_gather(scene, gather_traced, camera, o.width, o.height, time);
@@ -141,6 +144,14 @@ void run_render(const RenderOptions& options) {
       hits.resize(rays.size());
       traced.trace(rays, hits);
     }
+    // Shadow rays from the gather to every light, through the bounce's tracer (as the GPU frame)
+    std::vector<Ray> shadow;
+    std::vector<Hit> shadow_hits;
+    if (shadows) {
+      shadow = shadow_rays(scene, gather);
+      shadow_hits.resize(shadow.size());
+      traced.trace(shadow, shadow_hits);
+    }
     progress.finish();
     // Rays outside the domain (shared::ray_domain) are not traced: say how many
     size_t rejected = 0;
@@ -150,7 +161,8 @@ void run_render(const RenderOptions& options) {
       std::fprintf(stderr, "%s: frame %u: %zu rays outside the domain (docs/SPEC.md, \"Domain\") were rejected, not traced\n",
                    tracer->name().c_str(), frame, rejected);
     ShadeOptions shade_options;
-    if (o.shadows) shade_options.shadow_tracer = tracer.get();
+    shade_options.shadow_rays = shadow;
+    shade_options.shadow_hits = shadow_hits;
     const std::vector<glm::vec3> rgb = shade(scene, gather, rays, hits, shade_options);
     const std::string path = frame_path(o.output, frame, o.frames);
     write_image(path, o.width, o.height, rgb);
@@ -176,7 +188,7 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--frames", o->frames, "Frames to render, --fps apart, written as NAME_0000.EXT ...")
       ->check(CLI::Range(1u, 100000u));
   cmd->add_option("--fps", o->fps, "Frames per second of --frames")->check(CLI::PositiveNumber);
-  cmd->add_flag("--shadows", o->shadows, "Trace shadow rays to the lights");
+  add_shadows_option(cmd, o->shadows);
   cmd->add_flag("--no-bounce", o->no_bounce, "Primary rays only, no glossy bounce");
   cmd->add_option("-o,--output", o->output, "Image file: .png, .jpg, .exr, .hdr, .tif (OpenImageIO), .ppm, .pfm");
   cmd->add_option("--view", o->view,

@@ -9,6 +9,7 @@
 #include "common/shared/alpha.h"
 #include "common/shared/bounce.h"
 #include "common/shared/grid.h"
+#include "common/shared/shadow.h"
 #include "common/shared/transform.h"
 
 namespace gridrt {
@@ -95,6 +96,29 @@ std::vector<Ray> bounce_rays(const Scene& scene, const GatherBuffer& g, uint32_t
       r.launch_normal = g.normal[p];
       r.launch_ref = g.launch_ref[p];
     }
+  return rays;
+}
+
+bool shadows_for(ShadowMode mode, const Scene& scene) {
+  return mode == ShadowMode::on || (mode == ShadowMode::automatic && !scene.lights.empty());
+}
+
+void check_shadow_lights(const Scene& scene) {
+  if (scene.lights.size() > shared::kMaxShadowLights)
+    throw Error("shadows: the scene has " + std::to_string(scene.lights.size()) + " lights; shadow rays are traced to " +
+                std::to_string(shared::kMaxShadowLights) + " at most (--shadows off renders it unshadowed)");
+}
+
+std::vector<Ray> shadow_rays(const Scene& scene, const GatherBuffer& g) {
+  check_shadow_lights(scene);
+  const size_t pixels = g.size();
+  std::vector<Ray> rays(scene.lights.size() * pixels, shared::empty_shadow_ray());
+  for (size_t i = 0; i < scene.lights.size(); ++i) {
+    const Light& l = scene.lights[i];
+    for (size_t p = 0; p < pixels; ++p)
+      if (g.valid[p])
+        rays[i * pixels + p] = shared::shadow_ray(g.position[p], g.normal[p], g.launch_ref[p], l.position, l.directional);
+  }
   return rays;
 }
 

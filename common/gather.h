@@ -47,6 +47,21 @@ GatherBuffer make_gather(const Scene& scene, Tracer& tracer, const Camera& camer
 std::vector<Ray> bounce_rays(const Scene& scene, const GatherBuffer& gather, uint32_t frame);
 inline bool is_unused(const Ray& r) { return r.tmin == 0.0f && r.tmax == 0.0f; }
 
+// The shadow rays of the gather buffer (common/shared/shadow.h, as the GPU frame makes them): one per
+// light and pixel, light-major (index light * width * height + y * width + x), at most
+// shared::kMaxShadowLights lights (more: an Error). A valid pixel gets the ray from its gather
+// position towards the light (point: dir = light - position, t in (0, 1); directional: the unit
+// direction, t in (0, +inf)), launch normal and reference the pixel's; an invalid pixel, a light
+// behind the surface or at the position gets the empty ray (is_unused). Occluded iff traced to a hit.
+std::vector<Ray> shadow_rays(const Scene& scene, const GatherBuffer& gather);
+
+// Whether a frame traces shadow rays: on, off, or automatic = on iff the scene has lights (the
+// effects a scene calls for, Features::shadows). Both backends' frames follow it.
+enum class ShadowMode { off, on, automatic };
+bool shadows_for(ShadowMode mode, const Scene& scene);
+// Throws Error if the scene has more lights than shadow rays are traced to (kMaxShadowLights).
+void check_shadow_lights(const Scene& scene);
+
 // The per-pixel random numbers of bounce_rays: two uniform floats in [0, 1).
 glm::vec2 pixel_random(uint32_t x, uint32_t y, uint32_t frame);
 

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 #include "common/shared/transform.h"
 // alpha.h calls min/max unqualified (GLSL built-ins); bring GLM's into gridrt::shared first.
@@ -32,16 +31,18 @@ glm::vec3 material_albedo(const Scene& scene, uint32_t material, glm::vec2 uv) {
   return c;
 }
 
-// Light arriving at p with unit normal n, from every light (or the headlight), no shadows unless
-// a shadow tracer is given.
-glm::vec3 direct_light(const Scene& scene, glm::vec3 p, glm::vec3 n, uint32_t launch_ref, Tracer* shadows) {
+// Light arriving at p with unit normal n, from every light (or the headlight); with shadow rays
+// (`shadow_hits` non-empty) only the lights whose ray from pixel `pixel` is used and unoccluded.
+glm::vec3 direct_light(const Scene& scene, glm::vec3 p, glm::vec3 n, const ShadeOptions* shadows = nullptr,
+                       size_t pixel = 0, size_t pixels = 0) {
   glm::vec3 e(0.0f);
   if (scene.lights.empty()) {
     const glm::vec3 to_eye = scene.frame_camera().eye - p;
     const float len = glm::length(to_eye);
     return len > 0.0f ? glm::vec3(std::max(0.0f, glm::dot(n, to_eye / len))) : glm::vec3(0.0f);
   }
-  for (const Light& l : scene.lights) {
+  for (size_t i = 0; i < scene.lights.size(); ++i) {
+    const Light& l = scene.lights[i];
     glm::vec3 to_light = l.directional ? l.position : l.position - p;
     const float d2 = glm::dot(to_light, to_light);
     if (!(d2 > 0.0f)) continue;
@@ -49,16 +50,8 @@ glm::vec3 direct_light(const Scene& scene, glm::vec3 p, glm::vec3 n, uint32_t la
     const float cos = glm::dot(n, L);
     if (cos <= 0.0f) continue;
     if (shadows) {
-      Ray r;
-      r.org = p;
-      r.dir = l.directional ? L : to_light;
-      r.tmin = 0.0f;
-      r.tmax = l.directional ? std::numeric_limits<float>::infinity() : 1.0f;
-      r.launch_normal = n;
-      r.launch_ref = launch_ref;
-      Hit h;
-      shadows->trace(std::span<const Ray>(&r, 1), std::span<Hit>(&h, 1));
-      if (!is_miss(h)) continue;
+      const size_t k = i * pixels + pixel;
+      if (is_unused(shadows->shadow_rays[k]) || !is_miss(shadows->shadow_hits[k])) continue;
     }
     e += l.color * l.intensity * cos / (l.directional ? 1.0f : d2);
   }
@@ -84,12 +77,16 @@ std::vector<glm::vec3> shade(const Scene& scene, const GatherBuffer& g, std::spa
   const bool bounce = !bounce_hits.empty();
   if (bounce && (bounce_hits.size() != g.size() || bounce_rays.size() != g.size()))
     throw Error("shade: bounce rays and hits must have one entry per pixel");
+  const bool shadowed = !options.shadow_hits.empty();
+  if (shadowed && (options.shadow_hits.size() != g.size() * scene.lights.size() ||
+                   options.shadow_rays.size() != options.shadow_hits.size()))
+    throw Error("shade: shadow rays and hits must have one entry per light and pixel");
   std::vector<glm::vec3> out(g.size(), scene.background);
   for (size_t p = 0; p < g.size(); ++p) {
     if (!g.valid[p]) continue;
     const glm::vec3 albedo = material_albedo(scene, g.material[p], g.uv[p]);
-    glm::vec3 c = albedo * (options.ambient + direct_light(scene, g.position[p], g.normal[p], g.launch_ref[p],
-                                                            options.shadow_tracer));
+    glm::vec3 c = albedo * (options.ambient + direct_light(scene, g.position[p], g.normal[p],
+                                                            shadowed ? &options : nullptr, p, g.size()));
     const float gloss = g.material[p] < scene.materials.size() ? scene.materials[g.material[p]].glossiness : 0.0f;
     if (bounce && gloss > 0.0f && !is_unused(bounce_rays[p])) {
       const Hit& h = bounce_hits[p];
@@ -112,7 +109,7 @@ std::vector<glm::vec3> shade(const Scene& scene, const GatherBuffer& g, std::spa
           if (glm::length(nn) > 0.0f) n = glm::normalize(nn);
           if (glm::dot(n, r.dir) > 0.0f) n = -n;
         }
-        b = a * (options.ambient + direct_light(scene, hp, n, (h.instance << 16) | h.triangle, nullptr));
+        b = a * (options.ambient + direct_light(scene, hp, n));
       }
       c = (1.0f - gloss) * c + gloss * b;
     }

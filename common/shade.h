@@ -11,14 +11,15 @@ namespace gridrt {
 struct ShadeOptions {
   float ambient = 0.2f;    // added to the direct light
   float exposure = 1.0f;   // scales the colour before tone mapping
-  // Shadow rays towards each light through this tracer (built and updated like the primary one);
-  // nullptr: no shadows.
-  Tracer* shadow_tracer = nullptr;
+  // The gather's shadow rays (shadow_rays(), light-major) and their hits; empty: no shadows. A
+  // light lights a pixel only if the pixel's ray to it is used and its hit a miss.
+  std::span<const Ray> shadow_rays;
+  std::span<const Hit> shadow_hits;
 };
 
 // RGB in [0, 1] per pixel (index y * width + x):
 //   direct = albedo * (ambient + sum over lights of color * intensity * max(0, N.L) [/ d^2 for
-//            point lights]); a headlight of intensity 1 (directional, from the camera's eye) if
+//            point lights]), with shadow rays only the lights they reach; a headlight of intensity 1 (directional, from the camera's eye) if
 //            the scene has no lights
 //   albedo = material diffuse * diffuse texture at uv (nearest texel, the alpha-keying rule)
 //   glossy material of glossiness g: (1 - g) * direct + g * bounce colour, where the bounce colour

@@ -13,6 +13,7 @@
 #include "common/gather.h"
 #include "common/image_io.h"
 #include "common/shade.h"
+#include "common/shared/shadow.h"
 #include "common/shared/triangle.h"
 #include "reference/grid.h"
 #include "tests/run_tool.h"
@@ -183,8 +184,37 @@ TEST_CASE("Vulkan frame: raster gather, bounce rays, trace and shade agree with 
         CHECK(hit_mismatch <= (exact ? 0 : ref_hits.size() / 100));
       }
 
+      // Shadow rays (every builtin scene has lights): the GPU's, bit for bit shadow_rays() of the
+      // GPU's gather; their hits, the reference's trace of them
+      CHECK(frame.shadows() == !scene.lights.empty());
+      const std::vector<Ray> cpu_shadow = shadow_rays(scene, gpu);
+      std::vector<Hit> ref_shadow(cpu_shadow.size());
+      ref.trace(cpu_shadow, ref_shadow);
+      if (frame.shadows()) {
+        const std::vector<Ray> gpu_shadow = frame.download_shadow_rays();
+        const std::vector<Hit> gpu_shadow_hits = frame.download_shadow_hits();
+        REQUIRE(gpu_shadow.size() == cpu_shadow.size());
+        REQUIRE(gpu_shadow_hits.size() == cpu_shadow.size());
+        size_t shadow_ray_mismatch = 0, shadow_hit_mismatch = 0, shadow_used = 0, occluded = 0;
+        for (size_t i = 0; i < cpu_shadow.size(); ++i) {
+          shadow_used += !is_unused(cpu_shadow[i]);
+          occluded += !is_unused(cpu_shadow[i]) && !is_miss(ref_shadow[i]);
+          shadow_ray_mismatch += exact ? !same_ray(cpu_shadow[i], gpu_shadow[i])
+                                       : is_unused(cpu_shadow[i]) != is_unused(gpu_shadow[i]);
+          shadow_hit_mismatch += exact ? !same_hit(ref_shadow[i], gpu_shadow_hits[i])
+                                       : ref_shadow[i].instance != gpu_shadow_hits[i].instance;
+        }
+        WARN(name << ": " << shadow_used << " shadow rays used, " << occluded << " occluded");
+        CHECK(shadow_used > 0);
+        CHECK(shadow_ray_mismatch == 0);
+        CHECK(shadow_hit_mismatch <= (exact ? 0 : cpu_shadow.size() / 100));
+      }
+
       // Shade: the GPU's image against shade() of the same gather, rays and hits (8-bit sRGB)
-      const std::vector<glm::vec3> rgb = shade(scene, gpu, cpu_rays, ref_hits);
+      ShadeOptions shade_options;
+      shade_options.shadow_rays = cpu_shadow;
+      shade_options.shadow_hits = ref_shadow;
+      const std::vector<glm::vec3> rgb = shade(scene, gpu, cpu_rays, ref_hits, shade_options);
       const std::vector<uint8_t> rgba = frame.download_rgba();
       size_t off = 0;
       int worst = 0;
@@ -257,6 +287,52 @@ TEST_CASE("Vulkan frame: leaving out an effect the scene does not call for chang
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
+// Shadows follow the scene's lights: a scene without lights compiles no shadow pass, and its frame
+// (image, bounce hits) is the frame with the feature switched off, in bits; a scene with lights
+// loses light only where a shadow ray is occluded (every pixel as bright or darker, some darker).
+TEST_CASE("Vulkan frame: the shadow pass is gated by the scene's lights", "[vulkan][frame][shadows]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const uint32_t w = 96, h = 64;
+  GridOptions o;
+  o.threads = 2;
+  auto render = [&](const Scene& scene, bool shadows, std::vector<Hit>* hits = nullptr) {
+    VulkanGridTracer vk(ctx, o);
+    vk.build(scene, 0.0f);
+    VulkanFrame frame(vk, scene, FrameOptions{.width = w, .height = h, .shadows = shadows});
+    frame.render(2);
+    CHECK(frame.shadows() == (shadows && !scene.lights.empty()));
+    CHECK(frame.download_shadow_rays().size() == (frame.shadows() ? scene.lights.size() * w * h : 0u));
+    if (hits) *hits = frame.download_hits();
+    return frame.download_rgba();
+  };
+  {
+    Scene dark = make_builtin("atrium");
+    dark.lights.clear();
+    std::vector<Hit> hits_on, hits_off;
+    const std::vector<uint8_t> on = render(dark, true, &hits_on), off = render(dark, false, &hits_off);
+    CHECK(on == off);
+    CHECK((hits_on.size() == hits_off.size() &&
+           std::memcmp(hits_on.data(), hits_off.data(), hits_on.size() * sizeof(Hit)) == 0));
+  }
+  {
+    const Scene cornell = make_builtin("cornell");
+    const std::vector<uint8_t> lit = render(cornell, false), shadowed = render(cornell, true);
+    size_t brighter = 0, darker = 0;
+    for (size_t i = 0; i < lit.size(); ++i) {
+      brighter += shadowed[i] > lit[i];
+      darker += shadowed[i] < lit[i];
+    }
+    CHECK(brighter == 0);
+    CHECK(darker > 0);
+  }
+  // More lights than shadow rays are traced to: a clear error, not a silently wrong image
+  Scene many = make_builtin("teapot");
+  many.lights.assign(shared::kMaxShadowLights + 1, many.lights.front());
+  CHECK_THROWS_AS(render(many, true), Error);
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
 // `gridrt diff --gpu-frame`: the check the GPU machine runs (no test suite travels there), proved
 // here on lavapipe: the frame's own bounce rays and hits, bit for bit the reference's.
 TEST_CASE("CLI: gridrt diff --gpu-frame finds the GPU frame's rays and hits bit-identical", "[vulkan][diff][frame][cli]") {
@@ -274,5 +350,10 @@ TEST_CASE("CLI: gridrt diff --gpu-frame finds the GPU frame's rays and hits bit-
     CHECK(line.find(" 0 differ in bits from bounce_rays()") != std::string::npos);
     CHECK(line.find(" 0 frame hits differ") != std::string::npos);
     CHECK(line.find("; 0 bounce rays") == std::string::npos);
+    // ... and the atrium's sun made shadow rays, identical in bits too
+    CHECK(line.find("shadow rays (1 light(s))") != std::string::npos);
+    CHECK(line.find(" 0 differ in bits from shadow_rays()") != std::string::npos);
+    CHECK(line.find(" 0 shadow hits differ") != std::string::npos);
+    CHECK(shadow.find(", 0 used)") == std::string::npos);
   }
 }

@@ -78,7 +78,7 @@ struct VulkanFrame::Gpu {
   Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles;
   Image2D color, depth;
   std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
-  std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch;
+  std::unique_ptr<Pipeline> resolve, bounce, shadow, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch;
   std::unique_ptr<Timestamps> timestamps;
   // The raster gather
   VkPipelineLayout layout = VK_NULL_HANDLE;
@@ -327,6 +327,8 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   const uint32_t w = options_.width, h = options_.height;
   if (w == 0 || h == 0) throw Error("vulkan frame: image size must be at least 1 x 1");
   bounce_ = options_.bounce && scene.has_glossy();
+  shadows_ = options_.shadows && !scene.lights.empty();
+  if (shadows_) check_shadow_lights(scene);
   gather_ = options_.gather;
   if (gather_ == GatherMode::compute &&
       !(ctx.info().buffer_int64_atomics && ctx.info().subgroup_arithmetic_ballot))
@@ -357,8 +359,11 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   gpu.lights = make_buffer(ctx, lights);
   gpu.visibility = ctx.create_buffer(pixels * 4, sb);
   gpu.gather = ctx.create_buffer(pixels * sizeof(shared::GatherTexel), sb);
-  gpu.rays = ctx.create_buffer(pixels * sizeof(Ray), sb);
-  gpu.hits = ctx.create_buffer(pixels * sizeof(Hit), sb);
+  // The bounce rays, then (with shadows) the shadow rays, light-major
+  const size_t rays = pixels * (1 + (shadows_ ? scene.lights.size() : 0));
+  if (rays > UINT32_MAX) throw Error("vulkan frame: too many rays for one frame (pixels times lights)");
+  gpu.rays = ctx.create_buffer(rays * sizeof(Ray), sb);
+  gpu.hits = ctx.create_buffer(rays * sizeof(Hit), sb);
   gpu.image = ctx.create_buffer(pixels * 4, sb);
   const VkBufferUsageFlags list_usage = sb | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT;
   const size_t header = sizeof(shared::WorkListHeader);
@@ -406,7 +411,8 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   set.bind(shared::kFrameBindTileList, gpu.tiles);
   const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
                          (alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
-                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u);
+                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u) |
+                         (shadows_ ? shared::kFrameShadows : 0u);
   auto spec = [&] {
     SpecConstants s;
     s.add(shared::kFrameSpecFlags, flags);
@@ -414,6 +420,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   };
   gpu.resolve = std::make_unique<Pipeline>(ctx, "gather_resolve.comp", set.layout(), 0, spec());
   gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
+  if (shadows_) gpu.shadow = std::make_unique<Pipeline>(ctx, "shadow.comp", set.layout(), 0, spec());
   gpu.shade = std::make_unique<Pipeline>(ctx, "shade.comp", set.layout(), 0, spec());
   const uint32_t list_push = 3 * sizeof(uint32_t);
   if (compact) {
@@ -432,7 +439,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     SpecConstants raster_spec = spec();
     gpu.create_raster(w, h, raster_spec.info());
   }
-  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 7);
+  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 9);
 }
 
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
@@ -445,7 +452,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   const uint32_t max_groups_x = ctx.info().limits.maxComputeWorkGroupCount[0];
   repeats = std::max(repeats, 1u);
   ctx.upload(gpu.params, &frame, sizeof frame, offsetof(shared::FrameParams, frame));
-  if (bounce_) grid_.bind_ray_buffers(gpu.rays, gpu.hits, compact ? &gpu.ray_list : nullptr);
+  if (bounce_ || shadows_) grid_.bind_ray_buffers(gpu.rays, gpu.hits, compact ? &gpu.ray_list : nullptr);
   const std::vector<shared::GridInstance>& instances = grid_.instances();
   const uint32_t triangles = instances.empty() ? 0u : instances.back().tri_offset + instances.back().tri_count;
   const auto t0 = std::chrono::steady_clock::now();
@@ -533,10 +540,23 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         gpu.timestamps->write(cb, 4);
         gpu.timestamps->write(cb, 5);
       }
+      // Shadow rays to every light, their trace
+      if (shadows_) {
+        gpu.shadow->bind(cb, s);
+        vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 6);
+        grid_.record_trace(cb, uint32_t(scene_.lights.size()) * w * h, w * h);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 7);
+      } else if (timed) {
+        gpu.timestamps->write(cb, 6);
+        gpu.timestamps->write(cb, 7);
+      }
       // Shade
       gpu.shade->bind(cb, s);
       vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
-      if (timed) gpu.timestamps->write(cb, 6);
+      if (timed) gpu.timestamps->write(cb, 8);
     }
   });
   timings_.host_ms = ms_since(t0);
@@ -551,8 +571,10 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     timings_.gather_ms = (ns[3] - ns[0]) * 1e-6;
     timings_.bounce_ms = (ns[4] - ns[3]) * 1e-6;
     timings_.trace_ms = (ns[5] - ns[4]) * 1e-6;
-    timings_.shade_ms = (ns[6] - ns[5]) * 1e-6;
-    timings_.total_ms = (ns[6] - ns[0]) * 1e-6;
+    timings_.shadow_ms = shadows_ ? (ns[7] - ns[5]) * 1e-6 : 0.0;
+    timings_.shadow_trace_ms = shadows_ ? (ns[7] - ns[6]) * 1e-6 : 0.0;
+    timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;
+    timings_.total_ms = (ns[8] - ns[0]) * 1e-6;
   }
 }
 
@@ -597,6 +619,18 @@ std::vector<Ray> VulkanFrame::download_rays() const {
 
 std::vector<Hit> VulkanFrame::download_hits() const {
   return grid_.context().download<Hit>(gpu_->hits, size_t(options_.width) * options_.height);
+}
+
+std::vector<Ray> VulkanFrame::download_shadow_rays() const {
+  if (!shadows_) return {};
+  const size_t pixels = size_t(options_.width) * options_.height;
+  return grid_.context().download<Ray>(gpu_->rays, pixels * scene_.lights.size(), pixels * sizeof(Ray));
+}
+
+std::vector<Hit> VulkanFrame::download_shadow_hits() const {
+  if (!shadows_) return {};
+  const size_t pixels = size_t(options_.width) * options_.height;
+  return grid_.context().download<Hit>(gpu_->hits, pixels * scene_.lights.size(), pixels * sizeof(Hit));
 }
 
 std::vector<uint8_t> VulkanFrame::download_rgba() const {

@@ -14,7 +14,10 @@
 //            others get their (miss) hit at once
 //   trace    the grid's trace pipeline on the device ray buffer: every pixel, or the work list
 //            (VulkanGridTracer::record_trace_list, an indirect dispatch)
-//   shade    shade.comp: as shade() (no shadow rays) into RGBA8, sRGB-encoded
+//   shadow   (a scene with lights only: kFrameShadows) shadow.comp: one shadow ray per pixel and
+//            light, as shadow_rays (common/shared/shadow.h), after the bounce rays in the ray
+//            buffer; then the grid's trace of them
+//   shade    shade.comp: as shade() into RGBA8, sRGB-encoded (with shadows: by their hits)
 // Each phase is bracketed by timestamp queries. Nothing goes through the host between phases.
 //
 // The compute gather decides each pixel as the CPU's primary ray does (closest accepted t, then
@@ -41,11 +44,13 @@ namespace gridrt::vulkan {
 // submit-to-fence time of the whole (on lavapipe the one to read: docs/VULKAN.md).
 struct FrameTimings {
   double gather_ms = 0.0, bounce_ms = 0.0, trace_ms = 0.0, shade_ms = 0.0;
+  // The shadow pass (0 without): its rays, then their trace (shadow_trace_ms of shadow_ms)
+  double shadow_ms = 0.0, shadow_trace_ms = 0.0;
   // The gather's parts: the visibility (raster pass, or the compute passes with the key buffer's
   // fill) and its compute passes (bin with the fill, tiles with their dispatch step), the raster
   // attachment's copy to a buffer, the resolve pass
   double visibility_ms = 0.0, bin_ms = 0.0, tiles_ms = 0.0, copy_ms = 0.0, resolve_ms = 0.0;
-  double total_ms = 0.0;  // gather + bounce + trace + shade
+  double total_ms = 0.0;  // gather + bounce + trace + shadow + shade
   double host_ms = 0.0;
 };
 
@@ -58,6 +63,9 @@ struct FrameOptions {
   uint32_t width = 1920, height = 1080;
   float ambient = 0.2f, exposure = 1.0f;  // ShadeOptions
   bool bounce = true;   // false: no bounce rays (as a scene without glossy materials)
+  // Shadow rays to the scene's lights (at most shared::kMaxShadowLights, more: an Error); a
+  // scene without lights compiles no shadow pass either way (shadows_for, common/gather.h)
+  bool shadows = true;
   GatherMode gather = GatherMode::compute;  // compute falls back to raster without int64 atomics
   // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
   // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
@@ -82,6 +90,9 @@ class VulkanFrame {
   GatherBuffer download_gather() const;     // as make_gather fills it (hit: t, instance, triangle)
   std::vector<Ray> download_rays() const;   // the bounce rays
   std::vector<Hit> download_hits() const;   // their hits
+  // The shadow rays and their hits, light-major as shadow_rays() orders them (empty: no shadows)
+  std::vector<Ray> download_shadow_rays() const;
+  std::vector<Hit> download_shadow_hits() const;
   std::vector<uint8_t> download_rgba() const;  // RGBA8, sRGB-encoded
   std::vector<uint32_t> download_visibility() const;  // the raster pass's reference per pixel
   // The compute gather's 8x8-pixel tiles of the last render (0 for the raster gather).
@@ -93,6 +104,8 @@ class VulkanFrame {
   uint32_t ray_count() const { return options_.width * options_.height; }
   // Whether the bounce runs (the scene has glossy materials, and options.bounce).
   bool bounce() const { return bounce_; }
+  // Whether the shadow pass runs (the scene has lights, and options.shadows).
+  bool shadows() const { return shadows_; }
   // The gather this frame runs (options.gather, unless the device lacks what compute needs).
   GatherMode gather_mode() const { return gather_; }
 
@@ -105,6 +118,7 @@ class VulkanFrame {
   const Scene& scene_;
   FrameOptions options_;
   bool bounce_ = true;
+  bool shadows_ = false;
   GatherMode gather_ = GatherMode::compute;
   std::unique_ptr<Gpu> gpu_;
   FrameTimings timings_;

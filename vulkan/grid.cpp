@@ -522,13 +522,14 @@ void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
   vkCmdDispatchIndirect(cb, gpu_->ray_list, 0);
 }
 
-void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count) {
+void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count, uint32_t first_ray) {
   if (!gpu_) throw Error("vulkan-grid: record_trace before build");
   const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
   const Pipeline& pipe = trace_pipeline(false);
   pipe.bind(cb, gpu_->set->set());
   for (uint32_t first = 0; first < count; first += std::min(chunk, count - first)) {
-    const shared::TracePush push{first, std::min(chunk, count - first), shared::kNoExplain, vk_.explain_capacity};
+    const shared::TracePush push{first_ray + first, std::min(chunk, count - first), shared::kNoExplain,
+                                 vk_.explain_capacity};
     pipe.push(cb, push);
     vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
   }

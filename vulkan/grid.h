@@ -100,8 +100,8 @@ class VulkanGridTracer : public Tracer {
   // trace() binds its own again), and optionally a work list of ray indices
   // (common/shared/worklist.h, usage INDIRECT_BUFFER too) for record_trace_list.
   void bind_ray_buffers(const Buffer& rays, const Buffer& hits, const Buffer* ray_list = nullptr);
-  // Records the trace of rays [0, count) of the bound buffers into `cb` (no barriers).
-  void record_trace(VkCommandBuffer cb, uint32_t count);
+  // Records the trace of rays [first, first + count) of the bound buffers into `cb` (no barriers).
+  void record_trace(VkCommandBuffer cb, uint32_t count, uint32_t first = 0);
   // Records the trace of the rays the bound ray list names, dispatched indirectly on the list
   // (its dispatch step must have run; no barriers). The other rays' hits are not written.
   void record_trace_list(VkCommandBuffer cb);

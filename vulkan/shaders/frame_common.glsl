@@ -10,6 +10,7 @@
 #include "common/shared/grid.h"
 #include "common/shared/triangle.h"
 #include "common/shared/bounce.h"
+#include "common/shared/shadow.h"
 #include "common/shared/worklist.h"
 #include "vulkan/shaders/frame_input.h"
 

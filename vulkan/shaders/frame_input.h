@@ -15,6 +15,7 @@ SH_CONST uint kFrameTextures = 2u;  // some material has a diffuse texture
 SH_CONST uint kFrameAlpha = 4u;     // alpha keying: some material has a mask (and the grid keys them)
 SH_CONST uint kFrameCompact = 8u;   // the bounce appends its real rays to a list; the trace takes only those
 SH_CONST uint kFrameComputeGather = 16u;  // the gather's visibility by compute (gather_bin/tiles.comp), not raster
+SH_CONST uint kFrameShadows = 32u;  // the scene has lights: shadow rays (shadow.comp), traced, shade by them
 
 struct FrameParams {
   CameraParams camera;   // the primary rays' camera

@@ -1,8 +1,8 @@
 #version 460
-// shade.comp: the frame's colour per pixel, as common/shade.cpp's shade() computes it (no shadow
-// rays): albedo times (ambient + direct light); glossy materials mix in the bounce hit's albedo
+// shade.comp: the frame's colour per pixel, as common/shade.cpp's shade() computes it: albedo times (ambient + direct light); glossy materials mix in the bounce hit's albedo
 // times its light (gap-fill hits: their triangle at its centroid), the environment on a miss;
-// clamped, sRGB-encoded into RGBA8.
+// clamped, sRGB-encoded into RGBA8. With shadows (kFrameShadows) a light lights a pixel only if
+// the pixel's shadow ray to it (shadow.comp) is used and its hit a miss.
 #extension GL_GOOGLE_include_directive : require
 #include "frame_common.glsl"
 
@@ -20,8 +20,9 @@ vec3 material_albedo(uint material, vec2 uv) {
   return c;
 }
 
-// Light arriving at p with unit normal n (no shadows); a headlight without lights.
-vec3 direct_light(vec3 p, vec3 n) {
+// Light arriving at p with unit normal n; a headlight without lights. `pixel`: whose shadow rays
+// decide (kNoRef: unshadowed, the bounce hit's light).
+vec3 direct_light(vec3 p, vec3 n, uint pixel) {
   if (fp.light_count == 0u) {
     const vec3 to_eye = fp.camera.eye - p;
     const float len = sqrt(sh_dot(to_eye, to_eye));
@@ -37,6 +38,10 @@ vec3 direct_light(vec3 p, vec3 n) {
     const vec3 L = to_light / sqrt(d2);
     const float cosine = sh_dot(n, L);
     if (cosine <= 0.0f) continue;
+    if ((kFrameFlags & kFrameShadows) != 0u && pixel != kNoRef) {
+      const uint k = (1u + i) * (fp.camera.width * fp.camera.height) + pixel;
+      if ((rays[k].tmin == 0.0f && rays[k].tmax == 0.0f) || hits[k].instance != kNoInstance) continue;
+    }
     e += l.radiance * cosine / (directional ? 1.0f : d2);
   }
   return e;
@@ -58,7 +63,7 @@ void main() {
   vec3 c = fp.background;
   if (g.launch_ref != kNoRef) {
     const vec3 albedo = material_albedo(g.material, g.uv);
-    c = albedo * (fp.ambient + direct_light(g.position, g.normal));
+    c = albedo * (fp.ambient + direct_light(g.position, g.normal, p));
     const float gloss = g.material < fp.material_count ? fmaterials[g.material].glossiness : 0.0f;
     if ((kFrameFlags & kFrameBounce) != 0u && gloss > 0.0f) {
       const RayRecord r = rays[p];
@@ -73,7 +78,7 @@ void main() {
         const vec3 a = material_albedo(tri.material, interpolate_uv(uvs[k].uv0, uvs[k].uv1, uvs[k].uv2, u, v));
         const vec3 hp = r.org + h.t * r.dir;
         const vec4 n = gather_normal(tri.v0, tri.v1, tri.v2, r.dir);
-        b = a * (fp.ambient + direct_light(hp, n.w > 0.0f ? n.xyz : vec3(0.0f, 1.0f, 0.0f)));
+        b = a * (fp.ambient + direct_light(hp, n.w > 0.0f ? n.xyz : vec3(0.0f, 1.0f, 0.0f), kNoRef));
       }
       if (!(r.tmin == 0.0f && r.tmax == 0.0f)) c = (1.0f - gloss) * c + gloss * b;
     }
