@@ -54,6 +54,12 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
                   "(off); auto: on for the exact traversal, off for the paper's (which gap-fills instead)")
       ->transform(CLI::CheckedTransformer(spills, CLI::ignore_case))
       ->group("Grid");
+  const std::map<std::string, bool> on_off{{"on", true}, {"off", false}};
+  cmd->add_option("--skip-empty", g.skip_empty,
+                  "Empty-space skipping for the exact traversal: the DDA passes boxes of empty cells at once, by a "
+                  "per-cell distance to the nearest reference (on, default) or visits every cell (off)")
+      ->transform(CLI::CheckedTransformer(on_off, CLI::ignore_case))
+      ->group("Grid");
   cmd->add_option("--spill-capacity", g.spill_capacity,
                   "Entries of the spill list (default: the references the capacity trial drops, plus a quarter "
                   "and 64); an overflow is reported")

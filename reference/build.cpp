@@ -230,7 +230,8 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o, Gri
                                                                               : shared::kTriangleMoller;
   g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
-            (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u));
+            (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u)) |
+            (skip_enabled(o) ? shared::kGridSkipEmpty : 0u);
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
@@ -377,6 +378,103 @@ bool spill_enabled(const GridOptions& o) {
     case GridOptions::Spill::automatic: break;
   }
   return o.traversal == Traversal::exact;
+}
+
+bool skip_enabled(const GridOptions& o) { return o.skip_empty && o.traversal == Traversal::exact; }
+
+std::vector<uint32_t> skip_box_words(const Scene& scene, float time, const GridParams& g) {
+  std::vector<uint32_t> w(shared::kSkipHeaderWords, 0u);
+  std::vector<glm::uvec3> lo(shared::kSkipMaxBoxes, glm::uvec3(~0u)), hi(shared::kSkipMaxBoxes, glm::uvec3(0u));
+  uint32_t boxes = 0;
+  uint32_t k = 0;  // dynamic instances with vertices so far
+  for (uint32_t i = scene.static_instance_count(); i < scene.instances.size(); ++i) {
+    const Instance& inst = scene.instances[i];
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    if (mesh.positions.empty()) continue;
+    // The padded local bounds of its world-space vertices (the build's transform_point)
+    const shared::Affine m = shared::to_affine(inst.transform_at(time));
+    glm::vec3 fmin(shared::sh_infinity()), fmax(-shared::sh_infinity());
+    for (const glm::vec3& p : mesh.positions) {
+      const glm::vec3 f = shared::grid_local(g, shared::transform_point(m, p));
+      fmin = glm::min(fmin, f);
+      fmax = glm::max(fmax, f);
+    }
+    glm::uvec3 a, b;
+    shared::skip_box_of_bounds(g, fmin, fmax, a, b);
+    const uint32_t box = k++ % shared::kSkipMaxBoxes;
+    lo[box] = glm::min(lo[box], a);
+    hi[box] = glm::max(hi[box], b);
+    boxes = std::max(boxes, box + 1);
+  }
+  w[0] = boxes;
+  for (uint32_t b = 0; b < boxes; ++b) {
+    const uint32_t at = shared::skip_box_word(b);
+    const glm::uvec3 l = lo[b], h = hi[b];  // every box below `boxes` has an instance
+    w[at] = l.x, w[at + 1] = l.y, w[at + 2] = l.z;
+    w[at + 4] = h.x, w[at + 5] = h.y, w[at + 6] = h.z;
+  }
+  return w;
+}
+
+namespace {
+// The summed-volume table's passes (skip_field.comp): pass 0 writes each x line's running count of
+// occupied cells (slot 0 not blank), passes 1 and 2 add along y and z; one invocation per line.
+void skip_table_pass(const GridData& grid, std::vector<uint32_t>& table, uint32_t pass, const GridOptions& o) {
+  const GridParams& g = grid.params;
+  const glm::uvec3 n = g.cells;
+  const glm::uvec3 lines = pass == 0 ? glm::uvec3(n.y, n.z, n.x) : pass == 1 ? glm::uvec3(n.x, n.z, n.y)
+                                                                          : glm::uvec3(n.x, n.y, n.z);
+  run_invocations(lines.x * lines.y, thread_count(o), std::nullopt, [&](uint32_t line) {
+    const uint32_t a = line % lines.x, b = line / lines.x;
+    uint32_t sum = 0u;
+    for (uint32_t k = 0; k < lines.z; ++k) {
+      const glm::uvec3 c = pass == 0 ? glm::uvec3(k, a, b) : pass == 1 ? glm::uvec3(a, k, b) : glm::uvec3(a, b, k);
+      const uint32_t i = shared::skip_table_index(g, c + 1u);
+      if (pass == 0) {
+        const bool occupied = imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, c, 0u))) != kBlank;
+        sum += occupied ? 1u : 0u;
+        table[i] = sum;
+      } else {
+        sum += table[i];
+        table[i] = sum;
+      }
+    }
+  }, 64);
+}
+
+// Occupied cells in the cube of radius r around c, from the table.
+uint32_t skip_cube_count(const GridParams& g, const std::vector<uint32_t>& table, glm::uvec3 c, uint32_t r) {
+  uint32_t count = 0u;
+  for (uint32_t j = 0; j < 8u; ++j) {
+    const uint32_t v = table[shared::skip_table_index(g, shared::skip_cube_corner(g, c, r, j))];
+    count = shared::skip_corner_positive(j) ? count + v : count - v;
+  }
+  return count;
+}
+}  // namespace
+
+void skip_field_build(GridData& grid, const GridOptions& o) {
+  const GridParams& g = grid.params;
+  std::vector<uint32_t> table(shared::skip_table_words(g), 0u);
+  for (uint32_t pass = 0; pass < 3; ++pass) skip_table_pass(grid, table, pass, o);
+  // The distances, one invocation per word (4 cells): the smallest r whose cube holds an occupied
+  // cell, by binary search over [0, kSkipMaxDistance]
+  const uint32_t cells = shared::grid_cell_count(g);
+  run_invocations((cells + 3u) / 4u, thread_count(o), std::nullopt, [&](uint32_t word) {
+    uint32_t packed = 0u;
+    for (uint32_t q = 0; q < 4u && 4u * word + q < cells; ++q) {
+      const uint32_t i = 4u * word + q;
+      const glm::uvec3 c = shared::cell_of_linear_index(g, i);
+      uint32_t lo = 0u, hi = shared::kSkipMaxDistance;
+      while (lo < hi) {
+        const uint32_t mid = (lo + hi) / 2u;
+        if (skip_cube_count(g, table, c, mid) > 0u) hi = mid;
+        else lo = mid + 1u;
+      }
+      packed |= lo << shared::skip_distance_shift(i);
+    }
+    grid.skip[shared::kSkipHeaderWords + word] = packed;
+  }, 256);
 }
 
 uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions& o, const GridParams& g,
@@ -668,6 +766,13 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
   insert_instances(grid, scene, time, o, 0, grid.static_instances);
   grid.spill_header.static_count = grid.spill_header.count;
   spill_order(grid, o, 0);
+  // The skip field from the static references; the dynamic boxes at `time`
+  if ((g.flags & shared::kGridSkipEmpty) != 0u) {
+    grid.skip.assign(shared::skip_words(g), 0u);
+    skip_field_build(grid, o);
+    const std::vector<uint32_t> boxes = skip_box_words(scene, time, g);
+    std::copy(boxes.begin(), boxes.end(), grid.skip.begin());
+  }
   insert_instances(grid, scene, time, o, grid.static_instances, uint32_t(scene.instances.size()));
   spill_order(grid, o, grid.spill_header.static_count);
   // Gap-fill only if some cell saturated
@@ -725,6 +830,10 @@ std::vector<uint32_t> dirty_cells(const GridData& grid) {
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& o) {
   if (grid.static_instances == scene.instances.size()) return;
   clear_dynamic_references(grid, o);
+  if ((grid.params.flags & shared::kGridSkipEmpty) != 0u) {
+    const std::vector<uint32_t> boxes = skip_box_words(scene, time, grid.params);
+    std::copy(boxes.begin(), boxes.end(), grid.skip.begin());
+  }
   insert_instances(grid, scene, time, o, grid.static_instances, uint32_t(scene.instances.size()));
   spill_order(grid, o, grid.spill_header.static_count);
   // Gap-fill only while some cell is saturated

@@ -53,6 +53,10 @@ struct GridOptions {
   // Gap-fill runs (is compiled into the trace shader) only while some cell is saturated, that is
   // while the spill counter says a reference was dropped; false keeps it always (--all-effects).
   bool gap_fill_if_saturated = true;
+  // Empty-space skipping (docs/SPEC.md "Empty-space skipping"): the exact traversal's DDA passes
+  // boxes of empty cells at once, by the skip field built after the static references. Exact
+  // traversal only; the paper traversal stays the paper's.
+  bool skip_empty = true;
   // The spill list (docs/SPEC.md, "Spill list"): references no slot took are kept as (cell, ref) and
   // the trace tests a saturated cell's spilled references too. automatic: on for the exact
   // traversal, off for the paper's (which answers saturation with gap-fill; spill on turns
@@ -114,12 +118,28 @@ struct GridData {
   shared::SpillHeader spill_header{};
   std::vector<shared::SpillEntry> spill;
   std::vector<uint32_t> spill_heads;
+  // The skip field (kGridSkipEmpty; shared::skip_words words): the dynamic boxes, then the static
+  // distances (shared/grid.h, "The skip field"); empty without kGridSkipEmpty
+  std::vector<uint32_t> skip;
   uint32_t requested_flags = 0;                  // GridParams::flags as chosen; params.flags is what
                                                  // the trace runs (trace_flags)
 };
 
 // Whether `o` turns the spill list on (Spill::automatic: for the exact traversal).
 bool spill_enabled(const GridOptions& o);
+
+// Whether `o` turns empty-space skipping on (kGridSkipEmpty: the exact traversal with skip_empty).
+bool skip_enabled(const GridOptions& o);
+
+// The skip field's header words (shared::kSkipHeaderWords): the boxes of cells that cover the
+// dynamic instances' references at `time` (shared::skip_box_of_bounds; instance i of the dynamic
+// ones joins box i % kSkipMaxBoxes). Both backends upload these at every build and update.
+std::vector<uint32_t> skip_box_words(const Scene& scene, float time, const shared::GridParams& g);
+
+// The skip field's static distances from the static references in `grid.image` (slot 0 of a cell
+// not blank): shared::kSkipMaxDistance-capped Chebyshev distances by a summed-volume table and a
+// binary search per cell, as the skip_field compute passes do.
+void skip_field_build(GridData& grid, const GridOptions& o);
 
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
