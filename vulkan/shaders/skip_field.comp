@@ -10,10 +10,10 @@
 #include "grid_common.glsl"
 
 layout(local_size_x = 64) in;
-layout(binding = 1, r32ui) uniform readonly uimage3D grid_image;
-layout(std430, binding = 18) buffer Skip { uint skip[]; };
-layout(std430, binding = 19) buffer SkipTable { uint table[]; };
-layout(push_constant) uniform Push { uint pass; } pc;
+layout(binding = kGridBindImage, r32ui) uniform readonly uimage3D grid_image;
+layout(std430, binding = kGridBindSkip) buffer Skip { uint skip[]; };
+layout(std430, binding = kGridBindSkipTable) buffer SkipTable { uint table[]; };
+layout(push_constant) uniform Push { SkipFieldPush pc; };
 
 // Occupied cells in the cube of radius r around c, from the table.
 uint skip_cube_count(GridParams g, uvec3 c, uint r) {

@@ -4,9 +4,10 @@
 #include <cstdio>
 #include <sstream>
 
-#include "reference/grid.h"
+#include "common/shared/triangle.h"
+#include "plan/records.h"
 
-namespace gridrt::reference {
+namespace gridrt::plan {
 
 using namespace gridrt::shared;
 
@@ -166,4 +167,4 @@ std::string to_text(const ExplainRecord& rec) {
   return os.str();
 }
 
-}  // namespace gridrt::reference
+}  // namespace gridrt::plan
