@@ -83,6 +83,10 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
   add_enum(cmd, "--gap-fill", g.gap_fill, {{"on", true}, {"off", false}},
            "paper traversal: gap-fill in saturated cells (default on)")
       ->group(kGrid);
+  add_enum(cmd, "--skip-empty", g.skip_empty, {{"on", true}, {"off", false}},
+           "exact traversal: pass boxes of empty cells at once by a per-cell distance to the nearest reference "
+           "(on, the default) or visit every cell (off)")
+      ->group(kGrid);
   add_enum(cmd, "--self-hit", g.exclude_launch_ref, {{"exclude", true}, {"keep", false}},
            "The ray's launch triangle: exclude (never accept it, the default) or keep (test it like any other)")
       ->group(kGrid);

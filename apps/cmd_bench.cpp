@@ -438,6 +438,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     warm_builds.push_back(vk->timings().build_ms);
     t["build_init"].push_back(vk->timings().build_init_ms);
     t["build_static"].push_back(vk->timings().build_static_ms);
+    t["build_skip"].push_back(vk->timings().build_skip_ms);
     t["build_dynamic"].push_back(vk->timings().build_dynamic_ms);
   }
   const double build_warm = median(warm_builds);
@@ -447,6 +448,12 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const shared::GridParams& gp = vk->params();
   const glm::uvec3 ext = shared::grid_image_extent(gp);
   const double grid_mib = double(ext.x) * ext.y * ext.z * 4.0 / (1 << 20);
+  const double skip_mib =
+      (gp.flags & shared::kGridSkipEmpty) != 0u ? double(shared::skip_words(gp)) * 4.0 / (1 << 20) : 0.0;
+  const double spill_mib = (gp.flags & shared::kGridSpill) != 0u
+                               ? (double(spill.capacity) * sizeof(shared::SpillEntry) +
+                                  4.0 * 4.0 * double(shared::grid_cell_count(gp))) / (1 << 20)
+                               : 0.0;
   const size_t frame_rays = 1 + (frame.shadows() ? scene.lights.size() : 0);  // bounce, then shadow rays
   const double frame_mib =
       double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + frame_rays * (sizeof(Ray) + sizeof(Hit)) + 4) /
@@ -479,10 +486,12 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
   std::printf("%s (after the last frame's update)\n\n", spill_text(spill, spill_flags).c_str());
   std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
-              "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, dynamic instances "
-              "%.3f ms\n",
+              "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, skip field %.3f, "
+              "dynamic instances %.3f ms\n",
               gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
-              o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_dynamic"]);
+              o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_skip"], m["build_dynamic"]);
+  std::printf("grid memory: image %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, total %.1f MiB\n",
+              grid_mib, spill_mib, skip_mib, grid_mib + spill_mib + skip_mib);
   // The trace's counters; bytes the trace requests per ray, estimated from them: the ray (48) and
   // its hit record (32), per visited cell one blank or status texel (4), per test the slot's
   // texel (4), the instance (16) and the triangle (48). Requested, not DRAM traffic (the caches
@@ -505,7 +514,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
                 m["b2b_trace"] > 0.0 ? double(rays) / (m["b2b_trace"] * 1e3) : 0.0);
   std::fflush(stdout);
   nlohmann::json j = {{"device", device}, {"clock", clock},       {"build_ms", build}, {"build_warm_ms", build_warm}, {"rays_per_frame", rays},
-                      {"mrays_per_s", mrays}, {"grid_mib", grid_mib}, {"frame_mib", frame_mib},
+                      {"mrays_per_s", mrays}, {"grid_mib", grid_mib}, {"skip_mib", skip_mib}, {"spill_mib", spill_mib}, {"frame_mib", frame_mib},
                       {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity},
                       {"spill", spill_json(spill, spill_flags)}};
   j["gather_mode"] = gather_name;

@@ -259,7 +259,8 @@ GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
   g.triangle_test = watertight ? shared::kTriangleWatertight : shared::kTriangleMoller;
   g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
-            (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u));
+            (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u)) |
+            (skip_enabled(o) ? shared::kGridSkipEmpty : 0u);
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
@@ -432,6 +433,44 @@ bool spill_enabled(const AlgorithmOptions& o) {
     case GridOptions::Spill::automatic: break;
   }
   return o.traversal == Traversal::exact;
+}
+
+// ---- Empty-space skipping: which traversal takes it, the dynamic boxes ----
+
+bool skip_enabled(const AlgorithmOptions& o) { return o.skip_empty && o.traversal == Traversal::exact; }
+
+std::vector<uint32_t> skip_box_words(const Scene& scene, float time, const GridParams& g) {
+  std::vector<uint32_t> w(shared::kSkipHeaderWords, 0u);
+  std::vector<glm::uvec3> lo(shared::kSkipMaxBoxes, glm::uvec3(~0u)), hi(shared::kSkipMaxBoxes, glm::uvec3(0u));
+  uint32_t boxes = 0;
+  uint32_t k = 0;  // dynamic instances with vertices so far
+  for (uint32_t i = scene.static_instance_count(); i < scene.instances.size(); ++i) {
+    const Instance& inst = scene.instances[i];
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    if (mesh.positions.empty()) continue;
+    // The padded local bounds of its world-space vertices (the build's transform_point)
+    const shared::Affine m = shared::to_affine(inst.transform_at(time));
+    glm::vec3 fmin(shared::sh_infinity()), fmax(-shared::sh_infinity());
+    for (const glm::vec3& p : mesh.positions) {
+      const glm::vec3 f = shared::grid_local(g, shared::transform_point(m, p));
+      fmin = glm::min(fmin, f);
+      fmax = glm::max(fmax, f);
+    }
+    glm::uvec3 a, b;
+    shared::skip_box_of_bounds(g, fmin, fmax, a, b);
+    const uint32_t box = k++ % shared::kSkipMaxBoxes;
+    lo[box] = glm::min(lo[box], a);
+    hi[box] = glm::max(hi[box], b);
+    boxes = std::max(boxes, box + 1);
+  }
+  w[0] = boxes;
+  for (uint32_t b = 0; b < boxes; ++b) {
+    const uint32_t at = shared::skip_box_word(b);
+    const glm::uvec3 l = lo[b], h = hi[b];  // every box below `boxes` has an instance
+    w[at] = l.x, w[at + 1] = l.y, w[at + 2] = l.z;
+    w[at + 4] = h.x, w[at + 5] = h.y, w[at + 6] = h.z;
+  }
+  return w;
 }
 
 uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions& o, const GridParams& g,

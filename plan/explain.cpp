@@ -67,6 +67,7 @@ std::string to_text(const ExplainRecord& rec) {
      << (exact ? "exact (3D DDA)" : "paper (cell-sized segments)") << ", insertion "
      << (g.insertion == kInsertSorted ? "sorted" : "first-empty")
      << ((g.flags & kGridSpill) ? ", spill list on" : "")
+     << ((g.flags & kGridSkipEmpty) ? ", empty-space skipping on" : "")
      << ((g.flags & kGridGapFill) ? ", gap-fill on" : "") << "\n";
   for (const ExplainEvent& e : rec.events) {
     switch (e.kind) {
@@ -92,6 +93,11 @@ std::string to_text(const ExplainRecord& rec) {
              << ": [" << num(e.f1.x) << ", " << num(e.f1.y) << "], midpoint t "
              << num(e.f0.w) << " = " << vec(glm::vec3(e.f0)) << "\n  cell " << cellstr(e.cell)
              << "; triangles tested on the elongated segment (" << num(e.f1.z) << ", " << num(e.f1.w) << ")\n";
+        break;
+      case kEvSkip:
+        os << "step " << e.step << ": cell " << cellstr(e.cell) << " is empty, its nearest reference " << e.code
+           << " cells away: the box of " << (2 * e.code - 1) << " cells a side around it passed at once, t in ["
+           << num(e.f1.x) << ", " << num(e.f1.y) << "]\n";
         break;
       case kEvCellSkipped:
         os << "segment " << e.step << ": sample at t " << num(e.f0.w) << " lies in cell " << cellstr(e.cell)

@@ -41,6 +41,10 @@ struct AlgorithmOptions {
   // Gap-fill runs (is compiled into the trace shader) only while some cell is saturated, that is
   // while the spill counter says a reference was dropped; false keeps it always (--all-effects).
   bool gap_fill_if_saturated = true;
+  // Empty-space skipping (docs/SPEC.md "Empty-space skipping"): the exact traversal's DDA passes
+  // boxes of empty cells at once, by the skip field built after the static references. Exact
+  // traversal only; the paper traversal stays the paper's.
+  bool skip_empty = true;
   // The spill list (docs/SPEC.md, "Spill list"): references no slot took are kept as (cell, ref) and
   // the trace tests a saturated cell's spilled references too. automatic: on for the exact
   // traversal, off for the paper's (which answers saturation with gap-fill; spill on turns

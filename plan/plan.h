@@ -21,6 +21,14 @@ inline constexpr float kMinCellUlps = 64.0f;
 inline float min_cell_size(float reach) { return reach * (kMinCellUlps * 0x1p-23f); }
 
 
+// Whether `o` turns empty-space skipping on (kGridSkipEmpty: the exact traversal with skip_empty).
+bool skip_enabled(const AlgorithmOptions& o);
+
+// The skip field's header words (shared::kSkipHeaderWords): the boxes of cells that cover the
+// dynamic instances' references at `time` (shared::skip_box_of_bounds; instance i of the dynamic
+// ones joins box i % kSkipMaxBoxes). Both backends upload these at every build and update.
+std::vector<uint32_t> skip_box_words(const Scene& scene, float time, const shared::GridParams& g);
+
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
 

@@ -104,13 +104,13 @@ class SampleCaster : public Tracer {
     if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax) || !ray_setup(g_, ray.org, ray.dir, ray.tmin, ray.tmax, rs))
       return h;
     const vec3 inv = dda_inverse_direction(ray.dir);
-    uvec3 cell = cell_of_point(g_, point_at(ray.org, ray.dir, rs.t_start));
+    DdaWalk w = dda_walk_begin(g_, ray.org, ray.dir, rs.t_start);
     float best = sh_infinity();
     uint best_ref = kBlank;
     for (uint k = 0u; k < g_.max_segments; ++k) {
-      const vec3 exits = dda_exits(g_, ray.org, ray.dir, inv, cell);
-      const float t_exit = dda_cell_exit(exits);
-      const size_t c = (size_t(cell.z) * g_.cells.y + cell.y) * g_.cells.x + cell.x;
+      dda_walk_exits(g_, ray.org, ray.dir, inv, 0u, w);
+      const float t_exit = w.t_exit;
+      const size_t c = (size_t(w.cell.z) * g_.cells.y + w.cell.y) * g_.cells.x + w.cell.x;
       for (uint32_t s = first_[c]; s < first_[c + 1]; ++s) {
         const uint ref = refs_[s];
         if (o_.exclude_launch_ref && ref == ray.launch_ref) continue;
@@ -131,7 +131,7 @@ class SampleCaster : public Tracer {
         h.flags = r.det < 0.0f ? kHitBackFace : 0u;
       }
       if (best_ref != kBlank && best <= t_exit) break;
-      if (t_exit >= rs.t_end || !dda_step(g_, ray.dir, dda_step_axis(exits), cell)) break;
+      if (t_exit >= rs.t_end || !dda_walk_next(g_, ray.org, ray.dir, inv, w)) break;
     }
     if (best_ref == kBlank) {
       h.u = h.v = 0.0f;
@@ -195,11 +195,10 @@ bool for_each_visit(const GridParams& g, const Ray& ray,
   if (g.traversal == kTraversalExact) {
     // trace_exact's DDA
     const vec3 inv = dda_inverse_direction(ray.dir);
-    uvec3 cell = cell_of_point(g, point_at(ray.org, ray.dir, rs.t_start));
+    DdaWalk w = dda_walk_begin(g, ray.org, ray.dir, rs.t_start);
     for (uint k = 0u; k < g.max_segments; ++k) {
-      const vec3 exits = dda_exits(g, ray.org, ray.dir, inv, cell);
-      const float t_exit = dda_cell_exit(exits);
-      if (!f(cell, k, k, t_exit, true) || t_exit >= rs.t_end || !dda_step(g, ray.dir, dda_step_axis(exits), cell))
+      dda_walk_exits(g, ray.org, ray.dir, inv, 0u, w);
+      if (!f(w.cell, k, k, w.t_exit, true) || w.t_exit >= rs.t_end || !dda_walk_next(g, ray.org, ray.dir, inv, w))
         break;
     }
     return true;
@@ -209,18 +208,14 @@ bool for_each_visit(const GridParams& g, const Ray& ray,
   uint k = 0u;
   while (k < g.max_segments) {
     if (segment_begin(rs, k) >= rs.t_end) break;
-    const uvec3 cell = cell_of_point(g, point_at(ray.org, ray.dir, segment_sample_t(rs, k)));
+    const uvec3 cell = segment_cell(g, ray.org, ray.dir, rs, k);
     if (cell == prev && g.repeats == kRepeatSkip) {
       if (!f(cell, k, k, segment_end(rs, k), false)) break;
       k += 1u;
       continue;
     }
     prev = cell;
-    uint last = k;
-    if (g.repeats == kRepeatMerge)
-      while (last + 1u < g.max_segments && segment_begin(rs, last + 1u) < rs.t_end &&
-             cell_of_point(g, point_at(ray.org, ray.dir, segment_sample_t(rs, last + 1u))) == cell)
-        last += 1u;
+    const uint last = segment_visit_last(g, ray.org, ray.dir, rs, k, cell);
     if (!f(cell, k, last, segment_end(rs, last), true)) break;
     k = last + 1u;
   }

@@ -15,6 +15,69 @@ using shared::GridParams;
 using shared::kBlank;
 
 
+// ---- The skip field (kGridSkipEmpty; docs/SPEC.md "Empty-space skipping") ----
+
+namespace {
+// The summed-volume table's passes (skip_field.comp): pass 0 writes each x line's running count of
+// occupied cells (slot 0 not blank), passes 1 and 2 add along y and z; one invocation per line.
+void skip_table_pass(const GridData& grid, std::vector<uint32_t>& table, uint32_t pass, const GridOptions& o) {
+  const GridParams& g = grid.params;
+  const glm::uvec3 n = g.cells;
+  const glm::uvec3 lines = pass == 0 ? glm::uvec3(n.y, n.z, n.x) : pass == 1 ? glm::uvec3(n.x, n.z, n.y)
+                                                                          : glm::uvec3(n.x, n.y, n.z);
+  run_invocations(lines.x * lines.y, thread_count(o), std::nullopt, [&](uint32_t line) {
+    const uint32_t a = line % lines.x, b = line / lines.x;
+    uint32_t sum = 0u;
+    for (uint32_t k = 0; k < lines.z; ++k) {
+      const glm::uvec3 c = pass == 0 ? glm::uvec3(k, a, b) : pass == 1 ? glm::uvec3(a, k, b) : glm::uvec3(a, b, k);
+      const uint32_t i = shared::skip_table_index(g, c + 1u);
+      if (pass == 0) {
+        const bool occupied = imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, c, 0u))) != kBlank;
+        sum += occupied ? 1u : 0u;
+        table[i] = sum;
+      } else {
+        sum += table[i];
+        table[i] = sum;
+      }
+    }
+  }, 64);
+}
+
+// Occupied cells in the cube of radius r around c, from the table.
+uint32_t skip_cube_count(const GridParams& g, const std::vector<uint32_t>& table, glm::uvec3 c, uint32_t r) {
+  uint32_t count = 0u;
+  for (uint32_t j = 0; j < 8u; ++j) {
+    const uint32_t v = table[shared::skip_table_index(g, shared::skip_cube_corner(g, c, r, j))];
+    count = shared::skip_corner_positive(j) ? count + v : count - v;
+  }
+  return count;
+}
+}  // namespace
+
+void skip_field_build(GridData& grid, const GridOptions& o) {
+  const GridParams& g = grid.params;
+  std::vector<uint32_t> table(shared::skip_table_words(g), 0u);
+  for (uint32_t pass = 0; pass < 3; ++pass) skip_table_pass(grid, table, pass, o);
+  // The distances, one invocation per word (4 cells): the smallest r whose cube holds an occupied
+  // cell, by binary search over [0, kSkipMaxDistance]
+  const uint32_t cells = shared::grid_cell_count(g);
+  run_invocations((cells + 3u) / 4u, thread_count(o), std::nullopt, [&](uint32_t word) {
+    uint32_t packed = 0u;
+    for (uint32_t q = 0; q < 4u && 4u * word + q < cells; ++q) {
+      const uint32_t i = 4u * word + q;
+      const glm::uvec3 c = shared::cell_of_linear_index(g, i);
+      uint32_t lo = 0u, hi = shared::kSkipMaxDistance;
+      while (lo < hi) {
+        const uint32_t mid = (lo + hi) / 2u;
+        if (skip_cube_count(g, table, c, mid) > 0u) hi = mid;
+        else lo = mid + 1u;
+      }
+      packed |= lo << shared::skip_distance_shift(i);
+    }
+    grid.skip[shared::kSkipHeaderWords + word] = packed;
+  }, 256);
+}
+
 // ---- Insertion (paper 2.1) ----
 
 namespace {
@@ -250,6 +313,13 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
   insert_instances(grid, scene, time, o, 0, grid.static_instances);
   grid.spill_header.static_count = grid.spill_header.count;
   spill_order(grid, o, 0);
+  // The skip field from the static references; the dynamic boxes at `time`
+  if ((g.flags & shared::kGridSkipEmpty) != 0u) {
+    grid.skip.assign(shared::skip_words(g), 0u);
+    skip_field_build(grid, o);
+    const std::vector<uint32_t> boxes = plan::skip_box_words(scene, time, g);
+    std::copy(boxes.begin(), boxes.end(), grid.skip.begin());
+  }
   insert_instances(grid, scene, time, o, grid.static_instances, uint32_t(scene.instances.size()));
   spill_order(grid, o, grid.spill_header.static_count);
   // Gap-fill only if some cell saturated
@@ -307,6 +377,10 @@ std::vector<uint32_t> dirty_cells(const GridData& grid) {
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& o) {
   if (grid.static_instances == scene.instances.size()) return;
   clear_dynamic_references(grid, o);
+  if ((grid.params.flags & shared::kGridSkipEmpty) != 0u) {
+    const std::vector<uint32_t> boxes = plan::skip_box_words(scene, time, grid.params);
+    std::copy(boxes.begin(), boxes.end(), grid.skip.begin());
+  }
   insert_instances(grid, scene, time, o, grid.static_instances, uint32_t(scene.instances.size()));
   spill_order(grid, o, grid.spill_header.static_count);
   // Gap-fill only while some cell is saturated

@@ -71,9 +71,17 @@ struct GridData {
   shared::SpillHeader spill_header{};
   std::vector<shared::SpillEntry> spill;
   std::vector<uint32_t> spill_heads;
+  // The skip field (kGridSkipEmpty; shared::skip_words words): the dynamic boxes, then the static
+  // distances (shared/grid.h, "The skip field"); empty without kGridSkipEmpty
+  std::vector<uint32_t> skip;
   uint32_t requested_flags = 0;                  // GridParams::flags as chosen; params.flags is what
                                                  // the trace runs (trace_flags)
 };
+
+// The skip field's static distances from the static references in `grid.image` (slot 0 of a cell
+// not blank): shared::kSkipMaxDistance-capped Chebyshev distances by a summed-volume table and a
+// binary search per cell, as the skip_field compute passes do.
+void skip_field_build(GridData& grid, const GridOptions& o);
 
 // Phases (paper names)
 void scene_build(GridData& grid, const Scene& scene, float time, const GridOptions& options);

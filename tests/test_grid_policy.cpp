@@ -105,6 +105,7 @@ TEST_CASE("trace-cost policy: estimated cells and tests per ray are the referenc
       GridOptions o;
       o.threads = 2;
       o.traversal = t;
+      o.skip_empty = false;  // the estimate walks the plain DDA's visits (skipping only drops empty ones)
       const GridChoice choice = choose(scene, o);
       const GridCandidate& c = choice.candidates[choice.chosen];
       ReferenceGridTracer grid(at_candidate(o, c));

@@ -45,6 +45,7 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data, VkBufferUsageFlags 
 struct VulkanGridTracer::Gpu {
   Buffer params, instances, triangles, uvs, materials, texels, build_instances, positions, indices;
   Buffer rays, hits, explain, dirty, no_ray_list, build_list, spill, spill_heads;
+  Buffer skip, skip_table;  // the skip field (kGridSkipEmpty); its table lives for the build only
   uint32_t spill_capacity = 0;  // entries the spill list holds (0: spill off)
   uint32_t build_list_capacity = 0;
   VkBuffer ray_list = VK_NULL_HANDLE;  // bound by bind_ray_buffers (not owned)
@@ -52,6 +53,7 @@ struct VulkanGridTracer::Gpu {
   Image3D image;
   std::unique_ptr<Descriptors> set, dirty_set, build_list_set;
   std::unique_ptr<Pipeline> init, raster, compute, build_cells, build_list_dispatch, clear, dirty_dispatch, order;
+  std::unique_ptr<Pipeline> skip_field;
   std::map<uint64_t, std::unique_ptr<Pipeline>> traces;  // by (ray list, explain, flags): trace_pipeline
   std::unique_ptr<Timestamps> timestamps, update_timestamps, build_timestamps;
 };
@@ -92,6 +94,10 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   std::vector<uint32_t> indices;
   make_build_input(scene, time, positions, indices);
   create_resources(plan, positions, indices);
+  if ((params_.flags & shared::kGridSkipEmpty) != 0u) {
+    const std::vector<uint32_t> boxes = plan::skip_box_words(scene, time, params_);
+    ctx_->upload(gpu_->skip, boxes.data(), boxes.size() * sizeof(uint32_t));
+  }
   create_pipelines();
   record_build(uint32_t(scene.instances.size()));
   after_insert();
@@ -199,6 +205,12 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   gpu.spill_heads = ctx.create_buffer(spill_on ? 4 * VkDeviceSize(shared::grid_cell_count(g)) * sizeof(uint32_t) : 16,
                                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   overflow_warned_ = false;
+  // The skip field: the dynamic boxes (build and update upload them), the distances (written by
+  // the skip_field passes), and the summed-volume table those use during the build
+  const bool skip_on = (g.flags & shared::kGridSkipEmpty) != 0u;
+  gpu.skip = ctx.create_buffer(skip_on ? VkDeviceSize(shared::skip_words(g)) * 4 : 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  gpu.skip_table = ctx.create_buffer(skip_on ? VkDeviceSize(shared::skip_table_words(g)) * 4 : 16,
+                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT);
 }
 
 // The descriptor set (grid_interface.h's bindings) and the pipelines of the build and update.
@@ -230,6 +242,8 @@ void VulkanGridTracer::create_pipelines() {
   set.bind(shared::kGridBindBuildList, gpu.build_list);
   set.bind(shared::kGridBindSpill, gpu.spill);
   set.bind(shared::kGridBindSpillHeads, gpu.spill_heads);
+  set.bind(shared::kGridBindSkip, gpu.skip);
+  set.bind(shared::kGridBindSkipTable, gpu.skip_table);
   gpu.dirty_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
   gpu.dirty_set->bind(0, gpu.dirty);
 
@@ -251,10 +265,13 @@ void VulkanGridTracer::create_pipelines() {
   if (gpu.spill_capacity)
     gpu.order = std::make_unique<Pipeline>(ctx, "spill_order.comp", set.layout(), uint32_t(sizeof(shared::SpillOrderPush)),
                                            spec_for(g, false));
+  if ((g.flags & shared::kGridSkipEmpty) != 0u)
+    gpu.skip_field = std::make_unique<Pipeline>(ctx, "skip_field.comp", set.layout(), uint32_t(sizeof(shared::SkipFieldPush)),
+                                                spec_for(g, false));
   if (dev.timestamp_valid_bits) {
     gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
     gpu.update_timestamps = std::make_unique<Timestamps>(ctx, 3);  // begin, after the clear, end
-    gpu.build_timestamps = std::make_unique<Timestamps>(ctx, 4);   // begin, after init, static, dynamic
+    gpu.build_timestamps = std::make_unique<Timestamps>(ctx, 5);   // begin, after init, static, skip, dynamic
   }
 }
 
@@ -294,18 +311,26 @@ void VulkanGridTracer::record_build(uint32_t instance_count) {
     barrier(cb);
     record_spill_order(cb, false);
     if (stamps) stamps->write(cb, 2);
+    record_skip_field(cb);
+    if (stamps) stamps->write(cb, 3);
     insert_instances(cb, static_instances_, instance_count);
     barrier(cb);
     record_spill_order(cb, true);
-    if (stamps) stamps->write(cb, 3, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+    if (stamps) stamps->write(cb, 4, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
+  // The table is the build's alone: a 16-byte stand-in keeps the binding valid
+  if (gpu.skip_field) {
+    gpu.skip_table = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    set.bind(shared::kGridBindSkipTable, gpu.skip_table);
+  }
   timings_.build_host_ms = ms_since(t0);
   if (stamps) {
     const std::vector<double> ns = stamps->read_ns();
-    timings_.build_ms = (ns[3] - ns[0]) * 1e-6;
+    timings_.build_ms = (ns[4] - ns[0]) * 1e-6;
     timings_.build_init_ms = (ns[1] - ns[0]) * 1e-6;
     timings_.build_static_ms = (ns[2] - ns[1]) * 1e-6;
-    timings_.build_dynamic_ms = (ns[3] - ns[2]) * 1e-6;
+    timings_.build_skip_ms = (ns[3] - ns[2]) * 1e-6;
+    timings_.build_dynamic_ms = (ns[4] - ns[3]) * 1e-6;
   }
 }
 
@@ -319,6 +344,26 @@ void VulkanGridTracer::record_spill_order(VkCommandBuffer cb, bool dynamic) {
   gpu.order->push(cb, shared::SpillOrderPush{uint32_t(dynamic)});
   vkCmdDispatch(cb, groups(gpu.spill_capacity, 64), 1, 1);  // within maxComputeWorkGroupCount: checked at build
   barrier(cb);
+}
+
+// The skip field's passes (skip_field.comp) over the static references: the table zeroed, its
+// three line passes, the distances; barriers between. Nothing without kGridSkipEmpty.
+void VulkanGridTracer::record_skip_field(VkCommandBuffer cb) {
+  Gpu& gpu = *gpu_;
+  if (!gpu.skip_field) return;
+  const GridParams& g = params_;
+  const uint32_t max_x = ctx_->info().limits.maxComputeWorkGroupCount[0];
+  vkCmdFillBuffer(cb, gpu.skip_table.buffer, 0, VK_WHOLE_SIZE, 0u);
+  barrier(cb);
+  gpu.skip_field->bind(cb, gpu.set->set());
+  const glm::uvec3 n = g.cells;
+  const uint32_t items[4] = {n.y * n.z, n.x * n.z, n.x * n.y, (shared::grid_cell_count(g) + 3u) / 4u};
+  for (uint32_t pass = 0; pass < 4; ++pass) {
+    gpu.skip_field->push(cb, shared::SkipFieldPush{pass});
+    const glm::uvec3 grid = shared::work_list_groups(items[pass], 64u, max_x);
+    vkCmdDispatch(cb, grid.x, grid.y, 1);
+    barrier(cb);
+  }
 }
 
 void VulkanGridTracer::after_insert() {
@@ -395,6 +440,10 @@ void VulkanGridTracer::update(float time) {
   Gpu& gpu = *gpu_;
   upload_transforms(time, static_instances_, n);
   const GridParams& g = params_;
+  if (gpu.skip_field) {
+    const std::vector<uint32_t> boxes = plan::skip_box_words(*scene_, time, g);
+    ctx_->upload(gpu.skip, boxes.data(), boxes.size() * sizeof(uint32_t));
+  }
   const auto t0 = std::chrono::steady_clock::now();
   ctx_->submit([&](VkCommandBuffer cb) {
     if (gpu.update_timestamps) gpu.update_timestamps->reset(cb), gpu.update_timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
@@ -553,6 +602,11 @@ std::vector<uint32_t> VulkanGridTracer::download_dirty_cells() const {
   if (!gpu_) return {};
   const shared::WorkListHeader header = ctx_->download<shared::WorkListHeader>(gpu_->dirty, 1)[0];
   return ctx_->download<uint32_t>(gpu_->dirty, header.appended, sizeof(shared::WorkListHeader));
+}
+
+std::vector<uint32_t> VulkanGridTracer::download_skip() const {
+  if (!gpu_ || (params_.flags & shared::kGridSkipEmpty) == 0u) return {};
+  return ctx_->download<uint32_t>(gpu_->skip, shared::skip_words(params_));
 }
 
 plan::SpillDump VulkanGridTracer::spill() const {

@@ -47,7 +47,7 @@ struct GridTimings {
   double build_host_ms = 0.0, update_host_ms = 0.0, trace_host_ms = 0.0;
   double clear_ms = 0.0, insert_ms = 0.0;  // the update's two passes (device), update_ms = their sum
   // The build's passes (device): the blank image, the static instances, the dynamic ones
-  double build_init_ms = 0.0, build_static_ms = 0.0, build_dynamic_ms = 0.0;
+  double build_init_ms = 0.0, build_static_ms = 0.0, build_skip_ms = 0.0, build_dynamic_ms = 0.0;
 };
 
 class VulkanGridTracer : public Tracer {
@@ -75,6 +75,8 @@ class VulkanGridTracer : public Tracer {
   // The dirty-cell list's cells (as plan::dirty_cells: the cells appended since the last
   // clear pass, in the order the device appended them).
   std::vector<uint32_t> download_dirty_cells() const;
+  // The skip field (kGridSkipEmpty: shared::skip_words words; empty without it).
+  std::vector<uint32_t> download_skip() const;
   // The geometry buffer as the build wrote it (for tests against GridData::triangles).
   std::vector<shared::GridTriangle> download_triangles() const;
   // The spill list as the device holds it: the header and the stored entries (append order).
@@ -129,6 +131,7 @@ class VulkanGridTracer : public Tracer {
   // gap-fill comes and goes with saturation).
   const Pipeline& trace_pipeline(bool explain, bool list = false);
   void upload_transforms(float time, uint32_t first, uint32_t last);
+  void record_skip_field(VkCommandBuffer cb);
   void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index);
 
   std::unique_ptr<Context> owned_;

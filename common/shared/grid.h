@@ -35,6 +35,8 @@ SH_CONST uint kGridAlphaKeying = 2u;       // alpha-keyed materials cut holes
 SH_CONST uint kGridGapFill = 4u;           // paper-mode gap-fill in saturated cells
 SH_CONST uint kGridSpill = 8u;             // references no slot took go to the spill list, and
                                            // the trace tests a saturated cell's spilled ones too
+SH_CONST uint kGridSkipEmpty = 16u;        // exact traversal: the DDA jumps over boxes of empty
+                                           // cells (the skip field, docs/SPEC.md "Empty-space skipping")
 // Bits 8-9: the scene axis laid along the image's x, the axis that carries the slots (0 x, 1 y,
 // 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis"). The
 // image swaps that axis with x; every other axis keeps its place.
@@ -469,6 +471,179 @@ SH_INLINE bool dda_step(SH_IN(GridParams) g, SH_IN(vec3) dir, uint axis, SH_INOU
   if (axis == 1u) cell.y = c;
   if (axis == 2u) cell.z = c;
   return true;
+}
+
+// ---- The exact traversal's walk, written once (reference/trace.cpp, trace.comp, reference/policy.cpp) ----
+// The walk is in a cell, or in a box of empty cells around it (radius r: the cells within
+// Chebyshev distance r of `cell`, clipped to the grid); `exits` holds, per axis, the parameter at
+// which the ray leaves the box along that axis, `t_exit` the smallest. r = 0 is the plain DDA's
+// cell. The walk's only state is `cell`: exits are recomputed from it (no accumulated tDelta), so
+// a walk that lands on a cell the plain DDA visits goes on exactly as the plain DDA.
+struct DdaWalk {
+  uvec3 cell;    // the cell the walk is in (the centre of the box)
+  float t_exit;  // min(exits)
+  vec3 exits;    // per axis, where the ray leaves the box through that axis's far face
+  uint radius;   // the box's radius in cells (0: the cell alone)
+};
+
+// The walk's first cell: the one holding the ray's grid entry point at t_start.
+SH_INLINE DdaWalk dda_walk_begin(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, float t_start) {
+  DdaWalk w;
+  w.cell = cell_of_point(g, point_at(org, dir, t_start));
+  w.t_exit = 0.0f;
+  w.exits = vec3(0.0f);
+  w.radius = 0u;
+  return w;
+}
+
+// Along one axis, the box's last cell in the walk's direction: c + r (d > 0) or c - r (d < 0),
+// clipped to the grid; c itself where d == 0.
+SH_INLINE uint dda_axis_last(uint c, uint n, float d, uint r) {
+  if (d > 0.0f) return min(c + min(r, n - 1u - c), n - 1u);
+  if (d < 0.0f) return c - min(r, c);
+  return c;
+}
+
+SH_INLINE uvec3 dda_box_last(SH_IN(GridParams) g, SH_IN(vec3) dir, SH_IN(uvec3) cell, uint r) {
+  return uvec3(dda_axis_last(cell.x, g.cells.x, dir.x, r), dda_axis_last(cell.y, g.cells.y, dir.y, r),
+               dda_axis_last(cell.z, g.cells.z, dir.z, r));
+}
+
+// The exits of the walk's box of radius r around its cell (r = 0: dda_exits of the cell).
+SH_INLINE void dda_walk_exits(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) inv_dir, uint r,
+                              SH_INOUT(DdaWalk) w) {
+  w.radius = r;
+  w.exits = dda_exits(g, org, dir, inv_dir, dda_box_last(g, dir, w.cell, r));
+  w.t_exit = dda_cell_exit(w.exits);
+}
+
+// Along one axis that the walk does not leave the box through: the cell index the plain DDA holds
+// when it takes the crossing (t, axis a) out of the box. The plain DDA takes the axes' crossings
+// in the order of (exit parameter, axis) (a merge of per-axis sequences, each nondecreasing along
+// the walk: docs/SPEC.md "Empty-space skipping"), so the index is the first k from c towards
+// `last` whose crossing comes after (t, a): not (E(k) < t or (E(k) == t and this axis < a)). The
+// search starts at the cell of the point at t (f: its local coordinate) and corrects it by
+// comparing the crossings themselves, so rounding in f changes nothing.
+SH_INLINE bool dda_crossing_before(float origin, float cell_size, float o, float d, float inv, uint k, float t,
+                                   bool ties_before) {
+  float e = dda_axis_exit(origin, cell_size, o, d, inv, k);
+  return e < t || (e == t && ties_before);
+}
+SH_INLINE uint dda_axis_cell_at(float origin, float cell_size, float o, float d, float inv, uint c, uint last,
+                                float f, float t, bool ties_before) {
+  if (d == 0.0f || c == last) return c;
+  uint lo = min(c, last);
+  uint hi = max(c, last);
+  float fl = floor(f);
+  uint k = !(fl > float(lo)) ? lo : (fl >= float(hi) ? hi : uint(fl));
+  // Back towards c while the crossing before k is not taken yet; then on while k's is taken
+  if (d > 0.0f) {
+    while (k > c && !dda_crossing_before(origin, cell_size, o, d, inv, k - 1u, t, ties_before)) k -= 1u;
+    while (k < last && dda_crossing_before(origin, cell_size, o, d, inv, k, t, ties_before)) k += 1u;
+  } else {
+    while (k < c && !dda_crossing_before(origin, cell_size, o, d, inv, k + 1u, t, ties_before)) k += 1u;
+    while (k > last && dda_crossing_before(origin, cell_size, o, d, inv, k, t, ties_before)) k -= 1u;
+  }
+  return k;
+}
+
+// Step the walk out of its box (dda_walk_exits) into the cell the plain DDA enters next when it
+// leaves that box: with radius 0 one dda_step; false when that leaves the grid.
+SH_INLINE bool dda_walk_next(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) inv_dir,
+                             SH_INOUT(DdaWalk) w) {
+  uint a = dda_step_axis(w.exits);
+  if (w.radius != 0u) {
+    // Ties: an axis below a takes an equal crossing first (x before y before z)
+    float t = w.t_exit;
+    vec3 f = grid_local(g, point_at(org, dir, t));
+    uvec3 last = dda_box_last(g, dir, w.cell, w.radius);
+    uvec3 c = w.cell;
+    w.cell.x = a == 0u ? last.x : dda_axis_cell_at(g.origin.x, g.cell_size, org.x, dir.x, inv_dir.x, c.x, last.x, f.x, t, true);
+    w.cell.y = a == 1u ? last.y : dda_axis_cell_at(g.origin.y, g.cell_size, org.y, dir.y, inv_dir.y, c.y, last.y, f.y, t, a > 1u);
+    w.cell.z = a == 2u ? last.z : dda_axis_cell_at(g.origin.z, g.cell_size, org.z, dir.z, inv_dir.z, c.z, last.z, f.z, t, false);
+  }
+  return dda_step(g, dir, a, w.cell);
+}
+
+// ---- Paper traversal's visits, written once (reference/trace.cpp, trace.comp, reference/policy.cpp) ----
+// The cell of segment k's sample point.
+SH_INLINE uvec3 segment_cell(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(RaySetup) rs, uint k) {
+  return cell_of_point(g, point_at(org, dir, segment_sample_t(rs, k)));
+}
+// The last segment of the visit that begins with segment k in `cell`: with kRepeatMerge the
+// following segments whose samples fall into the same cell merge into it; otherwise k.
+SH_INLINE uint segment_visit_last(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(RaySetup) rs, uint k,
+                                  SH_IN(uvec3) cell) {
+  uint last = k;
+  if (g.repeats == kRepeatMerge) {
+    while (last + 1u < g.max_segments && segment_begin(rs, last + 1u) < rs.t_end &&
+           segment_cell(g, org, dir, rs, last + 1u) == cell)
+      last += 1u;
+  }
+  return last;
+}
+
+// ---- The skip field (kGridSkipEmpty; docs/SPEC.md "Empty-space skipping") ----
+// Per cell, its Chebyshev distance (in cells, capped at kSkipMaxDistance) to the nearest cell that
+// holds a static reference: D = 0 for such a cell; D = d > 0 says every cell within distance d - 1
+// is empty of static references. The dynamic instances' references are covered by one box of
+// cells per dynamic instance (kSkipMaxBoxes at most: instance i joins box i % kSkipMaxBoxes), the
+// union of its triangles' cell ranges, uploaded by each build and update; a cell's distance is the
+// smaller of its static distance and its distance to every box.
+// Buffer layout (words): the box count, 3 words of padding, kSkipMaxBoxes boxes of 8 words (lo.xyz,
+// pad, hi.xyz, pad), then the static distances, 4 cells per word (8 bits each, cell i in bits
+// 8 (i % 4) of word i / 4).
+SH_CONST uint kSkipMaxDistance = 255u;
+SH_CONST uint kSkipMaxBoxes = 8u;
+SH_CONST uint kSkipBoxWords = 8u;
+SH_CONST uint kSkipHeaderWords = 4u + kSkipMaxBoxes * kSkipBoxWords;
+SH_INLINE uint skip_words(SH_IN(GridParams) g) { return kSkipHeaderWords + (grid_cell_count(g) + 3u) / 4u; }
+SH_INLINE uint skip_distance_word(uint i) { return kSkipHeaderWords + i / 4u; }
+SH_INLINE uint skip_distance_shift(uint i) { return 8u * (i % 4u); }
+SH_INLINE uint skip_box_word(uint b) { return 4u + b * kSkipBoxWords; }
+
+// A dynamic instance's box: the cells of the padded local bounds [fmin, fmax] of its world-space
+// vertices (componentwise min and max of grid_local over every vertex). Each of its triangles'
+// triangle_cell_range lies inside: a triangle's min(f0, f1, f2) >= fmin, and the subtraction of the
+// padding, floor and the clamp are monotone.
+SH_INLINE void skip_box_of_bounds(SH_IN(GridParams) g, SH_IN(vec3) fmin, SH_IN(vec3) fmax, SH_OUT(uvec3) lo,
+                                  SH_OUT(uvec3) hi) {
+  SH_PRECISE vec3 a = fmin - vec3(g.aabb_padding);
+  SH_PRECISE vec3 b = fmax + vec3(g.aabb_padding);
+  lo = cell_of_local(g, a);
+  hi = cell_of_local(g, b);
+}
+
+// Chebyshev distance from cell c to the box [lo, hi] of cells (0 inside).
+SH_INLINE uint skip_box_distance(SH_IN(uvec3) c, SH_IN(uvec3) lo, SH_IN(uvec3) hi) {
+  uint dx = c.x < lo.x ? lo.x - c.x : (c.x > hi.x ? c.x - hi.x : 0u);
+  uint dy = c.y < lo.y ? lo.y - c.y : (c.y > hi.y ? c.y - hi.y : 0u);
+  uint dz = c.z < lo.z ? lo.z - c.z : (c.z > hi.z ? c.z - hi.z : 0u);
+  return max(max(dx, dy), dz);
+}
+
+// The static distance by its definition, from a summed-volume table of the static occupancy:
+// `sums` are the table's values at the 8 corners of the cube of radius r around c (clipped to the
+// grid), skip_cube_corner names them. Count of occupied cells in the cube: inclusion-exclusion
+// (exact in uint arithmetic: the count lies in [0, cells]).
+// Corner j (bits: x, y, z) of the cube of radius r around c, in the table's 1-based coordinates
+// (0 along an axis stands for "before the grid", whose sum is 0).
+SH_INLINE uvec3 skip_cube_corner(SH_IN(GridParams) g, SH_IN(uvec3) c, uint r, uint j) {
+  uvec3 lo = uvec3(c.x - min(r, c.x), c.y - min(r, c.y), c.z - min(r, c.z));
+  uvec3 hi = min(c + uvec3(r), g.cells - uvec3(1u));
+  return uvec3((j & 1u) != 0u ? hi.x + 1u : lo.x, (j & 2u) != 0u ? hi.y + 1u : lo.y, (j & 4u) != 0u ? hi.z + 1u : lo.z);
+}
+// The sign of corner j in the inclusion-exclusion: + where an even number of axes take the low side.
+SH_INLINE bool skip_corner_positive(uint j) {
+  uint low = ((j & 1u) == 0u ? 1u : 0u) + ((j & 2u) == 0u ? 1u : 0u) + ((j & 4u) == 0u ? 1u : 0u);
+  return (low % 2u) == 0u;
+}
+// Index of a 1-based table coordinate in the table (cells + 1 per axis, x fastest).
+SH_INLINE uint skip_table_index(SH_IN(GridParams) g, SH_IN(uvec3) t) {
+  return (t.z * (g.cells.y + 1u) + t.y) * (g.cells.x + 1u) + t.x;
+}
+SH_INLINE uint skip_table_words(SH_IN(GridParams) g) {
+  return (g.cells.x + 1u) * (g.cells.y + 1u) * (g.cells.z + 1u);
 }
 
 SH_END

@@ -30,7 +30,9 @@ SH_CONST uint kGridBindRayList = 14u;        // WorkListHeader, then ray indices
 SH_CONST uint kGridBindBuildList = 15u;      // the compute build's runs of cells (build.glsl)
 SH_CONST uint kGridBindSpill = 16u;          // SpillHeader, then SpillEntry[]
 SH_CONST uint kGridBindSpillHeads = 17u;     // four heads per cell
-SH_CONST uint kGridBindingCount = 18u;
+SH_CONST uint kGridBindSkip = 18u;           // the skip field (shared::skip_words; kGridSkipEmpty)
+SH_CONST uint kGridBindSkipTable = 19u;      // its summed-volume table (the build only)
+SH_CONST uint kGridBindingCount = 20u;
 
 // Specialization-constant ids of the grid's shaders: the GridParams fields that shape the code.
 SH_CONST uint kGridSpecCapacity = 0u;      // GridParams::capacity
@@ -61,6 +63,11 @@ struct SpillOrderPush {
   uint dynamic;  // 0: order the static entries, 1: the dynamic ones
 };
 
+// Push constants of skip_field.comp.
+struct SkipFieldPush {
+  uint pass;  // 0-2: the summed-volume table along x, y, z; 3: the distances
+};
+
 // The explain buffer: this header, then the events.
 struct ExplainHeader {
   uint count;  // events written (may exceed the capacity: then the tail is lost)
@@ -75,6 +82,7 @@ SH_END
 static_assert(sizeof(gridrt::shared::TracePush) == 16, "layout of TracePush");
 static_assert(sizeof(gridrt::shared::ClearPush) == 4, "layout of ClearPush");
 static_assert(sizeof(gridrt::shared::SpillOrderPush) == 4, "layout of SpillOrderPush");
+static_assert(sizeof(gridrt::shared::SkipFieldPush) == 4, "layout of SkipFieldPush");
 static_assert(sizeof(gridrt::shared::ExplainHeader) == 16, "std430 layout of ExplainHeader");
 #endif
 

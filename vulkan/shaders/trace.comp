@@ -16,6 +16,8 @@ layout(std430, binding = kGridBindSpill) readonly buffer Spill {
   SpillEntry spill_entries[];
 };
 layout(std430, binding = kGridBindSpillHeads) readonly buffer SpillHeads { uint spill_heads[]; };
+// The skip field (kGridSkipEmpty; common/shared/grid.h): the dynamic boxes, then the distances.
+layout(std430, binding = kGridBindSkip) readonly buffer Skip { uint skip[]; };
 layout(std430, binding = kGridBindExplain) buffer Explain {
   uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
   uint explain_pad0;
@@ -215,7 +217,7 @@ HitRecord trace_paper(GridParams g) {
     // boundary cell: closed rooms have their walls on the grid boundary)
     const float seg_begin = segment_begin(st.rs, k);
     if (seg_begin >= st.rs.t_end) return finish(seg_begin >= st.tmax ? kMissTmax : kMissLeftGrid, k);
-    const uvec3 cell = cell_of_point(g, point_at(st.org, st.dir, segment_sample_t(st.rs, k)));
+    const uvec3 cell = segment_cell(g, st.org, st.dir, st.rs, k);
     // Visited-cell tracking: a straight ray does not come back to a convex cell
     if (cell == prev && g.repeats == kRepeatSkip) {
       emit(kEvCellSkipped, 0u, kBlank, k, cell, 0u,
@@ -227,12 +229,7 @@ HitRecord trace_paper(GridParams g) {
     }
     prev = cell;
     // Merge the following segments whose samples fall into the same cell: one visit
-    uint last = k;
-    if (g.repeats == kRepeatMerge) {
-      while (last + 1u < g.max_segments && segment_begin(st.rs, last + 1u) < st.rs.t_end &&
-             cell_of_point(g, point_at(st.org, st.dir, segment_sample_t(st.rs, last + 1u))) == cell)
-        last += 1u;
-    }
+    const uint last = segment_visit_last(g, st.org, st.dir, st.rs, k, cell);
     const float seg_end = segment_end(st.rs, last);
     const float t_mid = segment_t(st.rs, float(k + last + 1u) * 0.5f);
     const vec3 sample_point = point_at(st.org, st.dir, t_mid);
@@ -258,27 +255,51 @@ HitRecord trace_paper(GridParams g) {
   return finish(kMissStepLimit, g.max_segments);
 }
 
+// The skip field's distance of a cell (kGridSkipEmpty): its static distance, lowered to its
+// distance to every dynamic box (shared/grid.h, "The skip field").
+uint skip_distance(GridParams g, uvec3 cell) {
+  const uint i = cell_linear_index(g, cell);
+  uint d = (skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
+  const uint boxes = skip[0];
+  for (uint b = 0u; b < boxes && d > 0u; ++b) {
+    const uint w = skip_box_word(b);
+    const uvec3 lo = uvec3(skip[w], skip[w + 1u], skip[w + 2u]);
+    const uvec3 hi = uvec3(skip[w + 4u], skip[w + 5u], skip[w + 6u]);
+    d = min(d, skip_box_distance(cell, lo, hi));
+  }
+  return d;
+}
+
 // ---- Exact traversal: 3D DDA over every pierced cell ----
 HitRecord trace_exact(GridParams g) {
   // Enter the grid at t_start
   const vec3 inv_dir = dda_inverse_direction(st.dir);
-  uvec3 cell = cell_of_point(g, point_at(st.org, st.dir, st.rs.t_start));
+  DdaWalk w = dda_walk_begin(g, st.org, st.dir, st.rs.t_start);
   float t_entry = st.rs.t_start;
   for (uint k = 0u; k < g.max_segments; ++k) {
-    const vec3 exits = dda_exits(g, st.org, st.dir, inv_dir, cell);
-    const float t_exit = dda_cell_exit(exits);
+    // Empty-space skipping: an empty cell's distance d to the nearest reference; the walk passes
+    // the box of radius d - 1 around it at once (docs/SPEC.md "Empty-space skipping")
+    const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell) : 0u;
+    dda_walk_exits(g, st.org, st.dir, inv_dir, d > 0u ? d - 1u : 0u, w);
+    const float t_exit = w.t_exit;
+    const uvec3 cell = w.cell;
     st.cells += 1u;
-    // Test the cell's references against the whole ray
-    emit(kEvCell, 0u, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
-         vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
-    const uint last_ref = test_cell(g, cell, k, st.rs.t_lo, st.tmax);
-    // A saturated cell's spilled references
-    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(g, cell, k, st.rs.t_lo, st.tmax);
-    // Report the closest hit once it lies inside this cell or before
+    if (d == 0u) {
+      // Test the cell's references against the whole ray
+      emit(kEvCell, 0u, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
+           vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
+      const uint last_ref = test_cell(g, cell, k, st.rs.t_lo, st.tmax);
+      // A saturated cell's spilled references
+      if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(g, cell, k, st.rs.t_lo, st.tmax);
+    } else {
+      emit(kEvSkip, d, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
+           vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
+    }
+    // Report the closest hit once it lies inside this cell (or box) or before
     if (st.has_best && st.best_t <= t_exit) return report(k);
     if (t_exit >= st.rs.t_end) return finish(t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
     // Step to the next cell
-    if (!dda_step(g, st.dir, dda_step_axis(exits), cell)) return finish(kMissLeftGrid, k);
+    if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(kMissLeftGrid, k);
     t_entry = t_exit;
   }
   return finish(kMissStepLimit, g.max_segments);

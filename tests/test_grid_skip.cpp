@@ -1,0 +1,185 @@
+// test_grid_skip.cpp: empty-space skipping in the exact traversal (docs/SPEC.md "Empty-space
+// skipping"):
+//  - the skip field's static distances are the Chebyshev distances to the nearest occupied cell,
+//    against a 26-neighbour breadth-first search over the image (an independent construction);
+//  - the dynamic boxes cover every cell that holds a dynamic reference, through updates;
+//  - with skipping, every hit record equals the plain DDA's in every field but `cells`, and no
+//    ray visits more cells, on every ray of a batch (random, axis-parallel and lattice-diagonal
+//    rays, finite and infinite tmax), through animated updates.
+#include <catch2/catch.hpp>
+
+#include <deque>
+#include <random>
+
+#include "common/builtin/builtin.h"
+#include "tests/test_grid_util.h"
+
+using namespace gridrt;
+using reference::GridOptions;
+using reference::ReferenceGridTracer;
+namespace sh = gridrt::shared;
+
+namespace {
+
+GridOptions skip_options(bool skip) {
+  GridOptions o;
+  o.threads = 2;
+  o.traversal = reference::Traversal::exact;
+  o.skip_empty = skip;
+  o.resolution = glm::uvec3(40, 36, 44);  // fine cells: room to skip (the automatic grid has few)
+  return o;
+}
+
+// Rays over the grid's box: random ones from inside and outside, axis-parallel ones, and rays
+// from lattice points along lattice diagonals (ties between the axes' crossings).
+std::vector<Ray> skip_rays(const sh::GridParams& g, uint32_t seed) {
+  std::vector<Ray> rays;
+  std::mt19937 rng(seed);
+  const glm::vec3 lo = g.origin, hi = g.upper, ext = hi - lo;
+  std::uniform_real_distribution<float> u(-0.2f, 1.2f), d(-1.0f, 1.0f);
+  for (uint32_t i = 0; i < 3000; ++i) {
+    glm::vec3 dir(d(rng), d(rng), d(rng));
+    if (i % 7 == 0) dir[i % 3] = 0.0f;
+    if (i % 11 == 0) dir = glm::vec3(0.0f), dir[(i / 11) % 3] = d(rng) < 0.0f ? -1.0f : 1.0f;
+    if (glm::dot(dir, dir) < 1e-6f) dir = {0.0f, 0.0f, 1.0f};
+    const glm::vec3 o = lo + ext * glm::vec3(u(rng), u(rng), u(rng));
+    rays.push_back(gridtest::make_ray(o, dir, 0.0f, (i % 3) ? INFINITY : 0.3f * glm::length(ext)));
+  }
+  std::uniform_int_distribution<uint32_t> cx(0, g.cells.x), cy(0, g.cells.y), cz(0, g.cells.z), s(0, 7);
+  for (uint32_t i = 0; i < 1000; ++i) {
+    const glm::vec3 o = g.origin + g.cell_size * glm::vec3(float(cx(rng)), float(cy(rng)), float(cz(rng)));
+    const uint32_t k = s(rng);
+    const glm::vec3 dir((k & 1) ? -1.0f : 1.0f, (k & 2) ? -1.0f : 1.0f, (k & 4) ? -2.0f : (i % 2 ? 1.0f : 0.0f));
+    rays.push_back(gridtest::make_ray(o, dir));
+  }
+  return rays;
+}
+
+// The static distances by breadth-first search over 26 neighbours from the cells holding a static
+// reference (slot 0 below the comparison offset: the static references come first): within a box a
+// Chebyshev path stays inside, so the BFS depth is the distance.
+std::vector<uint32_t> bfs_distances(const reference::GridData& grid) {
+  const sh::GridParams& g = grid.params;
+  const uint32_t n = sh::grid_cell_count(g);
+  std::vector<uint32_t> dist(n, ~0u);
+  std::deque<uint32_t> queue;
+  for (uint32_t i = 0; i < n; ++i)
+    if (reference::imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, sh::cell_of_linear_index(g, i), 0u))) <
+        g.comparison_offset) {
+      dist[i] = 0;
+      queue.push_back(i);
+    }
+  while (!queue.empty()) {
+    const uint32_t i = queue.front();
+    queue.pop_front();
+    const glm::ivec3 c(sh::cell_of_linear_index(g, i));
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const glm::ivec3 m = c + glm::ivec3(dx, dy, dz);
+          if (glm::any(glm::lessThan(m, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(m, glm::ivec3(g.cells))))
+            continue;
+          const uint32_t j = sh::cell_linear_index(g, glm::uvec3(m));
+          if (dist[j] != ~0u) continue;
+          dist[j] = dist[i] + 1;
+          queue.push_back(j);
+        }
+  }
+  for (uint32_t& v : dist) v = std::min(v, sh::kSkipMaxDistance);
+  return dist;
+}
+
+uint32_t static_distance(const reference::GridData& grid, uint32_t i) {
+  return (grid.skip[sh::skip_distance_word(i)] >> sh::skip_distance_shift(i)) & 0xFFu;
+}
+
+}  // namespace
+
+TEST_CASE("The skip field's distances are the Chebyshev distances to the nearest reference", "[grid][skip]") {
+  for (uint32_t seed : {3u, 8u}) {
+    INFO("seed " << seed);
+    const Scene scene = gridtest::random_scene(seed == 3u ? 40 : 300, 0.5f, 10.0f, seed, 20);
+    REQUIRE(scene.static_instance_count() > 0);
+    ReferenceGridTracer ref(skip_options(true));
+    ref.build(scene, 0.0f);
+    const reference::GridData& grid = ref.data();
+    REQUIRE((grid.params.flags & sh::kGridSkipEmpty) != 0u);
+    REQUIRE(grid.skip.size() == sh::skip_words(grid.params));
+    const std::vector<uint32_t> want = bfs_distances(grid);
+    size_t far = 0;
+    for (uint32_t i = 0; i < sh::grid_cell_count(grid.params); ++i) {
+      INFO("cell " << i);
+      REQUIRE(static_distance(grid, i) == want[i]);
+      far += want[i] >= 3;
+    }
+    CHECK(far > 0);  // the scene has room to skip
+    // Every cell holding a dynamic reference is inside a dynamic box, through updates
+    for (float time : {0.0f, 0.9f, 2.4f}) {
+      if (time > 0.0f) ref.update(time);
+      const uint32_t boxes = grid.skip[0];
+      for (uint32_t i : reference::dirty_cells(grid)) {
+        const glm::uvec3 c = sh::cell_of_linear_index(grid.params, i);
+        uint32_t d = ~0u;
+        for (uint32_t b = 0; b < boxes; ++b) {
+          const uint32_t w = sh::skip_box_word(b);
+          d = std::min(d, sh::skip_box_distance(c, {grid.skip[w], grid.skip[w + 1], grid.skip[w + 2]},
+                                                {grid.skip[w + 4], grid.skip[w + 5], grid.skip[w + 6]}));
+        }
+        INFO("time " << time << " dirty cell " << i);
+        REQUIRE(d == 0u);
+      }
+    }
+  }
+}
+
+TEST_CASE("Skipping: every hit record equals the plain DDA's but `cells`, never more cells", "[grid][skip]") {
+  for (const char* name : {"random", "atrium"}) {
+    INFO(name);
+    const bool random = std::string(name) == "random";
+    const Scene scene = random ? gridtest::random_scene(200, 0.6f, 10.0f, 21, 40) : make_builtin(name);
+    ReferenceGridTracer plain(skip_options(false)), skip(skip_options(true));
+    plain.build(scene, 0.0f);
+    skip.build(scene, 0.0f);
+    REQUIRE(plain.params().cells == skip.params().cells);
+    REQUIRE((plain.params().flags & sh::kGridSkipEmpty) == 0u);
+    for (float time : {0.0f, 0.7f, 2.2f}) {
+      INFO("time " << time);
+      if (time > 0.0f) {
+        plain.update(time);
+        skip.update(time);
+      }
+      const std::vector<Ray> rays = skip_rays(plain.params(), 40 + uint32_t(time * 10));
+      std::vector<Hit> want(rays.size()), got(rays.size());
+      plain.trace(rays, want);
+      skip.trace(rays, got);
+      uint64_t cells_plain = 0, cells_skip = 0, hits = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        INFO("ray " << i << " " << gridtest::hx(rays[i]) << "\nplain " << gridtest::hx(want[i]) << "\nskip  "
+                    << gridtest::hx(got[i]));
+        Hit a = want[i], b = got[i];
+        REQUIRE(b.cells <= a.cells);
+        cells_plain += a.cells;
+        cells_skip += b.cells;
+        hits += !is_miss(a);
+        INFO("tests " << a.tests << " / " << b.tests << " cells " << a.cells << " / " << b.cells);
+        a.cells = b.cells = 0;
+        if (std::memcmp(&a, &b, sizeof a) != 0) {
+          for (const auto* t : {&plain, &skip}) {
+            const reference::ExplainRecord rec = t->explain_ray(rays[i]);
+            std::string line;
+            for (const sh::ExplainEvent& e : rec.events)
+              if (e.kind == sh::kEvCell || e.kind == sh::kEvSkip)
+                line += (e.kind == sh::kEvSkip ? " S" + std::to_string(e.code) : " C") + std::string("(") +
+                        std::to_string(e.cell.x) + "," + std::to_string(e.cell.y) + "," + std::to_string(e.cell.z) + ")";
+            std::printf("%s\n", line.c_str());
+          }
+        }
+        REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
+      }
+      WARN(name << " time " << time << ": cells per ray " << double(cells_plain) / rays.size() << " plain, "
+                << double(cells_skip) / rays.size() << " skipping; " << hits << " hits of " << rays.size());
+      CHECK(hits > rays.size() / 50);
+      CHECK(cells_skip < cells_plain);
+    }
+  }
+}
