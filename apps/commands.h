@@ -11,7 +11,8 @@ namespace gridrt::app {
 
 void add_render_command(CLI::App& app);   // cmd_render.cpp
 void add_convert_command(CLI::App& app);  // cmd_convert.cpp
-void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: explain, stats, diff
+void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: stats, diff
+void add_explain_command(CLI::App& app);  // cmd_explain.cpp
 void add_bench_command(CLI::App& app);    // cmd_bench.cpp
 void add_portal_command(CLI::App& app);   // cmd_portal.cpp: portal render, portal explain
 

@@ -49,13 +49,7 @@ glm::vec3 direct_light(const Scene& scene, glm::vec3 p, glm::vec3 n, uint32_t la
     const float cos = glm::dot(n, L);
     if (cos <= 0.0f) continue;
     if (shadows) {
-      Ray r;
-      r.org = p;
-      r.dir = l.directional ? L : to_light;
-      r.tmin = 0.0f;
-      r.tmax = l.directional ? std::numeric_limits<float>::infinity() : 1.0f;
-      r.launch_normal = n;
-      r.launch_ref = launch_ref;
+      const Ray r = *shadow_ray(l, p, n, launch_ref);
       Hit h;
       shadows->trace(std::span<const Ray>(&r, 1), std::span<Hit>(&h, 1));
       if (!is_miss(h)) continue;
@@ -66,6 +60,23 @@ glm::vec3 direct_light(const Scene& scene, glm::vec3 p, glm::vec3 n, uint32_t la
 }
 
 }  // namespace
+
+std::optional<Ray> shadow_ray(const Light& l, glm::vec3 p, glm::vec3 n, uint32_t launch_ref) {
+  // The light lights the surface: not at p, in front of it (as direct_light decides)
+  const glm::vec3 to_light = l.directional ? l.position : l.position - p;
+  const float d2 = glm::dot(to_light, to_light);
+  if (!(d2 > 0.0f)) return std::nullopt;
+  const glm::vec3 L = to_light / std::sqrt(d2);
+  if (glm::dot(n, L) <= 0.0f) return std::nullopt;
+  Ray r;
+  r.org = p;
+  r.dir = l.directional ? L : to_light;
+  r.tmin = 0.0f;
+  r.tmax = l.directional ? std::numeric_limits<float>::infinity() : 1.0f;
+  r.launch_normal = n;
+  r.launch_ref = launch_ref;
+  return r;
+}
 
 glm::vec3 surface_albedo(const Scene& scene, uint32_t instance, uint32_t triangle, float u, float v) {
   if (instance >= scene.instances.size()) return glm::vec3(0.0f);

@@ -1,6 +1,7 @@
 // shade.h: simple, deterministic shading of a gather buffer and its glossy bounce, for images.
 #pragma once
 
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -30,6 +31,12 @@ struct ShadeOptions {
 // bounce_rays and bounce_hits are per pixel as bounce_rays() made them (empty spans: no bounce).
 std::vector<glm::vec3> shade(const Scene& scene, const GatherBuffer& gather, std::span<const Ray> bounce_rays,
                              std::span<const Hit> bounce_hits, const ShadeOptions& options = {});
+
+// The shadow ray shade() traces from surface point p (unit normal n, facing the viewer; its
+// triangle launch_ref) toward light l: origin p, direction L for a directional light (tmax +inf),
+// the vector to the light for a point light (tmax 1: the light itself), tmin 0, launch normal n.
+// None where the light does not light the surface (behind it, or at p): no ray is traced there.
+std::optional<Ray> shadow_ray(const Light& l, glm::vec3 p, glm::vec3 n, uint32_t launch_ref);
 
 // Albedo (diffuse colour times texture) of triangle `triangle` of instance `instance` at
 // barycentrics (u, v).

@@ -8,7 +8,8 @@ preset=${1:-release}
 pkgs=(build-essential cmake ninja-build pkg-config
       libglm-dev libembree-dev libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers
       vulkan-tools glslang-tools spirv-tools catch2 libopenimageio-dev openimageio-tools
-      libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libcli11-dev libbenchmark-dev)
+      libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libcli11-dev libbenchmark-dev
+      chromium)  # chromium: the test that loads explain's HTML viewer in a headless browser
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")
