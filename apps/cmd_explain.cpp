@@ -169,6 +169,10 @@ class Explainer {
     return *frame_;
   }
   std::string device() { return context_ ? context_->info().name : ""; }
+  // The validation layer's messages (GRIDRT_VALIDATION=1), if any
+  std::vector<std::string> validation_messages() const {
+    return context_ ? context_->messages() : std::vector<std::string>{};
+  }
 #endif
 
   // The reference's gather buffer, its one pixel traced (by the exact traversal: the frame's)
@@ -216,6 +220,7 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
   GatherBuffer gather;
   std::vector<Ray> bounces;
   std::optional<Hit> frame_hit;
+  std::string gpu_gather;
   if (o.gpu_frame) {
 #ifdef GRIDRT_HAVE_VULKAN
     const auto& f = ex.gpu_frame();
@@ -223,6 +228,7 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
                           " pass (no grid traversal), bounce rays by its bounce pass, traced by the " +
                           traversal_name(frame_t) + " traversal; explained below: the GPU frame's own rays");
     gather = f.gather;
+    gpu_gather = f.gather_mode;
     bounces = f.bounce ? f.rays : bounce_rays(scene, gather, o.frame);
     if (f.bounce && !is_unused(f.rays[p])) frame_hit = f.hits[p];
 #endif
@@ -243,9 +249,9 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
     it.header.push_back(std::string("explained by the ") + traversal_name(it.traversal) + " traversal" +
                         (it.traversal == Traversal::exact ? ", as the frame's gather traces it"
                                                           : " (asked for with --traversal; the frame's gather uses the exact one)") +
-                        (o.gpu_frame ? " (the GPU frame gathers by rasterization: its primary rays are the same "
-                                       "camera rays, not traced through the grid)"
-                                     : ""));
+                        (o.gpu_frame ? " (the GPU frame gathers by its " + gpu_gather +
+                                           " pass: the same camera rays, not traced through the grid)"
+                                     : std::string()));
     items.push_back(it);
   } else if (kind == "bounce") {
     if (is_unused(bounces[p]))
@@ -401,6 +407,12 @@ void run_explain(const ExplainOptions& options) {
     write_file(o.html, reference::explain_html("gridrt explain: " + scene.name, views));
     std::fprintf(stderr, "wrote %s\n", o.html.c_str());
   }
+#ifdef GRIDRT_HAVE_VULKAN
+  const std::vector<std::string> messages = ex.validation_messages();
+  for (const std::string& m : messages) std::fprintf(stderr, "validation %s\n", m.c_str());
+  if (!messages.empty())
+    throw Error("the Vulkan validation layer reported " + std::to_string(messages.size()) + " message(s)");
+#endif
 }
 
 }  // namespace

@@ -133,6 +133,7 @@ ExplainGeometry explain_geometry(const ExplainRecord& rec, const GridData& grid)
   const float len = glm::length(g.dir) > 0.0f ? glm::length(diag) / glm::length(g.dir) : 1.0f;
   g.t_begin = t_start;
   g.t_end = g.hit_point ? std::max(t_start, rec.hit.t) : (t_exit > t_start ? t_exit : t_start + (meets ? 0.0f : len));
+  if (g.t_end > rec.ray.tmax) g.t_end = std::max(t_start, rec.ray.tmax);  // a shadow ray ends at its light
   if (!std::isfinite(g.t_end)) g.t_end = t_start + len;
   if (!std::isfinite(g.t_begin)) g.t_begin = 0.0f;
   return g;
