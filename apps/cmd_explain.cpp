@@ -306,7 +306,6 @@ void run_explain(const ExplainOptions& options) {
 #ifndef GRIDRT_HAVE_VULKAN
   if (vulkan) throw Error("explain --backend vulkan: this build has no Vulkan (it has: " + backend_list() + ")");
 #endif
-  if (o.gpu_frame && !vulkan) throw Error("--gpu-frame needs --backend vulkan (the GPU frame runs on the device)");
   for (const std::string* path : {&o.obj, &o.svg, &o.html})
     if (!path->empty()) check_output_path(*path);
   resolve_image_limit(o.backend_options, vulkan);
@@ -462,6 +461,8 @@ void add_explain_command(CLI::App& app) {
       throw CLI::ValidationError("explain", "give --pixel X,Y, --ray or --ray-file");
     if (o->pixel.empty() && (o->kind != "auto" || o->primary || o->gpu_frame || o->light))
       throw CLI::ValidationError("explain", "--kind, --primary, --light and --gpu-frame go with --pixel");
+    if (o->gpu_frame && o->backend != "vulkan")
+      throw CLI::ValidationError("explain", "--gpu-frame needs --backend vulkan (the GPU frame runs on the device)");
     o->traversal_given = cmd->count("--traversal") > 0;
     run_explain(*o);
   });

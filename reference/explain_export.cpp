@@ -320,11 +320,15 @@ std::string svg_body(const ExplainRecord& rec, const ExplainGeometry& g, const E
   }
   os << "</g>\n";
   // The ray, its paper samples and the hit
+  // (a ray with NaN or inf values has no line)
   const glm::vec2 r0 = pr.map(g.org), r1 = pr.map(at(g, g.t_end)), rb = pr.map(at(g, g.t_begin));
-  os << "<line id=\"ray-outside\" class=\"ray-outside\" x1=\"" << px(r0.x) << "\" y1=\"" << px(r0.y) << "\" x2=\""
-     << px(rb.x) << "\" y2=\"" << px(rb.y) << "\"/>\n";
-  os << "<line id=\"ray\" class=\"ray\" x1=\"" << px(rb.x) << "\" y1=\"" << px(rb.y) << "\" x2=\"" << px(r1.x)
-     << "\" y2=\"" << px(r1.y) << "\"/>\n";
+  auto line = [&](const char* id, glm::vec2 a, glm::vec2 b) {
+    if (!std::isfinite(a.x + a.y + b.x + b.y)) return;
+    os << "<line id=\"" << id << "\" class=\"" << id << "\" x1=\"" << px(a.x) << "\" y1=\"" << px(a.y) << "\" x2=\""
+       << px(b.x) << "\" y2=\"" << px(b.y) << "\"/>\n";
+  };
+  line("ray-outside", r0, rb);
+  line("ray", rb, r1);
   if (p.traversal != kTraversalExact)
     for (const auto& c : g.cells)
       if (const auto& t = g.event_t[c.event]) {

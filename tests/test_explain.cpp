@@ -313,6 +313,13 @@ TEST_CASE("Explain: the command line - any ray, ray files, kinds, brief, JSON, p
   CHECK(bad.exit_code == 1);
   CHECK_THAT(bad.output, Catch::Contains("ox,oy,oz,dx,dy,dz"));
   CHECK(run_tool("explain builtin:cornell").exit_code == 2);
+  CHECK(run_tool("explain builtin:cornell --pixel 1,1 --gpu-frame").exit_code == 2);  // it needs --backend vulkan
+  // A NaN ray is explained (rejected) and drawn without NaN coordinates
+  const fs::path nan_svg = scratch("nan.svg");
+  const test::Run n = run_tool("explain builtin:cornell --ray nan,0,0,1,0,0 --brief --svg " + nan_svg.string());
+  CHECK(n.exit_code == 0);
+  CHECK_THAT(n.output, Catch::Contains("REJECTED"));
+  CHECK_THAT(slurp(nan_svg), !Catch::Contains("nan") && Catch::Contains("</svg>"));
   CHECK(run_tool("explain builtin:cornell --pixel 1,1 --ray 0,0,0,1,0,0").exit_code == 2);
   const test::Run nob = run_tool("explain builtin:cornell --width 48 --height 36 --pixel 24,18 --kind bounce");
   CHECK(nob.exit_code == 1);
