@@ -340,6 +340,7 @@ void run_explain(const ExplainOptions& options) {
 
   // Each ray through the reference, and the shader
   nlohmann::json json_rays = nlohmann::json::array();
+  std::vector<std::string> written;  // said on stderr after stdout's text, which they would split
   nlohmann::json views = nlohmann::json::array();
   for (size_t i = 0; i < items.size(); ++i) {
     const Item& it = items[i];
@@ -388,12 +389,12 @@ void run_explain(const ExplainOptions& options) {
       const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
       write_file(mtl.string(), reference::explain_mtl());
       write_file(path, reference::explain_obj(want, ref.data(), mtl.filename().string()));
-      std::fprintf(stderr, "wrote %s (and %s)\n", path.c_str(), mtl.string().c_str());
+      written.push_back(path + " (and " + mtl.string() + ")");
     }
     if (!o.svg.empty()) {
       const std::string path = numbered(o.svg, i, items.size());
       write_file(path, reference::explain_svg(want, ref.data(), fmt));
-      std::fprintf(stderr, "wrote %s\n", path.c_str());
+      written.push_back(path);
     }
     if (!o.html.empty())
       views.push_back(reference::explain_view(it.label, it.header, want, got ? &*got : nullptr, ref.data(), fmt));
@@ -404,8 +405,10 @@ void run_explain(const ExplainOptions& options) {
                             .c_str());
   if (!o.html.empty()) {
     write_file(o.html, reference::explain_html("gridrt explain: " + scene.name, views));
-    std::fprintf(stderr, "wrote %s\n", o.html.c_str());
+    written.push_back(o.html);
   }
+  std::fflush(stdout);
+  for (const std::string& w : written) std::fprintf(stderr, "wrote %s\n", w.c_str());
 #ifdef GRIDRT_HAVE_VULKAN
   const std::vector<std::string> messages = ex.validation_messages();
   for (const std::string& m : messages) std::fprintf(stderr, "validation %s\n", m.c_str());
