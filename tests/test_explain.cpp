@@ -364,8 +364,10 @@ TEST_CASE("Explain: the HTML viewer loads in headless chromium without script er
 
   const fs::path profile = scratch("chromium-profile");
   fs::remove_all(profile);
-  const std::string cmd = browser +
-                          " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+  // (timeout: a browser that hangs fails the test rather than the suite; /dev/shm is small in
+  // containers)
+  const std::string cmd = "timeout 120 " + browser +
+                          " --headless --no-sandbox --disable-gpu --disable-dev-shm-usage --disable-quic --no-first-run "
                           "--disable-background-networking --disable-component-update --disable-sync "
                           "--user-data-dir=" +
                           profile.string() + " --dump-dom 'file://" + page.string() + "#selftest' 2>/dev/null";
