@@ -163,7 +163,7 @@ reference::GridOptions grid_options_for(const BackendOptions& o, const Scene& sc
   if (o.max_image_dimension) g.max_image_dimension = *o.max_image_dimension;
   if (!o.resolution.empty()) g.resolution = glm::uvec3(o.resolution[0], o.resolution[1], o.resolution[2]);
   if (!o.all_effects) {
-    // Simulate only what the scene calls for (DESIGN.md): no alpha keying without masks.
+    // Simulate only what the scene calls for: no alpha keying without masks.
     const Features f = Features::for_scene(scene);
     g.alpha_keying = g.alpha_keying && f.alpha_keying;
   } else {

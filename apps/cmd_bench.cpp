@@ -24,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "apps/backends.h"
+#include "common/util.h"
 #include "apps/commands.h"
 #include "common/gather.h"
 #include "reference/grid.h"
@@ -75,10 +76,6 @@ nlohmann::json spill_json(const shared::SpillHeader& h, uint32_t flags) {
   return {{"on", (flags & shared::kGridSpill) != 0u}, {"appended", h.count}, {"static", h.static_count},
           {"capacity", h.capacity}, {"stored", std::min(h.count, h.capacity)},
           {"overflow", (flags & shared::kGridSpill) && h.count > h.capacity ? h.count - h.capacity : 0u}, {"gap_fill", (flags & shared::kGridGapFill) != 0u}};
-}
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 struct PhaseTimes {
@@ -172,46 +169,36 @@ Agreement compare_hits(const std::vector<Ray>& rays, const std::vector<Hit>& gri
 
 double percent(size_t part, size_t whole) { return whole ? 100.0 * double(part) / double(whole) : 0.0; }
 
-// The whole frame on the GPU: the grid's static build once, then per frame the update (clear,
-// dynamic insert) and VulkanFrame::render (gather, bounce, trace, shade), GPU timestamps.
-void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::json& out) {
-  std::unique_ptr<Tracer> tracer = make_backend("vulkan", o.backend_options, scene);
-  auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
-  if (!vk) throw Error("bench: the vulkan backend is not the Vulkan grid");
-  if (o.rtx)
-    if (const std::string why = vulkan::rtx_unsupported(vk->context()); !why.empty()) throw Error("--rtx: " + why);
-  auto t0 = std::chrono::steady_clock::now();
-  vk->build(scene, 0.0f);
-  const double build_host = ms_since(t0);
-  const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
-  const double build = stamps ? vk->timings().build_ms : build_host;
-  vulkan::FrameOptions fo{.width = o.width, .height = o.height};
-  fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
-  fo.compact_rays = o.compact_rays;
-  vulkan::VulkanFrame frame(*vk, scene, fo);
-  // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
-  std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
-  vulkan::Buffer rtx_hits;
-  if (o.rtx) {
-    if (!frame.bounce())
-      throw Error("--rtx: " + scene.name + " has no glossy material, so the frame has no bounce rays to trace");
-    rtx = std::make_unique<vulkan::VulkanRtxTracer>(
-        *vk, vulkan::RtxOptions{.any_hit_all = !o.rtx_opaque, .rebuild_dynamic = o.rtx_rebuild});
-    rtx_hits = vk->context().create_buffer(VkDeviceSize(frame.ray_count()) * sizeof(Hit), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-  }
+// What the timed frames gave: per phase its times, the trace's counters (cells visited, references
+// tested, read back from the hit records of the first timed frames), the bounce rays of frame 0,
+// the last frame's rays and hits (for the CPU tracers) and frame 0's gather tiles.
+struct FrameRun {
   std::map<std::string, std::vector<double>> t;
   size_t rays = 0;
-  const bool moves = scene.has_dynamic();
-  // Per-ray counters of the trace (cells visited, references tested), read back from the hit
-  // records of the first timed frames; the last frame's rays and hits for the CPU tracers
   std::map<std::string, std::vector<double>> counters;
   std::vector<Ray> last_rays;
   std::vector<Hit> last_hits;
   float last_time = 0.0f;
   uint32_t counted = 0, gather_tiles = 0;
+};
+
+// The frames, warm-up then timed: per frame the update, the frame's passes and (with `rtx`) the
+// RT pipeline's update and trace of the same rays into `rtx_hits`.
+FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGridTracer* vk, vulkan::VulkanFrame& frame,
+                    vulkan::VulkanRtxTracer* rtx, const vulkan::Buffer& rtx_hits, bool stamps) {
+  FrameRun run;
+  std::map<std::string, std::vector<double>>& t = run.t;
+  size_t& rays = run.rays;
+  const bool moves = scene.has_dynamic();
+  std::map<std::string, std::vector<double>>& counters = run.counters;
+  std::vector<Ray>& last_rays = run.last_rays;
+  std::vector<Hit>& last_hits = run.last_hits;
+  float& last_time = run.last_time;
+  uint32_t& counted = run.counted;
+  uint32_t& gather_tiles = run.gather_tiles;
   for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
     const float time = float(f + 1) / o.fps;
-    t0 = std::chrono::steady_clock::now();
+    const auto t0 = std::chrono::steady_clock::now();
     if (moves) vk->update(time);
     const double update_host = moves ? ms_since(t0) : 0.0;
     frame.render(f);
@@ -278,6 +265,149 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     t["shade"].push_back(stamps ? ft.shade_ms : 0.0);
     t["frame"].push_back(update + (stamps ? ft.total_ms : ft.host_ms));
   }
+  return run;
+}
+
+// The RT pipeline beside the grid: printed, and as JSON.
+nlohmann::json rtx_report(const BenchOptions& o, std::map<std::string, double>& m, double build, double mrays,
+                          double grid_mib, size_t rays, const vulkan::RtxTimings& rtx_first,
+                          const vulkan::RtxMemory& rtx_memory, uint32_t rtx_dynamic, const Agreement& agree) {
+  const double rtx_mrays = m["rtx_trace"] > 0.0 ? double(rays) / (m["rtx_trace"] * 1e3) : 0.0;
+  const double mib = 1.0 / (1 << 20);
+  const char* mode =
+      o.rtx_opaque ? "opaque where unmasked, re-traced past the launch triangle" : "any-hit on every triangle";
+  const char* dynamic = o.rtx_rebuild ? "rebuilt" : "refitted";
+  std::printf("rtx: the device's ray tracing pipeline on the same bounce rays (%s; %u dynamic BLASes %s, the TLAS "
+              "rebuilt, each frame)\n",
+              mode, rtx_dynamic, dynamic);
+  // Side by side: each tracer's static build, per-frame update, trace and structure
+  std::printf("| tracer | build ms, once | update ms per frame | trace ms | update + trace ms | Mrays/s | structure "
+              "MiB |\n|---|---|---|---|---|---|---|\n");
+  std::printf("| grid | %.3f | %.3f (clear %.3f + insert %.3f) | %.3f | %.3f | %.0f | %.1f (image) |\n", build,
+              m["update"], m["clear"], m["insert"], m["trace"], m["update"] + m["trace"], mrays, grid_mib);
+  std::printf("| rtx | %.3f (static BLASes %.3f) | %.3f (dynamic BLASes %.3f + TLAS %.3f) | %.3f | %.3f | %.0f | %.1f "
+              "(static %.1f + dynamic %.1f + TLAS %.2f) |\n",
+              rtx_first.first_build_ms, rtx_first.static_build_ms, m["rtx_update"], m["rtx_refit"], m["rtx_tlas"], m["rtx_trace"],
+              m["rtx_update"] + m["rtx_trace"], rtx_mrays,
+              double(rtx_memory.static_blas + rtx_memory.dynamic_blas + rtx_memory.tlas) * mib,
+              double(rtx_memory.static_blas) * mib, double(rtx_memory.dynamic_blas) * mib, double(rtx_memory.tlas) * mib);
+  std::printf("agree: %.3f %% of all rays, %.3f %% of the bounce rays\n", percent(agree.same, agree.rays),
+              percent(agree.same_bounce, agree.bounce));
+  std::printf("agreement, the last frame: %zu of %zu rays the same (instance, triangle) or both miss; of the %zu bounce "
+              "rays %zu. Differ: grid hit / rtx miss %zu, grid miss / rtx hit %zu, other triangle %zu (the grid's a "
+              "gap-fill voxel: %zu; rtx's nearer: %zu, of which at t < 1e-3 of the grid's: %zu). Same triangle: %zu "
+              "hits, t identical in bits %zu, within 4 ulps %zu, relative difference at most %.2g. Rays traced again "
+              "past their launch triangle: %zu\n\n",
+              agree.same, agree.rays, agree.bounce, agree.same_bounce, agree.grid_only, agree.rtx_only, agree.different,
+              agree.different_gap_fill, agree.rtx_closer, agree.rtx_at_origin, agree.both_hit, agree.t_identical,
+              agree.t_within_4_ulps, agree.t_max_rel, agree.retraced);
+  std::fflush(stdout);
+  return {{"mode", mode},
+          {"dynamic_blas", dynamic},
+          {"dynamic_instances", rtx_dynamic},
+          {"static_blas_build_ms", rtx_first.static_build_ms},
+          {"first_build_ms", rtx_first.first_build_ms},
+          {"update_ms", m["rtx_update"]},
+          {"refit_ms", m["rtx_refit"]},
+          {"tlas_ms", m["rtx_tlas"]},
+          {"trace_ms", m["rtx_trace"]},
+          {"mrays_per_s", rtx_mrays},
+          {"memory_bytes",
+               {{"static_blas", rtx_memory.static_blas},
+                {"dynamic_blas", rtx_memory.dynamic_blas},
+                {"tlas", rtx_memory.tlas},
+                {"scratch", rtx_memory.scratch}}},
+          {"agreement",
+               {{"rays", agree.rays},
+                {"same", agree.same},
+                {"bounce_rays", agree.bounce},
+                {"same_bounce", agree.same_bounce},
+                {"grid_hit_rtx_miss", agree.grid_only},
+                {"grid_miss_rtx_hit", agree.rtx_only},
+                {"other_triangle", agree.different},
+                {"other_triangle_grid_gap_fill", agree.different_gap_fill},
+                {"other_triangle_rtx_nearer", agree.rtx_closer},
+                {"other_triangle_rtx_at_origin", agree.rtx_at_origin},
+                {"same_triangle_hits", agree.both_hit},
+                {"t_identical", agree.t_identical},
+                {"t_within_4_ulps", agree.t_within_4_ulps},
+                {"t_max_relative_difference", agree.t_max_rel},
+                {"retraced", agree.retraced}}}};
+}
+
+// Embree on the CPU, on the last frame's own bounce rays, at that frame's time.
+void embree_on_frame_rays(const BenchOptions& o, const Scene& scene, const FrameRun& run, nlohmann::json& out) {
+  const std::vector<Ray>& last_rays = run.last_rays;
+  const std::vector<Hit>& last_hits = run.last_hits;
+  const float last_time = run.last_time;
+  if (std::find(o.backends.begin(), o.backends.end(), "embree") == o.backends.end() || last_rays.empty()) return;
+  {
+    std::unique_ptr<Tracer> embree = make_backend("embree", o.backend_options, scene);
+    auto t0 = std::chrono::steady_clock::now();
+    embree->build(scene, 0.0f);
+    embree->update(last_time);
+    const double embree_build = ms_since(t0);
+    std::vector<Ray> real;
+    std::vector<size_t> index;
+    for (size_t i = 0; i < last_rays.size(); ++i)
+      if (!is_unused(last_rays[i])) real.push_back(last_rays[i]), index.push_back(i);
+    std::vector<Hit> hits(real.size());
+    std::vector<double> times;
+    for (int r = 0; r < 3; ++r) {
+      t0 = std::chrono::steady_clock::now();
+      embree->trace(real, hits);
+      times.push_back(ms_since(t0));
+    }
+    std::vector<Hit> embree_hits(last_rays.size(), Hit{});
+    for (size_t k = 0; k < index.size(); ++k) embree_hits[index[k]] = hits[k];
+    const double ms = median(times), agree_pct = agreement_percent(last_rays, last_hits, embree_hits);
+    size_t gap = 0;
+    for (size_t i : index) gap += (last_hits[i].flags & shared::kHitGapFill) != 0;
+    const unsigned threads = std::thread::hardware_concurrency();
+    std::printf("embree on the same bounce rays (CPU, %u threads; the last frame, t = %.3f): %zu rays in %.2f ms (median of 3), "
+                "%.1f Mrays/s; the GPU grid agrees on %.3f %% (same instance and triangle, or both miss; %zu gap-fill hits); "
+                "embree build + update %.0f ms\n\n",
+                threads, last_time, real.size(), ms, double(real.size()) / (ms * 1e3), agree_pct, gap, embree_build);
+    out["backends"]["embree_on_frame_rays"] = {{"device", "CPU, " + std::to_string(threads) + " threads"},
+                                               {"rays", real.size()},       {"trace_ms", ms},
+                                               {"trace_ms_all", times},     {"mrays_per_s", double(real.size()) / (ms * 1e3)},
+                                               {"agree_percent", agree_pct},    {"gpu_gap_fill_hits", gap},
+                                               {"build_ms", embree_build},  {"time", last_time}};
+  }
+}
+
+// The whole frame on the GPU: the grid's static build once, then per frame the update (clear,
+// dynamic insert) and VulkanFrame::render (gather, bounce, trace, shade), GPU timestamps.
+void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::json& out) {
+  std::unique_ptr<Tracer> tracer = make_backend("vulkan", o.backend_options, scene);
+  auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
+  if (!vk) throw Error("bench: the vulkan backend is not the Vulkan grid");
+  if (o.rtx)
+    if (const std::string why = vulkan::rtx_unsupported(vk->context()); !why.empty()) throw Error("--rtx: " + why);
+  auto t0 = std::chrono::steady_clock::now();
+  vk->build(scene, 0.0f);
+  const double build_host = ms_since(t0);
+  const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
+  const double build = stamps ? vk->timings().build_ms : build_host;
+  vulkan::FrameOptions fo{.width = o.width, .height = o.height};
+  fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
+  fo.compact_rays = o.compact_rays;
+  vulkan::VulkanFrame frame(*vk, scene, fo);
+  // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
+  std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
+  vulkan::Buffer rtx_hits;
+  if (o.rtx) {
+    if (!frame.bounce())
+      throw Error("--rtx: " + scene.name + " has no glossy material, so the frame has no bounce rays to trace");
+    rtx = std::make_unique<vulkan::VulkanRtxTracer>(
+        *vk, vulkan::RtxOptions{.any_hit_all = !o.rtx_opaque, .rebuild_dynamic = o.rtx_rebuild});
+    rtx_hits = vk->context().create_buffer(VkDeviceSize(frame.ray_count()) * sizeof(Hit), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  }
+  FrameRun run = run_frames(o, scene, vk, frame, rtx.get(), rtx_hits, stamps);
+  std::map<std::string, std::vector<double>>& t = run.t;
+  const size_t rays = run.rays;
+  const std::map<std::string, std::vector<double>>& counters = run.counters;
+  const uint32_t counted = run.counted, gather_tiles = run.gather_tiles;
   const shared::SpillHeader spill = vk->spill_header();
   const uint32_t spill_flags = vk->params().flags;
   // The RT pipeline's hits against the grid's, the last frame's rays; then the RT tracer goes
@@ -365,69 +495,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
   }
-  if (o.rtx) {
-    const double rtx_mrays = m["rtx_trace"] > 0.0 ? double(rays) / (m["rtx_trace"] * 1e3) : 0.0;
-    const double mib = 1.0 / (1 << 20);
-    const char* mode =
-        o.rtx_opaque ? "opaque where unmasked, re-traced past the launch triangle" : "any-hit on every triangle";
-    const char* dynamic = o.rtx_rebuild ? "rebuilt" : "refitted";
-    std::printf("rtx: the device's ray tracing pipeline on the same bounce rays (%s; %u dynamic BLASes %s, the TLAS "
-                "rebuilt, each frame)\n",
-                mode, rtx_dynamic, dynamic);
-    // Side by side: each tracer's static build, per-frame update, trace and structure
-    std::printf("| tracer | build ms, once | update ms per frame | trace ms | update + trace ms | Mrays/s | structure "
-                "MiB |\n|---|---|---|---|---|---|---|\n");
-    std::printf("| grid | %.3f | %.3f (clear %.3f + insert %.3f) | %.3f | %.3f | %.0f | %.1f (image) |\n", build,
-                m["update"], m["clear"], m["insert"], m["trace"], m["update"] + m["trace"], mrays, grid_mib);
-    std::printf("| rtx | %.3f (static BLASes %.3f) | %.3f (dynamic BLASes %.3f + TLAS %.3f) | %.3f | %.3f | %.0f | %.1f "
-                "(static %.1f + dynamic %.1f + TLAS %.2f) |\n",
-                rtx_first.first_build_ms, rtx_first.static_build_ms, m["rtx_update"], m["rtx_refit"], m["rtx_tlas"], m["rtx_trace"],
-                m["rtx_update"] + m["rtx_trace"], rtx_mrays,
-                double(rtx_memory.static_blas + rtx_memory.dynamic_blas + rtx_memory.tlas) * mib,
-                double(rtx_memory.static_blas) * mib, double(rtx_memory.dynamic_blas) * mib, double(rtx_memory.tlas) * mib);
-    std::printf("agree: %.3f %% of all rays, %.3f %% of the bounce rays\n", percent(agree.same, agree.rays),
-                percent(agree.same_bounce, agree.bounce));
-    std::printf("agreement, the last frame: %zu of %zu rays the same (instance, triangle) or both miss; of the %zu bounce "
-                "rays %zu. Differ: grid hit / rtx miss %zu, grid miss / rtx hit %zu, other triangle %zu (the grid's a "
-                "gap-fill voxel: %zu; rtx's nearer: %zu, of which at t < 1e-3 of the grid's: %zu). Same triangle: %zu "
-                "hits, t identical in bits %zu, within 4 ulps %zu, relative difference at most %.2g. Rays traced again "
-                "past their launch triangle: %zu\n\n",
-                agree.same, agree.rays, agree.bounce, agree.same_bounce, agree.grid_only, agree.rtx_only, agree.different,
-                agree.different_gap_fill, agree.rtx_closer, agree.rtx_at_origin, agree.both_hit, agree.t_identical,
-                agree.t_within_4_ulps, agree.t_max_rel, agree.retraced);
-    std::fflush(stdout);
-    j["rtx"] = {{"mode", mode},
-                {"dynamic_blas", dynamic},
-                {"dynamic_instances", rtx_dynamic},
-                {"static_blas_build_ms", rtx_first.static_build_ms},
-                {"first_build_ms", rtx_first.first_build_ms},
-                {"update_ms", m["rtx_update"]},
-                {"refit_ms", m["rtx_refit"]},
-                {"tlas_ms", m["rtx_tlas"]},
-                {"trace_ms", m["rtx_trace"]},
-                {"mrays_per_s", rtx_mrays},
-                {"memory_bytes",
-                 {{"static_blas", rtx_memory.static_blas},
-                  {"dynamic_blas", rtx_memory.dynamic_blas},
-                  {"tlas", rtx_memory.tlas},
-                  {"scratch", rtx_memory.scratch}}},
-                {"agreement",
-                 {{"rays", agree.rays},
-                  {"same", agree.same},
-                  {"bounce_rays", agree.bounce},
-                  {"same_bounce", agree.same_bounce},
-                  {"grid_hit_rtx_miss", agree.grid_only},
-                  {"grid_miss_rtx_hit", agree.rtx_only},
-                  {"other_triangle", agree.different},
-                  {"other_triangle_grid_gap_fill", agree.different_gap_fill},
-                  {"other_triangle_rtx_nearer", agree.rtx_closer},
-                  {"other_triangle_rtx_at_origin", agree.rtx_at_origin},
-                  {"same_triangle_hits", agree.both_hit},
-                  {"t_identical", agree.t_identical},
-                  {"t_within_4_ulps", agree.t_within_4_ulps},
-                  {"t_max_relative_difference", agree.t_max_rel},
-                  {"retraced", agree.retraced}}}};
-  }
+  if (o.rtx) j["rtx"] = rtx_report(o, m, build, mrays, grid_mib, rays, rtx_first, rtx_memory, rtx_dynamic, agree);
   // With GRIDRT_VALIDATION=1: what the validation layer said (the tool's only way to show it)
   if (vk->context().validation()) {
     const std::vector<std::string> msgs = vk->context().messages();
@@ -442,40 +510,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   }
   out["backends"]["vulkan"] = j;
 
-  // Embree on the CPU, on the last frame's own bounce rays, at that frame's time
-  if (std::find(o.backends.begin(), o.backends.end(), "embree") != o.backends.end() && !last_rays.empty()) {
-    std::unique_ptr<Tracer> embree = make_backend("embree", o.backend_options, scene);
-    t0 = std::chrono::steady_clock::now();
-    embree->build(scene, 0.0f);
-    embree->update(last_time);
-    const double embree_build = ms_since(t0);
-    std::vector<Ray> real;
-    std::vector<size_t> index;
-    for (size_t i = 0; i < last_rays.size(); ++i)
-      if (!is_unused(last_rays[i])) real.push_back(last_rays[i]), index.push_back(i);
-    std::vector<Hit> hits(real.size());
-    std::vector<double> times;
-    for (int r = 0; r < 3; ++r) {
-      t0 = std::chrono::steady_clock::now();
-      embree->trace(real, hits);
-      times.push_back(ms_since(t0));
-    }
-    std::vector<Hit> embree_hits(last_rays.size(), Hit{});
-    for (size_t k = 0; k < index.size(); ++k) embree_hits[index[k]] = hits[k];
-    const double ms = median(times), agree_pct = agreement_percent(last_rays, last_hits, embree_hits);
-    size_t gap = 0;
-    for (size_t i : index) gap += (last_hits[i].flags & shared::kHitGapFill) != 0;
-    const unsigned threads = std::thread::hardware_concurrency();
-    std::printf("embree on the same bounce rays (CPU, %u threads; the last frame, t = %.3f): %zu rays in %.2f ms (median of 3), "
-                "%.1f Mrays/s; the GPU grid agrees on %.3f %% (same instance and triangle, or both miss; %zu gap-fill hits); "
-                "embree build + update %.0f ms\n\n",
-                threads, last_time, real.size(), ms, double(real.size()) / (ms * 1e3), agree_pct, gap, embree_build);
-    out["backends"]["embree_on_frame_rays"] = {{"device", "CPU, " + std::to_string(threads) + " threads"},
-                                               {"rays", real.size()},       {"trace_ms", ms},
-                                               {"trace_ms_all", times},     {"mrays_per_s", double(real.size()) / (ms * 1e3)},
-                                               {"agree_percent", agree_pct},    {"gpu_gap_fill_hits", gap},
-                                               {"build_ms", embree_build},  {"time", last_time}};
-  }
+  embree_on_frame_rays(o, scene, run, out);
 }
 #endif
 

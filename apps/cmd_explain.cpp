@@ -22,7 +22,7 @@
 #include "common/gather.h"
 #include "common/shade.h"
 #include "reference/explain_export.h"
-#include "reference/explain_format.h"
+#include "plan/explain_format.h"
 #include "reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "vulkan/frame.h"
@@ -311,8 +311,8 @@ void run_explain(const ExplainOptions& options) {
   resolve_image_limit(o.backend_options, vulkan);
   const Scene scene = load_scene_or_default(o.scene);
   Explainer ex(o, scene);
-  const reference::ExplainNames names = reference::ExplainNames::of(scene);
-  const reference::ExplainFormat fmt{o.brief, &names};
+  const plan::ExplainNames names = plan::ExplainNames::of(scene);
+  const plan::ExplainFormat fmt{o.brief, &names};
 
   // The rays
   std::vector<Item> items;
@@ -320,9 +320,9 @@ void run_explain(const ExplainOptions& options) {
     items = pixel_items(o, scene, ex);
   } else {
     std::vector<Ray> rays;
-    for (const std::string& r : o.rays) rays.push_back(reference::parse_ray(r));
+    for (const std::string& r : o.rays) rays.push_back(plan::parse_ray(r));
     if (!o.ray_file.empty())
-      for (const Ray& r : reference::read_ray_file(o.ray_file)) rays.push_back(r);
+      for (const Ray& r : plan::read_ray_file(o.ray_file)) rays.push_back(r);
     const Traversal t = ex.options().traversal;
     for (size_t i = 0; i < rays.size(); ++i) {
       Item it;
@@ -359,11 +359,11 @@ void run_explain(const ExplainOptions& options) {
       nlohmann::json j{{"label", it.label},
                        {"header", it.header},
                        {"traversal", traversal_name(it.traversal)},
-                       {"reference", reference::explain_json(want, fmt)}};
+                       {"reference", plan::explain_json(want, fmt)}};
       if (got) {
         j["device"] = device;
-        j["shader"] = reference::explain_json(*got, fmt);
-        j["alignment"] = reference::alignment_json(want, *got, reference::align_events(want.events, got->events));
+        j["shader"] = plan::explain_json(*got, fmt);
+        j["alignment"] = plan::alignment_json(want, *got, plan::align_events(want.events, got->events));
       }
       if (it.frame_hit)
         j["frame_hit"] = {{"instance", it.frame_hit->instance}, {"triangle", it.frame_hit->triangle},
@@ -373,10 +373,10 @@ void run_explain(const ExplainOptions& options) {
     } else {
       if (items.size() > 1) std::printf("%s== ray %zu of %zu ==\n", i ? "\n" : "", i + 1, items.size());
       for (const std::string& h : it.header) std::printf("%s\n", h.c_str());
-      std::printf("\n== CPU reference ==\n%s", reference::explain_text(want, fmt).c_str());
+      std::printf("\n== CPU reference ==\n%s", plan::explain_text(want, fmt).c_str());
       if (got) {
         std::printf("\n== Vulkan (%s) ==\n%s", device.c_str(),
-                    reference::divergence_text(want, *got, fmt, "reference", got_label).c_str());
+                    plan::divergence_text(want, *got, fmt, "reference", got_label).c_str());
       }
       if (it.frame_hit) {
         const bool same = std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0;

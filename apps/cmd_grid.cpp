@@ -11,12 +11,13 @@
 #include <sstream>
 
 #include "apps/backends.h"
+#include "common/util.h"
 #include "apps/commands.h"
 #include "common/camera.h"
 #include "common/gather.h"
 #include "reference/compare.h"
 #include "reference/grid.h"
-#include "reference/policy.h"
+#include "plan/policy.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "vulkan/frame.h"
 #  include "vulkan/grid.h"
@@ -71,10 +72,6 @@ struct StatsOptions : GridVerbOptions {
   bool measure = false;     // ... and trace the frame's rays through each of them
   uint32_t repeat = 3;
 };
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The candidates choose_grid weighed, with the trace-cost policy's estimates; with `measure`, each
 // candidate built (its cell size and capacity as overrides) and the frame's glossy bounce rays of a

@@ -1,4 +1,4 @@
-// gridrt sweep: what accuracy costs in time (issue 5). For each scene and each configuration of a
+// gridrt sweep: what accuracy costs in time. For each scene and each configuration of a
 // grid over the knobs, on the glossy-bounce rays of the paper's frame (a gather buffer made by
 // primary rays through the exact grid, as the other grid verbs do): accuracy against the Embree
 // oracle and time (build, update, trace; rays/s; memory). Writes per scene a CSV file, a Markdown
@@ -15,12 +15,13 @@
 #include <thread>
 
 #include "apps/backends.h"
+#include "common/util.h"
 #include "apps/commands.h"
 #include "common/gather.h"
 #include "common/image_io.h"
 #include "reference/compare.h"
 #include "reference/grid.h"
-#include "reference/policy.h"
+#include "plan/policy.h"
 #ifdef GRIDRT_HAVE_EMBREE
 #  include "common/embree/embree_tracer.h"
 #endif
@@ -175,10 +176,6 @@ BackendOptions backend_options_for(const SweepOptions& o, const Config& c) {
   g.exclude_launch_ref = c.launch == "exclude";
   g.max_image_dimension = c.max_dim;
   return b;
-}
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 double median(std::vector<double> v) {

@@ -1,5 +1,5 @@
-// features.cpp: which effects a scene calls for (DESIGN.md, "Simulate only what the scene calls
-// for").
+// features.cpp: which effects a scene calls for (only those are simulated; docs/SPEC.md, "Gap-fill
+// only if a cell is saturated").
 #include "common/tracer.h"
 
 namespace gridrt {

@@ -106,7 +106,7 @@ struct Light {
   bool directional = false;  // then `position` is the direction towards the light
 };
 
-// Optional overrides of what the grid chooses from the scene (DESIGN.md, "The grid").
+// Optional overrides of what the grid chooses from the scene (docs/SCENE_FORMAT.md, plan::settle_overrides).
 struct GridOverrides {
   std::optional<glm::uvec3> resolution;  // cells per axis
   std::optional<uint32_t> capacity;      // triangle slots per cell

@@ -1,5 +1,5 @@
-// tracer.h: the one interface every tracer implements (DESIGN.md, "One interface, several
-// tracers"): build from a scene, update for a new time, trace a batch of rays into hit records,
+// tracer.h: the one interface every tracer implements (docs/ARCHITECTURE.md,
+// "Layers"): build from a scene, update for a new time, trace a batch of rays into hit records,
 // hand back the acceleration structure as plain data.
 #pragma once
 
@@ -28,7 +28,7 @@ struct AccelDump {
   std::vector<uint32_t> texels;  // x fastest, then y, then z
 };
 
-// Which effects a frame simulates (DESIGN.md, "Simulate only what the scene calls for").
+// Which effects a frame simulates (only what the scene calls for: for_scene).
 struct Features {
   bool alpha_keying = true;
   bool update = true;

@@ -7,23 +7,11 @@
 #include <iterator>
 #include <sstream>
 
-#include "reference/policy.h"
+#include "plan/policy.h"
 
 namespace gridrt::reference {
 
 namespace sh = gridrt::shared;
-
-uint32_t ulp_distance(float a, float b) {
-  const uint32_t ua = std::bit_cast<uint32_t>(a), ub = std::bit_cast<uint32_t>(b);
-  if (ua == ub) return 0;
-  if (std::isnan(a) || std::isnan(b)) return UINT32_MAX;
-  // Map the sign-magnitude bits onto a monotonic integer line (-0 and +0 meet at 0).
-  auto ordered = [](uint32_t u) -> int64_t {
-    return (u & 0x80000000u) ? -int64_t(u & 0x7fffffffu) : int64_t(u);
-  };
-  const int64_t d = ordered(ua) - ordered(ub);
-  return uint32_t(std::min<int64_t>(d < 0 ? -d : d, UINT32_MAX));
-}
 
 std::string hex_hit(const Hit& h) {
   std::ostringstream os;

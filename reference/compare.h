@@ -9,13 +9,12 @@
 #include <vector>
 
 #include "common/tracer.h"
+#include "common/util.h"
 #include "reference/grid.h"
 
 namespace gridrt::reference {
 
-// Distance in units in the last place between two floats (0 for identical bits, and for +0/-0);
-// UINT32_MAX when either is NaN and the bits differ.
-uint32_t ulp_distance(float a, float b);
+using gridrt::ulp_distance;  // common/util.h
 
 // Hit records, both as bits ("t 0x3f800000 inst 1 tri 2 ...") for messages.
 std::string hex_hit(const Hit& h);

@@ -11,6 +11,7 @@
 namespace gridrt::reference {
 
 using namespace gridrt::shared;
+using namespace gridrt::plan;
 
 // The viewer's page (reference/explain_viewer.html, embedded at build time: explain_viewer.cpp.in)
 extern const char* const kExplainViewerHtml;

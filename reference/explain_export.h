@@ -11,10 +11,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "reference/explain_format.h"
+#include "plan/explain_format.h"
 #include "reference/grid.h"
 
 namespace gridrt::reference {
+
+using plan::ExplainFormat;
 
 // What an explained ray visited and tested, in world space.
 struct ExplainGeometry {

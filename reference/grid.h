@@ -18,83 +18,40 @@
 #include "common/shared/grid.h"
 #include "common/shared/triangle.h"
 #include "common/tracer.h"
+#include "plan/plan.h"
+#include "plan/policy.h"
+#include "plan/records.h"
 #include "reference/image3d.h"
 
 namespace gridrt::reference {
 
-enum class Traversal { paper, exact };
-enum class Insertion { first_empty, sorted };
+// The plan (plan/): the options, choose_grid and the records, shared with the Vulkan port.
+using plan::AlgorithmOptions;
+using plan::animation_bounds;
+using plan::choose_grid;
+using plan::choose_spill_capacity;
+using plan::EmulationOptions;
+using plan::ExplainRecord;
+using plan::for_each_visit;
+using plan::GridCandidate;
+using plan::GridChoice;
+using plan::GridOptions;
+using plan::GridPlan;
+using plan::hex;
+using plan::Insertion;
+using plan::kAabbPadding;
+using plan::measured_work;
+using plan::PlanOptions;
+using plan::spill_enabled;
+using plan::SpillDump;
+using plan::thread_count;
+using plan::to_text;
+using plan::trace_flags;
+using plan::Traversal;
+using plan::warn_spill_overflow;
+using plan::WorkEstimate;
+using plan::WorkSample;
 
-inline constexpr float kAabbPadding = 1.0e-3f;  // the AABB padding where none is chosen
-
-// Every knob of the grid, with its default (docs/SPEC.md, "Parameters").
-struct GridOptions {
-  // Traversal and insertion
-  Traversal traversal = Traversal::paper;
-  Insertion insertion = Insertion::sorted;  // sorted: images independent of thread timing
-  // Emulated invocations: 0 threads = std::thread::hardware_concurrency(); a seed runs the
-  // build/update invocations in a seeded shuffled order (on any thread count)
-  unsigned threads = 0;
-  std::optional<uint64_t> shuffle_seed;
-  // Build (2.1)
-  float sphere_enlargement = 1.25f;  // cell bounding-sphere radius multiplier (>= 1: conservative)
-  // Cell units added on each side of a triangle's AABB. None: kAabbPadding, except that the
-  // trace-cost policy also weighs paper_padding for the paper traversal (its samples then find
-  // triangles whose cells they step past; docs/SPEC.md "Grid placement, resolution and capacity")
-  std::optional<float> aabb_padding;
-  float paper_padding = 0.25f;
-  // Trace (2.3)
-  float elongation = 0.5f;           // paper: segment elongation on each side, in segment lengths
-  float gap_fill_distance = 2.0f;    // paper: cells the segment must be away from the launch surface
-  float self_hit_offset = 0.0f;      // hits need t * |dir| > self_hit_offset * cell_size
-  bool exclude_launch_ref = true;    // never accept the launch triangle (RayRecord::launch_ref)
-  bool alpha_keying = true;          // alpha-keyed materials cut holes (Features::alpha_keying)
-  bool gap_fill = true;              // paper: gap-fill in saturated cells (Features::gap_fill)
-  // Gap-fill runs (is compiled into the trace shader) only while some cell is saturated, that is
-  // while the spill counter says a reference was dropped; false keeps it always (--all-effects).
-  bool gap_fill_if_saturated = true;
-  // The spill list (docs/SPEC.md, "Spill list"): references no slot took are kept as (cell, ref) and
-  // the trace tests a saturated cell's spilled references too. automatic: on for the exact
-  // traversal, off for the paper's (which answers saturation with gap-fill; spill on turns
-  // gap-fill off). spill_capacity: entries the list holds; default: the references choose_grid's
-  // trial would drop, with margin (choose_spill_capacity).
-  enum class Spill { automatic, on, off } spill = Spill::automatic;
-  std::optional<uint32_t> spill_capacity;
-  // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
-  // skip (the literal reading of visited-cell tracking), retest (a second visit)
-  enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
-  // Triangle test: Moller-Trumbore (fast, not watertight) or Woop-Benthin-Wald (watertight)
-  enum class TriangleTest { moller, watertight } triangle_test = TriangleTest::moller;
-  // Automatic resolution and capacity (overridden by the fields below, then by Scene::grid);
-  // docs/SPEC.md, "Grid placement, resolution and capacity"
-  float density = 2.0f;                   // target cells per triangle
-  // trace_cost (default): candidate resolutions around the density target are counted, each with
-  // capacity = min(its largest cell count, what the limits allow), and the one whose estimated
-  // trace cost on a sample of the frame's rays is lowest is taken (work_cost, reference/policy.h).
-  // no_saturation: the candidate closest to the density target whose largest cell count fits the
-  // limits, capacity = that count (no cell drops a reference); if none fits, the candidate
-  // dropping the fewest references.
-  // percentile: the original rule, capacity = capacity_percentile of the non-empty cells' counts.
-  enum class CapacityPolicy { trace_cost, no_saturation, percentile } capacity_policy = CapacityPolicy::trace_cost;
-  // trace_cost: the cost of a candidate in reference tests per ray: tests + cell_visit_cost *
-  // cells visited + saturation_cost * (expected share of rays whose answer saturation changes)
-  float cell_visit_cost = 1.0f;
-  float saturation_cost = 1.0e5f;
-  uint32_t work_sample_width = 96, work_sample_height = 54;  // the sample's gather buffer (16:9)
-  uint32_t work_sample_frames = 4;     // glossy bounce rays of up to this many frames off that gather
-  uint32_t work_sample_rays = 4000;    // buffer, fewer once this many rays are sampled
-  float capacity_percentile = 0.99f;      // percentile policy: capacity = this percentile of counts
-  uint32_t min_capacity = 4, max_capacity = 1024;
-  // The scene axis laid along the image's x (the slots' axis): automatic = the axis with the fewest
-  // cells, which leaves the most room for slots under max_image_dimension.
-  enum class SlotAxis { automatic, x, y, z } slot_axis = SlotAxis::automatic;
-  uint32_t max_image_dimension = 4096;    // 4096 on lavapipe, 16384 on NVIDIA
-  uint64_t max_texels = uint64_t(1) << 28;  // the memory budget: 2^28 texels = 1 GiB of image
-  uint32_t capacity_time_samples = 16;    // dynamic instances counted at this many times of their motion
-  std::optional<glm::uvec3> resolution;   // cells per axis
-  std::optional<uint32_t> capacity;       // slots per cell
-  std::optional<float> cell_size;         // world units
-};
 
 // Everything the GPU holds, as the shaders see it.
 struct GridData {
@@ -118,76 +75,6 @@ struct GridData {
                                                  // the trace runs (trace_flags)
 };
 
-// Whether `o` turns the spill list on (Spill::automatic: for the exact traversal).
-bool spill_enabled(const GridOptions& o);
-
-// Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
-shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
-
-// The work a trace does per ray on one grid: estimated by the trace-cost policy on its ray sample
-// (estimate_work, reference/policy.h), or measured from hit records (measured_work).
-struct WorkEstimate {
-  size_t rays = 0;
-  double cells = 0.0;    // cells visited per ray
-  double tests = 0.0;    // references tested per ray
-  double at_risk = 0.0;  // share of rays that visit a saturated cell before they end
-  double lost = 0.0;     // share of rays whose answer the grid changes: expected (the hit
-                         // triangle in no visited cell, dropped, a gap-fill voxel), or measured
-                         // (gap-fill hits)
-  double skipped = 0.0;  // expected share of rays whose hit triangle no visited cell was offered
-  double spilled = 0.0;  // per ray: dropped references of the saturated cells it visits
-};
-
-// The policy's ray sample: the glossy bounce rays of a small gather buffer of the scene's frame
-// camera (the rays the paper's frame traces through the grid), of up to work_sample_frames frames
-// (each frame perturbs the glossy directions anew) until work_sample_rays are sampled, or its
-// camera rays where the scene has no glossy material; and where each ray ends (its first hit's t, +inf for a miss), found
-// exactly by a compact grid without a capacity (a CSR cell list, exact DDA, alpha keying).
-struct WorkSample {
-  std::vector<Ray> rays;
-  std::vector<float> t_end;
-  std::vector<std::array<glm::vec3, 3>> hit;     // the triangle each ray ends on (world space; zeros: a miss)
-  std::vector<std::array<glm::vec3, 3>> launch;  // the ray's launch triangle (zeros: none)
-  bool bounce = true;  // false: camera rays (no glossy material)
-};
-
-// One resolution choose_grid weighed: its cells, the largest per-cell count over the animation
-// samples, the capacity the limits allow it, and the references it would drop.
-struct GridCandidate {
-  float cell_size = 0.0f;
-  float aabb_padding = kAabbPadding;
-  glm::uvec3 cells{0};
-  uint32_t slot_axis = 0;        // 0 x, 1 y, 2 z
-  uint32_t max_count = 0;        // largest per-cell count (static + dynamic over the samples)
-  uint32_t capacity = 0;         // min(max_count, what the limits allow), >= min_capacity
-  uint64_t dropped = 0;          // sum over cells of max(0, count - capacity)
-  uint64_t saturated_cells = 0;  // cells with count > capacity
-  uint64_t texels = 0;
-  bool fits = false;             // within max_image_dimension and max_texels
-  WorkEstimate work;             // trace_cost policy: the estimated work on its ray sample
-  double cost = 0.0;             // trace_cost policy: work_cost(work)
-};
-// The candidates choose_grid weighed (in the order it weighed them) and the index it took; empty
-// when capacity or resolution is overridden.
-struct GridChoice {
-  std::vector<GridCandidate> candidates;
-  size_t chosen = 0;
-  WorkSample sample;  // trace_cost: the rays the estimates were made on
-};
-shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice);
-// The spill list's capacity for grid `g` (chosen by choose_grid with `choice`): 0 with spill off;
-// else the option, or the references the trial would drop (the chosen candidate's `dropped`, or a
-// count on `g` where choose_grid weighed no candidate) plus a quarter and 64 (the trial samples
-// moving instances at 16 times: a bound it is not).
-uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions& options, const shared::GridParams& g,
-                               const GridChoice& choice);
-// The flags the trace runs with: `requested` (GridParams::flags as chosen) without gap-fill while no
-// reference is dropped (`spill_count` == 0: no cell is saturated), unless gap_fill_if_saturated is off.
-uint32_t trace_flags(uint32_t requested, const GridOptions& options, uint32_t spill_count);
-// World bounds of the scene over its whole animation: static instances at `time`, dynamic ones
-// swept over their motion; not padded.
-Bounds animation_bounds(const Scene& scene, float time);
-
 // Phases (paper names)
 void scene_build(GridData& grid, const Scene& scene, float time, const GridOptions& options);
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& options);
@@ -203,27 +90,8 @@ void append_dirty_cell(WordBuffer& dirty, const shared::GridParams& g, glm::uvec
 // cells appended since the last clear pass.
 std::vector<uint32_t> dirty_cells(const GridData& grid);
 
-// The spill list as plain data: the header, the stored entries [0, min(count, capacity)) in the
-// order they were appended (which differs between runs and backends: compare them as multisets,
-// and the lists walked from the heads, which are in ascending reference order), and the heads.
-struct SpillDump {
-  bool on = false;  // kGridSpill: with spill off the count only counts, and nothing overflows
-  shared::SpillHeader header{};
-  std::vector<shared::SpillEntry> entries;
-  std::vector<uint32_t> heads;
-  uint32_t stored() const { return header.count < header.capacity ? header.count : header.capacity; }
-  uint32_t overflow() const { return on && header.count > header.capacity ? header.count - header.capacity : 0u; }
-};
 SpillDump spill_dump(const GridData& grid);
 
-// The explanation of one ray: the events in order, and the hit.
-struct ExplainRecord {
-  Ray ray{};
-  shared::GridParams params{};
-  std::vector<shared::ExplainEvent> events;
-  Hit hit{};
-};
-std::string to_text(const ExplainRecord& record);
 
 // scene_trace for one ray; `explain` (may be null) receives the events.
 Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain);
@@ -286,13 +154,5 @@ class ReferenceGridTracer : public Tracer {
   bool overflow_warned_ = false;
 };
 
-// A one-time warning on stderr when the spill list overflowed (references lost: holes possible);
-// `warned` keeps it to once per tracer.
-void warn_spill_overflow(const SpillDump& spill, const std::string& who, bool& warned);
-
-// Helpers shared by the reference's passes and tests
-unsigned thread_count(const GridOptions& options);
-// Hex bits of a float, e.g. "0x3f800000".
-std::string hex(float f);
 
 }  // namespace gridrt::reference

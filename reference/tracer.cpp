@@ -5,15 +5,11 @@
 #include <sstream>
 
 #include "reference/grid.h"
-#include "reference/invocations.h"
+#include "common/util.h"
+#include "common/invocations.h"
 
 namespace gridrt::reference {
 
-namespace {
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-}  // namespace
 
 ReferenceGridTracer::ReferenceGridTracer(GridOptions options) : options_(std::move(options)) {}
 
@@ -34,14 +30,6 @@ void ReferenceGridTracer::update(float time) {
   warn_spill_overflow(spill_dump(grid_), name(), overflow_warned_);
 }
 
-void warn_spill_overflow(const SpillDump& spill, const std::string& who, bool& warned) {
-  if (spill.overflow() == 0 || warned) return;
-  warned = true;
-  std::fprintf(stderr,
-               "gridrt: warning: %s: the spill list overflowed: %u references found no slot, %u fit the list, "
-               "%u were lost (holes are possible in saturated cells); raise --spill-capacity\n",
-               who.c_str(), spill.header.count, spill.header.capacity, spill.overflow());
-}
 
 void ReferenceGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
   if (hits.size() != rays.size()) throw Error("reference-grid: hits.size() != rays.size()");
@@ -184,12 +172,5 @@ std::string to_text(const GridStats& s) {
   return os.str();
 }
 
-std::string hex(float f) {
-  uint32_t u;
-  std::memcpy(&u, &f, 4);
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "0x%08x", u);
-  return buf;
-}
 
 }  // namespace gridrt::reference

@@ -14,7 +14,7 @@
 #include "common/camera.h"
 #include "common/scene_io.h"
 #include "reference/explain_export.h"
-#include "reference/explain_format.h"
+#include "plan/explain_format.h"
 #include "reference/grid.h"
 #include "tests/run_tool.h"
 
@@ -22,7 +22,7 @@ using namespace gridrt;
 namespace sh = gridrt::shared;
 namespace fs = std::filesystem;
 using reference::ExplainRecord;
-using reference::kNoEvent;
+using plan::kNoEvent;
 
 namespace {
 
@@ -47,11 +47,11 @@ size_t count(const std::string& text, const std::string& what) {
 // cells, slots, tests, a hit.
 struct Cornell {
   Scene scene = load_scene("builtin:cornell");
-  reference::ReferenceGridTracer grid{reference::GridOptions{.traversal = reference::Traversal::exact, .threads = 1}};
-  reference::ExplainNames names;
+  reference::ReferenceGridTracer grid{reference::GridOptions{{.traversal = reference::Traversal::exact}, {}, {.threads = 1}}};
+  plan::ExplainNames names;
   Cornell() {
     grid.build(scene, 0.0f);
-    names = reference::ExplainNames::of(scene);
+    names = plan::ExplainNames::of(scene);
   }
   ExplainRecord record(uint32_t x = 20, uint32_t y = 20) const {
     return grid.explain_ray(camera_ray(scene.frame_camera(), 48, 36, x, y));
@@ -67,31 +67,31 @@ size_t first_of(const ExplainRecord& r, uint32_t kind, size_t from = 0) {
 }  // namespace
 
 TEST_CASE("Explain: rays as text - decimal, C99 hex, defaults, launch references, errors", "[unit][explain]") {
-  const Ray a = reference::parse_ray("1, -2.5, 0x1.8p+1, 0,0,-1");
+  const Ray a = plan::parse_ray("1, -2.5, 0x1.8p+1, 0,0,-1");
   CHECK(a.org == glm::vec3(1.0f, -2.5f, 3.0f));
   CHECK(a.dir == glm::vec3(0.0f, 0.0f, -1.0f));
   CHECK(a.tmin == 0.0f);
   CHECK(std::isinf(a.tmax));
   CHECK(a.launch_ref == sh::kNoRef);
-  const Ray b = reference::parse_ray("0,0,0,1,0,0,0x1p-4,inf,3:12");
+  const Ray b = plan::parse_ray("0,0,0,1,0,0,0x1p-4,inf,3:12");
   CHECK(b.tmin == 0.0625f);
   CHECK(std::isinf(b.tmax));
   CHECK(b.launch_ref == ((3u << 16) | 12u));
-  CHECK(reference::parse_ray("0,0,0,1,0,0,0,10,0x00030007").launch_ref == 0x00030007u);
-  CHECK(reference::parse_ray("0,0,0,1,0,0,0,10,none").launch_ref == sh::kNoRef);
+  CHECK(plan::parse_ray("0,0,0,1,0,0,0,10,0x00030007").launch_ref == 0x00030007u);
+  CHECK(plan::parse_ray("0,0,0,1,0,0,0,10,none").launch_ref == sh::kNoRef);
   for (const char* bad : {"1,2,3", "1,2,3,4,5,x", "1,2,3,4,5,6,7", "1,2,3,4,5,6,0,1,2:", "1,2,3,4,5,6,0,1,0x1ffffffff",
                           "1,2,3,4,5,6,", "1e99,0,0,1,0,0"})
-    CHECK_THROWS_AS(reference::parse_ray(bad), Error);
+    CHECK_THROWS_AS(plan::parse_ray(bad), Error);
   // A file: comments, blank lines, and an error with its line
   const fs::path f = scratch("rays.txt");
   std::ofstream(f) << "# two rays\n\n0,0,0, 1,0,0  # along x\n0x1p+0,0,0,0,1,0,0,5\n";
-  const std::vector<Ray> rays = reference::read_ray_file(f.string());
+  const std::vector<Ray> rays = plan::read_ray_file(f.string());
   REQUIRE(rays.size() == 2);
   CHECK(rays[1].org.x == 1.0f);
   CHECK(rays[1].tmax == 5.0f);
   std::ofstream(f) << "0,0,0,1,0,0\n1,2\n";
   try {
-    reference::read_ray_file(f.string());
+    plan::read_ray_file(f.string());
     FAIL("a bad line was accepted");
   } catch (const Error& e) {
     CHECK_THAT(e.what(), Catch::Contains("rays.txt:2"));
@@ -110,9 +110,8 @@ TEST_CASE("Explain: full text numbers every event, brief folds empty cells, JSON
   s.meshes.push_back(m);
   s.instances.push_back(Instance{.name = "", .mesh = 0});
   s.finalize();
-  reference::ReferenceGridTracer grid(reference::GridOptions{.traversal = reference::Traversal::exact,
-                                                             .threads = 1,
-                                                             .resolution = glm::uvec3(8, 8, 16)});
+  reference::ReferenceGridTracer grid(reference::GridOptions{
+      {.traversal = reference::Traversal::exact}, {.resolution = glm::uvec3(8, 8, 16)}, {.threads = 1}});
   grid.build(s, 0.0f);
   Ray r{};
   r.org = glm::vec3(1.3f, 1.7f, 7.9f);
@@ -122,7 +121,7 @@ TEST_CASE("Explain: full text numbers every event, brief folds empty cells, JSON
   r.launch_ref = sh::kNoRef;
   const ExplainRecord rec = grid.explain_ray(r);
   REQUIRE_FALSE(is_miss(rec.hit));
-  const reference::ExplainNames names = reference::ExplainNames::of(s);
+  const plan::ExplainNames names = plan::ExplainNames::of(s);
   CHECK(names.instances.at(0) == "wall");  // the mesh's name where the instance has none
 
   // The empty visits, counted from the events themselves
@@ -132,11 +131,11 @@ TEST_CASE("Explain: full text numbers every event, brief folds empty cells, JSON
              rec.events[i + 1].ref == sh::kBlank && rec.events[i + 1].slot == 0u;
   REQUIRE(empty >= 3);
 
-  const std::string full = reference::explain_text(rec, {false, &names});
+  const std::string full = plan::explain_text(rec, {false, &names});
   INFO(full);
   CHECK(count(full, "\n#") + count(full, "\n #") + count(full, "\n  #") == rec.events.size());
   CHECK_THAT(full, Catch::Contains("[0x") && Catch::Contains("\"wall\""));
-  const std::string brief = reference::explain_text(rec, {true, &names});
+  const std::string brief = plan::explain_text(rec, {true, &names});
   INFO(brief);
   CHECK_THAT(brief, !Catch::Contains("0x"));
   // One folded line "cells A-B empty (N)" whose N counts the empty visits of the run
@@ -149,12 +148,12 @@ TEST_CASE("Explain: full text numbers every event, brief folds empty cells, JSON
   CHECK(count(brief, "\n") < count(full, "\n"));
 
   // JSON: every event with its raw fields, names and bits
-  const nlohmann::json j = reference::explain_json(rec, {false, &names});
+  const nlohmann::json j = plan::explain_json(rec, {false, &names});
   REQUIRE(j["events"].size() == rec.events.size());
   for (size_t i = 0; i < rec.events.size(); ++i) {
     const auto& e = j["events"][i];
     CHECK(e["kind"] == rec.events[i].kind);
-    CHECK(e["kind_name"] == reference::event_kind_name(rec.events[i].kind));
+    CHECK(e["kind_name"] == plan::event_kind_name(rec.events[i].kind));
     CHECK(e["f1_hex"][3] == reference::hex(rec.events[i].f1.w));
   }
   CHECK(j["hit"]["reference"]["name"] == "wall");
@@ -182,12 +181,12 @@ TEST_CASE("Explain: a planted divergence is shown aligned, its context kept, the
   extra.step = 999u;
   got.events.insert(got.events.end() - 1, extra);
 
-  const reference::EventAlignment al = reference::align_events(want.events, got.events);
+  const plan::EventAlignment al = plan::align_events(want.events, got.events);
   REQUIRE(al.first_divergence != kNoEvent);
   const auto& first = al.rows[al.first_divergence];
   CHECK(first.a == test);
   CHECK(first.b == test);
-  CHECK(reference::differing_fields(want.events[test], got.events[test], true) ==
+  CHECK(plan::differing_fields(want.events[test], got.events[test], true) ==
         std::vector<std::string>{"f0.w (t*|det|)"});
   // Every event of either side appears once, in order; all but the three planted rows agree
   size_t only_a = 0, only_b = 0, same = 0, next_a = 0, next_b = 0;
@@ -208,16 +207,16 @@ TEST_CASE("Explain: a planted divergence is shown aligned, its context kept, the
   for (const auto& row : al.rows)
     if (row.b == kNoEvent) CHECK(row.a == later_slot);
 
-  const reference::ExplainFormat fmt{false, &c.names};
-  const std::string text = reference::divergence_text(want, got, fmt);
+  const plan::ExplainFormat fmt{false, &c.names};
+  const std::string text = plan::divergence_text(want, got, fmt);
   INFO(text);
-  const std::string brief = reference::divergence_text(want, got, {true, &c.names});
+  const std::string brief = plan::divergence_text(want, got, {true, &c.names});
   INFO(brief);
   CHECK_THAT(brief, Catch::Contains("^ f0.w (t*|det|)") && Catch::Contains("[0x"));  // the bits that differ
   CHECK_THAT(brief, Catch::Contains(" identical ("));                              // runs folded
   CHECK(count(brief, "\n") < count(text, "\n"));
   CHECK_THAT(text, Catch::Contains(">> ") && Catch::Contains("#" + std::to_string(test)));
-  CHECK_THAT(text, Catch::Contains(reference::visit_text(want, test)));
+  CHECK_THAT(text, Catch::Contains(plan::visit_text(want, test)));
   CHECK_THAT(text, Catch::Contains("^ f0.w (t*|det|)"));
   CHECK_THAT(text, Catch::Contains("(only in the reference)") && Catch::Contains("(only in the shader)"));
   CHECK_THAT(text, Catch::Contains("1 only in the reference, 1 only in the shader"));
@@ -229,9 +228,9 @@ TEST_CASE("Explain: a planted divergence is shown aligned, its context kept, the
   const std::string line = text.substr(at, text.find('\n', at) - at);
   CHECK_THAT(line, Catch::Contains(" = ") && Catch::Contains("#" + std::to_string(later_slot)));
   // Identical records say so
-  CHECK_THAT(reference::divergence_text(want, want, fmt), Catch::StartsWith("identical"));
+  CHECK_THAT(plan::divergence_text(want, want, fmt), Catch::StartsWith("identical"));
   // JSON of the alignment
-  const nlohmann::json aj = reference::alignment_json(want, got, al);
+  const nlohmann::json aj = plan::alignment_json(want, got, al);
   CHECK(aj["first_divergence"]["reference_event"] == test);
   CHECK(aj["rows"].size() == al.rows.size());
 }
@@ -351,7 +350,7 @@ TEST_CASE("Explain: the HTML viewer loads in headless chromium without script er
   REQUIRE(test != kNoEvent);
   got.events[test].code = sh::kTestBeyond;
   got.events.erase(got.events.begin() + std::ptrdiff_t(test + 1));
-  const reference::ExplainFormat fmt{false, &c.names};
+  const plan::ExplainFormat fmt{false, &c.names};
   nlohmann::json views = nlohmann::json::array();
   views.push_back(reference::explain_view("alone", {"the reference alone"}, want, nullptr, c.grid.data(), fmt));
   views.push_back(reference::explain_view("diverged </script> <b>", {"a planted divergence"}, want, &got,
@@ -386,7 +385,7 @@ TEST_CASE("Explain: the HTML viewer loads in headless chromium without script er
   CHECK_THAT(tag, Catch::Contains("data-errors=\"0\""));
   CHECK_THAT(tag, Catch::Contains("data-events=\"" + std::to_string(want.events.size()) + "\""));
   CHECK_THAT(tag, Catch::Contains("data-rows=\"" + std::to_string(want.events.size()) + "\""));
-  const reference::EventAlignment al = reference::align_events(want.events, got.events);
+  const plan::EventAlignment al = plan::align_events(want.events, got.events);
   CHECK_THAT(tag, Catch::Contains("data-visited=\"" + std::to_string(want.events.size() + al.rows.size()) + "\""));
   CHECK_THAT(dom, Catch::Contains("script errors: 0"));
   // The events are in the DOM: one row each (the first ray's, shown last), the picture drawn

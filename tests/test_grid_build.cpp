@@ -137,7 +137,7 @@ TEST_CASE("Every triangle is referenced in exactly the cells its test accepts", 
   // A capacity of 4 on a dense scene: some cells saturate
   const Scene scene = random_scene(600, 0.8f, 8.0f, 21, 80);
   for (Insertion ins : {Insertion::sorted, Insertion::first_empty}) {
-    GridOptions o{.insertion = ins, .threads = 2, .capacity = 4};
+    GridOptions o{{.insertion = ins}, {.capacity = 4}, {.threads = 2}};
     const GridData g = build(scene, 0.5f, o);
     const uint32_t saturated = check_invariants(scene, g, 0.5f);
     INFO("saturated cells: " << saturated);
@@ -148,7 +148,7 @@ TEST_CASE("Every triangle is referenced in exactly the cells its test accepts", 
 
 TEST_CASE("Sorted images are identical over thread counts and shuffled orders", "[grid]") {
   const Scene scene = random_scene(500, 0.8f, 8.0f, 22, 60);
-  GridOptions o{.insertion = Insertion::sorted, .threads = 1, .capacity = 5};
+  GridOptions o{{.insertion = Insertion::sorted}, {.capacity = 5}, {.threads = 1}};
   const GridData g1 = build(scene, 0.25f, o);
   const std::vector<uint32_t> want = g1.image.snapshot();
   for (unsigned threads : {2u, 7u})
@@ -164,7 +164,7 @@ TEST_CASE("Sorted images are identical over thread counts and shuffled orders", 
 
 TEST_CASE("First-empty images are equal as per-cell multisets where unsaturated", "[grid]") {
   const Scene scene = random_scene(500, 0.8f, 8.0f, 23, 60);
-  GridOptions o{.insertion = Insertion::first_empty, .threads = 1, .capacity = 5};
+  GridOptions o{{.insertion = Insertion::first_empty}, {.capacity = 5}, {.threads = 1}};
   const GridData g1 = build(scene, 0.0f, o);
   const auto want = multisets(g1);
   bool some_order_differs = false;
@@ -185,7 +185,7 @@ TEST_CASE("First-empty images are equal as per-cell multisets where unsaturated"
 TEST_CASE("After animated frames, the updated image equals a fresh build at that time", "[grid]") {
   const Scene scene = random_scene(300, 0.8f, 8.0f, 24, 120);
   for (Insertion ins : {Insertion::sorted, Insertion::first_empty}) {
-    GridOptions o{.insertion = ins, .threads = 3, .capacity = 5};
+    GridOptions o{{.insertion = ins}, {.capacity = 5}, {.threads = 3}};
     GridData g = build(scene, 0.0f, o);
     for (float time : {0.3f, 1.1f, 2.9f, 7.5f}) {
       reference::scene_update(g, scene, time, o);
@@ -214,7 +214,7 @@ TEST_CASE("Grid bounds cover the animation - zero-area triangles are never inser
   m.triangles.push_back({b, b + 1, b + 2});
   m.materials.push_back(0);
   scene.finalize();
-  GridOptions o{.threads = 2};
+  GridOptions o{{}, {}, {.threads = 2}};
   reference::ReferenceGridTracer tracer(o);
   tracer.build(scene, 0.0f);
   const sh::GridParams& g = tracer.params();
@@ -246,19 +246,19 @@ TEST_CASE("Grid bounds cover the animation - zero-area triangles are never inser
 
 TEST_CASE("Automatic resolution respects the image limits and the overrides", "[grid]") {
   const Scene scene = random_scene(2000, 0.3f, 50.0f, 26);
-  GridOptions o{.max_image_dimension = 256};
+  GridOptions o{{}, {.max_image_dimension = 256}};
   const sh::GridParams g = reference::choose_grid(scene, 0.0f, o);
   CHECK(g.cells.x * (g.capacity + 1) <= 256u);
   CHECK(g.cells.y <= 256u);
   CHECK(g.capacity >= 4u);
   CHECK(g.capacity <= 64u);
   CHECK(g.inv_cell_size == 1.0f / g.cell_size);
-  GridOptions r{.resolution = glm::uvec3(7, 5, 3), .capacity = 9};
+  GridOptions r{{}, {.resolution = glm::uvec3(7, 5, 3), .capacity = 9}};
   const sh::GridParams gr = reference::choose_grid(scene, 0.0f, r);
   CHECK(gr.cells == glm::uvec3(7, 5, 3));
   CHECK(gr.capacity == 9u);
   CHECK(glm::all(glm::greaterThanEqual(gr.upper, scene.bounds(0.0f).hi)));
-  GridOptions too_big{.max_image_dimension = 16, .resolution = glm::uvec3(64, 5, 3)};
+  GridOptions too_big{{}, {.max_image_dimension = 16, .resolution = glm::uvec3(64, 5, 3)}};
   CHECK_THROWS_AS(reference::choose_grid(scene, 0.0f, too_big), Error);
 }
 
@@ -266,7 +266,7 @@ TEST_CASE("The dirty-cell list holds every cell with dynamic references once, th
   const Scene scene = random_scene(300, 0.8f, 8.0f, 24, 120);
   for (Insertion ins : {Insertion::sorted, Insertion::first_empty})
     for (std::optional<uint32_t> capacity : {std::optional<uint32_t>(5), std::optional<uint32_t>()}) {
-      GridOptions o{.insertion = ins, .threads = 3, .capacity = capacity};
+      GridOptions o{{.insertion = ins}, {.capacity = capacity}, {.threads = 3}};
       GridData g = build(scene, 0.0f, o);
       const sh::GridParams& p = g.params;
       size_t dropped_only = 0;  // listed cells whose dynamic references were all dropped (saturated)

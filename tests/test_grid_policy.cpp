@@ -1,4 +1,4 @@
-// The trace-cost capacity policy (reference/policy.h): its ray sample against the Embree oracle,
+// The trace-cost capacity policy (plan/policy.h): its ray sample against the Embree oracle,
 // its work estimates against the reference trace's own counters, its determinism, and what it
 // buys over the no-saturation policy on a "teapot in a stadium" (measured work and accuracy).
 #include <catch2/catch.hpp>
@@ -9,7 +9,7 @@
 #include "common/camera.h"
 #include "common/embree/embree_tracer.h"
 #include "reference/compare.h"
-#include "reference/policy.h"
+#include "plan/policy.h"
 #include "test_grid_util.h"
 
 using namespace gridrt;

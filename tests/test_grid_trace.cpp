@@ -93,7 +93,9 @@ TEST_CASE("Paper mode finds nearly every hit on random triangles", "[grid]") {
 
 TEST_CASE("Rays with NaN or inf components miss with kHitRejected", "[grid][badinput]") {
   const Scene scene = random_scene(50, 0.6f, 10.0f, 1);
-  ReferenceGridTracer tracer(GridOptions{.threads = 1});
+  GridOptions one_thread;
+  one_thread.threads = 1;
+  ReferenceGridTracer tracer(one_thread);
   tracer.build(scene, 0.0f);
   const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
   std::vector<Ray> rays = {make_ray({nan, 0, 0}, {1, 0, 0}), make_ray({0, 0, 0}, {inf, 0, 0}),
@@ -119,7 +121,10 @@ TEST_CASE("explain_ray records every step and to_text reads as the algorithm", "
   s.instances.push_back(Instance{.name = "quad", .mesh = 0});
   s.finalize();
   for (auto mode : {reference::Traversal::paper, reference::Traversal::exact}) {
-    ReferenceGridTracer tracer(GridOptions{.traversal = mode, .threads = 1});
+    GridOptions o;
+    o.traversal = mode;
+    o.threads = 1;
+    ReferenceGridTracer tracer(o);
     tracer.build(s, 0.0f);
     const Ray r = make_ray({0.5f, 1.5f, 3.0f}, {0.0f, 0.0f, -1.0f});
     const reference::ExplainRecord rec = tracer.explain_ray(r);

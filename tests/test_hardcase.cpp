@@ -1,4 +1,4 @@
-// test_hardcase.cpp: hard cases that must stay numerically stable (issue 5). Every case builds its
+// test_hardcase.cpp: hard cases that must stay numerically stable. Every case builds its
 // scene in code, states the exact expected outcome, runs on the CPU reference in the modes that
 // matter (paper / exact traversal, Moller-Trumbore / watertight test) and on the Vulkan port
 // (lavapipe, validation on), which must agree with the reference bit for bit. Where the paper's
@@ -142,7 +142,7 @@ TEST_CASE("hardcase: rays along cell boundaries and grid planes hit the wall the
   const Scene scene = room();
   for (const Mode& m : kModes) {
     INFO(m.name);
-    GridOptions o = options_for(m, {.resolution = glm::uvec3(8, 8, 8)});
+    GridOptions o = options_for(m, {{}, {.resolution = glm::uvec3(8, 8, 8)}});
     const sh::GridParams g = reference::choose_grid(scene, 0.0f, o);
     std::vector<Ray> rays;
     // In the planes x = plane 3 and y = plane 5 (on a cell edge line), towards +z / -z / +x
@@ -241,7 +241,7 @@ TEST_CASE("hardcase: grazing rays: in the plane of a triangle miss it, at 1e-4 r
 
 TEST_CASE("hardcase: a triangle lying in a cell face is found from both sides", "[hardcase][vulkan]") {
   const Scene base = room();
-  GridOptions o{.resolution = glm::uvec3(8, 8, 8)};
+  GridOptions o{{}, {.resolution = glm::uvec3(8, 8, 8)}};
   const sh::GridParams g = reference::choose_grid(base, 0.0f, o);
   const float y = g.origin.y + 3.0f * g.cell_size;  // exactly on a grid plane (float)
   std::vector<std::array<glm::vec3, 3>> tri{{glm::vec3(1.0f, y, 1.0f), glm::vec3(1.0f, y, 6.0f), glm::vec3(6.0f, y, 1.0f)}};
@@ -347,7 +347,7 @@ TEST_CASE("hardcase: a ray starting exactly on a cell corner", "[hardcase][vulka
   const Scene scene = room();
   for (const Mode& m : kModes) {
     INFO(m.name);
-    GridOptions o = options_for(m, {.resolution = glm::uvec3(8, 8, 8)});
+    GridOptions o = options_for(m, {{}, {.resolution = glm::uvec3(8, 8, 8)}});
     const sh::GridParams g = reference::choose_grid(scene, 0.0f, o);
     const glm::vec3 corner = g.origin + glm::vec3(2.0f, 3.0f, 4.0f) * g.cell_size;
     const std::vector<Ray> rays{ray(corner, {-1, 0, 0}), ray(corner, {1, 1, 1}), ray(corner, {0, -1, 0})};
@@ -377,7 +377,7 @@ TEST_CASE("hardcase: saturated cells: paper gap-fill reports a voxel, exact mode
   }
   const Scene scene = room(stack);
   const std::vector<Ray> rays{ray({4.2f, 4.2f, 0.5f}, {0, 0, 1})};
-  GridOptions fixed{.resolution = glm::uvec3(8, 8, 8), .capacity = 4};
+  GridOptions fixed{{}, {.resolution = glm::uvec3(8, 8, 8), .capacity = 4}};
   {
     const std::vector<Hit> h = trace(scene, options_for(kPaper, fixed), rays);
     INFO(describe(rays[0], h[0]));
@@ -385,7 +385,7 @@ TEST_CASE("hardcase: saturated cells: paper gap-fill reports a voxel, exact mode
     CHECK(h[0].instance == 1u);
   }
   {
-    GridOptions o = options_for(kExactWatertight, {.resolution = glm::uvec3(8, 8, 8)});
+    GridOptions o = options_for(kExactWatertight, {{}, {.resolution = glm::uvec3(8, 8, 8)}});
     ReferenceGridTracer t(o);
     t.build(scene, 0.0f);
     CHECK(t.stats().saturated_static == 0u);
@@ -462,7 +462,7 @@ TEST_CASE("hardcase: a small triangle in a corner cell the paper's samples step 
                              p + glm::vec3(0.0f, 0.0f, 0.1f)}});
   const std::vector<Ray> rays{ray({0.5f, 0.3f, 4.52f}, glm::normalize(glm::vec3(1.0f, 1.0f, 0.0f)))};
   const float t_hit = 0.6f * std::sqrt(2.0f);
-  GridOptions fixed{.resolution = glm::uvec3(8, 8, 8)};
+  GridOptions fixed{{}, {.resolution = glm::uvec3(8, 8, 8)}};
   {
     GridOptions o = options_for(kPaper, fixed);
     o.aabb_padding = 1e-3f;

@@ -1,4 +1,4 @@
-// test_portal.cpp: the portal ("div") tracer of seeds/002 against independent truth: brute-force
+// test_portal.cpp: the portal ("div") tracer ("A Novel Raytracing Algorithm for GPU") against independent truth: brute-force
 // box enumeration, the world's occupancy, the exact voxel DDA, the seed's own 2D example.
 #include <catch2/catch.hpp>
 

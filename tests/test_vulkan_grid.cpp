@@ -1,5 +1,5 @@
 // test_vulkan_grid.cpp: the Vulkan grid against the CPU reference, on lavapipe with the
-// validation layer on (DESIGN.md, "The grid"; docs/VULKAN.md):
+// validation layer on (docs/VULKAN.md):
 //  - sorted images identical texel for texel, geometry buffers identical in bits;
 //  - first-empty images identical per cell as multisets where unsaturated, a flagged choice of
 //    the candidates where saturated;

@@ -8,7 +8,7 @@
 //    colour goes through pow (std::pow vs the driver's pow), and every statistic exactly;
 //  - on the GPU, the single-loop state machine and the three separate loops agree bit for bit;
 //  - explain: the shader's own record of a ray reads as the reference's, line for line.
-// Off lavapipe (DESIGN.md) division may round differently: t, u, v are held to ulps instead.
+// Off lavapipe (docs/VULKAN.md) division may round differently: t, u, v are held to ulps instead.
 #include <cmath>
 #include <cstring>
 #include <random>

@@ -13,6 +13,7 @@
 #include "common/builtin/builtin.h"
 #include "common/camera.h"
 #include "common/gather.h"
+#include "reference/grid.h"
 #include "tests/run_tool.h"
 #include "tests/vulkan_test_util.h"
 #include "vulkan/rtx.h"

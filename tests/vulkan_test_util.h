@@ -12,6 +12,7 @@
 
 #include <catch2/catch.hpp>
 
+#include "common/util.h"
 #include "vulkan/context.h"
 
 namespace gridrt::test {
@@ -36,7 +37,7 @@ inline vulkan::Context& vk_context() {
 }
 
 // Whether this device is held to the reference bit for bit in everything, denormals included:
-// lavapipe (DESIGN.md).
+// lavapipe (docs/VULKAN.md).
 inline bool bit_exact_device(const vulkan::Context& ctx) {
   return ctx.info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE;
 }
@@ -78,12 +79,8 @@ inline bool same_float(uint32_t a, uint32_t b) {
   return a == b || (std::isnan(from_bits(a)) && std::isnan(from_bits(b)));
 }
 
-// Distance in units in the last place of two floats of the same sign (~0 across signs).
-inline uint64_t ulp_distance(uint32_t a, uint32_t b) {
-  if (a == b) return 0;
-  if ((a ^ b) & 0x80000000u) return ~uint64_t(0);
-  return a > b ? a - b : b - a;
-}
+// Distance in units in the last place of two floats given by their bits (common/util.h).
+inline uint64_t ulp_distance(uint32_t a, uint32_t b) { return gridrt::ulp_distance(from_bits(a), from_bits(b)); }
 
 // Vulkan's precision of the built-in division and square root (2.5 ulp in the Vulkan
 // specification; 3 measured on NVIDIA H200, docs/VULKAN.md). The shared math uses rounding.h's

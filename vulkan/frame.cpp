@@ -1,6 +1,7 @@
 // frame.cpp: VulkanFrame, the paper's frame on the GPU (see frame.h): the tables shading reads,
 // the raster gather's render pass and pipeline, the compute passes, one submission per frame.
 #include "vulkan/frame.h"
+#include "common/util.h"
 
 #include <algorithm>
 #include <chrono>
@@ -13,26 +14,7 @@ namespace gridrt::vulkan {
 
 namespace {
 
-// The descriptor set of the frame passes (vulkan/shaders/frame_common.glsl).
-enum FrameBinding : uint32_t {
-  kParams = 0,
-  kInstances = 1,
-  kTriangles = 2,
-  kUvs = 3,
-  kVisibility = 4,
-  kGather = 5,
-  kMaterials = 6,
-  kDiffuseTexels = 7,
-  kLights = 8,
-  kRays = 9,
-  kHits = 10,
-  kImage = 11,
-  kRayList = 12,
-  kGatherKeys = 13,
-  kTileList = 14,
-  kBindingCount = 15,
-};
-constexpr uint32_t kSpecFrameFlags = 10;
+// The descriptor set's bindings: frame_input.h.
 
 // A 2D image with its memory and view: the gather's attachments.
 struct Image2D {
@@ -87,10 +69,6 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
   Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   if (!data.empty()) ctx.upload(b, data.data(), data.size() * sizeof(T));
   return b;
-}
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 }  // namespace
@@ -254,41 +232,44 @@ void VulkanFrame::Gpu::create_raster(uint32_t width, uint32_t height, const VkSp
   GRIDRT_VK_CHECK(vkCreateGraphicsPipelines(d, VK_NULL_HANDLE, 1, &gi, nullptr, &raster));
 }
 
-VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOptions options)
-    : grid_(grid), scene_(scene), options_(options) {
-  Context& ctx = grid.context();
-  const uint32_t w = options_.width, h = options_.height;
-  if (w == 0 || h == 0) throw Error("vulkan frame: image size must be at least 1 x 1");
-  bounce_ = options_.bounce && scene.has_glossy();
-  gather_ = options_.gather;
-  if (gather_ == GatherMode::compute &&
-      !(ctx.info().buffer_int64_atomics && ctx.info().subgroup_arithmetic_ballot))
-    gather_ = GatherMode::raster;
-  const bool compact = bounce_ && options_.compact_rays;
-  gpu_ = std::make_unique<Gpu>();
-  Gpu& gpu = *gpu_;
-  gpu.ctx = &ctx;
+namespace {
 
-  // Parameters: the camera of the CPU's primary rays; a near plane far inside the scene's scale
-  gpu.camera = camera_params(scene.frame_camera(), w, h);
+// The frame's parameters: the camera of the CPU's primary rays; a near plane far inside the
+// scene's scale.
+shared::FrameParams frame_params(const Scene& scene, const shared::CameraParams& camera, const FrameOptions& options) {
   const Bounds b = scene.bounds(0.0f);
   const float extent = b.empty() ? 1.0f : glm::length(b.extent());
   shared::FrameParams fp{};
-  fp.camera = gpu.camera;
+  fp.camera = camera;
   fp.background = scene.background;
   fp.light_count = uint32_t(scene.lights.size());
-  fp.ambient = options_.ambient;
-  fp.exposure = options_.exposure;
+  fp.ambient = options.ambient;
+  fp.exposure = options.exposure;
   fp.near_plane = std::max(extent, 1e-6f) * 1e-6f;
   fp.frame = 0;
   fp.material_count = uint32_t(scene.materials.size());
+  return fp;
+}
 
-  // Materials and their diffuse textures (halved until the texel buffer fits the device's
-  // maxStorageBufferRange; then shading reads coarser textures than the CPU's)
+// The materials as shading reads them, and their textures' texels.
+struct FrameMaterials {
   std::vector<shared::FrameMaterial> materials;
   std::vector<uint32_t> texels;
-  bool textured = false, alpha = false;
-  uint64_t texel_budget = ctx.info().limits.maxStorageBufferRange / 4;
+  bool textured = false;  // some material has a diffuse texture
+  bool alpha = false;     // some material has an alpha mask (with alpha_keying)
+};
+
+// Materials and their diffuse textures (halved until the texel buffer fits the device's
+// maxStorageBufferRange; then shading reads coarser textures than the CPU's); with
+// `alpha_keying` (the grid keys them) the alpha masks at full resolution, as the grid's trace
+// reads them.
+FrameMaterials pack_materials(const Scene& scene, bool alpha_keying, uint64_t max_storage_buffer_range) {
+  FrameMaterials out;
+  std::vector<shared::FrameMaterial>& materials = out.materials;
+  std::vector<uint32_t>& texels = out.texels;
+  bool& textured = out.textured;
+  bool& alpha = out.alpha;
+  uint64_t texel_budget = max_storage_buffer_range / 4;
   for (const Material& m : scene.materials)
     if (m.alpha_keyed()) {
       const Texture& t = scene.textures[size_t(m.alpha_texture)];
@@ -324,19 +305,45 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
         textured = true;
       }
     }
-    if (m.alpha_keyed() && (grid.params().flags & shared::kGridAlphaKeying)) {
+    if (m.alpha_keyed() && alpha_keying) {
       // The mask at full resolution, as the grid's trace reads it
       const Texture& t = scene.textures[size_t(m.alpha_texture)];
       fm.alpha_offset = uint32_t(texels.size());
       fm.alpha_width = t.width;
       fm.alpha_height = t.height;
-      for (size_t p = 0; p < size_t(t.width) * t.height; ++p)
-        texels.push_back(uint32_t(t.rgba[4 * p]) | uint32_t(t.rgba[4 * p + 1]) << 8 |
-                         uint32_t(t.rgba[4 * p + 2]) << 16 | uint32_t(t.rgba[4 * p + 3]) << 24);
+      plan::append_rgba8(t, texels);
       alpha = true;
     }
     materials.push_back(fm);
   }
+  return out;
+}
+
+}  // namespace
+
+VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOptions options)
+    : grid_(grid), scene_(scene), options_(options) {
+  Context& ctx = grid.context();
+  const uint32_t w = options_.width, h = options_.height;
+  if (w == 0 || h == 0) throw Error("vulkan frame: image size must be at least 1 x 1");
+  bounce_ = options_.bounce && scene.has_glossy();
+  gather_ = options_.gather;
+  if (gather_ == GatherMode::compute &&
+      !(ctx.info().buffer_int64_atomics && ctx.info().subgroup_arithmetic_ballot))
+    gather_ = GatherMode::raster;
+  const bool compact = bounce_ && options_.compact_rays;
+  gpu_ = std::make_unique<Gpu>();
+  Gpu& gpu = *gpu_;
+  gpu.ctx = &ctx;
+
+  // Parameters: the camera of the CPU's primary rays
+  gpu.camera = camera_params(scene.frame_camera(), w, h);
+  const shared::FrameParams fp = frame_params(scene, gpu.camera, options_);
+  const FrameMaterials fmat = pack_materials(scene, (grid.params().flags & shared::kGridAlphaKeying) != 0u,
+                                             ctx.info().limits.maxStorageBufferRange);
+  const std::vector<shared::FrameMaterial>& materials = fmat.materials;
+  const std::vector<uint32_t>& texels = fmat.texels;
+  const bool textured = fmat.textured, alpha = fmat.alpha;
   std::vector<shared::FrameLight> lights;
   for (const Light& l : scene.lights)
     lights.push_back({l.position, l.directional ? 1.0f : 0.0f, l.color * l.intensity, 0.0f});
@@ -379,30 +386,30 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   // The descriptor set, the pipelines (specialized: bounce, textures)
   const VkDescriptorType t = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   gpu.set = std::make_unique<Descriptors>(
-      ctx, std::initializer_list<VkDescriptorType>{t, t, t, t, t, t, t, t, t, t, t, t, t, t, t},
+      ctx, std::vector<VkDescriptorType>(shared::kFrameBindingCount, t),
       VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
   Descriptors& set = *gpu.set;
-  set.bind(kParams, gpu.params);
-  set.bind(kInstances, grid.instance_buffer());
-  set.bind(kTriangles, grid.triangle_buffer());
-  set.bind(kUvs, grid.uv_buffer());
-  set.bind(kVisibility, gpu.visibility);
-  set.bind(kGather, gpu.gather);
-  set.bind(kMaterials, gpu.materials);
-  set.bind(kDiffuseTexels, gpu.texels);
-  set.bind(kLights, gpu.lights);
-  set.bind(kRays, gpu.rays);
-  set.bind(kHits, gpu.hits);
-  set.bind(kImage, gpu.image);
-  set.bind(kRayList, gpu.ray_list);
-  set.bind(kGatherKeys, gpu.keys);
-  set.bind(kTileList, gpu.tiles);
+  set.bind(shared::kFrameBindParams, gpu.params);
+  set.bind(shared::kFrameBindInstances, grid.instance_buffer());
+  set.bind(shared::kFrameBindTriangles, grid.triangle_buffer());
+  set.bind(shared::kFrameBindUvs, grid.uv_buffer());
+  set.bind(shared::kFrameBindVisibility, gpu.visibility);
+  set.bind(shared::kFrameBindGather, gpu.gather);
+  set.bind(shared::kFrameBindMaterials, gpu.materials);
+  set.bind(shared::kFrameBindDiffuseTexels, gpu.texels);
+  set.bind(shared::kFrameBindLights, gpu.lights);
+  set.bind(shared::kFrameBindRays, gpu.rays);
+  set.bind(shared::kFrameBindHits, gpu.hits);
+  set.bind(shared::kFrameBindImage, gpu.image);
+  set.bind(shared::kFrameBindRayList, gpu.ray_list);
+  set.bind(shared::kFrameBindGatherKeys, gpu.keys);
+  set.bind(shared::kFrameBindTileList, gpu.tiles);
   const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
                          (alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
                          (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u);
   auto spec = [&] {
     SpecConstants s;
-    s.add(kSpecFrameFlags, flags);
+    s.add(shared::kFrameSpecFlags, flags);
     return s;
   };
   gpu.resolve = std::make_unique<Pipeline>(ctx, "gather_resolve.comp", set.layout(), 0, spec());
@@ -419,7 +426,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     gpu.tile_set->bind(0, gpu.tiles);
     gpu.tile_dispatch = std::make_unique<Pipeline>(ctx, "gather_tiles_dispatch.comp", gpu.tile_set->layout(),
                                                    uint32_t(sizeof(uint32_t)));
-    gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(2 * sizeof(uint32_t)), spec());
+    gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(sizeof(shared::GatherBinPush)), spec());
     gpu.tile_pass = std::make_unique<Pipeline>(ctx, "gather_tiles.comp", set.layout(), 0, spec());
   } else {
     SpecConstants raster_spec = spec();
@@ -457,9 +464,9 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         barrier(cb);
         if (triangles) {
           const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
-          const uint32_t push[2] = {triangles, uint32_t(instances.size())};
+          const shared::GatherBinPush push{triangles, uint32_t(instances.size())};
           gpu.bin->bind(cb, s);
-          gpu.bin->push(cb, push, sizeof push);
+          gpu.bin->push(cb, push);
           vkCmdDispatch(cb, g.x, g.y, 1);
         }
         barrier(cb);
@@ -511,9 +518,9 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         if (timed) gpu.timestamps->write(cb, 4);
         // Trace through the grid: the listed rays (the list's dispatch step first), or every pixel
         if (compact) {
-          const uint32_t list_push[3] = {64u, max_groups_x, w * h};
+          const shared::WorkListDispatchPush list_push{64u, max_groups_x, w * h};
           gpu.ray_list_dispatch->bind(cb, gpu.ray_list_set->set());
-          gpu.ray_list_dispatch->push(cb, list_push, sizeof list_push);
+          gpu.ray_list_dispatch->push(cb, list_push);
           vkCmdDispatch(cb, 1, 1, 1);
           barrier(cb);
           grid_.record_trace_list(cb);

@@ -2,12 +2,16 @@
 // vulkan/shaders/; this file makes the tables they read (as reference/build.cpp does), records
 // the passes and reads the results back.
 #include "vulkan/grid.h"
+#include "common/util.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <cstring>
 #include <map>
+
+#include "vulkan/ray_pass.h"
+#include "vulkan/shaders/grid_interface.h"
 
 namespace gridrt::vulkan {
 
@@ -16,57 +20,15 @@ using shared::GridParams;
 namespace {
 
 // The descriptor set every grid pipeline uses (vulkan/shaders/grid_common.glsl and trace.comp).
-enum Binding : uint32_t {
-  kParams = 0,
-  kImage = 1,
-  kInstances = 2,
-  kTriangles = 3,
-  kUvs = 4,
-  kMaterials = 5,
-  kTexels = 6,
-  kBuildInstances = 7,
-  kPositions = 8,
-  kIndices = 9,
-  kRays = 10,
-  kHits = 11,
-  kExplain = 12,
-  kDirty = 13,
-  kRayList = 14,
-  kBuildList = 15,
-  kSpill = 16,
-  kSpillHeads = 17,
-  kBindingCount = 18,
-};
-constexpr uint32_t kStorageBuffersPerStage = kBindingCount - 1;
-
-// Specialization constant ids (grid_common.glsl).
-enum SpecId : uint32_t {
-  kSpecCapacity = 0,
-  kSpecInsertion = 1,
-  kSpecTraversal = 2,
-  kSpecFlags = 3,
-  kSpecExplain = 4,
-  kSpecRepeats = 5,
-  kSpecTriangleTest = 6,
-  kSpecTraceList = 7,
-};
-
-// Push constants of trace.comp.
-struct TracePush {
-  uint32_t ray_offset, ray_count, explain_ray, explain_capacity;
-};
-constexpr uint32_t kNoExplain = 0xFFFFFFFFu;
-constexpr VkDeviceSize kExplainHeader = 16;  // count + padding before the events
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
+// The bindings, specialization constants and push constants: vulkan/shaders/grid_interface.h.
+constexpr uint32_t kStorageBuffersPerStage = shared::kGridBindingCount - 1;
+constexpr VkDeviceSize kExplainHeader = sizeof(shared::ExplainHeader);  // count + padding before the events
 
 SpecConstants spec_for(const GridParams& g, bool explain) {
   SpecConstants s;
-  s.add(kSpecCapacity, g.capacity).add(kSpecInsertion, g.insertion).add(kSpecTraversal, g.traversal);
-  s.add(kSpecFlags, g.flags).add(kSpecExplain, explain).add(kSpecRepeats, g.repeats);
-  s.add(kSpecTriangleTest, g.triangle_test);
+  s.add(shared::kGridSpecCapacity, g.capacity).add(shared::kGridSpecInsertion, g.insertion).add(shared::kGridSpecTraversal, g.traversal);
+  s.add(shared::kGridSpecFlags, g.flags).add(shared::kGridSpecExplain, explain).add(shared::kGridSpecRepeats, g.repeats);
+  s.add(shared::kGridSpecTriangleTest, g.triangle_test);
   return s;
 }
 
@@ -104,11 +66,11 @@ ContextOptions context_options(const VulkanGridOptions& vk) {
 }
 }  // namespace
 
-VulkanGridTracer::VulkanGridTracer(reference::GridOptions options, VulkanGridOptions vk)
+VulkanGridTracer::VulkanGridTracer(plan::GridOptions options, VulkanGridOptions vk)
     : owned_(std::make_unique<Context>(context_options(vk))), ctx_(owned_.get()), options_(std::move(options)),
       vk_(vk) {}
 
-VulkanGridTracer::VulkanGridTracer(Context& ctx, reference::GridOptions options, VulkanGridOptions vk)
+VulkanGridTracer::VulkanGridTracer(Context& ctx, plan::GridOptions options, VulkanGridOptions vk)
     : ctx_(&ctx), options_(std::move(options)), vk_(vk) {}
 
 VulkanGridTracer::~VulkanGridTracer() {
@@ -122,8 +84,23 @@ std::string VulkanGridTracer::name() const {
 // ---- Scene build (paper 2.1) ----
 
 void VulkanGridTracer::build(const Scene& scene, float time) {
-  Context& ctx = *ctx_;
-  const DeviceInfo& dev = ctx.info();
+  check_device();
+  gpu_.reset();
+  scene_ = &scene;
+  const plan::GridPlan plan = make_plan(scene, time);
+  std::vector<glm::vec4> positions;
+  std::vector<uint32_t> indices;
+  make_build_input(scene, time, positions, indices);
+  create_resources(plan, positions, indices);
+  create_pipelines();
+  record_build(uint32_t(scene.instances.size()));
+  after_insert();
+}
+
+// The device can run the grid: its storage buffers per stage, and for the raster build geometry
+// shaders with stores.
+void VulkanGridTracer::check_device() const {
+  const DeviceInfo& dev = ctx_->info();
   if (dev.limits.maxPerStageDescriptorStorageBuffers < kStorageBuffersPerStage)
     throw Error("the Vulkan grid needs " + std::to_string(kStorageBuffersPerStage) +
                 " storage buffers per shader stage, over maxPerStageDescriptorStorageBuffers (" +
@@ -132,62 +109,27 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   if (vk_.build == BuildMode::raster && (!dev.geometry_shader || !dev.vertex_pipeline_stores_and_atomics))
     throw Error(dev.name + " lacks geometryShader or vertexPipelineStoresAndAtomics for the raster build: use "
                            "the compute build (--build compute)");
-  gpu_.reset();
-  scene_ = &scene;
+}
 
-  // The grid the reference would choose, within this device's image limit
-  reference::GridOptions o = options_;
+// The grid the reference would choose (plan/plan.h), within this device's image limit; the
+// tables are the plan's.
+plan::GridPlan VulkanGridTracer::make_plan(const Scene& scene, float time) {
+  const DeviceInfo& dev = ctx_->info();
+  plan::GridOptions o = options_;
   o.max_image_dimension = std::min(o.max_image_dimension, dev.limits.maxImageDimension3D);
-  reference::GridChoice choice;
-  params_ = reference::choose_grid(scene, time, o, &choice);
+  plan::GridPlan plan = plan::plan_grid(scene, time, o);
+  params_ = plan.params;
   requested_flags_ = params_.flags;
-  const GridParams& g = params_;
-  const uint32_t spill_capacity = reference::choose_spill_capacity(scene, time, o, g, choice);
 
-  // Tables: instances, materials and their alpha masks, the geometry buffer (reference/build.cpp)
-  static_instances_ = scene.static_instance_count();
-  instances_.clear();
-  uint32_t offset = 0;
-  for (const Instance& inst : scene.instances) {
-    const Mesh& mesh = scene.meshes[inst.mesh];
-    shared::GridInstance gi{offset, mesh.triangle_count(), inst.dynamic ? shared::kInstanceDynamic : 0u, 0u};
-    for (uint32_t m : mesh.materials)
-      if (scene.materials[m].alpha_keyed()) gi.flags |= shared::kInstanceAlphaKeyed;
-    instances_.push_back(gi);
-    offset += mesh.triangle_count();
-  }
-  std::vector<shared::GridTriangle> triangles(offset, shared::GridTriangle{});
-  std::vector<shared::GridTriangleUv> uvs(offset, shared::GridTriangleUv{});
-  for (uint32_t i = 0; i < scene.instances.size(); ++i) {
-    const Mesh& mesh = scene.meshes[scene.instances[i].mesh];
-    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
-      const uint32_t k = instances_[i].tri_offset + t;
-      triangles[k].material = mesh.materials.empty() ? 0u : mesh.materials[t];
-      if (!mesh.uvs.empty()) {
-        const glm::uvec3 idx = mesh.triangles[t];
-        uvs[k] = {mesh.uvs[idx.x], mesh.uvs[idx.y], mesh.uvs[idx.z]};
-      }
-    }
-  }
-  std::vector<shared::GridMaterial> materials;
-  std::vector<uint32_t> texels;
-  for (const Material& mat : scene.materials) {
-    shared::GridMaterial gm{};
-    if (mat.alpha_keyed()) {
-      const Texture& tex = scene.textures[size_t(mat.alpha_texture)];
-      gm.alpha_offset = uint32_t(texels.size());
-      gm.alpha_width = tex.width;
-      gm.alpha_height = tex.height;
-      for (size_t p = 0; p < size_t(tex.width) * tex.height; ++p)
-        texels.push_back(uint32_t(tex.rgba[4 * p]) | uint32_t(tex.rgba[4 * p + 1]) << 8 |
-                         uint32_t(tex.rgba[4 * p + 2]) << 16 | uint32_t(tex.rgba[4 * p + 3]) << 24);
-    }
-    materials.push_back(gm);
-  }
+  // Tables: instances, materials and their alpha masks, the geometry buffer (plan/tables.cpp)
+  static_instances_ = plan.tables.static_instances;
+  instances_ = plan.tables.instances;
+  return plan;
+}
 
-  // Build input: the object-space meshes and every instance's transform
-  std::vector<glm::vec4> positions;
-  std::vector<uint32_t> indices;
+// Build input: the object-space meshes and every instance's transform at `time`.
+void VulkanGridTracer::make_build_input(const Scene& scene, float time, std::vector<glm::vec4>& positions,
+                                        std::vector<uint32_t>& indices) {
   std::vector<uint32_t> vertex_offset(scene.meshes.size()), index_offset(scene.meshes.size());
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     vertex_offset[m] = uint32_t(positions.size());
@@ -201,8 +143,20 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
     build_instances_.push_back({shared::to_affine(inst.transform_at(time)), vertex_offset[inst.mesh],
                                 index_offset[inst.mesh], instances_[i].tri_offset, instances_[i].tri_count});
   }
+}
 
-  // Device resources: buffers, the image, the descriptor set, the pipelines
+// Device resources: the tables' buffers, the build input, the explain, ray, dirty-cell and
+// build-list buffers, the image, the spill list.
+void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::vector<glm::vec4>& positions,
+                                        const std::vector<uint32_t>& indices) {
+  Context& ctx = *ctx_;
+  const DeviceInfo& dev = ctx.info();
+  const GridParams& g = params_;
+  const uint32_t spill_capacity = plan.spill_capacity;
+  const std::vector<shared::GridTriangle>& triangles = plan.tables.triangles;
+  const std::vector<shared::GridTriangleUv>& uvs = plan.tables.uvs;
+  const std::vector<shared::GridMaterial>& materials = plan.tables.materials;
+  const std::vector<uint32_t>& texels = plan.tables.texels;
   gpu_ = std::make_unique<Gpu>();
   Gpu& gpu = *gpu_;
   gpu.params = make_buffer(ctx, std::vector<GridParams>{g});
@@ -247,30 +201,37 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   gpu.spill_heads = ctx.create_buffer(spill_on ? 4 * VkDeviceSize(shared::grid_cell_count(g)) * sizeof(uint32_t) : 16,
                                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   overflow_warned_ = false;
+}
 
+// The descriptor set (grid_interface.h's bindings) and the pipelines of the build and update.
+void VulkanGridTracer::create_pipelines() {
+  Context& ctx = *ctx_;
+  const DeviceInfo& dev = ctx.info();
+  Gpu& gpu = *gpu_;
+  const GridParams& g = params_;
   const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-  gpu.set = std::make_unique<Descriptors>(
-      ctx, std::initializer_list<VkDescriptorType>{sb, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, sb, sb, sb, sb, sb, sb, sb,
-                                                   sb, sb, sb, sb, sb, sb, sb, sb, sb});
+  std::vector<VkDescriptorType> types(shared::kGridBindingCount, sb);
+  types[shared::kGridBindImage] = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+  gpu.set = std::make_unique<Descriptors>(ctx, std::move(types));
   Descriptors& set = *gpu.set;
-  set.bind(kParams, gpu.params);
-  set.bind(kImage, gpu.image);
-  set.bind(kInstances, gpu.instances);
-  set.bind(kTriangles, gpu.triangles);
-  set.bind(kUvs, gpu.uvs);
-  set.bind(kMaterials, gpu.materials);
-  set.bind(kTexels, gpu.texels);
-  set.bind(kBuildInstances, gpu.build_instances);
-  set.bind(kPositions, gpu.positions);
-  set.bind(kIndices, gpu.indices);
-  set.bind(kRays, gpu.rays);
-  set.bind(kHits, gpu.hits);
-  set.bind(kExplain, gpu.explain);
-  set.bind(kDirty, gpu.dirty);
-  set.bind(kRayList, gpu.no_ray_list);
-  set.bind(kBuildList, gpu.build_list);
-  set.bind(kSpill, gpu.spill);
-  set.bind(kSpillHeads, gpu.spill_heads);
+  set.bind(shared::kGridBindParams, gpu.params);
+  set.bind(shared::kGridBindImage, gpu.image);
+  set.bind(shared::kGridBindInstances, gpu.instances);
+  set.bind(shared::kGridBindTriangles, gpu.triangles);
+  set.bind(shared::kGridBindUvs, gpu.uvs);
+  set.bind(shared::kGridBindMaterials, gpu.materials);
+  set.bind(shared::kGridBindTexels, gpu.texels);
+  set.bind(shared::kGridBindBuildInstances, gpu.build_instances);
+  set.bind(shared::kGridBindPositions, gpu.positions);
+  set.bind(shared::kGridBindIndices, gpu.indices);
+  set.bind(shared::kGridBindRays, gpu.rays);
+  set.bind(shared::kGridBindHits, gpu.hits);
+  set.bind(shared::kGridBindExplain, gpu.explain);
+  set.bind(shared::kGridBindDirty, gpu.dirty);
+  set.bind(shared::kGridBindRayList, gpu.no_ray_list);
+  set.bind(shared::kGridBindBuildList, gpu.build_list);
+  set.bind(shared::kGridBindSpill, gpu.spill);
+  set.bind(shared::kGridBindSpillHeads, gpu.spill_heads);
   gpu.dirty_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
   gpu.dirty_set->bind(0, gpu.dirty);
 
@@ -284,23 +245,30 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
     gpu.build_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
     gpu.build_list_set->bind(0, gpu.build_list);
     gpu.build_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.build_list_set->layout(),
-                                                         uint32_t(3 * sizeof(uint32_t)));
+                                                         uint32_t(sizeof(shared::WorkListDispatchPush)));
   }
-  gpu.clear = std::make_unique<Pipeline>(ctx, "clear_dynamic.comp", set.layout(), uint32_t(sizeof(uint32_t)),
+  gpu.clear = std::make_unique<Pipeline>(ctx, "clear_dynamic.comp", set.layout(), uint32_t(sizeof(shared::ClearPush)),
                                          spec_for(g, false));
   gpu.dirty_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.dirty_set->layout(),
-                                                  uint32_t(3 * sizeof(uint32_t)));
+                                                  uint32_t(sizeof(shared::WorkListDispatchPush)));
   if (gpu.spill_capacity)
-    gpu.order = std::make_unique<Pipeline>(ctx, "spill_order.comp", set.layout(), uint32_t(sizeof(uint32_t)),
+    gpu.order = std::make_unique<Pipeline>(ctx, "spill_order.comp", set.layout(), uint32_t(sizeof(shared::SpillOrderPush)),
                                            spec_for(g, false));
   if (dev.timestamp_valid_bits) {
     gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
     gpu.update_timestamps = std::make_unique<Timestamps>(ctx, 3);  // begin, after the clear, end
     gpu.build_timestamps = std::make_unique<Timestamps>(ctx, 4);   // begin, after init, static, dynamic
   }
+}
 
-  // The passes: the image blank with status texels 0, the static instances (their references
-  // fill the first slots), then the dynamic ones
+// The build's passes: the image blank with status texels 0, the static instances (their
+// references fill the first slots), then the dynamic ones, each followed by the spill list's order
+// pass; timed.
+void VulkanGridTracer::record_build(uint32_t instance_count) {
+  Context& ctx = *ctx_;
+  const DeviceInfo& dev = ctx.info();
+  Gpu& gpu = *gpu_;
+  Descriptors& set = *gpu.set;
   const glm::uvec3 extent = gpu.image.extent;
   const uint32_t* max_groups = dev.limits.maxComputeWorkGroupCount;
   if (groups(extent.x, 4) > max_groups[0] || groups(extent.y, 4) > max_groups[1] || groups(extent.z, 4) > max_groups[2])
@@ -329,7 +297,7 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
     barrier(cb);
     record_spill_order(cb, false);
     if (stamps) stamps->write(cb, 2);
-    insert_instances(cb, static_instances_, uint32_t(scene.instances.size()));
+    insert_instances(cb, static_instances_, instance_count);
     barrier(cb);
     record_spill_order(cb, true);
     if (stamps) stamps->write(cb, 3, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
@@ -342,7 +310,6 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
     timings_.build_static_ms = (ns[2] - ns[1]) * 1e-6;
     timings_.build_dynamic_ms = (ns[3] - ns[2]) * 1e-6;
   }
-  after_insert();
 }
 
 // The spill list's order pass over the static entries (after the static pass) or the dynamic ones,
@@ -352,7 +319,7 @@ void VulkanGridTracer::record_spill_order(VkCommandBuffer cb, bool dynamic) {
   Gpu& gpu = *gpu_;
   if (!gpu.order) return;
   gpu.order->bind(cb, gpu.set->set());
-  gpu.order->push(cb, uint32_t(dynamic));
+  gpu.order->push(cb, shared::SpillOrderPush{uint32_t(dynamic)});
   vkCmdDispatch(cb, groups(gpu.spill_capacity, 64), 1, 1);  // within maxComputeWorkGroupCount: checked at build
   barrier(cb);
 }
@@ -360,11 +327,11 @@ void VulkanGridTracer::record_spill_order(VkCommandBuffer cb, bool dynamic) {
 void VulkanGridTracer::after_insert() {
   ctx_->download(gpu_->spill, &spill_header_, sizeof spill_header_);
   // Gap-fill only while some cell is saturated (the trace pipeline follows the flags)
-  params_.flags = reference::trace_flags(requested_flags_, options_, spill_header_.count);
-  reference::SpillDump d;
+  params_.flags = plan::trace_flags(requested_flags_, options_, spill_header_.count);
+  plan::SpillDump d;
   d.on = (params_.flags & shared::kGridSpill) != 0u;
   d.header = spill_header_;
-  reference::warn_spill_overflow(d, name(), overflow_warned_);
+  plan::warn_spill_overflow(d, name(), overflow_warned_);
 }
 
 const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list) {
@@ -373,8 +340,8 @@ const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list) {
   std::unique_ptr<Pipeline>& p = gpu.traces[key];
   if (!p) {
     SpecConstants spec = spec_for(params_, explain);
-    if (list) spec.add(kSpecTraceList, true);
-    p = std::make_unique<Pipeline>(*ctx_, "trace.comp", gpu.set->layout(), uint32_t(sizeof(TracePush)), std::move(spec));
+    if (list) spec.add(shared::kGridSpecTraceList, true);
+    p = std::make_unique<Pipeline>(*ctx_, "trace.comp", gpu.set->layout(), uint32_t(sizeof(shared::TracePush)), std::move(spec));
   }
   return *p;
 }
@@ -403,9 +370,10 @@ void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint
     vkCmdDispatch(cb, groups(push.tri_count, 64), 1, 1);
   }
   barrier(cb);
-  const uint32_t list_push[3] = {64u, ctx_->info().limits.maxComputeWorkGroupCount[0], gpu.build_list_capacity};
+  const shared::WorkListDispatchPush list_push{64u, ctx_->info().limits.maxComputeWorkGroupCount[0],
+                                               gpu.build_list_capacity};
   gpu.build_list_dispatch->bind(cb, gpu.build_list_set->set());
-  gpu.build_list_dispatch->push(cb, list_push, sizeof list_push);
+  gpu.build_list_dispatch->push(cb, list_push);
   vkCmdDispatch(cb, 1, 1, 1);
   barrier(cb);
   gpu.build_cells->bind(cb, gpu.set->set());
@@ -437,13 +405,14 @@ void VulkanGridTracer::update(float time) {
                                        sizeof(uint32_t)};
     vkCmdCopyBuffer(cb, gpu.spill.buffer, gpu.spill.buffer, 1, &static_to_count);
     // Clear the dynamic references of the cells on the dirty-cell list, a workgroup per cell
-    const uint32_t dispatch_push[3] = {1u, ctx_->info().limits.maxComputeWorkGroupCount[0], shared::grid_cell_count(g)};
+    const shared::WorkListDispatchPush dispatch_push{1u, ctx_->info().limits.maxComputeWorkGroupCount[0],
+                                                     shared::grid_cell_count(g)};
     gpu.dirty_dispatch->bind(cb, gpu.dirty_set->set());
-    gpu.dirty_dispatch->push(cb, dispatch_push, sizeof dispatch_push);
+    gpu.dirty_dispatch->push(cb, dispatch_push);
     vkCmdDispatch(cb, 1, 1, 1);
     barrier(cb);
     gpu.clear->bind(cb, gpu.set->set());
-    gpu.clear->push(cb, g.comparison_offset);
+    gpu.clear->push(cb, shared::ClearPush{g.comparison_offset});
     vkCmdDispatchIndirect(cb, gpu.dirty.buffer, 0);
     barrier(cb);
     if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
@@ -472,43 +441,27 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
   Context& ctx = *ctx_;
   Gpu& gpu = *gpu_;
   // Ray and hit buffers, grown as needed
-  if (rays.size() > gpu.ray_capacity) {
-    gpu.rays = ctx.create_buffer(rays.size_bytes(), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-    gpu.hits = ctx.create_buffer(rays.size() * sizeof(Hit), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-    gpu.ray_capacity = rays.size();
-    gpu.set->bind(kRays, gpu.rays);
-    gpu.set->bind(kHits, gpu.hits);
-    gpu.set->bind(kRayList, gpu.no_ray_list);
+  if (grow_ray_buffers(ctx, rays.size(), gpu.rays, gpu.hits, gpu.ray_capacity)) {
+    gpu.set->bind(shared::kGridBindRays, gpu.rays);
+    gpu.set->bind(shared::kGridBindHits, gpu.hits);
+    gpu.set->bind(shared::kGridBindRayList, gpu.no_ray_list);
     gpu.ray_list = VK_NULL_HANDLE;
   }
   ctx.upload(gpu.rays, rays.data(), rays.size_bytes());
-  const bool explain = explain_index != kNoExplain;
+  const bool explain = explain_index != shared::kNoExplain;
   const Pipeline& pipe = trace_pipeline(explain);
-  const uint32_t n = uint32_t(rays.size());
-  const uint32_t chunk = ctx.info().limits.maxComputeWorkGroupCount[0] * 64u;
-  const auto t0 = std::chrono::steady_clock::now();
-  ctx.submit([&](VkCommandBuffer cb) {
-    if (explain) {
-      vkCmdFillBuffer(cb, gpu.explain.buffer, 0, kExplainHeader, 0u);
-      barrier(cb);
-    }
-    if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
-    pipe.bind(cb, gpu.set->set());
-    for (uint32_t first = 0; first < n; first += std::min(chunk, n - first)) {
-      const TracePush push{first, std::min(chunk, n - first), explain_index, vk_.explain_capacity};
-      pipe.push(cb, push);
-      vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
-    }
-    if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
-  });
-  timings_.trace_host_ms = ms_since(t0);
-  timings_.trace_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
+  const PassTimes t = submit_ray_chunks<shared::TracePush>(ctx, pipe, gpu.set->set(), uint32_t(rays.size()),
+                                                          explain_index, vk_.explain_capacity,
+                                                          explain ? &gpu.explain : nullptr, kExplainHeader,
+                                                          gpu.timestamps.get());
+  timings_.trace_host_ms = t.host_ms;
+  timings_.trace_ms = t.device_ms;
   ctx.download(gpu.hits, hits.data(), hits.size_bytes());
 }
 
-void VulkanGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) { run_trace(rays, hits, kNoExplain); }
+void VulkanGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) { run_trace(rays, hits, shared::kNoExplain); }
 
-reference::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays, uint32_t index) {
+plan::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays, uint32_t index) {
   if (index >= rays.size()) throw Error("vulkan-grid: explain index out of range");
   std::vector<Hit> hits(rays.size());
   run_trace(rays, hits, index);
@@ -517,7 +470,7 @@ reference::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays
   if (count > vk_.explain_capacity)
     throw Error("vulkan-grid: the explained ray left " + std::to_string(count) + " events, over the explain buffer's " +
                 std::to_string(vk_.explain_capacity) + " (VulkanGridOptions::explain_capacity)");
-  reference::ExplainRecord rec;
+  plan::ExplainRecord rec;
   rec.ray = rays[index];
   rec.params = params_;
   rec.events = ctx_->download<shared::ExplainEvent>(gpu_->explain, count, kExplainHeader);
@@ -555,9 +508,9 @@ const Buffer& VulkanGridTracer::texel_buffer() const {
 void VulkanGridTracer::bind_ray_buffers(const Buffer& rays, const Buffer& hits, const Buffer* ray_list) {
   if (!gpu_) throw Error("vulkan-grid: bind_ray_buffers before build");
   Gpu& gpu = *gpu_;
-  gpu.set->bind(kRays, rays);
-  gpu.set->bind(kHits, hits);
-  gpu.set->bind(kRayList, ray_list ? *ray_list : gpu.no_ray_list);
+  gpu.set->bind(shared::kGridBindRays, rays);
+  gpu.set->bind(shared::kGridBindHits, hits);
+  gpu.set->bind(shared::kGridBindRayList, ray_list ? *ray_list : gpu.no_ray_list);
   gpu.ray_list = ray_list ? ray_list->buffer : VK_NULL_HANDLE;
   gpu.ray_capacity = 0;  // the next trace() makes and binds its own buffers again
 }
@@ -566,7 +519,7 @@ void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
   if (!gpu_ || !gpu_->ray_list) throw Error("vulkan-grid: record_trace_list without a bound ray list");
   const Pipeline& pipe = trace_pipeline(false, true);
   pipe.bind(cb, gpu_->set->set());
-  const TracePush push{0u, 0u, kNoExplain, vk_.explain_capacity};
+  const shared::TracePush push{0u, 0u, shared::kNoExplain, vk_.explain_capacity};
   pipe.push(cb, push);
   vkCmdDispatchIndirect(cb, gpu_->ray_list, 0);
 }
@@ -577,7 +530,7 @@ void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count) {
   const Pipeline& pipe = trace_pipeline(false);
   pipe.bind(cb, gpu_->set->set());
   for (uint32_t first = 0; first < count; first += std::min(chunk, count - first)) {
-    const TracePush push{first, std::min(chunk, count - first), kNoExplain, vk_.explain_capacity};
+    const shared::TracePush push{first, std::min(chunk, count - first), shared::kNoExplain, vk_.explain_capacity};
     pipe.push(cb, push);
     vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
   }
@@ -603,9 +556,9 @@ std::vector<uint32_t> VulkanGridTracer::download_dirty_cells() const {
   return ctx_->download<uint32_t>(gpu_->dirty, header.appended, sizeof(shared::WorkListHeader));
 }
 
-reference::SpillDump VulkanGridTracer::spill() const {
+plan::SpillDump VulkanGridTracer::spill() const {
   if (!gpu_) return {};
-  reference::SpillDump d;
+  plan::SpillDump d;
   d.on = (params_.flags & shared::kGridSpill) != 0u;
   ctx_->download(gpu_->spill, &d.header, sizeof d.header);
   d.entries = ctx_->download<shared::SpillEntry>(gpu_->spill, d.stored(), sizeof(shared::SpillHeader));

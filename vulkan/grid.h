@@ -8,7 +8,7 @@
 //                       spill counter back to the static count first), then the dynamic instances
 //                       again (which append the cells they reach)
 //   scene_trace  (2.3)  trace.comp, one invocation per ray; the explain ray records its events
-// The grid (placement, resolution, capacity) is chosen by reference::choose_grid, so both
+// The grid (placement, resolution, capacity) is chosen by plan::choose_grid, so both
 // tracers build the same grid from the same GridOptions.
 #pragma once
 
@@ -19,7 +19,8 @@
 #include <vector>
 
 #include "common/tracer.h"
-#include "reference/grid.h"
+#include "plan/plan.h"
+#include "plan/records.h"
 #include "vulkan/context.h"
 #include "vulkan/pipeline.h"
 #include "vulkan/shaders/build_input.h"
@@ -53,9 +54,9 @@ class VulkanGridTracer : public Tracer {
  public:
   // On its own context (ContextOptions::from_env(); geometry shaders required only for the
   // raster build).
-  explicit VulkanGridTracer(reference::GridOptions options = {}, VulkanGridOptions vk = {});
+  explicit VulkanGridTracer(plan::GridOptions options = {}, VulkanGridOptions vk = {});
   // On a context the caller keeps alive.
-  VulkanGridTracer(Context& ctx, reference::GridOptions options = {}, VulkanGridOptions vk = {});
+  VulkanGridTracer(Context& ctx, plan::GridOptions options = {}, VulkanGridOptions vk = {});
   ~VulkanGridTracer() override;
 
   std::string name() const override;
@@ -65,24 +66,24 @@ class VulkanGridTracer : public Tracer {
   AccelDump dump() const override;
 
   // Traces `rays` and records the events of rays[index], as the reference's explain_ray does.
-  reference::ExplainRecord explain_ray(std::span<const Ray> rays, uint32_t index);
-  reference::ExplainRecord explain_ray(const Ray& ray) { return explain_ray(std::span<const Ray>(&ray, 1), 0); }
+  plan::ExplainRecord explain_ray(std::span<const Ray> rays, uint32_t index);
+  plan::ExplainRecord explain_ray(const Ray& ray) { return explain_ray(std::span<const Ray>(&ray, 1), 0); }
 
   // Runs of kBuildRun cells (build.glsl) the compute build and its updates handed out so far
   // (0 for the raster build).
   uint32_t download_build_runs() const;
-  // The dirty-cell list's cells (as reference::dirty_cells: the cells appended since the last
+  // The dirty-cell list's cells (as plan::dirty_cells: the cells appended since the last
   // clear pass, in the order the device appended them).
   std::vector<uint32_t> download_dirty_cells() const;
   // The geometry buffer as the build wrote it (for tests against GridData::triangles).
   std::vector<shared::GridTriangle> download_triangles() const;
   // The spill list as the device holds it: the header and the stored entries (append order).
-  reference::SpillDump spill() const;
+  plan::SpillDump spill() const;
   // The spill list's header as read back after the last build or update.
   const shared::SpillHeader& spill_header() const { return spill_header_; }
 
   const shared::GridParams& params() const { return params_; }
-  const reference::GridOptions& options() const { return options_; }
+  const plan::GridOptions& options() const { return options_; }
   const GridTimings& timings() const { return timings_; }
 
   // For passes of other pipelines on the grid's device data (vulkan/frame.h), valid after
@@ -110,8 +111,17 @@ class VulkanGridTracer : public Tracer {
 
  private:
   struct Gpu;  // buffers, image, descriptors, pipelines
+  // build()'s steps
+  void check_device() const;
+  plan::GridPlan make_plan(const Scene& scene, float time);
+  void make_build_input(const Scene& scene, float time, std::vector<glm::vec4>& positions,
+                        std::vector<uint32_t>& indices);
+  void create_resources(const plan::GridPlan& plan, const std::vector<glm::vec4>& positions,
+                        const std::vector<uint32_t>& indices);
+  void create_pipelines();
+  void record_build(uint32_t instance_count);
   void insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last);
-  // Reads the spill header back, sets the trace's flags from it (reference::trace_flags) and
+  // Reads the spill header back, sets the trace's flags from it (plan::trace_flags) and
   // warns once on an overflow.
   void after_insert();
   void record_spill_order(VkCommandBuffer cb, bool dynamic);
@@ -123,7 +133,7 @@ class VulkanGridTracer : public Tracer {
 
   std::unique_ptr<Context> owned_;
   Context* ctx_ = nullptr;
-  reference::GridOptions options_;
+  plan::GridOptions options_;
   VulkanGridOptions vk_;
   const Scene* scene_ = nullptr;
   shared::GridParams params_{};

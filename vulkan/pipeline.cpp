@@ -116,8 +116,8 @@ const VkSpecializationInfo* SpecConstants::info() {
 
 // ---- Descriptors ----
 
-Descriptors::Descriptors(Context& ctx, std::initializer_list<VkDescriptorType> bindings, VkShaderStageFlags stages)
-    : ctx_(ctx), types_(bindings) {
+Descriptors::Descriptors(Context& ctx, std::vector<VkDescriptorType> bindings, VkShaderStageFlags stages)
+    : ctx_(ctx), types_(std::move(bindings)) {
   std::vector<VkDescriptorSetLayoutBinding> b;
   std::vector<VkDescriptorPoolSize> sizes;
   for (uint32_t i = 0; i < types_.size(); ++i) {

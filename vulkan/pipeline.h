@@ -61,6 +61,11 @@ class Descriptors {
  public:
   Descriptors(Context& ctx, std::initializer_list<VkDescriptorType> bindings,
               VkShaderStageFlags stages = VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_VERTEX_BIT |
+                                          VK_SHADER_STAGE_GEOMETRY_BIT)
+      : Descriptors(ctx, std::vector<VkDescriptorType>(bindings), stages) {}
+  // Binding i of type bindings[i] (the types of an interface header's bindings).
+  Descriptors(Context& ctx, std::vector<VkDescriptorType> bindings,
+              VkShaderStageFlags stages = VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_VERTEX_BIT |
                                           VK_SHADER_STAGE_GEOMETRY_BIT);
   ~Descriptors();
   Descriptors(const Descriptors&) = delete;

@@ -2,6 +2,8 @@
 // CPU builds the divs; this file uploads the packed textures as the seed stores them, records the
 // trace and render passes (vulkan/shaders/portal_*.comp) and reads the results back.
 #include "vulkan/portal.h"
+#include "vulkan/ray_pass.h"
+#include "common/util.h"
 
 #include <algorithm>
 #include <chrono>
@@ -20,31 +22,13 @@ using portal::texel_text;
 
 namespace {
 
-// The descriptor set of every portal pass (vulkan/shaders/portal_trace.glsl, portal_*.comp).
-enum Binding : uint32_t {
-  kAtlas = 0,         // R16_UINT 2D, sampled
-  kInfo = 1,          // RGBA8_UINT 2D, sampled
-  kStart = 2,         // R16_UINT 3D, sampled
-  kParams = 3,        // PortalParams
-  kRays = 4,          // RayRecord[]
-  kHits = 5,          // HitRecord[]
-  kExplain = 6,       // count + PortalExplainEvent[]
-  kRenderParams = 7,  // PortalRenderParams
-  kMaterials = 8,     // PortalMaterial[]
-  kPixels = 9,        // PortalPixel[]
-};
+// The descriptor set's bindings: portal_input.h.
 
-// Push constants of portal_trace.comp.
-struct TracePush {
-  uint32_t ray_offset, ray_count, explain_ray, explain_capacity;
-};
-constexpr uint32_t kNoExplain = 0xFFFFFFFFu;
+// Push constants and the specialization constant: portal_input.h.
+using shared::kPortalNoExplain;
+using shared::PortalTracePush;
 constexpr uint32_t kExplainCapacity = 1u << 14;
 constexpr VkDeviceSize kExplainHeader = 16;  // count + padding before the events
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 ContextOptions context_options() {
   ContextOptions o = ContextOptions::from_env();
@@ -237,19 +221,20 @@ void PortalVulkanTracer::upload() {
   gpu.set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{si, si, si, sb, sb, sb, sb, sb, sb, sb},
                                           VK_SHADER_STAGE_COMPUTE_BIT);
   Descriptors& set = *gpu.set;
-  set.bind(kAtlas, gpu.atlas.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
-  set.bind(kInfo, gpu.info.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
-  set.bind(kStart, gpu.start.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
-  set.bind(kParams, gpu.params);
-  set.bind(kRays, gpu.rays);
-  set.bind(kHits, gpu.hits);
-  set.bind(kExplain, gpu.explain);
-  set.bind(kRenderParams, gpu.render_params);
-  set.bind(kMaterials, gpu.materials);
-  set.bind(kPixels, gpu.pixels);
-  gpu.trace = std::make_unique<Pipeline>(ctx, "portal_trace.comp", set.layout(), uint32_t(sizeof(TracePush)),
-                                         SpecConstants().add(0, false));
-  gpu.render = std::make_unique<Pipeline>(ctx, "portal_render.comp", set.layout(), uint32_t(sizeof(uint32_t)));
+  set.bind(shared::kPortalBindAtlas, gpu.atlas.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+  set.bind(shared::kPortalBindInfo, gpu.info.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+  set.bind(shared::kPortalBindStart, gpu.start.view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+  set.bind(shared::kPortalBindParams, gpu.params);
+  set.bind(shared::kPortalBindRays, gpu.rays);
+  set.bind(shared::kPortalBindHits, gpu.hits);
+  set.bind(shared::kPortalBindExplain, gpu.explain);
+  set.bind(shared::kPortalBindRenderParams, gpu.render_params);
+  set.bind(shared::kPortalBindMaterials, gpu.materials);
+  set.bind(shared::kPortalBindPixels, gpu.pixels);
+  gpu.trace = std::make_unique<Pipeline>(ctx, "portal_trace.comp", set.layout(), uint32_t(sizeof(PortalTracePush)),
+                                         SpecConstants().add(shared::kPortalSpecExplain, false));
+  gpu.render = std::make_unique<Pipeline>(ctx, "portal_render.comp", set.layout(),
+                                          uint32_t(sizeof(shared::PortalRenderPush)));
   if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
 }
 
@@ -260,42 +245,26 @@ void PortalVulkanTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hit
   Context& ctx = *ctx_;
   Gpu& gpu = *gpu_;
   // Ray and hit buffers, grown as needed
-  if (rays.size() > gpu.ray_capacity) {
-    gpu.rays = ctx.create_buffer(rays.size_bytes(), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-    gpu.hits = ctx.create_buffer(rays.size() * sizeof(Hit), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-    gpu.ray_capacity = rays.size();
-    gpu.set->bind(kRays, gpu.rays);
-    gpu.set->bind(kHits, gpu.hits);
+  if (grow_ray_buffers(ctx, rays.size(), gpu.rays, gpu.hits, gpu.ray_capacity)) {
+    gpu.set->bind(shared::kPortalBindRays, gpu.rays);
+    gpu.set->bind(shared::kPortalBindHits, gpu.hits);
   }
   ctx.upload(gpu.rays, rays.data(), rays.size_bytes());
-  const bool explain = explain_index != kNoExplain;
+  const bool explain = explain_index != kPortalNoExplain;
   if (explain && !gpu.trace_explain)
     gpu.trace_explain = std::make_unique<Pipeline>(ctx, "portal_trace.comp", gpu.set->layout(),
-                                                   uint32_t(sizeof(TracePush)), SpecConstants().add(0, true));
+                                                   uint32_t(sizeof(PortalTracePush)), SpecConstants().add(shared::kPortalSpecExplain, true));
   const Pipeline& pipe = explain ? *gpu.trace_explain : *gpu.trace;
-  const uint32_t n = uint32_t(rays.size());
-  const uint32_t chunk = ctx.info().limits.maxComputeWorkGroupCount[0] * 64u;
-  const auto t0 = std::chrono::steady_clock::now();
-  ctx.submit([&](VkCommandBuffer cb) {
-    if (explain) {
-      vkCmdFillBuffer(cb, gpu.explain.buffer, 0, kExplainHeader, 0u);
-      barrier(cb);
-    }
-    if (gpu.timestamps) gpu.timestamps->reset(cb), gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
-    pipe.bind(cb, gpu.set->set());
-    for (uint32_t first = 0; first < n; first += std::min(chunk, n - first)) {
-      const TracePush push{first, std::min(chunk, n - first), explain_index, kExplainCapacity};
-      pipe.push(cb, push);
-      vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
-    }
-    if (gpu.timestamps) gpu.timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
-  });
-  timings_.trace_host_ms = ms_since(t0);
-  timings_.trace_ms = gpu.timestamps ? gpu.timestamps->elapsed_ms(0, 1) : 0.0;
+  const PassTimes t = submit_ray_chunks<PortalTracePush>(ctx, pipe, gpu.set->set(), uint32_t(rays.size()),
+                                                        explain_index, kExplainCapacity,
+                                                        explain ? &gpu.explain : nullptr, kExplainHeader,
+                                                        gpu.timestamps.get());
+  timings_.trace_host_ms = t.host_ms;
+  timings_.trace_ms = t.device_ms;
   ctx.download(gpu.hits, hits.data(), hits.size_bytes());
 }
 
-void PortalVulkanTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) { run_trace(rays, hits, kNoExplain); }
+void PortalVulkanTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) { run_trace(rays, hits, kPortalNoExplain); }
 
 AccelDump PortalVulkanTracer::dump() const {
   if (!gpu_) return {};
@@ -357,7 +326,7 @@ std::vector<glm::vec3> PortalVulkanTracer::render(const Camera& camera, const po
   if (n > gpu.pixel_capacity) {
     gpu.pixels = ctx.create_buffer(n * sizeof(sh::PortalPixel), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
     gpu.pixel_capacity = n;
-    gpu.set->bind(kPixels, gpu.pixels);
+    gpu.set->bind(shared::kPortalBindPixels, gpu.pixels);
   }
   const auto t0 = std::chrono::steady_clock::now();
   ctx.submit([&](VkCommandBuffer cb) {
@@ -365,13 +334,13 @@ std::vector<glm::vec3> PortalVulkanTracer::render(const Camera& camera, const po
     gpu.render->bind(cb, gpu.set->set());
     if (opt.state_machine) {
       // One loop: the same step for every kind of ray, transitions at the end of each iteration.
-      gpu.render->push(cb, 0u);
+      gpu.render->push(cb, shared::PortalRenderPush{0u});
       vkCmdDispatch(cb, groups(opt.width, 8), groups(opt.height, 8), 1);
     } else {
       // Three loops: every pixel's primary ray, then every first shadow ray, then every second.
       for (uint32_t pass = 1; pass <= 3; ++pass) {
         if (pass > 1) barrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
-        gpu.render->push(cb, pass);
+        gpu.render->push(cb, shared::PortalRenderPush{pass});
         vkCmdDispatch(cb, groups(opt.width, 8), groups(opt.height, 8), 1);
       }
     }

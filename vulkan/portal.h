@@ -1,4 +1,4 @@
-// portal.h: the Vulkan port of the portal ("div") tracer (seeds/002, docs/PORTAL.md), behind the
+// portal.h: the Vulkan port of the portal ("div") tracer ("A Novel Raytracing Algorithm for GPU", docs/PORTAL.md), behind the
 // same interface as reference/portal's PortalTracer and held to it bit for bit on lavapipe. The
 // CPU builds the divs (reference::portal::build_portal); the GPU traces them from the packed
 // textures exactly as the seed stores them:

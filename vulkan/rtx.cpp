@@ -2,6 +2,7 @@
 // rtx.h): the acceleration structures over the grid's geometry buffer, the pipeline and its
 // shader binding table, the per-frame update and trace.
 #include "vulkan/rtx.h"
+#include "common/util.h"
 
 #include <algorithm>
 #include <chrono>
@@ -17,17 +18,7 @@ using shared::RtxPush;
 
 namespace {
 
-// The descriptor set of the ray tracing shaders (vulkan/shaders/rtx_common.glsl).
-enum RtxBinding : uint32_t {
-  kTlas = 0,
-  kRays = 1,
-  kHits = 2,
-  kInstances = 3,
-  kTriangles = 4,
-  kUvs = 5,
-  kMaterials = 6,
-  kTexels = 7,
-};
+// The descriptor set's bindings: rtx_input.h.
 
 // The shader groups, in the order of the pipeline and the shader binding table.
 enum RtxGroup : uint32_t { kGroupRaygen = 0, kGroupMiss = 1, kGroupHit = 2, kGroupCount = 3 };
@@ -68,10 +59,6 @@ struct Functions {
 };
 
 VkDeviceSize align_up(VkDeviceSize x, VkDeviceSize a) { return (x + a - 1) / a * a; }
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // One acceleration structure: where it lives in its storage buffer and what building it needs.
 struct Accel {
@@ -198,18 +185,34 @@ VulkanRtxTracer::VulkanRtxTracer(VulkanGridTracer& grid, RtxOptions options)
   const std::vector<shared::GridInstance>& instances = grid.instances();
   if (instances.size() > (1u << 24))
     throw Error("the ray tracing side by side: more scene instances than instanceCustomIndex holds (2^24)");
-
-  // The BLASes' geometry: each instance's triangles of the geometry buffer, 3 vertices of 16
-  // bytes per GridTriangle (v0, material; v1, pad; v2, pad), opaque unless alpha-keyed
-  const VkDeviceAddress triangles = gpu.address(grid.triangle_buffer());
   const bool alpha = (params.flags & shared::kGridAlphaKeying) != 0u;
+
+  describe_blases(alpha);
+  const VkDeviceSize scratch_align = std::max<VkDeviceSize>(gpu.as.minAccelerationStructureScratchOffsetAlignment, 16);
+  const Buffer first_scratch = create_structures(scratch_align);
+  first_build(first_scratch, scratch_align);
+  create_pipeline();
+
+  // What the shaders honour of the grid's options
+  gpu.push.mode = ((params.flags & shared::kGridExcludeLaunchRef) ? shared::kRtxExcludeLaunchRef : 0u) |
+                  (alpha ? shared::kRtxAlphaKeying : 0u) | (options_.any_hit_all ? shared::kRtxAnyHitAll : 0u);
+  gpu.push.cell_size = params.cell_size;
+  gpu.push.self_hit_offset = params.self_hit_offset;
+}
+
+// The BLASes' geometry: each instance's triangles of the geometry buffer, 3 vertices of 16 bytes
+// per GridTriangle (v0, material; v1, pad; v2, pad), opaque unless alpha-keyed (with `alpha`).
+void VulkanRtxTracer::describe_blases(bool alpha) {
+  Gpu& gpu = *gpu_;
+  const std::vector<shared::GridInstance>& instances = grid_.instances();
+  const VkDeviceAddress triangles = gpu.address(grid_.triangle_buffer());
   for (uint32_t i = 0; i < instances.size(); ++i) {
     const shared::GridInstance& inst = instances[i];
     if (inst.tri_count == 0) continue;
     Accel a;
     a.instance = i;
     a.primitives = inst.tri_count;
-    a.dynamic = i >= grid.static_instance_count();
+    a.dynamic = i >= grid_.static_instance_count();
     a.geometry = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
     a.geometry.geometryType = VK_GEOMETRY_TYPE_TRIANGLES_KHR;
     a.geometry.flags = alpha && (inst.flags & shared::kInstanceAlphaKeyed) ? VkGeometryFlagsKHR(0)
@@ -227,11 +230,15 @@ VulkanRtxTracer::VulkanRtxTracer(VulkanGridTracer& grid, RtxOptions options)
                                                VK_BUILD_ACCELERATION_STRUCTURE_ALLOW_UPDATE_BIT_KHR;
     gpu.blas.push_back(a);
   }
+}
 
-  // Sizes, storage and scratch: static BLASes in one buffer (their scratch only for the first
-  // build), dynamic BLASes in another, the TLAS in a third; the per-frame scratch holds the
-  // dynamic BLASes' and the TLAS's side by side
-  const VkDeviceSize scratch_align = std::max<VkDeviceSize>(gpu.as.minAccelerationStructureScratchOffsetAlignment, 16);
+// Sizes, storage and scratch: static BLASes in one buffer (their scratch only for the first
+// build, returned), dynamic BLASes in another, the TLAS in a third; the per-frame scratch holds
+// the dynamic BLASes' and the TLAS's side by side. Then the structures, and the TLAS's instances.
+Buffer VulkanRtxTracer::create_structures(VkDeviceSize scratch_align) {
+  Context& ctx = ctx_;
+  const VkDevice d = ctx.device();
+  Gpu& gpu = *gpu_;
   VkDeviceSize static_bytes = 0, dynamic_bytes = 0, static_scratch = 0, frame_scratch = 0;
   for (Accel& a : gpu.blas) {
     VkAccelerationStructureBuildGeometryInfoKHR bi =
@@ -302,8 +309,14 @@ VulkanRtxTracer::VulkanRtxTracer(VulkanGridTracer& grid, RtxOptions options)
       VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT);
   ctx.upload(gpu.instances, tlas_instances.data(), tlas_instances.size() * sizeof(VkAccelerationStructureInstanceKHR));
   tl.geometry.geometry.instances.data.deviceAddress = gpu.address(gpu.instances);
+  return first_scratch;
+}
 
-  // The first build, timed: the static BLASes, then the dynamic ones and the TLAS
+// The first build, timed: the static BLASes, then the dynamic ones and the TLAS.
+void VulkanRtxTracer::first_build(const Buffer& first_scratch, VkDeviceSize scratch_align) {
+  Context& ctx = ctx_;
+  Gpu& gpu = *gpu_;
+  Accel& tl = gpu.tlas;
   if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 4);
   const VkDeviceAddress first_base = align_up(gpu.address(first_scratch), scratch_align);
   const VkDeviceAddress frame_base = align_up(gpu.address(gpu.scratch), scratch_align);
@@ -328,19 +341,26 @@ VulkanRtxTracer::VulkanRtxTracer(VulkanGridTracer& grid, RtxOptions options)
     timings_.static_build_ms = (ns[1] - ns[0]) * 1e-6;
     timings_.first_build_ms = (ns[3] - ns[0]) * 1e-6;
   }
+}
 
+// The descriptor set, the ray tracing pipeline and its shader binding table.
+void VulkanRtxTracer::create_pipeline() {
+  Context& ctx = ctx_;
+  const VkDevice d = ctx.device();
+  Gpu& gpu = *gpu_;
+  Accel& tl = gpu.tlas;
   // The descriptor set: the TLAS and the grid's tables (rays and hits bound per trace)
   const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   gpu.set = std::make_unique<Descriptors>(
       ctx, std::initializer_list<VkDescriptorType>{VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, sb, sb, sb, sb, sb, sb, sb},
       kRtStages);
   Descriptors& set = *gpu.set;
-  set.bind(kTlas, tl.handle);
-  set.bind(kInstances, grid.instance_buffer());
-  set.bind(kTriangles, grid.triangle_buffer());
-  set.bind(kUvs, grid.uv_buffer());
-  set.bind(kMaterials, grid.material_buffer());
-  set.bind(kTexels, grid.texel_buffer());
+  set.bind(shared::kRtxBindTlas, tl.handle);
+  set.bind(shared::kRtxBindInstances, grid_.instance_buffer());
+  set.bind(shared::kRtxBindTriangles, grid_.triangle_buffer());
+  set.bind(shared::kRtxBindUvs, grid_.uv_buffer());
+  set.bind(shared::kRtxBindMaterials, grid_.material_buffer());
+  set.bind(shared::kRtxBindTexels, grid_.texel_buffer());
 
   // The pipeline: ray generation, miss, and one hit group (closest hit + any hit)
   const VkDescriptorSetLayout set_layout = set.layout();
@@ -402,12 +422,6 @@ VulkanRtxTracer::VulkanRtxTracer(VulkanGridTracer& grid, RtxOptions options)
   gpu.raygen = {sbt_base + kGroupRaygen * region, region, region};
   gpu.miss = {sbt_base + kGroupMiss * region, stride, stride};
   gpu.hit = {sbt_base + kGroupHit * region, stride, stride};
-
-  // What the shaders honour of the grid's options
-  gpu.push.mode = ((params.flags & shared::kGridExcludeLaunchRef) ? shared::kRtxExcludeLaunchRef : 0u) |
-                  (alpha ? shared::kRtxAlphaKeying : 0u) | (options_.any_hit_all ? shared::kRtxAnyHitAll : 0u);
-  gpu.push.cell_size = params.cell_size;
-  gpu.push.self_hit_offset = params.self_hit_offset;
 }
 
 VulkanRtxTracer::~VulkanRtxTracer() {
@@ -465,8 +479,8 @@ void VulkanRtxTracer::update_and_trace(const Buffer& rays, const Buffer& hits, u
   if (rays.size < VkDeviceSize(count) * sizeof(Ray) || hits.size < VkDeviceSize(count) * sizeof(Hit))
     throw Error("the ray tracing side by side: the ray or hit buffer holds fewer than " + std::to_string(count) +
                 " records");
-  if (rays.buffer != gpu.bound_rays) gpu.set->bind(kRays, rays), gpu.bound_rays = rays.buffer;
-  if (hits.buffer != gpu.bound_hits) gpu.set->bind(kHits, hits), gpu.bound_hits = hits.buffer;
+  if (rays.buffer != gpu.bound_rays) gpu.set->bind(shared::kRtxBindRays, rays), gpu.bound_rays = rays.buffer;
+  if (hits.buffer != gpu.bound_hits) gpu.set->bind(shared::kRtxBindHits, hits), gpu.bound_hits = hits.buffer;
   const auto t0 = std::chrono::steady_clock::now();
   ctx_.submit([&](VkCommandBuffer cb) {
     barrier(cb);  // the grid's update rewrote the geometry buffer; the frame wrote the rays

@@ -84,6 +84,11 @@ class VulkanRtxTracer {
 
  private:
   struct Gpu;
+  // The constructor's steps
+  void describe_blases(bool alpha);
+  Buffer create_structures(VkDeviceSize scratch_align);
+  void first_build(const Buffer& first_scratch, VkDeviceSize scratch_align);
+  void create_pipeline();
   void record_update(VkCommandBuffer cb);
   void record_trace(VkCommandBuffer cb, uint32_t count);
 

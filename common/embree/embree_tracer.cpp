@@ -1,4 +1,5 @@
 #include "common/embree/embree_tracer.h"
+#include "common/parallel.h"
 
 #include <algorithm>
 #include <atomic>
@@ -165,7 +166,7 @@ struct EmbreeTracer::Impl {
 };
 
 EmbreeTracer::EmbreeTracer(unsigned threads) : impl_(std::make_unique<Impl>()) {
-  impl_->threads = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
+  impl_->threads = thread_count_or_hardware(threads);
   const std::string config = "threads=" + std::to_string(impl_->threads);
   impl_->device = rtcNewDevice(config.c_str());
   if (!impl_->device) throw Error("Embree: cannot create a device (" + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
@@ -248,15 +249,7 @@ void EmbreeTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
       for (size_t r = b * kBlock; r < end; ++r) hits[r] = impl_->trace_one(rays[r]);
     }
   };
-  const unsigned n = unsigned(std::min<size_t>(impl_->threads, blocks));
-  if (n <= 1) {
-    work();
-    return;
-  }
-  std::vector<std::thread> pool;
-  for (unsigned k = 1; k < n; ++k) pool.emplace_back(work);
-  work();
-  for (std::thread& t : pool) t.join();
+  run_on_threads(unsigned(std::max<size_t>(1, std::min<size_t>(impl_->threads, blocks))), work);
 }
 
 }  // namespace gridrt

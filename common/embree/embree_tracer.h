@@ -1,4 +1,4 @@
-// embree_tracer.h: the Embree 3 oracle (DESIGN.md, "One interface, several tracers").
+// embree_tracer.h: the Embree 3 oracle (docs/ARCHITECTURE.md, "Layers").
 //
 // Conventions, chosen so that its hit records compare with the grid's by value:
 // - World-space geometry: one Embree triangle geometry per instance, geomID == instance index,

@@ -1,6 +1,6 @@
 // alpha.h: alpha keying, the uv -> texel rule shared by the reference, the shaders and the Embree
 // oracle's filter. A hit is kept when the alpha-mask texel under its uv has alpha >= 128
-// (texel alpha < 0.5 means no surface, see ../shared/data/scenes/README.md).
+// (texel alpha < 0.5 means no surface, as the real scenes' masks are drawn).
 #ifndef GRIDRT_SHARED_ALPHA_H
 #define GRIDRT_SHARED_ALPHA_H
 

@@ -1,5 +1,5 @@
 // explain.h: the events a traced ray leaves when it is explained, as fixed-size records that the
-// reference (reference/explain.h) and the Vulkan trace shader (into a storage buffer) write alike,
+// reference (plan/explain.cpp) and the Vulkan trace shader (into a storage buffer) write alike,
 // in the same order. Field meanings per kind are listed at each kind; unused fields are 0.
 #ifndef GRIDRT_SHARED_EXPLAIN_H
 #define GRIDRT_SHARED_EXPLAIN_H

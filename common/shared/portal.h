@@ -1,4 +1,4 @@
-// portal.h: the per-ray math of the portal ("div") tracer (seeds/002, docs/PORTAL.md), written
+// portal.h: the per-ray math of the portal ("div") tracer ("A Novel Raytracing Algorithm for GPU", docs/PORTAL.md), written
 // once for the CPU reference and the Vulkan port. Texture fetches are not here: each side fetches
 // the div info, the atlas texel and the start map its own way and hands the values to these
 // functions.

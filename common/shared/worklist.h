@@ -29,6 +29,13 @@ SH_CONST uint kWorkListHeaderWords = 8u;  // the items start at this word of the
 SH_CONST uint kWorkListSizeWord = 3u;     // WorkListHeader::size as a word of the buffer
 SH_CONST uint kWorkListAppendedWord = 4u; // WorkListHeader::appended as a word of the buffer
 
+// Push constants of the dispatch step (work_list_dispatch.comp).
+struct WorkListDispatchPush {
+  uint group_size;    // items per workgroup of the pass over the list
+  uint max_groups_x;  // maxComputeWorkGroupCount[0]
+  uint capacity;      // items the list holds (an append past it was not stored)
+};
+
 // The dispatch pass: group counts covering `size` items in workgroups of `group_size`, as a 2D
 // grid when one row would exceed `max_groups_x` (maxComputeWorkGroupCount[0]).
 SH_INLINE uvec3 work_list_groups(uint size, uint group_size, uint max_groups_x) {
@@ -47,6 +54,7 @@ SH_END
 
 #ifdef __cplusplus
 static_assert(sizeof(gridrt::shared::WorkListHeader) == 32, "std430 layout of WorkListHeader");
+static_assert(sizeof(gridrt::shared::WorkListDispatchPush) == 12, "layout of WorkListDispatchPush");
 #endif
 
 #endif

@@ -1,5 +1,6 @@
 // build.cpp: maximal divs, flux density, the per-face choice, packing (build.h).
 #include "reference/portal/build.h"
+#include "common/parallel.h"
 
 #include <algorithm>
 #include <atomic>
@@ -20,24 +21,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-unsigned thread_count(unsigned requested) {
-  if (requested) return requested;
-  const unsigned h = std::thread::hardware_concurrency();
-  return h ? h : 1;
-}
-
-// Run f(i) for i in [0, n) on `threads` threads, indices handed out one at a time.
-template <class F>
-void parallel_for(size_t n, unsigned threads, F&& f) {
-  std::atomic<size_t> next{0};
-  auto work = [&] {
-    for (size_t i; (i = next.fetch_add(1)) < n;) f(i);
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads && t < n; ++t) pool.emplace_back(work);
-  work();
-  for (auto& th : pool) th.join();
-}
+unsigned thread_count(unsigned requested) { return thread_count_or_hardware(requested); }
 
 glm::ivec3 axis_unit(uint32_t a) {
   glm::ivec3 u(0);

@@ -1,5 +1,5 @@
 // build.h: maximal divs, the flux-density heuristic, the per-face choice and the packed textures
-// of the portal tracer (seeds/002; docs/PORTAL.md, "Build" and "Storage").
+// of the portal tracer (docs/PORTAL.md, "Build" and "Storage").
 #pragma once
 
 #include <cstdint>

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "common/camera.h"
+#include "common/parallel.h"
 #include "reference/portal/trace.h"
 
 namespace gridrt::portal {
@@ -185,7 +186,7 @@ std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, co
   std::vector<glm::vec3> image(size_t(opt.width) * opt.height);
   std::vector<RenderStats> row_stats(opt.height);
   const PackedPortal& p = build.packed;
-  unsigned threads = opt.threads ? opt.threads : std::max(1u, std::thread::hardware_concurrency());
+  const unsigned threads = thread_count_or_hardware(opt.threads);
   std::atomic<uint32_t> next{0};
   auto work = [&] {
     std::vector<PixelState> row(opt.width);
@@ -222,10 +223,7 @@ std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, co
       }
     }
   };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (auto& th : pool) th.join();
+  run_on_threads(threads, work);
   if (stats) {
     *stats = RenderStats{};
     for (const RenderStats& r : row_stats) {

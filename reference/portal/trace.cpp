@@ -1,5 +1,6 @@
 // trace.cpp: portal traversal, voxel DDA, explain, tracers, renderer (trace.h).
 #include "reference/portal/trace.h"
+#include "common/parallel.h"
 
 #include <algorithm>
 #include <atomic>
@@ -21,15 +22,7 @@ namespace {
 
 template <class F>
 void parallel_rows(size_t n, unsigned threads, F&& f) {
-  if (!threads) threads = std::max(1u, std::thread::hardware_concurrency());
-  std::atomic<size_t> next{0};
-  auto work = [&] {
-    for (size_t i; (i = next.fetch_add(1)) < n;) f(i);
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads && t < n; ++t) pool.emplace_back(work);
-  work();
-  for (auto& th : pool) th.join();
+  parallel_for(n, threads, std::forward<F>(f));
 }
 
 std::string fmt(const char* f, ...) __attribute__((format(printf, 1, 2)));

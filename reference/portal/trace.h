@@ -1,4 +1,4 @@
-// trace.h: the portal tracer (seeds/002: stackless traversal of divs, only the current div index as
+// trace.h: the portal tracer ("A Novel Raytracing Algorithm for GPU": stackless traversal of divs, only the current div index as
 // state), the exact voxel DDA over the same occupancy (the ground truth), explain, the Tracer
 // implementations "portal-cpu" and "voxel-dda", and the renderer (primary + two shadow rays,
 // non-forking refraction) as separate loops and as the single-loop state machine.

@@ -1,9 +1,30 @@
-#include "common/builtin/builtin.h"
-#include "reference/grid.h"
+// The program of docs/API.md: build a grid over a built-in scene and trace a camera's rays.
 #include <cstdio>
+#include <vector>
+
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/reference/grid.h"
+
 int main() {
-  gridrt::Scene s = gridrt::make_builtin("cornell");
-  gridrt::reference::ReferenceGridTracer t;
-  t.build(s, 0.0f);
-  std::printf("%s\n", gridrt::reference::to_text(t.stats()).c_str());
+  const gridrt::Scene scene = gridrt::make_builtin("cornell");
+
+  gridrt::reference::GridOptions options;  // defaults: docs/SPEC.md, "Parameters"
+  options.traversal = gridrt::reference::Traversal::exact;
+  gridrt::reference::ReferenceGridTracer grid(options);
+  grid.build(scene, 0.0f);
+
+  // One ray per pixel of a 64 x 48 image from the scene's camera
+  const uint32_t width = 64, height = 48;
+  std::vector<gridrt::Ray> rays;
+  for (uint32_t y = 0; y < height; ++y)
+    for (uint32_t x = 0; x < width; ++x) rays.push_back(gridrt::camera_ray(scene.frame_camera(), width, height, x, y));
+  std::vector<gridrt::Hit> hits(rays.size());
+  grid.trace(rays, hits);
+
+  size_t hit = 0;
+  for (const gridrt::Hit& h : hits) hit += !gridrt::is_miss(h);
+  std::printf("%zu of %zu rays hit\n", hit, rays.size());
+  std::printf("%s", gridrt::reference::to_text(grid.stats()).c_str());
+  return hit > 0 ? 0 : 1;
 }

@@ -6,13 +6,13 @@
 
 #include "grid_common.glsl"
 
-layout(binding = 1, r32ui) uniform coherent uimage3D grid_image;
+layout(binding = kGridBindImage, r32ui) uniform coherent uimage3D grid_image;
 // The spill list (kGridSpill; the counter always) and its per-cell heads
-layout(std430, binding = 16) buffer Spill {
+layout(std430, binding = kGridBindSpill) buffer Spill {
   SpillHeader spill_header;
   SpillEntry spill_entries[];
 };
-layout(std430, binding = 17) buffer SpillHeads { uint spill_heads[]; };
+layout(std430, binding = kGridBindSpillHeads) buffer SpillHeads { uint spill_heads[]; };
 
 // A reference no slot of `cell` took: counted, and with kGridSpill stored as (cell, ref) in the
 // entry the counter gave it and pushed onto the arrival list of the cell's static or dynamic
@@ -28,7 +28,7 @@ void spill_reference(GridParams g, uvec3 cell, uint ref) {
 }
 
 // The dirty-cell list (common/shared/worklist.h, grid.h): header, items, listed bits.
-layout(std430, binding = 13) buffer Dirty {
+layout(std430, binding = kGridBindDirty) buffer Dirty {
   WorkListHeader dirty_header;
   uint dirty_items[];
 };
@@ -114,7 +114,7 @@ void append_dirty_cell(GridParams g, uvec3 cell) {
 // list of (reference, run) pairs, so that no invocation walks thousands of cells alone (the
 // build's longest chain of dependent atomics, docs/BENCHMARKS.md). Same cells, same insertions.
 const uint kBuildRun = 8u;
-layout(std430, binding = 15) buffer BuildList {
+layout(std430, binding = kGridBindBuildList) buffer BuildList {
   WorkListHeader build_header;
   uint build_items[];
 };

@@ -10,7 +10,7 @@
 #include "build.glsl"
 
 layout(local_size_x = 64) in;
-layout(push_constant) uniform Push { uint comparison_offset; } pc;
+layout(push_constant) uniform Push { ClearPush pc; };
 
 shared uint first_dynamic;
 

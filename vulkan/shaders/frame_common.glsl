@@ -1,4 +1,4 @@
-// frame_common.glsl: the descriptor set of the frame passes (vulkan/frame.cpp, FrameBinding):
+// frame_common.glsl: the descriptor set of the frame passes (bindings: frame_input.h):
 // the grid's instances, geometry buffer and uvs, and the frame's own buffers.
 #ifndef GRIDRT_FRAME_COMMON_GLSL
 #define GRIDRT_FRAME_COMMON_GLSL
@@ -13,30 +13,30 @@
 #include "common/shared/worklist.h"
 #include "vulkan/shaders/frame_input.h"
 
-layout(constant_id = 10) const uint kFrameFlags = 3u;  // kFrame* bits
+layout(constant_id = kFrameSpecFlags) const uint kFrameFlags = 3u;  // kFrame* bits
 
-layout(std430, binding = 0) readonly buffer ParamsBuffer { FrameParams fp; };
-layout(std430, binding = 1) readonly buffer Instances { GridInstance instances[]; };
-layout(std430, binding = 2) readonly buffer Triangles { GridTriangle triangles[]; };
-layout(std430, binding = 3) readonly buffer Uvs { GridTriangleUv uvs[]; };
-layout(std430, binding = 4) buffer Visibility { uint visibility[]; };  // launch ref per pixel
-layout(std430, binding = 5) buffer Gather { GatherTexel gather[]; };
-layout(std430, binding = 6) readonly buffer Materials { FrameMaterial fmaterials[]; };
-layout(std430, binding = 7) readonly buffer DiffuseTexels { uint diffuse_texels[]; };
-layout(std430, binding = 8) readonly buffer Lights { FrameLight lights[]; };
-layout(std430, binding = 9) buffer Rays { RayRecord rays[]; };
-layout(std430, binding = 10) buffer Hits { HitRecord hits[]; };
-layout(std430, binding = 11) buffer Image { uint image[]; };  // RGBA8, sRGB-encoded
+layout(std430, binding = kFrameBindParams) readonly buffer ParamsBuffer { FrameParams fp; };
+layout(std430, binding = kFrameBindInstances) readonly buffer Instances { GridInstance instances[]; };
+layout(std430, binding = kFrameBindTriangles) readonly buffer Triangles { GridTriangle triangles[]; };
+layout(std430, binding = kFrameBindUvs) readonly buffer Uvs { GridTriangleUv uvs[]; };
+layout(std430, binding = kFrameBindVisibility) buffer Visibility { uint visibility[]; };  // launch ref per pixel
+layout(std430, binding = kFrameBindGather) buffer Gather { GatherTexel gather[]; };
+layout(std430, binding = kFrameBindMaterials) readonly buffer Materials { FrameMaterial fmaterials[]; };
+layout(std430, binding = kFrameBindDiffuseTexels) readonly buffer DiffuseTexels { uint diffuse_texels[]; };
+layout(std430, binding = kFrameBindLights) readonly buffer Lights { FrameLight lights[]; };
+layout(std430, binding = kFrameBindRays) buffer Rays { RayRecord rays[]; };
+layout(std430, binding = kFrameBindHits) buffer Hits { HitRecord hits[]; };
+layout(std430, binding = kFrameBindImage) buffer Image { uint image[]; };  // RGBA8, sRGB-encoded
 // The compacted bounce rays: a work list of the indices of the pixels with a bounce ray
-layout(std430, binding = 12) buffer RayList {
+layout(std430, binding = kFrameBindRayList) buffer RayList {
   WorkListHeader ray_list_header;
   uint ray_list[];
 };
 // The compute gather: per pixel a 64-bit key (t bits << 32 | reference), words low then high
 // (gather_tiles.comp declares the same buffer as uint64_t for its atomic min)
-layout(std430, binding = 13) buffer GatherKeys { uint gather_keys[]; };
+layout(std430, binding = kFrameBindGatherKeys) buffer GatherKeys { uint gather_keys[]; };
 // The compute gather's large triangles (GatherTileHeader, then 4 words per triangle)
-layout(std430, binding = 14) buffer TileList {
+layout(std430, binding = kFrameBindTileList) buffer TileList {
   GatherTileHeader tile_header;
   uint tile_items[];
 };

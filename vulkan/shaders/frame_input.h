@@ -66,6 +66,33 @@ struct FrameLight {
   float pad0;
 };
 
+// Bindings of the frame passes' descriptor set (set 0; every one a storage buffer).
+SH_CONST uint kFrameBindParams = 0u;
+SH_CONST uint kFrameBindInstances = 1u;
+SH_CONST uint kFrameBindTriangles = 2u;
+SH_CONST uint kFrameBindUvs = 3u;
+SH_CONST uint kFrameBindVisibility = 4u;
+SH_CONST uint kFrameBindGather = 5u;
+SH_CONST uint kFrameBindMaterials = 6u;
+SH_CONST uint kFrameBindDiffuseTexels = 7u;
+SH_CONST uint kFrameBindLights = 8u;
+SH_CONST uint kFrameBindRays = 9u;
+SH_CONST uint kFrameBindHits = 10u;
+SH_CONST uint kFrameBindImage = 11u;
+SH_CONST uint kFrameBindRayList = 12u;
+SH_CONST uint kFrameBindGatherKeys = 13u;
+SH_CONST uint kFrameBindTileList = 14u;
+SH_CONST uint kFrameBindingCount = 15u;
+// Specialization-constant id of the frame passes' feature bits (kFrame* above); clear of the
+// grid's ids (grid_interface.h), which the frame's trace pipeline also sets.
+SH_CONST uint kFrameSpecFlags = 10u;
+
+// Push constants of gather_bin.comp.
+struct GatherBinPush {
+  uint triangle_count;  // triangles of the geometry buffer
+  uint instance_count;
+};
+
 SH_END
 
 #ifdef __cplusplus
@@ -73,6 +100,7 @@ static_assert(sizeof(gridrt::shared::FrameParams) == 112, "std430 layout of Fram
 static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
 static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");
+static_assert(sizeof(gridrt::shared::GatherBinPush) == 8, "layout of GatherBinPush");
 #endif
 
 #endif

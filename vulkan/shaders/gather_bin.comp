@@ -12,15 +12,12 @@
 #include "gather_visibility.glsl"
 
 layout(local_size_x = 64) in;
-layout(std430, binding = 13) buffer GatherKeys64 { uint64_t gather_keys64[]; };
-layout(std430, binding = 14) buffer TileCounter {
+layout(std430, binding = kFrameBindGatherKeys) buffer GatherKeys64 { uint64_t gather_keys64[]; };
+layout(std430, binding = kFrameBindTileList) buffer TileCounter {
   uint tile_counter_header[6];
   uint64_t tile_counter;  // GatherTileHeader::counter_lo, counter_hi
 };
-layout(push_constant) uniform Push {
-  uint triangle_count;  // triangles of the geometry buffer
-  uint instance_count;
-} pc;
+layout(push_constant) uniform Push { GatherBinPush pc; };
 
 void main() {
   const CameraParams c = fp.camera;

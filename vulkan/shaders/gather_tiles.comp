@@ -10,7 +10,7 @@
 #include "gather_visibility.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
-layout(std430, binding = 13) buffer GatherKeys64 { uint64_t gather_keys64[]; };
+layout(std430, binding = kFrameBindGatherKeys) buffer GatherKeys64 { uint64_t gather_keys64[]; };
 
 void main() {
   const CameraParams c = fp.camera;

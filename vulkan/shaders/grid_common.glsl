@@ -1,5 +1,5 @@
 // grid_common.glsl: what every grid shader shares: the shared headers, the specialization
-// constants, and the one descriptor set (vulkan/grid.cpp, Binding) of the grid's buffers.
+// constants, and the one descriptor set of the grid's buffers (ids and bindings: grid_interface.h).
 #ifndef GRIDRT_GRID_COMMON_GLSL
 #define GRIDRT_GRID_COMMON_GLSL
 
@@ -11,27 +11,28 @@
 #include "common/shared/triangle.h"
 #include "common/shared/explain.h"
 #include "vulkan/shaders/build_input.h"
+#include "vulkan/shaders/grid_interface.h"
 
 // Specialization constants: the values of GridParams that shape the code, so that unused paths
 // (alpha keying, gap-fill, the other traversal or insertion) are not compiled in. The host sets
-// them from the same GridParams it uploads (vulkan/grid.cpp, SpecId).
-layout(constant_id = 0) const uint kCapacity = 4u;   // GridParams::capacity
-layout(constant_id = 1) const uint kInsertion = 1u;  // GridParams::insertion
-layout(constant_id = 2) const uint kTraversal = 0u;  // GridParams::traversal
-layout(constant_id = 3) const uint kFlags = 0u;      // GridParams::flags (kGrid* bits)
-layout(constant_id = 4) const bool kExplain = false; // trace: record the explain ray's events
-layout(constant_id = 5) const uint kRepeats = 0u;    // GridParams::repeats
-layout(constant_id = 6) const uint kTriangleTest = 0u; // GridParams::triangle_test
+// them from the same GridParams it uploads (vulkan/grid.cpp, spec_for).
+layout(constant_id = kGridSpecCapacity) const uint kCapacity = 4u;   // GridParams::capacity
+layout(constant_id = kGridSpecInsertion) const uint kInsertion = 1u;  // GridParams::insertion
+layout(constant_id = kGridSpecTraversal) const uint kTraversal = 0u;  // GridParams::traversal
+layout(constant_id = kGridSpecFlags) const uint kFlags = 0u;      // GridParams::flags (kGrid* bits)
+layout(constant_id = kGridSpecExplain) const bool kExplain = false; // trace: record the explain ray's events
+layout(constant_id = kGridSpecRepeats) const uint kRepeats = 0u;    // GridParams::repeats
+layout(constant_id = kGridSpecTriangleTest) const uint kTriangleTest = 0u; // GridParams::triangle_test
 
-layout(std430, binding = 0) readonly buffer ParamsBuffer { GridParams params_buffer; };
-layout(std430, binding = 2) readonly buffer Instances { GridInstance instances[]; };
-layout(std430, binding = 3) buffer Triangles { GridTriangle triangles[]; };
-layout(std430, binding = 4) readonly buffer Uvs { GridTriangleUv uvs[]; };
-layout(std430, binding = 5) readonly buffer Materials { GridMaterial materials[]; };
-layout(std430, binding = 6) readonly buffer Texels { uint texels[]; };
-layout(std430, binding = 7) readonly buffer BuildInstances { BuildInstance build_instances[]; };
-layout(std430, binding = 8) readonly buffer Positions { vec4 positions[]; };
-layout(std430, binding = 9) readonly buffer Indices { uint indices[]; };
+layout(std430, binding = kGridBindParams) readonly buffer ParamsBuffer { GridParams params_buffer; };
+layout(std430, binding = kGridBindInstances) readonly buffer Instances { GridInstance instances[]; };
+layout(std430, binding = kGridBindTriangles) buffer Triangles { GridTriangle triangles[]; };
+layout(std430, binding = kGridBindUvs) readonly buffer Uvs { GridTriangleUv uvs[]; };
+layout(std430, binding = kGridBindMaterials) readonly buffer Materials { GridMaterial materials[]; };
+layout(std430, binding = kGridBindTexels) readonly buffer Texels { uint texels[]; };
+layout(std430, binding = kGridBindBuildInstances) readonly buffer BuildInstances { BuildInstance build_instances[]; };
+layout(std430, binding = kGridBindPositions) readonly buffer Positions { vec4 positions[]; };
+layout(std430, binding = kGridBindIndices) readonly buffer Indices { uint indices[]; };
 
 // The grid's parameters with the specialized fields constant.
 GridParams grid_params() {

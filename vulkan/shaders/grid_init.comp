@@ -5,7 +5,7 @@
 #include "grid_common.glsl"
 
 layout(local_size_x = 4, local_size_y = 4, local_size_z = 4) in;
-layout(binding = 1, r32ui) uniform writeonly uimage3D grid_image;
+layout(binding = kGridBindImage, r32ui) uniform writeonly uimage3D grid_image;
 
 void main() {
   const uvec3 p = gl_GlobalInvocationID;

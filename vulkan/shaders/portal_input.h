@@ -88,6 +88,34 @@ struct PortalExplainEvent {
   float ad;      // step: |dir[axis]|
 };
 
+// Bindings of every portal pass's descriptor set (set 0).
+SH_CONST uint kPortalBindAtlas = 0u;  // R16_UINT 2D, sampled
+SH_CONST uint kPortalBindInfo = 1u;  // RGBA8_UINT 2D, sampled
+SH_CONST uint kPortalBindStart = 2u;  // R16_UINT 3D, sampled
+SH_CONST uint kPortalBindParams = 3u;  // PortalParams
+SH_CONST uint kPortalBindRays = 4u;  // RayRecord[]
+SH_CONST uint kPortalBindHits = 5u;  // HitRecord[]
+SH_CONST uint kPortalBindExplain = 6u;  // count + PortalExplainEvent[]
+SH_CONST uint kPortalBindRenderParams = 7u;  // PortalRenderParams
+SH_CONST uint kPortalBindMaterials = 8u;  // PortalMaterial[]
+SH_CONST uint kPortalBindPixels = 9u;  // PortalPixel[]
+// Specialization-constant id: portal_trace records the explain ray's events.
+SH_CONST uint kPortalSpecExplain = 0u;
+
+// Push constants of portal_trace.comp.
+struct PortalTracePush {
+  uint ray_offset;        // index of invocation 0's ray
+  uint ray_count;         // rays of this dispatch
+  uint explain_ray;       // the ray whose events are recorded (kPortalNoExplain: none)
+  uint explain_capacity;  // events the explain buffer holds
+};
+SH_CONST uint kPortalNoExplain = 0xFFFFFFFFu;
+
+// Push constants of portal_render.comp.
+struct PortalRenderPush {
+  uint pass;  // 0: state machine; 1, 2, 3: the separate loops (primary, shadow A, shadow B)
+};
+
 SH_END
 
 #ifdef __cplusplus
@@ -96,6 +124,8 @@ static_assert(sizeof(gridrt::shared::PortalRenderParams) == 112, "std430 layout 
 static_assert(sizeof(gridrt::shared::PortalMaterial) == 32, "std430 layout of PortalMaterial");
 static_assert(sizeof(gridrt::shared::PortalPixel) == 160, "std430 layout of PortalPixel");
 static_assert(sizeof(gridrt::shared::PortalExplainEvent) == 48, "std430 layout of PortalExplainEvent");
+static_assert(sizeof(gridrt::shared::PortalTracePush) == 16, "layout of PortalTracePush");
+static_assert(sizeof(gridrt::shared::PortalRenderPush) == 4, "layout of PortalRenderPush");
 #endif
 
 #endif

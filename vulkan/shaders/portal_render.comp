@@ -13,12 +13,10 @@
 #include "portal_trace.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
-layout(std430, binding = 7) readonly buffer RenderParamsBuffer { PortalRenderParams rp; };
-layout(std430, binding = 8) readonly buffer Materials { PortalMaterial materials[]; };
-layout(std430, binding = 9) buffer Pixels { PortalPixel pixels[]; };
-layout(push_constant) uniform Push {
-  uint pass;  // 0: state machine; 1, 2, 3: the separate loops (primary, shadow A, shadow B)
-} pc;
+layout(std430, binding = kPortalBindRenderParams) readonly buffer RenderParamsBuffer { PortalRenderParams rp; };
+layout(std430, binding = kPortalBindMaterials) readonly buffer Materials { PortalMaterial materials[]; };
+layout(std430, binding = kPortalBindPixels) buffer Pixels { PortalPixel pixels[]; };
+layout(push_constant) uniform Push { PortalRenderPush pc; };
 
 const uint kPrimary = 0u;
 const uint kShadowA = 1u;

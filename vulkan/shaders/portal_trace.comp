@@ -5,14 +5,9 @@
 #include "portal_trace.glsl"
 
 layout(local_size_x = 64) in;
-layout(std430, binding = 4) readonly buffer Rays { RayRecord rays[]; };
-layout(std430, binding = 5) writeonly buffer Hits { HitRecord hits[]; };
-layout(push_constant) uniform Push {
-  uint ray_offset;        // index of invocation 0's ray
-  uint ray_count;         // rays of this dispatch
-  uint explain_ray;       // the ray whose events are recorded (0xFFFFFFFF: none)
-  uint explain_capacity;  // events the explain buffer holds
-} pc;
+layout(std430, binding = kPortalBindRays) readonly buffer Rays { RayRecord rays[]; };
+layout(std430, binding = kPortalBindHits) writeonly buffer Hits { HitRecord hits[]; };
+layout(push_constant) uniform Push { PortalTracePush pc; };
 
 void main() {
   if (gl_GlobalInvocationID.x >= pc.ray_count) return;

@@ -1,4 +1,4 @@
-// portal_trace.glsl: the portal tracer on the GPU (seeds/002: stackless traversal of divs, only
+// portal_trace.glsl: the portal tracer on the GPU ("A Novel Raytracing Algorithm for GPU": stackless traversal of divs, only
 // the current div index as state). It follows reference/portal/trace.cpp function by function,
 // with the same names and heading comments; the per-ray math is common/shared/portal.h, the same
 // functions the reference calls. The textures are the reference's PackedPortal as the seed stores
@@ -14,12 +14,12 @@
 #include "common/shared/portal.h"
 #include "vulkan/shaders/portal_input.h"
 
-// The descriptor set of every portal pass (vulkan/portal.cpp, Binding).
-layout(binding = 0) uniform utexture2D atlas_tex;  // R16_UINT
-layout(binding = 1) uniform utexture2D info_tex;   // RGBA8_UINT
-layout(binding = 2) uniform utexture3D start_tex;  // R16_UINT
-layout(std430, binding = 3) readonly buffer ParamsBuffer { PortalParams params; };
-layout(std430, binding = 6) buffer Explain {
+// The descriptor set of every portal pass (bindings: portal_input.h).
+layout(binding = kPortalBindAtlas) uniform utexture2D atlas_tex;  // R16_UINT
+layout(binding = kPortalBindInfo) uniform utexture2D info_tex;   // RGBA8_UINT
+layout(binding = kPortalBindStart) uniform utexture3D start_tex;  // R16_UINT
+layout(std430, binding = kPortalBindParams) readonly buffer ParamsBuffer { PortalParams params; };
+layout(std430, binding = kPortalBindExplain) buffer Explain {
   uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
   uint explain_pad0;
   uint explain_pad1;
@@ -281,7 +281,7 @@ Step step_ray(uint div, VoxelRay r) {
 }
 
 // ---- Explain: the explained ray's own record (vulkan/portal.cpp turns it into text) ----
-layout(constant_id = 0) const bool kExplain = false;  // record the explain ray's events
+layout(constant_id = kPortalSpecExplain) const bool kExplain = false;  // record the explain ray's events
 bool explaining = false;
 uint explain_capacity = 0u;
 

@@ -1,5 +1,5 @@
 // rtx_common.glsl: what the ray tracing shaders share: the shared headers, the push constants and
-// the one descriptor set (vulkan/rtx.cpp, RtxBinding): the top-level acceleration structure, the
+// the one descriptor set (bindings: rtx_input.h): the top-level acceleration structure, the
 // frame's rays and the second hit buffer, and the grid's own tables (instances, the world-space
 // geometry buffer the BLASes are built over, uvs, materials and alpha-mask texels).
 #ifndef GRIDRT_RTX_COMMON_GLSL
@@ -14,14 +14,14 @@
 #include "common/shared/triangle.h"
 #include "vulkan/shaders/rtx_input.h"
 
-layout(binding = 0) uniform accelerationStructureEXT tlas;
-layout(std430, binding = 1) readonly buffer Rays { RayRecord rays[]; };
-layout(std430, binding = 2) writeonly buffer Hits { HitRecord hits[]; };
-layout(std430, binding = 3) readonly buffer Instances { GridInstance instances[]; };
-layout(std430, binding = 4) readonly buffer Triangles { GridTriangle triangles[]; };
-layout(std430, binding = 5) readonly buffer Uvs { GridTriangleUv uvs[]; };
-layout(std430, binding = 6) readonly buffer Materials { GridMaterial materials[]; };
-layout(std430, binding = 7) readonly buffer Texels { uint texels[]; };
+layout(binding = kRtxBindTlas) uniform accelerationStructureEXT tlas;
+layout(std430, binding = kRtxBindRays) readonly buffer Rays { RayRecord rays[]; };
+layout(std430, binding = kRtxBindHits) writeonly buffer Hits { HitRecord hits[]; };
+layout(std430, binding = kRtxBindInstances) readonly buffer Instances { GridInstance instances[]; };
+layout(std430, binding = kRtxBindTriangles) readonly buffer Triangles { GridTriangle triangles[]; };
+layout(std430, binding = kRtxBindUvs) readonly buffer Uvs { GridTriangleUv uvs[]; };
+layout(std430, binding = kRtxBindMaterials) readonly buffer Materials { GridMaterial materials[]; };
+layout(std430, binding = kRtxBindTexels) readonly buffer Texels { uint texels[]; };
 
 layout(push_constant) uniform Push { RtxPush pc; };
 

@@ -38,6 +38,16 @@ struct RtxPayload {
   uint launch_ref;  // the launch triangle the any-hit shader ignores (kNoRef: none)
 };
 
+// Bindings of the ray tracing shaders' descriptor set (set 0).
+SH_CONST uint kRtxBindTlas = 0u;
+SH_CONST uint kRtxBindRays = 1u;
+SH_CONST uint kRtxBindHits = 2u;
+SH_CONST uint kRtxBindInstances = 3u;
+SH_CONST uint kRtxBindTriangles = 4u;
+SH_CONST uint kRtxBindUvs = 5u;
+SH_CONST uint kRtxBindMaterials = 6u;
+SH_CONST uint kRtxBindTexels = 7u;
+
 SH_END
 
 #ifdef __cplusplus

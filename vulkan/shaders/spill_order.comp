@@ -8,12 +8,12 @@
 #include "grid_common.glsl"
 
 layout(local_size_x = 64) in;
-layout(std430, binding = 16) buffer Spill {
+layout(std430, binding = kGridBindSpill) buffer Spill {
   SpillHeader spill_header;
   SpillEntry spill_entries[];
 };
-layout(std430, binding = 17) buffer SpillHeads { uint spill_heads[]; };
-layout(push_constant) uniform Push { uint dynamic; } pc;
+layout(std430, binding = kGridBindSpillHeads) buffer SpillHeads { uint spill_heads[]; };
+layout(push_constant) uniform Push { SpillOrderPush pc; };
 
 void main() {
   const GridParams g = grid_params();

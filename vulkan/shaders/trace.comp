@@ -7,35 +7,30 @@
 #include "grid_common.glsl"
 
 layout(local_size_x = 64) in;
-layout(binding = 1, r32ui) uniform readonly uimage3D grid_image;
-layout(std430, binding = 10) readonly buffer Rays { RayRecord rays[]; };
-layout(std430, binding = 11) writeonly buffer Hits { HitRecord hits[]; };
+layout(binding = kGridBindImage, r32ui) uniform readonly uimage3D grid_image;
+layout(std430, binding = kGridBindRays) readonly buffer Rays { RayRecord rays[]; };
+layout(std430, binding = kGridBindHits) writeonly buffer Hits { HitRecord hits[]; };
 // The spill list and its heads (kGridSpill): read only here.
-layout(std430, binding = 16) readonly buffer Spill {
+layout(std430, binding = kGridBindSpill) readonly buffer Spill {
   SpillHeader spill_header;
   SpillEntry spill_entries[];
 };
-layout(std430, binding = 17) readonly buffer SpillHeads { uint spill_heads[]; };
-layout(std430, binding = 12) buffer Explain {
+layout(std430, binding = kGridBindSpillHeads) readonly buffer SpillHeads { uint spill_heads[]; };
+layout(std430, binding = kGridBindExplain) buffer Explain {
   uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
   uint explain_pad0;
   uint explain_pad1;
   uint explain_pad2;
   ExplainEvent explain_events[];
 };
-// Compacted rays (specialization constant 7): invocation k traces the ray ray_list[k] of the
+// Compacted rays (specialization constant kGridSpecTraceList): invocation k traces the ray ray_list[k] of the
 // frame's work list of real bounce rays (common/shared/worklist.h), dispatched indirectly.
-layout(constant_id = 7) const bool kTraceList = false;
-layout(std430, binding = 14) readonly buffer RayList {
+layout(constant_id = kGridSpecTraceList) const bool kTraceList = false;
+layout(std430, binding = kGridBindRayList) readonly buffer RayList {
   WorkListHeader ray_list_header;
   uint ray_list[];
 };
-layout(push_constant) uniform Push {
-  uint ray_offset;        // index of invocation 0's ray
-  uint ray_count;         // rays of this dispatch
-  uint explain_ray;       // the ray whose events are recorded (0xFFFFFFFF: none)
-  uint explain_capacity;  // events the explain buffer holds
-} pc;
+layout(push_constant) uniform Push { TracePush pc; };
 
 // The state of one ray's traversal (reference/trace.cpp, TraceState).
 struct TraceState {

@@ -7,11 +7,7 @@
 
 layout(local_size_x = 1) in;
 layout(std430, binding = 0) buffer List { WorkListHeader header; };
-layout(push_constant) uniform Push {
-  uint group_size;    // items per workgroup of the pass over the list
-  uint max_groups_x;  // maxComputeWorkGroupCount[0]
-  uint capacity;      // items the list holds (an append past it was not stored)
-} pc;
+layout(push_constant) uniform Push { WorkListDispatchPush pc; };
 
 void main() {
   const uint size = min(header.appended, pc.capacity);

@@ -13,9 +13,12 @@
 #include <nlohmann/json.hpp>
 
 #include "common/scene.h"
-#include "reference/grid.h"
+#include "common/shared/explain.h"
+#include "common/shared/grid.h"
+#include "common/tracer.h"
+#include "plan/records.h"
 
-namespace gridrt::reference {
+namespace gridrt::plan {
 
 // What an explain calls the scene's instances: the instance's name, else its mesh's.
 struct ExplainNames {
@@ -106,4 +109,4 @@ std::string divergence_text(const ExplainRecord& want, const ExplainRecord& got,
 // its visit and differing fields.
 nlohmann::json alignment_json(const ExplainRecord& want, const ExplainRecord& got, const EventAlignment& alignment);
 
-}  // namespace gridrt::reference
+}  // namespace gridrt::plan

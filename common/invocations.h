@@ -13,11 +13,13 @@
 #include <thread>
 #include <vector>
 
+#include "common/parallel.h"
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <xmmintrin.h>
 #endif
 
-namespace gridrt::reference {
+namespace gridrt {
 
 // Clear FTZ (bit 15) and DAZ (bit 6) of MXCSR: the reference keeps denormals, as the shaders must
 // (shaderDenormPreserveFloat32).
@@ -48,15 +50,7 @@ void run_invocations(uint32_t count, unsigned threads, std::optional<uint64_t> s
       for (uint32_t i = first; i < last; ++i) fn(seed ? order[i] : i);
     }
   };
-  threads = std::max(1u, std::min<unsigned>(threads, (count + batch - 1) / batch));
-  if (threads == 1) {
-    worker();
-    return;
-  }
-  std::vector<std::thread> pool;
-  pool.reserve(threads);
-  for (unsigned t = 0; t < threads; ++t) pool.emplace_back(worker);
-  for (std::thread& t : pool) t.join();
+  run_on_threads(std::max(1u, std::min<unsigned>(threads, (count + batch - 1) / batch)), worker);
 }
 
-}  // namespace gridrt::reference
+}  // namespace gridrt

@@ -9,9 +9,9 @@
 #include <span>
 #include <vector>
 
-#include "reference/grid.h"
+#include "plan/plan.h"
 
-namespace gridrt::reference {
+namespace gridrt::plan {
 
 // Calls f(triangle, cell index) for every cell the build would insert that triangle of instance
 // `instance` into at `time` (its AABB cell range, the plane vs enlarged-sphere test; no capacity).
@@ -88,4 +88,4 @@ double work_cost(const WorkEstimate& w, const GridOptions& o);
 // lost = the share of gap-fill hits.
 WorkEstimate measured_work(std::span<const Ray> rays, std::span<const Hit> hits);
 
-}  // namespace gridrt::reference
+}  // namespace gridrt::plan

@@ -1,5 +1,5 @@
 // policy.cpp: the ray sample and the work estimates of the trace-cost capacity policy (policy.h).
-#include "reference/policy.h"
+#include "plan/policy.h"
 
 #include <algorithm>
 #include <array>
@@ -8,9 +8,10 @@
 #include "common/gather.h"
 #include "common/shared/alpha.h"
 #include "common/shared/transform.h"
-#include "reference/invocations.h"
+#include "common/shared/triangle.h"
+#include "common/invocations.h"
 
-namespace gridrt::reference {
+namespace gridrt::plan {
 
 using namespace gridrt::shared;
 
@@ -339,4 +340,4 @@ WorkEstimate measured_work(std::span<const Ray> rays, std::span<const Hit> hits)
   return w;
 }
 
-}  // namespace gridrt::reference
+}  // namespace gridrt::plan

@@ -1,18 +1,20 @@
 // explain_format.cpp: an ExplainRecord as text (full and brief), as JSON, and two records aligned
-// side by side (reference/explain_format.h).
-#include "reference/explain_format.h"
+// side by side (plan/explain_format.h).
+#include "plan/explain_format.h"
 
 #include <algorithm>
 #include <cerrno>
-#include <cstdlib>
-#include <fstream>
-#include <limits>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <limits>
 #include <sstream>
 
-namespace gridrt::reference {
+#include "common/shared/triangle.h"
+
+namespace gridrt::plan {
 
 using namespace gridrt::shared;
 
@@ -906,4 +908,4 @@ nlohmann::json alignment_json(const ExplainRecord& want, const ExplainRecord& go
   return out;
 }
 
-}  // namespace gridrt::reference
+}  // namespace gridrt::plan

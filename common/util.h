@@ -1,0 +1,30 @@
+// util.h: small utilities every layer uses: wall-clock milliseconds and the distance of two floats
+// in units in the last place.
+#pragma once
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+
+namespace gridrt {
+
+// Milliseconds since `t0` on the steady clock.
+inline double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Distance of two floats in units in the last place on the ordered line of floats (-0 and +0 meet
+// at 0; across signs the steps through zero add up); UINT32_MAX where one is NaN and the bits differ.
+inline uint32_t ulp_distance(float a, float b) {
+  const uint32_t ua = std::bit_cast<uint32_t>(a), ub = std::bit_cast<uint32_t>(b);
+  if (ua == ub) return 0;
+  if (std::isnan(a) || std::isnan(b)) return UINT32_MAX;
+  // Map the sign-magnitude bits onto a monotonic integer line (-0 and +0 meet at 0).
+  auto ordered = [](uint32_t u) -> int64_t { return (u & 0x80000000u) ? -int64_t(u & 0x7fffffffu) : int64_t(u); };
+  const int64_t d = ordered(ua) - ordered(ub);
+  return uint32_t(std::min<int64_t>(d < 0 ? -d : d, UINT32_MAX));
+}
+
+}  // namespace gridrt

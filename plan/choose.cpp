@@ -1,0 +1,451 @@
+// choose.cpp: choosing the grid (choose_grid and its capacity policies), the spill list's capacity
+// and the trace's flags.
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+#include "common/invocations.h"
+#include "common/shared/transform.h"
+#include "plan/plan.h"
+#include "plan/policy.h"
+
+namespace gridrt::plan {
+
+using shared::GridParams;
+
+unsigned thread_count(const EmulationOptions& options) {
+  if (options.threads) return options.threads;
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+// ---- Grid bounds over the animation ----
+
+Bounds animation_bounds(const Scene& scene, float time) {
+  Bounds b;
+  for (const Instance& inst : scene.instances) {
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    if (!inst.dynamic || !inst.motion.moves()) {
+      const glm::mat4 m = inst.transform_at(time);
+      for (const glm::vec3& p : mesh.positions) b.grow(glm::vec3(m * glm::vec4(p, 1.0f)));
+      continue;
+    }
+    // Swept bounds: world p = path(t) + pivot + R(t) (base p - pivot). A rotating instance stays
+    // in the sphere around its pivot through its farthest base vertex; the path offsets stay in
+    // the hull of the path points (piecewise linear).
+    const Motion& mo = inst.motion;
+    Bounds local;
+    if (mo.angular_speed != 0.0f) {
+      float r = 0.0f;
+      for (const glm::vec3& p : mesh.positions)
+        r = std::max(r, glm::length(glm::vec3(inst.transform * glm::vec4(p, 1.0f)) - mo.pivot));
+      r = r * 1.0001f + 1e-6f;
+      local.grow(mo.pivot - glm::vec3(r));
+      local.grow(mo.pivot + glm::vec3(r));
+    } else {
+      for (const glm::vec3& p : mesh.positions) local.grow(glm::vec3(inst.transform * glm::vec4(p, 1.0f)));
+    }
+    if (mo.path_points.empty()) {
+      b.grow(local);
+    } else {
+      for (const glm::vec3& off : mo.path_points) {
+        b.grow(local.lo + off);
+        b.grow(local.hi + off);
+      }
+    }
+  }
+  return b;
+}
+
+namespace {
+
+// The trial that chooses the capacity: per cell the references a build would insert (no
+// capacity). Instances that do not move count at `time` (`fixed`, every cell); moving ones, in the
+// box of cells they can reach, at `samples` times spread over the longest period of their motions
+// (at most 60 s): their count at `time` (the first sample) and, per cell, the largest.
+TrialCounts trial_counts(const Scene& scene, float time, const GridParams& g, uint32_t samples) {
+  TrialCounts tc;
+  tc.cells = g.cells;
+  tc.fixed.assign(size_t(g.cells.x) * g.cells.y * g.cells.z, 0u);
+  std::vector<size_t> moving;
+  double horizon = 0.0;
+  for (size_t i = 0; i < scene.instances.size(); ++i) {
+    const Instance& inst = scene.instances[i];
+    if (!inst.dynamic || !inst.motion.moves()) {
+      for_each_triangle_cell(scene, i, time, g, [&](uint32_t, size_t c) { ++tc.fixed[c]; });
+      continue;
+    }
+    moving.push_back(i);
+    const Motion& mo = inst.motion;
+    if (mo.path_points.size() > 1) horizon = std::max(horizon, double(mo.path_period));
+    if (mo.angular_speed != 0.0f) horizon = std::max(horizon, 2.0 * 3.14159265358979 / std::abs(double(mo.angular_speed)));
+  }
+  if (moving.empty()) return tc;
+  horizon = std::min(horizon, 60.0);
+  const uint32_t n = std::max(1u, samples);
+  std::vector<float> times(n);
+  for (uint32_t k = 0; k < n; ++k) times[k] = float(double(time) + horizon * double(k) / double(n));
+  // The box of cells the moving instances reach (their triangles' cell ranges at every sample),
+  // so that a sample costs its references, not the grid's cells
+  glm::uvec3 lo(~0u), hi(0u);
+  for (float t : times)
+    for (size_t i : moving) {
+      const Instance& inst = scene.instances[i];
+      const Mesh& mesh = scene.meshes[inst.mesh];
+      const shared::Affine m = shared::to_affine(inst.transform_at(t));
+      for (const glm::uvec3& tri : mesh.triangles) {
+        glm::uvec3 a, b;
+        shared::triangle_cell_range(g, shared::transform_point(m, mesh.positions[tri.x]),
+                                    shared::transform_point(m, mesh.positions[tri.y]),
+                                    shared::transform_point(m, mesh.positions[tri.z]), a, b);
+        lo = glm::min(lo, a);
+        hi = glm::max(hi, b);
+      }
+    }
+  if (lo.x > hi.x || lo.y > hi.y || lo.z > hi.z) return tc;
+  tc.box_lo = lo;
+  tc.box_size = hi - lo + 1u;
+  const size_t nbox = size_t(tc.box_size.x) * tc.box_size.y * tc.box_size.z;
+  tc.moving_now.assign(nbox, 0u);
+  tc.moving_max.assign(nbox, 0u);
+  std::vector<uint32_t> dyn(nbox, 0u);
+  const auto box_index = [&](size_t c) {
+    const size_t x = c % g.cells.x, y = (c / g.cells.x) % g.cells.y, z = c / (size_t(g.cells.x) * g.cells.y);
+    return ((z - lo.z) * tc.box_size.y + (y - lo.y)) * tc.box_size.x + (x - lo.x);
+  };
+  for (uint32_t k = 0; k < n; ++k) {
+    std::fill(dyn.begin(), dyn.end(), 0u);
+    for (size_t i : moving) for_each_triangle_cell(scene, i, times[k], g, [&](uint32_t, size_t c) { ++dyn[box_index(c)]; });
+    if (k == 0) tc.moving_now = dyn;
+    for (size_t b = 0; b < nbox; ++b) tc.moving_max[b] = std::max(tc.moving_max[b], dyn[b]);
+  }
+  return tc;
+}
+
+void set_cell_size(GridParams& g, float cell_size, const GridOptions& o) {
+  g.cell_size = cell_size;
+  g.inv_cell_size = 1.0f / cell_size;
+  const double half_diagonal = double(cell_size) * std::sqrt(3.0) / 2.0;
+  g.sphere_r2 = float(std::pow(double(o.sphere_enlargement) * half_diagonal, 2.0));
+  g.gap_fill_r2 = float(std::pow(double(o.gap_fill_distance) * double(cell_size), 2.0));
+}
+
+// The slot axis for `cells`: the option, or the axis with the fewest cells (ties: x, y, z).
+uint32_t slot_axis_for(glm::uvec3 cells, const GridOptions& o) {
+  switch (o.slot_axis) {
+    case GridOptions::SlotAxis::x: return 0;
+    case GridOptions::SlotAxis::y: return 1;
+    case GridOptions::SlotAxis::z: return 2;
+    case GridOptions::SlotAxis::automatic: break;
+  }
+  if (cells.x <= cells.y && cells.x <= cells.z) return 0;
+  return cells.y <= cells.z ? 1 : 2;
+}
+
+glm::uvec3 cells_for(glm::vec3 extent, float cs) {
+  const glm::vec3 n = glm::ceil(extent / cs);
+  return glm::uvec3(glm::clamp(n, glm::vec3(1.0f), glm::vec3(1.0e6f)));
+}
+
+// The largest capacity the limits allow `cells` with slots along `axis` (0 when none does).
+uint32_t capacity_allowed(glm::uvec3 cells, uint32_t axis, const GridOptions& o) {
+  const uint64_t along = cells[axis];
+  for (uint32_t a = 0; a < 3; ++a)
+    if (a != axis && cells[a] > o.max_image_dimension) return 0;
+  const uint64_t total = uint64_t(cells.x) * cells.y * cells.z;
+  const uint64_t by_dim = o.max_image_dimension / along;
+  const uint64_t by_mem = o.max_texels / total;
+  const uint64_t cap = std::min({by_dim, by_mem, uint64_t(o.max_capacity) + 1});
+  return cap == 0 ? 0 : uint32_t(cap - 1);
+}
+
+// Weigh one resolution: count, then the capacity that drops nothing if the limits allow it.
+// `counts_out` (may be null) receives the trial's counts.
+GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm::uvec3 cells,
+                    std::optional<uint32_t> cap_over, const GridOptions& o, TrialCounts* counts_out = nullptr) {
+  GridCandidate c;
+  c.cell_size = cs;
+  c.aabb_padding = g.aabb_padding;
+  c.cells = cells;
+  c.slot_axis = slot_axis_for(cells, o);
+  const uint32_t allowed = capacity_allowed(cells, c.slot_axis, o);
+  const uint32_t lowest = cap_over ? *cap_over : o.min_capacity;
+  c.fits = allowed >= lowest;
+  if (!c.fits) return c;
+  set_cell_size(g, cs, o);
+  g.cells = cells;
+  TrialCounts counts = trial_counts(scene, time, g, o.capacity_time_samples);
+  counts.for_each_largest([&](uint32_t n) { c.max_count = std::max(c.max_count, n); });
+  c.capacity = cap_over ? *cap_over : std::clamp(c.max_count, o.min_capacity, allowed);
+  if (c.max_count > c.capacity)
+    counts.for_each_largest([&](uint32_t n) {
+      if (n > c.capacity) c.dropped += n - c.capacity, c.saturated_cells += 1;
+    });
+  c.texels = uint64_t(cells.x) * cells.y * cells.z * (c.capacity + 1);
+  if (counts_out) *counts_out = std::move(counts);
+  return c;
+}
+
+}  // namespace
+
+GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
+  return choose_grid(scene, time, o, nullptr);
+}
+
+GridOptions settle_overrides(GridOptions o, const Scene& scene) {
+  if (!o.resolution) o.resolution = scene.grid.resolution;
+  if (!o.cell_size) o.cell_size = scene.grid.cell_size;
+  if (!o.capacity) o.capacity = scene.grid.capacity;
+  return o;
+}
+
+namespace {
+
+// The grid's box: the animation's bounds, padded by 1e-3 of the largest extent on every side.
+Bounds grid_box(const Scene& scene, float time) {
+  Bounds b = animation_bounds(scene, time);
+  if (b.empty()) throw Error("grid: the scene has no vertices");
+  const glm::vec3 ext = b.extent();
+  const float big = std::max({ext.x, ext.y, ext.z, 1e-3f});
+  const float pad = 1e-3f * big;
+  b.lo -= glm::vec3(pad);
+  b.hi += glm::vec3(pad);
+  return b;
+}
+
+// The cell size to start from: the override, the resolution's, or density cells per triangle
+// (cubic cells) over a box of extent `e`.
+float target_cell_size(const Scene& scene, const GridOptions& o, glm::vec3 e) {
+  float cs;
+  if (o.cell_size) {
+    cs = *o.cell_size;
+  } else if (o.resolution) {
+    const glm::uvec3 res = *o.resolution;
+    cs = std::max({e.x / float(res.x), e.y / float(res.y), e.z / float(res.z)});
+  } else {
+    const double target = std::max(1.0, double(o.density) * double(scene.triangle_count()));
+    cs = float(std::cbrt(double(e.x) * double(e.y) * double(e.z) / target));
+  }
+  if (!(cs > 0.0f) || !std::isfinite(cs)) throw Error("grid: cell size must be positive and finite");
+  return cs;
+}
+
+// The GridParams fields the algorithm's knobs decide (traversal, insertion, flags, ...).
+GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
+  GridParams g{};
+  g.aabb_padding = o.aabb_padding.value_or(kAabbPadding);
+  g.elongation = o.elongation;
+  g.self_hit_offset = o.self_hit_offset;
+  g.comparison_offset = scene.static_instance_count() << 16;
+  g.insertion = o.insertion == Insertion::sorted ? shared::kInsertSorted : shared::kInsertFirstEmpty;
+  g.traversal = o.traversal == Traversal::exact ? shared::kTraversalExact : shared::kTraversalPaper;
+  g.triangle_test = o.triangle_test == GridOptions::TriangleTest::watertight ? shared::kTriangleWatertight
+                                                                              : shared::kTriangleMoller;
+  g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
+            (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
+            (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u));
+  g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
+              : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
+                                                          : shared::kRepeatMerge;
+  return g;
+}
+
+Error too_big(glm::uvec3 cells, uint32_t cap, const GridOptions& o) {
+  return Error("grid: " + std::to_string(cells.x) + "x" + std::to_string(cells.y) + "x" + std::to_string(cells.z) +
+               " cells of capacity " + std::to_string(cap) + " exceed the image limits (max dimension " +
+               std::to_string(o.max_image_dimension) + ", max texels " + std::to_string(o.max_texels) + ")");
+}
+
+// `base` with `cells` of edge `cell_size`, capacity `cap`, slots along `axis`, AABB padding `padding`.
+GridParams sized_params(const GridParams& base, glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis,
+                        float padding, const GridOptions& o) {
+  GridParams p = base;
+  p.aabb_padding = padding;
+  set_cell_size(p, cell_size, o);
+  p.cells = cells;
+  p.capacity = cap;
+  p.flags |= axis << shared::kGridSlotAxisShift;
+  p.upper = p.origin + glm::vec3(p.cells) * p.cell_size;
+  p.max_segments = p.cells.x + p.cells.y + p.cells.z + 3u;
+  return p;
+}
+
+// The percentile policy: capacity = a percentile of the trial's non-empty cells, clamped; larger
+// cells until the image fits.
+GridParams choose_by_percentile(const Scene& scene, float time, const GridOptions& o, GridParams g, glm::vec3 e,
+                                float cs) {
+  const std::optional<glm::uvec3> res = o.resolution;
+  const std::optional<float> cs_over = o.cell_size;
+  for (int attempt = 0;; ++attempt) {
+    set_cell_size(g, cs, o);
+    g.cells = (res && !cs_over) ? *res : cells_for(e, cs);
+    std::vector<uint32_t> nonempty;
+    trial_counts(scene, time, g, o.capacity_time_samples).for_each_largest([&](uint32_t c) {
+      if (c) nonempty.push_back(c);
+    });
+    uint32_t cap = o.min_capacity;
+    if (!nonempty.empty()) {
+      const size_t k = std::min(nonempty.size() - 1,
+                                size_t(std::ceil(double(o.capacity_percentile) * double(nonempty.size()))) - 1);
+      std::nth_element(nonempty.begin(), nonempty.begin() + ptrdiff_t(k), nonempty.end());
+      cap = nonempty[k];
+    }
+    cap = std::clamp(cap, o.min_capacity, o.max_capacity);
+    const uint32_t axis = slot_axis_for(g.cells, o);
+    const uint32_t allowed = capacity_allowed(g.cells, axis, o);
+    if (cap <= allowed && allowed > 0) return sized_params(g, g.cells, cs, cap, axis, g.aabb_padding, o);
+    if ((res && !cs_over) || attempt > 60) throw too_big(g.cells, cap, o);
+    const double along = double(g.cells[axis]) * (cap + 1);
+    const double texels = along * double(g.cells.x) * g.cells.y * g.cells.z / g.cells[axis];
+    const double ratio = std::max({along / o.max_image_dimension, double(g.cells.x) / o.max_image_dimension,
+                                   double(g.cells.y) / o.max_image_dimension,
+                                   double(g.cells.z) / o.max_image_dimension,
+                                   std::cbrt(texels / double(o.max_texels)), 1.1});
+    cs = float(double(cs) * std::min(ratio, 2.0));
+  }
+}
+
+// The candidate search of the no_saturation and trace_cost policies (and the one candidate of a
+// resolution, cell-size or capacity override).
+GridParams choose_by_candidates(const Scene& scene, float time, const GridOptions& o, GridParams g, glm::vec3 e,
+                                float cs, GridChoice* choice) {
+  const std::optional<glm::uvec3> res = o.resolution;
+  const std::optional<float> cs_over = o.cell_size;
+  const std::optional<uint32_t> cap_over = o.capacity;
+  // Fixed cells (a resolution or cell-size override, or a capacity override): one candidate, an
+  // error if it does not fit
+  GridChoice local;
+  GridChoice& ch = choice ? *choice : local;
+  ch = GridChoice{};
+  if (res && !cs_over) {
+    const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o);
+    if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity), o);
+    ch.candidates.push_back(c);
+    return sized_params(g, c.cells, cs, c.capacity, c.slot_axis, c.aabb_padding, o);
+  }
+  // Candidate cell sizes cs * 2^(j/4) around the density target. With a cell-size override only
+  // j = 0; with a capacity override the density target unless it does not fit.
+  // no_saturation: weighed in the order j = 0, -1, 1, -2, 2, ... (finer cells first at each
+  // distance): the first that drops no reference wins; else the one dropping fewest.
+  // trace_cost: every j counted (candidates in parallel), each one's work estimated on the frame's
+  // ray sample (plan/policy.h), for the paper traversal without a padding option at two AABB
+  // paddings (kAabbPadding and paper_padding); the cheapest wins.
+  const bool search = !cs_over && !cap_over;
+  const bool by_cost = search && o.capacity_policy == GridOptions::CapacityPolicy::trace_cost;
+  const int finest = search ? -8 : 0, coarsest = search ? 12 : 0;
+  std::vector<float> paddings{g.aabb_padding};
+  if (by_cost && !o.aabb_padding && o.traversal == Traversal::paper && o.paper_padding != g.aabb_padding)
+    paddings.push_back(o.paper_padding);
+  WorkSample& sample = ch.sample;
+  if (by_cost) sample = work_sample(scene, time, sized_params(g, cells_for(e, cs), cs, 0u, 0u, g.aabb_padding, o), o);
+  const auto weigh_j = [&](int j, float padding, GridParams& gj) {
+    const float c_cs = float(double(cs) * std::exp2(double(j) / 4.0));
+    TrialCounts counts;
+    gj.aabb_padding = padding;
+    GridCandidate c = weigh(scene, time, gj, c_cs, cells_for(e, c_cs), cap_over, o, by_cost ? &counts : nullptr);
+    if (c.fits && by_cost) {
+      c.work = estimate_work(sized_params(g, c.cells, c_cs, c.capacity, c.slot_axis, padding, o), counts, sample);
+      c.cost = work_cost(c.work, o);
+    }
+    return c;
+  };
+  bool done = false;
+  if (by_cost) {
+    const size_t per_pad = size_t(coarsest - finest + 1);
+    std::vector<GridCandidate> all(per_pad * paddings.size());
+    run_invocations(uint32_t(all.size()), thread_count(o), std::nullopt, [&](uint32_t k) {
+      GridParams gk = g;
+      all[k] = weigh_j(finest + int(k % per_pad), paddings[k / per_pad], gk);
+    }, 1);
+    for (const GridCandidate& c : all)
+      if (c.fits) ch.candidates.push_back(c);
+  } else {
+    std::vector<int> order{0};
+    for (int d = 1; d <= std::max(-finest, coarsest); ++d) {
+      if (-d >= finest) order.push_back(-d);
+      if (d <= coarsest) order.push_back(d);
+    }
+    for (int j : order) {
+      const GridCandidate c = weigh_j(j, g.aabb_padding, g);
+      if (!c.fits) continue;
+      ch.candidates.push_back(c);
+      if (c.dropped == 0) {
+        done = true;
+        break;
+      }
+    }
+  }
+  // Nothing fits yet (tiny image limits): coarser cells until something does
+  for (int j = coarsest + 1; !done && ch.candidates.empty() && j < coarsest + 80; ++j) {
+    if (cs_over) break;
+    const GridCandidate c = weigh_j(j, paddings[0], g);
+    if (c.fits) ch.candidates.push_back(c);
+  }
+  if (ch.candidates.empty()) throw too_big(cells_for(e, cs), cap_over.value_or(o.min_capacity), o);
+  size_t best = 0;
+  for (size_t i = 1; i < ch.candidates.size(); ++i)
+    if (by_cost ? ch.candidates[i].cost < ch.candidates[best].cost
+                : ch.candidates[i].dropped < ch.candidates[best].dropped)
+      best = i;
+  ch.chosen = best;
+  const GridCandidate& c = ch.candidates[best];
+  return sized_params(g, c.cells, c.cell_size, c.capacity, c.slot_axis, c.aabb_padding, o);
+}
+
+}  // namespace
+
+GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice) {
+  const GridOptions o = settle_overrides(options, scene);
+  const Bounds b = grid_box(scene, time);
+  const glm::vec3 e = b.extent();
+  // Resolution: density cells per triangle, cubic cells, or the overrides
+  const float cs = target_cell_size(scene, o, e);
+  GridParams g = algorithm_params(o, scene);
+  g.origin = b.lo;
+  if (o.capacity_policy == GridOptions::CapacityPolicy::percentile && !o.capacity)
+    return choose_by_percentile(scene, time, o, g, e, cs);
+  return choose_by_candidates(scene, time, o, g, e, cs, choice);
+}
+
+// ---- The spill list's capacity, and which effects the trace runs ----
+
+bool spill_enabled(const AlgorithmOptions& o) {
+  switch (o.spill) {
+    case GridOptions::Spill::on: return true;
+    case GridOptions::Spill::off: return false;
+    case GridOptions::Spill::automatic: break;
+  }
+  return o.traversal == Traversal::exact;
+}
+
+uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions& o, const GridParams& g,
+                               const GridChoice& choice) {
+  if ((g.flags & shared::kGridSpill) == 0u) return 0;
+  if (o.spill_capacity) return *o.spill_capacity;
+  uint64_t dropped = 0;
+  if (!choice.candidates.empty()) {
+    dropped = choice.candidates[choice.chosen].dropped;
+  } else {
+    // The percentile policy weighs no candidate: count on the chosen grid
+    trial_counts(scene, time, g, o.capacity_time_samples).for_each_largest([&](uint32_t n) {
+      if (n > g.capacity) dropped += n - g.capacity;
+    });
+  }
+  const uint64_t cap = dropped + dropped / 4 + 64;
+  return uint32_t(std::min<uint64_t>(cap, uint64_t(1) << 28));
+}
+
+uint32_t trace_flags(uint32_t requested, const AlgorithmOptions& o, uint32_t spill_count) {
+  // Simulate only what the scene calls for: gap-fill while some cell is saturated
+  if (o.gap_fill_if_saturated && spill_count == 0u) return requested & ~shared::kGridGapFill;
+  return requested;
+}
+
+GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options) {
+  GridPlan plan;
+  plan.params = choose_grid(scene, time, options, &plan.choice);
+  plan.spill_capacity = choose_spill_capacity(scene, time, options, plan.params, plan.choice);
+  plan.tables = pack_tables(scene);
+  return plan;
+}
+
+}  // namespace gridrt::plan

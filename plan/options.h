@@ -1,0 +1,110 @@
+// options.h: every knob of the grid, with its default (docs/SPEC.md, "Parameters"), grouped by
+// purpose: the algorithm's knobs (what becomes shared::GridParams and the trace's flags), the
+// plan's (how choose_grid picks the resolution and capacity, the limits, the overrides) and the
+// CPU emulation's (threads, shuffled invocation order). GridOptions holds all three; a function
+// takes the group it reads.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+
+#include <glm/glm.hpp>
+
+#include "common/scene.h"
+
+namespace gridrt::plan {
+
+enum class Traversal { paper, exact };
+enum class Insertion { first_empty, sorted };
+
+inline constexpr float kAabbPadding = 1.0e-3f;  // the AABB padding where none is chosen
+
+// The algorithm: what GridParams and the trace's flags are made of (make_params, trace_flags).
+struct AlgorithmOptions {
+  // Traversal and insertion
+  Traversal traversal = Traversal::paper;
+  Insertion insertion = Insertion::sorted;  // sorted: images independent of thread timing
+  // Build (2.1)
+  float sphere_enlargement = 1.25f;  // cell bounding-sphere radius multiplier (>= 1: conservative)
+  // Cell units added on each side of a triangle's AABB. None: kAabbPadding, except that the
+  // trace-cost policy also weighs paper_padding for the paper traversal (its samples then find
+  // triangles whose cells they step past; docs/SPEC.md "Grid placement, resolution and capacity")
+  std::optional<float> aabb_padding;
+  float paper_padding = 0.25f;
+  // Trace (2.3)
+  float elongation = 0.5f;           // paper: segment elongation on each side, in segment lengths
+  float gap_fill_distance = 2.0f;    // paper: cells the segment must be away from the launch surface
+  float self_hit_offset = 0.0f;      // hits need t * |dir| > self_hit_offset * cell_size
+  bool exclude_launch_ref = true;    // never accept the launch triangle (RayRecord::launch_ref)
+  bool alpha_keying = true;          // alpha-keyed materials cut holes (Features::alpha_keying)
+  bool gap_fill = true;              // paper: gap-fill in saturated cells (Features::gap_fill)
+  // Gap-fill runs (is compiled into the trace shader) only while some cell is saturated, that is
+  // while the spill counter says a reference was dropped; false keeps it always (--all-effects).
+  bool gap_fill_if_saturated = true;
+  // The spill list (docs/SPEC.md, "Spill list"): references no slot took are kept as (cell, ref) and
+  // the trace tests a saturated cell's spilled references too. automatic: on for the exact
+  // traversal, off for the paper's (which answers saturation with gap-fill; spill on turns
+  // gap-fill off). Its capacity is a plan knob (PlanOptions::spill_capacity).
+  enum class Spill { automatic, on, off } spill = Spill::automatic;
+  // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
+  // skip (the literal reading of visited-cell tracking), retest (a second visit)
+  enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
+  // Triangle test: Moller-Trumbore (fast, not watertight) or Woop-Benthin-Wald (watertight)
+  enum class TriangleTest { moller, watertight } triangle_test = TriangleTest::moller;
+};
+
+// The plan: how choose_grid picks resolution and capacity (docs/SPEC.md, "Grid placement,
+// resolution and capacity"), the limits it keeps within, and the overrides.
+struct PlanOptions {
+  float density = 2.0f;                   // target cells per triangle
+  // trace_cost (default): candidate resolutions around the density target are counted, each with
+  // capacity = min(its largest cell count, what the limits allow), and the one whose estimated
+  // trace cost on a sample of the frame's rays is lowest is taken (work_cost, plan/policy.h).
+  // no_saturation: the candidate closest to the density target whose largest cell count fits the
+  // limits, capacity = that count (no cell drops a reference); if none fits, the candidate
+  // dropping the fewest references.
+  // percentile: the original rule, capacity = capacity_percentile of the non-empty cells' counts.
+  enum class CapacityPolicy { trace_cost, no_saturation, percentile } capacity_policy = CapacityPolicy::trace_cost;
+  // trace_cost: the cost of a candidate in reference tests per ray: tests + cell_visit_cost *
+  // cells visited + saturation_cost * (expected share of rays whose answer saturation changes)
+  float cell_visit_cost = 1.0f;
+  float saturation_cost = 1.0e5f;
+  uint32_t work_sample_width = 96, work_sample_height = 54;  // the sample's gather buffer (16:9)
+  uint32_t work_sample_frames = 4;     // glossy bounce rays of up to this many frames off that gather
+  uint32_t work_sample_rays = 4000;    // buffer, fewer once this many rays are sampled
+  float capacity_percentile = 0.99f;      // percentile policy: capacity = this percentile of counts
+  uint32_t min_capacity = 4, max_capacity = 1024;
+  // The scene axis laid along the image's x (the slots' axis): automatic = the axis with the fewest
+  // cells, which leaves the most room for slots under max_image_dimension.
+  enum class SlotAxis { automatic, x, y, z } slot_axis = SlotAxis::automatic;
+  uint32_t max_image_dimension = 4096;    // 4096 on lavapipe, 16384 on NVIDIA
+  uint64_t max_texels = uint64_t(1) << 28;  // the memory budget: 2^28 texels = 1 GiB of image
+  uint32_t capacity_time_samples = 16;    // dynamic instances counted at this many times of their motion
+  // The spill list's entries; default: the references choose_grid's trial would drop, with margin
+  // (choose_spill_capacity).
+  std::optional<uint32_t> spill_capacity;
+  // Overrides of the automatic resolution and capacity. Where one is unset the scene's own
+  // (Scene::grid) applies: settle_overrides, the one place that decides.
+  std::optional<glm::uvec3> resolution;   // cells per axis
+  std::optional<uint32_t> capacity;       // slots per cell
+  std::optional<float> cell_size;         // world units
+};
+
+// The CPU emulation: invocations on threads (0 = std::thread::hardware_concurrency()); a seed
+// runs the build/update invocations in a seeded shuffled order (on any thread count). The plan's
+// own parallel work (the policy's candidates and sample) uses the same threads.
+struct EmulationOptions {
+  unsigned threads = 0;
+  std::optional<uint64_t> shuffle_seed;
+};
+
+struct GridOptions : AlgorithmOptions, PlanOptions, EmulationOptions {};
+
+// The options with every override settled: the resolution, capacity and cell size of `o` where
+// set, else the scene's (Scene::grid). (The command line's --resolution and image limit are
+// written into GridOptions by the tool before this.)
+GridOptions settle_overrides(GridOptions o, const Scene& scene);
+
+unsigned thread_count(const EmulationOptions& options);
+
+}  // namespace gridrt::plan

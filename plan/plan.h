@@ -1,0 +1,114 @@
+// plan.h: the grid's placement, resolution and capacity chosen from the scene (choose_grid and its
+// capacity policy), the spill list's capacity, and which effects the trace runs.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "common/scene.h"
+#include "common/shared/grid.h"
+#include "common/tracer.h"
+#include "plan/options.h"
+
+namespace gridrt::plan {
+
+// Whether `o` turns the spill list on (Spill::automatic: for the exact traversal).
+bool spill_enabled(const AlgorithmOptions& o);
+
+// Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
+shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);
+
+// The work a trace does per ray on one grid: estimated by the trace-cost policy on its ray sample
+// (estimate_work, plan/policy.h), or measured from hit records (measured_work).
+struct WorkEstimate {
+  size_t rays = 0;
+  double cells = 0.0;    // cells visited per ray
+  double tests = 0.0;    // references tested per ray
+  double at_risk = 0.0;  // share of rays that visit a saturated cell before they end
+  double lost = 0.0;     // share of rays whose answer the grid changes: expected (the hit
+                         // triangle in no visited cell, dropped, a gap-fill voxel), or measured
+                         // (gap-fill hits)
+  double skipped = 0.0;  // expected share of rays whose hit triangle no visited cell was offered
+  double spilled = 0.0;  // per ray: dropped references of the saturated cells it visits
+};
+
+// The policy's ray sample: the glossy bounce rays of a small gather buffer of the scene's frame
+// camera (the rays the paper's frame traces through the grid), of up to work_sample_frames frames
+// (each frame perturbs the glossy directions anew) until work_sample_rays are sampled, or its
+// camera rays where the scene has no glossy material; and where each ray ends (its first hit's t, +inf for a miss), found
+// exactly by a compact grid without a capacity (a CSR cell list, exact DDA, alpha keying).
+struct WorkSample {
+  std::vector<Ray> rays;
+  std::vector<float> t_end;
+  std::vector<std::array<glm::vec3, 3>> hit;     // the triangle each ray ends on (world space; zeros: a miss)
+  std::vector<std::array<glm::vec3, 3>> launch;  // the ray's launch triangle (zeros: none)
+  bool bounce = true;  // false: camera rays (no glossy material)
+};
+
+// One resolution choose_grid weighed: its cells, the largest per-cell count over the animation
+// samples, the capacity the limits allow it, and the references it would drop.
+struct GridCandidate {
+  float cell_size = 0.0f;
+  float aabb_padding = kAabbPadding;
+  glm::uvec3 cells{0};
+  uint32_t slot_axis = 0;        // 0 x, 1 y, 2 z
+  uint32_t max_count = 0;        // largest per-cell count (static + dynamic over the samples)
+  uint32_t capacity = 0;         // min(max_count, what the limits allow), >= min_capacity
+  uint64_t dropped = 0;          // sum over cells of max(0, count - capacity)
+  uint64_t saturated_cells = 0;  // cells with count > capacity
+  uint64_t texels = 0;
+  bool fits = false;             // within max_image_dimension and max_texels
+  WorkEstimate work;             // trace_cost policy: the estimated work on its ray sample
+  double cost = 0.0;             // trace_cost policy: work_cost(work)
+};
+// The candidates choose_grid weighed (in the order it weighed them) and the index it took; empty
+// when capacity or resolution is overridden.
+struct GridChoice {
+  std::vector<GridCandidate> candidates;
+  size_t chosen = 0;
+  WorkSample sample;  // trace_cost: the rays the estimates were made on
+};
+shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice);
+// The spill list's capacity for grid `g` (chosen by choose_grid with `choice`): 0 with spill off;
+// else the option, or the references the trial would drop (the chosen candidate's `dropped`, or a
+// count on `g` where choose_grid weighed no candidate) plus a quarter and 64 (the trial samples
+// moving instances at 16 times: a bound it is not).
+uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions& options, const shared::GridParams& g,
+                               const GridChoice& choice);
+// The flags the trace runs with: `requested` (GridParams::flags as chosen) without gap-fill while no
+// reference is dropped (`spill_count` == 0: no cell is saturated), unless gap_fill_if_saturated is off.
+uint32_t trace_flags(uint32_t requested, const AlgorithmOptions& options, uint32_t spill_count);
+// World bounds of the scene over its whole animation: static instances at `time`, dynamic ones
+// swept over their motion; not padded.
+Bounds animation_bounds(const Scene& scene, float time);
+
+
+// The grid's tables as the build's geometry buffer and the trace read them: per instance its
+// triangle offset, count and flags; per triangle its material (positions are the build's to
+// write) and texture coordinates; per material its alpha mask in `texels` (RGBA8 packed, a << 24).
+struct GridTables {
+  std::vector<shared::GridInstance> instances;
+  std::vector<shared::GridTriangle> triangles;
+  std::vector<shared::GridTriangleUv> uvs;
+  std::vector<shared::GridMaterial> materials;
+  std::vector<uint32_t> texels;
+  uint32_t static_instances = 0;
+  uint32_t static_triangles = 0;  // triangles of the static instances (first)
+};
+GridTables pack_tables(const Scene& scene);
+// Appends the texels of `tex` to `texels`, RGBA8 packed (r | g << 8 | b << 16 | a << 24).
+void append_rgba8(const Texture& tex, std::vector<uint32_t>& texels);
+
+// Everything a backend needs to build the grid: the params (flags as requested; the trace runs
+// trace_flags of them), the spill list's capacity, the choice behind them and the tables.
+struct GridPlan {
+  shared::GridParams params{};
+  uint32_t spill_capacity = 0;
+  GridChoice choice;
+  GridTables tables;
+};
+// The plan of `scene` at `time` under `options` (overrides settled here).
+GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options);
+
+}  // namespace gridrt::plan

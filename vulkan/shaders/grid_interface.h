@@ -1,0 +1,81 @@
+// grid_interface.h: the interface between the Vulkan grid's host code (vulkan/grid.cpp) and its
+// shaders (grid_common.glsl, build.glsl, trace.comp, spill_order.comp, ...): the bindings of the
+// one descriptor set, the specialization-constant ids, the push constants and the explain
+// buffer's header. The host builds its descriptor layout and specialization from these names and
+// the shaders declare their layouts with them, so that the two sides cannot disagree. compat.h
+// rules (C++ and GLSL).
+#ifndef GRIDRT_VULKAN_GRID_INTERFACE_H
+#define GRIDRT_VULKAN_GRID_INTERFACE_H
+
+#include "common/shared/compat.h"
+
+SH_BEGIN
+
+// Bindings of the grid's descriptor set (set 0). Every one is a storage buffer but the image.
+SH_CONST uint kGridBindParams = 0u;          // GridParams
+SH_CONST uint kGridBindImage = 1u;           // the 3D image of references (r32ui storage image)
+SH_CONST uint kGridBindInstances = 2u;       // GridInstance[]
+SH_CONST uint kGridBindTriangles = 3u;       // GridTriangle[] (the geometry buffer)
+SH_CONST uint kGridBindUvs = 4u;             // GridTriangleUv[]
+SH_CONST uint kGridBindMaterials = 5u;       // GridMaterial[]
+SH_CONST uint kGridBindTexels = 6u;          // alpha masks, RGBA8 packed
+SH_CONST uint kGridBindBuildInstances = 7u;  // BuildInstance[] (build_input.h)
+SH_CONST uint kGridBindPositions = 8u;       // object-space vertices (vec4)
+SH_CONST uint kGridBindIndices = 9u;         // 3 indices per triangle
+SH_CONST uint kGridBindRays = 10u;           // RayRecord[]
+SH_CONST uint kGridBindHits = 11u;           // HitRecord[]
+SH_CONST uint kGridBindExplain = 12u;        // explain header, then ExplainEvent[]
+SH_CONST uint kGridBindDirty = 13u;          // the dirty-cell list (shared::dirty_list_words)
+SH_CONST uint kGridBindRayList = 14u;        // WorkListHeader, then ray indices (worklist.h)
+SH_CONST uint kGridBindBuildList = 15u;      // the compute build's runs of cells (build.glsl)
+SH_CONST uint kGridBindSpill = 16u;          // SpillHeader, then SpillEntry[]
+SH_CONST uint kGridBindSpillHeads = 17u;     // four heads per cell
+SH_CONST uint kGridBindingCount = 18u;
+
+// Specialization-constant ids of the grid's shaders: the GridParams fields that shape the code.
+SH_CONST uint kGridSpecCapacity = 0u;      // GridParams::capacity
+SH_CONST uint kGridSpecInsertion = 1u;     // GridParams::insertion
+SH_CONST uint kGridSpecTraversal = 2u;     // GridParams::traversal
+SH_CONST uint kGridSpecFlags = 3u;         // GridParams::flags (kGrid* bits)
+SH_CONST uint kGridSpecExplain = 4u;       // trace: record the explain ray's events
+SH_CONST uint kGridSpecRepeats = 5u;       // GridParams::repeats
+SH_CONST uint kGridSpecTriangleTest = 6u;  // GridParams::triangle_test
+SH_CONST uint kGridSpecTraceList = 7u;     // trace: rays from the ray list (dispatched indirectly)
+
+// Push constants of trace.comp.
+struct TracePush {
+  uint ray_offset;        // index of invocation 0's ray
+  uint ray_count;         // rays of this dispatch
+  uint explain_ray;       // the ray whose events are recorded (kNoExplain: none)
+  uint explain_capacity;  // events the explain buffer holds
+};
+SH_CONST uint kNoExplain = 0xFFFFFFFFu;
+
+// Push constants of clear_dynamic.comp.
+struct ClearPush {
+  uint comparison_offset;  // GridParams::comparison_offset: references >= it are dynamic
+};
+
+// Push constants of spill_order.comp.
+struct SpillOrderPush {
+  uint dynamic;  // 0: order the static entries, 1: the dynamic ones
+};
+
+// The explain buffer: this header, then the events.
+struct ExplainHeader {
+  uint count;  // events written (may exceed the capacity: then the tail is lost)
+  uint pad0;
+  uint pad1;
+  uint pad2;
+};
+
+SH_END
+
+#ifdef __cplusplus
+static_assert(sizeof(gridrt::shared::TracePush) == 16, "layout of TracePush");
+static_assert(sizeof(gridrt::shared::ClearPush) == 4, "layout of ClearPush");
+static_assert(sizeof(gridrt::shared::SpillOrderPush) == 4, "layout of SpillOrderPush");
+static_assert(sizeof(gridrt::shared::ExplainHeader) == 16, "std430 layout of ExplainHeader");
+#endif
+
+#endif
