@@ -13,74 +13,132 @@
 
 namespace gridrt::app {
 
+namespace {
+
+// An option taking one of a few names, mapped to an enum: the help shows "a|b|c" and the text, not
+// CLI11's internals.
+template <class E>
+CLI::Option* add_enum(CLI::App* cmd, const std::string& name, E& value, const std::vector<std::pair<std::string, E>>& names,
+                      const std::string& help) {
+  std::map<std::string, E> map(names.begin(), names.end());
+  std::string type;
+  for (const auto& [n, v] : names) type += (type.empty() ? "" : "|") + n;
+  return cmd->add_option(name, value, help)
+      ->transform(CLI::CheckedTransformer(map, CLI::ignore_case).description(""))
+      ->type_name(type);
+}
+
+constexpr const char* kGrid = "Grid";
+constexpr const char* kExpert = "Grid (expert)";
+
+}  // namespace
+
+std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(const std::string& name) {
+  using P = reference::GridOptions::CapacityPolicy;
+  if (name == "auto" || name == "trace-cost") return P::trace_cost;
+  if (name == "no-saturation") return P::no_saturation;
+  if (name == "percentile") return P::percentile;
+  return std::nullopt;
+}
+
 void add_backend_options(CLI::App* cmd, BackendOptions& o) {
   reference::GridOptions& g = o.grid;
-  const std::map<std::string, reference::Traversal> traversals{{"paper", reference::Traversal::paper},
-                                                               {"exact", reference::Traversal::exact}};
-  const std::map<std::string, reference::Insertion> insertions{{"sorted", reference::Insertion::sorted},
-                                                               {"first-empty", reference::Insertion::first_empty}};
-  cmd->add_option("--traversal", g.traversal, "Grid traversal: paper (fixed cell-edge segments) or exact (3D DDA)")
-      ->transform(CLI::CheckedTransformer(traversals, CLI::ignore_case))
-      ->group("Grid");
-  cmd->add_option("--insertion", g.insertion,
-                  "Insertion: sorted (atomic-min cascade, timing-independent) or first-empty (the paper's CAS)")
-      ->transform(CLI::CheckedTransformer(insertions, CLI::ignore_case))
-      ->group("Grid");
-  cmd->add_option("--capacity", g.capacity, "Slots per cell (default: chosen from the scene)")
-      ->check(CLI::Range(1u, 1024u))->group("Grid");
+  using GO = reference::GridOptions;
+  // The common set
+  add_enum(cmd, "--traversal", g.traversal, {{"paper", reference::Traversal::paper}, {"exact", reference::Traversal::exact}},
+           "Grid traversal: paper (fixed cell-edge segments) or exact (3D DDA)")
+      ->group(kGrid);
+  cmd->add_option_function<std::string>(
+         "--capacity",
+         [&g](const std::string& v) {
+           if (const auto policy = capacity_policy_named(v)) {
+             g.capacity_policy = *policy;
+             g.capacity.reset();
+             return;
+           }
+           size_t used = 0;
+           unsigned long n = 0;
+           try {
+             n = std::stoul(v, &used);
+           } catch (const std::exception&) {
+             used = 0;
+           }
+           if (used != v.size() || n < 1 || n > 1024)
+             throw CLI::ValidationError("--capacity", "'" + v + "' is neither a number of slots in [1, 1024] nor "
+                                                      "auto, trace-cost, no-saturation or percentile");
+           g.capacity = uint32_t(n);
+         },
+         "Slots per cell: a number, or the rule that chooses the resolution and capacity: trace-cost (auto, the "
+         "default: the candidate whose estimated trace work on a sample of the frame's rays is lowest), "
+         "no-saturation (the resolution near the density target whose largest cell fits) or percentile (the 0.99 "
+         "percentile of cell counts, the original rule)")
+      ->type_name("N|auto|trace-cost|no-saturation|percentile")->group(kGrid);
   cmd->add_option("--resolution", o.resolution, "Cells per axis X,Y,Z (default: chosen from the scene)")
-      ->delimiter(',')->expected(3)->check(CLI::Range(1u, 16384u))->group("Grid");
-  cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units")->check(CLI::PositiveNumber)->group("Grid");
+      ->delimiter(',')->expected(3)->check(CLI::Range(1u, 16384u))->type_name("X,Y,Z")->group(kGrid);
+  add_enum(cmd, "--spill", g.spill, {{"auto", GO::Spill::automatic}, {"on", GO::Spill::on}, {"off", GO::Spill::off}},
+           "Spill list: references no slot takes are kept and traced in saturated cells (on), or dropped (off); "
+           "auto: on for the exact traversal, off for the paper's (which gap-fills instead)")
+      ->group(kGrid);
+  add_enum(cmd, "--gap-fill", g.gap_fill, {{"on", true}, {"off", false}},
+           "paper traversal: gap-fill in saturated cells (default on)")
+      ->group(kGrid);
+  add_enum(cmd, "--self-hit", g.exclude_launch_ref, {{"exclude", true}, {"keep", false}},
+           "The ray's launch triangle: exclude (never accept it, the default) or keep (test it like any other)")
+      ->group(kGrid);
+  cmd->add_option("--threads", g.threads, "CPU threads (0: all)")->group(kGrid);
+  // Expert knobs
+  add_enum(cmd, "--insertion", g.insertion,
+           {{"sorted", reference::Insertion::sorted}, {"first-empty", reference::Insertion::first_empty}},
+           "Insertion: sorted (atomic-min cascade, timing-independent) or first-empty (the paper's CAS)")
+      ->group(kExpert);
+  add_enum(cmd, "--triangle-test", g.triangle_test,
+           {{"moller", GO::TriangleTest::moller}, {"watertight", GO::TriangleTest::watertight}},
+           "Ray/triangle test: moller (Moller-Trumbore) or watertight (Woop, Benthin, Wald 2013)")
+      ->group(kExpert);
+  add_enum(cmd, "--revisit", g.repeats,
+           {{"merge", GO::Repeats::merge}, {"skip", GO::Repeats::skip}, {"retest", GO::Repeats::retest}},
+           "paper traversal: consecutive samples in one cell: merge (one visit over their segments, the default), "
+           "skip (the literal reading of visited-cell tracking) or retest (a second visit)")
+      ->group(kExpert);
+  cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units")->check(CLI::PositiveNumber)->group(kExpert);
   cmd->add_option("--density", g.density, "Target cells per triangle for the automatic resolution")
-      ->check(CLI::PositiveNumber)->group("Grid");
+      ->check(CLI::PositiveNumber)->group(kExpert);
   cmd->add_option("--max-image-dimension", o.max_image_dimension,
                   "Largest image side the grid may use (default: the Vulkan device's limit when the vulkan "
                   "backend runs, else 4096)")
-      ->check(CLI::Range(2u, 65536u))->group("Grid");
+      ->check(CLI::Range(2u, 65536u))->group(kExpert);
+  cmd->add_option_function<double>(
+         "--memory-budget", [&g](double mib) { g.max_texels = uint64_t(mib * 1024.0 * 1024.0 / 4.0); },
+         "Largest grid image in MiB (default 1024)")
+      ->check(CLI::Range(0.001, 1.0e6))->group(kExpert);
+  cmd->add_option("--max-capacity", g.max_capacity, "Largest automatic capacity")
+      ->check(CLI::Range(1u, 65535u))->group(kExpert);
+  add_enum(cmd, "--slot-axis", g.slot_axis,
+           {{"auto", GO::SlotAxis::automatic}, {"x", GO::SlotAxis::x}, {"y", GO::SlotAxis::y}, {"z", GO::SlotAxis::z}},
+           "Scene axis laid along the image's x, the slots' axis (auto: the axis with the fewest cells)")
+      ->group(kExpert);
   cmd->add_option("--enlargement", g.sphere_enlargement, "Cell bounding-sphere radius multiplier (build)")
-      ->check(CLI::Range(0.0f, 16.0f))->group("Grid");
+      ->check(CLI::Range(0.0f, 16.0f))->group(kExpert);
+  cmd->add_option("--aabb-padding", g.aabb_padding,
+                  "Cell units added on each side of a triangle's AABB (build; default 0.001, and for the paper "
+                  "traversal the trace-cost policy also weighs 0.25)")
+      ->check(CLI::Range(0.0f, 16.0f))->group(kExpert);
   cmd->add_option("--elongation", g.elongation, "Segment elongation on each side, in segment lengths (paper trace)")
-      ->check(CLI::Range(0.0f, 16.0f))->group("Grid");
+      ->check(CLI::Range(0.0f, 16.0f))->group(kExpert);
   cmd->add_option("--gap-fill-distance", g.gap_fill_distance, "Cells from the launch surface before gap-fill")
-      ->check(CLI::Range(0.0f, 1e6f))->group("Grid");
+      ->check(CLI::Range(0.0f, 1e6f))->group(kExpert);
   cmd->add_option("--self-hit-offset", g.self_hit_offset, "Hits need t|dir| > this many cells")
-      ->check(CLI::Range(0.0f, 1e6f))->group("Grid");
-  cmd->add_flag("--no-gap-fill{false}", g.gap_fill, "Disable gap-fill in saturated cells")->group("Grid");
-  const std::map<std::string, reference::GridOptions::Spill> spills{{"auto", reference::GridOptions::Spill::automatic},
-                                                                    {"on", reference::GridOptions::Spill::on},
-                                                                    {"off", reference::GridOptions::Spill::off}};
-  cmd->add_option("--spill", g.spill,
-                  "Spill list: references no slot takes are kept and traced in saturated cells (on), or dropped "
-                  "(off); auto: on for the exact traversal, off for the paper's (which gap-fills instead)")
-      ->transform(CLI::CheckedTransformer(spills, CLI::ignore_case))
-      ->group("Grid");
+      ->check(CLI::Range(0.0f, 1e6f))->group(kExpert);
   cmd->add_option("--spill-capacity", g.spill_capacity,
                   "Entries of the spill list (default: the references the capacity trial drops, plus a quarter "
                   "and 64); an overflow is reported")
-      ->check(CLI::Range(0u, 1u << 28))->group("Grid");
-  const std::map<std::string, reference::GridOptions::TriangleTest> tests{
-      {"moller", reference::GridOptions::TriangleTest::moller},
-      {"watertight", reference::GridOptions::TriangleTest::watertight}};
-  cmd->add_option("--triangle-test", g.triangle_test,
-                  "Ray/triangle test: moller (Moller-Trumbore) or watertight (Woop, Benthin, Wald 2013)")
-      ->transform(CLI::CheckedTransformer(tests, CLI::ignore_case))
-      ->group("Grid");
-  const std::map<std::string, reference::GridOptions::CapacityPolicy> policies{
-      {"trace-cost", reference::GridOptions::CapacityPolicy::trace_cost},
-      {"no-saturation", reference::GridOptions::CapacityPolicy::no_saturation},
-      {"percentile", reference::GridOptions::CapacityPolicy::percentile}};
-  cmd->add_option("--capacity-policy", g.capacity_policy,
-                  "Automatic resolution and capacity: trace-cost (the candidate whose estimated trace work on a "
-                  "sample of the frame's rays is lowest), no-saturation (the resolution near the density target "
-                  "whose largest cell fits) or percentile (the 0.99 percentile of cell counts, the original rule)")
-      ->transform(CLI::CheckedTransformer(policies, CLI::ignore_case))
-      ->group("Grid");
+      ->check(CLI::Range(0u, 1u << 28))->group(kExpert);
   cmd->add_option("--cell-visit-cost", g.cell_visit_cost,
                   "trace-cost policy: the cost of visiting a cell, in reference tests")
-      ->check(CLI::Range(0.0f, 1.0e6f))->group("Grid");
+      ->check(CLI::Range(0.0f, 1.0e6f))->group(kExpert);
   cmd->add_option("--saturation-cost", g.saturation_cost,
                   "trace-cost policy: the cost of a ray whose answer the grid changes, in reference tests")
-      ->check(CLI::Range(0.0f, 1.0e12f))->group("Grid");
+      ->check(CLI::Range(0.0f, 1.0e12f))->group(kExpert);
   cmd->add_option_function<std::vector<uint32_t>>(
          "--work-sample",
          [&g](const std::vector<uint32_t>& wh) {
@@ -88,34 +146,13 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
            g.work_sample_height = wh[1];
          },
          "trace-cost policy: the gather buffer W,H whose rays sample the trace's work (default 96,54)")
-      ->delimiter(',')->expected(2)->check(CLI::Range(1u, 4096u))->group("Grid");
-  cmd->add_option("--max-capacity", g.max_capacity, "Largest automatic capacity")
-      ->check(CLI::Range(1u, 65535u))->group("Grid");
-  const std::map<std::string, reference::GridOptions::SlotAxis> axes{
-      {"auto", reference::GridOptions::SlotAxis::automatic}, {"x", reference::GridOptions::SlotAxis::x},
-      {"y", reference::GridOptions::SlotAxis::y}, {"z", reference::GridOptions::SlotAxis::z}};
-  cmd->add_option("--slot-axis", g.slot_axis,
-                  "Scene axis laid along the image's x, the slots' axis (auto: the axis with the fewest cells)")
-      ->transform(CLI::CheckedTransformer(axes, CLI::ignore_case))
-      ->group("Grid");
-  cmd->add_option_function<double>(
-         "--memory-budget", [&g](double mib) { g.max_texels = uint64_t(mib * 1024.0 * 1024.0 / 4.0); },
-         "Largest grid image in MiB (default 1024)")
-      ->check(CLI::Range(0.001, 1.0e6))->group("Grid");
-  cmd->add_option("--aabb-padding", g.aabb_padding,
-                  "Cell units added on each side of a triangle's AABB (build; default 0.001, and for the paper "
-                  "traversal the trace-cost policy also weighs 0.25)")
-      ->check(CLI::Range(0.0f, 16.0f))->group("Grid");
-  cmd->add_flag("--keep-launch-ref{false}", g.exclude_launch_ref,
-                "Self-hit: test the ray's launch triangle too (default: never accept it)")
-      ->group("Grid");
+      ->delimiter(',')->expected(2)->check(CLI::Range(1u, 4096u))->type_name("W,H")->group(kExpert);
   cmd->add_flag("--all-effects", o.all_effects,
                 "Simulate every effect (alpha keying, gap-fill) even where the scene does not call for it")
-      ->group("Grid");
-  cmd->add_option("--threads", g.threads, "CPU threads (0: all)")->group("Grid");
-  cmd->add_option("--shuffle-seed", g.shuffle_seed, "Run build invocations in a seeded shuffled order")->group("Grid");
+      ->group(kExpert);
+  cmd->add_option("--shuffle-seed", g.shuffle_seed, "Run build invocations in a seeded shuffled order")->group(kExpert);
   cmd->add_option("--vk-build", o.vk_build, "Vulkan build: raster (geometry shader, the paper's) or compute")
-      ->check(CLI::IsMember({"raster", "compute"}))->group("Vulkan");
+      ->check(CLI::IsMember({"raster", "compute"}).description(""))->type_name("raster|compute")->group("Vulkan");
   cmd->add_flag("--fallback-cpu", o.fallback_cpu, "Without a usable Vulkan device, use the CPU reference")
       ->group("Vulkan");
 }

@@ -36,7 +36,11 @@ uint32_t vulkan_max_image_dimension();
 // `uses_vulkan`; prints what it chose.
 void resolve_image_limit(BackendOptions& options, bool uses_vulkan);
 
-// Registers --traversal, --insertion, --capacity, ... on a verb.
+// The capacity rule a --capacity value names (auto = trace-cost), or none for a number.
+std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(const std::string& name);
+
+// Registers the grid's options on a verb: a common set (--traversal, --capacity, --resolution,
+// --spill, --gap-fill, --self-hit, --threads) and the expert knobs in their own help group.
 void add_backend_options(CLI::App* cmd, BackendOptions& options);
 
 // Names this build knows, in the order `--help` lists them (the first is the default).

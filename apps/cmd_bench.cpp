@@ -688,7 +688,7 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--gather", o->gather,
                   "Vulkan: the frame's gather: compute (the CPU gather's ray test, needs 64-bit buffer atomics) or raster "
                   "(the paper's raster pass)")
-      ->check(CLI::IsMember({"compute", "raster"}));
+      ->check(CLI::IsMember({"compute", "raster"}).description(""))->type_name("compute|raster");
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");

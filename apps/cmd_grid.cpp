@@ -13,6 +13,7 @@
 #include "apps/backends.h"
 #include "common/util.h"
 #include "apps/commands.h"
+#include "apps/slices.h"
 #include "common/camera.h"
 #include "common/gather.h"
 #include "reference/compare.h"
@@ -71,6 +72,9 @@ struct StatsOptions : GridVerbOptions {
   bool candidates = false;  // print the candidates choose_grid weighed
   bool measure = false;     // ... and trace the frame's rays through each of them
   uint32_t repeat = 3;
+  std::string slices;       // a folder for the occupancy contact sheet
+  std::string slice_axis = "z";
+  std::vector<uint32_t> ray_pixel;  // --slices: the camera ray of this pixel drawn in
 };
 
 // The candidates choose_grid weighed, with the trace-cost policy's estimates; with `measure`, each
@@ -161,6 +165,20 @@ void run_stats(const StatsOptions& o) {
   std::printf("scene %s: %llu triangles in %zu instances (%u static)\n%s", scene.name.c_str(),
               (unsigned long long)scene.triangle_count(), scene.instances.size(), scene.static_instance_count(),
               reference::to_text(ref.stats()).c_str());
+  if (!o.slices.empty()) {
+    std::optional<reference::ExplainRecord> ray;
+    std::string ray_name;
+    if (!o.ray_pixel.empty()) {
+      const uint32_t x = o.ray_pixel[0], y = o.ray_pixel[1];
+      if (x >= o.width || y >= o.height)
+        throw Error("--ray-pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
+                    std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
+      ray = ref.explain_ray(camera_ray(scene.frame_camera(), o.width, o.height, x, y));
+      ray_name = "camera ray of pixel " + std::to_string(x) + "," + std::to_string(y) + " of " +
+                 std::to_string(o.width) + "x" + std::to_string(o.height);
+    }
+    write_slices(ref, scene.name, o.slices, o.slice_axis[0], ray ? &*ray : nullptr, ray_name);
+  }
   if (o.candidates || o.measure) print_candidates(o, scene, go);
 }
 
@@ -401,6 +419,15 @@ void add_grid_commands(CLI::App& app) {
                   "Also build every candidate and trace the frame's bounce rays (--width x --height gather buffer) "
                   "through it: measured cells and tests per ray and trace time beside the estimates");
     cmd->add_option("--repeat", o->repeat, "--measure: trace this many times (median)")->check(CLI::Range(1u, 100u));
+    cmd->add_option("--slices", o->slices,
+                    "Also draw the grid slice by slice into this folder (occupancy.png: references per cell, "
+                    "saturated cells, with a legend)");
+    cmd->add_option("--slice-axis", o->slice_axis, "--slices: the axis the slices are cut along")
+        ->check(CLI::IsMember({"x", "y", "z"}).description(""))->type_name("x|y|z");
+    cmd->add_option("--ray-pixel", o->ray_pixel,
+                    "--slices: also draw the camera ray of pixel X,Y (of --width x --height): the cells its traversal "
+                    "visits and its samples")
+        ->delimiter(',')->expected(2)->type_name("X,Y");
     cmd->callback([o] { run_stats(*o); });
   }
 #ifdef GRIDRT_HAVE_VULKAN

@@ -47,10 +47,11 @@ void check_portal_backend(const std::string& backend) {
 
 }  // namespace
 
-// A world from a tile map (.map), the built-in level (empty or builtin:level), or any scene
-// voxelized at `voxels` per longest axis.
+// A world from a tile map (.map), the built-in level (empty or builtin:level), a generated level
+// (gen:WxDxH[:SEED]), or any scene voxelized at `voxels` per longest axis.
 portal::World load_world(const std::string& spec, uint32_t voxels) {
   if (spec.empty() || spec == "builtin:level") return portal::builtin_level();
+  if (spec.rfind("gen:", 0) == 0) return portal::generated_level_spec(spec);
   if (ends_with(spec, ".map")) return portal::load_tile_map(spec);
   const Scene scene = load_scene_or_default(spec);
   return portal::voxelize(scene, voxels);
@@ -64,6 +65,8 @@ void run_portal_render(const PortalRenderOptions& o) {
   const Camera camera = world.camera;
   auto t0 = std::chrono::steady_clock::now();
   portal::PortalOptions options;
+  options.choice = portal::parse_div_choice(o.div_choice);
+  options.atlas_width = o.atlas_width;
   portal::PortalBuild build = portal::build_portal(std::move(world), options);
   const double build_s = seconds_since(t0);
   portal::RenderOptions ro;
@@ -98,11 +101,13 @@ void run_portal_render(const PortalRenderOptions& o) {
 // world's camera rays, best of `repeats`; then the renderer (primary + 2 shadow rays) as the
 // state machine and as three loops (docs/PORTAL.md, "Measurements").
 void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, uint32_t height, uint32_t repeats,
-                      bool vulkan_only) {
+                      bool vulkan_only, const std::string& div_choice, uint32_t atlas_width) {
   portal::World world = load_world(spec, voxels);
   const Camera camera = world.camera;
   portal::PortalOptions options;
   options.progress = false;
+  options.choice = portal::parse_div_choice(div_choice);
+  options.atlas_width = atlas_width;
   const auto t0 = std::chrono::steady_clock::now();
   portal::PortalBuild build = portal::build_portal(std::move(world), options);
   const double build_s = seconds_since(t0);
@@ -111,9 +116,9 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
   for (uint32_t y = 0; y < height; ++y)
     for (uint32_t x = 0; x < width; ++x) rays.push_back(camera_ray(camera, width, height, x, y));
   const double n = double(rays.size());
-  std::printf("world %s: %u x %u x %u voxels, %zu divs, built in %.2f s; %u x %u camera rays, best of %u\n",
+  std::printf("world %s: %u x %u x %u voxels, %zu divs (%s choice), built in %.2f s; %u x %u camera rays, best of %u\n",
               build.world.name.c_str(), build.world.dims.x, build.world.dims.y, build.world.dims.z, build.divs.size(),
-              build_s, width, height, repeats);
+              portal::div_choice_name(options.choice), build_s, width, height, repeats);
   std::printf("| tracer | device | ms | rays/s | steps/ray | hits |\n|---|---|---|---|---|---|\n");
   auto report = [&](const char* tracer, const std::string& device, double ms, const std::vector<Hit>& hits) {
     double steps = 0, hit = 0;
@@ -215,69 +220,172 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
 #endif
 }
 
+void add_world_options(CLI::App* cmd, std::string& spec, uint32_t& voxels, std::string& choice, uint32_t& atlas_width) {
+  cmd->add_option("world", spec,
+                  "A tile map (.map), builtin:level (default), gen:WxDxH[:SEED] (a generated level), or a scene to "
+                  "voxelize");
+  cmd->add_option("--voxels", voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 253u));
+  cmd->add_option("--div-choice", choice, "How divs are chosen: bounded (near-linear, default) or exact (small worlds)")
+      ->check(CLI::IsMember({"bounded", "exact"}));
+  cmd->add_option("--atlas-width", atlas_width, "Atlas texels per row (more for large worlds: the atlas has at most 65536 rows)")
+      ->check(CLI::Range(1u, 65536u));
+}
+
+#ifdef GRIDRT_HAVE_VULKAN
+struct PortalDiffOptions {
+  std::string spec, choice = "bounded";
+  uint32_t voxels = 64, width = 720, height = 360, ulps = 0, atlas_width = 1024;
+  float uv = 0.0f;
+  double pixels = 0.0;
+};
+
+// Both tracers on the same build: every camera ray's record, then the state-machine render.
+void run_portal_diff(const PortalDiffOptions& o) {
+  portal::World world = load_world(o.spec, o.voxels);
+  const Camera camera = world.camera;
+  portal::PortalOptions options;
+  options.progress = false;
+  options.choice = portal::parse_div_choice(o.choice);
+  options.atlas_width = o.atlas_width;
+  portal::PortalBuild build = portal::build_portal(std::move(world), options);
+  const std::string name = build.world.name;
+  std::vector<Ray> rays;
+  rays.reserve(size_t(o.width) * o.height);
+  for (uint32_t y = 0; y < o.height; ++y)
+    for (uint32_t x = 0; x < o.width; ++x) rays.push_back(camera_ray(camera, o.width, o.height, x, y));
+  std::vector<Hit> ref(rays.size()), dev(rays.size());
+  portal::RenderOptions ro;
+  ro.width = o.width, ro.height = o.height;
+  portal::RenderStats ref_stats, dev_stats;
+  std::vector<glm::vec3> ref_image;
+  {
+    portal::PortalTracer cpu(build, options);
+    cpu.trace(rays, ref);
+    ref_image = portal::render(cpu.portal(), camera, ro, &ref_stats);
+  }
+  vulkan::PortalVulkanTracer gpu(std::move(build), options);
+  gpu.trace(rays, dev);
+  const std::vector<glm::vec3> dev_image = gpu.render(camera, ro, &dev_stats);
+  size_t bits = 0, within = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Hit &a = ref[i], &b = dev[i];
+    if (std::memcmp(&a, &b, sizeof(Hit)) == 0) {
+      ++bits, ++within;
+      continue;
+    }
+    const bool discrete = a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags &&
+                          a.cells == b.cells && a.tests == b.tests;
+    int32_t ta, tb;
+    std::memcpy(&ta, &a.t, 4), std::memcpy(&tb, &b.t, 4);
+    const bool t_ok = uint32_t(std::abs(int64_t(ta) - int64_t(tb))) <= o.ulps;
+    within += discrete && t_ok && std::abs(a.u - b.u) <= o.uv && std::abs(a.v - b.v) <= o.uv;
+  }
+  size_t pixels = 0;
+  for (size_t i = 0; i < ref_image.size(); ++i) pixels += std::memcmp(&ref_image[i], &dev_image[i], sizeof(glm::vec3)) != 0;
+  const bool stats_same = ref_stats.primary_steps == dev_stats.primary_steps &&
+                          ref_stats.shadow_steps == dev_stats.shadow_steps && ref_stats.shadow_rays == dev_stats.shadow_rays;
+  std::printf("portal diff: %s (%s choice), %ux%u, portal-cpu against portal-vulkan on %s\n", name.c_str(),
+              o.choice.c_str(), o.width, o.height, gpu.context().info().name.c_str());
+  std::printf("  hit records: %zu of %zu identical in bits, %zu within the tolerances\n", bits, rays.size(), within);
+  std::printf("  render: %zu of %zu pixels differ in bits; steps and shadow rays %s (primary %llu / %llu, shadow %llu / "
+              "%llu)\n",
+              pixels, ref_image.size(), stats_same ? "identical" : "DIFFER",
+              (unsigned long long)ref_stats.primary_steps, (unsigned long long)dev_stats.primary_steps,
+              (unsigned long long)ref_stats.shadow_steps, (unsigned long long)dev_stats.shadow_steps);
+  const bool agree = within == rays.size() && stats_same && double(pixels) <= o.pixels * double(ref_image.size());
+  std::printf("  %s\n", agree ? "agree" : "DIFFER");
+  if (!agree) throw Differs("portal diff: portal-vulkan differs from portal-cpu (see above)");
+}
+#endif
+
 void add_portal_command(CLI::App& app) {
   CLI::App* portal_cmd = app.add_subcommand("portal", "The portal-div raytracer (maximal empty cuboids, stackless)");
   portal_cmd->require_subcommand(1);
   {
     auto o = std::make_shared<PortalRenderOptions>();
     CLI::App* cmd = portal_cmd->add_subcommand("render", "Render a world: one primary and two shadow rays per pixel");
-    cmd->add_option("world", o->scene, "A tile map (.map), builtin:level (default), or a scene to voxelize");
-    cmd->add_option("--voxels", o->voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 255u));
+    add_world_options(cmd, o->scene, o->voxels, o->div_choice, o->atlas_width);
     cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
     cmd->add_flag("--separate-loops", o->separate_loops, "Three loops (primary, shadow 1, shadow 2), not the state machine");
     cmd->add_option("--backend", o->backend, "Tracer: " + portal_backends());
     cmd->add_option("-o,--output", o->output, "Image file");
-    cmd->callback([o] { run_portal_render(*o); });
+    cmd->add_option("--view", o->view,
+                    "What the picture shows: shaded (the render), or per pixel with a colour bar: divs (divs the "
+                    "portal traversal visits per camera ray) or dda (voxels an exact voxel DDA steps through)")
+        ->check(CLI::IsMember({"shaded", "divs", "dda"}).description(""))->type_name("shaded|divs|dda");
+    cmd->callback([o] { o->view == "shaded" ? run_portal_render(*o) : run_portal_view(*o); });
   }
   {
     auto spec = std::make_shared<std::string>();
     auto voxels = std::make_shared<uint32_t>(64);
-    auto size = std::make_shared<std::vector<uint32_t>>(std::vector<uint32_t>{720, 360});
+    auto width = std::make_shared<uint32_t>(720), height = std::make_shared<uint32_t>(360);
     auto pixel = std::make_shared<std::vector<uint32_t>>();
     auto backend = std::make_shared<std::string>("portal-cpu");
+    auto choice = std::make_shared<std::string>("bounded");
+    auto atlas = std::make_shared<uint32_t>(1024);
     CLI::App* cmd = portal_cmd->add_subcommand("explain", "Every div, face and texel one pixel's primary ray visits");
-    cmd->add_option("world", *spec, "A tile map (.map), builtin:level (default), or a scene to voxelize");
-    cmd->add_option("--voxels", *voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 255u));
-    cmd->add_option("--size", *size, "Image size W,H the pixel lies in")->delimiter(',')->expected(2)
-        ->check(CLI::Range(1u, 16384u));
+    add_world_options(cmd, *spec, *voxels, *choice, *atlas);
+    cmd->add_option("--width", *width, "Width of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--height", *height, "Height of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--pixel,-p", *pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
     cmd->add_option("--backend", *backend,
                     "Tracer: " + portal_backends() + " (portal-vulkan: the shader's own record beside the reference's)");
     cmd->callback([=] {
       check_portal_backend(*backend);
-      const uint32_t w = (*size)[0], h = (*size)[1], x = (*pixel)[0], y = (*pixel)[1];
+      const uint32_t w = *width, h = *height, x = (*pixel)[0], y = (*pixel)[1];
       if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
       portal::World world = load_world(*spec, *voxels);
+      portal::PortalOptions options;
+      options.choice = portal::parse_div_choice(*choice);
+      options.atlas_width = *atlas;
       const Camera camera = world.camera;
       const Ray ray = camera_ray(camera, w, h, x, y);
 #ifdef GRIDRT_HAVE_VULKAN
       if (*backend == "portal-vulkan") {
-        vulkan::PortalVulkanTracer tracer(std::move(world));
+        vulkan::PortalVulkanTracer tracer(std::move(world), options);
         std::printf("%s", tracer.explain(ray).c_str());
         return;
       }
 #endif
-      portal::PortalTracer tracer(std::move(world));
+      portal::PortalTracer tracer(std::move(world), options);
       std::printf("%s", tracer.explain(ray).c_str());
     });
   }
   {
     auto spec = std::make_shared<std::string>();
     auto voxels = std::make_shared<uint32_t>(64);
-    auto size = std::make_shared<std::vector<uint32_t>>(std::vector<uint32_t>{720, 360});
+    auto width = std::make_shared<uint32_t>(720), height = std::make_shared<uint32_t>(360);
     auto repeats = std::make_shared<uint32_t>(3);
     auto vulkan_only = std::make_shared<bool>(false);
+    auto choice = std::make_shared<std::string>("bounded");
+    auto atlas = std::make_shared<uint32_t>(1024);
     CLI::App* cmd = portal_cmd->add_subcommand(
         "bench", "Rays/s and steps per ray: portal-cpu, voxel-dda, portal-vulkan; the renderer as FSM and three loops");
-    cmd->add_option("world", *spec, "A tile map (.map), builtin:level (default), or a scene to voxelize");
-    cmd->add_option("--voxels", *voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 255u));
-    cmd->add_option("--size", *size, "Image size W,H (the seed's: 720,360)")->delimiter(',')->expected(2)
-        ->check(CLI::Range(1u, 16384u));
-    cmd->add_option("--repeats", *repeats, "Best of this many runs")->check(CLI::Range(1u, 1000u));
+    add_world_options(cmd, *spec, *voxels, *choice, *atlas);
+    cmd->add_option("--width", *width, "Image width (the seed's: 720)")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--height", *height, "Image height (the seed's: 360)")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--repeat", *repeats, "Best of this many runs")->check(CLI::Range(1u, 1000u));
     cmd->add_flag("--vulkan-only", *vulkan_only, "Measure portal-vulkan only");
-    cmd->callback([=] { run_portal_bench(*spec, *voxels, (*size)[0], (*size)[1], *repeats, *vulkan_only); });
+    cmd->callback([=] { run_portal_bench(*spec, *voxels, *width, *height, *repeats, *vulkan_only, *choice, *atlas); });
   }
+#ifdef GRIDRT_HAVE_VULKAN
+  {
+    auto o = std::make_shared<PortalDiffOptions>();
+    CLI::App* cmd = portal_cmd->add_subcommand(
+        "diff", "portal-cpu against portal-vulkan: every camera ray's hit record and the render; exit 3 if they differ");
+    add_world_options(cmd, o->spec, o->voxels, o->choice, o->atlas_width);
+    cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--ulps", o->ulps, "Allow t of otherwise identical hits to differ by this many ulps (default 0)")
+        ->check(CLI::Range(0u, 1000000u));
+    cmd->add_option("--uv-tolerance", o->uv, "Allow u, v of otherwise identical hits to differ by this much")
+        ->check(CLI::Range(0.0f, 1.0f));
+    cmd->add_option("--pixels", o->pixels, "Allow this fraction of the render's pixels to differ in bits (default 0)")
+        ->check(CLI::Range(0.0, 1.0));
+    cmd->callback([o] { run_portal_diff(*o); });
+  }
+#endif
 }
 
 }  // namespace gridrt::app

@@ -27,6 +27,9 @@ struct RenderOptions {
   float fps = 30.0f;
   bool shadows = false;
   bool no_bounce = false;
+  std::string view = "shaded";
+  std::string rays = "bounce";
+  int scale = 1;
   BackendOptions backend_options;
 };
 
@@ -45,6 +48,22 @@ std::string frame_path(const std::string& output, uint32_t frame, uint32_t frame
 
 void run_render(const RenderOptions& options) {
   RenderOptions o = options;
+  if (o.view != "shaded") {
+    if (o.frames > 1) throw Error("--view " + o.view + " makes one picture: leave out --frames");
+    ViewOptions v;
+    v.view = o.view;
+    v.scene = o.scene;
+    v.backend = o.backend;
+    v.output = o.output;
+    v.width = o.width;
+    v.height = o.height;
+    v.time = o.time;
+    v.primary = o.rays == "primary";
+    v.scale = o.scale;
+    v.backend_options = o.backend_options;
+    run_view(v);
+    return;
+  }
   resolve_image_limit(o.backend_options, o.backend == "vulkan");
   if (o.backend.rfind("portal", 0) == 0) {
     // The portal-div raytracer renders worlds of voxels with its own shading (cmd_portal.cpp).
@@ -149,6 +168,17 @@ void add_render_command(CLI::App& app) {
   cmd->add_flag("--shadows", o->shadows, "Trace shadow rays to the lights");
   cmd->add_flag("--no-bounce", o->no_bounce, "Primary rays only, no glossy bounce");
   cmd->add_option("-o,--output", o->output, "Image file: .png, .jpg, .exr, .hdr, .tif (OpenImageIO), .ppm, .pfm");
+  cmd->add_option("--view", o->view,
+                  "What the picture shows: shaded (the render), or per pixel with a colour bar or legend: cells "
+                  "(visited), tests (references tested), saturation (saturated cells visited), gap-fill (a gap-fill "
+                  "voxel answered), spill (a spilled reference answered), diff (CPU reference vs Vulkan shader; "
+                  "needs --backend vulkan)")
+      ->check(CLI::IsMember(view_names()).description(""))->type_name("shaded|cells|tests|saturation|gap-fill|spill|diff")->group("Views");
+  cmd->add_option("--rays", o->rays,
+                  "--view: which ray of each pixel: bounce (its glossy bounce, as the frame traces it; the camera "
+                  "rays where the scene has no glossy material) or primary (the camera ray, through the grid)")
+      ->check(CLI::IsMember({"bounce", "primary"}).description(""))->type_name("bounce|primary")->group("Views");
+  cmd->add_option("--scale", o->scale, "--view: figure pixels per image pixel")->check(CLI::Range(1, 16))->group("Views");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_render(*o); });
 }

@@ -19,6 +19,7 @@
 #include "apps/commands.h"
 #include "common/gather.h"
 #include "common/image_io.h"
+#include "common/plot.h"
 #include "reference/compare.h"
 #include "reference/grid.h"
 #include "plan/policy.h"
@@ -71,7 +72,7 @@ struct Config {
   std::string label() const {
     std::ostringstream s;
     s << traversal << " " << triangle_test << " cap=" << capacity << " enl=" << enlargement << " pad=" << padding_text();
-    if (traversal == "paper") s << " elo=" << elongation << " rep=" << repeats << " gap=" << gap_fill;
+    if (traversal == "paper") s << " elo=" << elongation << " rev=" << repeats << " gap=" << gap_fill;
     s << " spill=" << spill << " self=" << launch << " dim=" << max_dim;
     return s.str();
   }
@@ -109,7 +110,7 @@ std::vector<Config> configurations(const SweepOptions& o) {
   check_member("gap-fill", o.gap_fill, {"on", "off"});
   check_member("spill", o.spill, {"auto", "on", "off"});
   check_member("self-hit", o.launch, {"exclude", "keep"});
-  check_member("repeats", o.repeats, {"merge", "skip", "retest"});
+  check_member("revisit", o.repeats, {"merge", "skip", "retest"});
   for (const auto* list : {&o.capacity, &o.enlargement, &o.elongation, &o.padding, &o.max_dim})
     if (list->empty()) throw Error("sweep: a knob's list is empty");
   for (const std::string& c : o.capacity)
@@ -257,59 +258,7 @@ std::string causes(const Row& r) {
   return s.empty() ? "-" : s;
 }
 
-// ---- The plot: agreement against trace time, drawn into an RGB buffer ----
-
-// A 3x5 bitmap font: each glyph five rows of three bits (MSB left).
-const std::map<char, std::array<uint8_t, 5>>& font() {
-  static const std::map<char, std::array<uint8_t, 5>> f{
-      {'0', {7, 5, 5, 5, 7}}, {'1', {2, 6, 2, 2, 7}}, {'2', {7, 1, 7, 4, 7}}, {'3', {7, 1, 7, 1, 7}},
-      {'4', {5, 5, 7, 1, 1}}, {'5', {7, 4, 7, 1, 7}}, {'6', {7, 4, 7, 5, 7}}, {'7', {7, 1, 1, 1, 1}},
-      {'8', {7, 5, 7, 5, 7}}, {'9', {7, 5, 7, 1, 7}}, {'.', {0, 0, 0, 0, 2}}, {'%', {5, 1, 2, 4, 5}},
-      {'-', {0, 0, 7, 0, 0}}, {' ', {0, 0, 0, 0, 0}}, {'A', {2, 5, 7, 5, 5}}, {'C', {7, 4, 4, 4, 7}},
-      {'D', {6, 5, 5, 5, 6}}, {'E', {7, 4, 6, 4, 7}}, {'G', {7, 4, 5, 5, 7}}, {'M', {5, 7, 7, 5, 5}},
-      {'R', {6, 5, 6, 5, 5}}, {'S', {7, 4, 7, 1, 7}}, {'T', {7, 2, 2, 2, 2}}, {'P', {7, 5, 7, 4, 4}},
-      {'F', {7, 4, 6, 4, 4}}, {'O', {7, 5, 5, 5, 7}}, {'N', {6, 5, 5, 5, 5}}, {'I', {7, 2, 2, 2, 7}},
-      {'L', {4, 4, 4, 4, 7}}, {'X', {5, 5, 2, 5, 5}}, {'W', {5, 5, 7, 7, 5}}, {'/', {1, 1, 2, 4, 4}},
-      {'(', {1, 2, 2, 2, 1}}, {')', {4, 2, 2, 2, 4}}, {'=', {0, 7, 0, 7, 0}}, {'H', {5, 5, 7, 5, 5}},
-      {'U', {5, 5, 5, 5, 7}}, {'B', {6, 5, 6, 5, 6}}, {'K', {5, 5, 6, 5, 5}}, {'Y', {5, 5, 2, 2, 2}},
-      {'V', {5, 5, 5, 5, 2}}, {'J', {1, 1, 1, 5, 7}}, {'Q', {7, 5, 5, 7, 1}}, {'Z', {7, 1, 2, 4, 7}},
-      {':', {0, 2, 0, 2, 0}}, {',', {0, 0, 0, 2, 4}}};
-  return f;
-}
-
-struct Canvas {
-  uint32_t w, h;
-  std::vector<glm::vec3> px;
-  Canvas(uint32_t width, uint32_t height) : w(width), h(height), px(size_t(width) * height, glm::vec3(1.0f)) {}
-  void set(int x, int y, glm::vec3 c) {
-    if (x >= 0 && y >= 0 && x < int(w) && y < int(h)) px[size_t(y) * w + size_t(x)] = c;
-  }
-  void line(int x0, int y0, int x1, int y1, glm::vec3 c) {
-    const int n = std::max(std::abs(x1 - x0), std::abs(y1 - y0));
-    for (int i = 0; i <= n; ++i) {
-      const double s = n ? double(i) / n : 0.0;
-      set(int(std::lround(x0 + s * (x1 - x0))), int(std::lround(y0 + s * (y1 - y0))), c);
-    }
-  }
-  void box(int cx, int cy, int r, glm::vec3 c) {
-    for (int y = -r; y <= r; ++y)
-      for (int x = -r; x <= r; ++x) set(cx + x, cy + y, c);
-  }
-  // Text at scale 2 (6x10 pixels a glyph, 8 apart); unknown characters as blanks.
-  void text(int x, int y, const std::string& s, glm::vec3 c, int scale = 2) {
-    for (char ch : s) {
-      const char u = char(std::toupper(static_cast<unsigned char>(ch)));
-      const auto it = font().find(u);
-      if (it != font().end())
-        for (int r = 0; r < 5; ++r)
-          for (int b = 0; b < 3; ++b)
-            if (it->second[size_t(r)] & (4 >> b))
-              for (int sy = 0; sy < scale; ++sy)
-                for (int sx = 0; sx < scale; ++sx) set(x + b * scale + sx, y + r * scale + sy, c);
-      x += 4 * scale;
-    }
-  }
-};
+// ---- The plot: agreement against trace time (common/plot.h) ----
 
 std::string fmt(double v, int digits) {
   char b[32];
@@ -328,30 +277,19 @@ std::vector<bool> pareto(const std::vector<Row>& rows) {
   return front;
 }
 
-void plot(const std::string& path, const std::string& title, const std::vector<Row>& rows) {
-  Canvas cv(720, 480);
-  const int L = 80, R = 700, T = 40, B = 420;
+void plot_agreement(const std::string& path, const std::string& title, const std::vector<Row>& rows) {
+  if (!plot::available()) {
+    std::printf("  plot: skipped (this build has no OpenImageIO or no DejaVu font)\n");
+    return;
+  }
+  plot::Canvas cv(760, 545);
   double tmax = 0.0, amin = 100.0;
   for (const Row& r : rows) tmax = std::max(tmax, r.trace_ms), amin = std::min(amin, r.acc.agree());
   tmax = tmax > 0.0 ? tmax * 1.1 : 1.0;
   amin = std::max(0.0, std::floor(amin - 1.0));
-  const double arange = std::max(100.0 - amin, 1e-3);
-  const auto X = [&](double ms) { return int(L + (R - L) * ms / tmax); };
-  const auto Y = [&](double agree) { return int(B - (B - T) * (agree - amin) / arange); };
-  const glm::vec3 black(0.0f), grey(0.8f), red(0.85f, 0.1f, 0.1f), blue(0.1f, 0.3f, 0.85f);
-  // Axes, ticks and their values
-  for (int i = 0; i <= 5; ++i) {
-    const double ms = tmax * i / 5.0, ag = amin + arange * i / 5.0;
-    cv.line(X(ms), T, X(ms), B, grey);
-    cv.line(L, Y(ag), R, Y(ag), grey);
-    cv.text(X(ms) - 12, B + 8, fmt(ms, ms < 10 ? 1 : 0), black);
-    cv.text(8, Y(ag) - 5, fmt(ag, arange < 5 ? 2 : 1), black);
-  }
-  cv.line(L, B, R, B, black);
-  cv.line(L, T, L, B, black);
-  cv.text(L + 200, B + 34, "TRACE MS (MEDIAN)", black);
-  cv.text(8, 12, "AGREE % VS EMBREE", black);
-  cv.text(L + 240, 12, title, black);
+  plot::Axes ax(cv, 90, 50, 730, 440, 0.0, tmax, amin, 100.0);
+  ax.draw("trace time, ms (median)", "agreement with Embree, %");
+  cv.text(90, 24, "Accuracy against trace time: " + title, plot::colors::black, 16, plot::Align::left, true);
   // The Pareto front, then every point with its row number (front points red)
   const std::vector<bool> front = pareto(rows);
   std::vector<size_t> f;
@@ -359,21 +297,20 @@ void plot(const std::string& path, const std::string& title, const std::vector<R
     if (front[i]) f.push_back(i);
   std::sort(f.begin(), f.end(), [&](size_t a, size_t b) { return rows[a].trace_ms < rows[b].trace_ms; });
   for (size_t k = 1; k < f.size(); ++k)
-    cv.line(X(rows[f[k - 1]].trace_ms), Y(rows[f[k - 1]].acc.agree()), X(rows[f[k]].trace_ms),
-            Y(rows[f[k]].acc.agree()), red);
+    cv.line(ax.x(rows[f[k - 1]].trace_ms), ax.y(rows[f[k - 1]].acc.agree()), ax.x(rows[f[k]].trace_ms),
+            ax.y(rows[f[k]].acc.agree()), plot::colors::red, 2);
   for (size_t i = 0; i < rows.size(); ++i) {
-    const int x = X(rows[i].trace_ms), y = Y(rows[i].acc.agree());
-    cv.box(x, y, 3, front[i] ? red : blue);
-    cv.text(x + 6, y - 12, std::to_string(rows[i].index), front[i] ? red : blue);
+    const int x = ax.x(rows[i].trace_ms), y = ax.y(rows[i].acc.agree());
+    const glm::vec3 c = front[i] ? plot::colors::red : plot::colors::blue;
+    cv.marker(x, y, 3, c);
+    cv.text(x + 6, y - 6, std::to_string(rows[i].index), c, 11);
   }
-  std::string out = path;
-  try {
-    check_image_extension(out);
-  } catch (const Error&) {
-    out = path.substr(0, path.rfind('.')) + ".ppm";  // a build without OpenImageIO
-  }
-  write_image(out, cv.w, cv.h, cv.px);
-  std::printf("  plot: %s\n", out.c_str());
+  plot::draw_legend(cv, 90, 496,
+                    {{plot::colors::red, "Pareto front (no row is both faster and more accurate)"},
+                     {plot::colors::blue, "other configurations (numbers: the rows of the table)"}},
+                    12);
+  cv.write(path);
+  std::printf("  plot: %s\n", path.c_str());
 }
 
 std::string file_stem(const std::string& scene) {
@@ -389,7 +326,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
   {
     std::ofstream csv(dir + "/" + stem + ".csv");
     if (!csv) throw Error("cannot write '" + dir + "/" + stem + ".csv'");
-    csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,aabb_padding,elongation,repeats,"
+    csv << "index,scene,backend,traversal,triangle_test,capacity_knob,enlargement,aabb_padding,elongation,revisit,"
            "gap_fill,spill,self_hit,max_dim,grid,capacity,saturated_cells,spill_entries,spill_overflow,rays,differ,ties,"
            "max_tie_ulps,holes,false_hits,gap_fill_hits,agree_pct,median_dt,max_dt,build_ms,update_ms,trace_ms,"
            "mrays_per_s,grid_mib,pareto,cells_per_ray,tests_per_ray,why_skipped_cell,why_window,why_dropped,"
@@ -417,7 +354,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
   std::ofstream md(dir + "/" + stem + ".md");
   if (!md) throw Error("cannot write '" + dir + "/" + stem + ".md'");
   md << header << "\n\n"
-     << "| # | backend | traversal | test | capacity | enl | pad | elo | repeats | gap-fill | spill | self-hit | grid | "
+     << "| # | backend | traversal | test | capacity | enl | pad | elo | revisit | gap-fill | spill | self-hit | grid | "
         "cap | sat. cells | spilled | agree % | differ | ties (max ulps) | holes | false hits | gap-fill hits | "
         "median dt | max dt | build ms | update ms | trace ms | Mrays/s | MiB | cells/ray | tests/ray | causes | front |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
@@ -565,7 +502,7 @@ void run_sweep(const SweepOptions& o) {
            << kTieUlps << " ulps of Embree's; dt = |t - t_embree| over same-triangle hits; times: medians, host clock.";
     std::printf("%s\n", header.str().c_str());
     write_outputs(o.out, stem, scene.name, rows, header.str());
-    plot(o.out + "/" + stem + ".png", scene.name, rows);
+    plot_agreement(o.out + "/" + stem + ".png", scene.name, rows);
   }
 #endif
 }
@@ -586,15 +523,15 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--traversal", o->traversal, "Knob values: paper,exact")->delimiter(',')->group("Knobs");
   cmd->add_option("--triangle-test", o->triangle_test, "Knob values: moller,watertight")->delimiter(',')->group("Knobs");
   cmd->add_option("--capacity", o->capacity,
-                  "Knob values: auto (the default policy), trace-cost, no-saturation (no saturation where the "
+                  "Knob values: auto (the default rule), trace-cost, no-saturation (no saturation where the "
                   "limits allow), percentile (the original 0.99 percentile clamped to 64), or "
-                  "a number of slots")
+                  "a number of slots (the same values as the other verbs' --capacity)")
       ->delimiter(',')->group("Knobs");
   cmd->add_option("--enlargement", o->enlargement, "Knob values: sphere enlargement")->delimiter(',')->group("Knobs");
   cmd->add_option("--elongation", o->elongation, "Knob values: segment elongation (paper)")->delimiter(',')->group("Knobs");
   cmd->add_option("--aabb-padding", o->padding, "Knob values: cells added on each side of a triangle's AABB (build), or auto (the default)")
       ->delimiter(',')->group("Knobs");
-  cmd->add_option("--repeats", o->repeats, "Knob values: merge,skip,retest (paper)")->delimiter(',')->group("Knobs");
+  cmd->add_option("--revisit", o->repeats, "Knob values: merge,skip,retest (paper: consecutive samples in one cell)")->delimiter(',')->group("Knobs");
   cmd->add_option("--gap-fill", o->gap_fill, "Knob values: on,off (paper)")->delimiter(',')->group("Knobs");
   cmd->add_option("--spill", o->spill, "Knob values: auto,on,off (the spill list; auto: on for exact)")
       ->delimiter(',')->group("Knobs");

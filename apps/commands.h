@@ -1,10 +1,13 @@
 // commands.h: the tool's verbs, each registered on the CLI11 app by one function.
 #pragma once
 
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
+#include "apps/backends.h"
 #include "common/scene.h"
 
 namespace gridrt::app {
@@ -23,9 +26,31 @@ struct PortalRenderOptions {
   uint32_t width = 720, height = 360;  // the seed's resolution
   uint32_t voxels = 64;
   bool separate_loops = false;
+  std::string view = "shaded";   // shaded, or divs / dda: per-pixel work (portal_views.cpp)
+  std::string div_choice = "bounded";  // bounded | exact (reference/portal/build.h)
+  uint32_t atlas_width = 1024;
+};
+
+// Thrown by a diff whose two sides disagree: the tool exits with 3 (1 is bad input, 2 the command line).
+struct Differs : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 void run_portal_render(const PortalRenderOptions& options);  // cmd_portal.cpp
+void run_portal_view(const PortalRenderOptions& options);    // portal_views.cpp
 void add_sweep_command(CLI::App& app);    // cmd_sweep.cpp: accuracy against Embree vs time
+
+// render --view (views.cpp): a per-pixel picture of the grid's work with a colour bar or legend.
+struct ViewOptions {
+  std::string view = "shaded";   // one of view_names()
+  std::string scene, backend, output;
+  uint32_t width = 0, height = 0;
+  float time = 0.0f;
+  bool primary = false;          // camera rays instead of the glossy bounce
+  int scale = 1;                 // pixels per image pixel in the figure
+  BackendOptions backend_options;
+};
+const std::vector<std::string>& view_names();  // shaded (the plain render) first
+void run_view(const ViewOptions& options);
 
 // The scene named by SCENE (a scene file, a bare mesh, builtin:NAME), or the embedded default
 // when `spec` is empty. Prints how long loading took when it took over a second.

@@ -58,6 +58,9 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);  // prints help, version or the parse error
     return code == 0 ? 0 : 2;
+  } catch (const app::Differs& e) {
+    std::fprintf(stderr, "gridrt: %s\n", e.what());
+    return 3;
   } catch (const Error& e) {
     std::fprintf(stderr, "gridrt: error: %s\n", e.what());
     return 1;

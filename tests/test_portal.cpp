@@ -479,3 +479,106 @@ TEST_CASE("Portal: the build's run-length integration equals the direct sum over
     CHECK(checked == 400);
   }
 }
+
+TEST_CASE("Portal: greedy divs are maximal divs containing their voxel", "[portal][unit]") {
+  for (uint32_t seed = 1; seed <= 8; ++seed) {
+    const World w = random_world({5 + seed % 3, 4 + seed % 2, 3 + seed % 4}, 0.3f + 0.03f * float(seed), seed);
+    const std::vector<Box> all = brute_force_maximal(w);
+    INFO("seed " << seed);
+    for (uint32_t z = 0; z < w.dims.z; ++z)
+      for (uint32_t y = 0; y < w.dims.y; ++y)
+        for (uint32_t x = 0; x < w.dims.x; ++x) {
+          const glm::ivec3 v(x, y, z);
+          if (w.medium(v) == World::kOpaque) continue;
+          for (const glm::ivec3 order : {glm::ivec3(0, 1, 2), glm::ivec3(0, 2, 1), glm::ivec3(1, 0, 2),
+                                         glm::ivec3(1, 2, 0), glm::ivec3(2, 0, 1), glm::ivec3(2, 1, 0)}) {
+            const Box g = greedy_div(w, v, order);
+            REQUIRE(g.contains(v));
+            REQUIRE(std::find(all.begin(), all.end(), g) != all.end());
+          }
+        }
+  }
+}
+
+TEST_CASE("Portal: the bounded choice never beats the exact one and agrees with the DDA", "[portal][unit]") {
+  // The exact choice minimizes the cost over every maximal div containing the voxel, the bounded
+  // one over a subset: at every face both choose, the bounded cost is at least the exact cost.
+  Scene s = make_builtin("teapot");
+  for (const World& w : {builtin_level(), voxelize(s, 16)}) {
+    INFO(w.name);
+    PortalOptions exact{1024, 1024, 0, false};
+    exact.choice = DivChoice::exact;
+    const PortalBuild e = build_portal(w, exact);
+    for (const uint32_t per_run : {2u, 3u}) {
+    PortalOptions bounded{1024, 1024, 0, false};
+    bounded.choice_per_run = per_run;
+    INFO(per_run << " greedy boxes per run");
+    const PortalBuild b = build_portal(w, bounded);
+    REQUIRE(b.stats.choice == DivChoice::bounded);
+    REQUIRE(b.maximal.size() <= e.maximal.size());
+    for (const Box& box : b.maximal) REQUIRE(std::find(e.maximal.begin(), e.maximal.end(), box) != e.maximal.end());
+    size_t both = 0, same = 0;
+    for (size_t i = 0; i < b.choice.size(); ++i) {
+      if (b.choice[i] == kNone || e.choice[i] == kNone) continue;
+      const size_t vi = i / 6;
+      const glm::ivec3 v(vi % w.dims.x, (vi / w.dims.x) % w.dims.y, vi / (w.dims.x * w.dims.y));
+      const uint32_t f = uint32_t(i % 6);
+      const Box& bb = b.maximal[b.choice[i]];
+      const Box& eb = e.maximal[e.choice[i]];
+      REQUIRE(bb.contains(v));
+      ++both;
+      if (bb == eb) {
+        ++same;
+        continue;
+      }
+      const double cb = integrate_flux_density_over_cuboid(w, FluxDensity::get(), v, f, bb).cost;
+      const double ce = integrate_flux_density_over_cuboid(w, FluxDensity::get(), v, f, eb).cost;
+      INFO("voxel " << v.x << "," << v.y << "," << v.z << " face " << f);
+      REQUIRE(float(cb) >= float(ce) * (1.0f - 1e-5f));
+    }
+    CHECK(both > 100);
+    WARN(w.name << ", " << per_run << " per run: bounded and exact choose the same div at " << same << " of " << both
+                << " faces");
+    const Compare c = compare_with_dda(b, 1000, false, 11);
+    CHECK(c.hits > 200);
+    }
+  }
+}
+
+TEST_CASE("Portal: generated levels parse, are deterministic, and trace like the DDA", "[portal][unit]") {
+  CHECK(generated_level_text(40, 30, 4, 3) == generated_level_text(40, 30, 4, 3));
+  CHECK(generated_level_text(40, 30, 4, 3) != generated_level_text(40, 30, 4, 4));
+  const World w = generated_level_spec("gen:60x40x5:2");
+  CHECK(w.dims == glm::uvec3(60, 7, 40));
+  CHECK(w.lights.size() == 2);
+  const PortalBuild b = build_portal(w, PortalOptions{1024, 1024, 0, false});
+  const Compare in = compare_with_dda(b, 1500, false, 5), out = compare_with_dda(b, 500, true, 6);
+  CHECK(in.hits > 1000);
+  CHECK(out.hits > 100);
+}
+
+TEST_CASE("Portal: build limits fail fast with the limit named", "[portal][unit][badinput]") {
+  auto msg = [](auto f) {
+    try {
+      f();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  CHECK_THAT(msg([] { generated_level_spec("gen:300x10x4"); }), Catch::Contains("255"));
+  CHECK_THAT(msg([] { generated_level_spec("gen:30x10x254"); }), Catch::Contains("height at most 253"));
+  CHECK_THAT(msg([] { generated_level_spec("gen:30x10"); }), Catch::Contains("gen:WIDTHxDEPTHxHEIGHT"));
+  CHECK_THAT(msg([] { parse_div_choice("best"); }), Catch::Contains("bounded, exact"));
+  // The exact choice refuses worlds beyond its voxel limit before any work.
+  World open;
+  open.name = "open";
+  open.dims = {128, 128, 65};
+  open.voxels.assign(open.voxel_count(), kEmpty);
+  PortalOptions exact{1024, 1024, 0, false};
+  exact.choice = DivChoice::exact;
+  CHECK_THAT(msg([&] { build_portal(open, exact); }), Catch::Contains("exact div choice takes at most"));
+  // A random world of small walls needs more divs than 15-bit indices address.
+  const World noise = random_world({96, 96, 96}, 0.3f, 1);
+  CHECK_THAT(msg([&] { build_portal(noise, PortalOptions{1024, 1024, 0, false}); }), Catch::Contains("32768"));
+}

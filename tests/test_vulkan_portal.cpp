@@ -17,12 +17,15 @@
 #include "common/camera.h"
 #include "reference/portal/build.h"
 #include "reference/portal/trace.h"
+#include "tests/run_tool.h"
 #include "tests/vulkan_test_util.h"
 #include "vulkan/portal.h"
 
 using namespace gridrt;
 using namespace gridrt::test;
 using gridrt::vulkan::PortalVulkanTracer;
+using gridrt::test::Run;
+using gridrt::test::run_tool;
 namespace pt = gridrt::portal;
 
 namespace {
@@ -255,4 +258,30 @@ TEST_CASE("Portal Vulkan: explain shows the shader's own record, as the referenc
     if (bit_exact_device(ctx)) CHECK(text.find("identical in bits") != std::string::npos);
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+TEST_CASE("Portal Vulkan: hit records identical to portal-cpu on a generated level, both div choices",
+          "[vulkan][portal][diff]") {
+  const pt::World w = pt::generated_level_spec("gen:48x40x5:7");
+  for (const pt::DivChoice choice : {pt::DivChoice::bounded, pt::DivChoice::exact}) {
+    pt::PortalOptions o{1024, 1024, 0, false};
+    o.choice = choice;
+    INFO(pt::div_choice_name(choice));
+    check_trace(pt::build_portal(w, o), 13, 1000);
+  }
+}
+
+TEST_CASE("Portal Vulkan: gridrt portal diff - exit 0 when the two agree, 1 bad input, 2 bad command line",
+          "[vulkan][portal][diff][cli]") {
+  const Run ok = run_tool("portal diff gen:24x16x3 --width 32 --height 16");
+  INFO(ok.output);
+  CHECK(ok.exit_code == 0);
+  CHECK_THAT(ok.output, Catch::Contains("512 of 512 identical in bits"));
+  CHECK_THAT(ok.output, Catch::Contains("agree"));
+  const Run bad = run_tool("portal diff gen:24x16 --width 32 --height 16");
+  INFO(bad.output);
+  CHECK(bad.exit_code == 1);
+  CHECK_THAT(bad.output, Catch::Contains("gen:WIDTHxDEPTHxHEIGHT"));
+  const Run cmd = run_tool("portal diff --width 0");
+  CHECK(cmd.exit_code == 2);
 }

@@ -9,6 +9,7 @@ pkgs=(build-essential cmake ninja-build pkg-config
       libglm-dev libembree-dev libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers
       vulkan-tools glslang-tools spirv-tools catch2 libopenimageio-dev openimageio-tools
       libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libcli11-dev libbenchmark-dev
+      fonts-dejavu-core
       chromium)  # chromium: the test that loads explain's HTML viewer in a headless browser
 missing=()
 for p in "${pkgs[@]}"; do

@@ -6,7 +6,10 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <functional>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <random>
@@ -39,7 +42,7 @@ glm::ivec2 face_extent(const Box& b, uint32_t face) {
 
 // ---- Maximal divs ----------------------------------------------------------------------------
 
-std::vector<Box> maximal_divs(const World& world, unsigned threads) {
+std::vector<Box> maximal_divs(const World& world, unsigned threads, size_t max_boxes) {
   const int X = int(world.dims.x), Y = int(world.dims.y), Z = int(world.dims.z);
   // Media present.
   std::vector<uint32_t> media;
@@ -71,12 +74,19 @@ std::vector<Box> maximal_divs(const World& world, unsigned threads) {
       return c == (x1 - x0) * (y1 - y0);
     };
     std::vector<std::vector<Box>> found(Z);
+    std::atomic<size_t> total{all.size()};
+    std::atomic<bool> too_many{false};
     parallel_for(size_t(Z), thread_count(threads), [&](size_t zi) {
       const int z0 = int(zi);
+      if (too_many.load(std::memory_order_relaxed)) return;
       std::vector<uint8_t> mask(size_t(X) * Y, 1);
       std::vector<int> h(X + 1), rowcount(X + 1);
       std::vector<std::pair<int, int>> stack;  // (start, height)
       for (int z1 = z0; z1 < Z; ++z1) {
+        if (max_boxes && total.load(std::memory_order_relaxed) > max_boxes) {
+          too_many = true;
+          return;
+        }
         bool any = false;
         for (int y = 0; y < Y; ++y)
           for (int x = 0; x < X; ++x) {
@@ -103,14 +113,19 @@ std::vector<Box> maximal_divs(const World& world, unsigned threads) {
               start = s;
               // Rectangle columns [s, x), rows [y - ht + 1, y].
               const bool down_blocked = y + 1 >= Y || rowcount[x] - rowcount[s] < x - s;
-              if (down_blocked && !full(z0 - 1, s, x, y - ht + 1, y + 1) && !full(z1 + 1, s, x, y - ht + 1, y + 1))
+              if (down_blocked && !full(z0 - 1, s, x, y - ht + 1, y + 1) && !full(z1 + 1, s, x, y - ht + 1, y + 1)) {
                 found[zi].push_back(Box{{s, y - ht + 1, z0}, {x, y + 1, z1 + 1}, m});
+                total.fetch_add(1, std::memory_order_relaxed);
+              }
             }
             if (h[x] > 0 && (stack.empty() || stack.back().second < h[x])) stack.push_back({start, h[x]});
           }
         }
       }
     });
+    if (too_many)
+      throw Error("portal build: world '" + world.name + "' has more than " + std::to_string(max_boxes) +
+                  " maximal divs, the limit of the exact choice (use the bounded choice)");
     for (auto& f : found) all.insert(all.end(), f.begin(), f.end());
   }
   std::sort(all.begin(), all.end(), [](const Box& a, const Box& b) {
@@ -336,7 +351,8 @@ struct FluxPrefix {
   int R = 0;
   std::vector<double> z;  // [(j * R + (q - 1)) * (R + 1) + n] = sum over i < n of z_face(i, j, q)
   std::vector<double> x;  // [((p - 1) * R + k) * (R + 1) + n] = sum over j < n of x_face(p, j, k)
-  explicit FluxPrefix(const FluxDensity& f) : R(f.range) {
+  // `limit`: the table's range cut to this many voxels (0: the whole table).
+  explicit FluxPrefix(const FluxDensity& f, int limit = 0) : R(limit > 0 ? std::min(limit, f.range) : f.range) {
     z.assign(size_t(R) * R * (R + 1), 0.0);
     x.assign(size_t(R) * R * (R + 1), 0.0);
     for (int a = 0; a < R; ++a)
@@ -441,6 +457,388 @@ EntryCost integrate_runs(const FluxPrefix& fp, const BoxRuns& runs, glm::ivec3 v
   return c;
 }
 
+
+// The choice's sort key of candidate `bi` (box B) for rays entering v through face f: the cost as
+// float bits, then the candidate index (ties to the lower index). Shared by both choices.
+uint64_t entry_key(const FluxDensity& flux, const FluxPrefix& prefix, const BoxRuns& runs, glm::ivec3 v, uint32_t f,
+                   const Box& B, uint32_t bi) {
+  EntryCost c = integrate_runs(prefix, runs, v, f, B);
+  const int e = int(f / 2), t0 = int(shared::portal_tangent0(f / 2)), t1 = int(shared::portal_tangent1(f / 2));
+  c.length = flux.length_sum(B.lo[t0] - v[t0], B.hi[t0] - v[t0], B.lo[t1] - v[t1], B.hi[t1] - v[t1], 0,
+                             (f & 1u) ? v[e] - B.lo[e] + 1 : B.hi[e] - v[e]);
+  c.cost = c.length > 0 ? c.p_open / c.length : 1e30;
+  const float cf = float(c.cost);
+  uint32_t bits;
+  std::memcpy(&bits, &cf, 4);
+  return (uint64_t(bits) << 32) | uint64_t(bi);
+}
+
+// Summed-area table of "voxel is of medium m" over the whole world: any box's count in O(1).
+struct MediumSat {
+  glm::ivec3 d;
+  std::vector<int32_t> s;  // (X+1)(Y+1)(Z+1)
+  MediumSat(const MediumGrid& media, uint32_t m) : d(media.dims), s(size_t(d.x + 1) * (d.y + 1) * (d.z + 1), 0) {
+    const size_t sx = 1, sy = size_t(d.x + 1), sz = size_t(d.x + 1) * (d.y + 1);
+    for (int z = 0; z < d.z; ++z)
+      for (int y = 0; y < d.y; ++y)
+        for (int x = 0; x < d.x; ++x) {
+          const size_t i = (x + 1) * sx + (y + 1) * sy + (z + 1) * sz;
+          const int32_t v = media({x, y, z}) == m;
+          s[i] = v + s[i - sx] + s[i - sy] + s[i - sz] - s[i - sx - sy] - s[i - sx - sz] - s[i - sy - sz] +
+                 s[i - sx - sy - sz];
+        }
+  }
+  int64_t count(glm::ivec3 lo, glm::ivec3 hi) const {
+    const size_t sy = size_t(d.x + 1), sz = size_t(d.x + 1) * (d.y + 1);
+    auto at = [&](int x, int y, int z) { return int64_t(s[x + y * sy + z * sz]); };
+    return at(hi.x, hi.y, hi.z) - at(lo.x, hi.y, hi.z) - at(hi.x, lo.y, hi.z) - at(hi.x, hi.y, lo.z) +
+           at(lo.x, lo.y, hi.z) + at(lo.x, hi.y, lo.z) + at(hi.x, lo.y, lo.z) - at(lo.x, lo.y, lo.z);
+  }
+};
+
+// Grow the box [lo, hi) of medium m along order[0], order[1], order[2] in turn, each as far as the
+// layers beyond are entirely of m: a binary search over the layer count, one O(1) query per probe.
+Box grow_greedy(const MediumSat& sat, Box B, glm::ivec3 order) {
+  // Grow by the largest k whose k layers beyond are all of m (monotone in k: binary search).
+  auto full = [&](glm::ivec3 lo, glm::ivec3 hi) {
+    const glm::ivec3 s = hi - lo;
+    return sat.count(lo, hi) == int64_t(s.x) * s.y * s.z;
+  };
+  for (int t = 0; t < 3; ++t) {
+    const int a = order[t];
+    int lo = 0, hi = B.lo[a];  // largest k in [0, B.lo[a]] with layers [B.lo[a] - k, B.lo[a]) full
+    while (lo < hi) {
+      const int k = (lo + hi + 1) / 2;
+      glm::ivec3 l = B.lo, h = B.hi;
+      h[a] = B.lo[a], l[a] = B.lo[a] - k;
+      if (full(l, h)) lo = k;
+      else hi = k - 1;
+    }
+    const int down = lo;
+    lo = 0, hi = sat.d[a] - B.hi[a];
+    while (lo < hi) {
+      const int k = (lo + hi + 1) / 2;
+      glm::ivec3 l = B.lo, h = B.hi;
+      l[a] = B.hi[a], h[a] = B.hi[a] + k;
+      if (full(l, h)) lo = k;
+      else hi = k - 1;
+    }
+    B.lo[a] -= down, B.hi[a] += lo;
+  }
+  return B;
+}
+
+// Grow along axes b1 and b2 one layer at a time in turn (b1 down, b1 up, b2 down, b2 up), until
+// no layer can be added: a squarer maximal box than the greedy ones (the box can no longer grow
+// along the run's axis, blocked at its thinnest stage).
+Box grow_alternating(const MediumSat& sat, Box B, int b1, int b2) {
+  auto full = [&](glm::ivec3 lo, glm::ivec3 hi) {
+    const glm::ivec3 s = hi - lo;
+    return sat.count(lo, hi) == int64_t(s.x) * s.y * s.z;
+  };
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const int a : {b1, b2}) {
+      if (B.lo[a] > 0) {
+        glm::ivec3 l = B.lo, h = B.hi;
+        h[a] = B.lo[a], l[a] = B.lo[a] - 1;
+        if (full(l, h)) B.lo[a] -= 1, grew = true;
+      }
+      if (B.hi[a] < sat.d[a]) {
+        glm::ivec3 l = B.lo, h = B.hi;
+        l[a] = B.hi[a], h[a] = B.hi[a] + 1;
+        if (full(l, h)) B.hi[a] += 1, grew = true;
+      }
+    }
+  }
+  return B;
+}
+
+bool box_less(const Box& a, const Box& b) {
+  if (a.medium != b.medium) return a.medium < b.medium;
+  for (int i = 2; i >= 0; --i)
+    if (a.lo[i] != b.lo[i]) return a.lo[i] < b.lo[i];
+  for (int i = 2; i >= 0; --i)
+    if (a.hi[i] != b.hi[i]) return a.hi[i] < b.hi[i];
+  return false;
+}
+
+// The bounded choice (build.h, DivChoice::bounded): candidates, start boxes, then the closure of
+// the stored divs' face textures, round by round, each round's faces evaluated in parallel.
+void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& media, const FluxPrefix& prefix,
+                    const PortalOptions& opt, unsigned T) {
+  const World& w = b.world;
+  const glm::ivec3 dims(w.dims);
+  const size_t N = w.voxel_count();
+  const size_t stride[3] = {1, size_t(dims.x), size_t(dims.x) * dims.y};
+  const bool timing = std::getenv("GRIDRT_PORTAL_TIMING") != nullptr;
+  const uint32_t K = opt.choice_per_run >= 3 ? 3 : 2;  // greedy boxes per run
+  auto tick = Clock::now();
+  auto phase = [&](const char* what) {
+    if (timing) std::fprintf(stderr, "portal build (bounded): %s %.3f s\n", what, since(tick));
+    tick = Clock::now();
+  };
+  auto coords = [&](size_t i) {
+    return glm::ivec3(int(i % dims.x), int((i / dims.x) % dims.y), int(i / (size_t(dims.x) * dims.y)));
+  };
+  // Runs along each axis: run_id[a][voxel], and each run's first voxel.
+  std::vector<uint32_t> run_id[3];
+  std::vector<uint32_t> run_start[3];
+  for (int a = 0; a < 3; ++a) {
+    run_id[a].assign(N, kNone);
+    for (size_t i = 0; i < N; ++i) {
+      const uint32_t m = media.m[i];
+      if (m == World::kOpaque) continue;
+      const glm::ivec3 v = coords(i);
+      if (v[a] > 0 && media.m[i - stride[a]] == m) {
+        run_id[a][i] = run_id[a][i - stride[a]];
+      } else {
+        run_id[a][i] = uint32_t(run_start[a].size());
+        run_start[a].push_back(uint32_t(i));
+      }
+    }
+  }
+  phase("runs");
+  // Media present, one summed-area table each.
+  std::vector<uint32_t> media_present;
+  for (uint32_t i : run_start[0])
+    if (std::find(media_present.begin(), media_present.end(), media.m[i]) == media_present.end())
+      media_present.push_back(media.m[i]);
+  std::sort(media_present.begin(), media_present.end());
+  std::vector<std::unique_ptr<MediumSat>> sats;
+  for (uint32_t m : media_present) sats.push_back(std::make_unique<MediumSat>(media, m));
+  auto sat_of = [&](uint32_t m) -> const MediumSat& {
+    return *sats[size_t(std::lower_bound(media_present.begin(), media_present.end(), m) - media_present.begin())];
+  };
+  // Two greedy boxes per run: along the run's axis, then the other two axes in either order. A run
+  // whose neighbour run along the second axis spans the same interval grows into the same box (the
+  // second growth finds the same all-m range, the third then starts from the same rectangle), so
+  // only the first run of each such stack is grown; the others copy its box.
+  std::vector<Box> grown[3];
+  for (int a = 0; a < 3; ++a) {
+    const int o1 = (a + 1) % 3, o2 = (a + 2) % 3;
+    const int b1 = std::min(o1, o2), b2 = std::max(o1, o2);
+    const size_t R = run_start[a].size();
+    auto run_end = [&](uint32_t r) {  // one past the run's last voxel along a
+      glm::ivec3 v = coords(run_start[a][r]);
+      size_t i = run_start[a][r];
+      while (v[a] < dims[a] && run_id[a][i] == r) ++v[a], i += stride[a];
+      return v[a];
+    };
+    std::vector<uint32_t> end(R);
+    parallel_for((R + 4095) / 4096, T, [&](size_t c) {
+      for (size_t r = c * 4096; r < std::min(R, (c + 1) * 4096); ++r) end[r] = uint32_t(run_end(uint32_t(r)));
+    });
+    std::vector<uint32_t> root(K * R);
+    std::vector<uint32_t> roots;
+    for (uint32_t r = 0; r < R; ++r)
+      for (int k = 0; k < K; ++k) {
+        if (k == 2) {  // the alternating box: no stack argument, grown for every run
+          root[K * r + k] = K * r + k;
+          roots.push_back(K * r + k);
+          continue;
+        }
+        const int second = k ? b2 : b1;
+        const size_t i = run_start[a][r];
+        const glm::ivec3 v = coords(i);
+        uint32_t src = K * r + k;
+        if (v[second] > 0) {
+          const size_t j = i - stride[second];
+          const uint32_t q = run_id[a][j];
+          if (q != kNone && run_start[a][q] == j && end[q] == end[r] && media.m[j] == media.m[i]) src = root[K * q + k];
+        }
+        root[K * r + k] = src;
+        if (src == K * r + k) roots.push_back(src);
+      }
+    grown[a].resize(K * R);
+    const size_t chunk = 256, n = (roots.size() + chunk - 1) / chunk;
+    parallel_for(n, T, [&](size_t c) {
+      for (size_t x = c * chunk; x < std::min(roots.size(), (c + 1) * chunk); ++x) {
+        const uint32_t r = roots[x] / K, k = roots[x] % K;
+        const glm::ivec3 v = coords(run_start[a][r]);
+        const uint32_t m = media.m[run_start[a][r]];
+        glm::ivec3 hi = v + 1;
+        hi[a] = int(end[r]);
+        grown[a][roots[x]] = k == 2   ? grow_alternating(sat_of(m), Box{v, hi, m}, b1, b2)
+                             : k == 1 ? grow_greedy(sat_of(m), Box{v, hi, m}, glm::ivec3(a, b2, b1))
+                                      : grow_greedy(sat_of(m), Box{v, hi, m}, glm::ivec3(a, b1, b2));
+      }
+    });
+    for (size_t x = 0; x < K * R; ++x) grown[a][x] = grown[a][root[x]];
+  }
+  sats.clear();
+  phase("greedy boxes");
+  for (int a = 0; a < 3; ++a)
+    for (size_t x = 0; x < grown[a].size(); ++x)
+      if (x == 0 || !(grown[a][x] == grown[a][x - 1])) b.maximal.push_back(grown[a][x]);  // copies are adjacent often
+  std::sort(b.maximal.begin(), b.maximal.end(), box_less);
+  b.maximal.erase(std::unique(b.maximal.begin(), b.maximal.end()), b.maximal.end());
+  std::vector<uint32_t> run_box[3];  // [K * run + k]: index into b.maximal
+  for (int a = 0; a < 3; ++a) {
+    run_box[a].resize(grown[a].size());
+    for (size_t k = 0; k < grown[a].size(); ++k)
+      run_box[a][k] = uint32_t(std::lower_bound(b.maximal.begin(), b.maximal.end(), grown[a][k], box_less) - b.maximal.begin());
+    grown[a] = {};
+  }
+  b.stats.maximal = b.maximal.size();
+  phase("sort");
+  // Candidates of voxel i: up to 3 K distinct indices, ascending.
+  auto candidates = [&](size_t i, uint32_t out[9]) {
+    int n = 0;
+    for (int a = 0; a < 3; ++a)
+      for (int k = 0; k < K; ++k) {
+        const uint32_t c = run_box[a][K * size_t(run_id[a][i]) + k];
+        if (std::find(out, out + n, c) == out + n) out[n++] = c;
+      }
+    std::sort(out, out + n);
+    return n;
+  };
+  // Start boxes: a cover of the passable voxels. In voxel order, a voxel takes the largest of its
+  // candidates already in the cover, else the largest of all its candidates, which joins the cover
+  // (ties: lower index). The cover is far smaller than "each voxel's largest candidate", and every
+  // box in it is stored, so it bounds the atlas.
+  b.start_box.assign(N, kNone);
+  {
+    std::vector<uint8_t> in_cover(b.maximal.size(), 0);
+    uint32_t c[9];
+    for (size_t i = 0; i < N; ++i) {
+      if (media.m[i] == World::kOpaque) continue;
+      const int n = candidates(i, c);
+      uint32_t best = kNone, any = c[0];
+      for (int k = 0; k < n; ++k) {
+        if (b.maximal[c[k]].volume() > b.maximal[any].volume()) any = c[k];
+        if (in_cover[c[k]] && (best == kNone || b.maximal[c[k]].volume() > b.maximal[best].volume())) best = c[k];
+      }
+      if (best == kNone) best = any, in_cover[any] = 1;
+      b.start_box[i] = best;
+    }
+  }
+  phase("start cover");
+  // The closure. Faces needed: every texel of every stored div's faces whose voxel beyond is not
+  // opaque (and the exterior div's, the world box entered from outside).
+  std::vector<std::atomic<uint32_t>> choice(N * 6);
+  for (auto& c : choice) c.store(kNone, std::memory_order_relaxed);
+  std::vector<std::atomic<uint8_t>> stored(b.maximal.size());
+  for (auto& s : stored) s.store(0, std::memory_order_relaxed);
+  std::vector<std::unique_ptr<BoxRuns>> runs(b.maximal.size());
+  std::vector<std::once_flag> runs_once(b.maximal.size());
+  auto runs_of = [&](uint32_t c) -> const BoxRuns& {
+    std::call_once(runs_once[c], [&] { runs[c] = std::make_unique<BoxRuns>(box_runs(media, b.maximal[c])); });
+    return *runs[c];
+  };
+  std::atomic<size_t> evaluated{0}, faces{0};
+  const int block = int(std::max(1u, opt.choice_block));
+  // The representative of (u, f): the first voxel, in the world-aligned block x block square of
+  // u's plane (normal f / 2) that holds u, whose candidates are u's. A function of the world alone,
+  // so the choice stays deterministic however the rounds are scheduled.
+  auto representative = [&](glm::ivec3 u, uint32_t f, const uint32_t* cand, int n) {
+    if (block == 1) return u;
+    const int a = int(f / 2), ta = int(shared::portal_tangent0(f / 2)), tb = int(shared::portal_tangent1(f / 2));
+    glm::ivec3 r = u;
+    const int a0 = u[ta] / block * block, b0 = u[tb] / block * block;
+    uint32_t other[9];
+    for (int jb = b0; jb < std::min(b0 + block, dims[tb]); ++jb)
+      for (int ia = a0; ia < std::min(a0 + block, dims[ta]); ++ia) {
+        r[ta] = ia, r[tb] = jb;
+        if (r == u) return u;
+        const size_t ri = w.index(glm::uvec3(r));
+        if (media.m[ri] != media.m[w.index(glm::uvec3(u))]) continue;
+        // Rays must be able to enter r through f as they enter u: the voxel they come from passable.
+        glm::ivec3 from = r;
+        from[a] += (f & 1u) ? 1 : -1;
+        if (w.inside(from) && media(from) == World::kOpaque) continue;
+        if (candidates(ri, other) == n && std::equal(cand, cand + n, other)) return r;
+      }
+    return u;
+  };
+  std::function<uint32_t(glm::ivec3, uint32_t)> choose = [&](glm::ivec3 u, uint32_t f) -> uint32_t {
+    const size_t key = w.index(glm::uvec3(u)) * 6 + f;
+    uint32_t c = choice[key].load(std::memory_order_relaxed);
+    if (c != kNone) return c;
+    uint32_t cand[9];
+    const int n = candidates(w.index(glm::uvec3(u)), cand);
+    uint64_t best = ~0ull;
+    const glm::ivec3 rep = n == 1 ? u : representative(u, f, cand, n);
+    if (n == 1) {
+      best = cand[0];
+    } else if (rep != u) {
+      best = choose(rep, f);
+    } else {
+      for (int k = 0; k < n; ++k) best = std::min(best, entry_key(flux, prefix, runs_of(cand[k]), u, f, b.maximal[cand[k]], cand[k]));
+      evaluated.fetch_add(size_t(n), std::memory_order_relaxed);
+    }
+    c = uint32_t(best & 0xFFFFFFFFu);
+    choice[key].store(c, std::memory_order_relaxed);
+    faces.fetch_add(1, std::memory_order_relaxed);
+    return c;
+  };
+  const uint64_t atlas_capacity = uint64_t(opt.atlas_width) * 65536;
+  uint64_t area = 0;
+  size_t stored_count = 1;  // the exterior div
+  auto face_area = [](const Box& B) {
+    const glm::ivec3 s = B.size();
+    return 2 * (uint64_t(s.x) * s.y + uint64_t(s.y) * s.z + uint64_t(s.x) * s.z);
+  };
+  std::vector<uint32_t> frontier;
+  auto admit = [&](std::vector<uint32_t>& list) {  // sort, count, check the limits
+    std::sort(list.begin(), list.end());
+    for (uint32_t c : list) area += face_area(b.maximal[c]);
+    stored_count += list.size();
+    if (stored_count > shared::kPortalMaxDivs)
+      throw Error("portal build: world '" + w.name + "' needs more than " + std::to_string(shared::kPortalMaxDivs) +
+                  " divs, the most 15-bit div indices address (use a coarser voxelization)");
+    if (area > atlas_capacity)
+      throw Error("portal build: world '" + w.name + "' needs more than " + std::to_string(area) +
+                  " atlas texels, beyond an atlas " + std::to_string(opt.atlas_width) +
+                  " texels wide and 65536 rows (16-bit atlas coordinates; raise the atlas width or use a smaller world)");
+  };
+  for (size_t i = 0; i < N; ++i)
+    if (b.start_box[i] != kNone && stored[b.start_box[i]].exchange(1) == 0) frontier.push_back(b.start_box[i]);
+  area = face_area(Box{{0, 0, 0}, dims, kEmpty});
+  admit(frontier);
+  std::mutex mutex;
+  auto visit_faces = [&](const Box& B, bool exterior, std::vector<uint32_t>& found) {
+    for (uint32_t f = 0; f < 6; ++f) {
+      const uint32_t a = f / 2, ta = shared::portal_tangent0(a), tb = shared::portal_tangent1(a);
+      const glm::ivec2 ext = face_extent(B, f);
+      for (int jv = 0; jv < ext.y; ++jv)
+        for (int iu = 0; iu < ext.x; ++iu) {
+          glm::ivec3 u;
+          u[ta] = B.lo[ta] + iu, u[tb] = B.lo[tb] + jv;
+          u[a] = exterior ? ((f & 1u) ? dims[a] - 1 : 0) : ((f & 1u) ? B.hi[a] : B.lo[a] - 1);
+          if (!w.inside(u) || media(u) == World::kOpaque) continue;
+          const uint32_t c = choose(u, exterior ? f : f ^ 1u);
+          if (stored[c].load(std::memory_order_relaxed) == 0 && stored[c].exchange(1) == 0) found.push_back(c);
+        }
+    }
+  };
+  {
+    std::vector<uint32_t> found;
+    visit_faces(Box{{0, 0, 0}, dims, kEmpty}, true, found);
+    admit(found);
+    frontier.insert(frontier.end(), found.begin(), found.end());
+  }
+  while (!frontier.empty()) {
+    std::vector<uint32_t> next;
+    parallel_for(frontier.size(), T, [&](size_t k) {
+      std::vector<uint32_t> found;
+      visit_faces(b.maximal[frontier[k]], false, found);
+      if (!found.empty()) {
+        std::lock_guard lock(mutex);
+        next.insert(next.end(), found.begin(), found.end());
+      }
+    });
+    admit(next);
+    frontier = std::move(next);
+  }
+  phase("closure");
+  b.choice.assign(N * 6, kNone);
+  for (size_t i = 0; i < N * 6; ++i) b.choice[i] = choice[i].load(std::memory_order_relaxed);
+  phase("copy");
+  b.stats.candidates_evaluated = evaluated;
+  b.stats.faces_chosen = faces;
+}
+
 }  // namespace
 
 EntryCost integrate_flux_density_fast(const World& world, glm::ivec3 v, uint32_t entry_face, const Box& div) {
@@ -460,6 +858,20 @@ EntryCost integrate_flux_density_over_cuboid(const World& world, const FluxDensi
 }
 
 // ---- Build -----------------------------------------------------------------------------------
+
+Box greedy_div(const World& world, glm::ivec3 v, glm::ivec3 order) {
+  const MediumGrid media(world);
+  const uint32_t m = media(v);
+  if (m == World::kOpaque) throw Error("greedy_div: voxel is opaque");
+  return grow_greedy(MediumSat(media, m), Box{v, v + 1, m}, order);
+}
+
+DivChoice parse_div_choice(const std::string& name) {
+  if (name == "bounded") return DivChoice::bounded;
+  if (name == "exact") return DivChoice::exact;
+  throw Error("unknown div choice '" + name + "' (bounded, exact)");
+}
+const char* div_choice_name(DivChoice c) { return c == DivChoice::exact ? "exact" : "bounded"; }
 
 DivInfo read_div_info(const PackedPortal& p, uint32_t d) {
   DivInfo info;
@@ -495,16 +907,29 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
   const glm::ivec3 dims(w.dims);
   const size_t N = w.voxel_count();
 
-  // 1. Maximal divs.
+  b.stats.choice = opt.choice;
+  // 1. The flux-density table (once per process).
   auto t = Clock::now();
-  b.maximal = maximal_divs(w, T);
-  b.stats.maximal = b.maximal.size();
-  b.stats.seconds_maximal = since(t);
-
-  // 2. The flux-density table (once per process).
-  t = Clock::now();
   const FluxDensity& flux = FluxDensity::get();
   b.stats.seconds_flux = since(t);
+  const MediumGrid media(w);
+  const FluxPrefix prefix(flux);
+
+  if (opt.choice == DivChoice::bounded) {
+    // 2-3. Greedy candidates, start boxes and the closure of the needed faces (build.h).
+    t = Clock::now();
+    const FluxPrefix near(flux, int(opt.choice_range));
+    choose_bounded(b, flux, media, near, opt, T);
+    b.stats.seconds_choice = since(t);
+  } else {
+  // 2. Maximal divs.
+  if (N > kExactChoiceMaxVoxels)
+    throw Error("portal build: world '" + w.name + "' has " + std::to_string(N) + " voxels; the exact div choice takes at most " +
+                std::to_string(kExactChoiceMaxVoxels) + " (it grows about as resolution^5; use the bounded choice)");
+  t = Clock::now();
+  b.maximal = maximal_divs(w, T, 4 * kExactChoiceMaxVoxels);
+  b.stats.maximal = b.maximal.size();
+  b.stats.seconds_maximal = since(t);
 
   // 3. For every entry face of every passable voxel, the best candidate: atomic min of
   //    (cost bits << 32 | maximal index); the start div of a voxel: the largest candidate.
@@ -527,9 +952,19 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
           while (key > cur && !largest[vi].compare_exchange_weak(cur, key)) {}
         }
   });
+  {
+    // Refuse before evaluating: every entered face of a voxel in n > 1 candidates costs n evaluations.
+    size_t estimate = 0;
+    for (size_t i = 0; i < N; ++i) {
+      const uint32_t n = count[i].load(std::memory_order_relaxed);
+      if (n > 1) estimate += size_t(n) * 6;
+    }
+    if (estimate > kExactChoiceMaxEvaluations)
+      throw Error("portal build: world '" + w.name + "': the exact div choice would evaluate up to " + std::to_string(estimate) +
+                  " candidates, beyond its limit of " + std::to_string(kExactChoiceMaxEvaluations) +
+                  " (minutes of work; use the bounded choice)");
+  }
   std::atomic<size_t> evaluated{0};
-  const MediumGrid media(w);
-  const FluxPrefix prefix(flux);
   {
     std::optional<Progress> progress;
     if (opt.progress) progress.emplace("portal build: choosing divs", b.maximal.size());
@@ -551,17 +986,7 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
               if (single) {
                 key = uint64_t(bi);
               } else {
-                EntryCost c = integrate_runs(prefix, runs, v, f, B);
-                c.length = flux.length_sum(B.lo[shared::portal_tangent0(f / 2)] - v[shared::portal_tangent0(f / 2)],
-                                           B.hi[shared::portal_tangent0(f / 2)] - v[shared::portal_tangent0(f / 2)],
-                                           B.lo[shared::portal_tangent1(f / 2)] - v[shared::portal_tangent1(f / 2)],
-                                           B.hi[shared::portal_tangent1(f / 2)] - v[shared::portal_tangent1(f / 2)], 0,
-                                           (f & 1u) ? v[f / 2] - B.lo[f / 2] + 1 : B.hi[f / 2] - v[f / 2]);
-                c.cost = c.length > 0 ? c.p_open / c.length : 1e30;
-                const float cf = float(c.cost);
-                uint32_t bits;
-                std::memcpy(&bits, &cf, 4);
-                key = (uint64_t(bits) << 32) | uint64_t(bi);
+                key = entry_key(flux, prefix, runs, v, f, B, uint32_t(bi));
                 ++local;
               }
               std::atomic<uint64_t>& slot = best[vi * 6 + f];
@@ -584,7 +1009,9 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
     const uint64_t k = largest[i].load();
     if (k) b.start_box[i] = 0xFFFFFFFFu - uint32_t(k & 0xFFFFFFFFu);
   }
+  for (uint32_t c : b.choice) b.stats.faces_chosen += c != kNone;
   b.stats.seconds_choice = since(t);
+  }
 
   // 4. Stored divs: the exterior div, then every maximal div some face or voxel uses, in order.
   t = Clock::now();

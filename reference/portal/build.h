@@ -32,7 +32,8 @@ struct Box {
 // range form a 2D mask whose maximal rectangles (histogram stack, one pass per row) are the
 // candidates; a candidate is kept if the layers z0 - 1 and z1 + 1 block it. Each maximal box is
 // found once. Sorted by (medium, lo.z, lo.y, lo.x, hi.z, hi.y, hi.x).
-std::vector<Box> maximal_divs(const World& world, unsigned threads = 0);
+// `max_boxes` (0: none) stops the enumeration with an Error once more boxes than that are found.
+std::vector<Box> maximal_divs(const World& world, unsigned threads = 0, size_t max_boxes = 0);
 
 // The seed's FluxDensity: rays start uniformly on the unit square z = 0 (voxel (0, 0, 0)'s -z
 // face), cosine-distributed over the hemisphere dz > 0; for every voxel face of the octant
@@ -69,12 +70,34 @@ EntryCost integrate_flux_density_over_cuboid(const World& world, const FluxDensi
 // prefix sums (exact up to the order of summation). For tests.
 EntryCost integrate_flux_density_fast(const World& world, glm::ivec3 v, uint32_t entry_face, const Box& div);
 
+// How the build chooses the div for each entered voxel face (docs/PORTAL.md, "The choice").
+//  bounded: candidates are the greedy maximal divs grown from the voxel's three axis runs (at most
+//           six per voxel, each maximal), and only the faces the stored divs' textures reference are
+//           evaluated (a closure from the start map): near-linear in the voxel count. The default.
+//  exact:   every maximal div of every voxel, every entered face (the seed's choice); refused
+//           beyond kExactChoiceMaxVoxels voxels or kExactChoiceMaxEvaluations evaluations.
+enum class DivChoice { bounded, exact };
+inline constexpr size_t kExactChoiceMaxVoxels = size_t(1) << 20;
+inline constexpr size_t kExactChoiceMaxEvaluations = 60'000'000;
+
 struct PortalOptions {
   uint32_t atlas_width = 1024;  // texels per atlas row
   uint32_t info_width = 1024;   // texels per div-info row (a multiple of 8)
   unsigned threads = 0;         // 0: hardware concurrency
   bool progress = true;         // a Progress line on stderr for long builds
+  DivChoice choice = DivChoice::bounded;
+  // Bounded: faces are evaluated once per world-aligned square of choice_block x choice_block voxel
+  // faces with the same candidates (the first such face stands for the others); 1: every face.
+  uint32_t choice_block = 1;
+  // Bounded: the flux integrals (p_open, p_wall) over faces up to this many voxels from the entry
+  // voxel (0: the table's whole range, 64); the expected length always uses the whole table.
+  uint32_t choice_range = 0;
+  // Bounded: greedy boxes per axis run: 2 (the run, then the other two axes in either order) or 3
+  // (also both other axes grown a layer at a time in turn: squarer boxes; up to nine candidates).
+  uint32_t choice_per_run = 2;
 };
+DivChoice parse_div_choice(const std::string& name);  // "bounded" | "exact"; Error otherwise
+const char* div_choice_name(DivChoice c);
 
 // The textures exactly as a GPU would hold them (docs/PORTAL.md, "Storage").
 struct PackedPortal {
@@ -100,14 +123,25 @@ DivInfo read_div_info(const PackedPortal& packed, uint32_t d);
 
 struct BuildStats {
   double seconds_maximal = 0, seconds_flux = 0, seconds_choice = 0, seconds_pack = 0, seconds_total = 0;
-  size_t maximal = 0, candidates_evaluated = 0, divs = 0, atlas_texels = 0, bytes = 0;
+  size_t maximal = 0, candidates_evaluated = 0, faces_chosen = 0, divs = 0, atlas_texels = 0, bytes = 0;
+  DivChoice choice = DivChoice::bounded;
+  // Bounded: faces are evaluated once per world-aligned square of choice_block x choice_block voxel
+  // faces with the same candidates (the first such face stands for the others); 1: every face.
+  uint32_t choice_block = 1;
+  // Bounded: the flux integrals (p_open, p_wall) over faces up to this many voxels from the entry
+  // voxel (0: the table's whole range, 64); the expected length always uses the whole table.
+  uint32_t choice_range = 0;
+  // Bounded: greedy boxes per axis run: 2 (the run, then the other two axes in either order) or 3
+  // (also both other axes grown a layer at a time in turn: squarer boxes; up to nine candidates).
+  uint32_t choice_per_run = 2;
 };
 
 struct PortalBuild {
   World world;
-  std::vector<Box> maximal;          // every maximal div
+  std::vector<Box> maximal;          // candidate divs, all maximal: every maximal div (exact) or the greedy ones (bounded)
   std::vector<uint32_t> choice;      // [voxel * 6 + entry face]: index into maximal, kNone if no ray enters there
-  std::vector<uint32_t> start_box;   // [voxel]: largest maximal div containing it, kNone for opaque voxels
+                                     // (bounded: kNone too where no stored texture references the face)
+  std::vector<uint32_t> start_box;   // [voxel]: largest candidate containing it, kNone for opaque voxels
   std::vector<Box> divs;             // stored divs; divs[0] is the exterior div (the world box)
   std::vector<uint32_t> div_of_maximal;  // maximal index -> stored div index, kNone if unused
   PackedPortal packed;
@@ -115,8 +149,14 @@ struct PortalBuild {
 };
 
 // Build everything for `world`. Throws Error when the world breaks a format limit (more than
-// 32768 divs, an atlas taller than 65536 rows).
+// 32768 divs, an atlas taller than 65536 rows; the bounded choice stops as soon as its stored divs
+// pass either), or the exact choice's size limits.
 PortalBuild build_portal(World world, const PortalOptions& options = {});
+
+// The greedy maximal div grown from voxel v: along axis `order[0]` (v's run), then `order[1]`,
+// then `order[2]`, each as far as the medium of v allows. Maximal: a direction blocked at a
+// thinner stage stays blocked. For tests; the bounded build grows the same boxes from runs.
+Box greedy_div(const World& world, glm::ivec3 v, glm::ivec3 order);
 
 // Face rectangle size of a box face (tangent axes, lower first).
 glm::ivec2 face_extent(const Box& b, uint32_t face);

@@ -2,6 +2,8 @@
 #include "reference/portal/world.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <random>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -314,6 +316,91 @@ World voxelize(const Scene& scene, uint32_t resolution) {
     w.lights.push_back(l.directional ? cam.eye + l.position * (2.0f * longest) : l.position);
   w.validate();
   return w;
+}
+
+}  // namespace gridrt::portal
+
+namespace gridrt::portal {
+
+namespace {
+
+// Split the tile rectangle [x0, x1) x [z0, z1) (walls on its border already) by one wall line with
+// one or two doorways, recursively, until rooms are 6..13 tiles wide; pillars in larger rooms.
+void split_rooms(std::vector<std::string>& rows, std::mt19937& rng, int x0, int z0, int x1, int z1) {
+  const int w = x1 - x0, d = z1 - z0;
+  auto uniform = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
+  const bool vertical = w > d ? true : w < d ? false : uniform(0, 1) == 1;
+  const int span = vertical ? w : d;
+  if (span < 14) {
+    if (w >= 7 && d >= 7 && uniform(0, 2) == 0) rows[size_t(z0 + d / 2)][size_t(x0 + w / 2)] = char('0' + uniform(0, 9));
+    return;
+  }
+  const int cut = (vertical ? x0 : z0) + uniform(6, span - 7);
+  const char m = char('0' + uniform(0, 9));
+  const int len = vertical ? d : w;
+  for (int k = 0; k < len; ++k) {
+    if (vertical) rows[size_t(z0 + k)][size_t(cut)] = m;
+    else rows[size_t(cut)][size_t(x0 + k)] = m;
+  }
+  const int doors = len > 20 ? 2 : 1;
+  for (int n = 0; n < doors; ++n) {
+    const int at = uniform(0, len - 1), width = uniform(1, 2);
+    for (int k = at; k < std::min(len, at + width); ++k) {
+      if (vertical) rows[size_t(z0 + k)][size_t(cut)] = '.';
+      else rows[size_t(cut)][size_t(x0 + k)] = '.';
+    }
+  }
+  if (vertical) {
+    split_rooms(rows, rng, x0, z0, cut, z1);
+    split_rooms(rows, rng, cut + 1, z0, x1, z1);
+  } else {
+    split_rooms(rows, rng, x0, z0, x1, cut);
+    split_rooms(rows, rng, x0, cut + 1, x1, z1);
+  }
+}
+
+}  // namespace
+
+std::string generated_level_text(uint32_t width, uint32_t depth, uint32_t height, uint32_t seed) {
+  if (width < 5 || depth < 5 || height < 1)
+    throw Error("generated level: " + std::to_string(width) + " x " + std::to_string(depth) + " x " + std::to_string(height) +
+                " is too small (at least 5 x 5 tiles, 1 voxel high)");
+  if (width > kMaxWorldAxis || depth > kMaxWorldAxis || height + 2 > kMaxWorldAxis)
+    throw Error("generated level: " + std::to_string(width) + " x " + std::to_string(depth) + " x " + std::to_string(height) +
+                " breaks the div format's " + std::to_string(kMaxWorldAxis) +
+                " voxels per axis (width and depth at most 255, height at most 253: floor and ceiling are voxels)");
+  std::mt19937 rng(seed);
+  std::vector<std::string> rows(depth, std::string(width, '.'));
+  for (uint32_t x = 0; x < width; ++x) rows[0][x] = rows[depth - 1][x] = '1';
+  for (uint32_t z = 0; z < depth; ++z) rows[z][0] = rows[z][width - 1] = '1';
+  split_rooms(rows, rng, 1, 1, int(width) - 1, int(depth) - 1);
+  // The eye in the first empty tile from the top-left corner; two lights in empty tiles further on.
+  int placed = 0;
+  for (uint32_t z = 1; z + 1 < depth && placed < 3; ++z)
+    for (uint32_t x = 1; x + 1 < width && placed < 3; ++x) {
+      if (rows[z][x] != '.') continue;
+      if (placed == 0) rows[z][x] = 'E', ++placed;
+      else if ((placed == 1 && x + z >= 4) || (placed == 2 && x + z >= (width + depth) / 3)) rows[z][x] = 'L', ++placed;
+    }
+  std::string text = "# generated level (gridrt portal): seed " + std::to_string(seed) + "\nsize " + std::to_string(width) +
+                     " " + std::to_string(depth) + " " + std::to_string(height) + "\nmap\n";
+  for (const std::string& r : rows) text += r + "\n";
+  return text;
+}
+
+World generated_level(uint32_t width, uint32_t depth, uint32_t height, uint32_t seed) {
+  return parse_tile_map(generated_level_text(width, depth, height, seed),
+                        "gen:" + std::to_string(width) + "x" + std::to_string(depth) + "x" + std::to_string(height), true);
+}
+
+World generated_level_spec(const std::string& spec) {
+  // gen:WxDxH or gen:WxDxH:SEED
+  unsigned w = 0, d = 0, h = 0, seed = 1;
+  char tail = 0;
+  const int n = std::sscanf(spec.c_str(), "gen:%ux%ux%u:%u%c", &w, &d, &h, &seed, &tail);
+  if (n != 3 && n != 4)
+    throw Error("generated level '" + spec + "': expected gen:WIDTHxDEPTHxHEIGHT[:SEED] (tiles, tiles, voxels)");
+  return generated_level(w, d, h, seed);
 }
 
 }  // namespace gridrt::portal

@@ -72,6 +72,14 @@ World load_tile_map(const std::string& path, bool require_eye = true);
 World builtin_level();
 std::string_view builtin_level_text();
 
+// A generated level: `width` x `depth` tiles, `height` voxels high (width, depth 5..255, height
+// 1..253), walls around the edge, rooms split recursively by walls of random materials with one or
+// two doorways, a pillar in some rooms, the eye near the top-left corner, two lights. Deterministic
+// for a seed. generated_level_spec parses "gen:WxDxH[:SEED]" (the tool's world spec).
+std::string generated_level_text(uint32_t width, uint32_t depth, uint32_t height, uint32_t seed = 1);
+World generated_level(uint32_t width, uint32_t depth, uint32_t height, uint32_t seed = 1);
+World generated_level_spec(const std::string& spec);
+
 // Voxelize every instance of `scene` at time 0: a voxel is solid when a triangle overlaps it
 // (triangle/box separating-axis test, Akenine-Moeller), its material the scene material of the
 // lowest (instance, triangle) that overlaps it. `resolution` voxels along the longest axis of the
