@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
@@ -78,5 +79,24 @@ class ProgressTracer : public Tracer {
 
 // --shadows on|off|auto (auto: on iff the scene has lights; shadows_for, common/gather.h).
 void add_shadows_option(CLI::App* cmd, ShadowMode& mode);
+
+// Traces only the ray of one index and answers a miss for every other: a gather buffer whose one
+// pixel is real, for explaining that pixel without tracing the whole image.
+class OneRayTracer : public Tracer {
+ public:
+  OneRayTracer(Tracer& inner, size_t index) : inner_(inner), index_(index) {}
+  std::string name() const override { return inner_.name(); }
+  void build(const Scene& scene, float time) override { inner_.build(scene, time); }
+  void update(float time) override { inner_.update(time); }
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
+    for (Hit& h : hits)
+      h = Hit{std::numeric_limits<float>::infinity(), shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0};
+    if (index_ < rays.size()) inner_.trace(rays.subspan(index_, 1), hits.subspan(index_, 1));
+  }
+
+ private:
+  Tracer& inner_;
+  size_t index_;
+};
 
 }  // namespace gridrt::app

@@ -1,6 +1,4 @@
-// gridrt explain / stats: the grid's own verbs (diff: cmd_diff.cpp).
-//   explain  every step of one pixel's ray through the CPU reference (and the Vulkan shader's own
-//            record beside it with --backend vulkan)
+// gridrt stats: the grid's own verbs (explain: cmd_explain.cpp; diff: cmd_diff.cpp).
 //   stats    the grid's size, memory, occupancy and saturation
 #include <algorithm>
 #include <chrono>
@@ -52,24 +50,6 @@ void add_common(CLI::App* cmd, GridVerbOptions& o) {
 // The gather buffer every grid verb traces its bounce from: primary rays through the exact
 // traversal of the reference grid (the paper rasterizes it; the exact DDA finds the same first
 // surface as rasterization up to ties).
-// Traces only the ray of one index and answers a miss for every other: a gather buffer whose one
-// pixel is real, for explaining that pixel without tracing the whole image.
-class OneRayTracer : public Tracer {
- public:
-  OneRayTracer(Tracer& inner, size_t index) : inner_(inner), index_(index) {}
-  std::string name() const override { return inner_.name(); }
-  void build(const Scene& scene, float time) override { inner_.build(scene, time); }
-  void update(float time) override { inner_.update(time); }
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
-    for (Hit& h : hits) h = Hit{std::numeric_limits<float>::infinity(), sh::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0};
-    if (index_ < rays.size()) inner_.trace(rays.subspan(index_, 1), hits.subspan(index_, 1));
-  }
-
- private:
-  Tracer& inner_;
-  size_t index_;
-};
-
 GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
                               float time, std::optional<size_t> only_pixel = std::nullopt) {
   reference::ReferenceGridTracer tracer(plan::gather_options(grid));
@@ -81,82 +61,6 @@ GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& 
   Progress progress("gather buffer", size_t(w) * h);
   ProgressTracer traced(tracer, progress);
   return make_gather(scene, traced, scene.frame_camera(), w, h, time);
-}
-
-// The ray `explain` and `diff` follow for a pixel: its glossy bounce where it has one, else the
-// primary ray through it.
-Ray pixel_ray(const Scene& scene, const GatherBuffer& gather, const std::vector<Ray>& bounces, uint32_t x, uint32_t y,
-              bool* is_bounce) {
-  const size_t i = size_t(y) * gather.width + x;
-  *is_bounce = !is_unused(bounces[i]);
-  return *is_bounce ? bounces[i] : camera_ray(scene.frame_camera(), gather.width, gather.height, x, y);
-}
-
-// ---- explain ----------------------------------------------------------------------------------
-
-struct ExplainOptions : GridVerbOptions {
-  std::vector<uint32_t> pixel;
-  bool primary = false;
-};
-
-void run_explain(const ExplainOptions& options) {
-  check_frame_size(options.width, options.height);
-  ExplainOptions o = options;
-  resolve_image_limit(o.backend_options, o.backend == "vulkan");
-  const Scene scene = load_scene_or_default(o.scene);
-  const uint32_t x = o.pixel[0], y = o.pixel[1];
-  if (x >= o.width || y >= o.height)
-    throw Error("pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
-                std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
-  const reference::GridOptions grid = grid_options_for(o.backend_options, scene);
-  const GatherBuffer gather = reference_gather(scene, grid, o.width, o.height, o.time, size_t(y) * o.width + x);
-  const std::vector<Ray> bounces = bounce_rays(scene, gather, 0);
-  bool is_bounce = false;
-  Ray ray = pixel_ray(scene, gather, bounces, x, y, &is_bounce);
-  if (o.primary && is_bounce) {
-    ray = camera_ray(scene.frame_camera(), o.width, o.height, x, y);
-    is_bounce = false;
-  }
-  std::printf("pixel %u,%u of %ux%u at t = %g: the %s\n\n", x, y, o.width, o.height, o.time,
-              is_bounce ? "glossy bounce ray off the gather buffer" : "primary ray (the pixel has no glossy bounce)");
-
-  reference::ReferenceGridTracer ref(grid);
-  ref.build(scene, o.time);
-  const reference::ExplainRecord want = ref.explain_ray(ray);
-  std::printf("== CPU reference ==\n%s\n", reference::to_text(want).c_str());
-  if (o.backend == "cpu") return;
-#ifdef GRIDRT_HAVE_VULKAN
-  if (o.backend == "vulkan") {
-    vulkan::VulkanGridOptions vk;
-    vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
-    vulkan::VulkanGridTracer gpu(grid, vk);
-    gpu.build(scene, o.time);
-    const reference::ExplainRecord got = gpu.explain_ray(ray);
-    std::printf("== Vulkan (%s) ==\n", gpu.context().info().name.c_str());
-    size_t k = 0;
-    while (k < want.events.size() && k < got.events.size() &&
-           std::memcmp(&want.events[k], &got.events[k], sizeof(sh::ExplainEvent)) == 0)
-      ++k;
-    const bool same_hit = std::memcmp(&want.hit, &got.hit, sizeof(Hit)) == 0;
-    if (k == want.events.size() && k == got.events.size() && same_hit) {
-      std::printf("identical: all %zu events and the hit record agree bit for bit\n", k);
-      return;
-    }
-    std::printf("the shader parts from the reference at event %zu of %zu (reference %zu events, shader %zu)\n", k,
-                std::max(want.events.size(), got.events.size()), want.events.size(), got.events.size());
-    auto tail = [&](const reference::ExplainRecord& r) {
-      reference::ExplainRecord part = r;
-      part.events.assign(r.events.begin() + std::ptrdiff_t(std::min(k, r.events.size())), r.events.end());
-      return reference::to_text(part);
-    };
-    std::printf("-- reference from there --\n%s\n-- shader from there --\n%s\n", tail(want).c_str(), tail(got).c_str());
-    std::printf("reference hit: %s\nshader hit:    %s\n", reference::hex_hit(want.hit).c_str(),
-                reference::hex_hit(got.hit).c_str());
-    return;
-  }
-#endif
-  throw Error("explain knows the backends cpu" + std::string(backend_list().find("vulkan") != std::string::npos ? " and vulkan" : "") +
-              ", not '" + o.backend + "'");
 }
 
 // ---- stats ------------------------------------------------------------------------------------
@@ -279,16 +183,6 @@ void run_stats(const StatsOptions& o) {
 }  // namespace
 
 void add_grid_commands(CLI::App& app) {
-  {
-    auto o = std::make_shared<ExplainOptions>();
-    CLI::App* cmd = app.add_subcommand("explain", "Every step of one pixel's ray through the grid, with the floats in hex");
-    add_common(cmd, *o);
-    cmd->add_option("--pixel,-p", o->pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
-    cmd->add_flag("--primary", o->primary, "Explain the primary ray, not the glossy bounce");
-    cmd->add_option("--backend,-b", o->backend, "cpu, or vulkan to show the shader's own record beside the reference's")
-        ->check(CLI::IsMember({"cpu", "vulkan"}));
-    cmd->callback([o] { run_explain(*o); });
-  }
   {
     auto o = std::make_shared<StatsOptions>();
     o->width = 192;

@@ -14,7 +14,8 @@ namespace gridrt::app {
 
 void add_render_command(CLI::App& app);   // cmd_render.cpp
 void add_convert_command(CLI::App& app);  // cmd_convert.cpp
-void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: explain, stats
+void add_grid_commands(CLI::App& app);    // cmd_grid.cpp: stats
+void add_explain_command(CLI::App& app);  // cmd_explain.cpp
 void add_diff_command(CLI::App& app);     // cmd_diff.cpp: the reference against the Vulkan port
 
 // Thrown by a verb to end the tool with this exit status after it has reported (diff: 3 differ,

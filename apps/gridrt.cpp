@@ -95,6 +95,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "gridrt 0.1.0");
   app::add_render_command(app);
   app::add_convert_command(app);
+  app::add_explain_command(app);
   app::add_grid_commands(app);
   app::add_diff_command(app);
   app::add_bench_command(app);

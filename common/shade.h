@@ -1,6 +1,7 @@
 // shade.h: simple, deterministic shading of a gather buffer and its glossy bounce, for images.
 #pragma once
 
+#include <optional>
 #include <span>
 #include <vector>
 

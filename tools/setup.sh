@@ -10,7 +10,8 @@ pkgs=(build-essential cmake ninja-build pkg-config
       vulkan-tools glslang-tools spirv-tools catch2 libopenimageio-dev openimageio-tools
       libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libcli11-dev libbenchmark-dev
       fonts-dejavu-core
-      clang-14 libclang-rt-14-dev)
+      clang-14 libclang-rt-14-dev
+      chromium)  # chromium: the test that loads explain's HTML viewer in a headless browser
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")

@@ -1,0 +1,477 @@
+// gridrt explain: every step of one ray through the grid, by the CPU reference, and with
+// --backend vulkan the shader's own record beside it, aligned event by event.
+//   which ray   --pixel X,Y with --kind primary|bounce|shadow (the ray the frame makes for the
+//               pixel; --gpu-frame: the GPU frame's own), or --ray / --ray-file (any ray)
+//   how         full (every float in decimal and hex), --brief, --json
+//   pictures    --export ray.obj, --svg ray.svg, --html page.html (the step-by-step viewer)
+#include <cmath>
+#include <cstring>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+#include "apps/backends.h"
+#include "apps/commands.h"
+#include "common/camera.h"
+#include "common/gather.h"
+#include "common/shade.h"
+#include "common/shared/shadow.h"
+#include "reference/explain_export.h"
+#include "plan/explain_format.h"
+#include "reference/grid.h"
+#ifdef GRIDRT_HAVE_VULKAN
+#  include "vulkan/frame.h"
+#  include "vulkan/grid.h"
+#endif
+
+namespace gridrt::app {
+
+namespace {
+
+namespace sh = gridrt::shared;
+using reference::Traversal;
+
+const char* traversal_name(Traversal t) { return t == Traversal::exact ? "exact" : "paper"; }
+
+// Writes `text` to `path` through a temporary file: an existing file is replaced only by a
+// complete new one.
+void write_file(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    f << text;
+    if (!f.flush()) throw Error("cannot write '" + path + "'");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw Error("cannot write '" + path + "': " + ec.message());
+}
+
+// out.svg -> out_2.svg for the third of several rays.
+std::string numbered(const std::string& path, size_t i, size_t n) {
+  if (n <= 1) return path;
+  const std::filesystem::path p(path);
+  return (p.parent_path() / (p.stem().string() + "_" + std::to_string(i) + p.extension().string())).string();
+}
+
+struct ExplainOptions {
+  std::string scene;
+  std::string backend = "cpu";
+  uint32_t width = 960, height = 540;
+  float time = 0.0f;
+  uint32_t frame = 0;
+  BackendOptions backend_options;
+  std::vector<uint32_t> pixel;
+  std::string kind = "auto";
+  bool primary = false;
+  std::vector<std::string> rays;
+  std::string ray_file;
+  bool gpu_frame = false;
+  std::optional<uint32_t> light;
+  bool brief = false, json = false;
+  std::string obj, svg, html;
+  bool traversal_given = false;
+};
+
+// One ray to explain and what to say of it.
+struct Item {
+  std::string label;
+  std::vector<std::string> header;
+  Ray ray{};
+  Traversal traversal = Traversal::paper;
+  std::optional<Hit> frame_hit;  // --gpu-frame: the frame's own hit of this ray
+};
+
+const char* policy_name(reference::GridOptions::CapacityPolicy p) {
+  using P = reference::GridOptions::CapacityPolicy;
+  return p == P::trace_cost ? "trace-cost" : p == P::no_saturation ? "no-saturation" : "percentile";
+}
+
+// A grid in words: resolution, cell size, capacity, how they were chosen.
+std::string grid_words(const reference::GridOptions& o, const Scene& scene, const sh::GridParams& g) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%ux%ux%u cells of %.6g, capacity %u", g.cells.x, g.cells.y, g.cells.z,
+                double(g.cell_size), g.capacity);
+  std::string s = buf;
+  std::string set;
+  if (o.resolution || o.cell_size || scene.grid.resolution || scene.grid.cell_size) set += "resolution";
+  if (o.capacity || scene.grid.capacity) set += std::string(set.empty() ? "" : " and ") + "capacity";
+  s += set.empty() ? std::string(" (chosen by the ") + policy_name(o.capacity_policy) + " policy)"
+                   : " (" + set + " set by the scene or the command line)";
+  s += (g.flags & sh::kGridSpill) ? ", spill list on" : "";
+  s += (g.flags & sh::kGridGapFill) ? ", gap-fill on" : "";
+  return s;
+}
+
+// The grids, tracers and frames an explain needs, made on first use.
+class Explainer {
+ public:
+  Explainer(const ExplainOptions& o, const Scene& scene)
+      : o_(o), scene_(scene), grid_(grid_options_for(o.backend_options, scene)) {}
+
+  const reference::GridOptions& options() const { return grid_; }
+  reference::GridOptions options(Traversal t) const {
+    reference::GridOptions g = grid_;
+    g.traversal = t;
+    return g;
+  }
+  reference::ReferenceGridTracer& reference(Traversal t) {
+    auto& p = reference_[t];
+    if (!p) {
+      p = std::make_unique<reference::ReferenceGridTracer>(options(t));
+      p->build(scene_, o_.time);
+    }
+    return *p;
+  }
+  std::string grid(Traversal t) { return grid_words(options(t), scene_, reference(t).params()); }
+
+#ifdef GRIDRT_HAVE_VULKAN
+  vulkan::VulkanGridTracer& gpu(Traversal t) {
+    if (!context_) context_ = std::make_unique<vulkan::Context>();
+    auto& p = gpu_[t];
+    if (!p) {
+      vulkan::VulkanGridOptions vk;
+      vk.build = o_.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+      p = std::make_unique<vulkan::VulkanGridTracer>(*context_, options(t), vk);
+      p->build(scene_, o_.time);
+    }
+    return *p;
+  }
+  // The GPU frame's passes at --width x --height (gather, bounce, trace) on the grid of the
+  // frame's traversal; its read-backs.
+  struct GpuFrame {
+    GatherBuffer gather;
+    std::vector<Ray> rays;
+    std::vector<Hit> hits;
+    bool bounce = false;
+    std::string gather_mode;
+  };
+  const GpuFrame& gpu_frame() {
+    if (!frame_) {
+      vulkan::VulkanGridTracer& g = gpu(grid_.traversal);
+      vulkan::VulkanFrame f(g, scene_, vulkan::FrameOptions{.width = o_.width, .height = o_.height});
+      f.render(o_.frame);
+      frame_ = std::make_unique<GpuFrame>();
+      frame_->gather = f.download_gather();
+      frame_->gather.time = o_.time;
+      frame_->bounce = f.bounce();
+      if (f.bounce()) {
+        frame_->rays = f.download_rays();
+        frame_->hits = f.download_hits();
+      }
+      frame_->gather_mode = f.gather_mode() == vulkan::GatherMode::raster ? "raster" : "compute";
+    }
+    return *frame_;
+  }
+  std::string device() { return context_ ? context_->info().name : ""; }
+  // The validation layer's messages (GRIDRT_VALIDATION=1), if any
+  std::vector<std::string> validation_messages() const {
+    return context_ ? context_->messages() : std::vector<std::string>{};
+  }
+#endif
+
+  // The reference's gather buffer, its one pixel traced (by the exact traversal: the frame's)
+  GatherBuffer reference_gather_pixel(uint32_t x, uint32_t y) {
+    OneRayTracer one(reference(Traversal::exact), size_t(y) * o_.width + x);
+    return make_gather(scene_, one, scene_.frame_camera(), o_.width, o_.height, o_.time);
+  }
+
+ private:
+  const ExplainOptions& o_;
+  const Scene& scene_;
+  reference::GridOptions grid_;
+  std::map<Traversal, std::unique_ptr<reference::ReferenceGridTracer>> reference_;
+#ifdef GRIDRT_HAVE_VULKAN
+  std::unique_ptr<vulkan::Context> context_;
+  std::map<Traversal, std::unique_ptr<vulkan::VulkanGridTracer>> gpu_;
+  std::unique_ptr<GpuFrame> frame_;
+#endif
+};
+
+std::string ray_words(const Ray& r) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "org (%.7g, %.7g, %.7g) dir (%.7g, %.7g, %.7g) t in (%.7g, %.7g)", double(r.org.x),
+                double(r.org.y), double(r.org.z), double(r.dir.x), double(r.dir.y), double(r.dir.z), double(r.tmin),
+                double(r.tmax));
+  return buf;
+}
+
+// The rays of a pixel: the frame's rays of the kind asked for.
+std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Explainer& ex) {
+  const uint32_t x = o.pixel[0], y = o.pixel[1];
+  if (x >= o.width || y >= o.height)
+    throw Error("pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
+                std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
+  const size_t p = size_t(y) * o.width + x;
+  const Traversal frame_t = ex.options().traversal;
+  char where[128];
+  std::snprintf(where, sizeof where, "pixel %u,%u of %ux%u at t = %g", x, y, o.width, o.height, double(o.time));
+  // Which traversal and grid the frame uses
+  std::vector<std::string> frame_words;
+  frame_words.push_back("the frame (gridrt render, CPU): primary rays (the gather buffer) by the exact traversal on " +
+                        ex.grid(Traversal::exact) + "; the glossy bounce and --shadows' shadow rays by the " +
+                        traversal_name(frame_t) + " traversal on " + ex.grid(frame_t));
+  // The pixel's gather buffer: the reference's, or the GPU frame's own
+  GatherBuffer gather;
+  std::vector<Ray> bounces;
+  std::optional<Hit> frame_hit;
+  std::string gpu_gather;
+  if (o.gpu_frame) {
+#ifdef GRIDRT_HAVE_VULKAN
+    const auto& f = ex.gpu_frame();
+    frame_words.push_back("the GPU frame (gridrt render --backend vulkan): gather by its " + f.gather_mode +
+                          " pass (no grid traversal), bounce rays by its bounce pass, traced by the " +
+                          traversal_name(frame_t) + " traversal; explained below: the GPU frame's own rays");
+    gather = f.gather;
+    gpu_gather = f.gather_mode;
+    bounces = f.bounce ? f.rays : bounce_rays(scene, gather, o.frame);
+    if (f.bounce && !is_unused(f.rays[p])) frame_hit = f.hits[p];
+#endif
+  } else {
+    gather = ex.reference_gather_pixel(x, y);
+    bounces = bounce_rays(scene, gather, o.frame);
+  }
+  std::string kind = o.primary ? "primary" : o.kind;
+  if (kind == "auto") kind = is_unused(bounces[p]) ? "primary" : "bounce";
+  std::vector<Item> items;
+  if (kind == "primary") {
+    Item it;
+    it.ray = camera_ray(scene.frame_camera(), o.width, o.height, x, y);
+    it.traversal = o.traversal_given ? frame_t : Traversal::exact;
+    it.label = std::string(where) + ": the primary ray";
+    it.header = {it.label + (o.kind == "auto" && !o.primary ? " (the pixel has no glossy bounce)" : "")};
+    it.header.insert(it.header.end(), frame_words.begin(), frame_words.end());
+    it.header.push_back(std::string("explained by the ") + traversal_name(it.traversal) + " traversal" +
+                        (it.traversal == Traversal::exact ? ", as the frame's gather traces it"
+                                                          : " (asked for with --traversal; the frame's gather uses the exact one)") +
+                        (o.gpu_frame ? " (the GPU frame gathers by its " + gpu_gather +
+                                           " pass: the same camera rays, not traced through the grid)"
+                                     : std::string()));
+    items.push_back(it);
+  } else if (kind == "bounce") {
+    if (is_unused(bounces[p]))
+      throw Error(std::string(where) + " has no glossy bounce ray (" +
+                  (!gather.valid[p] ? "its primary ray meets no surface" : "its surface is not glossy") + ")");
+    Item it;
+    it.ray = bounces[p];
+    it.traversal = frame_t;
+    it.frame_hit = frame_hit;
+    it.label = std::string(where) + ": the glossy bounce ray" + (o.gpu_frame ? " of the GPU frame" : "");
+    it.header = {it.label + (o.gpu_frame ? " (made by the GPU frame's bounce pass from its own gather)"
+                                         : " (bounce_rays() off the reference's gather buffer, frame " +
+                                               std::to_string(o.frame) + ")")};
+    it.header.insert(it.header.end(), frame_words.begin(), frame_words.end());
+    it.header.push_back(std::string("explained by the ") + traversal_name(it.traversal) +
+                        " traversal, as the frame traces its bounce");
+    items.push_back(it);
+  } else {  // shadow
+    if (!gather.valid[p]) throw Error(std::string(where) + ": the primary ray meets no surface, so no shadow rays");
+    if (scene.lights.empty())
+      throw Error("the scene has no lights: shading uses a headlight, which casts no shadow rays");
+    if (o.light && *o.light >= scene.lights.size())
+      throw Error("light " + std::to_string(*o.light) + " does not exist (the scene has " +
+                  std::to_string(scene.lights.size()) + ")");
+    for (uint32_t l = 0; l < scene.lights.size(); ++l) {
+      if (o.light && *o.light != l) continue;
+      const Ray r = shared::shadow_ray(gather.position[p], gather.normal[p], gather.launch_ref[p],
+                                       scene.lights[l].position, scene.lights[l].directional);
+      if (is_unused(r)) {
+        std::fprintf(stderr, "%s: light %u lies behind the surface: no shadow ray\n", where, l);
+        continue;
+      }
+      Item it;
+      it.ray = r;
+      it.traversal = frame_t;
+      it.label = std::string(where) + ": the shadow ray toward light " + std::to_string(l);
+      it.header = {it.label + " (" + (scene.lights[l].directional ? "directional" : "a point light") +
+                   ", from the primary hit, as render --shadows traces it)"};
+      it.header.insert(it.header.end(), frame_words.begin(), frame_words.end());
+      it.header.push_back(std::string("explained by the ") + traversal_name(it.traversal) +
+                          " traversal, as render --shadows traces its shadow rays; a hit before the light (t < " +
+                          (scene.lights[l].directional ? "inf" : "1") + ") is a shadow");
+      items.push_back(it);
+    }
+    if (items.empty()) throw Error(std::string(where) + ": no light lights the surface, so no shadow rays");
+  }
+  return items;
+}
+
+void run_explain(const ExplainOptions& options) {
+  check_frame_size(options.width, options.height);
+  ExplainOptions o = options;
+  const bool vulkan = o.backend == "vulkan";
+#ifndef GRIDRT_HAVE_VULKAN
+  if (vulkan) throw Error("explain --backend vulkan: this build has no Vulkan (it has: " + backend_list() + ")");
+#endif
+  for (const std::string* path : {&o.obj, &o.svg, &o.html})
+    if (!path->empty()) check_output_path(*path);
+  resolve_image_limit(o.backend_options, vulkan);
+  const Scene scene = load_scene_or_default(o.scene);
+  Explainer ex(o, scene);
+  const plan::ExplainNames names = plan::ExplainNames::of(scene);
+  const plan::ExplainFormat fmt{o.brief, &names};
+
+  // The rays
+  std::vector<Item> items;
+  if (!o.pixel.empty()) {
+    items = pixel_items(o, scene, ex);
+  } else {
+    std::vector<Ray> rays;
+    for (const std::string& r : o.rays) rays.push_back(plan::parse_ray(r));
+    if (!o.ray_file.empty())
+      for (const Ray& r : plan::read_ray_file(o.ray_file)) rays.push_back(r);
+    const Traversal t = ex.options().traversal;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      Item it;
+      it.ray = rays[i];
+      it.traversal = t;
+      it.label = "ray " + std::to_string(i) + ": " + ray_words(rays[i]);
+      it.header = {it.label,
+                   std::string("explained by the ") + traversal_name(t) + " traversal (" +
+                       (t == Traversal::exact ? "the frame's gather traversal"
+                                              : "the frame's bounce traversal; --traversal exact for its gather's") +
+                       ") on " + ex.grid(t)};
+      items.push_back(it);
+    }
+  }
+
+  // Each ray through the reference, and the shader
+  nlohmann::json json_rays = nlohmann::json::array();
+  std::vector<std::string> written;  // said on stderr after stdout's text, which they would split
+  nlohmann::json views = nlohmann::json::array();
+  for (size_t i = 0; i < items.size(); ++i) {
+    const Item& it = items[i];
+    reference::ReferenceGridTracer& ref = ex.reference(it.traversal);
+    const reference::ExplainRecord want = ref.explain_ray(it.ray);
+    std::optional<reference::ExplainRecord> got;
+    std::string device;
+#ifdef GRIDRT_HAVE_VULKAN
+    if (vulkan) {
+      got = ex.gpu(it.traversal).explain_ray(it.ray);
+      device = ex.device();
+    }
+#endif
+    const std::string got_label = "shader";
+    if (o.json) {
+      nlohmann::json j{{"label", it.label},
+                       {"header", it.header},
+                       {"traversal", traversal_name(it.traversal)},
+                       {"reference", plan::explain_json(want, fmt)}};
+      if (got) {
+        j["device"] = device;
+        j["shader"] = plan::explain_json(*got, fmt);
+        j["alignment"] = plan::alignment_json(want, *got, plan::align_events(want.events, got->events));
+      }
+      if (it.frame_hit)
+        j["frame_hit"] = {{"instance", it.frame_hit->instance}, {"triangle", it.frame_hit->triangle},
+                          {"t", reference::hex(it.frame_hit->t)},
+                          {"same_as_reference", std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0}};
+      json_rays.push_back(std::move(j));
+    } else {
+      if (items.size() > 1) std::printf("%s== ray %zu of %zu ==\n", i ? "\n" : "", i + 1, items.size());
+      for (const std::string& h : it.header) std::printf("%s\n", h.c_str());
+      std::printf("\n== CPU reference ==\n%s", plan::explain_text(want, fmt).c_str());
+      if (got) {
+        std::printf("\n== Vulkan (%s) ==\n%s", device.c_str(),
+                    plan::divergence_text(want, *got, fmt, "reference", got_label).c_str());
+      }
+      if (it.frame_hit) {
+        const bool same = std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0;
+        std::printf("the GPU frame's own hit of this ray %s the reference's%s\n", same ? "equals" : "DIFFERS from",
+                    same ? " bit for bit" : "");
+      }
+    }
+    if (!o.obj.empty()) {
+      const std::string path = numbered(o.obj, i, items.size());
+      const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
+      write_file(mtl.string(), reference::explain_mtl());
+      write_file(path, reference::explain_obj(want, ref.data(), mtl.filename().string()));
+      written.push_back(path + " (and " + mtl.string() + ")");
+    }
+    if (!o.svg.empty()) {
+      const std::string path = numbered(o.svg, i, items.size());
+      write_file(path, reference::explain_svg(want, ref.data(), fmt));
+      written.push_back(path);
+    }
+    if (!o.html.empty())
+      views.push_back(reference::explain_view(it.label, it.header, want, got ? &*got : nullptr, ref.data(), fmt));
+  }
+  if (o.json)
+    std::printf("%s\n", nlohmann::json{{"scene", scene.name}, {"rays", json_rays}}
+                            .dump(1, ' ', false, nlohmann::json::error_handler_t::replace)
+                            .c_str());
+  if (!o.html.empty()) {
+    write_file(o.html, reference::explain_html("gridrt explain: " + scene.name, views));
+    written.push_back(o.html);
+  }
+  std::fflush(stdout);
+  for (const std::string& w : written) std::fprintf(stderr, "wrote %s\n", w.c_str());
+#ifdef GRIDRT_HAVE_VULKAN
+  const std::vector<std::string> messages = ex.validation_messages();
+  for (const std::string& m : messages) std::fprintf(stderr, "validation %s\n", m.c_str());
+  if (!messages.empty())
+    throw Error("the Vulkan validation layer reported " + std::to_string(messages.size()) + " message(s)");
+#endif
+}
+
+}  // namespace
+
+void add_explain_command(CLI::App& app) {
+  auto o = std::make_shared<ExplainOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "explain",
+      "Every step of one ray through the grid (a pixel's primary, bounce or shadow ray, or any ray), the shader's "
+      "own record beside it with --backend vulkan; as text, --brief, --json, OBJ, SVG or an HTML viewer");
+  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  cmd->add_option("--width", o->width, "Image width of the frame whose pixel is explained")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--height", o->height, "Image height of the frame")->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--time,-t", o->time, "Scene time in seconds");
+  cmd->add_option("--frame", o->frame, "The frame number that seeds the glossy bounce's per-pixel random numbers");
+  auto* pixel = cmd->add_option("--pixel,-p", o->pixel, "The pixel X,Y whose ray is explained")->delimiter(',')->expected(2);
+  cmd->add_option("--kind", o->kind,
+                  "Which of the pixel's rays: primary, bounce (its glossy bounce), shadow (toward each light from "
+                  "its primary hit), auto (the bounce where the pixel has one, else the primary)")
+      ->check(CLI::IsMember({"auto", "primary", "bounce", "shadow"}));
+  cmd->add_flag("--primary", o->primary, "The same as --kind primary");
+  cmd->add_option("--light", o->light, "--kind shadow: only the shadow ray toward this light (its index)");
+  auto* ray = cmd->add_option("--ray", o->rays,
+                              "A ray ox,oy,oz,dx,dy,dz[,tmin,tmax[,launch_ref]]: floats in decimal or C99 hex "
+                              "(0x1.8p+1), launch_ref a number, 0x hex, INSTANCE:TRIANGLE or none; repeatable")
+                  ->expected(1)
+                  ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  auto* file = cmd->add_option("--ray-file", o->ray_file, "A file of rays, one a line in --ray's syntax, # comments");
+  pixel->excludes(ray)->excludes(file);
+  cmd->add_flag("--gpu-frame", o->gpu_frame,
+                "--pixel: take the ray from the GPU frame's own passes (its gather, its bounce pass) and compare "
+                "the frame's own hit (--backend vulkan)");
+  cmd->add_option("--backend,-b", o->backend, "cpu, or vulkan to show the shader's own record beside the reference's")
+      ->check(CLI::IsMember({"cpu", "vulkan"}));
+  cmd->add_flag("--brief", o->brief, "One line an event, no hex, runs of empty cells folded");
+  cmd->add_flag("--json", o->json, "The event records as JSON (with names), on stdout");
+  cmd->add_option("--export", o->obj,
+                  "Write the ray, its visited cells (boxes), the tested triangles and the hit as a Wavefront OBJ "
+                  "(with a .mtl beside it)");
+  cmd->add_option("--svg", o->svg, "Write a 2D projection of the ray, its cells and triangles as SVG");
+  cmd->add_option("--html", o->html,
+                  "Write the step-by-step viewer: one self-contained HTML page (the picture, a slider over the events, "
+                  "the reference's and the shader's records side by side, the triangle tests)");
+  add_backend_options(cmd, o->backend_options);
+  cmd->callback([o, cmd] {
+    if (o->pixel.empty() && o->rays.empty() && o->ray_file.empty())
+      throw CLI::ValidationError("explain", "give --pixel X,Y, --ray or --ray-file");
+    if (o->pixel.empty() && (o->kind != "auto" || o->primary || o->gpu_frame || o->light))
+      throw CLI::ValidationError("explain", "--kind, --primary, --light and --gpu-frame go with --pixel");
+    if (o->gpu_frame && o->backend != "vulkan")
+      throw CLI::ValidationError("explain", "--gpu-frame needs --backend vulkan (the GPU frame runs on the device)");
+    o->traversal_given = cmd->count("--traversal") > 0;
+    run_explain(*o);
+  });
+}
+
+}  // namespace gridrt::app

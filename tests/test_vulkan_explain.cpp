@@ -1,0 +1,37 @@
+// gridrt explain --backend vulkan end to end: the shader's own record beside the reference's,
+// aligned, as text and JSON, with the validation layer on (any message fails the run).
+#include <catch2/catch.hpp>
+
+#include <cstdlib>
+
+#include <nlohmann/json.hpp>
+
+#include "tests/run_tool.h"
+#include "vulkan/context.h"
+
+using gridrt::test::run_tool;
+
+TEST_CASE("Explain: --backend vulkan sets the shader's record beside the reference's", "[vulkan][cli][explain]") {
+  // The tool's runs with the validation layer: any message fails them
+  setenv("GRIDRT_VALIDATION", "1", 1);
+  struct Unset {
+    ~Unset() { unsetenv("GRIDRT_VALIDATION"); }
+  } unset;
+  // A pixel's primary ray: the exact traversal, as the frame's gather
+  const gridrt::test::Run t = run_tool("explain builtin:cornell --width 32 --height 24 --pixel 16,12 --backend vulkan");
+  INFO(t.output);
+  REQUIRE(t.exit_code == 0);
+  CHECK_THAT(t.output, Catch::Contains("== Vulkan (") && Catch::Contains("traversal exact"));
+  CHECK_THAT(t.output, Catch::Contains("identical: all ") && Catch::Contains("agree bit for bit"));
+  // Any ray, as JSON: the two records and their alignment, every row paired and equal
+  const gridrt::test::Run j =
+      run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0x1p-1,-1,0.25 --backend vulkan --json");
+  INFO(j.output);
+  REQUIRE(j.exit_code == 0);
+  const nlohmann::json doc = nlohmann::json::parse(j.output.substr(j.output.find("{\n")));
+  const nlohmann::json& ray = doc["rays"][0];
+  REQUIRE(ray["shader"]["events"].size() == ray["reference"]["events"].size());
+  CHECK(ray["alignment"]["identical"] == true);
+  CHECK(ray["alignment"]["rows"].size() == ray["reference"]["events"].size());
+  for (const auto& row : ray["alignment"]["rows"]) CHECK(row[2] == true);
+}
