@@ -292,7 +292,7 @@ def map_cases():
     rows = ["1" * 255] + ["1" + "".join("1" if (x * 7 + z * 3) % 5 == 0 else "." for x in range(253)) + "1"
                           for z in range(253)] + ["1" * 255]
     rows[1] = "1E" + rows[1][2:]
-    out("map", "bad_255x255x253.map", "size 255 255 253\nmap\n" + "\n".join(rows) + "\n")
+    out("map", "ok_255x255x253.map", "size 255 255 253\nmap\n" + "\n".join(rows) + "\n")
     out("map", "bad_size_overflow.map", "size 99999999999999999999 1 1\nmap\n1\n")
     out("map", "bad_nan_colour.map", "size 3 3 1\nmaterial X red nan 0 0\nmap\n111\n1E1\n111\n")
     out("map", "bad_ior_inf.map", "size 3 3 1\nmaterial X glass 1 1 1 glass inf\nmap\n111\n1E1\n111\n")

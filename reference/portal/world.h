@@ -15,9 +15,11 @@ namespace gridrt::portal {
 
 inline constexpr uint16_t kEmpty = 0xFFFF;      // a voxel of empty space
 inline constexpr uint32_t kMaxWorldAxis = 255;  // div sizes and origins are 8-bit (seed's format)
-// The largest tile map, in voxels with floor and ceiling: the portal build's time and memory
-// grow with the volume (128 x 128 x 62 fits; the div format's 255 x 255 x 253 would take minutes).
-inline constexpr uint64_t kMaxTileMapVoxels = uint64_t(1) << 20;
+// The largest tile map, in voxels with floor and ceiling: the whole range of the div format
+// (255 x 255 x 253 and its floor and ceiling). The bounded div choice builds the largest such world
+// in about half a minute on two cores with 1.76 GB (docs/PORTAL.md), and fails in seconds, naming
+// the limit, where the divs or the atlas would not fit.
+inline constexpr uint64_t kMaxTileMapVoxels = uint64_t(kMaxWorldAxis) * kMaxWorldAxis * kMaxWorldAxis;
 
 struct WallMaterial {
   std::string name;
