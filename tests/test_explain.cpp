@@ -110,8 +110,9 @@ TEST_CASE("Explain: full text numbers every event, brief folds empty cells, JSON
   s.meshes.push_back(m);
   s.instances.push_back(Instance{.name = "", .mesh = 0});
   s.finalize();
+  // (the plain DDA: empty-space skipping would pass the empty cells as one box, kEvSkip)
   reference::ReferenceGridTracer grid(reference::GridOptions{
-      {.traversal = reference::Traversal::exact}, {.resolution = glm::uvec3(8, 8, 16)}, {.threads = 1}});
+      {.traversal = reference::Traversal::exact, .skip_empty = false}, {.resolution = glm::uvec3(8, 8, 16)}, {.threads = 1}});
   grid.build(s, 0.0f);
   Ray r{};
   r.org = glm::vec3(1.3f, 1.7f, 7.9f);
