@@ -206,7 +206,12 @@ Bounds grid_box(const Scene& scene, float time) {
   if (b.empty()) throw Error("grid: the scene has no vertices");
   const glm::vec3 ext = b.extent();
   const float big = std::max({ext.x, ext.y, ext.z, 1e-3f});
-  const float pad = 1e-3f * big;
+  // At least the narrowest cell the domain allows at the box's reach (min_cell_size): a flat or
+  // tiny model far from the origin keeps a box of non-zero extent on every axis, where 1e-3 of its
+  // size would round away in its coordinates.
+  const float reach = std::max({std::abs(b.lo.x), std::abs(b.lo.y), std::abs(b.lo.z), std::abs(b.hi.x),
+                                std::abs(b.hi.y), std::abs(b.hi.z)});
+  const float pad = std::max(1e-3f * big, min_cell_size(reach));
   b.lo -= glm::vec3(pad);
   b.hi += glm::vec3(pad);
   return b;

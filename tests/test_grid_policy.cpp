@@ -187,3 +187,35 @@ TEST_CASE("trace-cost policy: a teapot in a stadium gets a cheaper grid than no-
   CHECK(cost.work < 0.8 * nosat.work);
   CHECK(cost.same >= nosat.same);
 }
+
+// A flat model far from the origin: the grid box is padded by at least the narrowest cell the
+// domain allows there (1e-3 of the model's size would round away at z = 75,000), so the grid
+// builds and a ray down onto the triangle finds it, on both traversals.
+TEST_CASE("grid: a flat triangle far from the origin gets a grid and is hit", "[grid][policy][hardcase]") {
+  Scene s;
+  s.name = "flat far";
+  Mesh m;
+  m.name = "tri";
+  m.positions = {{0, 0, 75000}, {1, 0, 75000}, {0, 1, 75000}};
+  m.triangles = {{0, 1, 2}};
+  m.materials = {0};
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "", .mesh = 0});
+  s.finalize();
+  for (Traversal t : {Traversal::exact, Traversal::paper}) {
+    INFO((t == Traversal::exact ? "exact" : "paper"));
+    ReferenceGridTracer grid(GridOptions{{.traversal = t}, {}, {.threads = 1}});
+    REQUIRE_NOTHROW(grid.build(s, 0.0f));
+    CHECK(grid.params().cell_size > 0.0f);
+    Ray r{};
+    r.org = glm::vec3(0.25f, 0.25f, 75010.0f);
+    r.dir = glm::vec3(0.0f, 0.0f, -1.0f);
+    r.tmin = 0.0f;
+    r.tmax = std::numeric_limits<float>::infinity();
+    r.launch_ref = sh::kNoRef;
+    Hit h{};
+    grid.trace(std::span<const Ray>(&r, 1), std::span<Hit>(&h, 1));
+    CHECK_FALSE(is_miss(h));
+    CHECK(h.t == 10.0f);
+  }
+}
