@@ -64,6 +64,12 @@ namespace {
 std::string non_finite_argument(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
+    // explain --ray takes inf and nan on purpose: it shows how the tracer rejects such a ray
+    if (a == "--ray") {
+      ++i;
+      continue;
+    }
+    if (a.rfind("--ray=", 0) == 0) continue;
     if (const size_t eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) a = a.substr(eq + 1);
     size_t start = 0;
     while (start <= a.size()) {
