@@ -103,6 +103,7 @@ void run_portal_render(const PortalRenderOptions& o) {
 // state machine and as three loops (docs/PORTAL.md, "Measurements").
 void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, uint32_t height, uint32_t repeats,
                       bool vulkan_only, const std::string& div_choice, uint32_t atlas_width) {
+  check_frame_size(width, height);
   portal::World world = load_world(spec, voxels);
   const Camera camera = world.camera;
   portal::PortalOptions options;
@@ -242,6 +243,7 @@ struct PortalDiffOptions {
 
 // Both tracers on the same build: every camera ray's record, then the state-machine render.
 void run_portal_diff(const PortalDiffOptions& o) {
+  check_frame_size(o.width, o.height);
   portal::World world = load_world(o.spec, o.voxels);
   const Camera camera = world.camera;
   portal::PortalOptions options;
@@ -334,6 +336,7 @@ void add_portal_command(CLI::App& app) {
                     "Tracer: " + portal_backends() + " (portal-vulkan: the shader's own record beside the reference's)");
     cmd->callback([=] {
       check_portal_backend(*backend);
+      check_frame_size(*width, *height);
       const uint32_t w = *width, h = *height, x = (*pixel)[0], y = (*pixel)[1];
       if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
       portal::World world = load_world(*spec, *voxels);

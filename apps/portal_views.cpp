@@ -17,6 +17,7 @@ namespace gridrt::app {
 portal::World load_world(const std::string& spec, uint32_t voxels);  // cmd_portal.cpp
 
 void run_portal_view(const PortalRenderOptions& o) {
+  check_frame_size(o.width, o.height);
   if (o.view != "divs" && o.view != "dda") throw Error("unknown portal view '" + o.view + "'");
   if (o.backend != "portal-cpu")
     throw Error("portal --view shows the CPU reference's records: use --backend portal-cpu");

@@ -264,7 +264,7 @@ TEST_CASE("CLI: render --view diff finds the shader's bounce hits bit-identical"
 
 // Non-finite numbers are refused everywhere on the command line (exit 2), except in explain's
 // --ray, which exists to show how the tracer rejects such a ray.
-TEST_CASE("CLI: explain --ray takes nan and inf and shows the rejection; --time nan is refused", "[cli][explain]") {
+TEST_CASE("CLI: explain --ray takes nan and inf and shows the rejection, --time nan is refused", "[cli][explain]") {
   const Run r = run_tool("explain builtin:cornell --ray=nan,0,0,0,0,1 --brief");
   INFO(r.output);
   CHECK(r.exit_code == 0);
