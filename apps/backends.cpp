@@ -255,4 +255,17 @@ void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
       ->check(CLI::IsMember({"on", "off", "auto"}));
 }
 
+GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
+                              float time, std::optional<size_t> only_pixel) {
+  reference::ReferenceGridTracer tracer(plan::gather_options(grid));
+  tracer.build(scene, time);
+  if (only_pixel) {
+    OneRayTracer one(tracer, *only_pixel);
+    return make_gather(scene, one, scene.frame_camera(), w, h, time);
+  }
+  Progress progress("gather buffer", size_t(w) * h);
+  ProgressTracer traced(tracer, progress);
+  return make_gather(scene, traced, scene.frame_camera(), w, h, time);
+}
+
 }  // namespace gridrt::app

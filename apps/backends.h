@@ -99,4 +99,10 @@ class OneRayTracer : public Tracer {
   size_t index_;
 };
 
+// The CPU reference's gather buffer of a frame (plan::gather_options: the exact traversal with the
+// GPU gather's triangle test, so the CPU and GPU gathers agree in bits); with `only_pixel`, only that
+// pixel's primary ray is traced (explain).
+GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
+                              float time, std::optional<size_t> only_pixel = std::nullopt);
+
 }  // namespace gridrt::app

@@ -77,15 +77,6 @@ std::string cell_text(const glm::uvec3& c) {
   return "(" + std::to_string(c.x) + ", " + std::to_string(c.y) + ", " + std::to_string(c.z) + ")";
 }
 
-GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
-                              float time) {
-  reference::ReferenceGridTracer tracer(plan::gather_options(grid));
-  tracer.build(scene, time);
-  Progress progress("gather buffer", size_t(w) * h);
-  ProgressTracer traced(tracer, progress);
-  return make_gather(scene, traced, scene.frame_camera(), w, h, time);
-}
-
 std::string shell_quote(const std::string& s) {
   if (!s.empty() && s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.,/:+=") ==
                         std::string::npos)

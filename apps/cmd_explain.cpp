@@ -176,10 +176,9 @@ class Explainer {
   }
 #endif
 
-  // The reference's gather buffer, its one pixel traced (by the exact traversal: the frame's)
+  // The reference's gather buffer, its one pixel traced as the frame's CPU gather traces it
   GatherBuffer reference_gather_pixel(uint32_t x, uint32_t y) {
-    OneRayTracer one(reference(Traversal::exact), size_t(y) * o_.width + x);
-    return make_gather(scene_, one, scene_.frame_camera(), o_.width, o_.height, o_.time);
+    return reference_gather(scene_, grid_, o_.width, o_.height, o_.time, size_t(y) * o_.width + x);
   }
 
  private:

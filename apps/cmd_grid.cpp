@@ -47,22 +47,6 @@ void add_common(CLI::App* cmd, GridVerbOptions& o) {
   add_backend_options(cmd, o.backend_options);
 }
 
-// The gather buffer every grid verb traces its bounce from: primary rays through the exact
-// traversal of the reference grid (the paper rasterizes it; the exact DDA finds the same first
-// surface as rasterization up to ties).
-GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
-                              float time, std::optional<size_t> only_pixel = std::nullopt) {
-  reference::ReferenceGridTracer tracer(plan::gather_options(grid));
-  tracer.build(scene, time);
-  if (only_pixel) {
-    OneRayTracer one(tracer, *only_pixel);
-    return make_gather(scene, one, scene.frame_camera(), w, h, time);
-  }
-  Progress progress("gather buffer", size_t(w) * h);
-  ProgressTracer traced(tracer, progress);
-  return make_gather(scene, traced, scene.frame_camera(), w, h, time);
-}
-
 // ---- stats ------------------------------------------------------------------------------------
 
 struct StatsOptions : GridVerbOptions {
