@@ -209,11 +209,18 @@ void Scene::finalize() {
     if (std::max({e.x, e.y, e.z}) <= 0.0f)
       throw Error("scene '" + name + "': every vertex lies at one point (the geometry has no extent)");
   }
-  if (camera) {
-    if (!finite(camera->eye) || !finite(camera->target) || !finite(camera->up) ||
-        !(camera->vfov_degrees > 0.0f && camera->vfov_degrees < 180.0f))
-      throw Error("scene '" + name + "': camera has non-finite values or a field of view outside (0, 180)");
-    if (camera->eye == camera->target) throw Error("scene '" + name + "': camera eye equals its target");
+  {
+    // The scene's camera, or the one frame_camera() makes for a scene without one: either way
+    // the camera that renders it must be usable.
+    const Camera c = frame_camera();
+    const char* whose = camera ? "camera" : "the camera framed around the geometry";
+    if (!finite(c.eye) || !finite(c.target) || !finite(c.up) ||
+        !(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
+      throw Error("scene '" + name + "': " + whose + " has non-finite values or a field of view outside (0, 180)");
+    if (c.eye == c.target) throw Error("scene '" + name + "': " + whose + ": eye equals its target");
+    const glm::vec3 forward = glm::normalize(c.target - c.eye);  // as the camera frame takes it
+    if (!(glm::length(glm::cross(forward, c.up)) > 1e-6f * glm::length(c.up)))
+      throw Error("scene '" + name + "': " + whose + ": up is zero or parallel to the view direction");
   }
   for (size_t i = 0; i < lights.size(); ++i) {
     const Light& l = lights[i];
@@ -281,7 +288,14 @@ Camera Scene::frame_camera() const {
   const glm::vec3 center = 0.5f * (b.lo + b.hi);
   const float radius = 0.5f * glm::length(b.extent());
   c.target = center;
-  c.eye = center + glm::vec3(0.0f, 0.25f, 1.0f) * (radius / std::tan(glm::radians(c.vfov_degrees) * 0.5f));
+  // Far enough to see the whole bounding sphere; and, for geometry tiny next to its distance from
+  // the origin, at least a few thousand ulps of the centre away, so that the eye differs from the
+  // target; and at least 2^-50, so that the view vector's squared length (normalize) does not
+  // underflow for a model at a subnormal scale.
+  const float reach = std::max({std::abs(center.x), std::abs(center.y), std::abs(center.z)});
+  const float fit = radius / std::tan(glm::radians(c.vfov_degrees) * 0.5f);
+  const float dist = std::max({fit, reach * 0x1p-10f, 0x1p-50f});
+  c.eye = center + glm::vec3(0.0f, 0.25f, 1.0f) * dist;
   return c;
 }
 
