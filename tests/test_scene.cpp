@@ -1,6 +1,10 @@
 #include <catch2/catch.hpp>
 
+#include "common/camera.h"
 #include "common/scene.h"
+
+#include <algorithm>
+#include <cmath>
 
 using namespace gridrt;
 
@@ -71,4 +75,41 @@ TEST_CASE("Non-finite coordinates and empty scenes are rejected", "[unit][scene]
   inf.instances.push_back(Instance{.mesh = 0});
   inf.instances[0].transform[3][0] = std::numeric_limits<float>::infinity();
   REQUIRE_THROWS_WITH(inf.finalize(), Catch::Contains("non-finite"));
+}
+
+TEST_CASE("The camera framed for a scene without one is usable at any scale and distance from the origin", "[unit][scene][badinput]") {
+  // A single triangle at subnormal size, tiny beside its distance from the origin, and huge: the
+  // framed camera must give a finite eye distinct from the target and a resolvable view vector.
+  for (const float scale : {1e-40f, 1e-30f, 1.0f, 1e18f})
+    for (const float offset : {0.0f, 1e6f, -3e7f}) {
+      INFO("scale " << scale << ", offset " << offset);
+      Scene s;
+      s.name = "speck";
+      Mesh m;
+      m.positions = {{offset, offset, offset}, {offset + scale, offset, offset}, {offset, offset + scale, offset}};
+      m.triangles = {{0, 1, 2}};
+      m.materials = {0};
+      s.meshes.push_back(m);
+      s.instances.push_back(Instance{.name = "a", .mesh = 0});
+      const glm::vec3 e = s.bounds(0.0f).extent();
+      if (std::max({e.x, e.y, e.z}) <= 0.0f) {
+        CHECK_THROWS_WITH(s.finalize(), Catch::Contains("no extent"));  // the offset swallowed the size
+        continue;
+      }
+      REQUIRE_NOTHROW(s.finalize());
+      const Camera c = s.frame_camera();
+      CHECK(c.eye != c.target);
+      const CameraFrame f = camera_frame(c);
+      CHECK(std::isfinite(glm::length(f.forward)));
+      CHECK(std::abs(glm::length(f.forward) - 1.0f) < 1e-5f);
+    }
+}
+
+TEST_CASE("A scene's camera whose up is parallel to its view is refused when the scene loads", "[unit][scene][badinput]") {
+  Scene s;
+  s.name = "up";
+  s.meshes.push_back(strip(2));
+  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  s.camera = Camera{.eye = {0, 5, 0}, .target = {0, 0, 0}, .up = {0, 1, 0}};
+  CHECK_THROWS_WITH(s.finalize(), Catch::Contains("parallel"));
 }
