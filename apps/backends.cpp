@@ -3,12 +3,12 @@
 #include <cstdio>
 #include <map>
 
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 #ifdef GRIDRT_HAVE_EMBREE
-#  include "common/embree/embree_tracer.h"
+#  include "gridrt/common/embree/embree_tracer.h"
 #endif
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/grid.h"
+#  include "gridrt/vulkan/grid.h"
 #endif
 
 namespace gridrt::app {

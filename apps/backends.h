@@ -11,10 +11,10 @@
 
 #include <CLI/CLI.hpp>
 
-#include "common/gather.h"
-#include "common/progress.h"
-#include "common/tracer.h"
-#include "reference/grid.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/progress.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/reference/grid.h"
 
 namespace gridrt::app {
 

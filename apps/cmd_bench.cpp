@@ -24,15 +24,15 @@
 #include <nlohmann/json.hpp>
 
 #include "apps/backends.h"
-#include "common/util.h"
+#include "gridrt/common/util.h"
 #include "apps/commands.h"
-#include "common/gather.h"
-#include "common/safe_io.h"
-#include "reference/grid.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/safe_io.h"
+#include "gridrt/reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/frame.h"
-#  include "vulkan/grid.h"
-#  include "vulkan/rtx.h"
+#  include "gridrt/vulkan/frame.h"
+#  include "gridrt/vulkan/grid.h"
+#  include "gridrt/vulkan/rtx.h"
 #endif
 
 namespace gridrt::app {

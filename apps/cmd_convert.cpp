@@ -3,7 +3,7 @@
 #include <cstdio>
 
 #include "apps/commands.h"
-#include "common/scene_io.h"
+#include "gridrt/common/scene_io.h"
 
 namespace gridrt::app {
 

@@ -20,14 +20,14 @@
 
 #include "apps/backends.h"
 #include "apps/commands.h"
-#include "common/camera.h"
-#include "common/gather.h"
-#include "reference/compare.h"
-#include "reference/grid.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/reference/compare.h"
+#include "gridrt/reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/context.h"
-#  include "vulkan/frame.h"
-#  include "vulkan/grid.h"
+#  include "gridrt/vulkan/context.h"
+#  include "gridrt/vulkan/frame.h"
+#  include "gridrt/vulkan/grid.h"
 #endif
 
 namespace gridrt::app {

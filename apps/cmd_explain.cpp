@@ -18,16 +18,16 @@
 
 #include "apps/backends.h"
 #include "apps/commands.h"
-#include "common/camera.h"
-#include "common/gather.h"
-#include "common/shade.h"
-#include "common/shared/shadow.h"
-#include "reference/explain_export.h"
-#include "plan/explain_format.h"
-#include "reference/grid.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/shade.h"
+#include "gridrt/common/shared/shadow.h"
+#include "gridrt/reference/explain_export.h"
+#include "gridrt/plan/explain_format.h"
+#include "gridrt/reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/frame.h"
-#  include "vulkan/grid.h"
+#  include "gridrt/vulkan/frame.h"
+#  include "gridrt/vulkan/grid.h"
 #endif
 
 namespace gridrt::app {

@@ -10,20 +10,20 @@
 #include <sstream>
 
 #include "apps/backends.h"
-#include "common/util.h"
+#include "gridrt/common/util.h"
 #include "apps/commands.h"
 #include "apps/slices.h"
-#include "common/camera.h"
-#include "common/gather.h"
-#include "reference/compare.h"
-#include "reference/grid.h"
-#include "plan/policy.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/reference/compare.h"
+#include "gridrt/reference/grid.h"
+#include "gridrt/plan/policy.h"
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/frame.h"
-#  include "vulkan/grid.h"
+#  include "gridrt/vulkan/frame.h"
+#  include "gridrt/vulkan/grid.h"
 #endif
 #ifdef GRIDRT_HAVE_EMBREE
-#  include "common/embree/embree_tracer.h"
+#  include "gridrt/common/embree/embree_tracer.h"
 #endif
 
 namespace gridrt::app {

@@ -7,14 +7,14 @@
 #include <memory>
 
 #include "apps/commands.h"
-#include "common/camera.h"
-#include "common/image_io.h"
-#include "common/scene_io.h"
-#include "reference/portal/build.h"
-#include "reference/portal/trace.h"
-#include "reference/portal/world.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/scene_io.h"
+#include "gridrt/reference/portal/build.h"
+#include "gridrt/reference/portal/trace.h"
+#include "gridrt/reference/portal/world.h"
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/portal.h"
+#  include "gridrt/vulkan/portal.h"
 #endif
 
 namespace gridrt::app {

@@ -7,12 +7,12 @@
 
 #include "apps/backends.h"
 #include "apps/commands.h"
-#include "common/gather.h"
-#include "common/image_io.h"
-#include "common/progress.h"
-#include "common/shade.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/progress.h"
+#include "gridrt/common/shade.h"
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/frame.h"
+#  include "gridrt/vulkan/frame.h"
 #endif
 
 namespace gridrt::app {

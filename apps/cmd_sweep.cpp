@@ -15,21 +15,21 @@
 #include <thread>
 
 #include "apps/backends.h"
-#include "common/util.h"
+#include "gridrt/common/util.h"
 #include "apps/commands.h"
-#include "common/safe_io.h"
-#include "common/gather.h"
-#include "common/image_io.h"
-#include "common/plot.h"
-#include "reference/compare.h"
-#include "reference/grid.h"
-#include "plan/policy.h"
+#include "gridrt/common/safe_io.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/plot.h"
+#include "gridrt/reference/compare.h"
+#include "gridrt/reference/grid.h"
+#include "gridrt/plan/policy.h"
 #ifdef GRIDRT_HAVE_EMBREE
 #include "verify/rays.h"
-#  include "common/embree/embree_tracer.h"
+#  include "gridrt/common/embree/embree_tracer.h"
 #endif
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/grid.h"
+#  include "gridrt/vulkan/grid.h"
 #endif
 
 namespace gridrt::app {

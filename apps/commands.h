@@ -8,7 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "apps/backends.h"
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 
 namespace gridrt::app {
 

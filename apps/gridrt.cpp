@@ -14,10 +14,10 @@
 
 #include "apps/backends.h"
 #include "apps/commands.h"
-#include "common/builtin/builtin.h"
-#include "common/scene.h"
-#include "common/safe_io.h"
-#include "common/scene_io.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/safe_io.h"
+#include "gridrt/common/scene_io.h"
 
 using namespace gridrt;
 

@@ -7,10 +7,10 @@
 #include <cstdio>
 
 #include "apps/commands.h"
-#include "common/camera.h"
-#include "common/plot.h"
-#include "reference/portal/build.h"
-#include "reference/portal/trace.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/plot.h"
+#include "gridrt/reference/portal/build.h"
+#include "gridrt/reference/portal/trace.h"
 
 namespace gridrt::app {
 

@@ -10,7 +10,7 @@
 
 #include "apps/commands.h"
 #include "apps/slices.h"
-#include "common/plot.h"
+#include "gridrt/common/plot.h"
 
 namespace gridrt::app {
 

@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "reference/grid.h"
+#include "gridrt/reference/grid.h"
 
 namespace gridrt::app {
 

@@ -16,13 +16,13 @@
 
 #include "apps/backends.h"
 #include "apps/commands.h"
-#include "common/camera.h"
-#include "common/gather.h"
-#include "common/parallel.h"
-#include "common/plot.h"
-#include "reference/grid.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/parallel.h"
+#include "gridrt/common/plot.h"
+#include "gridrt/reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
-#  include "vulkan/grid.h"
+#  include "gridrt/vulkan/grid.h"
 #endif
 
 namespace gridrt::app {

@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
-#include "common/camera.h"
-#include "common/gather.h"
-#include "common/scene_io.h"
-#include "reference/grid.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/scene_io.h"
+#include "gridrt/reference/grid.h"
 #ifdef GRIDRT_BENCH_EMBREE
-#include "common/embree/embree_tracer.h"
+#include "gridrt/common/embree/embree_tracer.h"
 #endif
 
 using namespace gridrt;

@@ -1,4 +1,4 @@
-#include "common/camera.h"
+#include "gridrt/common/camera.h"
 
 #include <cmath>
 #include <limits>

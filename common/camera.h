@@ -3,9 +3,9 @@
 
 #include <cstdint>
 
-#include "common/scene.h"
-#include "common/shared/bounce.h"
-#include "common/tracer.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/shared/bounce.h"
+#include "gridrt/common/tracer.h"
 
 namespace gridrt {
 

@@ -1,6 +1,6 @@
 // features.cpp: which effects a scene calls for (only those are simulated; docs/SPEC.md, "Gap-fill
 // only if a cell is saturated").
-#include "common/tracer.h"
+#include "gridrt/common/tracer.h"
 
 namespace gridrt {
 

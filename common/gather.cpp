@@ -1,16 +1,16 @@
-#include "common/gather.h"
+#include "gridrt/common/gather.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
 
-#include "common/camera.h"
-#include "common/shared/alpha.h"
-#include "common/shared/bounce.h"
-#include "common/shared/grid.h"
-#include "common/shared/shadow.h"
-#include "common/shared/transform.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/bounce.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/shadow.h"
+#include "gridrt/common/shared/transform.h"
 
 namespace gridrt {
 

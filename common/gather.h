@@ -6,8 +6,8 @@
 #include <span>
 #include <vector>
 
-#include "common/scene.h"
-#include "common/tracer.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/tracer.h"
 
 namespace gridrt {
 

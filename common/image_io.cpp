@@ -1,6 +1,6 @@
-#include "common/image_io.h"
+#include "gridrt/common/image_io.h"
 
-#include "common/safe_io.h"
+#include "gridrt/common/safe_io.h"
 
 #include <algorithm>
 #include <cmath>

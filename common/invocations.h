@@ -13,7 +13,7 @@
 #include <thread>
 #include <vector>
 
-#include "common/parallel.h"
+#include "gridrt/common/parallel.h"
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <xmmintrin.h>

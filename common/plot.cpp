@@ -1,4 +1,4 @@
-#include "common/plot.h"
+#include "gridrt/common/plot.h"
 
 #include <algorithm>
 #include <array>
@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "common/image_io.h"
-#include "common/scene.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/scene.h"
 #ifdef GRIDRT_WITH_OIIO
 #  include <OpenImageIO/imagebuf.h>
 #  include <OpenImageIO/imagebufalgo.h>

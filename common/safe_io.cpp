@@ -1,4 +1,4 @@
-#include "common/safe_io.h"
+#include "gridrt/common/safe_io.h"
 
 #include <cerrno>
 #include <cstring>

@@ -16,7 +16,7 @@
 #include <string>
 #include <string_view>
 
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 
 namespace gridrt {
 

@@ -1,4 +1,4 @@
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "common/safe_io.h"
+#include "gridrt/common/safe_io.h"
 
 namespace gridrt {
 

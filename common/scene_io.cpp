@@ -1,4 +1,4 @@
-#include "common/scene_io.h"
+#include "gridrt/common/scene_io.h"
 
 #include <algorithm>
 #include <bit>
@@ -16,9 +16,9 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 
-#include "common/builtin/builtin.h"
-#include "common/loaders/loaders.h"
-#include "common/safe_io.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/loaders/loaders.h"
+#include "gridrt/common/safe_io.h"
 
 #ifndef GRIDRT_DEFAULT_SCENES
 #define GRIDRT_DEFAULT_SCENES "../shared/data/scenes"

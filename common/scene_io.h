@@ -5,7 +5,7 @@
 #include <string>
 #include <string_view>
 
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 
 namespace gridrt {
 

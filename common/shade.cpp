@@ -1,16 +1,16 @@
-#include "common/shade.h"
+#include "gridrt/common/shade.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "common/shared/transform.h"
+#include "gridrt/common/shared/transform.h"
 // alpha.h calls min/max unqualified (GLSL built-ins); bring GLM's into gridrt::shared first.
 namespace gridrt::shared {
 using glm::floor;
 using glm::max;
 using glm::min;
 }  // namespace gridrt::shared
-#include "common/shared/alpha.h"
+#include "gridrt/common/shared/alpha.h"
 
 namespace gridrt {
 

@@ -5,7 +5,7 @@
 #include <span>
 #include <vector>
 
-#include "common/gather.h"
+#include "gridrt/common/gather.h"
 
 namespace gridrt {
 

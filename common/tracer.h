@@ -11,8 +11,8 @@
 
 #include <glm/glm.hpp>
 
-#include "common/scene.h"
-#include "common/shared/records.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/shared/records.h"
 
 namespace gridrt {
 

@@ -4,10 +4,10 @@
 #include <cmath>
 #include <thread>
 
-#include "common/invocations.h"
-#include "common/shared/transform.h"
-#include "plan/plan.h"
-#include "plan/policy.h"
+#include "gridrt/common/invocations.h"
+#include "gridrt/common/shared/transform.h"
+#include "gridrt/plan/plan.h"
+#include "gridrt/plan/policy.h"
 
 namespace gridrt::plan {
 

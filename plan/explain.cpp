@@ -1,8 +1,8 @@
 // explain.cpp: an ExplainRecord as text for someone learning the algorithm: every step of the
 // traversal, every slot read, every triangle test with the values it decided on (decimal and hex
 // bits) and why it was accepted or rejected. The full account of plan/explain_format.h.
-#include "plan/explain_format.h"
-#include "plan/records.h"
+#include "gridrt/plan/explain_format.h"
+#include "gridrt/plan/records.h"
 
 namespace gridrt::plan {
 

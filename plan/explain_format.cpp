@@ -1,6 +1,6 @@
 // explain_format.cpp: an ExplainRecord as text (full and brief), as JSON, and two records aligned
 // side by side (plan/explain_format.h).
-#include "plan/explain_format.h"
+#include "gridrt/plan/explain_format.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -12,7 +12,7 @@
 #include <limits>
 #include <sstream>
 
-#include "common/shared/triangle.h"
+#include "gridrt/common/shared/triangle.h"
 
 namespace gridrt::plan {
 

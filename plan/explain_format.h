@@ -12,11 +12,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common/scene.h"
-#include "common/shared/explain.h"
-#include "common/shared/grid.h"
-#include "common/tracer.h"
-#include "plan/records.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/shared/explain.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/plan/records.h"
 
 namespace gridrt::plan {
 

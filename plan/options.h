@@ -10,7 +10,7 @@
 
 #include <glm/glm.hpp>
 
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 
 namespace gridrt::plan {
 

@@ -6,10 +6,10 @@
 #include <cstdint>
 #include <vector>
 
-#include "common/scene.h"
-#include "common/shared/grid.h"
-#include "common/tracer.h"
-#include "plan/options.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/plan/options.h"
 
 namespace gridrt::plan {
 

@@ -1,15 +1,15 @@
 // policy.cpp: the ray sample and the work estimates of the trace-cost capacity policy (policy.h).
-#include "plan/policy.h"
+#include "gridrt/plan/policy.h"
 
 #include <algorithm>
 #include <array>
 
-#include "common/camera.h"
-#include "common/gather.h"
-#include "common/shared/alpha.h"
-#include "common/shared/transform.h"
-#include "common/shared/triangle.h"
-#include "common/invocations.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/transform.h"
+#include "gridrt/common/shared/triangle.h"
+#include "gridrt/common/invocations.h"
 
 namespace gridrt::plan {
 

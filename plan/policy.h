@@ -9,7 +9,7 @@
 #include <span>
 #include <vector>
 
-#include "plan/plan.h"
+#include "gridrt/plan/plan.h"
 
 namespace gridrt::plan {
 

@@ -2,7 +2,7 @@
 #include <cstdio>
 #include <cstring>
 
-#include "plan/records.h"
+#include "gridrt/plan/records.h"
 
 namespace gridrt::plan {
 

@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
-#include "common/shared/explain.h"
-#include "common/shared/grid.h"
-#include "common/tracer.h"
+#include "gridrt/common/shared/explain.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/tracer.h"
 
 namespace gridrt::plan {
 

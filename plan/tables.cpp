@@ -1,6 +1,6 @@
 // tables.cpp: the grid's tables (instances, per-triangle materials and uvs, materials and their
 // alpha masks), packed once for every backend.
-#include "plan/plan.h"
+#include "gridrt/plan/plan.h"
 
 namespace gridrt::plan {
 

@@ -1,4 +1,4 @@
-#include "reference/compare.h"
+#include "gridrt/reference/compare.h"
 
 #include <algorithm>
 #include <bit>
@@ -7,7 +7,7 @@
 #include <iterator>
 #include <sstream>
 
-#include "plan/policy.h"
+#include "gridrt/plan/policy.h"
 
 namespace gridrt::reference {
 

@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "common/tracer.h"
-#include "common/util.h"
-#include "reference/grid.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/common/util.h"
+#include "gridrt/reference/grid.h"
 
 namespace gridrt::reference {
 

@@ -1,6 +1,6 @@
 // explain_export.cpp: an explained ray as OBJ, SVG and a self-contained HTML viewer
 // (reference/explain_export.h).
-#include "reference/explain_export.h"
+#include "gridrt/reference/explain_export.h"
 
 #include <algorithm>
 #include <cmath>

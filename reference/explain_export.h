@@ -11,8 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "plan/explain_format.h"
-#include "reference/grid.h"
+#include "gridrt/plan/explain_format.h"
+#include "gridrt/reference/grid.h"
 
 namespace gridrt::reference {
 

@@ -13,15 +13,15 @@
 #include <string>
 #include <vector>
 
-#include "common/scene.h"
-#include "common/shared/explain.h"
-#include "common/shared/grid.h"
-#include "common/shared/triangle.h"
-#include "common/tracer.h"
-#include "plan/plan.h"
-#include "plan/policy.h"
-#include "plan/records.h"
-#include "reference/image3d.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/shared/explain.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/triangle.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/plan/plan.h"
+#include "gridrt/plan/policy.h"
+#include "gridrt/plan/records.h"
+#include "gridrt/reference/image3d.h"
 
 namespace gridrt::reference {
 

@@ -2,7 +2,7 @@
 // shader follows this file block by block, with the same names and heading comments.
 #include <limits>
 
-#include "reference/grid.h"
+#include "gridrt/reference/grid.h"
 
 namespace gridrt::reference {
 

@@ -4,9 +4,9 @@
 #include <cstring>
 #include <sstream>
 
-#include "reference/grid.h"
-#include "common/util.h"
-#include "common/invocations.h"
+#include "gridrt/reference/grid.h"
+#include "gridrt/common/util.h"
+#include "gridrt/common/invocations.h"
 
 namespace gridrt::reference {
 

@@ -11,9 +11,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "common/image_io.h"
-#include "common/safe_io.h"
-#include "common/scene_io.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/safe_io.h"
+#include "gridrt/common/scene_io.h"
 #include "tests/run_tool.h"
 
 using namespace gridrt;

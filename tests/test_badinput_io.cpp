@@ -7,8 +7,8 @@
 
 #include <unistd.h>
 
-#include "common/image_io.h"
-#include "common/scene_io.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/scene_io.h"
 
 using namespace gridrt;
 using Catch::Contains;

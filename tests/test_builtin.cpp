@@ -6,9 +6,9 @@
 #include <map>
 #include <set>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/tracer.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/tracer.h"
 
 using namespace gridrt;
 

@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/run_tool.h"
-#include "vulkan/context.h"
+#include "gridrt/vulkan/context.h"
 
 using namespace gridrt::test;
 namespace fs = std::filesystem;

@@ -11,11 +11,11 @@
 #include <set>
 #include <sstream>
 
-#include "common/camera.h"
-#include "common/scene_io.h"
-#include "reference/explain_export.h"
-#include "plan/explain_format.h"
-#include "reference/grid.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/scene_io.h"
+#include "gridrt/reference/explain_export.h"
+#include "gridrt/plan/explain_format.h"
+#include "gridrt/reference/grid.h"
 #include "tests/run_tool.h"
 
 using namespace gridrt;

@@ -4,11 +4,11 @@
 #include <cmath>
 #include <cstring>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/embree/embree_tracer.h"
-#include "common/gather.h"
-#include "common/shade.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/shade.h"
 
 using namespace gridrt;
 

@@ -6,7 +6,7 @@
 #include <map>
 #include <optional>
 
-#include "common/shared/transform.h"
+#include "gridrt/common/shared/transform.h"
 #include "test_grid_util.h"
 
 using namespace gridrt;

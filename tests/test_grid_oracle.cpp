@@ -7,11 +7,11 @@
 #include <iostream>
 #include <map>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/embree/embree_tracer.h"
-#include "common/gather.h"
-#include "common/scene_io.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/scene_io.h"
 #include "test_grid_util.h"
 
 using namespace gridrt;

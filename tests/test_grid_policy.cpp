@@ -5,11 +5,11 @@
 
 #include <cstring>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/embree/embree_tracer.h"
-#include "reference/compare.h"
-#include "plan/policy.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/reference/compare.h"
+#include "gridrt/plan/policy.h"
 #include "test_grid_util.h"
 
 using namespace gridrt;

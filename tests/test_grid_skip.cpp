@@ -11,7 +11,7 @@
 #include <deque>
 #include <random>
 
-#include "common/builtin/builtin.h"
+#include "gridrt/common/builtin/builtin.h"
 #include "tests/test_grid_util.h"
 
 using namespace gridrt;

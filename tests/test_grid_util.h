@@ -9,9 +9,9 @@
 #include <sstream>
 #include <string>
 
-#include "common/scene.h"
-#include "common/tracer.h"
-#include "reference/grid.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/reference/grid.h"
 
 namespace gridtest {
 

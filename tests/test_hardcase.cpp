@@ -10,11 +10,11 @@
 
 #include <catch2/catch.hpp>
 
-#include "reference/compare.h"
+#include "gridrt/reference/compare.h"
 #include "tests/test_grid_util.h"
 #ifdef GRIDRT_WITH_VULKAN
 #  include "tests/vulkan_test_util.h"
-#  include "vulkan/grid.h"
+#  include "gridrt/vulkan/grid.h"
 #endif
 
 using namespace gridrt;

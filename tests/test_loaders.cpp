@@ -12,9 +12,9 @@
 
 #include <unistd.h>
 
-#include "common/image_io.h"
-#include "common/loaders/loaders.h"
-#include "common/scene_io.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/loaders/loaders.h"
+#include "gridrt/common/scene_io.h"
 
 using namespace gridrt;
 namespace fs = std::filesystem;

@@ -6,9 +6,9 @@
 #include <limits>
 #include <random>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/embree/embree_tracer.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/embree/embree_tracer.h"
 
 using namespace gridrt;
 
@@ -353,8 +353,8 @@ TEST_CASE("Oracle: the atrium's foliage cuts rays, its teapots move", "[oracle][
 // atrium.ppm (primary + glossy bounce, shaded) to the current folder.
 #include <chrono>
 #include <fstream>
-#include "common/gather.h"
-#include "common/shade.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/shade.h"
 TEST_CASE("Oracle throughput on the atrium", "[.bench]") {
   const Scene s = make_builtin("atrium");
   EmbreeTracer tracer;

@@ -8,11 +8,11 @@
 #include <random>
 #include <sstream>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "reference/portal/build.h"
-#include "reference/portal/trace.h"
-#include "reference/portal/world.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/reference/portal/build.h"
+#include "gridrt/reference/portal/trace.h"
+#include "gridrt/reference/portal/world.h"
 
 using namespace gridrt;
 using namespace gridrt::portal;

@@ -14,7 +14,7 @@
 #include <random>
 #include <string>
 
-#include "common/shared/rounding.h"
+#include "gridrt/common/shared/rounding.h"
 
 namespace sh = gridrt::shared;
 

@@ -1,7 +1,7 @@
 #include <catch2/catch.hpp>
 
-#include "common/camera.h"
-#include "common/scene.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/scene.h"
 
 #include <algorithm>
 #include <cmath>

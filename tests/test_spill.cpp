@@ -10,8 +10,8 @@
 #include <cstring>
 #include <random>
 
-#include "common/embree/embree_tracer.h"
-#include "reference/compare.h"
+#include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/reference/compare.h"
 #include "tests/test_grid_util.h"
 
 using namespace gridrt;

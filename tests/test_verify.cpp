@@ -8,10 +8,10 @@
 #include <fstream>
 #include <limits>
 
-#include "common/builtin/builtin.h"
-#include "common/embree/embree_tracer.h"
-#include "common/scene_io.h"
-#include "reference/grid.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/common/scene_io.h"
+#include "gridrt/reference/grid.h"
 #include "run_tool.h"
 #include "verify/verify.h"
 

@@ -14,9 +14,9 @@
 
 #include <unistd.h>
 
-#include "common/shared/transform.h"
+#include "gridrt/common/shared/transform.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/pipeline.h"
+#include "gridrt/vulkan/pipeline.h"
 
 using namespace gridrt;
 using namespace gridrt::test;

@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/run_tool.h"
-#include "vulkan/context.h"
+#include "gridrt/vulkan/context.h"
 
 using gridrt::test::run_tool;
 

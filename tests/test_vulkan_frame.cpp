@@ -8,17 +8,17 @@
 #include <cstdio>
 #include <cstring>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/gather.h"
-#include "common/image_io.h"
-#include "common/shade.h"
-#include "common/shared/shadow.h"
-#include "common/shared/triangle.h"
-#include "reference/grid.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/shade.h"
+#include "gridrt/common/shared/shadow.h"
+#include "gridrt/common/shared/triangle.h"
+#include "gridrt/reference/grid.h"
 #include "tests/run_tool.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/frame.h"
+#include "gridrt/vulkan/frame.h"
 
 using namespace gridrt;
 using namespace gridrt::test;

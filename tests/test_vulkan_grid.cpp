@@ -17,10 +17,10 @@
 #include <random>
 #include <sstream>
 
-#include "reference/compare.h"
+#include "gridrt/reference/compare.h"
 #include "tests/test_grid_util.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/grid.h"
+#include "gridrt/vulkan/grid.h"
 
 using namespace gridrt;
 using namespace gridrt::test;
@@ -434,9 +434,9 @@ TEST_CASE("Vulkan grid: the explained ray leaves the reference's events, bit for
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/gather.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
 
 TEST_CASE("Vulkan grid on the built-in scenes: images and every hit identical, primary and bounce rays, animated",
           "[vulkan][diff][grid][scenes]") {

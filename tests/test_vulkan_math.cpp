@@ -11,13 +11,13 @@
 #include <xmmintrin.h>
 #endif
 
-#include "common/shared/alpha.h"
-#include "common/shared/grid.h"
-#include "common/shared/rounding.h"
-#include "common/shared/triangle.h"
-#include "common/shared/transform.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/rounding.h"
+#include "gridrt/common/shared/triangle.h"
+#include "gridrt/common/shared/transform.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/pipeline.h"
+#include "gridrt/vulkan/pipeline.h"
 
 using namespace gridrt;
 using namespace gridrt::test;

@@ -13,13 +13,13 @@
 #include <cstring>
 #include <random>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "reference/portal/build.h"
-#include "reference/portal/trace.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/reference/portal/build.h"
+#include "gridrt/reference/portal/trace.h"
 #include "tests/run_tool.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/portal.h"
+#include "gridrt/vulkan/portal.h"
 
 using namespace gridrt;
 using namespace gridrt::test;

@@ -10,13 +10,13 @@
 #include <cstdio>
 #include <string>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/gather.h"
-#include "reference/grid.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/reference/grid.h"
 #include "tests/run_tool.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/rtx.h"
+#include "gridrt/vulkan/rtx.h"
 
 using namespace gridrt;
 using namespace gridrt::test;

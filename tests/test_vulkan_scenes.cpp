@@ -9,13 +9,13 @@
 #include <string>
 #include <vector>
 
-#include "common/builtin/builtin.h"
-#include "common/camera.h"
-#include "common/gather.h"
-#include "common/scene_io.h"
-#include "reference/compare.h"
+#include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/scene_io.h"
+#include "gridrt/reference/compare.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/grid.h"
+#include "gridrt/vulkan/grid.h"
 
 using namespace gridrt;
 using namespace gridrt::test;

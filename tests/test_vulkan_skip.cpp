@@ -8,7 +8,7 @@
 
 #include "tests/test_grid_util.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/grid.h"
+#include "gridrt/vulkan/grid.h"
 
 using namespace gridrt;
 using namespace gridrt::test;

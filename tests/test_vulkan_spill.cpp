@@ -8,10 +8,10 @@
 
 #include <cstring>
 
-#include "reference/compare.h"
+#include "gridrt/reference/compare.h"
 #include "tests/test_grid_util.h"
 #include "tests/vulkan_test_util.h"
-#include "vulkan/grid.h"
+#include "gridrt/vulkan/grid.h"
 
 using namespace gridrt;
 using namespace gridrt::test;

@@ -12,8 +12,8 @@
 
 #include <catch2/catch.hpp>
 
-#include "common/util.h"
-#include "vulkan/context.h"
+#include "gridrt/common/util.h"
+#include "gridrt/vulkan/context.h"
 
 namespace gridrt::test {
 

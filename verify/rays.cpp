@@ -13,9 +13,9 @@
 #include <gmpxx.h>
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "common/camera.h"
-#include "common/gather.h"
-#include "common/shared/grid.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/shared/grid.h"
 
 namespace gridrt::verify {
 

@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "common/scene.h"
-#include "common/tracer.h"
-#include "reference/grid.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/reference/grid.h"
 
 namespace gridrt::verify {
 

@@ -6,8 +6,8 @@
 
 #include <gmpxx.h>
 
-#include "common/embree/embree_tracer.h"
-#include "common/shared/grid.h"
+#include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/common/shared/grid.h"
 
 namespace gridrt::verify {
 

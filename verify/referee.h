@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "common/tracer.h"
+#include "gridrt/common/tracer.h"
 #include "verify/rays.h"
 
 namespace gridrt {

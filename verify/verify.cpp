@@ -9,9 +9,9 @@
 #include <sstream>
 #include <thread>
 
-#include "common/embree/embree_tracer.h"
-#include "common/shared/grid.h"
-#include "reference/compare.h"
+#include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/reference/compare.h"
 
 namespace gridrt::verify {
 

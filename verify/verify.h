@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common/tracer.h"
+#include "gridrt/common/tracer.h"
 #include "verify/referee.h"
 #include "verify/rays.h"
 

@@ -1,5 +1,5 @@
 // context.cpp: instance, device, submission, buffers and 3D images (see context.h).
-#include "vulkan/context.h"
+#include "gridrt/vulkan/context.h"
 
 #include <algorithm>
 #include <cstdlib>

@@ -18,8 +18,8 @@
 
 #include <glm/glm.hpp>
 
-#include "common/scene.h"
-#include "vulkan/loader.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/vulkan/loader.h"
 
 namespace gridrt::vulkan {
 

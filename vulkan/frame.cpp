@@ -1,14 +1,14 @@
 // frame.cpp: VulkanFrame, the paper's frame on the GPU (see frame.h): the tables shading reads,
 // the raster gather's render pass and pipeline, the compute passes, one submission per frame.
-#include "vulkan/frame.h"
-#include "common/util.h"
+#include "gridrt/vulkan/frame.h"
+#include "gridrt/common/util.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 
-#include "common/camera.h"
-#include "vulkan/pipeline.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/vulkan/pipeline.h"
 
 namespace gridrt::vulkan {
 

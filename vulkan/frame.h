@@ -33,10 +33,10 @@
 #include <memory>
 #include <vector>
 
-#include "common/gather.h"
-#include "common/shade.h"
-#include "vulkan/grid.h"
-#include "vulkan/shaders/frame_input.h"
+#include "gridrt/common/gather.h"
+#include "gridrt/common/shade.h"
+#include "gridrt/vulkan/grid.h"
+#include "gridrt/vulkan/shaders/frame_input.h"
 
 namespace gridrt::vulkan {
 

@@ -1,8 +1,8 @@
 // grid.cpp: VulkanGridTracer, the host side of the Vulkan grid (see grid.h). The passes are in
 // vulkan/shaders/; this file makes the tables they read (as reference/build.cpp does), records
 // the passes and reads the results back.
-#include "vulkan/grid.h"
-#include "common/util.h"
+#include "gridrt/vulkan/grid.h"
+#include "gridrt/common/util.h"
 
 #include <algorithm>
 #include <chrono>
@@ -10,8 +10,8 @@
 #include <cstring>
 #include <map>
 
-#include "vulkan/ray_pass.h"
-#include "vulkan/shaders/grid_interface.h"
+#include "gridrt/vulkan/ray_pass.h"
+#include "gridrt/vulkan/shaders/grid_interface.h"
 
 namespace gridrt::vulkan {
 

@@ -18,12 +18,12 @@
 #include <string>
 #include <vector>
 
-#include "common/tracer.h"
-#include "plan/plan.h"
-#include "plan/records.h"
-#include "vulkan/context.h"
-#include "vulkan/pipeline.h"
-#include "vulkan/shaders/build_input.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/plan/plan.h"
+#include "gridrt/plan/records.h"
+#include "gridrt/vulkan/context.h"
+#include "gridrt/vulkan/pipeline.h"
+#include "gridrt/vulkan/shaders/build_input.h"
 
 namespace gridrt::vulkan {
 

@@ -1,11 +1,11 @@
 // loader.cpp: run-time loading of the Vulkan entry points (see loader.h).
-#include "vulkan/loader.h"
+#include "gridrt/vulkan/loader.h"
 
 #include <dlfcn.h>
 
 #include <mutex>
 
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 
 namespace gridrt::vulkan {
 

@@ -1,5 +1,5 @@
 // pipeline.cpp: descriptors, specialization constants, pipelines, SPIR-V float controls.
-#include "vulkan/pipeline.h"
+#include "gridrt/vulkan/pipeline.h"
 
 #include <algorithm>
 #include <cstring>

@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-#include "vulkan/context.h"
+#include "gridrt/vulkan/context.h"
 
 namespace gridrt::vulkan {
 

@@ -1,9 +1,9 @@
 // portal.cpp: PortalVulkanTracer, the host side of the Vulkan portal tracer (see portal.h). The
 // CPU builds the divs; this file uploads the packed textures as the seed stores them, records the
 // trace and render passes (vulkan/shaders/portal_*.comp) and reads the results back.
-#include "vulkan/portal.h"
-#include "vulkan/ray_pass.h"
-#include "common/util.h"
+#include "gridrt/vulkan/portal.h"
+#include "gridrt/vulkan/ray_pass.h"
+#include "gridrt/common/util.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,7 +12,7 @@
 #include <cstring>
 #include <sstream>
 
-#include "common/camera.h"
+#include "gridrt/common/camera.h"
 
 namespace gridrt::vulkan {
 

@@ -15,13 +15,13 @@
 #include <string>
 #include <vector>
 
-#include "common/scene.h"
-#include "common/tracer.h"
-#include "reference/portal/build.h"
-#include "reference/portal/trace.h"
-#include "vulkan/context.h"
-#include "vulkan/pipeline.h"
-#include "vulkan/shaders/portal_input.h"
+#include "gridrt/common/scene.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/reference/portal/build.h"
+#include "gridrt/reference/portal/trace.h"
+#include "gridrt/vulkan/context.h"
+#include "gridrt/vulkan/pipeline.h"
+#include "gridrt/vulkan/shaders/portal_input.h"
 
 namespace gridrt::vulkan {
 

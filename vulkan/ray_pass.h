@@ -8,10 +8,10 @@
 #include <chrono>
 #include <span>
 
-#include "common/tracer.h"
-#include "common/util.h"
-#include "vulkan/context.h"
-#include "vulkan/pipeline.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/common/util.h"
+#include "gridrt/vulkan/context.h"
+#include "gridrt/vulkan/pipeline.h"
 
 namespace gridrt::vulkan {
 

@@ -1,16 +1,16 @@
 // rtx.cpp: VulkanRtxTracer, the device's ray tracing pipeline side by side with the grid (see
 // rtx.h): the acceleration structures over the grid's geometry buffer, the pipeline and its
 // shader binding table, the per-frame update and trace.
-#include "vulkan/rtx.h"
-#include "common/util.h"
+#include "gridrt/vulkan/rtx.h"
+#include "gridrt/common/util.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <type_traits>
 
-#include "vulkan/pipeline.h"
-#include "vulkan/shaders/rtx_input.h"
+#include "gridrt/vulkan/pipeline.h"
+#include "gridrt/vulkan/shaders/rtx_input.h"
 
 namespace gridrt::vulkan {
 

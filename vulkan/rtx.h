@@ -22,8 +22,8 @@
 #include <string>
 #include <vector>
 
-#include "common/tracer.h"
-#include "vulkan/grid.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/vulkan/grid.h"
 
 namespace gridrt::vulkan {
 

@@ -6,7 +6,7 @@
 #include <string_view>
 #include <vector>
 
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 
 namespace gridrt {
 

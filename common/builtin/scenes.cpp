@@ -6,7 +6,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "common/builtin/builtin.h"
+#include "gridrt/common/builtin/builtin.h"
 
 namespace gridrt {
 

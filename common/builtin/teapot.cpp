@@ -12,7 +12,7 @@
 #include <span>
 #include <vector>
 
-#include "common/builtin/builtin.h"
+#include "gridrt/common/builtin/builtin.h"
 
 namespace gridrt {
 
@@ -21,7 +21,7 @@ namespace {
 constexpr unsigned kPatchCount = 28;
 
 const glm::vec3 kTeapotControlPoints[kPatchCount * 16] = {
-#include "common/builtin/teapot_patches.inc"
+#include "gridrt/common/builtin/teapot_patches.inc"
 };
 
 using Curve = std::array<glm::vec3, 4>;

@@ -1,5 +1,5 @@
-#include "common/embree/embree_tracer.h"
-#include "common/parallel.h"
+#include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/common/parallel.h"
 
 #include <algorithm>
 #include <atomic>
@@ -18,9 +18,9 @@ using glm::floor;
 using glm::max;
 using glm::min;
 }  // namespace gridrt::shared
-#include "common/shared/alpha.h"
-#include "common/shared/grid.h"
-#include "common/shared/transform.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/transform.h"
 
 namespace gridrt {
 

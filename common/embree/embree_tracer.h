@@ -33,7 +33,7 @@
 #include <memory>
 #include <vector>
 
-#include "common/tracer.h"
+#include "gridrt/common/tracer.h"
 
 namespace gridrt {
 

@@ -12,8 +12,8 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <tiny_gltf.h>
 
-#include "common/loaders/loaders.h"
-#include "common/safe_io.h"
+#include "gridrt/common/loaders/loaders.h"
+#include "gridrt/common/safe_io.h"
 
 namespace gridrt {
 namespace fs = std::filesystem;

@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "common/image_io.h"
-#include "common/scene.h"
+#include "gridrt/common/image_io.h"
+#include "gridrt/common/scene.h"
 
 namespace gridrt {
 

@@ -14,8 +14,8 @@
 
 #include <tiny_obj_loader.h>
 
-#include "common/loaders/loaders.h"
-#include "common/safe_io.h"
+#include "gridrt/common/loaders/loaders.h"
+#include "gridrt/common/safe_io.h"
 
 namespace gridrt {
 namespace fs = std::filesystem;

@@ -3,14 +3,14 @@
 // "shared_headers_glsl" runs glslangValidator on it, so a C++-only construct in common/shared/
 // fails the build's tests before it reaches the Vulkan port.
 #extension GL_GOOGLE_include_directive : require
-#include "common/shared/compat.h"
-#include "common/shared/records.h"
-#include "common/shared/transform.h"
-#include "common/shared/alpha.h"
-#include "common/shared/grid.h"
-#include "common/shared/triangle.h"
-#include "common/shared/explain.h"
-#include "common/shared/portal.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/records.h"
+#include "gridrt/common/shared/transform.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/triangle.h"
+#include "gridrt/common/shared/explain.h"
+#include "gridrt/common/shared/portal.h"
 layout(local_size_x = 1) in;
 layout(std430, binding = 0) buffer B { GridParams g; ExplainEvent ev; HitRecord h; };
 void main() {

@@ -1,6 +1,6 @@
 // build.cpp: maximal divs, flux density, the per-face choice, packing (build.h).
-#include "reference/portal/build.h"
-#include "common/parallel.h"
+#include "gridrt/reference/portal/build.h"
+#include "gridrt/common/parallel.h"
 
 #include <algorithm>
 #include <atomic>
@@ -15,7 +15,7 @@
 #include <random>
 #include <thread>
 
-#include "common/progress.h"
+#include "gridrt/common/progress.h"
 
 namespace gridrt::portal {
 

@@ -8,8 +8,8 @@
 
 #include <glm/glm.hpp>
 
-#include "common/shared/portal.h"
-#include "reference/portal/world.h"
+#include "gridrt/common/shared/portal.h"
+#include "gridrt/reference/portal/world.h"
 
 namespace gridrt::portal {
 

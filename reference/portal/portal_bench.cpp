@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "common/camera.h"
-#include "common/scene_io.h"
-#include "reference/portal/trace.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/scene_io.h"
+#include "gridrt/reference/portal/trace.h"
 
 using namespace gridrt;
 using namespace gridrt::portal;

@@ -6,9 +6,9 @@
 #include <cmath>
 #include <thread>
 
-#include "common/camera.h"
-#include "common/parallel.h"
-#include "reference/portal/trace.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/parallel.h"
+#include "gridrt/reference/portal/trace.h"
 
 namespace gridrt::portal {
 

@@ -1,6 +1,6 @@
 // trace.cpp: portal traversal, voxel DDA, explain, tracers, renderer (trace.h).
-#include "reference/portal/trace.h"
-#include "common/parallel.h"
+#include "gridrt/reference/portal/trace.h"
+#include "gridrt/common/parallel.h"
 
 #include <algorithm>
 #include <atomic>
@@ -11,8 +11,8 @@
 #include <limits>
 #include <thread>
 
-#include "common/camera.h"
-#include "common/shared/portal.h"
+#include "gridrt/common/camera.h"
+#include "gridrt/common/shared/portal.h"
 
 namespace gridrt::portal {
 

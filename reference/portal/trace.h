@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "common/tracer.h"
-#include "reference/portal/build.h"
+#include "gridrt/common/tracer.h"
+#include "gridrt/reference/portal/build.h"
 
 namespace gridrt::portal {
 

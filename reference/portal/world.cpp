@@ -1,5 +1,5 @@
 // world.cpp: tile maps, the built-in level and voxelized meshes (world.h).
-#include "reference/portal/world.h"
+#include "gridrt/reference/portal/world.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -8,9 +8,9 @@
 #include <fstream>
 #include <sstream>
 
-#include "common/safe_io.h"
-#include "common/shared/portal.h"
-#include "common/shared/transform.h"
+#include "gridrt/common/safe_io.h"
+#include "gridrt/common/shared/portal.h"
+#include "gridrt/common/shared/transform.h"
 
 namespace gridrt::portal {
 

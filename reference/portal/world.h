@@ -9,7 +9,7 @@
 
 #include <glm/glm.hpp>
 
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 
 namespace gridrt::portal {
 

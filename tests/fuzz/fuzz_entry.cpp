@@ -8,8 +8,8 @@
 
 #include <unistd.h>
 
-#include "common/scene_io.h"
-#include "reference/portal/world.h"
+#include "gridrt/common/scene_io.h"
+#include "gridrt/reference/portal/world.h"
 
 namespace gridrt::fuzz {
 namespace fs = std::filesystem;

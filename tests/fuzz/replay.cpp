@@ -13,7 +13,7 @@
 
 #include <unistd.h>
 
-#include "common/scene.h"
+#include "gridrt/common/scene.h"
 #include "tests/fuzz/fuzz_entry.h"
 
 namespace fs = std::filesystem;

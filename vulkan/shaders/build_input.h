@@ -4,8 +4,8 @@
 #ifndef GRIDRT_VULKAN_BUILD_INPUT_H
 #define GRIDRT_VULKAN_BUILD_INPUT_H
 
-#include "common/shared/compat.h"
-#include "common/shared/transform.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/transform.h"
 
 SH_BEGIN
 

@@ -3,16 +3,16 @@
 #ifndef GRIDRT_FRAME_COMMON_GLSL
 #define GRIDRT_FRAME_COMMON_GLSL
 
-#include "common/shared/compat.h"
-#include "common/shared/records.h"
-#include "common/shared/transform.h"
-#include "common/shared/alpha.h"
-#include "common/shared/grid.h"
-#include "common/shared/triangle.h"
-#include "common/shared/bounce.h"
-#include "common/shared/shadow.h"
-#include "common/shared/worklist.h"
-#include "vulkan/shaders/frame_input.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/records.h"
+#include "gridrt/common/shared/transform.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/triangle.h"
+#include "gridrt/common/shared/bounce.h"
+#include "gridrt/common/shared/shadow.h"
+#include "gridrt/common/shared/worklist.h"
+#include "gridrt/vulkan/shaders/frame_input.h"
 
 layout(constant_id = kFrameSpecFlags) const uint kFrameFlags = 3u;  // kFrame* bits
 

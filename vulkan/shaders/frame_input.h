@@ -4,8 +4,8 @@
 #ifndef GRIDRT_VULKAN_FRAME_INPUT_H
 #define GRIDRT_VULKAN_FRAME_INPUT_H
 
-#include "common/shared/compat.h"
-#include "common/shared/bounce.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/bounce.h"
 
 SH_BEGIN
 

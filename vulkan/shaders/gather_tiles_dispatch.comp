@@ -3,8 +3,8 @@
 // the tiles and large triangles gather_bin.comp appended (GatherTileHeader), one workgroup per
 // tile, and the append counter again at 0.
 #extension GL_GOOGLE_include_directive : require
-#include "common/shared/worklist.h"
-#include "vulkan/shaders/frame_input.h"
+#include "gridrt/common/shared/worklist.h"
+#include "gridrt/vulkan/shaders/frame_input.h"
 
 layout(local_size_x = 1) in;
 layout(std430, binding = 0) buffer TileList { GatherTileHeader header; };

@@ -3,15 +3,15 @@
 #ifndef GRIDRT_GRID_COMMON_GLSL
 #define GRIDRT_GRID_COMMON_GLSL
 
-#include "common/shared/compat.h"
-#include "common/shared/records.h"
-#include "common/shared/transform.h"
-#include "common/shared/alpha.h"
-#include "common/shared/grid.h"
-#include "common/shared/triangle.h"
-#include "common/shared/explain.h"
-#include "vulkan/shaders/build_input.h"
-#include "vulkan/shaders/grid_interface.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/records.h"
+#include "gridrt/common/shared/transform.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/triangle.h"
+#include "gridrt/common/shared/explain.h"
+#include "gridrt/vulkan/shaders/build_input.h"
+#include "gridrt/vulkan/shaders/grid_interface.h"
 
 // Specialization constants: the values of GridParams that shape the code, so that unused paths
 // (alpha keying, gap-fill, the other traversal or insertion) are not compiled in. The host sets

@@ -7,7 +7,7 @@
 #ifndef GRIDRT_VULKAN_GRID_INTERFACE_H
 #define GRIDRT_VULKAN_GRID_INTERFACE_H
 
-#include "common/shared/compat.h"
+#include "gridrt/common/shared/compat.h"
 
 SH_BEGIN
 

@@ -9,10 +9,10 @@
 
 #extension GL_EXT_samplerless_texture_functions : require
 
-#include "common/shared/compat.h"
-#include "common/shared/records.h"
-#include "common/shared/portal.h"
-#include "vulkan/shaders/portal_input.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/records.h"
+#include "gridrt/common/shared/portal.h"
+#include "gridrt/vulkan/shaders/portal_input.h"
 
 // The descriptor set of every portal pass (bindings: portal_input.h).
 layout(binding = kPortalBindAtlas) uniform utexture2D atlas_tex;  // R16_UINT

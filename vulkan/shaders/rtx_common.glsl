@@ -7,12 +7,12 @@
 
 #extension GL_EXT_ray_tracing : require
 
-#include "common/shared/compat.h"
-#include "common/shared/records.h"
-#include "common/shared/alpha.h"
-#include "common/shared/grid.h"
-#include "common/shared/triangle.h"
-#include "vulkan/shaders/rtx_input.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/records.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/triangle.h"
+#include "gridrt/vulkan/shaders/rtx_input.h"
 
 layout(binding = kRtxBindTlas) uniform accelerationStructureEXT tlas;
 layout(std430, binding = kRtxBindRays) readonly buffer Rays { RayRecord rays[]; };

@@ -4,7 +4,7 @@
 #ifndef GRIDRT_VULKAN_RTX_INPUT_H
 #define GRIDRT_VULKAN_RTX_INPUT_H
 
-#include "common/shared/compat.h"
+#include "gridrt/common/shared/compat.h"
 
 SH_BEGIN
 

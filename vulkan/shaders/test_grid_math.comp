@@ -4,9 +4,9 @@
 // compares every value bit for bit with the C++ build and, on a device that rounds differently,
 // names the first function that does).
 #extension GL_GOOGLE_include_directive : require
-#include "common/shared/compat.h"
-#include "common/shared/grid.h"
-#include "common/shared/triangle.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/grid.h"
+#include "gridrt/common/shared/triangle.h"
 
 layout(local_size_x = 64) in;
 

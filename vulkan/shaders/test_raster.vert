@@ -4,8 +4,8 @@
 // shader transforms its vertex and passes the instance id (gl_InstanceIndex) and the triangle id
 // (gl_VertexIndex / 3) down, flat.
 #extension GL_GOOGLE_include_directive : require
-#include "common/shared/compat.h"
-#include "common/shared/transform.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/transform.h"
 
 layout(std430, binding = 0) readonly buffer Positions { vec4 positions[]; };  // xyz, per vertex
 layout(std430, binding = 1) readonly buffer Transforms { Affine transforms[]; };

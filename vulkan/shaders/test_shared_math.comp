@@ -3,10 +3,10 @@
 // on the inputs of tests/test_vulkan_math.cpp, which compares every result bit for bit with the
 // same C++ functions.
 #extension GL_GOOGLE_include_directive : require
-#include "common/shared/compat.h"
-#include "common/shared/transform.h"
-#include "common/shared/alpha.h"
-#include "common/shared/rounding.h"
+#include "gridrt/common/shared/compat.h"
+#include "gridrt/common/shared/transform.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/rounding.h"
 
 layout(local_size_x = 64) in;
 

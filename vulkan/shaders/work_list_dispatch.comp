@@ -3,7 +3,7 @@
 // invocation: the items appended become the items of the next indirect dispatch, the append
 // counter starts again at 0.
 #extension GL_GOOGLE_include_directive : require
-#include "common/shared/worklist.h"
+#include "gridrt/common/shared/worklist.h"
 
 layout(local_size_x = 1) in;
 layout(std430, binding = 0) buffer List { WorkListHeader header; };
