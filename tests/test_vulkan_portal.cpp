@@ -165,13 +165,14 @@ TEST_CASE("Portal Vulkan: hit records identical to portal-cpu on a voxelized tea
 
 namespace {
 
-void check_render(const pt::PortalBuild& b, bool has_glass) {
+void check_render(const pt::PortalBuild& b, bool has_glass, uint32_t max_interfaces = 32) {
   vulkan::Context& ctx = vk_context();
   ctx.clear_messages();
   PortalVulkanTracer gpu(ctx, b);
   REQUIRE(gpu.name() == "portal-vulkan");
   pt::RenderOptions o;
   o.width = 160, o.height = 80;
+  o.max_interfaces = max_interfaces;
   for (bool refraction : {true, false}) {
     o.refraction = refraction;
     INFO("refraction " << refraction);
@@ -192,6 +193,8 @@ void check_render(const pt::PortalBuild& b, bool has_glass) {
     float max_rel = 0.0f;
     for (size_t i = 0; i < cpu.size(); ++i) {
       const bool saw_glass = pixels[i].refractions + pixels[i].reflections > 0;
+      // a ray is given up at its (max_interfaces + 1)-th glass interface
+      if (pixels[i].refractions + pixels[i].reflections > max_interfaces) FAIL("pixel " << i << " past the interface limit");
       glass += saw_glass;
       const bool same = std::memcmp(&cpu[i], &fsm[i], sizeof(glm::vec3)) == 0;
       if (same) continue;
@@ -238,6 +241,11 @@ TEST_CASE("Portal Vulkan: the render equals the CPU render - state machine == se
     const pt::World w =
         pt::parse_tile_map("size 9 5 3\nmap\n111111111\n1.......1\n1E..GG..1\n1.......1\n111111111\n", "glass");
     check_render(pt::build_portal(w, pt::PortalOptions{64, 64, 1, false}), true);
+  }
+  SECTION("the glass block with at most two interfaces a ray (the limit reached: given up black)") {
+    const pt::World w =
+        pt::parse_tile_map("size 9 5 3\nmap\n111111111\n1.......1\n1E..GG..1\n1.......1\n111111111\n", "glass");
+    check_render(pt::build_portal(w, pt::PortalOptions{64, 64, 1, false}), true, 2);
   }
 }
 
