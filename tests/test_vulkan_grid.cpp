@@ -96,6 +96,15 @@ std::vector<Ray> test_rays(const ReferenceGridTracer& ref, uint32_t seed) {
     if (glm::dot(dir, dir) < 1e-4f) dir = {0.0f, 0.0f, 1.0f};
     rays.push_back(gridtest::make_ray({p(rng), p(rng), p(rng)}, dir, 0.0f, (i % 3) ? INFINITY : 4.0f));
   }
+  // Far rays: origins about 1e7 away (an ulp of t is about 1, so a segment's midpoint rounds onto
+  // its ends: where gap-fill's "inside the ray" test is decided by its strict comparisons)
+  for (uint32_t i = 0; i < 500; ++i) {
+    glm::vec3 away(d(rng), d(rng), d(rng));
+    if (glm::dot(away, away) < 1e-4f) away = {1.0f, 0.0f, 0.0f};
+    const glm::vec3 at(p(rng), p(rng), p(rng));
+    const glm::vec3 org = at + glm::normalize(away) * 1.0e7f;
+    rays.push_back(gridtest::make_ray(org, glm::normalize(at - org)));
+  }
   // Secondary rays from the reference's primary hits
   std::vector<Hit> hits(rays.size());
   const size_t primary = rays.size();
