@@ -226,6 +226,16 @@ TEST_CASE("Vulkan frame: raster gather, bounce rays, trace and shade agree with 
         }
       INFO("worst channel difference " << worst << ", channels off by more than 2: " << off);
       CHECK(off <= rgb.size() * 3 / 1000);
+      // Pixels whose bounce ray hit a gap-fill voxel (shaded with the triangle's centroid): within
+      // 2 levels each, not only within the image's tolerance (bit-exact devices)
+      size_t gap = 0, gap_off = 0;
+      for (size_t p = 0; p < rgb.size() && p < ref_hits.size(); ++p) {
+        if (is_unused(cpu_rays[p]) || !(ref_hits[p].flags & gridrt::shared::kHitGapFill)) continue;
+        ++gap;
+        for (int k = 0; k < 3; ++k) gap_off += std::abs(int(linear_to_srgb8(rgb[p][k])) - int(rgba[4 * p + k])) > 2;
+      }
+      INFO("gap-fill bounce pixels " << gap << ", channels off by more than 2: " << gap_off);
+      if (exact) CHECK(gap_off == 0);
       }
     }
   }
