@@ -153,7 +153,19 @@ void check_trace(const pt::PortalBuild& build, uint32_t seed, size_t random_each
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
+// A room with two glass materials touching (the default 'G' and an amber 'H' of another index):
+// a ray crossing from one into the other meets a surface of the glass it enters.
+pt::World two_glasses() {
+  return pt::parse_tile_map(
+      "size 9 5 3\nmaterial H amber 1.0 0.6 0.2 glass 1.9\nmap\n111111111\n1.......1\n1E..GH..1\n1....HG.1\n111111111\n",
+      "two glasses");
+}
+
 }  // namespace
+
+TEST_CASE("Portal Vulkan: hit records identical to portal-cpu where two glasses touch", "[vulkan][portal][diff]") {
+  check_trace(pt::build_portal(two_glasses(), pt::PortalOptions{64, 64, 1, false}), 14, 1000);
+}
 
 TEST_CASE("Portal Vulkan: hit records identical to portal-cpu on the built-in level", "[vulkan][portal][diff]") {
   check_trace(builtin_build(), 11, 3000);
@@ -241,6 +253,9 @@ TEST_CASE("Portal Vulkan: the render equals the CPU render - state machine == se
     const pt::World w =
         pt::parse_tile_map("size 9 5 3\nmap\n111111111\n1.......1\n1E..GG..1\n1.......1\n111111111\n", "glass");
     check_render(pt::build_portal(w, pt::PortalOptions{64, 64, 1, false}), true);
+  }
+  SECTION("two glasses touching (the medium entered decides the refraction and the filter)") {
+    check_render(pt::build_portal(two_glasses(), pt::PortalOptions{64, 64, 1, false}), true);
   }
   SECTION("the glass block with at most two interfaces a ray (the limit reached: given up black)") {
     const pt::World w =
