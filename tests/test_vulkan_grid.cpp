@@ -352,6 +352,19 @@ TEST_CASE("Vulkan grid: every hit record identical in bits to the reference's, p
       CHECK(hits > rays.size() / 10);
       if (paper) CHECK(gap > 0);
       CHECK(back > 0);
+      // The gap-fill rays again, each ending exactly at its voxel's midpoint (tmax = the reported
+      // t): a hit needs t < tmax, so no such voxel is reported, on either backend
+      std::vector<Ray> ended;
+      for (size_t i = 0; i < rays.size() && ended.size() < 200; ++i)
+        if (want[i].flags & sh::kHitGapFill) {
+          ended.push_back(rays[i]);
+          ended.back().tmax = want[i].t;
+        }
+      std::vector<Hit> want_ended(ended.size()), got_ended(ended.size());
+      ref.trace(ended, want_ended);
+      vk.trace(ended, got_ended);
+      check_hits(ctx, ended, want_ended, got_ended);
+      for (size_t i = 0; i < ended.size(); ++i) CHECK((is_miss(want_ended[i]) || want_ended[i].t < ended[i].tmax));
     }
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
