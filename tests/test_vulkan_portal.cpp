@@ -308,3 +308,43 @@ TEST_CASE("Portal Vulkan: gridrt portal diff - exit 0 when the two agree, 1 bad 
   const Run cmd = run_tool("portal diff --width 0");
   CHECK(cmd.exit_code == 2);
 }
+
+namespace {
+
+// Mip-mapped space (docs/PORTAL.md): the built-in level with three levels and a short level
+// distance, so that camera rays go coarse and meet translucent coarse voxels (and none reaches
+// the glass at full resolution).
+const pt::PortalBuild& builtin_mip_build() {
+  static const pt::PortalBuild b = [] {
+    pt::PortalOptions o{1024, 1024, 0, false};
+    o.mip_levels = 3;
+    o.mip_distance = 1.0f;
+    return pt::build_portal(pt::builtin_level(), o);
+  }();
+  return b;
+}
+
+}  // namespace
+
+TEST_CASE("Portal Vulkan: mip-mapped space - records, render and explain as portal-cpu's", "[vulkan][portal][diff][mip]") {
+  const pt::PortalBuild& b = builtin_mip_build();
+  // Both kinds of coarse surface are met by these rays (translucent and opaque, resolved).
+  size_t translucent = 0;
+  for (const Ray& r : test_rays(b.world, 23, 300)) {
+    const Hit h = pt::trace_portal(b.packed, r);
+    translucent += !is_miss(h) && h.instance < b.world.materials.size() && b.world.materials[h.instance].coverage < 1.0f;
+  }
+  CHECK(translucent > 20);
+  check_trace(b, 23, 300);
+  check_render(b, false);
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  PortalVulkanTracer gpu(ctx, b);
+  for (uint32_t x : {20u, 80u, 140u}) {
+    const std::string text = gpu.explain(camera_ray(b.world.camera, 160, 80, x, 40));
+    INFO(text);
+    CHECK(text.find("they part") == std::string::npos);
+    if (bit_exact_device(ctx)) CHECK(text.find("identical in bits") != std::string::npos);
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
