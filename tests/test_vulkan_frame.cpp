@@ -467,7 +467,7 @@ TEST_CASE("CLI: gridrt diff --gpu-frame finds the GPU frame's rays and hits bit-
     CHECK(line.find("; 0 shadow rays") == std::string::npos);
     // The compute gather's rasterizer against the gather testing every pixel of every box
     if (line.find("compute gather") != std::string::npos)
-      CHECK(out.find(std::string(frame, 8) + "GPU gather: rasterizer against every pixel of the boxes: 0 of 6144 "
+      CHECK(out.find(std::string(frame, 9) + "GPU gather: rasterizer against every pixel of the boxes: 0 of 6144 "
                                               "pixels differ") != std::string::npos);
   }
 }
