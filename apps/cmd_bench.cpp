@@ -400,7 +400,9 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
   const double build = stamps ? vk->timings().build_ms : build_host;
   vulkan::FrameOptions fo{.width = o.width, .height = o.height};
-  fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
+  fo.gather = o.gather == "raster"  ? vulkan::GatherMode::raster
+              : o.gather == "boxes" ? vulkan::GatherMode::boxes
+                                    : vulkan::GatherMode::compute;
   fo.compact_rays = o.compact_rays;
   fo.shadows = shadows_for(o.shadows, scene);
   vulkan::VulkanFrame frame(*vk, scene, fo);
@@ -465,7 +467,9 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
       (1 << 20);
   const std::string device = vk->context().info().name;
   const std::string clock = stamps ? "gpu timestamps" : "host (submit to fence; the frame's phases not split)";
-  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute" : "raster";
+  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
+                            : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
+                                                                               : "raster";
   std::printf("\nvulkan, the whole frame on the GPU (%s; %s): %zu bounce rays per frame, grid %ux%ux%u capacity %u, "
               "%s gather, %s trace\n",
               device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z, gp.capacity, gather_name,
@@ -490,7 +494,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   else
     std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
   std::printf("%s (after the last frame's update)\n\n", spill_text(spill, spill_flags).c_str());
-  std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
+  std::printf("gather split: visibility (%s; %u work items in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
               "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, skip field %.3f, "
               "dynamic instances %.3f ms\n",
               gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
@@ -773,9 +777,10 @@ void add_bench_command(CLI::App& app) {
   cmd->add_flag("--rtx-rebuild", o->rtx_rebuild, "With --rtx: rebuild the dynamic BLASes each frame instead of refitting")
       ->needs(rtx);
   cmd->add_option("--gather", o->gather,
-                  "Vulkan: the frame's gather: compute (the CPU gather's ray test, needs 64-bit buffer atomics) or raster "
-                  "(the paper's raster pass)")
-      ->check(CLI::IsMember({"compute", "raster"}).description(""))->type_name("compute|raster");
+                  "Vulkan: the frame's gather: compute (the CPU gather's ray test through a rasterizer's bins, tiles "
+                  "and depth culling; needs 64-bit buffer atomics), boxes (the same test on every pixel of each "
+                  "triangle's box) or raster (the paper's raster pass)")
+      ->check(CLI::IsMember({"compute", "boxes", "raster"}).description(""))->type_name("compute|boxes|raster");
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");

@@ -75,10 +75,10 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
 
 struct VulkanFrame::Gpu {
   Context* ctx = nullptr;
-  Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles;
+  Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles, tile_depth, pixel_dirs;
   Image2D color, depth;
   std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
-  std::unique_ptr<Pipeline> resolve, bounce, shadow, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch;
+  std::unique_ptr<Pipeline> resolve, bounce, shadow, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch, dirs;
   std::unique_ptr<Timestamps> timestamps;
   // The raster gather
   VkPipelineLayout layout = VK_NULL_HANDLE;
@@ -330,7 +330,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   shadows_ = options_.shadows && !scene.lights.empty();
   if (shadows_) check_shadow_lights(scene);
   gather_ = options_.gather;
-  if (gather_ == GatherMode::compute &&
+  if (gather_ != GatherMode::raster &&
       !(ctx.info().buffer_int64_atomics && ctx.info().subgroup_arithmetic_ballot))
     gather_ = GatherMode::raster;
   const bool compact = bounce_ && options_.compact_rays;
@@ -368,14 +368,21 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   const VkBufferUsageFlags list_usage = sb | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT;
   const size_t header = sizeof(shared::WorkListHeader);
   gpu.ray_list = ctx.create_buffer(compact ? header + pixels * 4 : header, list_usage);
-  if (gather_ == GatherMode::compute) {
-    // The large triangles: 4 words for every triangle of the geometry buffer at most
+  const bool compute = gather_ != GatherMode::raster;
+  if (compute) {
+    // The large triangles: a set-up record for every triangle of the geometry buffer at most
     const std::vector<shared::GridInstance>& gi = grid.instances();
     const uint64_t tris = gi.empty() ? 0 : gi.back().tri_offset + gi.back().tri_count;
     gpu.keys = ctx.create_buffer(pixels * 8, sb);
-    gpu.tiles = ctx.create_buffer(sizeof(shared::GatherTileHeader) + std::max<uint64_t>(tris, 1) * 16, list_usage);
+    gpu.tiles = ctx.create_buffer(
+        sizeof(shared::GatherTileHeader) + std::max<uint64_t>(tris, 1) * sizeof(shared::GatherRasterTriangle), list_usage);
+    const uint32_t ts = shared::kGatherTileSize;
+    gpu.tile_depth = ctx.create_buffer(uint64_t((w + ts - 1) / ts) * ((h + ts - 1) / ts) * 4, sb);
+    gpu.pixel_dirs = ctx.create_buffer(gather_ == GatherMode::compute ? pixels * 16 : 16, sb);
   } else {
+    gpu.pixel_dirs = ctx.create_buffer(16, sb);
     gpu.keys = ctx.create_buffer(16, sb);
+    gpu.tile_depth = ctx.create_buffer(16, sb);
     gpu.tiles = ctx.create_buffer(header, list_usage);
     create_image2d(ctx, gpu.color, VK_FORMAT_R32_UINT, w, h,
                    VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
@@ -409,9 +416,12 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   set.bind(shared::kFrameBindRayList, gpu.ray_list);
   set.bind(shared::kFrameBindGatherKeys, gpu.keys);
   set.bind(shared::kFrameBindTileList, gpu.tiles);
+  set.bind(shared::kFrameBindTileDepth, gpu.tile_depth);
+  set.bind(shared::kFrameBindPixelDirs, gpu.pixel_dirs);
   const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
                          (alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
-                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u) |
+                         (compute ? shared::kFrameComputeGather : 0u) |
+                         (gather_ == GatherMode::boxes ? shared::kFrameGatherBoxes : 0u) |
                          (shadows_ ? shared::kFrameShadows : 0u);
   auto spec = [&] {
     SpecConstants s;
@@ -428,13 +438,15 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     gpu.ray_list_set->bind(0, gpu.ray_list);
     gpu.ray_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.ray_list_set->layout(), list_push);
   }
-  if (gather_ == GatherMode::compute) {
+  if (compute) {
     gpu.tile_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
     gpu.tile_set->bind(0, gpu.tiles);
     gpu.tile_dispatch = std::make_unique<Pipeline>(ctx, "gather_tiles_dispatch.comp", gpu.tile_set->layout(),
                                                    uint32_t(sizeof(uint32_t)));
     gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(sizeof(shared::GatherBinPush)), spec());
-    gpu.tile_pass = std::make_unique<Pipeline>(ctx, "gather_tiles.comp", set.layout(), 0, spec());
+    if (gather_ == GatherMode::compute) gpu.dirs = std::make_unique<Pipeline>(ctx, "gather_dirs.comp", set.layout(), 0, spec());
+    gpu.tile_pass = std::make_unique<Pipeline>(
+        ctx, gather_ == GatherMode::boxes ? "gather_tiles.comp" : "gather_raster.comp", set.layout(), 0, spec());
   } else {
     SpecConstants raster_spec = spec();
     gpu.create_raster(w, h, raster_spec.info());
@@ -465,9 +477,16 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
       if (rep > 0) barrier(cb);
       if (timed) gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
       const VkDescriptorSet s = gpu.set->set();
-      if (gather_ == GatherMode::compute) {
-        // Gather, compute: every key "nothing" (all ones), the triangles' tiles, their pixels
+      if (gather_ != GatherMode::raster) {
+        // Gather, compute: every key "nothing" (all ones), every tile's depth bound unknown (all
+        // ones), the triangles' set-up and work items, their pixels
         vkCmdFillBuffer(cb, gpu.keys.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
+        vkCmdFillBuffer(cb, gpu.tile_depth.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
+        if (gpu.dirs) {
+          // The pixels' ray directions, once
+          gpu.dirs->bind(cb, s);
+          vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+        }
         barrier(cb);
         if (triangles) {
           const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
@@ -562,7 +581,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   timings_.host_ms = ms_since(t0);
   if (gpu.timestamps) {
     const std::vector<double> ns = gpu.timestamps->read_ns();
-    const bool compute = gather_ == GatherMode::compute;
+    const bool compute = gather_ != GatherMode::raster;
     timings_.visibility_ms = ((compute ? ns[2] : ns[1]) - ns[0]) * 1e-6;
     timings_.bin_ms = compute ? (ns[1] - ns[0]) * 1e-6 : 0.0;
     timings_.tiles_ms = compute ? (ns[2] - ns[1]) * 1e-6 : 0.0;
@@ -642,7 +661,7 @@ std::vector<uint32_t> VulkanFrame::download_visibility() const {
 }
 
 uint32_t VulkanFrame::download_gather_tiles() const {
-  if (gather_ != GatherMode::compute) return 0;
+  if (gather_ == GatherMode::raster) return 0;
   return grid_.context().download<shared::GatherTileHeader>(gpu_->tiles, 1)[0].tiles;
 }
 
