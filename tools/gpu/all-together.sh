@@ -10,9 +10,11 @@
 # There: PART=diff|bench|all bash .gpu/extra/all-together.sh (G=.gpu by default); logs to $OUT.
 #   diff:  per scene, the reference against the shaders bit for bit with the validation layer on:
 #          the paper traversal with the raster build and the GPU frame's own passes (gather, bounce,
-#          shadow rays), the exact traversal with the compute build and with the raster build.
-#   bench: per scene, the default exact traversal (compute build, skipping, spill list) beside the
-#          RT pipeline, with the shadow pass (the scenes' light) and without.
+#          shadow rays), the exact traversal with the compute build and the GPU frame's passes (and
+#          the rasterizer's gather against the box gather), and with the raster build.
+#   bench: per scene, the default exact traversal (compute build, separating-axis cell test,
+#          skipping, spill list, rasterizer gather) beside the RT pipeline, with the shadow pass
+#          (the scenes' light) and without; and with the plane/sphere cell test.
 set -u
 G=${G:-.gpu}
 out=${OUT:-/tmp/gridrt-out}
@@ -32,8 +34,9 @@ diff | all)
         grep -E "^(diff|frame|AGREE|DIFFER|validation|  first)|error" | tail -14
       echo "exit $?"
       for b in compute raster; do
-        echo "== diff $s exact, $b build (bit for bit)"
-        timeout 150 gridrt diff $X --traversal exact --vk-build $b --width 480 --height 270 --frames 2 2>&1 |
+        fr=""; [ $b = compute ] && fr=--gpu-frame
+        echo "== diff $s exact, $b build $fr (bit for bit)"
+        timeout 150 gridrt diff $X --traversal exact --vk-build $b $fr --width 480 --height 270 --frames 2 2>&1 |
           grep -E "^(diff|frame|AGREE|DIFFER|spill|validation|  first)|error" | tail -10
       done
     done
@@ -47,6 +50,8 @@ bench | all)
         echo "== bench $s exact (defaults), shadows $sh"
         timeout 150 gridrt bench $E/$s.gridscene $B --shadows $sh 2>&1 | grep -v "gather buffer" | cut -c1-300
       done
+      echo "== bench $s exact, the plane/sphere cell test instead of the separating axes, shadows on"
+      timeout 150 gridrt bench $E/$s.gridscene $B --cell-test sphere 2>&1 | grep -v "gather buffer" | cut -c1-300
     done
   } 2>&1 | tee "$out/bench.txt"
   ;;
