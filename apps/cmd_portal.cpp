@@ -10,6 +10,7 @@
 #include "gridrt/common/camera.h"
 #include "gridrt/common/image_io.h"
 #include "gridrt/common/scene_io.h"
+#include "gridrt/common/util.h"
 #include "gridrt/reference/portal/build.h"
 #include "gridrt/reference/portal/trace.h"
 #include "gridrt/reference/portal/world.h"
@@ -23,10 +24,6 @@ namespace {
 
 bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 std::string portal_backends() {

@@ -11,6 +11,7 @@
 #include "gridrt/common/image_io.h"
 #include "gridrt/common/progress.h"
 #include "gridrt/common/shade.h"
+#include "gridrt/common/util.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "gridrt/vulkan/frame.h"
 #endif
@@ -33,10 +34,6 @@ struct RenderOptions {
   int scale = 1;
   BackendOptions backend_options;
 };
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // out.png -> out_0007.png for frame 7 of an animation.
 std::string frame_path(const std::string& output, uint32_t frame, uint32_t frames) {
