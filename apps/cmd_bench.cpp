@@ -577,6 +577,101 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
 }
 #endif
 
+// One backend that traces on the CPU's rays: its build, then per frame the update and the trace
+// of the bounce rays off `gather` (and of the `shadow` rays): a table row, notes, JSON.
+void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::string& name, const GatherBuffer& gather,
+                       size_t bounce_count, const std::vector<Ray>& shadow, nlohmann::json& out,
+                       std::vector<std::string>& notes, std::vector<std::string>& shadow_notes) {
+  std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
+  PhaseTimes times;
+  std::string device = "CPU, " + std::to_string(std::thread::hardware_concurrency()) + " threads";
+  double grid_mib = 0.0;
+  auto t0 = std::chrono::steady_clock::now();
+  tracer->build(scene, 0.0f);
+  times.build = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+  auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
+  if (vk) {
+    device = vk->context().info().name;
+    if (vk->timings().build_ms > 0.0) {
+      times.clock = "gpu timestamps";
+      times.build = vk->timings().build_ms;
+    }
+  }
+#endif
+  if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
+    grid_mib = double(ref->stats().image_bytes) / (1 << 20);
+  const AccelDump dump = tracer->dump();
+  if (!dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
+
+  std::vector<Hit> hits, shadow_hits(shadow.size());
+  std::vector<double> shadow_ms;
+  for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
+    const float time = float(f + 1) / o.fps;
+    const std::vector<Ray> rays = bounce_rays(scene, gather, f);
+    hits.resize(rays.size());
+    t0 = std::chrono::steady_clock::now();
+    tracer->update(time);
+    double update_ms = ms_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    tracer->trace(rays, hits);
+    double trace_ms = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+    if (vk && times.clock == "gpu timestamps") {
+      update_ms = vk->timings().update_ms;
+      trace_ms = vk->timings().trace_ms;
+    } else if (vk) {
+      update_ms = vk->timings().update_host_ms;
+      trace_ms = vk->timings().trace_host_ms;
+    }
+#endif
+    double shadow_trace_ms = 0.0;
+    if (!shadow.empty()) {
+      t0 = std::chrono::steady_clock::now();
+      tracer->trace(shadow, shadow_hits);
+      shadow_trace_ms = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+      if (vk) shadow_trace_ms = times.clock == "gpu timestamps" ? vk->timings().trace_ms : vk->timings().trace_host_ms;
+#endif
+    }
+    if (f < o.warmup) continue;
+    times.update.push_back(update_ms);
+    times.trace.push_back(trace_ms);
+    shadow_ms.push_back(shadow_trace_ms);
+  }
+  shared::SpillHeader spill{};
+  uint32_t spill_flags = 0;
+  if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
+    spill = ref->data().spill_header;
+    spill_flags = ref->params().flags;
+  }
+#ifdef GRIDRT_HAVE_VULKAN
+  if (vk) {
+    spill = vk->spill_header();
+    spill_flags = vk->params().flags;
+  }
+#endif
+  const double update = median(times.update), trace = median(times.trace);
+  const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
+  std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
+              times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
+  const bool grid = !dump.texels.empty();
+  if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
+  if (!shadow.empty()) {
+    char line[256];
+    std::snprintf(line, sizeof line, "%s: shadow pass: %zu shadow rays per frame (%zu light(s)), their trace %.3f ms "
+                  "(median; not in the table's trace)", name.c_str(), shadow.size(), scene.lights.size(), median(shadow_ms));
+    shadow_notes.push_back(line);
+  }
+  std::fflush(stdout);
+  out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
+                           {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
+                           {"grid_mib", grid_mib},    {"update_ms_all", times.update},
+                           {"trace_ms_all", times.trace}, {"shadow_rays", shadow.size()},
+                           {"shadow_trace_ms", median(shadow_ms)}, {"shadow_trace_ms_all", shadow_ms}};
+  if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
+}
+
 void run_bench(const BenchOptions& options) {
   check_frame_size(options.width, options.height);
   BenchOptions o = options;
@@ -642,95 +737,7 @@ void run_bench(const BenchOptions& options) {
       continue;
     }
 #endif
-    if (!on_cpu_rays(name)) continue;
-    std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
-    PhaseTimes times;
-    std::string device = "CPU, " + std::to_string(std::thread::hardware_concurrency()) + " threads";
-    double grid_mib = 0.0;
-    auto t0 = std::chrono::steady_clock::now();
-    tracer->build(scene, 0.0f);
-    times.build = ms_since(t0);
-#ifdef GRIDRT_HAVE_VULKAN
-    auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
-    if (vk) {
-      device = vk->context().info().name;
-      if (vk->timings().build_ms > 0.0) {
-        times.clock = "gpu timestamps";
-        times.build = vk->timings().build_ms;
-      }
-    }
-#endif
-    if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
-      grid_mib = double(ref->stats().image_bytes) / (1 << 20);
-    const AccelDump dump = tracer->dump();
-    if (!dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
-
-    std::vector<Hit> hits, shadow_hits(shadow.size());
-    std::vector<double> shadow_ms;
-    for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
-      const float time = float(f + 1) / o.fps;
-      const std::vector<Ray> rays = bounce_rays(scene, gather, f);
-      hits.resize(rays.size());
-      t0 = std::chrono::steady_clock::now();
-      tracer->update(time);
-      double update_ms = ms_since(t0);
-      t0 = std::chrono::steady_clock::now();
-      tracer->trace(rays, hits);
-      double trace_ms = ms_since(t0);
-#ifdef GRIDRT_HAVE_VULKAN
-      if (vk && times.clock == "gpu timestamps") {
-        update_ms = vk->timings().update_ms;
-        trace_ms = vk->timings().trace_ms;
-      } else if (vk) {
-        update_ms = vk->timings().update_host_ms;
-        trace_ms = vk->timings().trace_host_ms;
-      }
-#endif
-      double shadow_trace_ms = 0.0;
-      if (!shadow.empty()) {
-        t0 = std::chrono::steady_clock::now();
-        tracer->trace(shadow, shadow_hits);
-        shadow_trace_ms = ms_since(t0);
-#ifdef GRIDRT_HAVE_VULKAN
-        if (vk) shadow_trace_ms = times.clock == "gpu timestamps" ? vk->timings().trace_ms : vk->timings().trace_host_ms;
-#endif
-      }
-      if (f < o.warmup) continue;
-      times.update.push_back(update_ms);
-      times.trace.push_back(trace_ms);
-      shadow_ms.push_back(shadow_trace_ms);
-    }
-    shared::SpillHeader spill{};
-    uint32_t spill_flags = 0;
-    if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
-      spill = ref->data().spill_header;
-      spill_flags = ref->params().flags;
-    }
-#ifdef GRIDRT_HAVE_VULKAN
-    if (vk) {
-      spill = vk->spill_header();
-      spill_flags = vk->params().flags;
-    }
-#endif
-    const double update = median(times.update), trace = median(times.trace);
-    const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
-    std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
-                times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
-    const bool grid = !dump.texels.empty();
-    if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
-    if (!shadow.empty()) {
-      char line[256];
-      std::snprintf(line, sizeof line, "%s: shadow pass: %zu shadow rays per frame (%zu light(s)), their trace %.3f ms "
-                    "(median; not in the table's trace)", name.c_str(), shadow.size(), scene.lights.size(), median(shadow_ms));
-      shadow_notes.push_back(line);
-    }
-    std::fflush(stdout);
-    out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
-                             {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
-                             {"grid_mib", grid_mib},    {"update_ms_all", times.update},
-                             {"trace_ms_all", times.trace}, {"shadow_rays", shadow.size()},
-                             {"shadow_trace_ms", median(shadow_ms)}, {"shadow_trace_ms_all", shadow_ms}};
-    if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
+    if (on_cpu_rays(name)) bench_cpu_backend(o, scene, name, gather, bounce_count, shadow, out, notes, shadow_notes);
   }
   if (!notes.empty()) std::printf("\n");
   for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
