@@ -11,7 +11,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -22,6 +21,7 @@
 #include "apps/commands.h"
 #include "gridrt/common/camera.h"
 #include "gridrt/common/gather.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/reference/compare.h"
 #include "gridrt/reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
@@ -109,27 +109,6 @@ std::string xml_escape(const std::string& s) {
     }
   }
   return out;
-}
-
-// Writes `text` to `path` through a temporary file in the same folder, renamed over it.
-void write_atomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << text;
-    f.flush();
-    if (!f) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw Error("cannot write '" + path + "'");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw Error("cannot write '" + path + "': " + ec.message());
-  }
 }
 
 class DiffRun {
@@ -453,7 +432,7 @@ void DiffRun::write_reports(int code, double seconds) {
     } else {
       j["first_difference"] = nullptr;
     }
-    write_atomically(o_.json_path, j.dump(2) + "\n");
+    write_file_atomically(o_.json_path, "JSON report", j.dump(2) + "\n");
   }
   if (!o_.junit_path.empty()) {
     size_t failures = 0;
@@ -472,7 +451,7 @@ void DiffRun::write_reports(int code, double seconds) {
       x << "      <system-out>" << xml_escape(c.detail) << "</system-out>\n    </testcase>\n";
     }
     x << "  </testsuite>\n</testsuites>\n";
-    write_atomically(o_.junit_path, x.str());
+    write_file_atomically(o_.junit_path, "JUnit report", x.str());
   }
 }
 

@@ -5,11 +5,11 @@
 // line; 3 the tracer is wrong or cracks.
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <memory>
 
 #include "apps/backends.h"
 #include "apps/commands.h"
+#include "gridrt/common/safe_io.h"
 #include "verify/verify.h"
 
 namespace gridrt::app {
@@ -75,13 +75,7 @@ void run_verify(const VerifyCliOptions& o) {
                      {"seed", o.seed},
                      {"families", verify::to_json(results)},
                      {"failures", failures}};
-    const std::string tmp = o.json + ".tmp";
-    {
-      std::ofstream f(tmp);
-      f << j.dump(2) << "\n";
-      if (!f) throw Error("cannot write '" + o.json + "'");
-    }
-    std::rename(tmp.c_str(), o.json.c_str());
+    write_file_atomically(o.json, "JSON report", j.dump(2) + "\n");
   }
   if (failures > 0 && (exact || o.strict)) {
     std::printf("verify: FAIL: %zu wrong answers, cracks or NaN t\n", failures);
