@@ -16,54 +16,6 @@ namespace {
 
 // The descriptor set's bindings: frame_input.h.
 
-// A 2D image with its memory and view: the gather's attachments.
-struct Image2D {
-  VkDevice device = VK_NULL_HANDLE;
-  VkImage image = VK_NULL_HANDLE;
-  VkDeviceMemory memory = VK_NULL_HANDLE;
-  VkImageView view = VK_NULL_HANDLE;
-  Image2D() = default;
-  Image2D(const Image2D&) = delete;
-  Image2D& operator=(const Image2D&) = delete;
-  ~Image2D() {
-    if (view) vkDestroyImageView(device, view, nullptr);
-    if (image) vkDestroyImage(device, image, nullptr);
-    if (memory) vkFreeMemory(device, memory, nullptr);
-  }
-};
-
-void create_image2d(Context& ctx, Image2D& img, VkFormat format, uint32_t width, uint32_t height,
-                    VkImageUsageFlags usage, VkImageAspectFlags aspect) {
-  img.device = ctx.device();
-  VkImageCreateInfo ci{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
-  ci.imageType = VK_IMAGE_TYPE_2D;
-  ci.format = format;
-  ci.extent = {width, height, 1};
-  ci.mipLevels = 1;
-  ci.arrayLayers = 1;
-  ci.samples = VK_SAMPLE_COUNT_1_BIT;
-  ci.tiling = VK_IMAGE_TILING_OPTIMAL;
-  ci.usage = usage;
-  ci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  ci.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-  GRIDRT_VK_CHECK(vkCreateImage(ctx.device(), &ci, nullptr, &img.image));
-  VkMemoryRequirements req;
-  vkGetImageMemoryRequirements(ctx.device(), img.image, &req);
-  ctx.require_allocation(req.size, "a gather attachment");
-  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
-  ai.allocationSize = req.size;
-  ai.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
-  if (ai.memoryTypeIndex == ~0u) ai.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, 0);
-  GRIDRT_VK_CHECK(vkAllocateMemory(ctx.device(), &ai, nullptr, &img.memory));
-  GRIDRT_VK_CHECK(vkBindImageMemory(ctx.device(), img.image, img.memory, 0));
-  VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
-  vi.image = img.image;
-  vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
-  vi.format = format;
-  vi.subresourceRange = {aspect, 0, 1, 0, 1};
-  GRIDRT_VK_CHECK(vkCreateImageView(ctx.device(), &vi, nullptr, &img.view));
-}
-
 template <class T>
 Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
   Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
@@ -78,7 +30,7 @@ struct FrameMaterials;
 struct VulkanFrame::Gpu {
   Context* ctx = nullptr;
   Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles;
-  Image2D color, depth;
+  Image3D color, depth;  // the raster gather's attachments (2D)
   std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
   std::unique_ptr<Pipeline> resolve, bounce, shadow, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch;
   std::unique_ptr<Timestamps> timestamps;
@@ -100,13 +52,7 @@ struct VulkanFrame::Gpu {
   }
 
   VkShaderModule module(std::string_view name) {
-    const std::vector<uint32_t> words =
-        patch_float_controls(shader_spirv(name), FloatControls::for_device(ctx->info()));
-    VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-    ci.codeSize = words.size() * 4;
-    ci.pCode = words.data();
-    VkShaderModule m;
-    GRIDRT_VK_CHECK(vkCreateShaderModule(ctx->device(), &ci, nullptr, &m));
+    const VkShaderModule m = create_shader_module(*ctx, name);
     modules.push_back(m);
     return m;
   }
@@ -415,10 +361,11 @@ void VulkanFrame::Gpu::create_buffers(VulkanGridTracer& grid, const Scene& scene
   } else {
     keys = c.create_buffer(16, sb);
     tiles = c.create_buffer(header, list_usage);
-    create_image2d(c, color, VK_FORMAT_R32_UINT, width, height,
-                   VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
-    create_image2d(c, depth, VK_FORMAT_D32_SFLOAT, width, height, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
-                   VK_IMAGE_ASPECT_DEPTH_BIT);
+    color = c.create_image(VK_IMAGE_TYPE_2D, VK_FORMAT_R32_UINT, {width, height, 1},
+                           VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                           VK_IMAGE_ASPECT_COLOR_BIT, "a gather attachment");
+    depth = c.create_image(VK_IMAGE_TYPE_2D, VK_FORMAT_D32_SFLOAT, {width, height, 1},
+                           VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, VK_IMAGE_ASPECT_DEPTH_BIT, "a gather attachment");
   }
   // The work lists start empty
   c.submit([&](VkCommandBuffer cb) {
