@@ -244,8 +244,8 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
   const size_t pixels = size_t(w) * h;
   const GatherBuffer gather = reference_gather(scene_, grid_, w, h, time);
   std::vector<Ray> rays = bounce_rays(scene_, gather, frame);
-  for (uint32_t y = 0; y < h; ++y)
-    for (uint32_t x = 0; x < w; ++x) rays.push_back(camera_ray(scene_.frame_camera(), w, h, x, y));
+  const std::vector<Ray> primary = camera_rays(scene_.frame_camera(), w, h);
+  rays.insert(rays.end(), primary.begin(), primary.end());
   std::vector<Hit> want(rays.size()), got(rays.size());
   {
     Progress progress("frame " + std::to_string(frame) + ": reference trace", rays.size());
@@ -560,7 +560,7 @@ void add_diff_command(CLI::App& app) {
       "diff",
       "Run the CPU reference and the Vulkan port on a scene: grid images and every hit, over frames, with the "
       "validation layer on. Exit 0 agree, 1 bad input, 2 bad command line, 3 differ, 4 validation messages");
-  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--width", o->width, "Image width of the gather buffer")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height of the gather buffer")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--time,-t", o->time, "Scene time in seconds");

@@ -589,18 +589,7 @@ GatherBuffer VulkanFrame::download_gather() const {
   Context& ctx = grid_.context();
   const uint32_t w = options_.width, h = options_.height;
   const std::vector<shared::GatherTexel> texels = ctx.download<shared::GatherTexel>(gpu_->gather, size_t(w) * h);
-  GatherBuffer g;
-  g.width = w;
-  g.height = h;
-  const size_t n = g.size();
-  g.valid.assign(n, 0);
-  g.position.assign(n, glm::vec3(0.0f));
-  g.normal.assign(n, glm::vec3(0.0f));
-  g.incident.resize(n);
-  g.material.assign(n, kNoMaterial);
-  g.uv.assign(n, glm::vec2(0.0f));
-  g.launch_ref.assign(n, shared::kNoRef);
-  g.hit.assign(n, Hit{0.0f, shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0});
+  GatherBuffer g = GatherBuffer::blank(w, h);
   for (uint32_t y = 0; y < h; ++y)
     for (uint32_t x = 0; x < w; ++x) {
       const size_t p = size_t(y) * w + x;
