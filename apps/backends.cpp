@@ -42,6 +42,12 @@ std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(cons
   return std::nullopt;
 }
 
+CLI::Option* add_scene_argument(CLI::App* cmd, std::string& scene) {
+  return cmd->add_option("scene", scene,
+                         "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
+                         "(atrium, cornell, teapot); default: the embedded atrium");
+}
+
 void add_backend_options(CLI::App* cmd, BackendOptions& o) {
   reference::GridOptions& g = o.grid;
   using GO = reference::GridOptions;

@@ -13,10 +13,10 @@
 // traced into a second hit buffer, both timed; after the timed frames both hit buffers are read
 // back once and compared ray by ray.
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
 #include <map>
 #include <thread>
@@ -149,11 +149,9 @@ Agreement compare_hits(const std::vector<Ray>& rays, const std::vector<Hit>& gri
     a.same_bounce += same && real;
     if (same && g_hit) {
       ++a.both_hit;
-      uint32_t gb, rb;
-      std::memcpy(&gb, &g.t, 4);
-      std::memcpy(&rb, &r.t, 4);
-      a.t_identical += gb == rb;
-      a.t_within_4_ulps += (gb > rb ? gb - rb : rb - gb) <= 4u;
+      const uint32_t ulps = ulp_distance(g.t, r.t);
+      a.t_identical += std::bit_cast<uint32_t>(g.t) == std::bit_cast<uint32_t>(r.t);
+      a.t_within_4_ulps += ulps <= 4u;
       if (g.t > 0.0f) a.t_max_rel = std::max(a.t_max_rel, std::abs(double(r.t) - double(g.t)) / double(g.t));
     }
     if (same) continue;
@@ -751,7 +749,7 @@ void add_bench_command(CLI::App& app) {
   auto o = std::make_shared<BenchOptions>();
   CLI::App* cmd = app.add_subcommand(
       "bench", "Time the static build, then per frame the dynamic update and the glossy-bounce trace (medians)");
-  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--backend,-b", o->backends, "Backends to time, one after the other: " + backend_list())
       ->delimiter(',');
   cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));

@@ -413,7 +413,7 @@ void add_explain_command(CLI::App& app) {
       "explain",
       "Every step of one ray through the grid (a pixel's primary, bounce or shadow ray, or any ray), the shader's "
       "own record beside it with --backend vulkan; as text, --brief, --json, OBJ, SVG or an HTML viewer");
-  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--width", o->width, "Image width of the frame whose pixel is explained")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height of the frame")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--time,-t", o->time, "Scene time in seconds");

@@ -173,9 +173,7 @@ void run_render(const RenderOptions& options) {
 void add_render_command(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();
   CLI::App* cmd = app.add_subcommand("render", "Render a scene to an image: primary rays, one glossy bounce, simple shading");
-  cmd->add_option("scene", o->scene,
-                  "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
-                  "(atrium, cornell, teapot); default: the embedded atrium");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--backend,-b", o->backend,
                   "Tracer: " + backend_list() + ", or portal-cpu, portal-vulkan (voxel worlds: a .map, builtin:level, a scene voxelized) "
                   "(default: the first)");

@@ -541,7 +541,7 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--backend,-b", o->backends, "Backends: cpu, vulkan (comma separated)")->delimiter(',');
   cmd->add_option("--width", o->width, "Gather buffer width")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Gather buffer height")->check(CLI::Range(1u, 16384u));
-  cmd->add_option("--out,-o", o->out, "Output folder (per scene: NAME.csv, NAME.md, NAME.png)");
+  cmd->add_option("-o,--output-dir", o->out, "Output folder, not a file (per scene: NAME.csv, NAME.md, NAME.png)");
   cmd->add_option("--rays", o->rays,
                   "The rays swept: auto (the frame's glossy bounce rays, else diffuse bounces), glossy, primary, "
                   "diffuse, or a verify family (random, surface, edge, ...); about WIDTH x HEIGHT of them");
