@@ -1,5 +1,5 @@
 // portal.cpp: PortalVulkanTracer, the host side of the Vulkan portal tracer (see portal.h). The
-// CPU builds the divs; this file uploads the packed textures as the seed stores them, records the
+// CPU builds the divs; this file uploads the packed textures as the paper stores them, records the
 // trace and render passes (vulkan/shaders/portal_*.comp) and reads the results back.
 #include "gridrt/vulkan/portal.h"
 #include "gridrt/vulkan/ray_pass.h"
