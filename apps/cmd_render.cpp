@@ -44,6 +44,50 @@ std::string frame_path(const std::string& output, uint32_t frame, uint32_t frame
   return (p.parent_path() / (p.stem().string() + suffix + p.extension().string())).string();
 }
 
+// One frame on a CPU tracer: the gather (through `gather_tracer` where given), the bounce and
+// shadow rays, shading, the image written.
+void render_cpu_frame(const RenderOptions& o, const Scene& scene, Tracer& tracer, Tracer* gather_tracer,
+                      const Camera& camera, uint32_t frame, float time, bool shadows) {
+  const size_t pixels = size_t(o.width) * o.height;
+  const auto t0 = std::chrono::steady_clock::now();
+  Progress progress("frame " + std::to_string(frame) + ": tracing",
+                    pixels * ((o.no_bounce ? 1 : 2) + (shadows ? scene.lights.size() : 0)));
+  ProgressTracer traced(tracer, progress);
+  ProgressTracer gather_traced(gather_tracer ? *gather_tracer : tracer, progress);
+  const GatherBuffer gather = make_gather(scene, gather_traced, camera, o.width, o.height, time);
+  std::vector<Ray> rays;
+  std::vector<Hit> hits;
+  if (!o.no_bounce) {
+    rays = bounce_rays(scene, gather, frame);
+    hits.resize(rays.size());
+    traced.trace(rays, hits);
+  }
+  // Shadow rays from the gather to every light, through the bounce's tracer (as the GPU frame)
+  std::vector<Ray> shadow;
+  std::vector<Hit> shadow_hits;
+  if (shadows) {
+    shadow = shadow_rays(scene, gather);
+    shadow_hits.resize(shadow.size());
+    traced.trace(shadow, shadow_hits);
+  }
+  progress.finish();
+  // Rays outside the domain (shared::ray_domain) are not traced: say how many
+  size_t rejected = 0;
+  for (const Hit& h : gather.hit) rejected += (h.flags & shared::kHitRejected) != 0;
+  for (const Hit& h : hits) rejected += (h.flags & shared::kHitRejected) != 0;
+  if (rejected)
+    std::fprintf(stderr, "%s: frame %u: %zu rays outside the domain (docs/SPEC.md, \"Domain\") were rejected, not traced\n",
+                 tracer.name().c_str(), frame, rejected);
+  ShadeOptions shade_options;
+  shade_options.shadow_rays = shadow;
+  shade_options.shadow_hits = shadow_hits;
+  const std::vector<glm::vec3> rgb = shade(scene, gather, rays, hits, shade_options);
+  const std::string path = frame_path(o.output, frame, o.frames);
+  write_image(path, o.width, o.height, rgb);
+  std::fprintf(stderr, "%s: frame %u (t = %.3f s) traced and shaded in %.2f s -> %s\n", tracer.name().c_str(),
+               frame, time, seconds_since(t0), path.c_str());
+}
+
 void run_render(const RenderOptions& options) {
   RenderOptions o = options;
   check_frame_size(o.width, o.height);
@@ -127,44 +171,7 @@ void run_render(const RenderOptions& options) {
       tracer->update(time);
       if (gather_tracer) gather_tracer->update(time);
     }
-    const size_t pixels = size_t(o.width) * o.height;
-    t0 = std::chrono::steady_clock::now();
-    Progress progress("frame " + std::to_string(frame) + ": tracing",
-                      pixels * ((o.no_bounce ? 1 : 2) + (shadows ? scene.lights.size() : 0)));
-    ProgressTracer traced(*tracer, progress);
-    ProgressTracer gather_traced(gather_tracer ? *gather_tracer : *tracer, progress);
-    const GatherBuffer gather = make_gather(scene, gather_traced, camera, o.width, o.height, time);
-    std::vector<Ray> rays;
-    std::vector<Hit> hits;
-    if (!o.no_bounce) {
-      rays = bounce_rays(scene, gather, frame);
-      hits.resize(rays.size());
-      traced.trace(rays, hits);
-    }
-    // Shadow rays from the gather to every light, through the bounce's tracer (as the GPU frame)
-    std::vector<Ray> shadow;
-    std::vector<Hit> shadow_hits;
-    if (shadows) {
-      shadow = shadow_rays(scene, gather);
-      shadow_hits.resize(shadow.size());
-      traced.trace(shadow, shadow_hits);
-    }
-    progress.finish();
-    // Rays outside the domain (shared::ray_domain) are not traced: say how many
-    size_t rejected = 0;
-    for (const Hit& h : gather.hit) rejected += (h.flags & shared::kHitRejected) != 0;
-    for (const Hit& h : hits) rejected += (h.flags & shared::kHitRejected) != 0;
-    if (rejected)
-      std::fprintf(stderr, "%s: frame %u: %zu rays outside the domain (docs/SPEC.md, \"Domain\") were rejected, not traced\n",
-                   tracer->name().c_str(), frame, rejected);
-    ShadeOptions shade_options;
-    shade_options.shadow_rays = shadow;
-    shade_options.shadow_hits = shadow_hits;
-    const std::vector<glm::vec3> rgb = shade(scene, gather, rays, hits, shade_options);
-    const std::string path = frame_path(o.output, frame, o.frames);
-    write_image(path, o.width, o.height, rgb);
-    std::fprintf(stderr, "%s: frame %u (t = %.3f s) traced and shaded in %.2f s -> %s\n", tracer->name().c_str(),
-                 frame, time, seconds_since(t0), path.c_str());
+    render_cpu_frame(o, scene, *tracer, gather_tracer.get(), camera, frame, time, shadows);
   }
 }
 
