@@ -74,16 +74,16 @@ int main(int argc, char** argv) {
   app.add_option("--width", w, "Gather buffer width")->check(CLI::Range(1u, 16384u));
   app.add_option("--height", h, "Gather buffer height")->check(CLI::Range(1u, 16384u));
   app.add_option("--repeat", repeat, "Time each phase this many times (best)")->check(CLI::Range(1, 1000));
-  app.add_option("--traversal", o.traversal, "paper|exact")
+  app.add_option("--traversal", o.traversal, "The trace: the paper's segments or the exact cell walk (default paper)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, reference::Traversal>{
           {"paper", reference::Traversal::paper}, {"exact", reference::Traversal::exact}}).description(""))
       ->type_name("paper|exact");
-  app.add_option("--insertion", o.insertion, "sorted|first-empty")
+  app.add_option("--insertion", o.insertion, "How a reference takes a slot in its cell (default sorted)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, reference::Insertion>{
           {"sorted", reference::Insertion::sorted}, {"first-empty", reference::Insertion::first_empty}}).description(""))
       ->type_name("sorted|first-empty");
   app.add_option("--max-image-dimension", o.max_image_dimension, "Largest grid image dimension");
-  app.add_option("--spill", o.spill, "auto|on|off")
+  app.add_option("--spill", o.spill, "The list of references that find no slot (auto: on for the exact traversal)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, GO::Spill>{
           {"auto", GO::Spill::automatic}, {"on", GO::Spill::on}, {"off", GO::Spill::off}}).description(""))
       ->type_name("auto|on|off");
