@@ -137,6 +137,12 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
            {{"auto", GO::SlotAxis::automatic}, {"x", GO::SlotAxis::x}, {"y", GO::SlotAxis::y}, {"z", GO::SlotAxis::z}},
            "Scene axis laid along the image's x, the slots' axis (auto: the axis with the fewest cells)")
       ->group(kExpert);
+  add_enum(cmd, "--cell-test", g.cell_test,
+           {{"auto", GO::CellTest::automatic}, {"sphere", GO::CellTest::sphere}, {"box", GO::CellTest::box}},
+           "Build: which cells of a triangle's AABB range take it: sphere (the paper's plane vs enlarged cell "
+           "sphere), box (that and the separating-axis triangle/box test: fewer references) or auto (box for the "
+           "exact traversal, sphere for the paper's)")
+      ->group(kExpert);
   cmd->add_option("--enlargement", g.sphere_enlargement, "Cell bounding-sphere radius multiplier (build)")
       ->check(CLI::Range(0.0f, 16.0f))->group(kExpert);
   cmd->add_option("--aabb-padding", g.aabb_padding,

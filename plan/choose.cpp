@@ -265,7 +265,7 @@ GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
   g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
             (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u)) |
-            (skip_enabled(o) ? shared::kGridSkipEmpty : 0u);
+            (skip_enabled(o) ? shared::kGridSkipEmpty : 0u) | (cell_box_enabled(o) ? shared::kGridCellBox : 0u);
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
@@ -443,6 +443,11 @@ bool spill_enabled(const AlgorithmOptions& o) {
 // ---- Empty-space skipping: which traversal takes it, the dynamic boxes ----
 
 bool skip_enabled(const AlgorithmOptions& o) { return o.skip_empty && o.traversal == Traversal::exact; }
+
+bool cell_box_enabled(const AlgorithmOptions& o) {
+  return o.cell_test == AlgorithmOptions::CellTest::box ||
+         (o.cell_test == AlgorithmOptions::CellTest::automatic && o.traversal == Traversal::exact);
+}
 
 std::vector<uint32_t> skip_box_words(const Scene& scene, float time, const GridParams& g) {
   std::vector<uint32_t> w(shared::kSkipHeaderWords, 0u);

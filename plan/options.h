@@ -45,6 +45,11 @@ struct AlgorithmOptions {
   // boxes of empty cells at once, by the skip field built after the static references. Exact
   // traversal only; the paper traversal stays the paper's.
   bool skip_empty = true;
+  // The build's cell test (docs/SPEC.md "Cell test"): sphere, the paper's (the triangle's plane
+  // through the cell's enlarged bounding sphere, within its AABB's cell range); box, that and the
+  // separating-axis test against the padded cell box (kGridCellBox: fewer references); automatic:
+  // box for the exact traversal, sphere for the paper's.
+  enum class CellTest { automatic, sphere, box } cell_test = CellTest::automatic;
   // The spill list (docs/SPEC.md, "Spill list"): references no slot took are kept as (cell, ref) and
   // the trace tests a saturated cell's spilled references too. automatic: on for the exact
   // traversal, off for the paper's (which answers saturation with gap-fill; spill on turns

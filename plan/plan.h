@@ -23,6 +23,8 @@ inline float min_cell_size(float reach) { return reach * (kMinCellUlps * 0x1p-23
 
 // Whether `o` turns empty-space skipping on (kGridSkipEmpty: the exact traversal with skip_empty).
 bool skip_enabled(const AlgorithmOptions& o);
+// Whether `o` takes the separating-axis cell test (kGridCellBox: box, or automatic with the exact traversal).
+bool cell_box_enabled(const AlgorithmOptions& o);
 
 // The skip field's header words (shared::kSkipHeaderWords): the boxes of cells that cover the
 // dynamic instances' references at `time` (shared::skip_box_of_bounds; instance i of the dynamic

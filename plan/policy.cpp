@@ -33,7 +33,7 @@ void for_each_triangle_cell(const Scene& scene, size_t instance, float time, con
     for (uint32_t z = lo.z; z <= hi.z; ++z)
       for (uint32_t y = lo.y; y <= hi.y; ++y)
         for (uint32_t x = lo.x; x <= hi.x; ++x)
-          if (plane_intersects_enlarged_sphere(v0, n, nn, cell_center(g, {x, y, z}), g.sphere_r2))
+          if (triangle_overlaps_cell(g, v0, v1, v2, n, nn, {x, y, z}))
             f(t, (size_t(z) * g.cells.y + y) * g.cells.x + x);
   }
 }
@@ -237,7 +237,7 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
     const float t_hit = sample.t_end[i];
     RaySetup rs;
     ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs);
-    // The hit triangle W: the cells the build offers it (its padded range, the plane test)
+    // The hit triangle W: the cells the build offers it (its padded range, the cell test)
     const std::array<vec3, 3>& w_tri = sample.hit[i];
     const vec3 n = triangle_normal(w_tri[0], w_tri[1], w_tri[2]);
     const float nn = sh_dot(n, n);
@@ -260,7 +260,7 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
       cells += 1;
       tests += spill ? c : std::min(c, g.capacity);
       if (c > 0u && all(greaterThanEqual(cell, llo)) && all(lessThanEqual(cell, lhi)) &&
-          plane_intersects_enlarged_sphere(l_tri[0], ln, lnn, cell_center(g, cell), g.sphere_r2))
+          triangle_overlaps_cell(g, l_tri[0], l_tri[1], l_tri[2], ln, lnn, cell))
         tests -= 1;
       const bool saturated = c > g.capacity;
       if (saturated) {
@@ -271,7 +271,7 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
       const float t_lo = exact ? rs.t_lo : max(rs.t_lo, segment_elongated_begin(g, rs, k));
       const float t_hi = exact ? ray.tmax : min(ray.tmax, segment_elongated_end(g, rs, last));
       const bool covers = all(greaterThanEqual(cell, lo)) && all(lessThanEqual(cell, hi)) && t_lo < t_hit &&
-                          t_hit < t_hi && plane_intersects_enlarged_sphere(w_tri[0], n, nn, cell_center(g, cell), g.sphere_r2);
+                          t_hit < t_hi && triangle_overlaps_cell(g, w_tri[0], w_tri[1], w_tri[2], n, nn, cell);
       if (covers) {
         offered = true;
         missed *= saturated && !spill ? double(c - g.capacity) / double(c) : 0.0;

@@ -220,8 +220,8 @@ void append_dirty_cell(WordBuffer& dirty, const GridParams& g, glm::uvec3 cell) 
 namespace {
 
 // One emulated geometry-shader invocation: transform the triangle, write it to the geometry
-// buffer, insert its reference into every cell of its AABB range whose enlarged bounding sphere
-// the triangle's plane passes through.
+// buffer, insert its reference into every cell of its AABB range that the cell test keeps (its
+// plane passes through the cell's enlarged bounding sphere; with kGridCellBox, no separating axis).
 void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t instance,
                       uint32_t triangle, const shared::Affine& m) {
   const GridParams& g = grid.params;
@@ -241,7 +241,7 @@ void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t i
   const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
   const float nn = shared::sh_dot(n, n);
   if (nn == 0.0f) return;
-  // Cells of the AABB range whose enlarged bounding sphere meets the plane
+  // Cells of the AABB range that the cell test keeps
   glm::uvec3 lo, hi;
   shared::triangle_cell_range(g, v0, v1, v2, lo, hi);
   const uint32_t ref = shared::ref_pack(instance, triangle);
@@ -249,8 +249,7 @@ void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t i
     for (uint32_t y = lo.y; y <= hi.y; ++y)
       for (uint32_t x = lo.x; x <= hi.x; ++x) {
         const glm::uvec3 cell(x, y, z);
-        if (!shared::plane_intersects_enlarged_sphere(v0, n, nn, shared::cell_center(g, cell), g.sphere_r2))
-          continue;
+        if (!shared::triangle_overlaps_cell(g, v0, v1, v2, n, nn, cell)) continue;
         if (ref >= g.comparison_offset) append_dirty_cell(grid.dirty, g, cell);
         if (g.insertion == shared::kInsertSorted) insert_sorted(grid, cell, ref);
         else insert_first_empty(grid, cell, ref);

@@ -39,7 +39,7 @@ std::vector<std::vector<uint32_t>> candidates(const Scene& scene, const sh::Grid
       for (uint32_t z = lo.z; z <= hi.z; ++z)
         for (uint32_t y = lo.y; y <= hi.y; ++y)
           for (uint32_t x = lo.x; x <= hi.x; ++x)
-            if (sh::plane_intersects_enlarged_sphere(v0, n, sh::sh_dot(n, n), sh::cell_center(g, {x, y, z}), g.sphere_r2))
+            if (sh::triangle_overlaps_cell(g, v0, v1, v2, n, sh::sh_dot(n, n), {x, y, z}))
               out[cell_index(g, {x, y, z})].push_back(sh::ref_pack(i, t));
     }
   }
@@ -136,14 +136,42 @@ GridData build(const Scene& scene, float time, GridOptions o) {
 TEST_CASE("Every triangle is referenced in exactly the cells its test accepts", "[grid]") {
   // A capacity of 4 on a dense scene: some cells saturate
   const Scene scene = random_scene(600, 0.8f, 8.0f, 21, 80);
-  for (Insertion ins : {Insertion::sorted, Insertion::first_empty}) {
-    GridOptions o{{.insertion = ins}, {.capacity = 4}, {.threads = 2}};
-    const GridData g = build(scene, 0.5f, o);
-    const uint32_t saturated = check_invariants(scene, g, 0.5f);
-    INFO("saturated cells: " << saturated);
-    CHECK(saturated > 0);
-    CHECK(saturated < g.params.cells.x * g.params.cells.y * g.params.cells.z);
-  }
+  using CellTest = GridOptions::CellTest;
+  for (CellTest ct : {CellTest::sphere, CellTest::box})
+    for (Insertion ins : {Insertion::sorted, Insertion::first_empty}) {
+      GridOptions o{{.insertion = ins, .cell_test = ct}, {.capacity = 4}, {.threads = 2}};
+      const GridData g = build(scene, 0.5f, o);
+      CHECK(((g.params.flags & sh::kGridCellBox) != 0u) == (ct == CellTest::box));
+      const uint32_t saturated = check_invariants(scene, g, 0.5f);
+      INFO("saturated cells: " << saturated);
+      CHECK(saturated > 0);
+      CHECK(saturated < g.params.cells.x * g.params.cells.y * g.params.cells.z);
+    }
+}
+
+TEST_CASE("The separating-axis cell test keeps a subset of the sphere test's references, and fewer", "[grid]") {
+  const Scene scene = random_scene(400, 0.8f, 8.0f, 23, 60);
+  using CellTest = GridOptions::CellTest;
+  GridOptions o{{.traversal = reference::Traversal::exact, .cell_test = CellTest::sphere},
+                {.resolution = glm::uvec3(12, 12, 12), .capacity = 300},
+                {.threads = 2}};
+  const GridData sphere = build(scene, 0.5f, o);
+  o.cell_test = CellTest::automatic;  // box for the exact traversal
+  const GridData box = build(scene, 0.5f, o);
+  REQUIRE((box.params.flags & sh::kGridCellBox) != 0u);
+  REQUIRE(box.params.cells == sphere.params.cells);
+  size_t refs_sphere = 0, refs_box = 0;
+  for (uint32_t z = 0; z < box.params.cells.z; ++z)
+    for (uint32_t y = 0; y < box.params.cells.y; ++y)
+      for (uint32_t x = 0; x < box.params.cells.x; ++x) {
+        const CellContent a = read_cell(sphere, {x, y, z}), b = read_cell(box, {x, y, z});
+        REQUIRE(a.status == 0u);  // nothing dropped: both hold every reference their test accepts
+        REQUIRE(std::includes(a.refs.begin(), a.refs.end(), b.refs.begin(), b.refs.end()));
+        refs_sphere += a.refs.size();
+        refs_box += b.refs.size();
+      }
+  INFO("references: sphere " << refs_sphere << ", box " << refs_box);
+  CHECK(refs_box < refs_sphere);
 }
 
 TEST_CASE("Sorted images are identical over thread counts and shuffled orders", "[grid]") {

@@ -1,7 +1,10 @@
 // Each step of the grid's shared math alone (common/shared/grid.h, triangle.h).
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <limits>
+#include <random>
+#include <vector>
 
 #include "test_grid_util.h"
 
@@ -104,6 +107,121 @@ TEST_CASE("Plane vs enlarged sphere agrees with a double-precision distance chec
     }
   }
   CHECK(disagreements <= tested / 1000);
+}
+
+namespace {
+// Whether the triangle (local coordinates, double) meets the box [m - h, m + h]: the triangle
+// clipped against the box's six planes (Sutherland-Hodgman, in double) keeps a point. Points on a
+// plane are kept, so a touching triangle overlaps.
+bool clip_overlap(const std::array<glm::dvec3, 3>& tri, glm::dvec3 m, double h) {
+  std::vector<glm::dvec3> poly(tri.begin(), tri.end());
+  for (int axis = 0; axis < 3 && !poly.empty(); ++axis)
+    for (double side : {-1.0, 1.0}) {
+      // Keep side * (p[axis] - m[axis]) <= h
+      const auto inside = [&](const glm::dvec3& p) { return side * (p[axis] - m[axis]) <= h; };
+      std::vector<glm::dvec3> out;
+      for (size_t i = 0; i < poly.size(); ++i) {
+        const glm::dvec3 a = poly[i], b = poly[(i + 1) % poly.size()];
+        if (inside(a)) out.push_back(a);
+        if (inside(a) != inside(b)) {
+          const double s = (side * h + m[axis] - a[axis]) / (b[axis] - a[axis]);
+          glm::dvec3 q = a + s * (b - a);
+          q[axis] = m[axis] + side * h;
+          out.push_back(q);
+        }
+      }
+      poly = std::move(out);
+    }
+  return !poly.empty();
+}
+}  // namespace
+
+TEST_CASE("The separating-axis cell test keeps every cell a double-precision clip says the triangle meets, and "
+          "drops those it misses by more than 0.01 cell", "[unit][grid]") {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  struct Grid {
+    float cs;
+    glm::vec3 origin;
+  };
+  // Unit cells at the origin; small cells far from it (coarse ulps relative to a cell)
+  for (const Grid& gd : {Grid{1.0f, glm::vec3(0.0f)}, Grid{0.37f, glm::vec3(-1000.5f, 3000.25f, 77.0f)}}) {
+    sh::GridParams g = unit_grid({8, 8, 8}, 4, gd.cs, gd.origin);
+    g.flags = sh::kGridCellBox;
+    const glm::uvec3 cell(3, 4, 2);
+    const glm::dvec3 m = glm::dvec3(cell) + 0.5;
+    uint64_t kept = 0, dropped = 0, far = 0;
+    for (int i = 0; i < 40000; ++i) {
+      // Vertices in local coordinates around the cell: random, snapped to cell planes, a corner's
+      // plane x + y + z = const (the box touches the triangle at a corner or an edge)
+      std::array<glm::vec3, 3> f;
+      const int family = i % 4;
+      const float spread = i % 3 == 0 ? 0.6f : (i % 3 == 1 ? 3.0f : 40.0f);
+      for (glm::vec3& v : f)
+        v = glm::vec3(m) + spread * (glm::vec3(u(rng), u(rng), u(rng)) * 2.0f - 1.0f);
+      if (family == 1)
+        for (glm::vec3& v : f) v[rng() % 3] = float(cell[rng() % 3] + (rng() % 2));
+      if (family == 2) {
+        const float k = float(cell.x + cell.y + cell.z + 1u + rng() % 2u);
+        for (glm::vec3& v : f) v.z = k - v.x - v.y;
+      }
+      if (family == 3) f[2] = f[0] + (f[1] - f[0]) * 1.0e-3f * u(rng);  // a sliver
+      // World vertices; the test and the truth both see the local coordinates the grid computes
+      std::array<glm::vec3, 3> w;
+      std::array<glm::dvec3, 3> local;
+      for (int k = 0; k < 3; ++k) {
+        w[k] = g.origin + f[k] * gd.cs;
+        local[k] = glm::dvec3(sh::grid_local(g, w[k]));
+      }
+      const glm::vec3 n = sh::triangle_normal(w[0], w[1], w[2]);
+      if (sh::sh_dot(n, n) == 0.0f) continue;
+      // The box's own axes are the cell range's; the test adds the plane and the edge products
+      glm::uvec3 lo, hi;
+      sh::triangle_cell_range(g, w[0], w[1], w[2], lo, hi);
+      const bool in_range = glm::all(glm::greaterThanEqual(cell, lo)) && glm::all(glm::lessThanEqual(cell, hi));
+      const bool got = in_range && sh::triangle_box_overlap(g, w[0], w[1], w[2], cell);
+      INFO("grid " << gd.cs << " v0 " << hx(w[0]) << " v1 " << hx(w[1]) << " v2 " << hx(w[2]));
+      if (clip_overlap(local, m, 0.5)) {
+        CHECK(got);  // conservative: a cell the triangle meets is never dropped
+      } else if (!clip_overlap(local, m, 0.51)) {
+        ++far;
+        CHECK_FALSE(got);  // tight: a triangle clear of the cell by 0.01 is dropped
+      }
+      (got ? kept : dropped) += 1;
+    }
+    // Every family produced both outcomes and the tight branch ran
+    CHECK(kept > 1000);
+    CHECK(dropped > 1000);
+    CHECK(far > 1000);
+  }
+}
+
+TEST_CASE("The cell test: the sphere test alone without kGridCellBox, a subset of it with", "[unit][grid]") {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> p(-3.0f, 3.0f);
+  sh::GridParams g = unit_grid({8, 8, 8}, 4, 0.75f, glm::vec3(-3.0f));
+  sh::GridParams box = g;
+  box.flags |= sh::kGridCellBox;
+  uint64_t sphere_cells = 0, box_cells = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const glm::vec3 v0(p(rng), p(rng), p(rng)), v1(p(rng), p(rng), p(rng)), v2(p(rng), p(rng), p(rng));
+    const glm::vec3 n = sh::triangle_normal(v0, v1, v2);
+    const float nn = sh::sh_dot(n, n);
+    glm::uvec3 lo, hi;
+    sh::triangle_cell_range(g, v0, v1, v2, lo, hi);
+    for (uint32_t z = lo.z; z <= hi.z; ++z)
+      for (uint32_t y = lo.y; y <= hi.y; ++y)
+        for (uint32_t x = lo.x; x <= hi.x; ++x) {
+          const bool s = sh::triangle_overlaps_cell(g, v0, v1, v2, n, nn, {x, y, z});
+          const bool b = sh::triangle_overlaps_cell(box, v0, v1, v2, n, nn, {x, y, z});
+          CHECK(s == sh::plane_intersects_enlarged_sphere(v0, n, nn, sh::cell_center(g, {x, y, z}), g.sphere_r2));
+          CHECK(b == (s && sh::triangle_box_overlap(box, v0, v1, v2, {x, y, z})));
+          sphere_cells += s;
+          box_cells += b;
+        }
+  }
+  // The box test is tighter on large random triangles
+  CHECK(box_cells < sphere_cells);
 }
 
 TEST_CASE("Moller-Trumbore: analytic cases and every outcome code", "[unit][grid]") {

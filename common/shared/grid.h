@@ -37,6 +37,9 @@ SH_CONST uint kGridSpill = 8u;             // references no slot took go to the 
                                            // the trace tests a saturated cell's spilled ones too
 SH_CONST uint kGridSkipEmpty = 16u;        // exact traversal: the DDA jumps over boxes of empty
                                            // cells (the skip field, docs/SPEC.md "Empty-space skipping")
+SH_CONST uint kGridCellBox = 32u;          // build: a cell takes a triangle only if the separating-axis
+                                           // test finds no axis between the triangle and the padded cell
+                                           // box too (triangle_overlaps_cell; docs/SPEC.md "Cell test")
 // Bits 8-9: the scene axis laid along the image's x, the axis that carries the slots (0 x, 1 y,
 // 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis"). The
 // image swaps that axis with x; every other axis keeps its place.
@@ -266,6 +269,87 @@ SH_INLINE bool plane_intersects_enlarged_sphere(SH_IN(vec3) v0, SH_IN(vec3) n, f
   SH_PRECISE float lhs = s * s;
   SH_PRECISE float rhs = r2 * nn;
   return lhs <= rhs;
+}
+
+// ---- Build: the separating-axis test (kGridCellBox; docs/SPEC.md "Cell test") ----
+// Akenine-Moller's triangle/box overlap test, in cell units (grid_local, the coordinates the cell
+// range is made of) around the cell's centre m = cell + 0.5 (exact), the box's half edge
+// h = 0.5 + aabb_padding + 8 u M / cell_size (u = 2^-24, M the grid corners' largest |coordinate|:
+// the trace's cell boundaries origin + k cell_size are world-space floats, and they and the ray
+// parameters computed from them round by up to about that much). The box's own three axes are
+// the cell range's (triangle_cell_range, the same local coordinates and padding); this adds the triangle's plane and the nine products of an
+// edge with a box axis. Any vector is a valid separating axis, so the rounded edges and normal
+// may serve as axes; what must be conservative is the projection. On axis a the triangle projects
+// to p_k = a . (f_k - m) and the box to [-r, r], r = h |a|_1; a vertex moved by the padding per
+// component moves p_k by at most the padding's part of r, so the test forgives the same vertex
+// rounding as the range. The float evaluation of p_k and r errs by less than 8 u (S + r)
+// (S = max_k |a| . |f_k - m|, the sums' magnitude), and the test declares a separation
+// only beyond r + kSatMargin (S + r), kSatMargin = 2^-20 = 16 u. A NaN or infinite projection
+// (out-of-domain magnitudes) separates nothing: the cell keeps the triangle.
+SH_CONST float kSatMargin = 9.5367431640625e-07f;  // 2^-20
+SH_CONST float kSatWorldSlack = 4.76837158203125e-07f;  // 2^-21 = 8 u
+
+// Whether axis `a` separates the triangle (its vertices relative to the centre, d0..d2) from the
+// box of half edge h.
+SH_INLINE bool sat_axis_separates(SH_IN(vec3) a, SH_IN(vec3) d0, SH_IN(vec3) d1, SH_IN(vec3) d2, float h) {
+  SH_PRECISE float p0 = sh_dot(a, d0);
+  SH_PRECISE float p1 = sh_dot(a, d1);
+  SH_PRECISE float p2 = sh_dot(a, d2);
+  SH_PRECISE vec3 aa = abs(a);
+  SH_PRECISE float a1 = (aa.x + aa.y) + aa.z;
+  SH_PRECISE float r = h * a1;
+  SH_PRECISE float s0 = sh_dot(aa, abs(d0));
+  SH_PRECISE float s1 = sh_dot(aa, abs(d1));
+  SH_PRECISE float s2 = sh_dot(aa, abs(d2));
+  SH_PRECISE float sum = max(max(s0, s1), s2) + r;
+  SH_PRECISE float slack = kSatMargin * sum;
+  SH_PRECISE float bound = r + slack;
+  float lo = min(min(p0, p1), p2);
+  float hi = max(max(p0, p1), p2);
+  return lo > bound || hi < -bound;
+}
+
+// The triangle's plane and the nine edge x axis products: true when none separates the triangle
+// (world vertices v0, v1, v2) from cell `cell` padded by aabb_padding.
+SH_INLINE bool triangle_box_overlap(SH_IN(GridParams) g, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+                                    SH_IN(uvec3) cell) {
+  SH_PRECISE vec3 m = vec3(cell) + vec3(0.5f);
+  // The half edge: the padding, and the rounding of the trace's world-space cell boundaries
+  // (8 u of the grid's largest coordinate, in cell units)
+  SH_PRECISE vec3 ao = max(abs(g.origin), abs(g.upper));
+  SH_PRECISE float big = max(max(ao.x, ao.y), ao.z);
+  SH_PRECISE float world = big * g.inv_cell_size;
+  SH_PRECISE float slack = kSatWorldSlack * world;
+  SH_PRECISE float h = (0.5f + g.aabb_padding) + slack;
+  SH_PRECISE vec3 d0 = grid_local(g, v0) - m;
+  SH_PRECISE vec3 d1 = grid_local(g, v1) - m;
+  SH_PRECISE vec3 d2 = grid_local(g, v2) - m;
+  SH_PRECISE vec3 e0 = d1 - d0;
+  SH_PRECISE vec3 e1 = d2 - d1;
+  SH_PRECISE vec3 e2 = d0 - d2;
+  // The plane: its normal in cell units
+  if (sat_axis_separates(sh_cross(e0, e1), d0, d1, d2, h)) return false;
+  // Edge x x, edge x y, edge x z (written out: one component is 0)
+  if (sat_axis_separates(vec3(0.0f, e0.z, -e0.y), d0, d1, d2, h)) return false;
+  if (sat_axis_separates(vec3(0.0f, e1.z, -e1.y), d0, d1, d2, h)) return false;
+  if (sat_axis_separates(vec3(0.0f, e2.z, -e2.y), d0, d1, d2, h)) return false;
+  if (sat_axis_separates(vec3(-e0.z, 0.0f, e0.x), d0, d1, d2, h)) return false;
+  if (sat_axis_separates(vec3(-e1.z, 0.0f, e1.x), d0, d1, d2, h)) return false;
+  if (sat_axis_separates(vec3(-e2.z, 0.0f, e2.x), d0, d1, d2, h)) return false;
+  if (sat_axis_separates(vec3(e0.y, -e0.x, 0.0f), d0, d1, d2, h)) return false;
+  if (sat_axis_separates(vec3(e1.y, -e1.x, 0.0f), d0, d1, d2, h)) return false;
+  if (sat_axis_separates(vec3(e2.y, -e2.x, 0.0f), d0, d1, d2, h)) return false;
+  return true;
+}
+
+// ---- Build: the cell test, written once (build.cpp, build.glsl, plan/, the verify referee) ----
+// Whether a cell of the triangle's range (triangle_cell_range) takes its reference: its plane
+// passes through the cell's enlarged bounding sphere (paper 2.1; n its normal, nn = dot(n, n) > 0)
+// and, with kGridCellBox, no separating axis parts it from the padded cell box.
+SH_INLINE bool triangle_overlaps_cell(SH_IN(GridParams) g, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+                                      SH_IN(vec3) n, float nn, SH_IN(uvec3) cell) {
+  if (!plane_intersects_enlarged_sphere(v0, n, nn, cell_center(g, cell), g.sphere_r2)) return false;
+  return (g.flags & kGridCellBox) == 0u || triangle_box_overlap(g, v0, v1, v2, cell);
 }
 
 // ---- Rays ----

@@ -119,13 +119,14 @@ layout(std430, binding = kGridBindBuildList) buffer BuildList {
   uint build_items[];
 };
 
-// Insert the reference into the cells [first, last) of the range lo..hi (x fastest) whose enlarged
-// bounding sphere the triangle's plane passes through.
-void insert_range_cells(GridParams g, uint ref, vec3 v0, vec3 n, float nn, uvec3 lo, uvec3 hi, uint first, uint last) {
+// Insert the reference into the cells [first, last) of the range lo..hi (x fastest) that the cell
+// test keeps (triangle_overlaps_cell).
+void insert_range_cells(GridParams g, uint ref, vec3 v0, vec3 v1, vec3 v2, vec3 n, float nn, uvec3 lo, uvec3 hi,
+                        uint first, uint last) {
   const uvec3 size = hi - lo + 1u;
   for (uint i = first; i < last; ++i) {
     const uvec3 cell = lo + uvec3(i % size.x, (i / size.x) % size.y, i / (size.x * size.y));
-    if (!plane_intersects_enlarged_sphere(v0, n, nn, cell_center(g, cell), g.sphere_r2)) continue;
+    if (!triangle_overlaps_cell(g, v0, v1, v2, n, nn, cell)) continue;
     if (ref >= g.comparison_offset) append_dirty_cell(g, cell);
     if (g.insertion == kInsertSorted) insert_sorted(g, cell, ref);
     else insert_first_empty(g, cell, ref);
@@ -133,8 +134,7 @@ void insert_range_cells(GridParams g, uint ref, vec3 v0, vec3 n, float nn, uvec3
 }
 
 // One build invocation: write the world-space triangle to the geometry buffer, insert its
-// reference into every cell of its AABB range whose enlarged bounding sphere the triangle's plane
-// passes through (`split`: the compute build hands ranges of more than kBuildRun cells out in runs).
+// reference into every cell of its AABB range that the cell test keeps (`split`: the compute build hands ranges of more than kBuildRun cells out in runs).
 void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, bool split) {
   const GridParams g = grid_params();
   // Write the world-space triangle (the material was written by the host)
@@ -146,7 +146,7 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
   const vec3 n = triangle_normal(v0, v1, v2);
   const float nn = sh_dot(n, n);
   if (nn == 0.0f) return;
-  // Cells of the AABB range whose enlarged bounding sphere meets the plane
+  // Cells of the AABB range that the cell test keeps
   uvec3 lo;
   uvec3 hi;
   triangle_cell_range(g, v0, v1, v2, lo, hi);
@@ -166,7 +166,7 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
       return;
     }
   }
-  insert_range_cells(g, ref, v0, n, nn, lo, hi, 0u, count);
+  insert_range_cells(g, ref, v0, v1, v2, n, nn, lo, hi, 0u, count);
 }
 
 #endif

@@ -21,5 +21,5 @@ void main() {
   triangle_cell_range(g, tri.v0, tri.v1, tri.v2, lo, hi);
   const uvec3 size = hi - lo + 1u;
   const uint count = size.x * size.y * size.z;
-  insert_range_cells(g, ref, tri.v0, n, nn, lo, hi, run * kBuildRun, min(count, (run + 1u) * kBuildRun));
+  insert_range_cells(g, ref, tri.v0, tri.v1, tri.v2, n, nn, lo, hi, run * kBuildRun, min(count, (run + 1u) * kBuildRun));
 }
