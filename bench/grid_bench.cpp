@@ -1,7 +1,8 @@
 // grid_bench: the reference grid's build, update and trace times, rays/s and memory on built-in
 // and scene-file scenes, beside Embree on the same rays, and its agreement with Embree.
 //   gridrt_grid_bench [--threads N] [--width W] [--height H] [--repeat R] [--traversal paper|exact]
-//                     [--insertion sorted|first-empty] [--max-image-dimension D] [--spill auto|on|off]
+//                     [--insertion sorted|first-empty] [--cell-test auto|sphere|box]
+//                     [--max-image-dimension D] [--spill auto|on|off]
 //                     SCENE...   (SCENE: builtin:NAME, a .json, ...; the option names are gridrt's)
 // Rays: the camera's primary rays, then one mirror bounce per primary hit off the gather buffer
 // (the paper's use). Times: the best of R runs, wall clock.
@@ -82,6 +83,10 @@ int main(int argc, char** argv) {
       ->transform(CLI::CheckedTransformer(std::map<std::string, reference::Insertion>{
           {"sorted", reference::Insertion::sorted}, {"first-empty", reference::Insertion::first_empty}}).description(""))
       ->type_name("sorted|first-empty");
+  app.add_option("--cell-test", o.cell_test, "Which cells of a triangle's range take it (auto: box for the exact traversal)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, GO::CellTest>{
+          {"auto", GO::CellTest::automatic}, {"sphere", GO::CellTest::sphere}, {"box", GO::CellTest::box}}).description(""))
+      ->type_name("auto|sphere|box");
   app.add_option("--max-image-dimension", o.max_image_dimension, "Largest grid image dimension");
   app.add_option("--spill", o.spill, "The list of references that find no slot (auto: on for the exact traversal)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, GO::Spill>{
