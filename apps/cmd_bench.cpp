@@ -29,6 +29,10 @@
 #include "gridrt/common/gather.h"
 #include "gridrt/common/safe_io.h"
 #include "gridrt/reference/grid.h"
+#ifdef GRIDRT_HAVE_EMBREE
+#  include "gridrt/common/embree/embree_tracer.h"
+#  include "verify/rays.h"
+#endif
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "gridrt/vulkan/frame.h"
 #  include "gridrt/vulkan/grid.h"
@@ -44,6 +48,7 @@ struct BenchOptions {
   uint32_t width = 1920, height = 1080;
   uint32_t frames = 20, warmup = 3;
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
+  std::string rays = "auto";       // the traced rays: auto, glossy (the frame's), or a kind (rays_of_kind)
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
   ShadowMode shadows = ShadowMode::automatic;  // shadow rays to the lights (auto: iff the scene has some)
@@ -422,7 +427,9 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
                         std::map<std::string, double>& m, const std::map<std::string, std::vector<double>>& t,
                         bool stamps, uint32_t gather_tiles, double build, double build_warm, double mrays,
                         const VulkanMemory& mem, const std::string& spill_line) {
-  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute" : "raster";
+  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
+                            : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
+                                                                               : "raster";
   std::printf("| build ms (first, warm) | update ms (clear + insert) | gather ms | bounce rays ms | trace ms | shade ms | frame ms "
               "(update..shade) | Mrays/s (trace) | grid MiB | frame buffers MiB |\n"
               "|---|---|---|---|---|---|---|---|---|---|\n");
@@ -443,7 +450,7 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
   else
     std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
   std::printf("%s (after the last frame's update)\n\n", spill_line.c_str());
-  std::printf("gather split: visibility (%s; %u tiles of 8x8 pixels in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
+  std::printf("gather split: visibility (%s; %u work items in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
               "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, skip field %.3f, "
               "dynamic instances %.3f ms\n",
               gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
@@ -490,7 +497,9 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
   const double build = stamps ? vk->timings().build_ms : build_host;
   vulkan::FrameOptions fo{.width = o.width, .height = o.height};
-  fo.gather = o.gather == "raster" ? vulkan::GatherMode::raster : vulkan::GatherMode::compute;
+  fo.gather = o.gather == "raster"  ? vulkan::GatherMode::raster
+              : o.gather == "boxes" ? vulkan::GatherMode::boxes
+                                    : vulkan::GatherMode::compute;
   fo.compact_rays = o.compact_rays;
   fo.shadows = shadows_for(o.shadows, scene);
   vulkan::VulkanFrame frame(*vk, scene, fo);
@@ -534,7 +543,9 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const VulkanMemory mem = vulkan_memory(o, scene, gp, frame, spill);
   const std::string device = vk->context().info().name;
   const std::string clock = stamps ? "gpu timestamps" : "host (submit to fence; the frame's phases not split)";
-  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute" : "raster";
+  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
+                            : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
+                                                                               : "raster";
   std::printf("\nvulkan, the whole frame on the GPU (%s; %s): %zu bounce rays per frame, grid %ux%ux%u capacity %u, "
               "%s gather, %s trace\n",
               device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z, gp.capacity, gather_name,
@@ -578,7 +589,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
 // One backend that traces on the CPU's rays: its build, then per frame the update and the trace
 // of the bounce rays off `gather` (and of the `shadow` rays): a table row, notes, JSON.
 void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::string& name, const GatherBuffer& gather,
-                       size_t bounce_count, const std::vector<Ray>& shadow, nlohmann::json& out,
+                       bool frame_rays, const std::vector<Ray>& given, size_t bounce_count,
+                       const std::vector<Ray>& shadow, nlohmann::json& out,
                        std::vector<std::string>& notes, std::vector<std::string>& shadow_notes) {
   std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
   PhaseTimes times;
@@ -606,7 +618,7 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
   std::vector<double> shadow_ms;
   for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
     const float time = float(f + 1) / o.fps;
-    const std::vector<Ray> rays = bounce_rays(scene, gather, f);
+    const std::vector<Ray> rays = frame_rays ? bounce_rays(scene, gather, f) : given;
     hits.resize(rays.size());
     t0 = std::chrono::steady_clock::now();
     tracer->update(time);
@@ -688,13 +700,40 @@ void run_bench(const BenchOptions& options) {
   // The gather buffer, once, by the exact traversal of the reference grid (CPU), for the
   // backends that trace on the CPU (the vulkan backend makes its own, every frame, on the GPU).
   // (with the vulkan backend, embree traces the GPU frame's own bounce rays instead)
-  const bool with_vulkan = std::find(backends.begin(), backends.end(), "vulkan") != backends.end();
-  auto on_cpu_rays = [&](const std::string& b) { return b != "vulkan" && !(with_vulkan && b == "embree"); };
+  // --rays: the frame's glossy bounce rays (glossy; auto on a scene with a glossy material), or one
+  // fixed set of rays of a kind (primary, diffuse, a verify family; auto: diffuse) that every
+  // backend, vulkan included, is handed and traces each frame
+  const Features features = Features::for_scene(scene);
+  const bool frame_rays = o.rays == "glossy" || (o.rays == "auto" && features.glossy);
+  if (o.rays == "glossy" && !features.glossy)
+    throw Error("bench: " + scene.name + " has no glossy material, so its frame has no glossy bounce rays: "
+                "choose --rays primary, diffuse or a verify family");
+  const std::string kind = frame_rays ? "glossy bounce" : (o.rays == "auto" ? "diffuse" : o.rays);
+  if (o.rtx && !frame_rays)
+    throw Error("--rtx traces the frame's glossy bounce rays: it needs --rays glossy (or auto) on a scene with a glossy material");
+  const bool with_vulkan = frame_rays && std::find(backends.begin(), backends.end(), "vulkan") != backends.end();
+  auto on_cpu_rays = [&](const std::string& b) { return b != "vulkan" ? !(with_vulkan && b == "embree") : !frame_rays; };
   const bool cpu_rays = std::any_of(backends.begin(), backends.end(), on_cpu_rays);
   reference::ReferenceGridTracer gather_tracer(plan::gather_options(grid_options_for(o.backend_options, scene)));
   GatherBuffer gather;
   size_t bounce_count = 0;
-  if (cpu_rays) {
+  std::vector<Ray> given;  // the fixed rays of a kind (not frame_rays)
+  if (!frame_rays) {
+#ifdef GRIDRT_HAVE_EMBREE
+    reference::GridOptions aim = grid_options_for(o.backend_options, scene);
+    aim.traversal = reference::Traversal::exact;
+    reference::ReferenceGridTracer aimer(aim);
+    aimer.build(scene, 0.0f);
+    EmbreeTracer embree(0);
+    embree.build(scene, 0.0f);
+    given = verify::rays_of_kind(kind, scene, aimer.data(), embree, size_t(o.width) * o.height);
+    if (given.empty()) throw Error("bench: " + scene.name + " gives no " + kind + " rays");
+    bounce_count = given.size();
+#else
+    throw Error("bench: --rays " + kind + " needs the Embree backend (this build has none): use --rays glossy");
+#endif
+  }
+  if (cpu_rays && frame_rays) {
     gather_tracer.build(scene, 0.0f);
     Progress progress("gather buffer (CPU reference, exact)", size_t(o.width) * o.height);
     ProgressTracer traced(gather_tracer, progress);
@@ -705,14 +744,13 @@ void run_bench(const BenchOptions& options) {
   // The gather's shadow rays (the same each frame), traced after the bounce as their own phase
   const bool shadows = shadows_for(o.shadows, scene);
   std::vector<Ray> shadow;
-  if (cpu_rays && shadows) shadow = shadow_rays(scene, gather);
+  if (cpu_rays && frame_rays && shadows) shadow = shadow_rays(scene, gather);
   else if (shadows) check_shadow_lights(scene);
-  const Features features = Features::for_scene(scene);
-  std::printf("bench: %s, %llu triangles, %zu instances (%zu dynamic), %ux%u, %s glossy bounce rays per frame, "
+  std::printf("bench: %s, %llu triangles, %zu instances (%zu dynamic), %ux%u, %s %s rays per frame, "
               "%u frames after %u warm-up\n",
               scene.name.c_str(), (unsigned long long)scene.triangle_count(), scene.instances.size(),
               scene.instances.size() - scene.static_instance_count(), o.width, o.height,
-              cpu_rays ? std::to_string(bounce_count).c_str() : "(GPU gather)", o.frames, o.warmup);
+              cpu_rays ? std::to_string(bounce_count).c_str() : "(GPU gather)", kind.c_str(), o.frames, o.warmup);
   std::printf("machine: %u hardware threads; effects the scene calls for: alpha keying %s, update %s, glossy %s, shadows %s\n",
               std::thread::hardware_concurrency(), features.alpha_keying ? "yes" : "no", features.update ? "yes" : "no",
               features.glossy ? "yes" : "no", features.shadows ? "yes" : "no");
@@ -722,6 +760,7 @@ void run_bench(const BenchOptions& options) {
   out["width"] = o.width;
   out["height"] = o.height;
   out["rays_per_frame"] = bounce_count;
+  out["rays"] = kind;
   out["frames"] = o.frames;
   if (cpu_rays)
     std::printf("\n| backend | device | clock | build ms | update ms (median) | trace ms (median) | Mrays/s | grid MiB |\n"
@@ -730,12 +769,13 @@ void run_bench(const BenchOptions& options) {
   std::vector<std::string> shadow_notes;
   for (const std::string& name : backends) {
 #ifdef GRIDRT_HAVE_VULKAN
-    if (name == "vulkan") {
+    if (name == "vulkan" && frame_rays) {
       bench_vulkan_frame(o, scene, out);
       continue;
     }
 #endif
-    if (on_cpu_rays(name)) bench_cpu_backend(o, scene, name, gather, bounce_count, shadow, out, notes, shadow_notes);
+    if (on_cpu_rays(name))
+      bench_cpu_backend(o, scene, name, gather, frame_rays, given, bounce_count, shadow, out, notes, shadow_notes);
   }
   if (!notes.empty()) std::printf("\n");
   for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
@@ -761,6 +801,10 @@ void add_bench_command(CLI::App& app) {
                   "busy); 1: off")
       ->check(CLI::Range(1u, 64u));
   cmd->add_option("--fps", o->fps, "Scene time step per frame is 1/fps")->check(CLI::PositiveNumber);
+  cmd->add_option("--rays", o->rays,
+                  "The traced rays: auto (the frame's glossy bounce rays, else diffuse bounces), glossy, primary, "
+                  "diffuse, or a verify family (random, surface, edge, ...); a kind other than glossy is one fixed set "
+                  "of about WIDTH x HEIGHT rays, handed to every backend (vulkan included) each frame");
   CLI::Option* rtx =
       cmd->add_flag("--rtx", o->rtx,
                     "Vulkan: the device's ray tracing pipeline (VK_KHR_ray_tracing_pipeline) side by side: each frame, "
@@ -774,9 +818,10 @@ void add_bench_command(CLI::App& app) {
   cmd->add_flag("--rtx-rebuild", o->rtx_rebuild, "With --rtx: rebuild the dynamic BLASes each frame instead of refitting")
       ->needs(rtx);
   cmd->add_option("--gather", o->gather,
-                  "Vulkan: the frame's gather: compute (the CPU gather's ray test, needs 64-bit buffer atomics) or raster "
-                  "(the paper's raster pass)")
-      ->check(CLI::IsMember({"compute", "raster"}).description(""))->type_name("compute|raster");
+                  "Vulkan: the frame's gather: compute (the CPU gather's ray test through a rasterizer's bins, tiles "
+                  "and depth culling; needs 64-bit buffer atomics), boxes (the same test on every pixel of each "
+                  "triangle's box) or raster (the paper's raster pass)")
+      ->check(CLI::IsMember({"compute", "boxes", "raster"}).description(""))->type_name("compute|boxes|raster");
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");

@@ -127,6 +127,7 @@ class DiffRun {
   void diff_spill(uint32_t frame);
   void diff_hits(uint32_t frame, float time);
   void diff_gpu_frame(uint32_t frame, float time);
+  void diff_gather_boxes(uint32_t frame, const GatherBuffer& raster);
   void write_reports(int code, double seconds);
 
   const DiffOptions& o_;
@@ -136,6 +137,7 @@ class DiffRun {
   std::unique_ptr<vulkan::VulkanGridTracer> gpu_;
   std::unique_ptr<reference::ReferenceGridTracer> ref_;
   std::unique_ptr<vulkan::VulkanFrame> gpu_frame_;
+  std::unique_ptr<vulkan::VulkanFrame> boxes_frame_;  // the compute gather without its rasterizer
   std::vector<Check> checks_;
   std::optional<FirstDifference> first_;
   std::vector<std::string> messages_;
@@ -325,6 +327,40 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
   check("frame " + std::to_string(frame) + ": hit records", ok, line, f);
 }
 
+// The compute gather's rasterizer (bins, tiles, pixels rejected by its edge functions, tiles culled
+// by depth) against the same gather testing every pixel of every triangle's box: the gather
+// buffers identical in bits (the rasterizer only skips pairs the ray test rejects or that lose).
+void DiffRun::diff_gather_boxes(uint32_t frame, const GatherBuffer& raster) {
+  if (!boxes_frame_)
+    boxes_frame_ = std::make_unique<vulkan::VulkanFrame>(
+        *gpu_, scene_, vulkan::FrameOptions{.width = o_.width, .height = o_.height, .gather = vulkan::GatherMode::boxes});
+  boxes_frame_->render(frame);
+  const GatherBuffer boxes = boxes_frame_->download_gather();
+  size_t differ = 0;
+  std::optional<size_t> first_pixel;
+  for (size_t p = 0; p < boxes.size(); ++p) {
+    const bool same = raster.launch_ref[p] == boxes.launch_ref[p] && raster.valid[p] == boxes.valid[p] &&
+                      std::memcmp(&raster.hit[p].t, &boxes.hit[p].t, sizeof(float)) == 0 &&
+                      std::memcmp(&raster.position[p], &boxes.position[p], sizeof(glm::vec3)) == 0 &&
+                      std::memcmp(&raster.normal[p], &boxes.normal[p], sizeof(glm::vec3)) == 0 &&
+                      std::memcmp(&raster.uv[p], &boxes.uv[p], sizeof(glm::vec2)) == 0 &&
+                      raster.material[p] == boxes.material[p];
+    if (!same && differ++ == 0) first_pixel = p;
+  }
+  const uint32_t w = o_.width;
+  std::string f;
+  if (first_pixel)
+    f = "first: pixel (" + std::to_string(*first_pixel % w) + ", " + std::to_string(*first_pixel / w) +
+        "): rasterizer ref " + std::to_string(raster.launch_ref[*first_pixel]) + " t " +
+        std::to_string(raster.hit[*first_pixel].t) + ", boxes ref " + std::to_string(boxes.launch_ref[*first_pixel]) +
+        " t " + std::to_string(boxes.hit[*first_pixel].t);
+  const std::string line = "GPU gather: rasterizer against every pixel of the boxes: " + std::to_string(differ) + " of " +
+                           std::to_string(boxes.size()) + " pixels differ in bits";
+  std::printf("frame %u: %s\n", frame, line.c_str());
+  if (!f.empty()) std::printf("  %s\n", f.c_str());
+  check("frame " + std::to_string(frame) + ": GPU gather rasterizer", differ == 0, line, f);
+}
+
 // The GPU frame's own passes (vulkan/frame.h): the bounce rays it makes from its own gather
 // against bounce_rays() of that gather (bits), its shadow rays (a scene with lights) against
 // shadow_rays() of that gather (bits), and its trace of each against the reference's.
@@ -394,6 +430,7 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
                                                       : "no shadow pass (--shadows off)"));
   std::printf("frame %u: %s\n", frame, line);
   if (!f.empty()) std::printf("  %s\n", f.c_str());
+  if (fr.gather_mode() == vulkan::GatherMode::compute) diff_gather_boxes(frame, gpu_gather);
   check("frame " + std::to_string(frame) + ": GPU frame",
         bounce.ray_mismatch + bounce.hit_mismatch + shadow.ray_mismatch + shadow.hit_mismatch == 0, line, f);
 }

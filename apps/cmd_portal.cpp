@@ -4,7 +4,9 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <cmath>
 #include <memory>
+#include <optional>
 
 #include "apps/commands.h"
 #include "gridrt/common/camera.h"
@@ -44,6 +46,23 @@ void check_portal_backend(const std::string& backend) {
 
 }  // namespace
 
+// Mip-mapped space: the level rule's distance. Given (> 0) or, by default, the distance in voxels
+// at which one pixel of a `height`-pixel image spans one voxel: height / (2 tan(vfov / 2)).
+float mip_distance_for(float given, const Camera& camera, uint32_t height) {
+  if (given > 0.0f) return given;
+  return float(height) / (2.0f * camera_frame(camera).tan_half_fov);
+}
+
+void add_mip_options(CLI::App* cmd, uint32_t& levels, float& distance) {
+  cmd->add_option("--mip-levels", levels,
+                  "Mip-mapped space: levels of coarser divs (1 = none; level l has 2^l voxels per coarse voxel)")
+      ->check(CLI::Range(1u, shared::kPortalMaxLevels));
+  cmd->add_option("--mip-distance", distance,
+                  "Mip-mapped space: a ray moves to level l at distance mip-distance * 2^l voxels from its origin "
+                  "(default: where one pixel spans one voxel)")
+      ->check(CLI::Range(0.0f, 1e9f));
+}
+
 // A world from a tile map (.map), the built-in level (empty or builtin:level), a generated level
 // (gen:WxDxH[:SEED]), or any scene voxelized at `voxels` per longest axis.
 portal::World load_world(const std::string& spec, uint32_t voxels) {
@@ -71,7 +90,10 @@ void run_portal_render(const PortalRenderOptions& o) {
   portal::World world = load_world(o.scene, o.voxels);
   const Camera camera = world.camera;
   auto t0 = std::chrono::steady_clock::now();
-  const portal::PortalOptions options = portal_options(o.div_choice, o.atlas_width, true);
+  portal::PortalOptions options = portal_options(o.div_choice, o.atlas_width, true);
+  options.mip_levels = o.mip_levels;
+  options.mip_distance = mip_distance_for(o.mip_distance, camera, o.height);
+  if (o.mip_compare && o.mip_levels < 2) throw Error("--mip-compare needs --mip-levels 2 or more");
   portal::PortalBuild build = portal::build_portal(std::move(world), options);
   const double build_s = seconds_since(t0);
   portal::RenderOptions ro;
@@ -83,14 +105,50 @@ void run_portal_render(const PortalRenderOptions& o) {
   const std::string name = build.world.name;
   const size_t divs = build.divs.size();
   std::string device;
+  // --mip-compare: the same world without the coarse levels (level 0 only) on the same backend.
+  std::vector<glm::vec3> full_rgb;
+  portal::RenderStats full_stats;
+  std::optional<portal::PortalBuild> full;
+  if (o.mip_compare) {
+    full = build;
+    full->packed.levels = 1;  // the level rule never leaves level 0: the full-resolution tracer
+  }
   if (o.backend == "portal-cpu") {
     rgb = portal::render(build, camera, ro, &stats);
+    if (full) full_rgb = portal::render(*full, camera, ro, &full_stats);
   } else {
 #ifdef GRIDRT_HAVE_VULKAN
     vulkan::PortalVulkanTracer tracer(std::move(build), options);
     rgb = tracer.render(camera, ro, &stats);
+    rgb = tracer.render(camera, ro, &stats);  // the second run's time: the first pays for the pipeline
     device = " on " + tracer.context().info().name;
+    if (full) {
+      vulkan::PortalVulkanTracer full_tracer(std::move(*full), options);
+      full_rgb = full_tracer.render(camera, ro, &full_stats);
+      full_rgb = full_tracer.render(camera, ro, &full_stats);
+    }
 #endif
+  }
+  if (o.mip_compare) {
+    // Image quality of mip-mapped space against full resolution: RMSE and PSNR over the RGB
+    // channels clamped to [0, 1] (as written), pixels that differ at all.
+    double se = 0.0;
+    size_t differ = 0;
+    for (size_t i = 0; i < rgb.size(); ++i) {
+      const glm::vec3 a = glm::clamp(rgb[i], 0.0f, 1.0f), b = glm::clamp(full_rgb[i], 0.0f, 1.0f);
+      const glm::vec3 d = a - b;
+      se += double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
+      differ += std::memcmp(&rgb[i], &full_rgb[i], sizeof(glm::vec3)) != 0;
+    }
+    const double rmse = std::sqrt(se / (3.0 * double(rgb.size())));
+    std::printf("mip %u levels, distance %.1f voxels, against full resolution: RMSE %.4f, PSNR %.2f dB, %zu of %zu pixels "
+                "differ; steps per primary ray %.3f (full %.3f), per shadow ray %.3f (full %.3f); render %.3f s (full %.3f s)\n",
+                o.mip_levels, double(options.mip_distance), rmse, rmse > 0 ? 20.0 * std::log10(1.0 / rmse) : INFINITY,
+                differ, rgb.size(), double(stats.primary_steps) / double(stats.primary_rays),
+                double(full_stats.primary_steps) / double(full_stats.primary_rays),
+                stats.shadow_rays ? double(stats.shadow_steps) / double(stats.shadow_rays) : 0.0,
+                full_stats.shadow_rays ? double(full_stats.shadow_steps) / double(full_stats.shadow_rays) : 0.0,
+                stats.seconds, full_stats.seconds);
   }
   write_image(o.output, o.width, o.height, rgb);
   std::fprintf(stderr,
@@ -237,6 +295,8 @@ struct PortalDiffOptions {
   uint32_t voxels = 64, width = 720, height = 360, ulps = 0, atlas_width = 1024;
   float uv = 0.0f;
   double pixels = 0.0;
+  uint32_t mip_levels = 1;
+  float mip_distance = 0.0f;
 };
 
 // Both tracers on the same build: every camera ray's record, then the state-machine render.
@@ -244,7 +304,9 @@ void run_portal_diff(const PortalDiffOptions& o) {
   check_frame_size(o.width, o.height);
   portal::World world = load_world(o.spec, o.voxels);
   const Camera camera = world.camera;
-  const portal::PortalOptions options = portal_options(o.choice, o.atlas_width, false);
+  portal::PortalOptions options = portal_options(o.choice, o.atlas_width, false);
+  options.mip_levels = o.mip_levels;
+  options.mip_distance = mip_distance_for(o.mip_distance, camera, o.height);
   portal::PortalBuild build = portal::build_portal(std::move(world), options);
   const std::string name = build.world.name;
   const std::vector<Ray> rays = camera_rays(camera, o.width, o.height);
@@ -279,8 +341,11 @@ void run_portal_diff(const PortalDiffOptions& o) {
   for (size_t i = 0; i < ref_image.size(); ++i) pixels += std::memcmp(&ref_image[i], &dev_image[i], sizeof(glm::vec3)) != 0;
   const bool stats_same = ref_stats.primary_steps == dev_stats.primary_steps &&
                           ref_stats.shadow_steps == dev_stats.shadow_steps && ref_stats.shadow_rays == dev_stats.shadow_rays;
-  std::printf("portal diff: %s (%s choice), %ux%u, portal-cpu against portal-vulkan on %s\n", name.c_str(),
-              o.choice.c_str(), o.width, o.height, gpu.context().info().name.c_str());
+  std::printf("portal diff: %s (%s choice%s), %ux%u, portal-cpu against portal-vulkan on %s\n", name.c_str(),
+              o.choice.c_str(),
+              o.mip_levels > 1 ? (", " + std::to_string(o.mip_levels) + " mip levels, distance " +
+                                  std::to_string(options.mip_distance)).c_str() : "",
+              o.width, o.height, gpu.context().info().name.c_str());
   std::printf("  hit records: %zu of %zu identical in bits, %zu within the tolerances\n", bits, rays.size(), within);
   std::printf("  render: %zu of %zu pixels differ in bits; steps and shadow rays %s (primary %llu / %llu, shadow %llu / "
               "%llu)\n",
@@ -300,6 +365,9 @@ void add_portal_command(CLI::App& app) {
     auto o = std::make_shared<PortalRenderOptions>();
     CLI::App* cmd = portal_cmd->add_subcommand("render", "Render a world: one primary and two shadow rays per pixel");
     add_world_options(cmd, o->scene, o->voxels, o->div_choice, o->atlas_width);
+    add_mip_options(cmd, o->mip_levels, o->mip_distance);
+    cmd->add_flag("--mip-compare", o->mip_compare,
+                  "Also render without the coarse levels and print the difference (RMSE, PSNR, pixels) and the steps");
     cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
     cmd->add_flag("--separate-loops", o->separate_loops, "Three loops (primary, shadow 1, shadow 2), not the state machine");
@@ -319,8 +387,11 @@ void add_portal_command(CLI::App& app) {
     auto backend = std::make_shared<std::string>("portal-cpu");
     auto choice = std::make_shared<std::string>("bounded");
     auto atlas = std::make_shared<uint32_t>(1024);
+    auto mip_levels = std::make_shared<uint32_t>(1);
+    auto mip_distance = std::make_shared<float>(0.0f);
     CLI::App* cmd = portal_cmd->add_subcommand("explain", "Every div, face and texel one pixel's primary ray visits");
     add_world_options(cmd, *spec, *voxels, *choice, *atlas);
+    add_mip_options(cmd, *mip_levels, *mip_distance);
     cmd->add_option("--width", *width, "Width of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--height", *height, "Height of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--pixel,-p", *pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
@@ -332,8 +403,10 @@ void add_portal_command(CLI::App& app) {
       const uint32_t w = *width, h = *height, x = (*pixel)[0], y = (*pixel)[1];
       if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
       portal::World world = load_world(*spec, *voxels);
-      const portal::PortalOptions options = portal_options(*choice, *atlas, true);
+      portal::PortalOptions options = portal_options(*choice, *atlas, true);
       const Camera camera = world.camera;
+      options.mip_levels = *mip_levels;
+      options.mip_distance = mip_distance_for(*mip_distance, camera, h);
       const Ray ray = camera_ray(camera, w, h, x, y);
 #ifdef GRIDRT_HAVE_VULKAN
       if (*backend == "portal-vulkan") {
@@ -369,6 +442,7 @@ void add_portal_command(CLI::App& app) {
     CLI::App* cmd = portal_cmd->add_subcommand(
         "diff", "portal-cpu against portal-vulkan: every camera ray's hit record and the render; exit 3 if they differ");
     add_world_options(cmd, o->spec, o->voxels, o->choice, o->atlas_width);
+    add_mip_options(cmd, o->mip_levels, o->mip_distance);
     cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--ulps", o->ulps, "Allow t of otherwise identical hits to differ by this many ulps (default 0)")

@@ -40,6 +40,9 @@ struct PortalRenderOptions {
   std::string view = "shaded";   // shaded, or divs / dda: per-pixel work (portal_views.cpp)
   std::string div_choice = "bounded";  // bounded | exact (reference/portal/build.h)
   uint32_t atlas_width = 1024;
+  uint32_t mip_levels = 1;       // mip-mapped space (docs/PORTAL.md): levels, 1 = none
+  float mip_distance = 0.0f;     // the level rule's distance in voxels; 0: one voxel per pixel
+  bool mip_compare = false;      // also render at full resolution and print the difference
 };
 
 // Thrown by a diff whose two sides disagree: the tool exits with 3 (1 is bad input, 2 the command line).

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "tests/run_tool.h"
@@ -272,4 +273,30 @@ TEST_CASE("CLI: explain --ray takes nan and inf and shows the rejection, --time 
   const Run t = run_tool("render builtin:cornell --time nan -o never.png");
   INFO(t.output);
   CHECK(t.exit_code == 2);
+}
+
+TEST_CASE("CLI: bench --rays times a chosen kind of rays on a scene without glossy materials", "[cli][bench]") {
+  const fs::path json = scratch("bench_rays.json");
+  // cornell has no glossy material: auto takes diffuse bounces, a kind is handed to every backend
+  const Run automatic = run_tool("bench builtin:cornell --backend cpu --width 12 --height 10 --frames 1 --warmup 0");
+  INFO(automatic.output);
+  CHECK(automatic.exit_code == 0);
+  CHECK(automatic.output.find("diffuse rays per frame") != std::string::npos);
+  const Run primary = run_tool("bench builtin:cornell --backend cpu,embree --rays primary --width 12 --height 10 "
+                               "--frames 1 --warmup 0 --json " + json.string());
+  INFO(primary.output);
+  REQUIRE(primary.exit_code == 0);
+  std::ifstream f(json);
+  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  CHECK(text.find("\"rays\": \"primary\"") != std::string::npos);
+  CHECK(text.find("\"rays_per_frame\": 0") == std::string::npos);
+  CHECK(text.find("\"embree\"") != std::string::npos);
+  // The frame's glossy rays on a scene without them, an unknown kind: clear errors
+  const Run glossy = run_tool("bench builtin:cornell --backend cpu --rays glossy --width 8 --height 8 --frames 1");
+  CHECK(glossy.exit_code == 1);
+  CHECK(glossy.output.find("no glossy material") != std::string::npos);
+  const Run bad = run_tool("bench builtin:cornell --backend cpu --rays nonsense --width 8 --height 8 --frames 1");
+  CHECK(bad.exit_code == 1);
+  CHECK(bad.output.find("unknown kind") != std::string::npos);
+  fs::remove(json);
 }

@@ -96,6 +96,15 @@ std::vector<Ray> test_rays(const ReferenceGridTracer& ref, uint32_t seed) {
     if (glm::dot(dir, dir) < 1e-4f) dir = {0.0f, 0.0f, 1.0f};
     rays.push_back(gridtest::make_ray({p(rng), p(rng), p(rng)}, dir, 0.0f, (i % 3) ? INFINITY : 4.0f));
   }
+  // Far rays: origins about 1e7 away (an ulp of t is about 1, so a segment's midpoint rounds onto
+  // its ends: where gap-fill's "inside the ray" test is decided by its strict comparisons)
+  for (uint32_t i = 0; i < 500; ++i) {
+    glm::vec3 away(d(rng), d(rng), d(rng));
+    if (glm::dot(away, away) < 1e-4f) away = {1.0f, 0.0f, 0.0f};
+    const glm::vec3 at(p(rng), p(rng), p(rng));
+    const glm::vec3 org = at + glm::normalize(away) * 1.0e7f;
+    rays.push_back(gridtest::make_ray(org, glm::normalize(at - org)));
+  }
   // Secondary rays from the reference's primary hits
   std::vector<Hit> hits(rays.size());
   const size_t primary = rays.size();
@@ -368,6 +377,19 @@ TEST_CASE("Vulkan grid: every hit record identical in bits to the reference's, p
       CHECK(hits > rays.size() / 10);
       if (paper) CHECK(gap > 0);
       CHECK(back > 0);
+      // The gap-fill rays again, each ending exactly at its voxel's midpoint (tmax = the reported
+      // t): a hit needs t < tmax, so no such voxel is reported, on either backend
+      std::vector<Ray> ended;
+      for (size_t i = 0; i < rays.size() && ended.size() < 200; ++i)
+        if (want[i].flags & sh::kHitGapFill) {
+          ended.push_back(rays[i]);
+          ended.back().tmax = want[i].t;
+        }
+      std::vector<Hit> want_ended(ended.size()), got_ended(ended.size());
+      ref.trace(ended, want_ended);
+      vk.trace(ended, got_ended);
+      check_hits(ctx, ended, want_ended, got_ended);
+      for (size_t i = 0; i < ended.size(); ++i) CHECK((is_miss(want_ended[i]) || want_ended[i].t < ended[i].tmax));
     }
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);

@@ -153,7 +153,19 @@ void check_trace(const pt::PortalBuild& build, uint32_t seed, size_t random_each
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
+// A room with two glass materials touching (the default 'G' and an amber 'H' of another index):
+// a ray crossing from one into the other meets a surface of the glass it enters.
+pt::World two_glasses() {
+  return pt::parse_tile_map(
+      "size 9 5 3\nmaterial H amber 1.0 0.6 0.2 glass 1.9\nmap\n111111111\n1.......1\n1E..GH..1\n1....HG.1\n111111111\n",
+      "two glasses");
+}
+
 }  // namespace
+
+TEST_CASE("Portal Vulkan: hit records identical to portal-cpu where two glasses touch", "[vulkan][portal][diff]") {
+  check_trace(pt::build_portal(two_glasses(), pt::PortalOptions{64, 64, 1, false}), 14, 1000);
+}
 
 TEST_CASE("Portal Vulkan: hit records identical to portal-cpu on the built-in level", "[vulkan][portal][diff]") {
   check_trace(builtin_build(), 11, 3000);
@@ -165,13 +177,14 @@ TEST_CASE("Portal Vulkan: hit records identical to portal-cpu on a voxelized tea
 
 namespace {
 
-void check_render(const pt::PortalBuild& b, bool has_glass) {
+void check_render(const pt::PortalBuild& b, bool has_glass, uint32_t max_interfaces = 32) {
   vulkan::Context& ctx = vk_context();
   ctx.clear_messages();
   PortalVulkanTracer gpu(ctx, b);
   REQUIRE(gpu.name() == "portal-vulkan");
   pt::RenderOptions o;
   o.width = 160, o.height = 80;
+  o.max_interfaces = max_interfaces;
   for (bool refraction : {true, false}) {
     o.refraction = refraction;
     INFO("refraction " << refraction);
@@ -192,6 +205,8 @@ void check_render(const pt::PortalBuild& b, bool has_glass) {
     float max_rel = 0.0f;
     for (size_t i = 0; i < cpu.size(); ++i) {
       const bool saw_glass = pixels[i].refractions + pixels[i].reflections > 0;
+      // a ray is given up at its (max_interfaces + 1)-th glass interface
+      if (pixels[i].refractions + pixels[i].reflections > max_interfaces) FAIL("pixel " << i << " past the interface limit");
       glass += saw_glass;
       const bool same = std::memcmp(&cpu[i], &fsm[i], sizeof(glm::vec3)) == 0;
       if (same) continue;
@@ -239,6 +254,14 @@ TEST_CASE("Portal Vulkan: the render equals the CPU render - state machine == se
         pt::parse_tile_map("size 9 5 3\nmap\n111111111\n1.......1\n1E..GG..1\n1.......1\n111111111\n", "glass");
     check_render(pt::build_portal(w, pt::PortalOptions{64, 64, 1, false}), true);
   }
+  SECTION("two glasses touching (the medium entered decides the refraction and the filter)") {
+    check_render(pt::build_portal(two_glasses(), pt::PortalOptions{64, 64, 1, false}), true);
+  }
+  SECTION("the glass block with at most two interfaces a ray (the limit reached: given up black)") {
+    const pt::World w =
+        pt::parse_tile_map("size 9 5 3\nmap\n111111111\n1.......1\n1E..GG..1\n1.......1\n111111111\n", "glass");
+    check_render(pt::build_portal(w, pt::PortalOptions{64, 64, 1, false}), true, 2);
+  }
 }
 
 TEST_CASE("Portal Vulkan: explain shows the shader's own record, as the reference's", "[vulkan][portal][diff]") {
@@ -284,4 +307,44 @@ TEST_CASE("Portal Vulkan: gridrt portal diff - exit 0 when the two agree, 1 bad 
   CHECK_THAT(bad.output, Catch::Contains("gen:WIDTHxDEPTHxHEIGHT"));
   const Run cmd = run_tool("portal diff --width 0");
   CHECK(cmd.exit_code == 2);
+}
+
+namespace {
+
+// Mip-mapped space (docs/PORTAL.md): the built-in level with three levels and a short level
+// distance, so that camera rays go coarse and meet translucent coarse voxels (and none reaches
+// the glass at full resolution).
+const pt::PortalBuild& builtin_mip_build() {
+  static const pt::PortalBuild b = [] {
+    pt::PortalOptions o{1024, 1024, 0, false};
+    o.mip_levels = 3;
+    o.mip_distance = 1.0f;
+    return pt::build_portal(pt::builtin_level(), o);
+  }();
+  return b;
+}
+
+}  // namespace
+
+TEST_CASE("Portal Vulkan: mip-mapped space - records, render and explain as portal-cpu's", "[vulkan][portal][diff][mip]") {
+  const pt::PortalBuild& b = builtin_mip_build();
+  // Both kinds of coarse surface are met by these rays (translucent and opaque, resolved).
+  size_t translucent = 0;
+  for (const Ray& r : test_rays(b.world, 23, 300)) {
+    const Hit h = pt::trace_portal(b.packed, r);
+    translucent += !is_miss(h) && h.instance < b.world.materials.size() && b.world.materials[h.instance].coverage < 1.0f;
+  }
+  CHECK(translucent > 20);
+  check_trace(b, 23, 300);
+  check_render(b, false);
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  PortalVulkanTracer gpu(ctx, b);
+  for (uint32_t x : {20u, 80u, 140u}) {
+    const std::string text = gpu.explain(camera_ray(b.world.camera, 160, 80, x, 40));
+    INFO(text);
+    CHECK(text.find("they part") == std::string::npos);
+    if (bit_exact_device(ctx)) CHECK(text.find("identical in bits") != std::string::npos);
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

@@ -54,7 +54,8 @@ enum class Verdict {
   crack,          // the exact closest hit lies on an edge or vertex, and the tracer reports
                   // nothing or something farther
   unresolved,     // the tracer is not exactly right, but kNearUlps ulps of the origin's largest
-                  // coordinate exceed the longest edge of the triangles involved: the float
+                  // coordinate exceed the longest edge of the triangles involved, or its answer is
+                  // the exact one of the ray with the origin moved by at most that much: the float
                   // inputs (v - org) cannot resolve them (a far origin, a tiny model); counted,
                   // not failed
 };
@@ -76,6 +77,9 @@ class Referee {
   Judgement judge(const Ray& ray, const Hit& got, const Hit& want, const std::vector<uint32_t>& aimed) const;
   // The exact test of one ref.
   ExactTest test(const Ray& ray, uint32_t ref) const;
+  // Whether `got` is the exact closest hit (or miss) among `cand` and got's neighbours of the ray
+  // with its origin moved within the rounding of the float tests' inputs (kNearUlps ulps).
+  bool exact_for_moved_origin(const Ray& ray, const Hit& got, std::vector<uint32_t> cand) const;
 
  private:
   const reference::GridData& grid_;

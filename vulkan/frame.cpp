@@ -16,6 +16,54 @@ namespace {
 
 // The descriptor set's bindings: frame_input.h.
 
+// A 2D image with its memory and view: the gather's attachments.
+struct Image2D {
+  VkDevice device = VK_NULL_HANDLE;
+  VkImage image = VK_NULL_HANDLE;
+  VkDeviceMemory memory = VK_NULL_HANDLE;
+  VkImageView view = VK_NULL_HANDLE;
+  Image2D() = default;
+  Image2D(const Image2D&) = delete;
+  Image2D& operator=(const Image2D&) = delete;
+  ~Image2D() {
+    if (view) vkDestroyImageView(device, view, nullptr);
+    if (image) vkDestroyImage(device, image, nullptr);
+    if (memory) vkFreeMemory(device, memory, nullptr);
+  }
+};
+
+void create_image2d(Context& ctx, Image2D& img, VkFormat format, uint32_t width, uint32_t height,
+                    VkImageUsageFlags usage, VkImageAspectFlags aspect) {
+  img.device = ctx.device();
+  VkImageCreateInfo ci{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+  ci.imageType = VK_IMAGE_TYPE_2D;
+  ci.format = format;
+  ci.extent = {width, height, 1};
+  ci.mipLevels = 1;
+  ci.arrayLayers = 1;
+  ci.samples = VK_SAMPLE_COUNT_1_BIT;
+  ci.tiling = VK_IMAGE_TILING_OPTIMAL;
+  ci.usage = usage;
+  ci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  ci.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  GRIDRT_VK_CHECK(vkCreateImage(ctx.device(), &ci, nullptr, &img.image));
+  VkMemoryRequirements req;
+  vkGetImageMemoryRequirements(ctx.device(), img.image, &req);
+  ctx.require_allocation(req.size, "a gather attachment");
+  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  ai.allocationSize = req.size;
+  ai.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  if (ai.memoryTypeIndex == ~0u) ai.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, 0);
+  GRIDRT_VK_CHECK(vkAllocateMemory(ctx.device(), &ai, nullptr, &img.memory));
+  GRIDRT_VK_CHECK(vkBindImageMemory(ctx.device(), img.image, img.memory, 0));
+  VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+  vi.image = img.image;
+  vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
+  vi.format = format;
+  vi.subresourceRange = {aspect, 0, 1, 0, 1};
+  GRIDRT_VK_CHECK(vkCreateImageView(ctx.device(), &vi, nullptr, &img.view));
+}
+
 template <class T>
 Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
   Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
@@ -23,16 +71,14 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
   return b;
 }
 
-struct FrameMaterials;
-
 }  // namespace
 
 struct VulkanFrame::Gpu {
   Context* ctx = nullptr;
-  Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles;
-  Image3D color, depth;  // the raster gather's attachments (2D)
+  Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles, tile_depth, pixel_dirs;
+  Image2D color, depth;
   std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
-  std::unique_ptr<Pipeline> resolve, bounce, shadow, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch;
+  std::unique_ptr<Pipeline> resolve, bounce, shadow, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch, dirs;
   std::unique_ptr<Timestamps> timestamps;
   // The raster gather
   VkPipelineLayout layout = VK_NULL_HANDLE;
@@ -52,35 +98,23 @@ struct VulkanFrame::Gpu {
   }
 
   VkShaderModule module(std::string_view name) {
-    const VkShaderModule m = create_shader_module(*ctx, name);
+    const std::vector<uint32_t> words =
+        patch_float_controls(shader_spirv(name), FloatControls::for_device(ctx->info()));
+    VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+    ci.codeSize = words.size() * 4;
+    ci.pCode = words.data();
+    VkShaderModule m;
+    GRIDRT_VK_CHECK(vkCreateShaderModule(ctx->device(), &ci, nullptr, &m));
     modules.push_back(m);
     return m;
   }
 
-  void create_buffers(VulkanGridTracer& grid, const Scene& scene, const shared::FrameParams& fp,
-                      const FrameMaterials& fmat, uint32_t width, uint32_t height, GatherMode gather_mode, bool shadows,
-                      bool compact);
-  void bind_set(VulkanGridTracer& grid);
-  void create_pipelines(uint32_t flags, uint32_t width, uint32_t height, GatherMode gather_mode, bool shadows,
-                        bool compact);
   void create_raster(uint32_t width, uint32_t height, const VkSpecializationInfo* spec);
-  void create_raster_pass(uint32_t width, uint32_t height);
-  void create_raster_pipeline(uint32_t width, uint32_t height, const VkSpecializationInfo* spec);
-  void record_compute_gather(VkCommandBuffer cb, uint32_t triangles, uint32_t instance_count, uint32_t max_groups_x,
-                             bool timed);
-  void record_raster_gather(VkCommandBuffer cb, const std::vector<shared::GridInstance>& instances, uint32_t width,
-                            uint32_t height, bool timed);
 };
 
 // The gather's render pass (an R32_UINT colour attachment cleared to kNoRef, a D32 depth
 // attachment cleared to 0: reversed depth) and its pipeline.
 void VulkanFrame::Gpu::create_raster(uint32_t width, uint32_t height, const VkSpecializationInfo* spec) {
-  create_raster_pass(width, height);
-  create_raster_pipeline(width, height, spec);
-}
-
-// The render pass and its framebuffer over the colour and depth attachments.
-void VulkanFrame::Gpu::create_raster_pass(uint32_t width, uint32_t height) {
   VkDevice d = ctx->device();
   VkAttachmentDescription att[2]{};
   att[0].format = VK_FORMAT_R32_UINT;
@@ -139,11 +173,7 @@ void VulkanFrame::Gpu::create_raster_pass(uint32_t width, uint32_t height) {
   fb.height = height;
   fb.layers = 1;
   GRIDRT_VK_CHECK(vkCreateFramebuffer(d, &fb, nullptr, &framebuffer));
-}
 
-// The pipeline: every instance's triangles, both faces, reversed depth, the reference id out.
-void VulkanFrame::Gpu::create_raster_pipeline(uint32_t width, uint32_t height, const VkSpecializationInfo* spec) {
-  VkDevice d = ctx->device();
   const VkDescriptorSetLayout set_layout = set->layout();
   VkPipelineLayoutCreateInfo li{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
   li.setLayoutCount = 1;
@@ -300,7 +330,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   shadows_ = options_.shadows && !scene.lights.empty();
   if (shadows_) check_shadow_lights(scene);
   gather_ = options_.gather;
-  if (gather_ == GatherMode::compute &&
+  if (gather_ != GatherMode::raster &&
       !(ctx.info().buffer_int64_atomics && ctx.info().subgroup_arithmetic_ballot))
     gather_ = GatherMode::raster;
   const bool compact = bounce_ && options_.compact_rays;
@@ -313,200 +343,118 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   const shared::FrameParams fp = frame_params(scene, gpu.camera, options_);
   const FrameMaterials fmat = pack_materials(scene, (grid.params().flags & shared::kGridAlphaKeying) != 0u,
                                              ctx.info().limits.maxStorageBufferRange);
-  gpu.create_buffers(grid, scene, fp, fmat, w, h, gather_, shadows_, compact);
-
-  // The descriptor set, the pipelines (specialized: bounce, textures)
-  gpu.bind_set(grid);
-  const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (fmat.textured ? shared::kFrameTextures : 0u) |
-                         (fmat.alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
-                         (gather_ == GatherMode::compute ? shared::kFrameComputeGather : 0u) |
-                         (shadows_ ? shared::kFrameShadows : 0u);
-  gpu.create_pipelines(flags, w, h, gather_, shadows_, compact);
-  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 9);
-}
-
-// The frame's buffers: its parameters, the materials, texels and lights shading reads, the
-// per-pixel buffers, the rays and hits, the work lists (started empty); for the raster gather its
-// attachments.
-void VulkanFrame::Gpu::create_buffers(VulkanGridTracer& grid, const Scene& scene, const shared::FrameParams& fp,
-                                      const FrameMaterials& fmat, uint32_t width, uint32_t height,
-                                      GatherMode gather_mode, bool shadows, bool compact) {
-  Context& c = *ctx;
-  std::vector<shared::FrameLight> lights_data;
+  const std::vector<shared::FrameMaterial>& materials = fmat.materials;
+  const std::vector<uint32_t>& texels = fmat.texels;
+  const bool textured = fmat.textured, alpha = fmat.alpha;
+  std::vector<shared::FrameLight> lights;
   for (const Light& l : scene.lights)
-    lights_data.push_back({l.position, l.directional ? 1.0f : 0.0f, l.color * l.intensity, 0.0f});
-  const size_t pixels = size_t(width) * height;
+    lights.push_back({l.position, l.directional ? 1.0f : 0.0f, l.color * l.intensity, 0.0f});
+
+  // Buffers
+  const size_t pixels = size_t(w) * h;
   const VkBufferUsageFlags sb = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-  params = make_buffer(c, std::vector<shared::FrameParams>{fp});
-  materials = make_buffer(c, fmat.materials);
-  texels = make_buffer(c, fmat.texels);
-  lights = make_buffer(c, lights_data);
-  visibility = c.create_buffer(pixels * 4, sb);
-  gather = c.create_buffer(pixels * sizeof(shared::GatherTexel), sb);
+  gpu.params = make_buffer(ctx, std::vector<shared::FrameParams>{fp});
+  gpu.materials = make_buffer(ctx, materials);
+  gpu.texels = make_buffer(ctx, texels);
+  gpu.lights = make_buffer(ctx, lights);
+  gpu.visibility = ctx.create_buffer(pixels * 4, sb);
+  gpu.gather = ctx.create_buffer(pixels * sizeof(shared::GatherTexel), sb);
   // The bounce rays, then (with shadows) the shadow rays, light-major
-  const size_t ray_count = pixels * (1 + (shadows ? scene.lights.size() : 0));
-  if (ray_count > UINT32_MAX) throw Error("vulkan frame: too many rays for one frame (pixels times lights)");
-  rays = c.create_buffer(ray_count * sizeof(Ray), sb);
-  hits = c.create_buffer(ray_count * sizeof(Hit), sb);
-  image = c.create_buffer(pixels * 4, sb);
+  const size_t rays = pixels * (1 + (shadows_ ? scene.lights.size() : 0));
+  if (rays > UINT32_MAX) throw Error("vulkan frame: too many rays for one frame (pixels times lights)");
+  gpu.rays = ctx.create_buffer(rays * sizeof(Ray), sb);
+  gpu.hits = ctx.create_buffer(rays * sizeof(Hit), sb);
+  gpu.image = ctx.create_buffer(pixels * 4, sb);
   const VkBufferUsageFlags list_usage = sb | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT;
   const size_t header = sizeof(shared::WorkListHeader);
-  ray_list = c.create_buffer(compact ? header + pixels * 4 : header, list_usage);
-  if (gather_mode == GatherMode::compute) {
-    // The large triangles: 4 words for every triangle of the geometry buffer at most
+  gpu.ray_list = ctx.create_buffer(compact ? header + pixels * 4 : header, list_usage);
+  const bool compute = gather_ != GatherMode::raster;
+  if (compute) {
+    // The large triangles: a set-up record for every triangle of the geometry buffer at most
     const std::vector<shared::GridInstance>& gi = grid.instances();
     const uint64_t tris = gi.empty() ? 0 : gi.back().tri_offset + gi.back().tri_count;
-    keys = c.create_buffer(pixels * 8, sb);
-    tiles = c.create_buffer(sizeof(shared::GatherTileHeader) + std::max<uint64_t>(tris, 1) * 16, list_usage);
+    gpu.keys = ctx.create_buffer(pixels * 8, sb);
+    gpu.tiles = ctx.create_buffer(
+        sizeof(shared::GatherTileHeader) + std::max<uint64_t>(tris, 1) * sizeof(shared::GatherRasterTriangle), list_usage);
+    const uint32_t ts = shared::kGatherTileSize;
+    gpu.tile_depth = ctx.create_buffer(uint64_t((w + ts - 1) / ts) * ((h + ts - 1) / ts) * 4, sb);
+    gpu.pixel_dirs = ctx.create_buffer(gather_ == GatherMode::compute ? pixels * 16 : 16, sb);
   } else {
-    keys = c.create_buffer(16, sb);
-    tiles = c.create_buffer(header, list_usage);
-    color = c.create_image(VK_IMAGE_TYPE_2D, VK_FORMAT_R32_UINT, {width, height, 1},
-                           VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
-                           VK_IMAGE_ASPECT_COLOR_BIT, "a gather attachment");
-    depth = c.create_image(VK_IMAGE_TYPE_2D, VK_FORMAT_D32_SFLOAT, {width, height, 1},
-                           VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, VK_IMAGE_ASPECT_DEPTH_BIT, "a gather attachment");
+    gpu.pixel_dirs = ctx.create_buffer(16, sb);
+    gpu.keys = ctx.create_buffer(16, sb);
+    gpu.tile_depth = ctx.create_buffer(16, sb);
+    gpu.tiles = ctx.create_buffer(header, list_usage);
+    create_image2d(ctx, gpu.color, VK_FORMAT_R32_UINT, w, h,
+                   VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
+    create_image2d(ctx, gpu.depth, VK_FORMAT_D32_SFLOAT, w, h, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
+                   VK_IMAGE_ASPECT_DEPTH_BIT);
   }
   // The work lists start empty
-  c.submit([&](VkCommandBuffer cb) {
-    vkCmdFillBuffer(cb, ray_list.buffer, 0, VK_WHOLE_SIZE, 0u);
-    vkCmdFillBuffer(cb, tiles.buffer, 0, header, 0u);
+  ctx.submit([&](VkCommandBuffer cb) {
+    vkCmdFillBuffer(cb, gpu.ray_list.buffer, 0, VK_WHOLE_SIZE, 0u);
+    vkCmdFillBuffer(cb, gpu.tiles.buffer, 0, header, 0u);
   });
-}
 
-// The descriptor set over the frame's buffers and the grid's geometry.
-void VulkanFrame::Gpu::bind_set(VulkanGridTracer& grid) {
+  // The descriptor set, the pipelines (specialized: bounce, textures)
   const VkDescriptorType t = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-  set = std::make_unique<Descriptors>(
-      *ctx, std::vector<VkDescriptorType>(shared::kFrameBindingCount, t),
+  gpu.set = std::make_unique<Descriptors>(
+      ctx, std::vector<VkDescriptorType>(shared::kFrameBindingCount, t),
       VK_SHADER_STAGE_COMPUTE_BIT | VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
-  Descriptors& s = *set;
-  s.bind(shared::kFrameBindParams, params);
-  s.bind(shared::kFrameBindInstances, grid.instance_buffer());
-  s.bind(shared::kFrameBindTriangles, grid.triangle_buffer());
-  s.bind(shared::kFrameBindUvs, grid.uv_buffer());
-  s.bind(shared::kFrameBindVisibility, visibility);
-  s.bind(shared::kFrameBindGather, gather);
-  s.bind(shared::kFrameBindMaterials, materials);
-  s.bind(shared::kFrameBindDiffuseTexels, texels);
-  s.bind(shared::kFrameBindLights, lights);
-  s.bind(shared::kFrameBindRays, rays);
-  s.bind(shared::kFrameBindHits, hits);
-  s.bind(shared::kFrameBindImage, image);
-  s.bind(shared::kFrameBindRayList, ray_list);
-  s.bind(shared::kFrameBindGatherKeys, keys);
-  s.bind(shared::kFrameBindTileList, tiles);
-}
-
-// The pipelines, specialized by the frame's flags (bounce, textures, alpha, compaction, gather,
-// shadows); the work lists' dispatch steps; the raster gather's pass and pipeline.
-void VulkanFrame::Gpu::create_pipelines(uint32_t flags, uint32_t width, uint32_t height, GatherMode gather_mode,
-                                        bool shadows, bool compact) {
-  const VkDescriptorType t = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  Descriptors& set = *gpu.set;
+  set.bind(shared::kFrameBindParams, gpu.params);
+  set.bind(shared::kFrameBindInstances, grid.instance_buffer());
+  set.bind(shared::kFrameBindTriangles, grid.triangle_buffer());
+  set.bind(shared::kFrameBindUvs, grid.uv_buffer());
+  set.bind(shared::kFrameBindVisibility, gpu.visibility);
+  set.bind(shared::kFrameBindGather, gpu.gather);
+  set.bind(shared::kFrameBindMaterials, gpu.materials);
+  set.bind(shared::kFrameBindDiffuseTexels, gpu.texels);
+  set.bind(shared::kFrameBindLights, gpu.lights);
+  set.bind(shared::kFrameBindRays, gpu.rays);
+  set.bind(shared::kFrameBindHits, gpu.hits);
+  set.bind(shared::kFrameBindImage, gpu.image);
+  set.bind(shared::kFrameBindRayList, gpu.ray_list);
+  set.bind(shared::kFrameBindGatherKeys, gpu.keys);
+  set.bind(shared::kFrameBindTileList, gpu.tiles);
+  set.bind(shared::kFrameBindTileDepth, gpu.tile_depth);
+  set.bind(shared::kFrameBindPixelDirs, gpu.pixel_dirs);
+  const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
+                         (alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
+                         (compute ? shared::kFrameComputeGather : 0u) |
+                         (gather_ == GatherMode::boxes ? shared::kFrameGatherBoxes : 0u) |
+                         (shadows_ ? shared::kFrameShadows : 0u);
   auto spec = [&] {
     SpecConstants s;
     s.add(shared::kFrameSpecFlags, flags);
     return s;
   };
-  resolve = std::make_unique<Pipeline>(*ctx, "gather_resolve.comp", set->layout(), 0, spec());
-  bounce = std::make_unique<Pipeline>(*ctx, "bounce.comp", set->layout(), 0, spec());
-  if (shadows) shadow = std::make_unique<Pipeline>(*ctx, "shadow.comp", set->layout(), 0, spec());
-  shade = std::make_unique<Pipeline>(*ctx, "shade.comp", set->layout(), 0, spec());
+  gpu.resolve = std::make_unique<Pipeline>(ctx, "gather_resolve.comp", set.layout(), 0, spec());
+  gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
+  if (shadows_) gpu.shadow = std::make_unique<Pipeline>(ctx, "shadow.comp", set.layout(), 0, spec());
+  gpu.shade = std::make_unique<Pipeline>(ctx, "shade.comp", set.layout(), 0, spec());
   const uint32_t list_push = 3 * sizeof(uint32_t);
   if (compact) {
-    ray_list_set = std::make_unique<Descriptors>(*ctx, std::initializer_list<VkDescriptorType>{t});
-    ray_list_set->bind(0, ray_list);
-    ray_list_dispatch = std::make_unique<Pipeline>(*ctx, "work_list_dispatch.comp", ray_list_set->layout(), list_push);
+    gpu.ray_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
+    gpu.ray_list_set->bind(0, gpu.ray_list);
+    gpu.ray_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.ray_list_set->layout(), list_push);
   }
-  if (gather_mode == GatherMode::compute) {
-    tile_set = std::make_unique<Descriptors>(*ctx, std::initializer_list<VkDescriptorType>{t});
-    tile_set->bind(0, tiles);
-    tile_dispatch = std::make_unique<Pipeline>(*ctx, "gather_tiles_dispatch.comp", tile_set->layout(),
-                                               uint32_t(sizeof(uint32_t)));
-    bin = std::make_unique<Pipeline>(*ctx, "gather_bin.comp", set->layout(), uint32_t(sizeof(shared::GatherBinPush)), spec());
-    tile_pass = std::make_unique<Pipeline>(*ctx, "gather_tiles.comp", set->layout(), 0, spec());
+  if (compute) {
+    gpu.tile_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
+    gpu.tile_set->bind(0, gpu.tiles);
+    gpu.tile_dispatch = std::make_unique<Pipeline>(ctx, "gather_tiles_dispatch.comp", gpu.tile_set->layout(),
+                                                   uint32_t(sizeof(uint32_t)));
+    gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(sizeof(shared::GatherBinPush)), spec());
+    if (gather_ == GatherMode::compute) gpu.dirs = std::make_unique<Pipeline>(ctx, "gather_dirs.comp", set.layout(), 0, spec());
+    gpu.tile_pass = std::make_unique<Pipeline>(
+        ctx, gather_ == GatherMode::boxes ? "gather_tiles.comp" : "gather_raster.comp", set.layout(), 0, spec());
   } else {
     SpecConstants raster_spec = spec();
-    create_raster(width, height, raster_spec.info());
+    gpu.create_raster(w, h, raster_spec.info());
   }
+  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 9);
 }
 
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
-
-// The gather with the compute passes: every key "nothing" (all ones), the triangles' tiles, their
-// pixels. Timestamps 1 (binned) and 2 (visibility) when timed.
-void VulkanFrame::Gpu::record_compute_gather(VkCommandBuffer cb, uint32_t triangles, uint32_t instance_count,
-                                             uint32_t max_groups_x, bool timed) {
-  const VkDescriptorSet s = set->set();
-  vkCmdFillBuffer(cb, keys.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
-  barrier(cb);
-  if (triangles) {
-    const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
-    const shared::GatherBinPush push{triangles, instance_count};
-    bin->bind(cb, s);
-    bin->push(cb, push);
-    vkCmdDispatch(cb, g.x, g.y, 1);
-  }
-  barrier(cb);
-  if (timed) timestamps->write(cb, 1);
-  tile_dispatch->bind(cb, tile_set->set());
-  tile_dispatch->push(cb, max_groups_x);
-  vkCmdDispatch(cb, 1, 1, 1);
-  barrier(cb);
-  tile_pass->bind(cb, s);
-  vkCmdDispatchIndirect(cb, tiles.buffer, 0);
-  barrier(cb);
-  if (timed) timestamps->write(cb, 2);
-}
-
-// The gather with the raster pipeline: one draw per instance (firstInstance = its id), then the
-// copy into the visibility buffer. Timestamps 1 (drawn) and 2 (copied) when timed.
-void VulkanFrame::Gpu::record_raster_gather(VkCommandBuffer cb, const std::vector<shared::GridInstance>& instances,
-                                            uint32_t width, uint32_t height, bool timed) {
-  const VkDescriptorSet s = set->set();
-  VkClearValue clear[2]{};
-  clear[0].color.uint32[0] = shared::kNoRef;
-  clear[1].depthStencil = {0.0f, 0};
-  VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
-  bi.renderPass = pass;
-  bi.framebuffer = framebuffer;
-  bi.renderArea = {{0, 0}, {width, height}};
-  bi.clearValueCount = 2;
-  bi.pClearValues = clear;
-  vkCmdBeginRenderPass(cb, &bi, VK_SUBPASS_CONTENTS_INLINE);
-  vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, raster);
-  vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &s, 0, nullptr);
-  for (uint32_t i = 0; i < instances.size(); ++i)
-    if (instances[i].tri_count) vkCmdDraw(cb, 3 * instances[i].tri_count, 1, 0, i);
-  vkCmdEndRenderPass(cb);
-  if (timed) timestamps->write(cb, 1);
-  VkBufferImageCopy region{};
-  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-  region.imageExtent = {width, height, 1};
-  vkCmdCopyImageToBuffer(cb, color.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, visibility.buffer, 1, &region);
-  barrier(cb);
-  if (timed) timestamps->write(cb, 2);
-}
-
-namespace {
-
-// The phases' times from the frame's 9 timestamps (frame.h, FrameTimings).
-void split_timings(const std::vector<double>& ns, bool compute, bool shadows, FrameTimings& t) {
-  t.visibility_ms = ((compute ? ns[2] : ns[1]) - ns[0]) * 1e-6;
-  t.bin_ms = compute ? (ns[1] - ns[0]) * 1e-6 : 0.0;
-  t.tiles_ms = compute ? (ns[2] - ns[1]) * 1e-6 : 0.0;
-  t.copy_ms = compute ? 0.0 : (ns[2] - ns[1]) * 1e-6;
-  t.resolve_ms = (ns[3] - ns[2]) * 1e-6;
-  t.gather_ms = (ns[3] - ns[0]) * 1e-6;
-  t.bounce_ms = (ns[4] - ns[3]) * 1e-6;
-  t.trace_ms = (ns[5] - ns[4]) * 1e-6;
-  t.shadow_ms = shadows ? (ns[7] - ns[5]) * 1e-6 : 0.0;
-  t.shadow_trace_ms = shadows ? (ns[7] - ns[6]) * 1e-6 : 0.0;
-  t.shade_ms = (ns[8] - ns[7]) * 1e-6;
-  t.total_ms = (ns[8] - ns[0]) * 1e-6;
-}
-
-}  // namespace
 
 void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   Context& ctx = grid_.context();
@@ -529,10 +477,59 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
       if (rep > 0) barrier(cb);
       if (timed) gpu.timestamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
       const VkDescriptorSet s = gpu.set->set();
-      if (gather_ == GatherMode::compute) {
-        gpu.record_compute_gather(cb, triangles, uint32_t(instances.size()), max_groups_x, timed);
+      if (gather_ != GatherMode::raster) {
+        // Gather, compute: every key "nothing" (all ones), every tile's depth bound unknown (all
+        // ones), the triangles' set-up and work items, their pixels
+        vkCmdFillBuffer(cb, gpu.keys.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
+        vkCmdFillBuffer(cb, gpu.tile_depth.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
+        if (gpu.dirs) {
+          // The pixels' ray directions, once
+          gpu.dirs->bind(cb, s);
+          vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+        }
+        barrier(cb);
+        if (triangles) {
+          const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
+          const shared::GatherBinPush push{triangles, uint32_t(instances.size())};
+          gpu.bin->bind(cb, s);
+          gpu.bin->push(cb, push);
+          vkCmdDispatch(cb, g.x, g.y, 1);
+        }
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 1);
+        gpu.tile_dispatch->bind(cb, gpu.tile_set->set());
+        gpu.tile_dispatch->push(cb, max_groups_x);
+        vkCmdDispatch(cb, 1, 1, 1);
+        barrier(cb);
+        gpu.tile_pass->bind(cb, s);
+        vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 2);
       } else {
-        gpu.record_raster_gather(cb, instances, w, h, timed);
+        // Gather, raster: one draw per instance (firstInstance = its id), then the copy
+        VkClearValue clear[2]{};
+        clear[0].color.uint32[0] = shared::kNoRef;
+        clear[1].depthStencil = {0.0f, 0};
+        VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+        bi.renderPass = gpu.pass;
+        bi.framebuffer = gpu.framebuffer;
+        bi.renderArea = {{0, 0}, {w, h}};
+        bi.clearValueCount = 2;
+        bi.pClearValues = clear;
+        vkCmdBeginRenderPass(cb, &bi, VK_SUBPASS_CONTENTS_INLINE);
+        vkCmdBindPipeline(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.raster);
+        vkCmdBindDescriptorSets(cb, VK_PIPELINE_BIND_POINT_GRAPHICS, gpu.layout, 0, 1, &s, 0, nullptr);
+        for (uint32_t i = 0; i < instances.size(); ++i)
+          if (instances[i].tri_count) vkCmdDraw(cb, 3 * instances[i].tri_count, 1, 0, i);
+        vkCmdEndRenderPass(cb);
+        if (timed) gpu.timestamps->write(cb, 1);
+        VkBufferImageCopy region{};
+        region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        region.imageExtent = {w, h, 1};
+        vkCmdCopyImageToBuffer(cb, gpu.color.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, gpu.visibility.buffer, 1,
+                               &region);
+        barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 2);
       }
       // Gather: position, normal, material, uv from the visible triangle
       gpu.resolve->bind(cb, s);
@@ -582,14 +579,40 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     }
   });
   timings_.host_ms = ms_since(t0);
-  if (gpu.timestamps) split_timings(gpu.timestamps->read_ns(), gather_ == GatherMode::compute, shadows_, timings_);
+  if (gpu.timestamps) {
+    const std::vector<double> ns = gpu.timestamps->read_ns();
+    const bool compute = gather_ != GatherMode::raster;
+    timings_.visibility_ms = ((compute ? ns[2] : ns[1]) - ns[0]) * 1e-6;
+    timings_.bin_ms = compute ? (ns[1] - ns[0]) * 1e-6 : 0.0;
+    timings_.tiles_ms = compute ? (ns[2] - ns[1]) * 1e-6 : 0.0;
+    timings_.copy_ms = compute ? 0.0 : (ns[2] - ns[1]) * 1e-6;
+    timings_.resolve_ms = (ns[3] - ns[2]) * 1e-6;
+    timings_.gather_ms = (ns[3] - ns[0]) * 1e-6;
+    timings_.bounce_ms = (ns[4] - ns[3]) * 1e-6;
+    timings_.trace_ms = (ns[5] - ns[4]) * 1e-6;
+    timings_.shadow_ms = shadows_ ? (ns[7] - ns[5]) * 1e-6 : 0.0;
+    timings_.shadow_trace_ms = shadows_ ? (ns[7] - ns[6]) * 1e-6 : 0.0;
+    timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;
+    timings_.total_ms = (ns[8] - ns[0]) * 1e-6;
+  }
 }
 
 GatherBuffer VulkanFrame::download_gather() const {
   Context& ctx = grid_.context();
   const uint32_t w = options_.width, h = options_.height;
   const std::vector<shared::GatherTexel> texels = ctx.download<shared::GatherTexel>(gpu_->gather, size_t(w) * h);
-  GatherBuffer g = GatherBuffer::blank(w, h);
+  GatherBuffer g;
+  g.width = w;
+  g.height = h;
+  const size_t n = g.size();
+  g.valid.assign(n, 0);
+  g.position.assign(n, glm::vec3(0.0f));
+  g.normal.assign(n, glm::vec3(0.0f));
+  g.incident.resize(n);
+  g.material.assign(n, kNoMaterial);
+  g.uv.assign(n, glm::vec2(0.0f));
+  g.launch_ref.assign(n, shared::kNoRef);
+  g.hit.assign(n, Hit{0.0f, shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0});
   for (uint32_t y = 0; y < h; ++y)
     for (uint32_t x = 0; x < w; ++x) {
       const size_t p = size_t(y) * w + x;
@@ -638,7 +661,7 @@ std::vector<uint32_t> VulkanFrame::download_visibility() const {
 }
 
 uint32_t VulkanFrame::download_gather_tiles() const {
-  if (gather_ != GatherMode::compute) return 0;
+  if (gather_ == GatherMode::raster) return 0;
   return grid_.context().download<shared::GatherTileHeader>(gpu_->tiles, 1)[0].tiles;
 }
 

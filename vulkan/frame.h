@@ -1,10 +1,14 @@
 // frame.h: the paper's frame on the GPU, after the grid's update, in one submission:
 //   gather   the visible triangle per pixel, by one of two passes:
 //            compute (default where the device has 64-bit buffer atomics): gather_bin.comp clips
-//              each triangle to the view frustum and tests a small screen box itself or lists
-//              the triangle with its 8x8-pixel tiles; gather_tiles.comp tests each tile's pixel
-//              rays with the shared ray test and keeps the smallest (t, reference) by a 64-bit
-//              atomic min (gather_visibility.glsl): the CPU gather's own rule
+//              each triangle to the view frustum and tests a small screen box itself or sets the
+//              triangle up (edge functions, a depth bound) and lists it with its 32x32-pixel
+//              screen bins; gather_raster.comp rejects bins, 8x8 tiles and pixels the triangle
+//              cannot cover, culls tiles by depth, tests the rest's pixel rays with the shared ray
+//              test and keeps the smallest (t, reference) by a 64-bit atomic min
+//              (gather_visibility.glsl): the CPU gather's own rule
+//            boxes: the same without the rasterizer's rejections (gather_tiles.comp: every pixel
+//              of the box's 8x8 tiles), kept to be measured against it
 //            raster (the paper's): gather.vert + gather.frag, the geometry buffer's world-space
 //              triangles, depth test, the reference into an R32_UINT attachment copied to a buffer
 //            then gather_resolve.comp turns it into the gather buffer (position, normal, material,
@@ -55,7 +59,8 @@ struct FrameTimings {
 };
 
 enum class GatherMode {
-  compute,  // gather_bin/gather_tiles.comp: the CPU gather's ray test (needs 64-bit buffer atomics)
+  compute,  // gather_bin/gather_raster.comp: the CPU gather's ray test (needs 64-bit buffer atomics)
+  boxes,    // gather_bin/gather_tiles.comp: the same test on every pixel of the triangles' boxes
   raster,   // the paper's raster pass
 };
 
@@ -95,7 +100,8 @@ class VulkanFrame {
   std::vector<Hit> download_shadow_hits() const;
   std::vector<uint8_t> download_rgba() const;  // RGBA8, sRGB-encoded
   std::vector<uint32_t> download_visibility() const;  // the raster pass's reference per pixel
-  // The compute gather's 8x8-pixel tiles of the last render (0 for the raster gather).
+  // The compute gather's work items of the last render: 32x32-pixel bins (8x8-pixel tiles with
+  // GatherMode::boxes; 0 for the raster gather).
   uint32_t download_gather_tiles() const;
 
   // The device buffers of the bounce rays and hits (another tracer may trace the same rays).

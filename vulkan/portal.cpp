@@ -163,8 +163,9 @@ void PortalVulkanTracer::upload() {
                            p.atlas.size() * sizeof(uint16_t), "atlas");
   gpu.info = make_texture(ctx, VK_FORMAT_R8G8B8A8_UINT, false, {p.info_width, p.info_height, 1}, p.info.data(),
                           p.info.size(), "div info");
-  gpu.start = make_texture(ctx, VK_FORMAT_R16_UINT, true, p.dims, p.start.data(), p.start.size() * sizeof(uint16_t),
-                           "start map");
+  // The start map: level 0's voxels, then (mip-mapped space) each coarser level's block below.
+  gpu.start = make_texture(ctx, VK_FORMAT_R16_UINT, true, {p.dims.x, p.dims.y, p.start_depth ? p.start_depth : p.dims.z},
+                           p.start.data(), p.start.size() * sizeof(uint16_t), "start map");
 
   // Scalars and the renderer's materials
   sh::PortalParams params{};
@@ -174,10 +175,12 @@ void PortalVulkanTracer::upload() {
   params.div_count = p.div_count;
   params.atlas_width = p.atlas_width;
   params.info_width = p.info_width;
+  params.levels = p.levels;
+  params.mip_distance = p.mip_distance;
   gpu.params = make_buffer(ctx, std::vector<sh::PortalParams>{params});
   std::vector<sh::PortalMaterial> materials;
   for (const portal::WallMaterial& m : portal().world.materials)
-    materials.push_back({m.color, m.ior, m.filter, m.glass ? 1u : 0u});
+    materials.push_back({m.color, m.ior, m.filter, m.glass ? 1u : 0u, m.coverage, m.resolve ? 1u : 0u, 0u, 0u});
   gpu.materials = make_buffer(ctx, materials);
   gpu.rays = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.hits = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
@@ -369,15 +372,31 @@ std::string to_text(const PortalExplainRecord& rec, const portal::PortalBuild& b
       else s += fmt("start: voxel (%d, %d, %d), start texel %s\n", e.voxel.x, e.voxel.y, e.voxel.z, texel_text(e.texel).c_str());
       continue;
     }
+    if (e.kind == 2) {
+      s += fmt("mip: level %u from here, coarse voxel (%d, %d, %d), start texel %s\n", e.div, e.voxel.x, e.voxel.y,
+               e.voxel.z, texel_text(e.texel).c_str());
+      continue;
+    }
+    if (e.kind == 3) {
+      const Hit& h = rec.hit;
+      const glm::ivec3 v = portal::hit_voxel(build.world, h);
+      const uint32_t m = e.texel;
+      s += fmt("hit: coarse voxel (%d, %d, %d) of level %u, material %u (coverage %g)%s: voxel (%d, %d, %d) face %s, "
+               "material %u, t = %.9g\n", e.voxel.x, e.voxel.y, e.voxel.z, e.div, m, double(p.coverage[m]),
+               p.resolve[m] ? ", opaque: back to full resolution" : ", translucent", v.x, v.y, v.z,
+               face_name(h.triangle & 7u), h.instance, double(h.t));
+      continue;
+    }
     const auto kind = portal::StepKind(e.step);
     if (kind == portal::StepKind::kNoDirection) {
       s += fmt("div %u: no face ahead (zero direction or missed box): miss\n", e.div);
       continue;
     }
     const portal::DivInfo d = portal::read_div_info(p, e.div);
-    s += fmt("div %u [%d,%d,%d .. %d,%d,%d)%s: %s face %s at t = %.7g, voxel (%d, %d, %d)", e.div, d.lo.x, d.lo.y, d.lo.z,
-             d.lo.x + d.size.x, d.lo.y + d.size.y, d.lo.z + d.size.z,
+    s += fmt("div %u [%d,%d,%d .. %d,%d,%d)%s%s: %s face %s at t = %.7g, voxel (%d, %d, %d)", e.div, d.lo.x, d.lo.y,
+             d.lo.z, d.lo.x + d.size.x, d.lo.y + d.size.y, d.lo.z + d.size.z,
              d.type == sh::kPortalDivExterior ? " (exterior)" : d.type == sh::kPortalDivGlass ? " (glass)" : "",
+             d.level ? fmt(" level %u", d.level).c_str() : "",
              d.type == sh::kPortalDivExterior ? "enters by" : "exits by", face_name(e.face), double(e.num / e.ad),
              e.voxel.x, e.voxel.y, e.voxel.z);
     if (kind == portal::StepKind::kTmax) {
@@ -387,7 +406,7 @@ std::string to_text(const PortalExplainRecord& rec, const portal::PortalBuild& b
     s += fmt(", atlas texel (%u, %u) = %s\n", e.texel_uv.x, e.texel_uv.y, texel_text(e.texel).c_str());
   }
   const Hit& h = rec.hit;
-  if (!is_miss(h) && (h.triangle & 7u) != sh::kPortalFaceInside && !rec.events.empty()) {
+  if (!is_miss(h) && (h.triangle & 7u) != sh::kPortalFaceInside && !rec.events.empty() && rec.events.back().kind != 3) {
     const glm::ivec3 v = portal::hit_voxel(build.world, h);
     if (portal::StepKind(rec.events.back().step) == portal::StepKind::kWall)
       s += fmt("hit: voxel (%d, %d, %d) face %s, material %u, t = %.9g, uv = (%.6g, %.6g)\n", v.x, v.y, v.z,

@@ -184,6 +184,54 @@ SH_INLINE uint portal_hit_face(uint a, float da) { return 2u * a + (da > 0.0f ? 
 // Decode an atlas texel.
 SH_INLINE bool portal_texel_is_wall(uint texel) { return texel >= kPortalWallBit; }
 
+
+// ---- Mip-mapped space (docs/PORTAL.md, "Mip-mapped space") ----
+// Level l is a voxelization of the same space at 2^l fine voxels per coarse voxel. Its divs and
+// its start map live in the same textures as level 0's; the div's level is the high nibble of
+// its type byte. A ray in a level-l div is traced in level-l voxel space: org and dir times 2^-l,
+// exact in floating point, so every plane predicate there is the level-0 predicate on the same
+// plane and t is unchanged.
+SH_CONST uint kPortalMaxLevels = 4u;     // levels 0 .. 3
+SH_CONST uint kPortalTypeMask = 15u;     // the div type in the low nibble of the type byte
+SH_CONST uint kPortalLevelShift = 4u;    // the div's level in the high nibble
+
+// 2^-level, by halving (exact).
+SH_INLINE float portal_level_scale(uint level) {
+  float s = 1.0f;
+  for (uint k = 0u; k < level; k++) s = s * 0.5f;
+  return s;
+}
+
+// Voxels per axis of level `level` of a world of `dims` fine voxels: ceil(dims / 2^level).
+SH_INLINE uvec3 portal_level_dims(uvec3 dims, uint level) {
+  const uint f = (1u << level) - 1u;
+  return uvec3((dims.x + f) >> level, (dims.y + f) >> level, (dims.z + f) >> level);
+}
+
+// The level a ray should be in where it crosses a plane at distance ahead `num` (|d_a| = `ad`,
+// in any level's space: the ratio is t) with `maxad` = max |dir| in level-0 voxel space: the
+// Chebyshev distance from the origin in fine voxels is d = t * maxad, and the level is the
+// largest l < levels with d >= distance * 2^l (0 when none). No division.
+SH_INLINE uint portal_mip_level(float num, float ad, float maxad, float distance, uint levels) {
+  uint l = 0u;
+  SH_PRECISE float lhs = num * maxad;
+  for (uint k = 1u; k < levels; k++) {
+    SH_PRECISE float thr = distance * float(1u << k);  // exact: a power of two
+    SH_PRECISE float rhs = thr * ad;
+    if (lhs >= rhs) l = k;
+  }
+  return l;
+}
+
+// A ray in a level-`lc` div may move to a coarser level `l` (> lc) only at a plane that is also a
+// plane of level l: plane index `plane` (level-lc units) a multiple of 2^(l - lc). The coarsest
+// such level not above `target`, or lc when there is none.
+SH_INLINE uint portal_mip_aligned_level(uint plane, uint lc, uint target) {
+  uint l = target;
+  while (l > lc && (plane & ((1u << (l - lc)) - 1u)) != 0u) l = l - 1u;
+  return l;
+}
+
 SH_END
 
 #endif

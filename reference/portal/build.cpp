@@ -933,7 +933,8 @@ DivInfo read_div_info(const PackedPortal& p, uint32_t d) {
   info.size = glm::ivec3(s.x, s.y, s.z);
   info.glass_material = s.w;
   info.lo = glm::ivec3(o.x, o.y, o.z);
-  info.type = o.w;
+  info.type = o.w & shared::kPortalTypeMask;
+  info.level = o.w >> shared::kPortalLevelShift;
   return info;
 }
 
@@ -1206,7 +1207,11 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
   fill_atlas(b, face_uv, T);
   pack_div_info(b, face_uv, opt);
   pack_start(b);
+  p.start_depth = glm::ivec3(w.dims).z;
+  p.coverage.assign(w.materials.size(), 1.0f);
+  p.resolve.assign(w.materials.size(), 0);
   b.stats.seconds_pack = seconds_since(t);
+  if (opt.mip_levels > 1) add_mip_levels(b, opt);
   b.stats.divs = b.divs.size();
   b.stats.atlas_texels = p.atlas.size();
   b.stats.bytes = p.bytes();

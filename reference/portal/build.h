@@ -95,6 +95,12 @@ struct PortalOptions {
   // Bounded: greedy boxes per axis run: 2 (the run, then the other two axes in either order) or 3
   // (also both other axes grown a layer at a time in turn: squarer boxes; up to nine candidates).
   uint32_t choice_per_run = 2;
+  // Mip-mapped space (docs/PORTAL.md, "Mip-mapped space"): levels 0 .. mip_levels - 1 (1: none,
+  // at most kPortalMaxLevels), each a voxelization at 2^l fine voxels per voxel with its own divs.
+  // A ray moves to level l once its Chebyshev distance from its origin reaches mip_distance * 2^l
+  // fine voxels (mip_distance > 0 when mip_levels > 1).
+  uint32_t mip_levels = 1;
+  float mip_distance = 0.0f;
 };
 DivChoice parse_div_choice(const std::string& name);  // "bounded" | "exact"; Error otherwise
 const char* div_choice_name(DivChoice c);
@@ -110,6 +116,26 @@ struct PackedPortal {
   std::vector<uint8_t> info;       // RGBA8_UINT, row-major, 8 texels per div
   std::vector<uint16_t> start;     // R16_UINT 3D, one texel per voxel: a div containing it, or a wall texel
   uint32_t div_count = 0;
+  // Mip-mapped space: `levels` levels (1: none). Level l's divs follow level l-1's in the div
+  // info and the atlas (its atlas rows below); its start map is the block of the start texture at
+  // depth start_z(l), level_dims(l) voxels, in the same dims.x x dims.y slices (start_depth slices
+  // in all). mip_distance: the level rule's distance (PortalOptions). Per material (the world's
+  // table, coarse materials appended): coverage and resolve (WallMaterial).
+  uint32_t levels = 1;
+  float mip_distance = 0.0f;
+  uint32_t start_depth = 0;
+  std::vector<float> coverage;
+  std::vector<uint8_t> resolve;
+  glm::uvec3 level_dims(uint32_t level) const { return shared::portal_level_dims(dims, level); }
+  uint32_t start_z(uint32_t level) const {
+    uint32_t z = 0;
+    for (uint32_t l = 0; l < level; ++l) z += level_dims(l).z;
+    return z;
+  }
+  // The start texel of voxel v of level `level`.
+  uint16_t start_at(uint32_t level, glm::ivec3 v) const {
+    return start[uint32_t(v.x) + dims.x * (uint32_t(v.y) + dims.y * (start_z(level) + uint32_t(v.z)))];
+  }
   size_t bytes() const { return atlas.size() * 2 + info.size() + start.size() * 2; }
 };
 
@@ -117,6 +143,7 @@ struct PackedPortal {
 struct DivInfo {
   glm::ivec3 lo{0}, size{0};
   uint32_t type = 0, glass_material = 0;
+  uint32_t level = 0;       // mip level (the high nibble of the type byte)
   glm::uvec2 face_uv[6]{};  // atlas origin of each face's rectangle
 };
 DivInfo read_div_info(const PackedPortal& packed, uint32_t d);
@@ -152,6 +179,15 @@ struct PortalBuild {
 // 32768 divs, an atlas taller than 65536 rows; the bounded choice stops as soon as its stored divs
 // pass either), or the exact choice's size limits.
 PortalBuild build_portal(World world, const PortalOptions& options = {});
+
+// Mip-mapped space (mip.cpp): the world of level `level` (2^level fine voxels per voxel; a coarse
+// voxel is empty when all its fine voxels are, else a coarse material: the mean colour of its
+// occupied fine voxels, coverage = occupied / 8^level, resolve = all of them opaque walls).
+// Coarse materials are appended to `materials` (shared, deduplicated).
+World coarse_world(const World& world, uint32_t level, std::vector<WallMaterial>& materials);
+// Adds levels 1 .. options.mip_levels - 1 to a level-0 build: their divs, atlas rows and start
+// maps packed after level 0's, the coarse materials appended to build.world.materials.
+void add_mip_levels(PortalBuild& build, const PortalOptions& options);
 
 // The greedy maximal div grown from voxel v: along axis `order[0]` (v's run), then `order[1]`,
 // then `order[2]`, each as far as the medium of v allows. Maximal: a direction blocked at a

@@ -43,6 +43,7 @@ struct PixelState {
   uint32_t hit_div = 0;
   float light = 0.0f;          // sum over lights of visible * N.L
   glm::vec3 color{0.0f};
+  glm::vec3 mip_acc{0.0f};     // mip-mapped space: light of the translucent coarse voxels passed (front to back)
   uint32_t steps_primary = 0, steps_shadow = 0, iterations = 0, refractions = 0, reflections = 0, shadow_rays = 0;
 };
 
@@ -53,7 +54,7 @@ struct Context {
 };
 
 void finish(const Context& c, PixelState& s) {
-  s.color = s.filter * s.albedo * (c.opt.ambient + (1.0f - c.opt.ambient) * 0.5f * s.light);
+  s.color = s.filter * s.albedo * (c.opt.ambient + (1.0f - c.opt.ambient) * 0.5f * s.light) + s.mip_acc;
   s.mode = kDone;
 }
 
@@ -93,6 +94,65 @@ void begin_primary(const Context& c, PixelState& s, const Ray& ray) {
 
 glm::vec3 crossing(const VoxelRay& r, const Step& st) { return r.org + (st.num / st.ad) * r.dir; }
 
+glm::vec3 crossing(const VoxelRay& r, float num, float ad) { return r.org + (num / ad) * r.dir; }
+
+// Mip-mapped space: the primary ray meets coarse wall voxel `v` of level `level` (material m) on
+// the plane (axis, num, ad; level space). Opaque (resolve): back to full resolution, the fine
+// voxel's own hit, shaded with its shadow rays. Partly occupied: translucent, composited front to
+// back with alpha = coverage (lit by both lights, unshadowed), and the ray goes on through the
+// coarse voxel to the next one: a div of that level (the traversal resumes there), another coarse
+// wall, or the outside.
+void mip_surface(const Context& c, PixelState& s, uint32_t level, uint32_t axis, float num, float ad, glm::ivec3 v,
+                 uint32_t m) {
+  const PackedPortal& p = c.build.packed;
+  const World& w = c.build.world;
+  const glm::uvec3 ld = p.level_dims(level);
+  for (uint32_t guard = 0; guard < ld.x + ld.y + ld.z + 3u; ++guard) {
+    glm::vec3 n(0.0f);
+    n[axis] = s.ray.dir[axis] > 0.0f ? -1.0f : 1.0f;
+    const glm::vec3 x = crossing(s.ray, num, ad);
+    if (p.resolve[m]) {
+      glm::ivec3 wall, side;
+      mip_fine_voxels(p, s.ray, level, axis, num, ad, v, wall, side);
+      const uint16_t tw = p.start_at(0, wall), ts = p.start_at(0, side);
+      s.point = x, s.normal = n;
+      s.albedo = w.materials[sh::portal_texel_is_wall(tw) ? tw - sh::kPortalWallBit : m].color;
+      if (sh::portal_texel_is_wall(ts)) {  // the fine voxel before the face is solid: no shadow ray leaves it
+        finish(c, s);
+        return;
+      }
+      s.hit_div = ts;
+      begin_shadow(c, s, 0);
+      return;
+    }
+    float lit = 0.0f;
+    for (int i = 0; i < 2; ++i) lit += std::max(0.0f, glm::dot(n, glm::normalize(c.lights[i] - x)));
+    const float shade = c.opt.ambient + (1.0f - c.opt.ambient) * 0.5f * lit;
+    s.mip_acc += s.filter * (p.coverage[m] * shade) * w.materials[m].color;
+    s.filter *= 1.0f - p.coverage[m];
+    ++s.steps_primary, ++s.iterations;
+    // Through the coarse voxel: its exit face and the voxel beyond.
+    const VoxelRay rl = level_ray(s.ray, level);
+    float en = 0.0f;
+    const uint32_t a = sh::portal_exit_axis(glm::vec3(v), glm::vec3(v) + 1.0f, rl.org, rl.dir, en);
+    const glm::ivec3 next = v + glm::ivec3(a < 3 && rl.dir[a] > 0.0f ? 1 : -1) * glm::ivec3(a == 0, a == 1, a == 2);
+    if (a == 3 || !sh::portal_before_tmax(en, std::abs(rl.dir[a]), rl.tmax) || glm::any(glm::lessThan(next, glm::ivec3(0))) ||
+        glm::any(glm::greaterThanEqual(glm::uvec3(next), ld))) {
+      s.color = s.filter * c.opt.background + s.mip_acc;
+      s.mode = kDone;
+      return;
+    }
+    const uint16_t t = p.start_at(level, next);
+    if (!sh::portal_texel_is_wall(t)) {
+      s.div = t;
+      return;
+    }
+    axis = a, num = en, ad = std::abs(rl.dir[a]), v = next, m = t - sh::kPortalWallBit;
+  }
+  s.color = s.filter * c.opt.background + s.mip_acc;  // not reached: the coarse voxels ahead are finite
+  s.mode = kDone;
+}
+
 glm::vec3 pow3(glm::vec3 f, float d) { return {std::pow(f.x, d), std::pow(f.y, d), std::pow(f.z, d)}; }
 
 // The state transitions: what one step's result does to the pixel.
@@ -106,7 +166,21 @@ void transition(const Context& c, PixelState& s, const Step& st) {
       const DivInfo nd = read_div_info(p, st.texel);
       const bool next_glass = nd.type == sh::kPortalDivGlass;
       if (next_glass == s.in_glass && (!next_glass || nd.glass_material == s.glass)) {
+        const uint32_t from = s.div;
         s.div = st.texel;
+        if (p.levels > 1 && !next_glass) {
+          // Mip-mapped space: a coarser level from this plane on, when the level rule says so.
+          const DivInfo cd = read_div_info(p, from);
+          if (cd.type != sh::kPortalDivAir) return;
+          const MipEnter me = mip_enter(p, s.ray, cd.level, st);
+          if (!me.moved) return;
+          if (!sh::portal_texel_is_wall(me.texel)) {
+            s.div = me.texel;
+            return;
+          }
+          const float sc = sh::portal_level_scale(me.level - cd.level);
+          mip_surface(c, s, me.level, st.axis, st.num * sc, st.ad * sc, me.voxel, me.texel - sh::kPortalWallBit);
+        }
         return;
       }
       const uint32_t gm = next_glass ? nd.glass_material : s.glass;  // the glass whose surface this is
@@ -142,6 +216,15 @@ void transition(const Context& c, PixelState& s, const Step& st) {
       s.ray.tmax = std::numeric_limits<float>::infinity();
       return;
     }
+    if (st.kind == StepKind::kWall && p.levels > 1) {
+      const DivInfo cd = read_div_info(p, s.div);
+      if (cd.level > 0) {
+        glm::ivec3 v = st.voxel;
+        v[st.axis] += s.ray.dir[st.axis] > 0.0f ? 1 : -1;
+        mip_surface(c, s, cd.level, st.axis, st.num, st.ad, v, st.texel - sh::kPortalWallBit);
+        return;
+      }
+    }
     if (st.kind == StepKind::kWall) {
       const glm::vec3 x = crossing(s.ray, st);
       if (s.in_glass) s.filter *= pow3(w.materials[s.glass].filter, glm::length(x - s.glass_entry));
@@ -153,7 +236,7 @@ void transition(const Context& c, PixelState& s, const Step& st) {
       begin_shadow(c, s, 0);
       return;
     }
-    s.color = s.filter * c.opt.background;  // outside, tmax or no direction
+    s.color = s.filter * c.opt.background + s.mip_acc;  // outside, tmax or no direction
     s.mode = kDone;
     return;
   }

@@ -112,6 +112,30 @@ uint16_t atlas_at(const PackedPortal& p, glm::uvec2 uv) { return p.atlas[size_t(
 
 }  // namespace
 
+// A coarse wall of material `m` (level `level`, coarse voxel `v`) met on plane (axis, num, ad, level
+// space): the first surface. An opaque coarse voxel (resolve) returns to full resolution: the fine
+// voxel beyond the plane, its own material. A partly occupied one is reported as itself (its
+// coarse material), at the fine voxel beyond the plane.
+static Hit mip_surface_hit(const PackedPortal& p, const VoxelRay& r, uint32_t level, uint32_t a, float num, float ad, glm::ivec3 v,
+                    uint32_t m, uint32_t steps, uint32_t texels, std::string* log) {
+  glm::ivec3 wall, side;
+  mip_fine_voxels(p, r, level, a, num, ad, v, wall, side);
+  const float up = float(1 << level);
+  uint32_t material = m;
+  if (p.resolve[m]) {
+    const uint16_t t0 = p.start_at(0, wall);
+    ++texels;
+    material = sh::portal_texel_is_wall(t0) ? t0 - sh::kPortalWallBit : m;
+  }
+  const Hit h = wall_hit(p.dims, r, a, num * up, ad * up, side, wall, material, steps, texels);
+  if (log)
+    *log += fmt("hit: coarse voxel (%d, %d, %d) of level %u, material %u (coverage %g)%s: voxel (%d, %d, %d) face %s, "
+                "material %u, t = %.9g\n", v.x, v.y, v.z, level, m, double(p.coverage[m]),
+                p.resolve[m] ? ", opaque: back to full resolution" : ", translucent", wall.x, wall.y, wall.z,
+                face_name(hit_face(h)), h.instance, double(h.t));
+  return h;
+}
+
 const char* face_name(uint32_t f) {
   static const char* n[] = {"-X", "+X", "-Y", "+Y", "-Z", "+Z", "inside"};
   return n[std::min(f, 6u)];
@@ -158,9 +182,53 @@ Start start_ray(const PackedPortal& p, const VoxelRay& r) {
   return s;
 }
 
-Step step_ray(const PackedPortal& p, uint32_t div, const VoxelRay& r) {
+VoxelRay level_ray(const VoxelRay& r, uint32_t level) {
+  if (level == 0) return r;
+  const float s = sh::portal_level_scale(level);
+  VoxelRay q = r;
+  q.org = r.org * s;
+  q.dir = r.dir * s;
+  return q;
+}
+
+MipEnter mip_enter(const PackedPortal& p, const VoxelRay& r, uint32_t lc, const Step& s) {
+  MipEnter m;
+  if (p.levels <= 1) return m;
+  const float maxad = std::max({std::abs(r.dir.x), std::abs(r.dir.y), std::abs(r.dir.z)});
+  const uint32_t target = sh::portal_mip_level(s.num, s.ad, maxad, p.mip_distance, p.levels);
+  if (target <= lc) return m;
+  const uint32_t a = s.axis;
+  const bool pos = r.dir[a] > 0.0f;
+  const uint32_t plane = uint32_t(s.voxel[a]) + (pos ? 1u : 0u);
+  const uint32_t l = sh::portal_mip_aligned_level(plane, lc, target);
+  if (l == lc) return m;
+  glm::ivec3 beyond = s.voxel;
+  beyond[a] += pos ? 1 : -1;
+  m.moved = true;
+  m.level = l;
+  for (int b = 0; b < 3; ++b) m.voxel[b] = int(uint32_t(beyond[b]) >> (l - lc));
+  m.texel = p.start_at(l, m.voxel);
+  return m;
+}
+
+void mip_fine_voxels(const PackedPortal& p, const VoxelRay& r, uint32_t level, uint32_t a, float num, float ad,
+                     glm::ivec3 v, glm::ivec3& wall, glm::ivec3& side) {
+  const int f = 1 << level;
+  const float up = float(f);
+  const float num0 = num * up, ad0 = ad * up;  // level-0 space (exact)
+  const bool pos = r.dir[a] > 0.0f;
+  wall[a] = pos ? v[a] * f : std::min(v[a] * f + f, int(p.dims[a])) - 1;
+  for (uint32_t b : {sh::portal_tangent0(a), sh::portal_tangent1(a)})
+    wall[b] = int(sh::portal_cross_index(a, num0, ad0, b, r.org[b], r.dir[b], uint32_t(v[b] * f),
+                                         uint32_t(std::min(v[b] * f + f, int(p.dims[b])))));
+  side = wall;
+  side[a] += pos ? -1 : 1;
+}
+
+Step step_ray(const PackedPortal& p, uint32_t div, const VoxelRay& r0) {
   Step s;
   const DivInfo d = read_div_info(p, div);
+  const VoxelRay r = level_ray(r0, d.level);  // mip-mapped space: the div's level
   const glm::vec3 lo(d.lo), hi(d.lo + d.size);
   float num = 0.0f;
   if (d.type == sh::kPortalDivExterior) {
@@ -225,9 +293,10 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
       return miss_hit(steps, texels);
     }
     if (log)
-      *log += fmt("div %u [%d,%d,%d .. %d,%d,%d)%s: %s face %s at t = %.7g, voxel (%d, %d, %d)", cur, d.lo.x, d.lo.y, d.lo.z,
+      *log += fmt("div %u [%d,%d,%d .. %d,%d,%d)%s%s: %s face %s at t = %.7g, voxel (%d, %d, %d)", cur, d.lo.x, d.lo.y, d.lo.z,
                   d.lo.x + d.size.x, d.lo.y + d.size.y, d.lo.z + d.size.z,
                   d.type == sh::kPortalDivExterior ? " (exterior)" : d.type == sh::kPortalDivGlass ? " (glass)" : "",
+                  d.level ? fmt(" level %u", d.level).c_str() : "",
                   d.type == sh::kPortalDivExterior ? "enters by" : "exits by", face_name(s.face), double(s.num / s.ad),
                   s.voxel.x, s.voxel.y, s.voxel.z);
     if (s.kind == StepKind::kTmax) {
@@ -239,6 +308,8 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
     if (s.kind == StepKind::kOutside) return miss_hit(steps, texels);
     glm::ivec3 wall = s.voxel;
     if (d.type != sh::kPortalDivExterior) wall[s.axis] += r.dir[s.axis] > 0.0f ? 1 : -1;
+    if (s.kind == StepKind::kWall && d.level > 0)
+      return mip_surface_hit(p, r, d.level, s.axis, s.num, s.ad, wall, s.texel - sh::kPortalWallBit, steps, texels, log);
     if (s.kind == StepKind::kWall) {
       const Hit h = wall_hit(p.dims, r, s.axis, s.num, s.ad, s.voxel, wall, s.texel - sh::kPortalWallBit, steps, texels);
       if (log) *log += fmt("hit: voxel (%d, %d, %d) face %s, material %u, t = %.9g, uv = (%.6g, %.6g)\n", wall.x, wall.y,
@@ -257,6 +328,23 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
       return h;
     }
     cur = s.texel;
+    if (p.levels > 1 && d.type == sh::kPortalDivAir) {
+      // Mip-mapped space: a coarser level from this plane on, when the level rule says so.
+      const MipEnter me = mip_enter(p, r, d.level, s);
+      if (me.moved) {
+        ++texels;
+        if (log)
+          *log += fmt("mip: level %u from here, coarse voxel (%d, %d, %d), start texel %s\n", me.level, me.voxel.x,
+                      me.voxel.y, me.voxel.z, texel_text(me.texel).c_str());
+        if (!sh::portal_texel_is_wall(me.texel)) {
+          cur = me.texel;
+        } else {
+          const float sc = sh::portal_level_scale(me.level - d.level);
+          return mip_surface_hit(p, r, me.level, s.axis, s.num * sc, s.ad * sc, me.voxel, me.texel - sh::kPortalWallBit,
+                                 steps, texels, log);
+        }
+      }
+    }
   }
   if (log) *log += "step limit reached: miss\n";
   return miss_hit(steps, texels);

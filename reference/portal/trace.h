@@ -48,6 +48,24 @@ struct Start {
 };
 Start start_ray(const PackedPortal& packed, const VoxelRay& ray);
 
+// ---- Mip-mapped space (docs/PORTAL.md, "Mip-mapped space") ----
+// The level-`level` ray: org and dir times 2^-level (exact; t unchanged).
+VoxelRay level_ray(const VoxelRay& ray, uint32_t level);
+// After a step from a level-`level` air div into the div beyond (kNext): whether the ray moves to
+// a coarser level at that plane (the level rule, at a plane of the coarser level), and where: the
+// coarse voxel beyond the plane and its start texel (a div of that level, or a coarse wall).
+struct MipEnter {
+  bool moved = false;
+  uint32_t level = 0;
+  glm::ivec3 voxel{0};
+  uint32_t texel = 0;
+};
+MipEnter mip_enter(const PackedPortal& packed, const VoxelRay& ray, uint32_t level, const Step& step);
+// A coarse wall voxel `voxel` of level `level` met on the plane (axis, num, ad: level space):
+// the fine voxel beyond the plane at the crossing (`wall`) and the fine voxel before it (`side`).
+void mip_fine_voxels(const PackedPortal& packed, const VoxelRay& ray, uint32_t level, uint32_t axis, float num, float ad,
+                     glm::ivec3 voxel, glm::ivec3& wall, glm::ivec3& side);
+
 // Closest wall of a world-space ray from the packed textures only. Glass counts as a wall here
 // (the first surface). `log`, if given, receives the explanation (one line per step).
 Hit trace_portal(const PackedPortal& packed, const Ray& ray, std::string* log = nullptr);

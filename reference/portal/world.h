@@ -27,6 +27,11 @@ struct WallMaterial {
   bool glass = false;        // a transparent medium the renderer refracts through (never forks)
   float ior = 1.5f;          // index of refraction of the glass
   glm::vec3 filter{1.0f};    // colour filter per unit length inside the glass
+  // Materials of coarse mip levels (docs/PORTAL.md, "Mip-mapped space"): the fraction of the
+  // coarse voxel's fine voxels that are walls or glass (its opacity), and whether every one of them
+  // is an opaque wall (then a ray meeting it returns to full resolution for the exact hit).
+  float coverage = 1.0f;
+  bool resolve = false;
 };
 
 struct World {

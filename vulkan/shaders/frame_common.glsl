@@ -36,10 +36,14 @@ layout(std430, binding = kFrameBindRayList) buffer RayList {
 // The compute gather: per pixel a 64-bit key (t bits << 32 | reference), words low then high
 // (gather_tiles.comp declares the same buffer as uint64_t for its atomic min)
 layout(std430, binding = kFrameBindGatherKeys) buffer GatherKeys { uint gather_keys[]; };
-// The compute gather's large triangles (GatherTileHeader, then 4 words per triangle)
+// The compute gather's large triangles (GatherTileHeader, then their set-up records)
 layout(std430, binding = kFrameBindTileList) buffer TileList {
   GatherTileHeader tile_header;
-  uint tile_items[];
+  GatherRasterTriangle tile_tris[];
 };
+// The rasterizer's depth bound per 8x8-pixel tile: t bits no pixel of the tile is above
+layout(std430, binding = kFrameBindTileDepth) buffer TileDepth { uint tile_depth[]; };
+// The rasterizer's pixel ray directions (camera_direction, once per pixel and frame; w unused)
+layout(std430, binding = kFrameBindPixelDirs) buffer PixelDirs { vec4 pixel_dirs[]; };
 
 #endif

@@ -16,6 +16,8 @@ SH_CONST uint kFrameAlpha = 4u;     // alpha keying: some material has a mask (a
 SH_CONST uint kFrameCompact = 8u;   // the bounce appends its real rays to a list; the trace takes only those
 SH_CONST uint kFrameComputeGather = 16u;  // the gather's visibility by compute (gather_bin/tiles.comp), not raster
 SH_CONST uint kFrameShadows = 32u;  // the scene has lights: shadow rays (shadow.comp), traced, shade by them
+SH_CONST uint kFrameGatherBoxes = 64u;  // with kFrameComputeGather: every pixel of a triangle's 8x8 box tiles
+                                        // (gather_tiles.comp), not the rasterizer (gather_raster.comp)
 
 struct FrameParams {
   CameraParams camera;   // the primary rays' camera
@@ -31,19 +33,38 @@ struct FrameParams {
   uint pad2;
 };
 
-// The compute gather's list of large triangles (gather_bin.comp appends, gather_tiles.comp reads):
-// this header, then per triangle 4 words: reference, its first tile, box corners x0 | y0 << 16 and
-// x1 | y1 << 16 (inclusive). The triangles' tiles are numbered consecutively in list order.
+// The compute gather's list of large triangles (gather_bin.comp appends; gather_raster.comp, or
+// gather_tiles.comp with kFrameGatherBoxes, reads): this header, then one GatherRasterTriangle per
+// triangle. Its work items (32x32-pixel bins of the screen its box touches; with kFrameGatherBoxes
+// 8x8-pixel tiles of its box) are numbered consecutively in list order.
 struct GatherTileHeader {
-  uint groups_x;    // VkDispatchIndirectCommand of the tile pass: one workgroup per tile
+  uint groups_x;    // VkDispatchIndirectCommand of the item pass: one workgroup per item
   uint groups_y;
   uint groups_z;
-  uint tiles;       // tiles of the frame (written by the dispatch step)
+  uint tiles;       // items of the frame (written by the dispatch step)
   uint triangles;   // large triangles of the frame (written by the dispatch step)
   uint pad0;
-  uint counter_lo;  // the append counter, 64 bits: tiles (low word) and triangles (high word),
-  uint counter_hi;  // so one atomic gives a triangle both its list index and its first tile
+  uint counter_lo;  // the append counter, 64 bits: items (low word) and triangles (high word),
+  uint counter_hi;  // so one atomic gives a triangle both its list index and its first item
 };
+
+// A large triangle of the compute gather, set up once (common/shared/raster.h raster_setup).
+struct GatherRasterTriangle {
+  vec3 edge0;       // the edge functions over pixel indices (a, b, c: a x + b y + c)
+  float t_lo;       // a lower bound of the ray test's t over the triangle (per-tile depth culling)
+  vec3 edge1;
+  uint ref;         // instance << 16 | triangle
+  vec3 edge2;
+  uint first;       // its first work item
+  uint box_lo;      // screen box x0 | y0 << 16 (inclusive)
+  uint box_hi;      // x1 | y1 << 16
+  uint index;       // its index in the geometry buffer
+  uint pad0;
+};
+
+// Pixels of a side of the rasterizer's bins (its work items) and tiles (its depth culling).
+SH_CONST uint kGatherBinSize = 32u;
+SH_CONST uint kGatherTileSize = 8u;
 
 // A material as shading reads it.
 struct FrameMaterial {
@@ -83,7 +104,9 @@ SH_CONST uint kFrameBindImage = 11u;
 SH_CONST uint kFrameBindRayList = 12u;
 SH_CONST uint kFrameBindGatherKeys = 13u;
 SH_CONST uint kFrameBindTileList = 14u;
-SH_CONST uint kFrameBindingCount = 15u;
+SH_CONST uint kFrameBindTileDepth = 15u;  // the rasterizer's per-tile depth bound (t bits)
+SH_CONST uint kFrameBindPixelDirs = 16u;  // the rasterizer's camera_direction per pixel (vec4)
+SH_CONST uint kFrameBindingCount = 17u;
 // Specialization-constant id of the frame passes' feature bits (kFrame* above); clear of the
 // grid's ids (grid_interface.h), which the frame's trace pipeline also sets.
 SH_CONST uint kFrameSpecFlags = 10u;
@@ -101,6 +124,7 @@ static_assert(sizeof(gridrt::shared::FrameParams) == 112, "std430 layout of Fram
 static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
 static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");
+static_assert(sizeof(gridrt::shared::GatherRasterTriangle) == 64, "std430 layout of GatherRasterTriangle");
 static_assert(sizeof(gridrt::shared::GatherBinPush) == 8, "layout of GatherBinPush");
 #endif
 

@@ -1,6 +1,7 @@
 #version 460
-// gather_tiles.comp: the compute gather's second pass (gather_visibility.glsl), one workgroup per
-// 8x8-pixel tile of the large triangles, dispatched indirectly, one invocation per pixel: the
+// gather_tiles.comp: the compute gather's second pass with kFrameGatherBoxes (the gather before its
+// rasterizer, kept to be measured against it: gather_raster.comp), one workgroup per
+// 8x8-pixel tile of the large triangles' boxes, dispatched indirectly, one invocation per pixel: the
 // tile's triangle by binary search over the triangles' first tiles, then the pixel's camera ray
 // against it; an accepted hit takes the pixel's key by a 64-bit atomic min, so the pixel ends with
 // the smallest t, then the smallest reference.
@@ -21,13 +22,13 @@ void main() {
   uint hi = tile_header.triangles;
   while (hi - lo > 1u) {
     const uint mid = (lo + hi) / 2u;
-    if (tile_items[4u * mid + 1u] <= tile) lo = mid;
+    if (tile_tris[mid].first <= tile) lo = mid;
     else hi = mid;
   }
-  const uint ref = tile_items[4u * lo];
-  const uint t = tile - tile_items[4u * lo + 1u];
-  const uint x0 = tile_items[4u * lo + 2u] & 0xFFFFu, y0 = tile_items[4u * lo + 2u] >> 16u;
-  const uint across = ((tile_items[4u * lo + 3u] & 0xFFFFu) - x0) / 8u + 1u;
+  const uint ref = tile_tris[lo].ref;
+  const uint t = tile - tile_tris[lo].first;
+  const uint x0 = tile_tris[lo].box_lo & 0xFFFFu, y0 = tile_tris[lo].box_lo >> 16u;
+  const uint across = ((tile_tris[lo].box_hi & 0xFFFFu) - x0) / 8u + 1u;
   const uvec2 px = uvec2(x0 + 8u * (t % across), y0 + 8u * (t / across)) + gl_LocalInvocationID.xy;
   if (px.x >= c.width || px.y >= c.height) return;
   const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);

@@ -87,13 +87,12 @@ bool gather_box(CameraParams c, float near_plane, vec3 v0, vec3 v1, vec3 v2, out
   return true;
 }
 
-// The 64-bit key of the pixel's ray against the triangle (t bits << 32 | ref; t >= 0, so its bits
+// The 64-bit key of the pixel's ray (direction `dir`) against the triangle (t bits << 32 | ref; t >= 0, so its bits
 // order as the floats), or false when the shared test rejects it or the alpha mask cuts it. The
 // same test and alpha rule as the raster gather's fragment shader and the CPU's primary rays.
-bool gather_key(uint ref, uint k, GridTriangle tri, uvec2 px, out uvec2 key) {
+bool gather_key_along(uint ref, uint k, GridTriangle tri, vec3 dir, out uvec2 key) {
   key = uvec2(kNoRef, 0xFFFFFFFFu);
   const CameraParams c = fp.camera;
-  const vec3 dir = camera_direction(c, px.x, px.y);
   TriangleTest r;
   if (moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, 0.0f, sh_infinity(), sh_infinity(), r) != kTestAccepted)
     return false;
@@ -109,6 +108,11 @@ bool gather_key(uint ref, uint k, GridTriangle tri, uvec2 px, out uvec2 key) {
   }
   key = uvec2(ref, floatBitsToUint(t));
   return true;
+}
+
+// The same for pixel px's camera ray (camera_direction; the rasterizer reads it from pixel_dirs).
+bool gather_key(uint ref, uint k, GridTriangle tri, uvec2 px, out uvec2 key) {
+  return gather_key_along(ref, k, tri, camera_direction(fp.camera, px.x, px.y), key);
 }
 
 #endif

@@ -17,8 +17,8 @@ struct PortalParams {
   uint div_count;       // stored divs (div 0 is the exterior div)
   uint atlas_width;     // texels per atlas row
   uint info_width;      // texels per div-info row (a multiple of 8)
-  uint pad0;
-  uint pad1;
+  uint levels;          // mip-mapped space: levels (1: none)
+  float mip_distance;   // the level rule's distance (fine voxels)
 };
 
 // The renderer's constants (reference/portal/render.cpp: Context and RenderOptions).
@@ -45,6 +45,10 @@ struct PortalMaterial {
   float ior;    // index of refraction (glass)
   vec3 glass_filter;  // colour filter per unit length inside the glass (`filter` is reserved in GLSL)
   uint glass;   // 1 for glass
+  float coverage;  // mip-mapped space: the coarse material's opacity (1 for the world's own)
+  uint resolve;    // 1: an opaque coarse voxel, resolved at full resolution
+  uint pad0;
+  uint pad1;
 };
 
 // One pixel between passes (reference/portal/render.cpp, PixelState), and its result.
@@ -73,11 +77,14 @@ struct PortalPixel {
   uint reflections;
   uint shadow_rays;
   uint pad0;
+  vec3 mip_acc;      // mip-mapped space: light of the translucent coarse voxels passed
+  uint pad1;
 };
 
 // One explain event of the traced ray: the start, then one per div visited.
 struct PortalExplainEvent {
-  uint kind;     // 0 start, 1 step
+  uint kind;     // 0 start, 1 step, 2 mip: a coarser level (div = level, voxel = coarse voxel, texel = its
+                 // start texel), 3 mip: a coarse wall met (div = level, voxel = coarse voxel, texel = material)
   uint div;      // start: the start div (or wall texel); step: the div left
   uint face;     // step: the face left by (exterior: entered by)
   uint texel;    // the texel read (start: the start-map texel)
@@ -121,8 +128,8 @@ SH_END
 #ifdef __cplusplus
 static_assert(sizeof(gridrt::shared::PortalParams) == 48, "std430 layout of PortalParams");
 static_assert(sizeof(gridrt::shared::PortalRenderParams) == 112, "std430 layout of PortalRenderParams");
-static_assert(sizeof(gridrt::shared::PortalMaterial) == 32, "std430 layout of PortalMaterial");
-static_assert(sizeof(gridrt::shared::PortalPixel) == 160, "std430 layout of PortalPixel");
+static_assert(sizeof(gridrt::shared::PortalMaterial) == 48, "std430 layout of PortalMaterial");
+static_assert(sizeof(gridrt::shared::PortalPixel) == 176, "std430 layout of PortalPixel");
 static_assert(sizeof(gridrt::shared::PortalExplainEvent) == 48, "std430 layout of PortalExplainEvent");
 static_assert(sizeof(gridrt::shared::PortalTracePush) == 16, "layout of PortalTracePush");
 static_assert(sizeof(gridrt::shared::PortalRenderPush) == 4, "layout of PortalRenderPush");

@@ -14,7 +14,6 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = kPortalBindRenderParams) readonly buffer RenderParamsBuffer { PortalRenderParams rp; };
-layout(std430, binding = kPortalBindMaterials) readonly buffer Materials { PortalMaterial materials[]; };
 layout(std430, binding = kPortalBindPixels) buffer Pixels { PortalPixel pixels[]; };
 layout(push_constant) uniform Push { PortalRenderPush pc; };
 
@@ -71,7 +70,7 @@ RayRecord camera_ray(uint x, uint y) {
 
 void finish(inout PortalPixel s) {
   precise float shade = rp.ambient + (1.0f - rp.ambient) * 0.5f * s.light;
-  precise vec3 c = s.filter_acc * s.albedo * shade;
+  precise vec3 c = s.filter_acc * s.albedo * shade + s.mip_acc;
   s.color = c;
   s.mode = kDone;
 }
@@ -124,6 +123,84 @@ vec3 crossing(PortalPixel s, Step st) {
   return x;
 }
 
+vec3 crossing_at(PortalPixel s, float num, float ad) {
+  precise float t = num / ad;
+  precise vec3 x = s.org + t * s.dir;
+  return x;
+}
+
+// Mip-mapped space: the primary ray meets coarse wall voxel `v` of level `level` (material m) on
+// the plane (axis, num, ad; level space). Opaque (resolve): back to full resolution, the fine
+// voxel's own hit, shaded with its shadow rays. Partly occupied: translucent, composited front to
+// back with alpha = coverage (lit by both lights, unshadowed), and the ray goes on through the
+// coarse voxel to the next one: a div of that level (the traversal resumes there), another coarse
+// wall, or the outside.
+void mip_surface(inout PortalPixel s, uint level, uint axis, float num, float ad, ivec3 v, uint m) {
+  const uvec3 ld = portal_level_dims(params.dims, level);
+  for (uint guard = 0u; guard < ld.x + ld.y + ld.z + 3u; ++guard) {
+    vec3 n = vec3(0.0f);
+    n[axis] = s.dir[axis] > 0.0f ? -1.0f : 1.0f;
+    const vec3 x = crossing_at(s, num, ad);
+    if (materials[m].resolve != 0u) {
+      ivec3 wall;
+      ivec3 side;
+      mip_fine_voxels(pixel_ray(s), level, axis, num, ad, v, wall, side);
+      const uint tw = start_at(0u, wall);
+      const uint ts = start_at(0u, side);
+      s.point = x;
+      s.normal = n;
+      s.albedo = materials[portal_texel_is_wall(tw) ? tw - kPortalWallBit : m].color;
+      if (portal_texel_is_wall(ts)) {  // the fine voxel before the face is solid: no shadow ray leaves it
+        finish(s);
+        return;
+      }
+      s.hit_div = ts;
+      begin_shadow(s, 0u);
+      return;
+    }
+    precise float lit = 0.0f;
+    for (uint i = 0u; i < 2u; i++) {
+      precise vec3 to = light_position(i) - x;
+      lit = lit + max(0.0f, sh_dot(n, ref_normalize(to)));
+    }
+    precise float shade = rp.ambient + (1.0f - rp.ambient) * 0.5f * lit;
+    const float cov = materials[m].coverage;
+    precise vec3 add = s.filter_acc * (cov * shade) * materials[m].color;
+    precise vec3 acc = s.mip_acc + add;
+    s.mip_acc = acc;
+    precise vec3 f = s.filter_acc * (1.0f - cov);
+    s.filter_acc = f;
+    ++s.steps_primary;
+    ++s.iterations;
+    // Through the coarse voxel: its exit face and the voxel beyond.
+    const VoxelRay rl = level_ray(pixel_ray(s), level);
+    float en = 0.0f;
+    const uint a = portal_exit_axis(vec3(v), vec3(v) + 1.0f, rl.org, rl.dir, en);
+    ivec3 next = v;
+    if (a < 3u) next[a] += rl.dir[a] > 0.0f ? 1 : -1;
+    if (a == 3u || !portal_before_tmax(en, abs(rl.dir[a]), rl.tmax) || any(lessThan(next, ivec3(0))) ||
+        any(greaterThanEqual(uvec3(next), ld))) {
+      precise vec3 c = s.filter_acc * rp.background + s.mip_acc;
+      s.color = c;
+      s.mode = kDone;
+      return;
+    }
+    const uint t = start_at(level, next);
+    if (!portal_texel_is_wall(t)) {
+      s.div = t;
+      return;
+    }
+    axis = a;
+    num = en;
+    ad = abs(rl.dir[a]);
+    v = next;
+    m = t - kPortalWallBit;
+  }
+  precise vec3 c = s.filter_acc * rp.background + s.mip_acc;  // not reached: the coarse voxels ahead are finite
+  s.color = c;
+  s.mode = kDone;
+}
+
 vec3 pow3(vec3 f, float d) { return vec3(pow(f.x, d), pow(f.y, d), pow(f.z, d)); }
 
 // The state transitions: what one step's result does to the pixel.
@@ -136,7 +213,23 @@ void transition(inout PortalPixel s, Step st) {
       const bool next_glass = nd.type == kPortalDivGlass;
       const bool in_glass = s.in_glass != 0u;
       if (next_glass == in_glass && (!next_glass || nd.glass_material == s.glass)) {
+        const uint from = s.div;
         s.div = st.texel;
+        if (params.levels > 1u && !next_glass) {
+          // Mip-mapped space: a coarser level from this plane on, when the level rule says so.
+          const DivInfo cd = read_div_info(from);
+          if (cd.type != kPortalDivAir) return;
+          const MipEnter me = mip_enter(pixel_ray(s), cd.level, StepPlane(st.axis, st.num, st.ad, st.voxel));
+          if (!me.moved) return;
+          if (!portal_texel_is_wall(me.texel)) {
+            s.div = me.texel;
+            return;
+          }
+          const float sc = portal_level_scale(me.level - cd.level);
+          float ln = st.num * sc;
+          float la = st.ad * sc;
+          mip_surface(s, me.level, st.axis, ln, la, me.voxel, me.texel - kPortalWallBit);
+        }
         return;
       }
       const uint gm = next_glass ? nd.glass_material : s.glass;  // the glass whose surface this is
@@ -182,6 +275,15 @@ void transition(inout PortalPixel s, Step st) {
       s.tmax = infinity();
       return;
     }
+    if (st.kind == kStepWall && params.levels > 1u) {
+      const DivInfo cd = read_div_info(s.div);
+      if (cd.level > 0u) {
+        ivec3 v = st.voxel;
+        v[st.axis] += s.dir[st.axis] > 0.0f ? 1 : -1;
+        mip_surface(s, cd.level, st.axis, st.num, st.ad, v, st.texel - kPortalWallBit);
+        return;
+      }
+    }
     if (st.kind == kStepWall) {
       const vec3 x = crossing(s, st);
       if (s.in_glass != 0u) {
@@ -196,7 +298,7 @@ void transition(inout PortalPixel s, Step st) {
       begin_shadow(s, 0u);
       return;
     }
-    precise vec3 c = s.filter_acc * rp.background;  // outside, tmax or no direction
+    precise vec3 c = s.filter_acc * rp.background + s.mip_acc;  // outside, tmax or no direction
     s.color = c;
     s.mode = kDone;
     return;
@@ -244,6 +346,8 @@ PortalPixel new_pixel() {
   s.reflections = 0u;
   s.shadow_rays = 0u;
   s.pad0 = 0u;
+  s.mip_acc = vec3(0.0f);
+  s.pad1 = 0u;
   return s;
 }
 

@@ -19,6 +19,7 @@ layout(binding = kPortalBindAtlas) uniform utexture2D atlas_tex;  // R16_UINT
 layout(binding = kPortalBindInfo) uniform utexture2D info_tex;   // RGBA8_UINT
 layout(binding = kPortalBindStart) uniform utexture3D start_tex;  // R16_UINT
 layout(std430, binding = kPortalBindParams) readonly buffer ParamsBuffer { PortalParams params; };
+layout(std430, binding = kPortalBindMaterials) readonly buffer Materials { PortalMaterial materials[]; };
 layout(std430, binding = kPortalBindExplain) buffer Explain {
   uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
   uint explain_pad0;
@@ -48,6 +49,7 @@ struct DivInfo {
   ivec3 size;
   uint type;
   uint glass_material;
+  uint level;      // mip level (the high nibble of the type byte)
   uvec2 face_uv[6];
 };
 
@@ -198,8 +200,87 @@ DivInfo read_div_info(uint d) {
   info.size = ivec3(s.xyz);
   info.glass_material = s.w;
   info.lo = ivec3(o.xyz);
-  info.type = o.w;
+  info.type = o.w & kPortalTypeMask;
+  info.level = o.w >> kPortalLevelShift;
   return info;
+}
+
+// ---- Mip-mapped space (reference: level_ray, mip_enter, mip_fine_voxels) ----
+// The start texel of voxel v of level `level`: the block of the start texture at depth start_z.
+uint start_at(uint level, ivec3 v) {
+  uint z = 0u;
+  for (uint l = 0u; l < level; l++) z += portal_level_dims(params.dims, l).z;
+  return texelFetch(start_tex, ivec3(v.x, v.y, int(z) + v.z), 0).r;
+}
+
+// Scalings by a power of two are exact, so these products need no `precise` (a fused use of an
+// exact product rounds as the separate operations do).
+VoxelRay level_ray(VoxelRay r, uint level) {
+  if (level == 0u) return r;
+  const float sc = portal_level_scale(level);
+  VoxelRay q = r;
+  vec3 o = r.org * sc;
+  vec3 d = r.dir * sc;
+  q.org = o;
+  q.dir = d;
+  return q;
+}
+
+struct MipEnter {
+  bool moved;
+  uint level;
+  ivec3 voxel;
+  uint texel;
+};
+
+// The crossing voxel along the tangents and the plane (Step, below).
+struct StepPlane {
+  uint axis;
+  float num;
+  float ad;
+  ivec3 voxel;
+};
+
+MipEnter mip_enter(VoxelRay r, uint lc, StepPlane s) {
+  MipEnter m;
+  m.moved = false;
+  m.level = 0u;
+  m.voxel = ivec3(0);
+  m.texel = 0u;
+  if (params.levels <= 1u) return m;
+  const float maxad = max(max(abs(r.dir.x), abs(r.dir.y)), abs(r.dir.z));
+  const uint target = portal_mip_level(s.num, s.ad, maxad, params.mip_distance, params.levels);
+  if (target <= lc) return m;
+  const uint a = s.axis;
+  const bool pos = r.dir[a] > 0.0f;
+  const uint plane = uint(s.voxel[a]) + (pos ? 1u : 0u);
+  const uint l = portal_mip_aligned_level(plane, lc, target);
+  if (l == lc) return m;
+  ivec3 beyond = s.voxel;
+  beyond[a] += pos ? 1 : -1;
+  m.moved = true;
+  m.level = l;
+  for (uint b = 0u; b < 3u; b++) m.voxel[b] = int(uint(beyond[b]) >> (l - lc));
+  m.texel = start_at(l, m.voxel);
+  return m;
+}
+
+void mip_fine_voxels(VoxelRay r, uint level, uint a, float num, float ad, ivec3 v, out ivec3 wall, out ivec3 side) {
+  const int f = 1 << level;
+  const float up = float(f);
+  float num0 = num * up;
+  float ad0 = ad * up;
+  const bool pos = r.dir[a] > 0.0f;
+  wall = ivec3(0);
+  wall[a] = pos ? v[a] * f : min(v[a] * f + f, int(params.dims[a])) - 1;
+  const uint b0 = portal_tangent0(a);
+  const uint b1 = portal_tangent1(a);
+  wall[b0] = int(portal_cross_index(a, num0, ad0, b0, r.org[b0], r.dir[b0], uint(v[b0] * f),
+                                    uint(min(v[b0] * f + f, int(params.dims[b0])))));
+  wall[b1] = int(portal_cross_index(a, num0, ad0, b1, r.org[b1], r.dir[b1], uint(v[b1] * f),
+                                    uint(min(v[b1] * f + f, int(params.dims[b1])))));
+  side = wall;
+  side[a] += pos ? -1 : 1;
 }
 
 Start start_ray(VoxelRay r) {
@@ -226,7 +307,7 @@ Start start_ray(VoxelRay r) {
   return s;
 }
 
-Step step_ray(uint div, VoxelRay r) {
+Step step_ray(uint div, VoxelRay r0) {
   Step s;
   s.kind = kStepNoDirection;
   s.axis = 3u;
@@ -237,6 +318,7 @@ Step step_ray(uint div, VoxelRay r) {
   s.texel_uv = uvec2(0u);
   s.texel = 0u;
   const DivInfo d = read_div_info(div);
+  const VoxelRay r = level_ray(r0, d.level);  // mip-mapped space: the div's level
   const vec3 lo = vec3(d.lo);
   const vec3 hi = vec3(d.lo + d.size);
   float num = 0.0f;
@@ -293,6 +375,25 @@ void emit(uint kind, uint div, uint face, uint texel, ivec3 voxel, uint step, uv
   explain_count = i + 1u;
 }
 
+// A coarse wall of material `m` (level `level`, coarse voxel `v`) met on plane (axis, num, ad, level
+// space): the first surface (reference mip_surface_hit).
+HitRecord mip_surface_hit(VoxelRay r, uint level, uint a, float num, float ad, ivec3 v, uint m, uint steps, uint texels) {
+  ivec3 wall;
+  ivec3 side;
+  mip_fine_voxels(r, level, a, num, ad, v, wall, side);
+  const float up = float(1 << level);
+  uint material = m;
+  if (materials[m].resolve != 0u) {
+    const uint t0 = start_at(0u, wall);
+    ++texels;
+    material = portal_texel_is_wall(t0) ? t0 - kPortalWallBit : m;
+  }
+  emit(3u, level, 0u, m, v, 0u, uvec2(0u), 0.0f, 0.0f);
+  float num0 = num * up;
+  float ad0 = ad * up;
+  return wall_hit(params.dims, r, a, num0, ad0, side, wall, material, steps, texels);
+}
+
 HitRecord trace_portal(RayRecord ray) {
   const VoxelRay r = to_voxel_ray(ray);
   const Start st = start_ray(r);
@@ -314,6 +415,8 @@ HitRecord trace_portal(RayRecord ray) {
     if (s.kind == kStepOutside) return miss_hit(steps, texels);
     ivec3 wall = s.voxel;
     if (d.type != kPortalDivExterior) wall[s.axis] += r.dir[s.axis] > 0.0f ? 1 : -1;
+    if (s.kind == kStepWall && d.level > 0u)
+      return mip_surface_hit(r, d.level, s.axis, s.num, s.ad, wall, s.texel - kPortalWallBit, steps, texels);
     if (s.kind == kStepWall)
       return wall_hit(params.dims, r, s.axis, s.num, s.ad, s.voxel, wall, s.texel - kPortalWallBit, steps, texels);
     // Next div; a change of medium (air <-> glass) is a surface for this tracer.
@@ -325,6 +428,22 @@ HitRecord trace_portal(RayRecord ray) {
       return wall_hit(params.dims, r, s.axis, s.num, s.ad, s.voxel, wall, m, steps, texels);
     }
     cur = s.texel;
+    if (params.levels > 1u && d.type == kPortalDivAir) {
+      // Mip-mapped space: a coarser level from this plane on, when the level rule says so.
+      const MipEnter me = mip_enter(r, d.level, StepPlane(s.axis, s.num, s.ad, s.voxel));
+      if (me.moved) {
+        ++texels;
+        emit(2u, me.level, 0u, me.texel, me.voxel, 0u, uvec2(0u), 0.0f, 0.0f);
+        if (!portal_texel_is_wall(me.texel)) {
+          cur = me.texel;
+        } else {
+          const float sc = portal_level_scale(me.level - d.level);
+          float ln = s.num * sc;
+          float la = s.ad * sc;
+          return mip_surface_hit(r, me.level, s.axis, ln, la, me.voxel, me.texel - kPortalWallBit, steps, texels);
+        }
+      }
+    }
   }
   return miss_hit(steps, texels);
 }

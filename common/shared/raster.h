@@ -1,0 +1,125 @@
+// raster.h: the conservative bounds the compute gather's rasterizer (Laine and Karras, "High-
+// Performance Software Rasterization on GPUs", HPG 2011: triangle setup once, then tile, then
+// pixel rejection, per-tile depth culling) uses to skip (triangle, pixel) pairs. They never decide
+// a pixel: every pair they keep is decided by the gather's own ray test (moller_trumbore from the
+// eye along camera_direction, common/shared/triangle.h and bounce.h), so the gather's result is
+// the same whichever pairs they skip, provided they skip only pairs that test rejects or that
+// cannot win the pixel. docs/SPEC.md ("The gather as a rasterizer") derives the bounds:
+//  - raster_setup: per triangle, three edge functions over pixel indices, E(x, y) = a x + b y + c,
+//    the homogeneous (2D) rasterization edges of the planes through the eye and each edge
+//    (Olano and Greer 1997), oriented by the side of the eye, plus a slack of 2^-13 of their
+//    magnitude (the ray test's rounding is below about 2^-19 of it), and a lower bound of the ray
+//    test's t over the whole triangle; false (no rejection, t bound 0) where those bounds do not
+//    hold: the eye within a hair of the triangle's plane, float range exceeded or underflowed.
+//  - raster_pixel_may_hit: all three edge functions >= 0 at the pixel (the ray test may accept).
+//  - raster_rect_may_hit: for each edge, its largest value over a pixel rectangle (a corner)
+//    is >= 0 (some pixel of the rectangle may be accepted).
+#ifndef GRIDRT_SHARED_RASTER_H
+#define GRIDRT_SHARED_RASTER_H
+
+#include "bounce.h"
+#include "compat.h"
+#include "rounding.h"
+
+SH_BEGIN
+
+// |v|_1, an upper bound of |v| (no square root needed).
+SH_INLINE float raster_norm1(SH_IN(vec3) v) {
+  SH_PRECISE float s = abs(v.x) + abs(v.y);
+  SH_PRECISE float r = s + abs(v.z);
+  return r;
+}
+
+// One edge function over pixel indices (x, y): sigma * dot(n, d(x, y)) with
+// d(x, y) = forward + sx(x) right + sy(y) up the unnormalized ray direction of camera_direction,
+// sx = ((2x + 1) / width - 1) tan aspect, sy = (1 - (2y + 1) / height) tan; plus `slack`.
+SH_INLINE vec3 raster_edge(SH_IN(CameraParams) c, SH_IN(vec3) n, float sigma, float slack) {
+  SH_PRECISE float tx = c.tan_half_fov * c.aspect;
+  SH_PRECISE float ty = c.tan_half_fov;
+  SH_PRECISE float gx = sh_div(2.0f * tx, float(c.width));
+  SH_PRECISE float gy = sh_div(2.0f * ty, float(c.height));
+  SH_PRECISE float ox = 0.5f * gx - tx;  // sx(0)
+  SH_PRECISE float oy = ty - 0.5f * gy;  // sy(0)
+  SH_PRECISE float nf = sh_dot(n, c.forward);
+  SH_PRECISE float nr = sh_dot(n, c.right) * sigma;
+  SH_PRECISE float nu = sh_dot(n, c.up) * sigma;
+  SH_PRECISE float c0 = nf * sigma + nr * ox;
+  SH_PRECISE float c1 = c0 + nu * oy;
+  SH_PRECISE float cz = c1 + slack;
+  return vec3(nr * gx, -(nu * gy), cz);
+}
+
+// The triangle's setup (see the header comment). e0, e1, e2: the edges opposite v0, v1, v2 (the
+// ray test's (u + v) <= det, u >= 0 and v >= 0 conditions); t_lo: a lower bound of the ray test's
+// t at every pixel it accepts. Returns false where the bounds are not guaranteed: then every edge
+// is (0, 0, 1) (keeps every pixel) and t_lo is 0.
+SH_INLINE bool raster_setup(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+                            SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2, SH_OUT(float) t_lo) {
+  e0 = vec3(0.0f, 0.0f, 1.0f);
+  e1 = e0;
+  e2 = e0;
+  t_lo = 0.0f;
+  SH_PRECISE vec3 q0 = v0 - c.eye;
+  SH_PRECISE vec3 q1 = v1 - c.eye;
+  SH_PRECISE vec3 q2 = v2 - c.eye;
+  SH_PRECISE vec3 d01 = v1 - v0;
+  SH_PRECISE vec3 d12 = v2 - v1;
+  SH_PRECISE vec3 d20 = v0 - v2;
+  SH_PRECISE vec3 d02 = v2 - v0;
+  SH_PRECISE float m = max(raster_norm1(q0), max(raster_norm1(q1), raster_norm1(q2)));
+  SH_PRECISE float l = max(raster_norm1(d01), max(raster_norm1(d12), raster_norm1(d20)));
+  // The eye's side of the plane: sign(dot(q0, e1 x e2)), reliable where it is far from 0
+  vec3 n = sh_cross(d01, d02);
+  SH_PRECISE float qn = sh_dot(q0, n);
+  SH_PRECISE float ml = (m + l) * l;
+  SH_PRECISE float mll = ml * l;
+  // Float range: the magnitudes neither overflow nor come near the subnormals (NaN fails too)
+  if (!(mll > 1.0e-30f && mll < 1.0e30f && m < 1.0e30f)) return false;
+  // The eye's side, reliable: |q0 . n| far above the test's rounding of t det (about 10 eps M L^2)
+  if (!(abs(qn) > 0.0000152587890625f * mll)) return false;  // 2^-16
+  SH_PRECISE float sigma = qn < 0.0f ? -1.0f : 1.0f;
+  SH_PRECISE float dmax = (1.0f + c.tan_half_fov * c.aspect) + c.tan_half_fov;
+  SH_PRECISE float slack = (0.0001220703125f * ml) * dmax;  // 2^-13
+  e0 = raster_edge(c, sh_cross(q1, d12), sigma, slack);
+  e1 = raster_edge(c, sh_cross(q2, d20), sigma, slack);
+  e2 = raster_edge(c, sh_cross(q0, d01), sigma, slack);
+  // t >= the nearest vertex depth along forward (t >= z at the hit), less the rounding of z, of
+  // the test's t (relative: 2^-17 (M + L) L^2 / |q0 . n|, at most 1/2 here) and a margin of 2^-10
+  SH_PRECISE float z = min(sh_dot(q0, c.forward), min(sh_dot(q1, c.forward), sh_dot(q2, c.forward)));
+  SH_PRECISE float z_lo = z - 0.0000152587890625f * (m + l);  // 2^-16
+  SH_PRECISE float rel = sh_div(0.00000762939453125f * mll, abs(qn));  // 2^-17
+  SH_PRECISE float keep = (1.0f - 0.0009765625f) - rel;       // 1 - 2^-10 - rel
+  SH_PRECISE float t_bound = z_lo * keep;
+  t_lo = z_lo > 0.0f && keep > 0.0f ? t_bound : 0.0f;
+  return true;
+}
+
+SH_INLINE float raster_edge_at(SH_IN(vec3) e, float x, float y) {
+  SH_PRECISE float ex = e.x * x;
+  SH_PRECISE float ey = e.y * y;
+  SH_PRECISE float s = ex + ey;
+  SH_PRECISE float r = s + e.z;
+  return r;
+}
+
+// Whether the ray test may accept pixel (x, y).
+SH_INLINE bool raster_pixel_may_hit(SH_IN(vec3) e0, SH_IN(vec3) e1, SH_IN(vec3) e2, uint x, uint y) {
+  const float fx = float(x), fy = float(y);
+  return raster_edge_at(e0, fx, fy) >= 0.0f && raster_edge_at(e1, fx, fy) >= 0.0f && raster_edge_at(e2, fx, fy) >= 0.0f;
+}
+
+// An edge's largest value over the pixels [x0, x1] x [y0, y1] (an affine function: at a corner).
+SH_INLINE float raster_edge_max(SH_IN(vec3) e, uint x0, uint y0, uint x1, uint y1) {
+  return raster_edge_at(e, float(e.x > 0.0f ? x1 : x0), float(e.y > 0.0f ? y1 : y0));
+}
+
+// Whether the ray test may accept some pixel of [x0, x1] x [y0, y1] (inclusive).
+SH_INLINE bool raster_rect_may_hit(SH_IN(vec3) e0, SH_IN(vec3) e1, SH_IN(vec3) e2, uint x0, uint y0, uint x1,
+                                   uint y1) {
+  return raster_edge_max(e0, x0, y0, x1, y1) >= 0.0f && raster_edge_max(e1, x0, y0, x1, y1) >= 0.0f &&
+         raster_edge_max(e2, x0, y0, x1, y1) >= 0.0f;
+}
+
+SH_END
+
+#endif

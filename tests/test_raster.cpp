@@ -1,0 +1,173 @@
+// test_raster.cpp: the compute gather's rasterizer bounds (common/shared/raster.h) are
+// conservative: every pixel the gather's ray test accepts passes the pixel test and the tile and
+// bin tests of every rectangle holding it, and its t is not below the triangle's depth bound, on
+// adversarial triangles (sub-pixel, huge, behind the camera, edge-on, slivers, far away, vertices on
+// pixel centres and tile edges); and they do reject: most pixels far from a triangle fail them.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+
+#include "gridrt/common/camera.h"
+#include "gridrt/common/shared/raster.h"
+#include "gridrt/common/shared/triangle.h"
+
+using namespace gridrt;
+
+namespace {
+
+struct Counts {
+  size_t triangles = 0, set_up = 0, accepted = 0, missed = 0, rejected_pixels = 0, rejected_tiles = 0;
+  size_t pixel_fail = 0, tile_fail = 0, bin_fail = 0, depth_fail = 0;
+};
+
+// Every pixel of a w x h image against one triangle.
+void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2,
+                    Counts& n) {
+  glm::vec3 e0, e1, e2;
+  float t_lo = 0.0f;
+  ++n.triangles;
+  n.set_up += shared::raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo);
+  for (uint32_t y = 0; y < c.height; ++y)
+    for (uint32_t x = 0; x < c.width; ++x) {
+      const glm::vec3 dir = shared::camera_direction(c, x, y);
+      shared::TriangleTest r;
+      const bool hit = shared::moller_trumbore(c.eye, dir, v0, v1, v2, 0.0f, INFINITY, INFINITY, r) == shared::kTestAccepted;
+      const bool pixel = shared::raster_pixel_may_hit(e0, e1, e2, x, y);
+      // The 8x8 tile and the 32x32 bin holding the pixel (clipped to the image), and a rectangle
+      // of the pixel alone
+      const uint32_t tx = x & ~7u, ty = y & ~7u, bx = x & ~31u, by = y & ~31u;
+      const bool tile = shared::raster_rect_may_hit(e0, e1, e2, tx, ty, std::min(tx + 7, c.width - 1),
+                                                    std::min(ty + 7, c.height - 1));
+      const bool bin = shared::raster_rect_may_hit(e0, e1, e2, bx, by, std::min(bx + 31, c.width - 1),
+                                                   std::min(by + 31, c.height - 1));
+      const bool single = shared::raster_rect_may_hit(e0, e1, e2, x, y, x, y);
+      if (hit) {
+        ++n.accepted;
+        n.pixel_fail += !pixel || !single;
+        n.tile_fail += !tile;
+        n.bin_fail += !bin;
+        n.depth_fail += !(shared::moller_trumbore_t(r) >= t_lo);
+      } else {
+        ++n.missed;
+        n.rejected_pixels += !pixel;
+        n.rejected_tiles += !tile;
+      }
+    }
+}
+
+}  // namespace
+
+TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the ray test accepts", "[unit][gather]") {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  auto rvec = [&] { return glm::vec3(u(rng), u(rng), u(rng)); };
+  Counts n;
+  const uint32_t sizes[2][2] = {{64, 48}, {45, 37}};  // a multiple of the tile, and neither of tile nor bin
+  for (int cam = 0; cam < 24; ++cam) {
+    Camera camera;
+    camera.eye = 5.0f * rvec();
+    camera.target = camera.eye + glm::vec3(u(rng), 0.3f * u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 0.01f);
+    camera.vfov_degrees = 20.0f + 100.0f * (0.5f + 0.5f * u(rng));
+    const uint32_t w = sizes[cam % 2][0], h = sizes[cam % 2][1];
+    const shared::CameraParams c = camera_params(camera, w, h);
+    const glm::vec3 eye = c.eye, f = c.forward, r = c.right, up = c.up;
+    // A point in front of the eye at depth z through continuous pixel (px, py)
+    auto at_pixel = [&](float px, float py, float z) {
+      const float sx = (2.0f * px / float(w) - 1.0f) * c.tan_half_fov * c.aspect;
+      const float sy = (1.0f - 2.0f * py / float(h)) * c.tan_half_fov;
+      return eye + z * (f + sx * r + sy * up);
+    };
+    auto rpx = [&] { return (0.5f + 0.6f * u(rng)) * float(w); };
+    auto rpy = [&] { return (0.5f + 0.6f * u(rng)) * float(h); };
+    for (int i = 0; i < 60; ++i) {
+      glm::vec3 v0, v1, v2;
+      const float z = std::exp2(4.0f * u(rng));  // depths 1/16 .. 16
+      switch (i % 10) {
+        case 0:  // ordinary, across tiles and bins
+          v0 = at_pixel(rpx(), rpy(), z);
+          v1 = at_pixel(rpx(), rpy(), z * (1.0f + 0.5f * u(rng)));
+          v2 = at_pixel(rpx(), rpy(), z * (1.0f + 0.5f * u(rng)));
+          break;
+        case 1: {  // sub-pixel, near a pixel centre
+          const float px = std::floor(rpx()) + 0.5f, py = std::floor(rpy()) + 0.5f, s = 0.3f * (1.0f + u(rng));
+          v0 = at_pixel(px - s, py - s, z);
+          v1 = at_pixel(px + s, py, z);
+          v2 = at_pixel(px, py + s, z);
+          break;
+        }
+        case 2:  // vertices exactly on pixel centres and on tile corners
+          v0 = at_pixel(8.0f * std::floor(rpx() / 8.0f), 8.0f * std::floor(rpy() / 8.0f), z);
+          v1 = at_pixel(std::floor(rpx()) + 0.5f, std::floor(rpy()) + 0.5f, z);
+          v2 = at_pixel(32.0f, std::floor(rpy()) + 0.5f, z * 1.5f);
+          break;
+        case 3:  // huge, around the eye
+          v0 = eye + 1.0e4f * rvec();
+          v1 = eye + 1.0e4f * rvec();
+          v2 = eye + 1.0e4f * rvec();
+          break;
+        case 4:  // one vertex behind the eye
+          v0 = at_pixel(rpx(), rpy(), z);
+          v1 = at_pixel(rpx(), rpy(), z);
+          v2 = eye - z * f + 3.0f * z * rvec();
+          break;
+        case 5:  // two behind the eye
+          v0 = at_pixel(rpx(), rpy(), z);
+          v1 = eye - z * f + z * rvec();
+          v2 = eye - 2.0f * z * f + z * rvec();
+          break;
+        case 6: {  // nearly edge-on: the plane passes within a hair of the eye
+          const glm::vec3 a = glm::normalize(rvec() + f), b = glm::normalize(glm::cross(a, rvec()));
+          const glm::vec3 nrm = glm::cross(a, b);
+          const float hair = std::exp2(-8.0f - 14.0f * (0.5f + 0.5f * u(rng)));
+          v0 = eye + z * (a + 0.5f * u(rng) * b) + hair * nrm;
+          v1 = eye + z * (2.0f * a + u(rng) * b) + hair * nrm;
+          v2 = eye + z * (0.5f * a + u(rng) * b) + hair * nrm;
+          break;
+        }
+        case 7: {  // sliver: v2 almost on the line v0 v1
+          v0 = at_pixel(rpx(), rpy(), z);
+          v1 = at_pixel(rpx(), rpy(), 2.0f * z);
+          v2 = v0 + (0.5f + 0.4f * u(rng)) * (v1 - v0) + 1.0e-4f * z * rvec();
+          break;
+        }
+        case 8: {  // far and small (a few pixels)
+          const float far = 1.0e3f * (1.5f + u(rng));
+          const float px = rpx(), py = rpy();
+          v0 = at_pixel(px, py, far);
+          v1 = at_pixel(px + 3.0f * u(rng), py + 3.0f, far);
+          v2 = at_pixel(px + 3.0f, py + 3.0f * u(rng), far);
+          break;
+        }
+        default:  // a screen-filling one, partly behind the eye
+          v0 = at_pixel(-2.0f * float(w), 0.5f * float(h), z);
+          v1 = at_pixel(3.0f * float(w), -float(h), z * 0.5f);
+          v2 = eye + z * (0.2f * u(rng) * f + 2.0f * up) - 4.0f * z * f;
+          break;
+      }
+      check_triangle(c, v0, v1, v2, n);
+    }
+  }
+  INFO(n.triangles << " triangles (" << n.set_up << " set up with bounds), " << n.accepted << " accepted pixels, "
+                   << n.missed << " others, of them " << n.rejected_pixels << " rejected by the pixel test and "
+                   << n.rejected_tiles << " by the tile test");
+  CHECK(n.pixel_fail == 0);
+  CHECK(n.tile_fail == 0);
+  CHECK(n.bin_fail == 0);
+  CHECK(n.depth_fail == 0);
+  CHECK(n.accepted > 10000);
+  // The bounds exist for most triangles and reject most pixels the test misses
+  CHECK(n.set_up >= n.triangles * 8 / 10);
+  CHECK(n.rejected_pixels >= n.missed * 3 / 4);
+  CHECK(n.rejected_tiles >= n.missed / 2);
+  // Degenerate set-ups keep everything (the fallback): no bounds where none are guaranteed
+  glm::vec3 e0, e1, e2;
+  float t_lo = 1.0f;
+  const shared::CameraParams c = camera_params(Camera{}, 64, 48);
+  CHECK_FALSE(shared::raster_setup(c, glm::vec3(0.0f), glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(NAN, 0.0f, 0.0f), e0, e1, e2, t_lo));
+  CHECK(shared::raster_pixel_may_hit(e0, e1, e2, 3, 4));
+  CHECK(t_lo == 0.0f);
+  // the eye in the triangle's plane
+  CHECK_FALSE(shared::raster_setup(c, c.eye + glm::vec3(-1, 0, -1), c.eye + glm::vec3(1, 0, -1), c.eye + glm::vec3(0, 0, -3),
+                                   e0, e1, e2, t_lo));
+}
