@@ -42,10 +42,18 @@ std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(cons
   return std::nullopt;
 }
 
-void add_backend_options(CLI::App* cmd, BackendOptions& o) {
+CLI::Option* add_scene_argument(CLI::App* cmd, std::string& scene) {
+  return cmd->add_option("scene", scene,
+                         "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
+                         "(atrium, cornell, teapot); default: the embedded atrium");
+}
+
+namespace {
+
+// The grid's common options (the "Grid" group of --help).
+void add_grid_options(CLI::App* cmd, BackendOptions& o) {
   reference::GridOptions& g = o.grid;
   using GO = reference::GridOptions;
-  // The common set
   add_enum(cmd, "--traversal", g.traversal, {{"paper", reference::Traversal::paper}, {"exact", reference::Traversal::exact}},
            "Grid traversal: paper (fixed cell-edge segments) or exact (3D DDA)")
       ->group(kGrid);
@@ -91,7 +99,12 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
            "The ray's launch triangle: exclude (never accept it, the default) or keep (test it like any other)")
       ->group(kGrid);
   cmd->add_option("--threads", g.threads, "CPU threads (0: all)")->group(kGrid);
-  // Expert knobs
+}
+
+// The expert knobs ("Grid (expert)").
+void add_expert_options(CLI::App* cmd, BackendOptions& o) {
+  reference::GridOptions& g = o.grid;
+  using GO = reference::GridOptions;
   add_enum(cmd, "--insertion", g.insertion,
            {{"sorted", reference::Insertion::sorted}, {"first-empty", reference::Insertion::first_empty}},
            "Insertion: sorted (atomic-min cascade, timing-independent) or first-empty (the paper's CAS)")
@@ -170,10 +183,22 @@ void add_backend_options(CLI::App* cmd, BackendOptions& o) {
                 "Simulate every effect (alpha keying, gap-fill) even where the scene does not call for it")
       ->group(kExpert);
   cmd->add_option("--shuffle-seed", g.shuffle_seed, "Run build invocations in a seeded shuffled order")->group(kExpert);
+}
+
+// The Vulkan backend's own ("Vulkan").
+void add_vulkan_options(CLI::App* cmd, BackendOptions& o) {
   cmd->add_option("--vk-build", o.vk_build, "Vulkan build: raster (geometry shader, the paper's) or compute")
       ->check(CLI::IsMember({"raster", "compute"}).description(""))->type_name("raster|compute")->group("Vulkan");
   cmd->add_flag("--fallback-cpu", o.fallback_cpu, "Without a usable Vulkan device, use the CPU reference")
       ->group("Vulkan");
+}
+
+}  // namespace
+
+void add_backend_options(CLI::App* cmd, BackendOptions& o) {
+  add_grid_options(cmd, o);
+  add_expert_options(cmd, o);
+  add_vulkan_options(cmd, o);
 }
 
 std::vector<std::string> backend_names() {

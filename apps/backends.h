@@ -43,6 +43,9 @@ std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(cons
 // Registers the grid's options on a verb: a common set (--traversal, --capacity, --resolution,
 // --spill, --gap-fill, --self-hit, --threads) and the expert knobs in their own help group.
 void add_backend_options(CLI::App* cmd, BackendOptions& options);
+// The grid verbs' positional scene: a scene file, a mesh, a .gridscene or builtin:NAME (empty:
+// the embedded atrium).
+CLI::Option* add_scene_argument(CLI::App* cmd, std::string& scene);
 
 // Names this build knows, in the order `--help` lists them (the first is the default).
 std::vector<std::string> backend_names();

@@ -13,10 +13,10 @@
 // traced into a second hit buffer, both timed; after the timed frames both hit buffers are read
 // back once and compared ray by ray.
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
 #include <map>
 #include <thread>
@@ -154,11 +154,9 @@ Agreement compare_hits(const std::vector<Ray>& rays, const std::vector<Hit>& gri
     a.same_bounce += same && real;
     if (same && g_hit) {
       ++a.both_hit;
-      uint32_t gb, rb;
-      std::memcpy(&gb, &g.t, 4);
-      std::memcpy(&rb, &r.t, 4);
-      a.t_identical += gb == rb;
-      a.t_within_4_ulps += (gb > rb ? gb - rb : rb - gb) <= 4u;
+      const uint32_t ulps = ulp_distance(g.t, r.t);
+      a.t_identical += std::bit_cast<uint32_t>(g.t) == std::bit_cast<uint32_t>(r.t);
+      a.t_within_4_ulps += ulps <= 4u;
       if (g.t > 0.0f) a.t_max_rel = std::max(a.t_max_rel, std::abs(double(r.t) - double(g.t)) / double(g.t));
     }
     if (same) continue;
@@ -386,6 +384,105 @@ void embree_on_frame_rays(const BenchOptions& o, const Scene& scene, const Frame
   }
 }
 
+// The grid's memory and the frame's buffers, MiB.
+struct VulkanMemory {
+  double grid = 0.0, skip = 0.0, spill = 0.0, frame = 0.0;
+};
+VulkanMemory vulkan_memory(const BenchOptions& o, const Scene& scene, const shared::GridParams& gp,
+                           const vulkan::VulkanFrame& frame, const shared::SpillHeader& spill) {
+  VulkanMemory mem;
+  const glm::uvec3 ext = shared::grid_image_extent(gp);
+  mem.grid = double(ext.x) * ext.y * ext.z * 4.0 / (1 << 20);
+  mem.skip = (gp.flags & shared::kGridSkipEmpty) != 0u ? double(shared::skip_words(gp)) * 4.0 / (1 << 20) : 0.0;
+  mem.spill = (gp.flags & shared::kGridSpill) != 0u
+                  ? (double(spill.capacity) * sizeof(shared::SpillEntry) + 4.0 * 4.0 * double(shared::grid_cell_count(gp))) /
+                        (1 << 20)
+                  : 0.0;
+  const size_t frame_rays = 1 + (frame.shadows() ? scene.lights.size() : 0);  // bounce, then shadow rays
+  mem.frame =
+      double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + frame_rays * (sizeof(Ray) + sizeof(Hit)) + 4) /
+      (1 << 20);
+  return mem;
+}
+
+// The static build again, the GPU warm (the first one ran at idle clocks: docs/VULKAN.md): the
+// median of 5, its phases into `t`; 0 without timestamps.
+double warm_build_ms(vulkan::VulkanGridTracer& vk, const Scene& scene, bool stamps,
+                     std::map<std::string, std::vector<double>>& t) {
+  std::vector<double> warm_builds;
+  for (int i = 0; i < 5 && stamps; ++i) {
+    vk.build(scene, 0.0f);
+    warm_builds.push_back(vk.timings().build_ms);
+    t["build_init"].push_back(vk.timings().build_init_ms);
+    t["build_static"].push_back(vk.timings().build_static_ms);
+    t["build_skip"].push_back(vk.timings().build_skip_ms);
+    t["build_dynamic"].push_back(vk.timings().build_dynamic_ms);
+  }
+  return median(warm_builds);
+}
+
+// The frame's table (medians `m`), the shadow pass, the spill list, the gather's and the warm
+// build's split, the grid's memory.
+void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan::VulkanFrame& frame,
+                        std::map<std::string, double>& m, const std::map<std::string, std::vector<double>>& t,
+                        bool stamps, uint32_t gather_tiles, double build, double build_warm, double mrays,
+                        const VulkanMemory& mem, const std::string& spill_line) {
+  const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
+                            : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
+                                                                               : "raster";
+  std::printf("| build ms (first, warm) | update ms (clear + insert) | gather ms | bounce rays ms | trace ms | shade ms | frame ms "
+              "(update..shade) | Mrays/s (trace) | grid MiB | frame buffers MiB |\n"
+              "|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("| %.3f, %.3f | %.3f (%.3f + %.3f) | %.3f | %.3f | %.3f | %.3f | %.3f | %.0f | %.1f | %.1f |\n\n", build,
+              build_warm,
+              m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
+              mem.grid, mem.frame);
+  if (frame.shadows() && stamps)
+    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u): rays %.3f + trace %.3f = %.3f ms (in "
+                "the frame above, between trace and shade)%s\n\n",
+                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height,
+                m["shadow"] - m["shadow_trace"], m["shadow_trace"], m["shadow"],
+                t.count("b2b_shadow") ? (", back to back " + std::to_string(m["b2b_shadow"]) + " ms").c_str() : "");
+  else if (frame.shadows())
+    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u), in the frame above (host clock: not "
+                "split; --shadows off gives the frame without it)\n\n",
+                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height);
+  else
+    std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
+  std::printf("%s (after the last frame's update)\n\n", spill_line.c_str());
+  std::printf("gather split: visibility (%s; %u work items in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
+              "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, skip field %.3f, "
+              "dynamic instances %.3f ms\n",
+              gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
+              o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_skip"], m["build_dynamic"]);
+  std::printf("grid memory: image %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, total %.1f MiB\n",
+              mem.grid, mem.spill, mem.skip, mem.grid + mem.spill + mem.skip);
+}
+
+// The trace's counters (medians over the counted frames): printed, and as JSON (empty without).
+nlohmann::json trace_counter_report(const std::map<std::string, std::vector<double>>& counters, size_t rays,
+                                    double trace_ms, uint32_t counted) {
+  // The trace's counters; bytes the trace requests per ray, estimated from them: the ray (48) and
+  // its hit record (32), per visited cell one blank or status texel (4), per test the slot's
+  // texel (4), the instance (16) and the triangle (48). Requested, not DRAM traffic (the caches
+  // serve most of it); ignores the few uv, material and alpha reads of accepted hits.
+  std::map<std::string, double> cm;
+  for (auto& [k, v] : counters) cm[k] = median(v);
+  const double bytes_per_ray = 80.0 + 4.0 * cm["cells_mean"] + 68.0 * cm["tests_mean"];
+  const double rays_per_s = trace_ms > 0.0 ? double(rays) / (trace_ms * 1e-3) : 0.0;
+  if (!counters.empty())
+    std::printf("| trace: rays | rays/s | cells visited mean / p99 / max | refs tested mean / p99 / max | bytes read per ray "
+                "(estimate) | GB/s requested |\n|---|---|---|---|---|---|\n"
+                "| %zu | %.3g | %.2f / %.0f / %.0f | %.2f / %.0f / %.0f | %.0f | %.0f |\n"
+                "(counters: medians over the first %u timed frames of each frame's mean / p99 / max over its real rays)\n\n",
+                rays, rays_per_s, cm["cells_mean"], cm["cells_p99"], cm["cells_max"], cm["tests_mean"], cm["tests_p99"],
+                cm["tests_max"], bytes_per_ray, rays_per_s * bytes_per_ray * 1e-9, counted);
+  if (counters.empty()) return nlohmann::json();
+  nlohmann::json c = {{"frames", counted}, {"rays_per_s", rays_per_s}, {"bytes_per_ray_estimate", bytes_per_ray}};
+  for (auto& [k, v] : cm) c[k] = v;
+  return c;
+}
+
 // The whole frame on the GPU: the grid's static build once, then per frame the update (clear,
 // dynamic insert) and VulkanFrame::render (gather, bounce, trace, shade), GPU timestamps.
 void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::json& out) {
@@ -438,33 +535,12 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     rtx.reset();
     rtx_hits.reset();
   }
-  // The static build again, the GPU warm (the first one ran at idle clocks: docs/VULKAN.md), median of 5
-  std::vector<double> warm_builds;
-  for (int i = 0; i < 5 && stamps; ++i) {
-    vk->build(scene, 0.0f);
-    warm_builds.push_back(vk->timings().build_ms);
-    t["build_init"].push_back(vk->timings().build_init_ms);
-    t["build_static"].push_back(vk->timings().build_static_ms);
-    t["build_skip"].push_back(vk->timings().build_skip_ms);
-    t["build_dynamic"].push_back(vk->timings().build_dynamic_ms);
-  }
-  const double build_warm = median(warm_builds);
+  const double build_warm = warm_build_ms(*vk, scene, stamps, t);
   std::map<std::string, double> m;
   for (auto& [k, v] : t) m[k] = median(v);
   const double mrays = m["trace"] > 0.0 ? double(rays) / (m["trace"] * 1e3) : 0.0;
   const shared::GridParams& gp = vk->params();
-  const glm::uvec3 ext = shared::grid_image_extent(gp);
-  const double grid_mib = double(ext.x) * ext.y * ext.z * 4.0 / (1 << 20);
-  const double skip_mib =
-      (gp.flags & shared::kGridSkipEmpty) != 0u ? double(shared::skip_words(gp)) * 4.0 / (1 << 20) : 0.0;
-  const double spill_mib = (gp.flags & shared::kGridSpill) != 0u
-                               ? (double(spill.capacity) * sizeof(shared::SpillEntry) +
-                                  4.0 * 4.0 * double(shared::grid_cell_count(gp))) / (1 << 20)
-                               : 0.0;
-  const size_t frame_rays = 1 + (frame.shadows() ? scene.lights.size() : 0);  // bounce, then shadow rays
-  const double frame_mib =
-      double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + frame_rays * (sizeof(Ray) + sizeof(Hit)) + 4) /
-      (1 << 20);
+  const VulkanMemory mem = vulkan_memory(o, scene, gp, frame, spill);
   const std::string device = vk->context().info().name;
   const std::string clock = stamps ? "gpu timestamps" : "host (submit to fence; the frame's phases not split)";
   const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
@@ -474,48 +550,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               "%s gather, %s trace\n",
               device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z, gp.capacity, gather_name,
               o.compact_rays ? "compacted" : "every-pixel");
-  std::printf("| build ms (first, warm) | update ms (clear + insert) | gather ms | bounce rays ms | trace ms | shade ms | frame ms "
-              "(update..shade) | Mrays/s (trace) | grid MiB | frame buffers MiB |\n"
-              "|---|---|---|---|---|---|---|---|---|---|\n");
-  std::printf("| %.3f, %.3f | %.3f (%.3f + %.3f) | %.3f | %.3f | %.3f | %.3f | %.3f | %.0f | %.1f | %.1f |\n\n", build,
-              build_warm,
-              m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
-              grid_mib, frame_mib);
-  if (frame.shadows() && stamps)
-    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u): rays %.3f + trace %.3f = %.3f ms (in "
-                "the frame above, between trace and shade)%s\n\n",
-                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height,
-                m["shadow"] - m["shadow_trace"], m["shadow_trace"], m["shadow"],
-                t.count("b2b_shadow") ? (", back to back " + std::to_string(m["b2b_shadow"]) + " ms").c_str() : "");
-  else if (frame.shadows())
-    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u), in the frame above (host clock: not "
-                "split; --shadows off gives the frame without it)\n\n",
-                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height);
-  else
-    std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
-  std::printf("%s (after the last frame's update)\n\n", spill_text(spill, spill_flags).c_str());
-  std::printf("gather split: visibility (%s; %u work items in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
-              "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, skip field %.3f, "
-              "dynamic instances %.3f ms\n",
-              gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
-              o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_skip"], m["build_dynamic"]);
-  std::printf("grid memory: image %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, total %.1f MiB\n",
-              grid_mib, spill_mib, skip_mib, grid_mib + spill_mib + skip_mib);
-  // The trace's counters; bytes the trace requests per ray, estimated from them: the ray (48) and
-  // its hit record (32), per visited cell one blank or status texel (4), per test the slot's
-  // texel (4), the instance (16) and the triangle (48). Requested, not DRAM traffic (the caches
-  // serve most of it); ignores the few uv, material and alpha reads of accepted hits.
-  std::map<std::string, double> cm;
-  for (auto& [k, v] : counters) cm[k] = median(v);
-  const double bytes_per_ray = 80.0 + 4.0 * cm["cells_mean"] + 68.0 * cm["tests_mean"];
-  const double rays_per_s = m["trace"] > 0.0 ? double(rays) / (m["trace"] * 1e-3) : 0.0;
-  if (!counters.empty())
-    std::printf("| trace: rays | rays/s | cells visited mean / p99 / max | refs tested mean / p99 / max | bytes read per ray "
-                "(estimate) | GB/s requested |\n|---|---|---|---|---|---|\n"
-                "| %zu | %.3g | %.2f / %.0f / %.0f | %.2f / %.0f / %.0f | %.0f | %.0f |\n"
-                "(counters: medians over the first %u timed frames of each frame's mean / p99 / max over its real rays)\n\n",
-                rays, rays_per_s, cm["cells_mean"], cm["cells_p99"], cm["cells_max"], cm["tests_mean"], cm["tests_p99"],
-                cm["tests_max"], bytes_per_ray, rays_per_s * bytes_per_ray * 1e-9, counted);
+  print_frame_tables(o, scene, frame, m, t, stamps, gather_tiles, build, build_warm, mrays, mem, spill_text(spill, spill_flags));
+  const nlohmann::json trace_counters = trace_counter_report(counters, rays, m["trace"], counted);
   if (t.count("b2b_frame"))
     std::printf("back to back (%u frames per submission, the last timed; update as above): gather %.3f, bounce %.3f, "
                 "trace %.3f, shade %.3f, frame (update..shade) %.3f ms, %.0f Mrays/s\n\n",
@@ -523,7 +559,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
                 m["b2b_trace"] > 0.0 ? double(rays) / (m["b2b_trace"] * 1e3) : 0.0);
   std::fflush(stdout);
   nlohmann::json j = {{"device", device}, {"clock", clock},       {"build_ms", build}, {"build_warm_ms", build_warm}, {"rays_per_frame", rays},
-                      {"mrays_per_s", mrays}, {"grid_mib", grid_mib}, {"skip_mib", skip_mib}, {"spill_mib", spill_mib}, {"frame_mib", frame_mib},
+                      {"mrays_per_s", mrays}, {"grid_mib", mem.grid}, {"skip_mib", mem.skip}, {"spill_mib", mem.spill}, {"frame_mib", mem.frame},
                       {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity},
                       {"spill", spill_json(spill, spill_flags)}};
   j["gather_mode"] = gather_name;
@@ -535,7 +571,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
   }
-  if (o.rtx) j["rtx"] = rtx_report(o, m, build, mrays, grid_mib, rays, rtx_first, rtx_memory, rtx_dynamic, agree);
+  if (o.rtx) j["rtx"] = rtx_report(o, m, build, mrays, mem.grid, rays, rtx_first, rtx_memory, rtx_dynamic, agree);
   // With GRIDRT_VALIDATION=1: what the validation layer said (the tool's only way to show it)
   if (vk->context().validation()) {
     const std::vector<std::string> msgs = vk->context().messages();
@@ -543,16 +579,108 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     for (size_t i = 0; i < msgs.size() && i < 20; ++i) std::fprintf(stderr, "  %s\n", msgs[i].c_str());
     j["validation_messages"] = msgs.size();
   }
-  if (!counters.empty()) {
-    nlohmann::json c = {{"frames", counted}, {"rays_per_s", rays_per_s}, {"bytes_per_ray_estimate", bytes_per_ray}};
-    for (auto& [k, v] : cm) c[k] = v;
-    j["trace_counters"] = c;
-  }
+  if (!trace_counters.empty()) j["trace_counters"] = trace_counters;
   out["backends"]["vulkan"] = j;
 
   embree_on_frame_rays(o, scene, run, out);
 }
 #endif
+
+// One backend that traces on the CPU's rays: its build, then per frame the update and the trace
+// of the bounce rays off `gather` (and of the `shadow` rays): a table row, notes, JSON.
+void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::string& name, const GatherBuffer& gather,
+                       bool frame_rays, const std::vector<Ray>& given, size_t bounce_count,
+                       const std::vector<Ray>& shadow, nlohmann::json& out,
+                       std::vector<std::string>& notes, std::vector<std::string>& shadow_notes) {
+  std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
+  PhaseTimes times;
+  std::string device = "CPU, " + std::to_string(std::thread::hardware_concurrency()) + " threads";
+  double grid_mib = 0.0;
+  auto t0 = std::chrono::steady_clock::now();
+  tracer->build(scene, 0.0f);
+  times.build = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+  auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
+  if (vk) {
+    device = vk->context().info().name;
+    if (vk->timings().build_ms > 0.0) {
+      times.clock = "gpu timestamps";
+      times.build = vk->timings().build_ms;
+    }
+  }
+#endif
+  if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
+    grid_mib = double(ref->stats().image_bytes) / (1 << 20);
+  const AccelDump dump = tracer->dump();
+  if (!dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
+
+  std::vector<Hit> hits, shadow_hits(shadow.size());
+  std::vector<double> shadow_ms;
+  for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
+    const float time = float(f + 1) / o.fps;
+    const std::vector<Ray> rays = frame_rays ? bounce_rays(scene, gather, f) : given;
+    hits.resize(rays.size());
+    t0 = std::chrono::steady_clock::now();
+    tracer->update(time);
+    double update_ms = ms_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    tracer->trace(rays, hits);
+    double trace_ms = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+    if (vk && times.clock == "gpu timestamps") {
+      update_ms = vk->timings().update_ms;
+      trace_ms = vk->timings().trace_ms;
+    } else if (vk) {
+      update_ms = vk->timings().update_host_ms;
+      trace_ms = vk->timings().trace_host_ms;
+    }
+#endif
+    double shadow_trace_ms = 0.0;
+    if (!shadow.empty()) {
+      t0 = std::chrono::steady_clock::now();
+      tracer->trace(shadow, shadow_hits);
+      shadow_trace_ms = ms_since(t0);
+#ifdef GRIDRT_HAVE_VULKAN
+      if (vk) shadow_trace_ms = times.clock == "gpu timestamps" ? vk->timings().trace_ms : vk->timings().trace_host_ms;
+#endif
+    }
+    if (f < o.warmup) continue;
+    times.update.push_back(update_ms);
+    times.trace.push_back(trace_ms);
+    shadow_ms.push_back(shadow_trace_ms);
+  }
+  shared::SpillHeader spill{};
+  uint32_t spill_flags = 0;
+  if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
+    spill = ref->data().spill_header;
+    spill_flags = ref->params().flags;
+  }
+#ifdef GRIDRT_HAVE_VULKAN
+  if (vk) {
+    spill = vk->spill_header();
+    spill_flags = vk->params().flags;
+  }
+#endif
+  const double update = median(times.update), trace = median(times.trace);
+  const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
+  std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
+              times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
+  const bool grid = !dump.texels.empty();
+  if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
+  if (!shadow.empty()) {
+    char line[256];
+    std::snprintf(line, sizeof line, "%s: shadow pass: %zu shadow rays per frame (%zu light(s)), their trace %.3f ms "
+                  "(median; not in the table's trace)", name.c_str(), shadow.size(), scene.lights.size(), median(shadow_ms));
+    shadow_notes.push_back(line);
+  }
+  std::fflush(stdout);
+  out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
+                           {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
+                           {"grid_mib", grid_mib},    {"update_ms_all", times.update},
+                           {"trace_ms_all", times.trace}, {"shadow_rays", shadow.size()},
+                           {"shadow_trace_ms", median(shadow_ms)}, {"shadow_trace_ms_all", shadow_ms}};
+  if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
+}
 
 void run_bench(const BenchOptions& options) {
   check_frame_size(options.width, options.height);
@@ -646,95 +774,8 @@ void run_bench(const BenchOptions& options) {
       continue;
     }
 #endif
-    if (!on_cpu_rays(name)) continue;
-    std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
-    PhaseTimes times;
-    std::string device = "CPU, " + std::to_string(std::thread::hardware_concurrency()) + " threads";
-    double grid_mib = 0.0;
-    auto t0 = std::chrono::steady_clock::now();
-    tracer->build(scene, 0.0f);
-    times.build = ms_since(t0);
-#ifdef GRIDRT_HAVE_VULKAN
-    auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get());
-    if (vk) {
-      device = vk->context().info().name;
-      if (vk->timings().build_ms > 0.0) {
-        times.clock = "gpu timestamps";
-        times.build = vk->timings().build_ms;
-      }
-    }
-#endif
-    if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
-      grid_mib = double(ref->stats().image_bytes) / (1 << 20);
-    const AccelDump dump = tracer->dump();
-    if (!dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
-
-    std::vector<Hit> hits, shadow_hits(shadow.size());
-    std::vector<double> shadow_ms;
-    for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
-      const float time = float(f + 1) / o.fps;
-      const std::vector<Ray> rays = frame_rays ? bounce_rays(scene, gather, f) : given;
-      hits.resize(rays.size());
-      t0 = std::chrono::steady_clock::now();
-      tracer->update(time);
-      double update_ms = ms_since(t0);
-      t0 = std::chrono::steady_clock::now();
-      tracer->trace(rays, hits);
-      double trace_ms = ms_since(t0);
-#ifdef GRIDRT_HAVE_VULKAN
-      if (vk && times.clock == "gpu timestamps") {
-        update_ms = vk->timings().update_ms;
-        trace_ms = vk->timings().trace_ms;
-      } else if (vk) {
-        update_ms = vk->timings().update_host_ms;
-        trace_ms = vk->timings().trace_host_ms;
-      }
-#endif
-      double shadow_trace_ms = 0.0;
-      if (!shadow.empty()) {
-        t0 = std::chrono::steady_clock::now();
-        tracer->trace(shadow, shadow_hits);
-        shadow_trace_ms = ms_since(t0);
-#ifdef GRIDRT_HAVE_VULKAN
-        if (vk) shadow_trace_ms = times.clock == "gpu timestamps" ? vk->timings().trace_ms : vk->timings().trace_host_ms;
-#endif
-      }
-      if (f < o.warmup) continue;
-      times.update.push_back(update_ms);
-      times.trace.push_back(trace_ms);
-      shadow_ms.push_back(shadow_trace_ms);
-    }
-    shared::SpillHeader spill{};
-    uint32_t spill_flags = 0;
-    if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
-      spill = ref->data().spill_header;
-      spill_flags = ref->params().flags;
-    }
-#ifdef GRIDRT_HAVE_VULKAN
-    if (vk) {
-      spill = vk->spill_header();
-      spill_flags = vk->params().flags;
-    }
-#endif
-    const double update = median(times.update), trace = median(times.trace);
-    const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
-    std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
-                times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
-    const bool grid = !dump.texels.empty();
-    if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
-    if (!shadow.empty()) {
-      char line[256];
-      std::snprintf(line, sizeof line, "%s: shadow pass: %zu shadow rays per frame (%zu light(s)), their trace %.3f ms "
-                    "(median; not in the table's trace)", name.c_str(), shadow.size(), scene.lights.size(), median(shadow_ms));
-      shadow_notes.push_back(line);
-    }
-    std::fflush(stdout);
-    out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
-                             {"update_ms", update},     {"trace_ms", trace},      {"mrays_per_s", mrays},
-                             {"grid_mib", grid_mib},    {"update_ms_all", times.update},
-                             {"trace_ms_all", times.trace}, {"shadow_rays", shadow.size()},
-                             {"shadow_trace_ms", median(shadow_ms)}, {"shadow_trace_ms_all", shadow_ms}};
-    if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
+    if (on_cpu_rays(name))
+      bench_cpu_backend(o, scene, name, gather, frame_rays, given, bounce_count, shadow, out, notes, shadow_notes);
   }
   if (!notes.empty()) std::printf("\n");
   for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
@@ -748,7 +789,7 @@ void add_bench_command(CLI::App& app) {
   auto o = std::make_shared<BenchOptions>();
   CLI::App* cmd = app.add_subcommand(
       "bench", "Time the static build, then per frame the dynamic update and the glossy-bounce trace (medians)");
-  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--backend,-b", o->backends, "Backends to time, one after the other: " + backend_list())
       ->delimiter(',');
   cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));

@@ -11,7 +11,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -22,6 +21,7 @@
 #include "apps/commands.h"
 #include "gridrt/common/camera.h"
 #include "gridrt/common/gather.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/reference/compare.h"
 #include "gridrt/reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
@@ -109,27 +109,6 @@ std::string xml_escape(const std::string& s) {
     }
   }
   return out;
-}
-
-// Writes `text` to `path` through a temporary file in the same folder, renamed over it.
-void write_atomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << text;
-    f.flush();
-    if (!f) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw Error("cannot write '" + path + "'");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw Error("cannot write '" + path + "': " + ec.message());
-  }
 }
 
 class DiffRun {
@@ -267,8 +246,8 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
   const size_t pixels = size_t(w) * h;
   const GatherBuffer gather = reference_gather(scene_, grid_, w, h, time);
   std::vector<Ray> rays = bounce_rays(scene_, gather, frame);
-  for (uint32_t y = 0; y < h; ++y)
-    for (uint32_t x = 0; x < w; ++x) rays.push_back(camera_ray(scene_.frame_camera(), w, h, x, y));
+  const std::vector<Ray> primary = camera_rays(scene_.frame_camera(), w, h);
+  rays.insert(rays.end(), primary.begin(), primary.end());
   std::vector<Hit> want(rays.size()), got(rays.size());
   {
     Progress progress("frame " + std::to_string(frame) + ": reference trace", rays.size());
@@ -490,7 +469,7 @@ void DiffRun::write_reports(int code, double seconds) {
     } else {
       j["first_difference"] = nullptr;
     }
-    write_atomically(o_.json_path, j.dump(2) + "\n");
+    write_file_atomically(o_.json_path, "JSON report", j.dump(2) + "\n");
   }
   if (!o_.junit_path.empty()) {
     size_t failures = 0;
@@ -509,7 +488,7 @@ void DiffRun::write_reports(int code, double seconds) {
       x << "      <system-out>" << xml_escape(c.detail) << "</system-out>\n    </testcase>\n";
     }
     x << "  </testsuite>\n</testsuites>\n";
-    write_atomically(o_.junit_path, x.str());
+    write_file_atomically(o_.junit_path, "JUnit report", x.str());
   }
 }
 
@@ -618,7 +597,7 @@ void add_diff_command(CLI::App& app) {
       "diff",
       "Run the CPU reference and the Vulkan port on a scene: grid images and every hit, over frames, with the "
       "validation layer on. Exit 0 agree, 1 bad input, 2 bad command line, 3 differ, 4 validation messages");
-  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--width", o->width, "Image width of the gather buffer")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height of the gather buffer")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--time,-t", o->time, "Scene time in seconds");

@@ -9,7 +9,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <map>
 #include <memory>
@@ -20,6 +19,7 @@
 #include "apps/commands.h"
 #include "gridrt/common/camera.h"
 #include "gridrt/common/gather.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/shade.h"
 #include "gridrt/common/shared/shadow.h"
 #include "gridrt/reference/explain_export.h"
@@ -38,20 +38,6 @@ namespace sh = gridrt::shared;
 using reference::Traversal;
 
 const char* traversal_name(Traversal t) { return t == Traversal::exact ? "exact" : "paper"; }
-
-// Writes `text` to `path` through a temporary file: an existing file is replaced only by a
-// complete new one.
-void write_file(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    f << text;
-    if (!f.flush()) throw Error("cannot write '" + path + "'");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) throw Error("cannot write '" + path + "': " + ec.message());
-}
 
 // out.svg -> out_2.svg for the third of several rays.
 std::string numbered(const std::string& path, size_t i, size_t n) {
@@ -389,13 +375,13 @@ void run_explain(const ExplainOptions& options) {
     if (!o.obj.empty()) {
       const std::string path = numbered(o.obj, i, items.size());
       const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
-      write_file(mtl.string(), reference::explain_mtl());
-      write_file(path, reference::explain_obj(want, ref.data(), mtl.filename().string()));
+      write_file_atomically(mtl.string(), "OBJ materials", reference::explain_mtl());
+      write_file_atomically(path, "OBJ", reference::explain_obj(want, ref.data(), mtl.filename().string()));
       written.push_back(path + " (and " + mtl.string() + ")");
     }
     if (!o.svg.empty()) {
       const std::string path = numbered(o.svg, i, items.size());
-      write_file(path, reference::explain_svg(want, ref.data(), fmt));
+      write_file_atomically(path, "SVG", reference::explain_svg(want, ref.data(), fmt));
       written.push_back(path);
     }
     if (!o.html.empty())
@@ -406,7 +392,7 @@ void run_explain(const ExplainOptions& options) {
                             .dump(1, ' ', false, nlohmann::json::error_handler_t::replace)
                             .c_str());
   if (!o.html.empty()) {
-    write_file(o.html, reference::explain_html("gridrt explain: " + scene.name, views));
+    write_file_atomically(o.html, "HTML viewer", reference::explain_html("gridrt explain: " + scene.name, views));
     written.push_back(o.html);
   }
   std::fflush(stdout);
@@ -427,7 +413,7 @@ void add_explain_command(CLI::App& app) {
       "explain",
       "Every step of one ray through the grid (a pixel's primary, bounce or shadow ray, or any ray), the shader's "
       "own record beside it with --backend vulkan; as text, --brief, --json, OBJ, SVG or an HTML viewer");
-  cmd->add_option("scene", o->scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--width", o->width, "Image width of the frame whose pixel is explained")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height of the frame")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--time,-t", o->time, "Scene time in seconds");

@@ -40,7 +40,7 @@ struct GridVerbOptions {
 };
 
 void add_common(CLI::App* cmd, GridVerbOptions& o) {
-  cmd->add_option("scene", o.scene, "A scene file, a mesh, a .gridscene or builtin:NAME; default: the embedded atrium");
+  add_scene_argument(cmd, o.scene);
   cmd->add_option("--width", o.width, "Image width of the gather buffer")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o.height, "Image height of the gather buffer")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--time,-t", o.time, "Scene time in seconds");
@@ -81,9 +81,7 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
     const GatherBuffer gather = reference_gather(scene, go, o.width, o.height, o.time);
     for (const Ray& r : bounce_rays(scene, gather, 0))
       if (!is_unused(r)) rays.push_back(r);
-    if (rays.empty())
-      for (uint32_t y = 0; y < o.height; ++y)
-        for (uint32_t x = 0; x < o.width; ++x) rays.push_back(camera_ray(scene.frame_camera(), o.width, o.height, x, y));
+    if (rays.empty()) rays = camera_rays(scene.frame_camera(), o.width, o.height);
 #ifdef GRIDRT_HAVE_EMBREE
     EmbreeTracer embree(reference::thread_count(go));
     embree.build(scene, o.time);

@@ -12,6 +12,7 @@
 #include "gridrt/common/camera.h"
 #include "gridrt/common/image_io.h"
 #include "gridrt/common/scene_io.h"
+#include "gridrt/common/util.h"
 #include "gridrt/reference/portal/build.h"
 #include "gridrt/reference/portal/trace.h"
 #include "gridrt/reference/portal/world.h"
@@ -25,10 +26,6 @@ namespace {
 
 bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 std::string portal_backends() {
@@ -76,6 +73,15 @@ portal::World load_world(const std::string& spec, uint32_t voxels) {
   return portal::voxelize(scene, voxels);
 }
 
+// The portal build's options from the verbs' --div-choice and --atlas-width.
+portal::PortalOptions portal_options(const std::string& div_choice, uint32_t atlas_width, bool progress) {
+  portal::PortalOptions options;
+  options.progress = progress;
+  options.choice = portal::parse_div_choice(div_choice);
+  options.atlas_width = atlas_width;
+  return options;
+}
+
 void run_portal_render(const PortalRenderOptions& o) {
   check_frame_size(o.width, o.height);
   check_output_path(o.output);
@@ -84,9 +90,7 @@ void run_portal_render(const PortalRenderOptions& o) {
   portal::World world = load_world(o.scene, o.voxels);
   const Camera camera = world.camera;
   auto t0 = std::chrono::steady_clock::now();
-  portal::PortalOptions options;
-  options.choice = portal::parse_div_choice(o.div_choice);
-  options.atlas_width = o.atlas_width;
+  portal::PortalOptions options = portal_options(o.div_choice, o.atlas_width, true);
   options.mip_levels = o.mip_levels;
   options.mip_distance = mip_distance_for(o.mip_distance, camera, o.height);
   if (o.mip_compare && o.mip_levels < 2) throw Error("--mip-compare needs --mip-levels 2 or more");
@@ -164,17 +168,11 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
   check_frame_size(width, height);
   portal::World world = load_world(spec, voxels);
   const Camera camera = world.camera;
-  portal::PortalOptions options;
-  options.progress = false;
-  options.choice = portal::parse_div_choice(div_choice);
-  options.atlas_width = atlas_width;
+  const portal::PortalOptions options = portal_options(div_choice, atlas_width, false);
   const auto t0 = std::chrono::steady_clock::now();
   portal::PortalBuild build = portal::build_portal(std::move(world), options);
   const double build_s = seconds_since(t0);
-  std::vector<Ray> rays;
-  rays.reserve(size_t(width) * height);
-  for (uint32_t y = 0; y < height; ++y)
-    for (uint32_t x = 0; x < width; ++x) rays.push_back(camera_ray(camera, width, height, x, y));
+  const std::vector<Ray> rays = camera_rays(camera, width, height);
   const double n = double(rays.size());
   std::printf("world %s: %u x %u x %u voxels, %zu divs (%s choice), built in %.2f s; %u x %u camera rays, best of %u\n",
               build.world.name.c_str(), build.world.dims.x, build.world.dims.y, build.world.dims.z, build.divs.size(),
@@ -306,18 +304,12 @@ void run_portal_diff(const PortalDiffOptions& o) {
   check_frame_size(o.width, o.height);
   portal::World world = load_world(o.spec, o.voxels);
   const Camera camera = world.camera;
-  portal::PortalOptions options;
-  options.progress = false;
-  options.choice = portal::parse_div_choice(o.choice);
-  options.atlas_width = o.atlas_width;
+  portal::PortalOptions options = portal_options(o.choice, o.atlas_width, false);
   options.mip_levels = o.mip_levels;
   options.mip_distance = mip_distance_for(o.mip_distance, camera, o.height);
   portal::PortalBuild build = portal::build_portal(std::move(world), options);
   const std::string name = build.world.name;
-  std::vector<Ray> rays;
-  rays.reserve(size_t(o.width) * o.height);
-  for (uint32_t y = 0; y < o.height; ++y)
-    for (uint32_t x = 0; x < o.width; ++x) rays.push_back(camera_ray(camera, o.width, o.height, x, y));
+  const std::vector<Ray> rays = camera_rays(camera, o.width, o.height);
   std::vector<Hit> ref(rays.size()), dev(rays.size());
   portal::RenderOptions ro;
   ro.width = o.width, ro.height = o.height;
@@ -379,7 +371,7 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
     cmd->add_flag("--separate-loops", o->separate_loops, "Three loops (primary, shadow 1, shadow 2), not the state machine");
-    cmd->add_option("--backend", o->backend, "Tracer: " + portal_backends());
+    cmd->add_option("--backend,-b", o->backend, "Tracer: " + portal_backends());
     cmd->add_option("-o,--output", o->output, "Image file");
     cmd->add_option("--view", o->view,
                     "What the picture shows: shaded (the render), or per pixel with a colour bar: divs (divs the "
@@ -403,7 +395,7 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("--width", *width, "Width of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--height", *height, "Height of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--pixel,-p", *pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
-    cmd->add_option("--backend", *backend,
+    cmd->add_option("--backend,-b", *backend,
                     "Tracer: " + portal_backends() + " (portal-vulkan: the shader's own record beside the reference's)");
     cmd->callback([=] {
       check_portal_backend(*backend);
@@ -411,9 +403,7 @@ void add_portal_command(CLI::App& app) {
       const uint32_t w = *width, h = *height, x = (*pixel)[0], y = (*pixel)[1];
       if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
       portal::World world = load_world(*spec, *voxels);
-      portal::PortalOptions options;
-      options.choice = portal::parse_div_choice(*choice);
-      options.atlas_width = *atlas;
+      portal::PortalOptions options = portal_options(*choice, *atlas, true);
       const Camera camera = world.camera;
       options.mip_levels = *mip_levels;
       options.mip_distance = mip_distance_for(*mip_distance, camera, h);
@@ -440,8 +430,8 @@ void add_portal_command(CLI::App& app) {
     CLI::App* cmd = portal_cmd->add_subcommand(
         "bench", "Rays/s and steps per ray: portal-cpu, voxel-dda, portal-vulkan; the renderer as FSM and three loops");
     add_world_options(cmd, *spec, *voxels, *choice, *atlas);
-    cmd->add_option("--width", *width, "Image width (the seed's: 720)")->check(CLI::Range(1u, 16384u));
-    cmd->add_option("--height", *height, "Image height (the seed's: 360)")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--width", *width, "Image width (the paper's: 720)")->check(CLI::Range(1u, 16384u));
+    cmd->add_option("--height", *height, "Image height (the paper's: 360)")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--repeat", *repeats, "Best of this many runs")->check(CLI::Range(1u, 1000u));
     cmd->add_flag("--vulkan-only", *vulkan_only, "Measure portal-vulkan only");
     cmd->callback([=] { run_portal_bench(*spec, *voxels, *width, *height, *repeats, *vulkan_only, *choice, *atlas); });

@@ -11,6 +11,7 @@
 #include "gridrt/common/image_io.h"
 #include "gridrt/common/progress.h"
 #include "gridrt/common/shade.h"
+#include "gridrt/common/util.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "gridrt/vulkan/frame.h"
 #endif
@@ -34,10 +35,6 @@ struct RenderOptions {
   BackendOptions backend_options;
 };
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 // out.png -> out_0007.png for frame 7 of an animation.
 std::string frame_path(const std::string& output, uint32_t frame, uint32_t frames) {
   if (frames <= 1) return output;
@@ -45,6 +42,50 @@ std::string frame_path(const std::string& output, uint32_t frame, uint32_t frame
   char suffix[16];
   std::snprintf(suffix, sizeof suffix, "_%04u", frame);
   return (p.parent_path() / (p.stem().string() + suffix + p.extension().string())).string();
+}
+
+// One frame on a CPU tracer: the gather (through `gather_tracer` where given), the bounce and
+// shadow rays, shading, the image written.
+void render_cpu_frame(const RenderOptions& o, const Scene& scene, Tracer& tracer, Tracer* gather_tracer,
+                      const Camera& camera, uint32_t frame, float time, bool shadows) {
+  const size_t pixels = size_t(o.width) * o.height;
+  const auto t0 = std::chrono::steady_clock::now();
+  Progress progress("frame " + std::to_string(frame) + ": tracing",
+                    pixels * ((o.no_bounce ? 1 : 2) + (shadows ? scene.lights.size() : 0)));
+  ProgressTracer traced(tracer, progress);
+  ProgressTracer gather_traced(gather_tracer ? *gather_tracer : tracer, progress);
+  const GatherBuffer gather = make_gather(scene, gather_traced, camera, o.width, o.height, time);
+  std::vector<Ray> rays;
+  std::vector<Hit> hits;
+  if (!o.no_bounce) {
+    rays = bounce_rays(scene, gather, frame);
+    hits.resize(rays.size());
+    traced.trace(rays, hits);
+  }
+  // Shadow rays from the gather to every light, through the bounce's tracer (as the GPU frame)
+  std::vector<Ray> shadow;
+  std::vector<Hit> shadow_hits;
+  if (shadows) {
+    shadow = shadow_rays(scene, gather);
+    shadow_hits.resize(shadow.size());
+    traced.trace(shadow, shadow_hits);
+  }
+  progress.finish();
+  // Rays outside the domain (shared::ray_domain) are not traced: say how many
+  size_t rejected = 0;
+  for (const Hit& h : gather.hit) rejected += (h.flags & shared::kHitRejected) != 0;
+  for (const Hit& h : hits) rejected += (h.flags & shared::kHitRejected) != 0;
+  if (rejected)
+    std::fprintf(stderr, "%s: frame %u: %zu rays outside the domain (docs/SPEC.md, \"Domain\") were rejected, not traced\n",
+                 tracer.name().c_str(), frame, rejected);
+  ShadeOptions shade_options;
+  shade_options.shadow_rays = shadow;
+  shade_options.shadow_hits = shadow_hits;
+  const std::vector<glm::vec3> rgb = shade(scene, gather, rays, hits, shade_options);
+  const std::string path = frame_path(o.output, frame, o.frames);
+  write_image(path, o.width, o.height, rgb);
+  std::fprintf(stderr, "%s: frame %u (t = %.3f s) traced and shaded in %.2f s -> %s\n", tracer.name().c_str(),
+               frame, time, seconds_since(t0), path.c_str());
 }
 
 void run_render(const RenderOptions& options) {
@@ -130,44 +171,7 @@ void run_render(const RenderOptions& options) {
       tracer->update(time);
       if (gather_tracer) gather_tracer->update(time);
     }
-    const size_t pixels = size_t(o.width) * o.height;
-    t0 = std::chrono::steady_clock::now();
-    Progress progress("frame " + std::to_string(frame) + ": tracing",
-                      pixels * ((o.no_bounce ? 1 : 2) + (shadows ? scene.lights.size() : 0)));
-    ProgressTracer traced(*tracer, progress);
-    ProgressTracer gather_traced(gather_tracer ? *gather_tracer : *tracer, progress);
-    const GatherBuffer gather = make_gather(scene, gather_traced, camera, o.width, o.height, time);
-    std::vector<Ray> rays;
-    std::vector<Hit> hits;
-    if (!o.no_bounce) {
-      rays = bounce_rays(scene, gather, frame);
-      hits.resize(rays.size());
-      traced.trace(rays, hits);
-    }
-    // Shadow rays from the gather to every light, through the bounce's tracer (as the GPU frame)
-    std::vector<Ray> shadow;
-    std::vector<Hit> shadow_hits;
-    if (shadows) {
-      shadow = shadow_rays(scene, gather);
-      shadow_hits.resize(shadow.size());
-      traced.trace(shadow, shadow_hits);
-    }
-    progress.finish();
-    // Rays outside the domain (shared::ray_domain) are not traced: say how many
-    size_t rejected = 0;
-    for (const Hit& h : gather.hit) rejected += (h.flags & shared::kHitRejected) != 0;
-    for (const Hit& h : hits) rejected += (h.flags & shared::kHitRejected) != 0;
-    if (rejected)
-      std::fprintf(stderr, "%s: frame %u: %zu rays outside the domain (docs/SPEC.md, \"Domain\") were rejected, not traced\n",
-                   tracer->name().c_str(), frame, rejected);
-    ShadeOptions shade_options;
-    shade_options.shadow_rays = shadow;
-    shade_options.shadow_hits = shadow_hits;
-    const std::vector<glm::vec3> rgb = shade(scene, gather, rays, hits, shade_options);
-    const std::string path = frame_path(o.output, frame, o.frames);
-    write_image(path, o.width, o.height, rgb);
-    std::fprintf(stderr, "%s: frame %u (t = %.3f s) traced and shaded in %.2f s -> %s\n", tracer->name().c_str(),
-                 frame, time, seconds_since(t0), path.c_str());
+    render_cpu_frame(o, scene, *tracer, gather_tracer.get(), camera, frame, time, shadows);
   }
 }
 
@@ -176,9 +180,7 @@ void run_render(const RenderOptions& options) {
 void add_render_command(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();
   CLI::App* cmd = app.add_subcommand("render", "Render a scene to an image: primary rays, one glossy bounce, simple shading");
-  cmd->add_option("scene", o->scene,
-                  "A scene file (.json), a mesh (.obj, .gltf, .glb), a cache (.gridscene) or builtin:NAME "
-                  "(atrium, cornell, teapot); default: the embedded atrium");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--backend,-b", o->backend,
                   "Tracer: " + backend_list() + ", or portal-cpu, portal-vulkan (voxel worlds: a .map, builtin:level, a scene voxelized) "
                   "(default: the first)");

@@ -388,6 +388,110 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
   std::printf("  table: %s/%s.md, data: %s/%s.csv\n", dir.c_str(), stem.c_str(), dir.c_str(), stem.c_str());
 }
 
+#ifdef GRIDRT_HAVE_EMBREE
+// A scene's rays for the sweep: the glossy bounce rays of its frame's gather buffer (only the used
+// ones), or (--rays, or auto without glossy materials) rays of another kind; `kind` names them.
+std::vector<Ray> sweep_rays(const SweepOptions& o, const Scene& scene, EmbreeTracer& embree, std::string& kind) {
+  // The gather buffer and its glossy bounce rays (only the used ones are traced and timed)
+  GatherBuffer gather;
+  {
+    reference::ReferenceGridTracer tracer(plan::gather_options(grid_options_for(o.backend_options, scene)));
+    tracer.build(scene, 0.0f);
+    Progress progress("gather buffer (" + scene.name + ")", size_t(o.width) * o.height);
+    ProgressTracer traced(tracer, progress);
+    gather = make_gather(scene, traced, scene.frame_camera(), o.width, o.height, 0.0f);
+  }
+  std::vector<Ray> rays;
+  if (o.rays == "auto" || o.rays == "glossy")
+    for (const Ray& r : bounce_rays(scene, gather, 0))
+      if (!is_unused(r)) rays.push_back(r);
+  if (rays.empty() && o.rays == "glossy") throw Error("sweep: " + scene.name + " has no glossy bounce rays in its frame");
+  kind = "glossy bounce";
+  if (rays.empty()) {
+    // Any scene: the chosen kind of rays (auto without glossy materials: diffuse bounces)
+    kind = o.rays == "auto" ? "diffuse" : o.rays;
+    GridOptions aim = grid_options_for(o.backend_options, scene);
+    aim.traversal = reference::Traversal::exact;
+    reference::ReferenceGridTracer aimer(aim);
+    aimer.build(scene, 0.0f);
+    rays = verify::rays_of_kind(kind, scene, aimer.data(), embree, size_t(o.width) * o.height);
+    if (o.rays == "auto") std::printf("sweep: %s has no glossy material: %s rays instead\n", scene.name.c_str(), kind.c_str());
+    if (rays.empty()) throw Error("sweep: " + scene.name + " gives no " + kind + " rays");
+  }
+  return rays;
+}
+
+// One configuration on one backend: build, update, trace (median of --repeat), the grid's figures
+// and the accuracy against Embree's hits `want`. False (with a message) where the build refuses it.
+bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ray>& rays, const std::vector<Hit>& want,
+                 const std::string& backend, const Config& c, Row& row) {
+  row.config = c;
+  row.backend = backend;
+  const BackendOptions bo = backend_options_for(o, c);
+  std::unique_ptr<Tracer> tracer;
+  auto t0 = std::chrono::steady_clock::now();
+  try {
+    tracer = make_backend(backend, bo, scene);
+    t0 = std::chrono::steady_clock::now();
+    tracer->build(scene, 0.0f);
+    row.build_ms = ms_since(t0);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "gridrt sweep: %s, %s: skipped: %s\n", scene.name.c_str(), c.label().c_str(), e.what());
+    return false;
+  }
+  t0 = std::chrono::steady_clock::now();
+  tracer->update(0.0f);
+  row.update_ms = ms_since(t0);
+  std::vector<Hit> got(rays.size());
+  std::vector<double> times;
+  for (uint32_t k = 0; k < std::max(1u, o.repeat); ++k) {
+    t0 = std::chrono::steady_clock::now();
+    tracer->trace(rays, got);
+    times.push_back(ms_since(t0));
+  }
+  row.trace_ms = median(times);
+  row.mrays = row.trace_ms > 0.0 ? double(rays.size()) / (row.trace_ms * 1e3) : 0.0;
+  const AccelDump dump = tracer->dump();
+  row.grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
+  const reference::GridOptions go = grid_options_for(bo, scene);
+  if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
+    const reference::GridStats s = ref->stats();
+    row.saturated = s.saturated_static + s.saturated_dynamic;
+    row.spill_on = s.spill_on;
+    row.spill_stored = s.spill_stored;
+    row.spill_overflow = s.spill_overflow;
+    row.capacity = s.capacity;
+    row.grid = std::to_string(s.cells.x) + "x" + std::to_string(s.cells.y) + "x" + std::to_string(s.cells.z);
+    row.padding = ref->params().aabb_padding;
+  }
+#ifdef GRIDRT_HAVE_VULKAN
+  if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get())) {
+    // Host times on lavapipe; timestamps where the device has them
+    if (vk->timings().build_ms > 0.0) row.build_ms = vk->timings().build_ms;
+    const shared::GridParams g = reference::choose_grid(scene, 0.0f, go);
+    const shared::SpillHeader& sh = vk->spill_header();
+    row.spill_on = (vk->params().flags & shared::kGridSpill) != 0u;
+    row.spill_stored = std::min(sh.count, sh.capacity);
+    row.spill_overflow = row.spill_on && sh.count > sh.capacity ? sh.count - sh.capacity : 0u;
+    row.capacity = g.capacity;
+    row.padding = g.aabb_padding;
+    row.grid = std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" + std::to_string(g.cells.z);
+    // Saturated cells from the image's status texels
+    for (uint32_t z = 0; z < g.cells.z; ++z)
+      for (uint32_t y = 0; y < g.cells.y; ++y)
+        for (uint32_t x = 0; x < g.cells.x; ++x)
+          row.saturated += dump.texels[shared::texel_index(shared::cell_status_texel(g, {x, y, z}), dump.extent)] != 0u;
+  }
+#endif
+  row.acc = accuracy(want, got);
+  row.work = reference::measured_work(rays, got);
+  if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
+    for (size_t i = 0; i < rays.size(); ++i)
+      row.why[size_t(reference::classify_difference(ref->data(), rays[i], got[i], want[i]))] += 1;
+  return true;
+}
+#endif
+
 void run_sweep(const SweepOptions& o) {
 #ifndef GRIDRT_HAVE_EMBREE
   throw Error("sweep needs the Embree oracle, which this build does not have");
@@ -409,34 +513,10 @@ void run_sweep(const SweepOptions& o) {
               configs.size(), o.backends.size(), o.width, o.height, o.repeat);
   for (const std::string& spec : o.scenes) {
     const Scene scene = load_scene_or_default(spec);
-    // The gather buffer and its glossy bounce rays (only the used ones are traced and timed)
-    GatherBuffer gather;
-    {
-      reference::ReferenceGridTracer tracer(plan::gather_options(grid_options_for(o.backend_options, scene)));
-      tracer.build(scene, 0.0f);
-      Progress progress("gather buffer (" + scene.name + ")", size_t(o.width) * o.height);
-      ProgressTracer traced(tracer, progress);
-      gather = make_gather(scene, traced, scene.frame_camera(), o.width, o.height, 0.0f);
-    }
-    std::vector<Ray> rays;
-    if (o.rays == "auto" || o.rays == "glossy")
-      for (const Ray& r : bounce_rays(scene, gather, 0))
-        if (!is_unused(r)) rays.push_back(r);
-    if (rays.empty() && o.rays == "glossy") throw Error("sweep: " + scene.name + " has no glossy bounce rays in its frame");
     EmbreeTracer embree(0);
     embree.build(scene, 0.0f);
-    std::string kind = "glossy bounce";
-    if (rays.empty()) {
-      // Any scene: the chosen kind of rays (auto without glossy materials: diffuse bounces)
-      kind = o.rays == "auto" ? "diffuse" : o.rays;
-      GridOptions aim = grid_options_for(o.backend_options, scene);
-      aim.traversal = reference::Traversal::exact;
-      reference::ReferenceGridTracer aimer(aim);
-      aimer.build(scene, 0.0f);
-      rays = verify::rays_of_kind(kind, scene, aimer.data(), embree, size_t(o.width) * o.height);
-      if (o.rays == "auto") std::printf("sweep: %s has no glossy material: %s rays instead\n", scene.name.c_str(), kind.c_str());
-      if (rays.empty()) throw Error("sweep: " + scene.name + " gives no " + kind + " rays");
-    }
+    std::string kind;
+    const std::vector<Ray> rays = sweep_rays(o, scene, embree, kind);
     std::vector<Hit> want(rays.size());
     auto t0 = std::chrono::steady_clock::now();
     embree.trace(rays, want);
@@ -450,69 +530,10 @@ void run_sweep(const SweepOptions& o) {
       for (const Config& c : configs) {
         Row row;
         row.index = rows.size();
-        row.config = c;
-        row.backend = backend;
-        const BackendOptions bo = backend_options_for(o, c);
-        std::unique_ptr<Tracer> tracer;
-        try {
-          tracer = make_backend(backend, bo, scene);
-          t0 = std::chrono::steady_clock::now();
-          tracer->build(scene, 0.0f);
-          row.build_ms = ms_since(t0);
-        } catch (const Error& e) {
-          std::fprintf(stderr, "gridrt sweep: %s, %s: skipped: %s\n", scene.name.c_str(), c.label().c_str(), e.what());
+        if (!measure_row(o, scene, rays, want, backend, c, row)) {
           progress.advance();
           continue;
         }
-        t0 = std::chrono::steady_clock::now();
-        tracer->update(0.0f);
-        row.update_ms = ms_since(t0);
-        std::vector<Hit> got(rays.size());
-        std::vector<double> times;
-        for (uint32_t k = 0; k < std::max(1u, o.repeat); ++k) {
-          t0 = std::chrono::steady_clock::now();
-          tracer->trace(rays, got);
-          times.push_back(ms_since(t0));
-        }
-        row.trace_ms = median(times);
-        row.mrays = row.trace_ms > 0.0 ? double(rays.size()) / (row.trace_ms * 1e3) : 0.0;
-        const AccelDump dump = tracer->dump();
-        row.grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
-        const reference::GridOptions go = grid_options_for(bo, scene);
-        if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
-          const reference::GridStats s = ref->stats();
-          row.saturated = s.saturated_static + s.saturated_dynamic;
-          row.spill_on = s.spill_on;
-          row.spill_stored = s.spill_stored;
-          row.spill_overflow = s.spill_overflow;
-          row.capacity = s.capacity;
-          row.grid = std::to_string(s.cells.x) + "x" + std::to_string(s.cells.y) + "x" + std::to_string(s.cells.z);
-          row.padding = ref->params().aabb_padding;
-        }
-#ifdef GRIDRT_HAVE_VULKAN
-        if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get())) {
-          // Host times on lavapipe; timestamps where the device has them
-          if (vk->timings().build_ms > 0.0) row.build_ms = vk->timings().build_ms;
-          const shared::GridParams g = reference::choose_grid(scene, 0.0f, go);
-          const shared::SpillHeader& sh = vk->spill_header();
-          row.spill_on = (vk->params().flags & shared::kGridSpill) != 0u;
-          row.spill_stored = std::min(sh.count, sh.capacity);
-          row.spill_overflow = row.spill_on && sh.count > sh.capacity ? sh.count - sh.capacity : 0u;
-          row.capacity = g.capacity;
-          row.padding = g.aabb_padding;
-          row.grid = std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" + std::to_string(g.cells.z);
-          // Saturated cells from the image's status texels
-          for (uint32_t z = 0; z < g.cells.z; ++z)
-            for (uint32_t y = 0; y < g.cells.y; ++y)
-              for (uint32_t x = 0; x < g.cells.x; ++x)
-                row.saturated += dump.texels[shared::texel_index(shared::cell_status_texel(g, {x, y, z}), dump.extent)] != 0u;
-        }
-#endif
-        row.acc = accuracy(want, got);
-        row.work = reference::measured_work(rays, got);
-        if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
-          for (size_t i = 0; i < rays.size(); ++i)
-            row.why[size_t(reference::classify_difference(ref->data(), rays[i], got[i], want[i]))] += 1;
         rows.push_back(row);
         progress.advance();
       }
@@ -541,7 +562,7 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--backend,-b", o->backends, "Backends: cpu, vulkan (comma separated)")->delimiter(',');
   cmd->add_option("--width", o->width, "Gather buffer width")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Gather buffer height")->check(CLI::Range(1u, 16384u));
-  cmd->add_option("--out,-o", o->out, "Output folder (per scene: NAME.csv, NAME.md, NAME.png)");
+  cmd->add_option("-o,--output-dir", o->out, "Output folder, not a file (per scene: NAME.csv, NAME.md, NAME.png)");
   cmd->add_option("--rays", o->rays,
                   "The rays swept: auto (the frame's glossy bounce rays, else diffuse bounces), glossy, primary, "
                   "diffuse, or a verify family (random, surface, edge, ...); about WIDTH x HEIGHT of them");

@@ -5,11 +5,11 @@
 // line; 3 the tracer is wrong or cracks.
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <memory>
 
 #include "apps/backends.h"
 #include "apps/commands.h"
+#include "gridrt/common/safe_io.h"
 #include "verify/verify.h"
 
 namespace gridrt::app {
@@ -75,13 +75,7 @@ void run_verify(const VerifyCliOptions& o) {
                      {"seed", o.seed},
                      {"families", verify::to_json(results)},
                      {"failures", failures}};
-    const std::string tmp = o.json + ".tmp";
-    {
-      std::ofstream f(tmp);
-      f << j.dump(2) << "\n";
-      if (!f) throw Error("cannot write '" + o.json + "'");
-    }
-    std::rename(tmp.c_str(), o.json.c_str());
+    write_file_atomically(o.json, "JSON report", j.dump(2) + "\n");
   }
   if (failures > 0 && (exact || o.strict)) {
     std::printf("verify: FAIL: %zu wrong answers, cracks or NaN t\n", failures);
@@ -99,12 +93,12 @@ void add_verify_command(CLI::App& app) {
       "verify",
       "A tracer against Embree on adversarial ray families, every difference judged by an exact referee "
       "(exit 3 where the exact traversal is wrong or cracks)");
-  cmd->add_option("scene", o->scene, "Scene file, mesh or builtin:NAME (default: the built-in scene)");
+  add_scene_argument(cmd, o->scene);
   cmd->add_option("--backend,-b", o->backend, "cpu or vulkan");
   cmd->add_option("--families", o->families,
                   "Ray families (comma separated; default all): " + verify::family_list() + ", translated")
       ->delimiter(',');
-  cmd->add_option("--rays,-n", o->rays, "Rays per family")->check(CLI::Range(size_t(1), size_t(10000000)));
+  cmd->add_option("-n,--rays-per-family", o->rays, "Rays per family")->check(CLI::Range(size_t(1), size_t(10000000)));
   cmd->add_option("--seed", o->seed, "Seed of the ray generation");
   cmd->add_flag("--no-translated", o->no_translated, "Skip the run on the scene moved far from the origin");
   cmd->add_option("--offset", o->offset, "Offset X,Y,Z of the translated run (default 1e5,-5e4,7.5e4)")

@@ -34,7 +34,7 @@ struct PortalRenderOptions {
   std::string scene;             // a .map, builtin:level, or a scene to voxelize
   std::string backend = "portal-cpu";
   std::string output = "render.png";
-  uint32_t width = 720, height = 360;  // the seed's resolution
+  uint32_t width = 720, height = 360;  // the paper's resolution
   uint32_t voxels = 64;
   bool separate_loops = false;
   std::string view = "shaded";   // shaded, or divs / dda: per-pixel work (portal_views.cpp)

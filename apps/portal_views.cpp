@@ -15,6 +15,7 @@
 namespace gridrt::app {
 
 portal::World load_world(const std::string& spec, uint32_t voxels);  // cmd_portal.cpp
+portal::PortalOptions portal_options(const std::string& div_choice, uint32_t atlas_width, bool progress);  // cmd_portal.cpp
 
 void run_portal_view(const PortalRenderOptions& o) {
   check_frame_size(o.width, o.height);
@@ -26,16 +27,10 @@ void run_portal_view(const PortalRenderOptions& o) {
   check_output_path(o.output);
   portal::World world = load_world(o.scene, o.voxels);
   const Camera camera = world.camera;
-  portal::PortalOptions options;
-  options.progress = false;
-  options.choice = portal::parse_div_choice(o.div_choice);
-  options.atlas_width = o.atlas_width;
+  const portal::PortalOptions options = portal_options(o.div_choice, o.atlas_width, false);
   portal::PortalBuild build = portal::build_portal(std::move(world), options);
   const size_t n = size_t(o.width) * o.height;
-  std::vector<Ray> rays;
-  rays.reserve(n);
-  for (uint32_t y = 0; y < o.height; ++y)
-    for (uint32_t x = 0; x < o.width; ++x) rays.push_back(camera_ray(camera, o.width, o.height, x, y));
+  const std::vector<Ray> rays = camera_rays(camera, o.width, o.height);
   std::vector<Hit> hits(n);
   const std::string world_name = build.world.name;
   const glm::uvec3 dims = build.world.dims;

@@ -71,6 +71,47 @@ std::string traversal_name(const reference::GridOptions& g) {
   return g.traversal == reference::Traversal::paper ? "paper" : "exact";
 }
 
+#ifdef GRIDRT_HAVE_VULKAN
+// --view diff: the Vulkan shader's hit records against the reference's `px`, pixel by pixel.
+void diff_view(const ViewOptions& o, const Scene& scene, const reference::GridOptions& grid, const std::vector<Ray>& rays,
+               const std::vector<PixelRecord>& px, size_t used, const plot::LegendEntry& no_ray, plot::ImageFigure& f) {
+  const size_t n = rays.size();
+  vulkan::VulkanGridOptions vk;
+  vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+  vulkan::VulkanGridTracer gpu(grid, vk);
+  gpu.build(scene, o.time);
+  std::vector<Hit> got(n);
+  gpu.trace(rays, got);
+  size_t bits = 0, floats = 0, other = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (!px[i].used) continue;
+    const Hit& a = px[i].hit;
+    const Hit& b = got[i];
+    if (std::memcmp(&a, &b, sizeof a) == 0) {
+      ++bits;
+      f.rgb[i] = plot::colors::white;
+    } else if (a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags && a.cells == b.cells &&
+               a.tests == b.tests) {
+      ++floats;
+      f.rgb[i] = plot::colors::orange;
+    } else {
+      ++other;
+      f.rgb[i] = plot::colors::red;
+    }
+  }
+  char t[200];
+  std::snprintf(t, sizeof t, "CPU reference vs Vulkan (%s): %zu of %zu rays differ", gpu.context().info().name.c_str(),
+                floats + other, used);
+  f.title = t;
+  f.legend = {{plot::colors::white, "identical bits"},
+              {plot::colors::orange, "t, u or v differ"},
+              {plot::colors::red, "another hit or counters"}};
+  if (used < n) f.legend.push_back(no_ray);
+  std::printf("diff: %zu rays: %zu identical in bits, %zu differ in floats only, %zu differ in the hit\n", used, bits,
+              floats, other);
+}
+#endif
+
 }  // namespace
 
 void run_view(const ViewOptions& options) {
@@ -98,13 +139,9 @@ void run_view(const ViewOptions& options) {
   // The rays: glossy bounces off a gather buffer made through the exact traversal, or camera rays.
   const uint32_t w = o.width, h = o.height;
   const size_t n = size_t(w) * h;
-  std::vector<Ray> rays(n);
-  const auto camera_rays = [&] {
-    for (uint32_t y = 0; y < h; ++y)
-      for (uint32_t x = 0; x < w; ++x) rays[size_t(y) * w + x] = camera_ray(scene.frame_camera(), w, h, x, y);
-  };
+  std::vector<Ray> rays;
   if (o.primary) {
-    camera_rays();
+    rays = camera_rays(scene.frame_camera(), w, h);
   } else {
     reference::ReferenceGridTracer gather_tracer(plan::gather_options(grid));
     gather_tracer.build(scene, o.time);
@@ -119,7 +156,7 @@ void run_view(const ViewOptions& options) {
     // A scene without glossy materials: the camera rays (as the trace-cost policy samples it)
     std::fprintf(stderr, "view: %s has no glossy bounce ray: showing the camera rays\n", scene.name.c_str());
     o.primary = true;
-    camera_rays();
+    rays = camera_rays(scene.frame_camera(), w, h);
     used = n;
   }
 
@@ -190,39 +227,7 @@ void run_view(const ViewOptions& options) {
          [](const PixelRecord& p) { return p.spill; });
   } else if (o.view == "diff") {
 #ifdef GRIDRT_HAVE_VULKAN
-    vulkan::VulkanGridOptions vk;
-    vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
-    vulkan::VulkanGridTracer gpu(grid, vk);
-    gpu.build(scene, o.time);
-    std::vector<Hit> got(n);
-    gpu.trace(rays, got);
-    size_t bits = 0, floats = 0, other = 0;
-    for (size_t i = 0; i < n; ++i) {
-      if (!px[i].used) continue;
-      const Hit& a = px[i].hit;
-      const Hit& b = got[i];
-      if (std::memcmp(&a, &b, sizeof a) == 0) {
-        ++bits;
-        f.rgb[i] = plot::colors::white;
-      } else if (a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags && a.cells == b.cells &&
-                 a.tests == b.tests) {
-        ++floats;
-        f.rgb[i] = plot::colors::orange;
-      } else {
-        ++other;
-        f.rgb[i] = plot::colors::red;
-      }
-    }
-    char t[200];
-    std::snprintf(t, sizeof t, "CPU reference vs Vulkan (%s): %zu of %zu rays differ", gpu.context().info().name.c_str(),
-                  floats + other, used);
-    f.title = t;
-    f.legend = {{plot::colors::white, "identical bits"},
-                {plot::colors::orange, "t, u or v differ"},
-                {plot::colors::red, "another hit or counters"}};
-    if (used < n) f.legend.push_back(no_ray);
-    std::printf("diff: %zu rays: %zu identical in bits, %zu differ in floats only, %zu differ in the hit\n", used, bits,
-                floats, other);
+    diff_view(o, scene, grid, rays, px, used, no_ray, f);
 #endif
   }
   plot::draw_image_figure(f).write(o.output);

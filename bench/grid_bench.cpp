@@ -1,21 +1,26 @@
 // grid_bench: the reference grid's build, update and trace times, rays/s and memory on built-in
 // and scene-file scenes, beside Embree on the same rays, and its agreement with Embree.
-//   gridrt_grid_bench [--threads N] [--size WxH] [--repeat R] [--exact] [--first-empty]
-//                     [--max-dim D] [--spill auto|on|off] SCENE...   (SCENE: builtin:NAME, a .json, ...)
+//   gridrt_grid_bench [--threads N] [--width W] [--height H] [--repeat R] [--traversal paper|exact]
+//                     [--insertion sorted|first-empty] [--cell-test auto|sphere|box]
+//                     [--max-image-dimension D] [--spill auto|on|off]
+//                     SCENE...   (SCENE: builtin:NAME, a .json, ...; the option names are gridrt's)
 // Rays: the camera's primary rays, then one mirror bounce per primary hit off the gather buffer
 // (the paper's use). Times: the best of R runs, wall clock.
 #include <algorithm>
-#include <bit>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <map>
 #include <string>
 #include <vector>
+
+#include <CLI/CLI.hpp>
 
 #include "gridrt/common/camera.h"
 #include "gridrt/common/gather.h"
 #include "gridrt/common/scene_io.h"
+#include "gridrt/common/util.h"
 #include "gridrt/reference/grid.h"
 #ifdef GRIDRT_BENCH_EMBREE
 #include "gridrt/common/embree/embree_tracer.h"
@@ -40,9 +45,7 @@ double best_ms(int repeat, F&& f) {
 std::vector<Ray> make_rays(const Scene& scene, Tracer& primary, uint32_t w, uint32_t h) {
   const Camera cam = scene.frame_camera();
   const GatherBuffer gb = make_gather(scene, primary, cam, w, h, 0.0f);
-  std::vector<Ray> rays;
-  for (uint32_t y = 0; y < h; ++y)
-    for (uint32_t x = 0; x < w; ++x) rays.push_back(camera_ray(cam, w, h, x, y));
+  std::vector<Ray> rays = camera_rays(cam, w, h);
   for (size_t i = 0; i < gb.size(); ++i) {
     if (!gb.valid[i]) continue;
     const glm::vec3 n = gb.normal[i], d = gb.incident[i];
@@ -65,22 +68,31 @@ int main(int argc, char** argv) {
   uint32_t w = 320, h = 240;
   int repeat = 3;
   std::vector<std::string> scenes;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--threads" && i + 1 < argc) o.threads = unsigned(std::atoi(argv[++i]));
-    else if (a == "--size" && i + 1 < argc) std::sscanf(argv[++i], "%ux%u", &w, &h);
-    else if (a == "--repeat" && i + 1 < argc) repeat = std::atoi(argv[++i]);
-    else if (a == "--max-dim" && i + 1 < argc) o.max_image_dimension = uint32_t(std::atoi(argv[++i]));
-    else if (a == "--exact") o.traversal = reference::Traversal::exact;
-    else if (a == "--first-empty") o.insertion = reference::Insertion::first_empty;
-    else if (a == "--spill" && i + 1 < argc) {
-      const std::string v = argv[++i];
-      o.spill = v == "on" ? reference::GridOptions::Spill::on
-                : v == "off" ? reference::GridOptions::Spill::off
-                             : reference::GridOptions::Spill::automatic;
-    }
-    else scenes.push_back(a);
-  }
+  using GO = reference::GridOptions;
+  CLI::App app("gridrt_grid_bench: the reference grid's build, update and trace beside Embree on the same rays");
+  app.add_option("scenes", scenes, "Scenes: builtin:NAME, a scene file or a mesh (default: cornell, teapot, atrium)");
+  app.add_option("--threads", o.threads, "CPU threads (0: all)");
+  app.add_option("--width", w, "Gather buffer width")->check(CLI::Range(1u, 16384u));
+  app.add_option("--height", h, "Gather buffer height")->check(CLI::Range(1u, 16384u));
+  app.add_option("--repeat", repeat, "Time each phase this many times (best)")->check(CLI::Range(1, 1000));
+  app.add_option("--traversal", o.traversal, "The trace: the paper's segments or the exact cell walk (default paper)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, reference::Traversal>{
+          {"paper", reference::Traversal::paper}, {"exact", reference::Traversal::exact}}).description(""))
+      ->type_name("paper|exact");
+  app.add_option("--insertion", o.insertion, "How a reference takes a slot in its cell (default sorted)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, reference::Insertion>{
+          {"sorted", reference::Insertion::sorted}, {"first-empty", reference::Insertion::first_empty}}).description(""))
+      ->type_name("sorted|first-empty");
+  app.add_option("--cell-test", o.cell_test, "Which cells of a triangle's range take it (auto: box for the exact traversal)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, GO::CellTest>{
+          {"auto", GO::CellTest::automatic}, {"sphere", GO::CellTest::sphere}, {"box", GO::CellTest::box}}).description(""))
+      ->type_name("auto|sphere|box");
+  app.add_option("--max-image-dimension", o.max_image_dimension, "Largest grid image dimension");
+  app.add_option("--spill", o.spill, "The list of references that find no slot (auto: on for the exact traversal)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, GO::Spill>{
+          {"auto", GO::Spill::automatic}, {"on", GO::Spill::on}, {"off", GO::Spill::off}}).description(""))
+      ->type_name("auto|on|off");
+  CLI11_PARSE(app, argc, argv);
   if (scenes.empty()) scenes = {"builtin:cornell", "builtin:teapot", "builtin:atrium"};
   const unsigned threads = reference::thread_count(o);
   std::printf("threads %u, %ux%u camera rays + mirror bounces, best of %d, traversal %s, insertion %s, max image dim %u, "
@@ -122,8 +134,7 @@ int main(int argc, char** argv) {
       holes += is_miss(hits[i]) && !is_miss(want[i]);
       if (!is_miss(hits[i]) && !is_miss(want[i]) && !(hits[i].flags & shared::kHitGapFill) &&
           (hits[i].instance != want[i].instance || hits[i].triangle != want[i].triangle)) {
-        const uint32_t a = std::bit_cast<uint32_t>(hits[i].t), b = std::bit_cast<uint32_t>(want[i].t);
-        const uint32_t ulps = a > b ? a - b : b - a;
+        const uint32_t ulps = ulp_distance(hits[i].t, want[i].t);
         if (ulps <= 64u) ++ties, tie_ulps = std::max(tie_ulps, ulps);
       }
     }

@@ -49,4 +49,12 @@ Ray camera_ray(const Camera& camera, uint32_t width, uint32_t height, uint32_t x
   return ray;
 }
 
+std::vector<Ray> camera_rays(const Camera& camera, uint32_t width, uint32_t height) {
+  std::vector<Ray> rays;
+  rays.reserve(size_t(width) * height);
+  for (uint32_t y = 0; y < height; ++y)
+    for (uint32_t x = 0; x < width; ++x) rays.push_back(camera_ray(camera, width, height, x, y));
+  return rays;
+}
+
 }  // namespace gridrt

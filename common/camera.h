@@ -1,6 +1,8 @@
 // camera.h: primary rays of a pinhole camera.
 #pragma once
 
+#include <vector>
+
 #include <cstdint>
 
 #include "gridrt/common/scene.h"
@@ -15,6 +17,8 @@ namespace gridrt {
 // Throws Error for an empty image, a pixel outside it, or a degenerate camera (eye == target, or
 // up parallel to the view direction).
 Ray camera_ray(const Camera& camera, uint32_t width, uint32_t height, uint32_t x, uint32_t y);
+// Every pixel's camera_ray, row by row from the top (ray y * width + x).
+std::vector<Ray> camera_rays(const Camera& camera, uint32_t width, uint32_t height);
 
 // The camera's orthonormal frame: right, up, and forward (towards the target).
 struct CameraFrame {

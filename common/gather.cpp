@@ -20,27 +20,31 @@ float cone_cos_max(float glossiness) {
   return std::cos((1.0f - glossiness) * (0.5f * std::numbers::pi_v<float>));
 }
 
-GatherBuffer make_gather(const Scene& scene, Tracer& tracer, const Camera& camera, uint32_t width,
-                         uint32_t height, float time) {
-  if (width == 0 || height == 0) throw Error("gather buffer: image size must be at least 1 x 1");
+GatherBuffer GatherBuffer::blank(uint32_t width, uint32_t height) {
   GatherBuffer g;
   g.width = width;
   g.height = height;
-  g.time = time;
   const size_t n = g.size();
-  std::vector<Ray> rays(n);
-  for (uint32_t y = 0; y < height; ++y)
-    for (uint32_t x = 0; x < width; ++x) rays[size_t(y) * width + x] = camera_ray(camera, width, height, x, y);
-  g.hit.resize(n);
-  tracer.trace(rays, g.hit);
-
   g.valid.assign(n, 0);
   g.position.assign(n, glm::vec3(0.0f));
   g.normal.assign(n, glm::vec3(0.0f));
-  g.incident.resize(n);
+  g.incident.assign(n, glm::vec3(0.0f));
   g.material.assign(n, kNoMaterial);
   g.uv.assign(n, glm::vec2(0.0f));
   g.launch_ref.assign(n, shared::kNoRef);
+  g.hit.assign(n, Hit{0.0f, shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0});
+  return g;
+}
+
+GatherBuffer make_gather(const Scene& scene, Tracer& tracer, const Camera& camera, uint32_t width,
+                         uint32_t height, float time) {
+  if (width == 0 || height == 0) throw Error("gather buffer: image size must be at least 1 x 1");
+  GatherBuffer g = GatherBuffer::blank(width, height);
+  g.time = time;
+  const size_t n = g.size();
+  const std::vector<Ray> rays = camera_rays(camera, width, height);
+  tracer.trace(rays, g.hit);
+
   std::vector<shared::Affine> transforms(scene.instances.size());
   for (size_t i = 0; i < scene.instances.size(); ++i) transforms[i] = shared::to_affine(scene.instances[i].transform_at(time));
   for (size_t p = 0; p < n; ++p) {

@@ -27,6 +27,8 @@ struct GatherBuffer {
   std::vector<Hit> hit;               // the primary hit records
 
   size_t size() const { return size_t(width) * height; }
+  // width x height pixels where no primary ray hit a surface (the state before a gather).
+  static GatherBuffer blank(uint32_t width, uint32_t height);
 };
 
 // Trace one primary ray per pixel through `tracer` (already built and updated to `time`) and fill

@@ -1,5 +1,5 @@
-// util.h: small utilities every layer uses: wall-clock milliseconds and the distance of two floats
-// in units in the last place.
+// util.h: small utilities every layer uses: wall-clock milliseconds and seconds, and the distance
+// of two floats in units in the last place.
 #pragma once
 
 #include <algorithm>
@@ -13,6 +13,11 @@ namespace gridrt {
 // Milliseconds since `t0` on the steady clock.
 inline double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Seconds since `t0` on the steady clock.
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // Distance of two floats in units in the last place on the ordered line of floats (-0 and +0 meet

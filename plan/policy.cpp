@@ -169,8 +169,7 @@ WorkSample work_sample(const Scene& scene, float time, const GridParams& base, c
   if (s.rays.empty()) {
     // No glossy material: the grid traces camera rays (the CPU render's primary rays)
     s.bounce = false;
-    for (uint32_t y = 0; y < h; ++y)
-      for (uint32_t x = 0; x < w; ++x) s.rays.push_back(camera_ray(camera, w, h, x, y));
+    s.rays = camera_rays(camera, w, h);
   }
   std::vector<Hit> hits(s.rays.size());
   caster.trace(s.rays, hits);

@@ -167,7 +167,7 @@ TEST_CASE("Grid vs Embree on the real scenes (paper and exact)", "[oracle][grid]
   }
 }
 
-// Issue 5: exact mode agrees with Embree on every ray of the real scenes, up to ties, with no holes,
+// Exact mode agrees with Embree on every ray of the real scenes, up to ties, with no holes,
 // at lavapipe's 4096 limit where cells saturate: the spill list keeps what the slots drop. Camera
 // rays and mirror bounces (64x48), the Moller-Trumbore and the watertight test.
 TEST_CASE("Exact mode with the spill list agrees with Embree on every ray of the real scenes at 4096",

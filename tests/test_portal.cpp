@@ -1,5 +1,5 @@
 // test_portal.cpp: the portal ("div") tracer ("A Novel Raytracing Algorithm for GPU") against independent truth: brute-force
-// box enumeration, the world's occupancy, the exact voxel DDA, the seed's own 2D example.
+// box enumeration, the world's occupancy, the exact voxel DDA, the paper's own 2D example.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -297,11 +297,11 @@ TEST_CASE("Portal: rays along voxel edges and corners, axis-aligned rays, tmax",
   CHECK(is_miss(trace_dda(b.world, shortr)));
 }
 
-TEST_CASE("Portal: heuristic picks the seed's 3x1 / 1x3 divs", "[portal][unit]") {
-  // The seed's arrangement: a row of three cells and a column of three sharing the top-left cell
+TEST_CASE("Portal: heuristic picks the paper's 3x1 / 1x3 divs", "[portal][unit]") {
+  // The paper's arrangement: a row of three cells and a column of three sharing the top-left cell
   // T, entered from the left and from the top. T sits at the world's corner so that rays enter
   // from outside (through the world's -X and -Z faces) without widening the divs; the walls are
-  // 8 voxels tall so that the flux is nearly the seed's 2D one. Map rows run along +z.
+  // 8 voxels tall so that the flux is nearly the paper's 2D one. Map rows run along +z.
   const World w = parse_tile_map("size 4 4 8\nmap\nE..1\n.111\n.111\n1111\n", "seed-example");
   const PortalBuild b = build_portal(w, PortalOptions{64, 64, 1, false});
   const glm::ivec3 v(0, 4, 0);  // T, half way up

@@ -610,7 +610,7 @@ TEST_CASE("Vulkan grid timings on the atrium", "[.vkbench]") {
   WARN(out.str());
 }
 
-// Issue 5's knobs in the shaders: the watertight triangle test (a specialization constant) and
+// The accuracy knobs in the shaders: the watertight triangle test (a specialization constant) and
 // every slot axis (the image's x carries the slots of scene axis x, y or z) give images identical
 // texel for texel and hit records identical in bits, paper and exact, after an update.
 TEST_CASE("Vulkan grid: watertight test and slot axes identical in bits to the reference", "[vulkan][diff][grid]") {

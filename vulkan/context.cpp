@@ -653,34 +653,42 @@ void Context::require_image3d(glm::uvec3 extent) const {
   require_allocation(bytes, "the grid image");
 }
 
-Image3D Context::create_image3d(glm::uvec3 extent) {
-  require_image3d(extent);
+Image3D Context::create_image(VkImageType type, VkFormat format, glm::uvec3 extent, VkImageUsageFlags usage,
+                              VkImageAspectFlags aspect, const char* what) {
   Image3D img;
   img.device = device_;
   img.extent = extent;
   VkImageCreateInfo ci{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
-  ci.imageType = VK_IMAGE_TYPE_3D;
-  ci.format = VK_FORMAT_R32_UINT;
+  ci.imageType = type;
+  ci.format = format;
   ci.extent = {extent.x, extent.y, extent.z};
   ci.mipLevels = 1;
   ci.arrayLayers = 1;
   ci.samples = VK_SAMPLE_COUNT_1_BIT;
   ci.tiling = VK_IMAGE_TILING_OPTIMAL;
-  ci.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+  ci.usage = usage;
   ci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   ci.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
   GRIDRT_VK_CHECK(vkCreateImage(device_, &ci, nullptr, &img.image));
   VkMemoryRequirements req{};
   vkGetImageMemoryRequirements(device_, img.image, &req);
+  if (what) require_allocation(req.size, what);
   img.memory = allocate(req, Memory::Device, nullptr);
   GRIDRT_VK_CHECK(vkBindImageMemory(device_, img.image, img.memory, 0));
 
   VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   vi.image = img.image;
-  vi.viewType = VK_IMAGE_VIEW_TYPE_3D;
-  vi.format = VK_FORMAT_R32_UINT;
-  vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+  vi.viewType = type == VK_IMAGE_TYPE_3D ? VK_IMAGE_VIEW_TYPE_3D : VK_IMAGE_VIEW_TYPE_2D;
+  vi.format = format;
+  vi.subresourceRange = {aspect, 0, 1, 0, 1};
   GRIDRT_VK_CHECK(vkCreateImageView(device_, &vi, nullptr, &img.view));
+  return img;
+}
+
+Image3D Context::create_image3d(glm::uvec3 extent) {
+  require_image3d(extent);
+  Image3D img = create_image(VK_IMAGE_TYPE_3D, VK_FORMAT_R32_UINT, extent,
+                             VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);
 
   // The image lives in GENERAL from here on: storage access and transfers alike.
   submit([&](VkCommandBuffer cb) {

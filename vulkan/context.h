@@ -98,7 +98,8 @@ struct Buffer {
   void* mapped = nullptr;  // non-null when host-visible and coherent
 };
 
-// A 3D storage image of R32_UINT texels in VK_IMAGE_LAYOUT_GENERAL, with its view.
+// An image with its memory and view: the grid's 3D storage image of R32_UINT texels (in
+// VK_IMAGE_LAYOUT_GENERAL), and as well the portal's textures and the gather's attachments.
 struct Image3D {
   Image3D() = default;
   Image3D(Image3D&& o) noexcept { *this = std::move(o); }
@@ -161,6 +162,11 @@ class Context {
   // 3D storage images of R32_UINT. The extent is checked against maxImageDimension3D and the
   // format's image limits first.
   Image3D create_image3d(glm::uvec3 extent);
+  // Any image (Image3D holds a 2D one as well): `type` and `format`, one mip level and layer,
+  // optimal tiling, `usage`, in device memory, with a view of `aspect`; left UNDEFINED. With `what`,
+  // the allocation is checked first (require_allocation).
+  Image3D create_image(VkImageType type, VkFormat format, glm::uvec3 extent, VkImageUsageFlags usage,
+                       VkImageAspectFlags aspect = VK_IMAGE_ASPECT_COLOR_BIT, const char* what = nullptr);
   void clear(const Image3D& image, uint32_t value);
   void upload(const Image3D& image, std::span<const uint32_t> texels);
   std::vector<uint32_t> download(const Image3D& image);

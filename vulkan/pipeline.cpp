@@ -147,71 +147,58 @@ Descriptors::~Descriptors() {
   if (layout_) vkDestroyDescriptorSetLayout(ctx_.device(), layout_, nullptr);
 }
 
-void Descriptors::bind(uint32_t binding, const Buffer& buffer) {
-  if (binding >= types_.size() || (types_[binding] != VK_DESCRIPTOR_TYPE_STORAGE_BUFFER &&
-                                   types_[binding] != VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER))
-    throw Error("descriptor binding " + std::to_string(binding) + " is not a buffer");
-  const VkDescriptorBufferInfo info{buffer.buffer, 0, VK_WHOLE_SIZE};
+void Descriptors::write(uint32_t binding, std::initializer_list<VkDescriptorType> allowed, const char* what,
+                        const VkDescriptorBufferInfo* buffer, const VkDescriptorImageInfo* image, const void* next) {
+  if (binding >= types_.size() || std::find(allowed.begin(), allowed.end(), types_[binding]) == allowed.end())
+    throw Error("descriptor binding " + std::to_string(binding) + " is not " + what);
   VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.pNext = next;
   w.dstSet = set_;
   w.dstBinding = binding;
   w.descriptorCount = 1;
   w.descriptorType = types_[binding];
-  w.pBufferInfo = &info;
+  w.pBufferInfo = buffer;
+  w.pImageInfo = image;
   vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
+}
+
+void Descriptors::bind(uint32_t binding, const Buffer& buffer) {
+  const VkDescriptorBufferInfo info{buffer.buffer, 0, VK_WHOLE_SIZE};
+  write(binding, {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER}, "a buffer", &info, nullptr);
 }
 
 void Descriptors::bind(uint32_t binding, const Image3D& image) {
-  if (binding >= types_.size() || types_[binding] != VK_DESCRIPTOR_TYPE_STORAGE_IMAGE)
-    throw Error("descriptor binding " + std::to_string(binding) + " is not a storage image");
   const VkDescriptorImageInfo info{VK_NULL_HANDLE, image.view, VK_IMAGE_LAYOUT_GENERAL};
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.dstSet = set_;
-  w.dstBinding = binding;
-  w.descriptorCount = 1;
-  w.descriptorType = types_[binding];
-  w.pImageInfo = &info;
-  vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
+  write(binding, {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE}, "a storage image", nullptr, &info);
 }
 
 void Descriptors::bind(uint32_t binding, VkImageView view, VkImageLayout layout) {
-  if (binding >= types_.size() || (types_[binding] != VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE &&
-                                   types_[binding] != VK_DESCRIPTOR_TYPE_STORAGE_IMAGE))
-    throw Error("descriptor binding " + std::to_string(binding) + " is not a sampled or storage image");
   const VkDescriptorImageInfo info{VK_NULL_HANDLE, view, layout};
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.dstSet = set_;
-  w.dstBinding = binding;
-  w.descriptorCount = 1;
-  w.descriptorType = types_[binding];
-  w.pImageInfo = &info;
-  vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
+  write(binding, {VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE}, "a sampled or storage image", nullptr,
+        &info);
 }
 
 void Descriptors::bind(uint32_t binding, VkAccelerationStructureKHR structure) {
-  if (binding >= types_.size() || types_[binding] != VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR)
-    throw Error("descriptor binding " + std::to_string(binding) + " is not an acceleration structure");
   VkWriteDescriptorSetAccelerationStructureKHR as{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
   as.accelerationStructureCount = 1;
   as.pAccelerationStructures = &structure;
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.pNext = &as;
-  w.dstSet = set_;
-  w.dstBinding = binding;
-  w.descriptorCount = 1;
-  w.descriptorType = types_[binding];
-  vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
+  write(binding, {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR}, "an acceleration structure", nullptr, nullptr, &as);
 }
 
 // ---- Pipeline ----
 
-VkShaderModule Pipeline::module(std::string_view name) {
-  const std::vector<uint32_t> words = patch_float_controls(shader_spirv(name), FloatControls::for_device(ctx_.info()));
+VkShaderModule create_shader_module(Context& ctx, std::string_view name) {
+  const std::vector<uint32_t> words = patch_float_controls(shader_spirv(name), FloatControls::for_device(ctx.info()));
   VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
   ci.codeSize = words.size() * 4;
   ci.pCode = words.data();
   VkShaderModule m = VK_NULL_HANDLE;
-  GRIDRT_VK_CHECK(vkCreateShaderModule(ctx_.device(), &ci, nullptr, &m));
+  GRIDRT_VK_CHECK(vkCreateShaderModule(ctx.device(), &ci, nullptr, &m));
+  return m;
+}
+
+VkShaderModule Pipeline::module(std::string_view name) {
+  const VkShaderModule m = create_shader_module(ctx_, name);
   modules_.push_back(m);
   return m;
 }

@@ -31,6 +31,10 @@ struct FloatControls {
 // modules carry none and get what the device supports here.
 std::vector<uint32_t> patch_float_controls(std::span<const uint32_t> words, const FloatControls& fc);
 
+// The embedded shader `name`, patched for the device's float controls, as a module; the caller
+// destroys it.
+VkShaderModule create_shader_module(Context& ctx, std::string_view name);
+
 // Counts of SPIR-V facts the tests check: NoContraction decorations (`precise`), and
 // execution modes by number.
 struct SpirvFacts {
@@ -82,6 +86,11 @@ class Descriptors {
   VkDescriptorSet set() const { return set_; }
 
  private:
+  // Binding `binding` (of one of `allowed` types, else Error naming `what`) to one buffer, image or
+  // (through `next`) acceleration structure.
+  void write(uint32_t binding, std::initializer_list<VkDescriptorType> allowed, const char* what,
+             const VkDescriptorBufferInfo* buffer, const VkDescriptorImageInfo* image, const void* next = nullptr);
+
   Context& ctx_;
   std::vector<VkDescriptorType> types_;
   VkDescriptorSetLayout layout_ = VK_NULL_HANDLE;

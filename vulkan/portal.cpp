@@ -1,5 +1,5 @@
 // portal.cpp: PortalVulkanTracer, the host side of the Vulkan portal tracer (see portal.h). The
-// CPU builds the divs; this file uploads the packed textures as the seed stores them, records the
+// CPU builds the divs; this file uploads the packed textures as the paper stores them, records the
 // trace and render passes (vulkan/shaders/portal_*.comp) and reads the results back.
 #include "gridrt/vulkan/portal.h"
 #include "gridrt/vulkan/ray_pass.h"
@@ -57,8 +57,7 @@ void image_barrier(VkCommandBuffer cb, VkImage image, VkImageLayout from, VkImag
 }
 
 // A sampled texture of `format` (2D when extent.z == 1 and !three_d, else 3D) holding `bytes`,
-// left in SHADER_READ_ONLY_OPTIMAL. Image3D is the context's RAII holder of image, view and
-// memory; nothing in it is specific to 3D or R32_UINT.
+// left in SHADER_READ_ONLY_OPTIMAL.
 Image3D make_texture(Context& ctx, VkFormat format, bool three_d, glm::uvec3 extent, const void* bytes, size_t size,
                      const char* what) {
   const VkPhysicalDeviceLimits& lim = ctx.info().limits;
@@ -69,37 +68,8 @@ Image3D make_texture(Context& ctx, VkFormat format, bool three_d, glm::uvec3 ext
                 (three_d ? "maxImageDimension3D" : "maxImageDimension2D") + " (" + std::to_string(max_dim) + ") on " +
                 ctx.info().name + ": use a smaller world or a narrower atlas, or --backend portal-cpu");
   ctx.require_allocation(size, what);
-  VkDevice dev = ctx.device();
-  Image3D img;
-  img.device = dev;
-  img.extent = extent;
-  VkImageCreateInfo ci{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
-  ci.imageType = three_d ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D;
-  ci.format = format;
-  ci.extent = {extent.x, extent.y, extent.z};
-  ci.mipLevels = 1;
-  ci.arrayLayers = 1;
-  ci.samples = VK_SAMPLE_COUNT_1_BIT;
-  ci.tiling = VK_IMAGE_TILING_OPTIMAL;
-  ci.usage = VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
-  ci.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  ci.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-  GRIDRT_VK_CHECK(vkCreateImage(dev, &ci, nullptr, &img.image));
-  VkMemoryRequirements req{};
-  vkGetImageMemoryRequirements(dev, img.image, &req);
-  uint32_t type = ctx.memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
-  if (type == ~0u) type = ctx.memory_type(req.memoryTypeBits, 0);
-  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
-  ai.allocationSize = req.size;
-  ai.memoryTypeIndex = type;
-  GRIDRT_VK_CHECK(vkAllocateMemory(dev, &ai, nullptr, &img.memory));
-  GRIDRT_VK_CHECK(vkBindImageMemory(dev, img.image, img.memory, 0));
-  VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
-  vi.image = img.image;
-  vi.viewType = three_d ? VK_IMAGE_VIEW_TYPE_3D : VK_IMAGE_VIEW_TYPE_2D;
-  vi.format = format;
-  vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-  GRIDRT_VK_CHECK(vkCreateImageView(dev, &vi, nullptr, &img.view));
+  Image3D img = ctx.create_image(three_d ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D, format, extent,
+                                 VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);
 
   // Upload through a staging buffer; the texture then stays in SHADER_READ_ONLY_OPTIMAL.
   Buffer staging = ctx.create_buffer(std::max<size_t>(size, 16), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, Memory::Host);

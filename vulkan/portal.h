@@ -1,10 +1,10 @@
 // portal.h: the Vulkan port of the portal ("div") tracer ("A Novel Raytracing Algorithm for GPU", docs/PORTAL.md), behind the
 // same interface as reference/portal's PortalTracer and held to it bit for bit on lavapipe. The
 // CPU builds the divs (reference::portal::build_portal); the GPU traces them from the packed
-// textures exactly as the seed stores them:
+// textures exactly as the paper stores them:
 //   atlas     R16_UINT 2D image (neighbour div, wall + material, or outside), texelFetch
 //   div info  RGBA8_UINT 2D image, 8 texels per div, lexicographically packed, texelFetch
-//   start map R16_UINT 3D image, one texel per voxel (not in the seed; docs/PORTAL.md)
+//   start map R16_UINT 3D image, one texel per voxel (not in the paper; docs/PORTAL.md)
 // Passes: portal_trace.comp (one invocation per ray, hit records as PortalTracer's) and
 // portal_render.comp (primary + two shadow rays per pixel, non-forking refraction) as the
 // single-loop state machine or as three separate loops (three dispatches).

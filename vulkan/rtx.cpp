@@ -112,12 +112,7 @@ struct VulkanRtxTracer::Gpu {
   }
 
   VkShaderModule module(std::string_view name) {
-    const std::vector<uint32_t> words = patch_float_controls(shader_spirv(name), FloatControls::for_device(ctx->info()));
-    VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-    ci.codeSize = words.size() * 4;
-    ci.pCode = words.data();
-    VkShaderModule m = VK_NULL_HANDLE;
-    GRIDRT_VK_CHECK(vkCreateShaderModule(ctx->device(), &ci, nullptr, &m));
+    const VkShaderModule m = create_shader_module(*ctx, name);
     modules.push_back(m);
     return m;
   }

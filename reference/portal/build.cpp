@@ -16,13 +16,13 @@
 #include <thread>
 
 #include "gridrt/common/progress.h"
+#include "gridrt/common/util.h"
 
 namespace gridrt::portal {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 unsigned thread_count(unsigned requested) { return thread_count_or_hardware(requested); }
 
@@ -563,159 +563,175 @@ bool box_less(const Box& a, const Box& b) {
   return false;
 }
 
-// The bounded choice (build.h, DivChoice::bounded): candidates, start boxes, then the closure of
-// the stored divs' face textures, round by round, each round's faces evaluated in parallel.
-void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& media, const FluxPrefix& prefix,
-                    const PortalOptions& opt, unsigned T) {
-  const World& w = b.world;
-  const glm::ivec3 dims(w.dims);
-  const size_t N = w.voxel_count();
-  const size_t stride[3] = {1, size_t(dims.x), size_t(dims.x) * dims.y};
-  const bool timing = std::getenv("GRIDRT_PORTAL_TIMING") != nullptr;
-  const uint32_t K = opt.choice_per_run >= 3 ? 3 : 2;  // greedy boxes per run
-  auto tick = Clock::now();
-  auto phase = [&](const char* what) {
-    if (timing) std::fprintf(stderr, "portal build (bounded): %s %.3f s\n", what, since(tick));
-    tick = Clock::now();
-  };
-  auto coords = [&](size_t i) {
+// The runs of passable voxels of one medium along each axis: id[a][voxel] (kNone where opaque),
+// and each run's first voxel.
+struct AxisRuns {
+  glm::ivec3 dims;
+  size_t stride[3];
+  std::vector<uint32_t> id[3];
+  std::vector<uint32_t> start[3];
+  glm::ivec3 coords(size_t i) const {
     return glm::ivec3(int(i % dims.x), int((i / dims.x) % dims.y), int(i / (size_t(dims.x) * dims.y)));
-  };
-  // Runs along each axis: run_id[a][voxel], and each run's first voxel.
-  std::vector<uint32_t> run_id[3];
-  std::vector<uint32_t> run_start[3];
+  }
+};
+
+AxisRuns axis_runs(const MediumGrid& media, glm::ivec3 dims) {
+  AxisRuns R{dims, {1, size_t(dims.x), size_t(dims.x) * dims.y}, {}, {}};
+  const size_t N = size_t(dims.x) * dims.y * dims.z;
   for (int a = 0; a < 3; ++a) {
-    run_id[a].assign(N, kNone);
+    R.id[a].assign(N, kNone);
     for (size_t i = 0; i < N; ++i) {
       const uint32_t m = media.m[i];
       if (m == World::kOpaque) continue;
-      const glm::ivec3 v = coords(i);
-      if (v[a] > 0 && media.m[i - stride[a]] == m) {
-        run_id[a][i] = run_id[a][i - stride[a]];
+      const glm::ivec3 v = R.coords(i);
+      if (v[a] > 0 && media.m[i - R.stride[a]] == m) {
+        R.id[a][i] = R.id[a][i - R.stride[a]];
       } else {
-        run_id[a][i] = uint32_t(run_start[a].size());
-        run_start[a].push_back(uint32_t(i));
+        R.id[a][i] = uint32_t(R.start[a].size());
+        R.start[a].push_back(uint32_t(i));
       }
     }
   }
-  phase("runs");
-  // Media present, one summed-area table each.
-  std::vector<uint32_t> media_present;
-  for (uint32_t i : run_start[0])
-    if (std::find(media_present.begin(), media_present.end(), media.m[i]) == media_present.end())
-      media_present.push_back(media.m[i]);
-  std::sort(media_present.begin(), media_present.end());
-  std::vector<std::unique_ptr<MediumSat>> sats;
-  for (uint32_t m : media_present) sats.push_back(std::make_unique<MediumSat>(media, m));
-  auto sat_of = [&](uint32_t m) -> const MediumSat& {
-    return *sats[size_t(std::lower_bound(media_present.begin(), media_present.end(), m) - media_present.begin())];
+  return R;
+}
+
+// K greedy boxes per run along axis a: along the run's axis, then the other two axes in either
+// order (k = 0, 1), and (k = 2) the alternating box. A run whose neighbour run along the second
+// axis spans the same interval grows into the same box (the second growth finds the same all-m
+// range, the third then starts from the same rectangle), so only the first run of each such stack
+// is grown; the others copy its box. Returns the boxes, [K * run + k].
+std::vector<Box> greedy_boxes(const AxisRuns& runs, const MediumGrid& media,
+                              const std::function<const MediumSat&(uint32_t)>& sat_of, int a, uint32_t K, unsigned T) {
+  const glm::ivec3 dims = runs.dims;
+  const int o1 = (a + 1) % 3, o2 = (a + 2) % 3;
+  const int b1 = std::min(o1, o2), b2 = std::max(o1, o2);
+  const std::vector<uint32_t>& run_id = runs.id[a];
+  const std::vector<uint32_t>& run_start = runs.start[a];
+  const size_t R = run_start.size();
+  auto run_end = [&](uint32_t r) {  // one past the run's last voxel along a
+    glm::ivec3 v = runs.coords(run_start[r]);
+    size_t i = run_start[r];
+    while (v[a] < dims[a] && run_id[i] == r) ++v[a], i += runs.stride[a];
+    return v[a];
   };
-  // Two greedy boxes per run: along the run's axis, then the other two axes in either order. A run
-  // whose neighbour run along the second axis spans the same interval grows into the same box (the
-  // second growth finds the same all-m range, the third then starts from the same rectangle), so
-  // only the first run of each such stack is grown; the others copy its box.
-  std::vector<Box> grown[3];
-  for (int a = 0; a < 3; ++a) {
-    const int o1 = (a + 1) % 3, o2 = (a + 2) % 3;
-    const int b1 = std::min(o1, o2), b2 = std::max(o1, o2);
-    const size_t R = run_start[a].size();
-    auto run_end = [&](uint32_t r) {  // one past the run's last voxel along a
-      glm::ivec3 v = coords(run_start[a][r]);
-      size_t i = run_start[a][r];
-      while (v[a] < dims[a] && run_id[a][i] == r) ++v[a], i += stride[a];
-      return v[a];
-    };
-    std::vector<uint32_t> end(R);
-    parallel_for((R + 4095) / 4096, T, [&](size_t c) {
-      for (size_t r = c * 4096; r < std::min(R, (c + 1) * 4096); ++r) end[r] = uint32_t(run_end(uint32_t(r)));
-    });
-    std::vector<uint32_t> root(K * R);
-    std::vector<uint32_t> roots;
-    for (uint32_t r = 0; r < R; ++r)
-      for (int k = 0; k < K; ++k) {
-        if (k == 2) {  // the alternating box: no stack argument, grown for every run
-          root[K * r + k] = K * r + k;
-          roots.push_back(K * r + k);
-          continue;
-        }
-        const int second = k ? b2 : b1;
-        const size_t i = run_start[a][r];
-        const glm::ivec3 v = coords(i);
-        uint32_t src = K * r + k;
-        if (v[second] > 0) {
-          const size_t j = i - stride[second];
-          const uint32_t q = run_id[a][j];
-          if (q != kNone && run_start[a][q] == j && end[q] == end[r] && media.m[j] == media.m[i]) src = root[K * q + k];
-        }
-        root[K * r + k] = src;
-        if (src == K * r + k) roots.push_back(src);
+  std::vector<uint32_t> end(R);
+  parallel_for((R + 4095) / 4096, T, [&](size_t c) {
+    for (size_t r = c * 4096; r < std::min(R, (c + 1) * 4096); ++r) end[r] = uint32_t(run_end(uint32_t(r)));
+  });
+  std::vector<uint32_t> root(K * R);
+  std::vector<uint32_t> roots;
+  for (uint32_t r = 0; r < R; ++r)
+    for (uint32_t k = 0; k < K; ++k) {
+      if (k == 2) {  // the alternating box: no stack argument, grown for every run
+        root[K * r + k] = K * r + k;
+        roots.push_back(K * r + k);
+        continue;
       }
-    grown[a].resize(K * R);
-    const size_t chunk = 256, n = (roots.size() + chunk - 1) / chunk;
-    parallel_for(n, T, [&](size_t c) {
-      for (size_t x = c * chunk; x < std::min(roots.size(), (c + 1) * chunk); ++x) {
-        const uint32_t r = roots[x] / K, k = roots[x] % K;
-        const glm::ivec3 v = coords(run_start[a][r]);
-        const uint32_t m = media.m[run_start[a][r]];
-        glm::ivec3 hi = v + 1;
-        hi[a] = int(end[r]);
-        grown[a][roots[x]] = k == 2   ? grow_alternating(sat_of(m), Box{v, hi, m}, b1, b2)
-                             : k == 1 ? grow_greedy(sat_of(m), Box{v, hi, m}, glm::ivec3(a, b2, b1))
-                                      : grow_greedy(sat_of(m), Box{v, hi, m}, glm::ivec3(a, b1, b2));
+      const int second = k ? b2 : b1;
+      const size_t i = run_start[r];
+      const glm::ivec3 v = runs.coords(i);
+      uint32_t src = K * r + k;
+      if (v[second] > 0) {
+        const size_t j = i - runs.stride[second];
+        const uint32_t q = run_id[j];
+        if (q != kNone && run_start[q] == j && end[q] == end[r] && media.m[j] == media.m[i]) src = root[K * q + k];
       }
-    });
-    for (size_t x = 0; x < K * R; ++x) grown[a][x] = grown[a][root[x]];
-  }
-  sats.clear();
-  phase("greedy boxes");
-  for (int a = 0; a < 3; ++a)
-    for (size_t x = 0; x < grown[a].size(); ++x)
-      if (x == 0 || !(grown[a][x] == grown[a][x - 1])) b.maximal.push_back(grown[a][x]);  // copies are adjacent often
-  std::sort(b.maximal.begin(), b.maximal.end(), box_less);
-  b.maximal.erase(std::unique(b.maximal.begin(), b.maximal.end()), b.maximal.end());
-  std::vector<uint32_t> run_box[3];  // [K * run + k]: index into b.maximal
-  for (int a = 0; a < 3; ++a) {
-    run_box[a].resize(grown[a].size());
-    for (size_t k = 0; k < grown[a].size(); ++k)
-      run_box[a][k] = uint32_t(std::lower_bound(b.maximal.begin(), b.maximal.end(), grown[a][k], box_less) - b.maximal.begin());
-    grown[a] = {};
-  }
-  b.stats.maximal = b.maximal.size();
-  phase("sort");
-  // Candidates of voxel i: up to 3 K distinct indices, ascending.
-  auto candidates = [&](size_t i, uint32_t out[9]) {
+      root[K * r + k] = src;
+      if (src == K * r + k) roots.push_back(src);
+    }
+  std::vector<Box> grown(K * R);
+  const size_t chunk = 256, n = (roots.size() + chunk - 1) / chunk;
+  parallel_for(n, T, [&](size_t c) {
+    for (size_t x = c * chunk; x < std::min(roots.size(), (c + 1) * chunk); ++x) {
+      const uint32_t r = roots[x] / K, k = roots[x] % K;
+      const glm::ivec3 v = runs.coords(run_start[r]);
+      const uint32_t m = media.m[run_start[r]];
+      glm::ivec3 hi = v + 1;
+      hi[a] = int(end[r]);
+      grown[roots[x]] = k == 2   ? grow_alternating(sat_of(m), Box{v, hi, m}, b1, b2)
+                        : k == 1 ? grow_greedy(sat_of(m), Box{v, hi, m}, glm::ivec3(a, b2, b1))
+                                 : grow_greedy(sat_of(m), Box{v, hi, m}, glm::ivec3(a, b1, b2));
+    }
+  });
+  for (size_t x = 0; x < K * R; ++x) grown[x] = grown[root[x]];
+  return grown;
+}
+
+// The candidates of a voxel: the maximal boxes its runs grew into, up to 3 K distinct indices.
+struct Candidates {
+  const AxisRuns& runs;
+  uint32_t K;
+  std::vector<uint32_t> run_box[3];  // [K * run + k]: index into the maximal boxes
+  // Voxel i's candidates, ascending; returns their count.
+  int operator()(size_t i, uint32_t out[9]) const {
     int n = 0;
     for (int a = 0; a < 3; ++a)
-      for (int k = 0; k < K; ++k) {
-        const uint32_t c = run_box[a][K * size_t(run_id[a][i]) + k];
+      for (uint32_t k = 0; k < K; ++k) {
+        const uint32_t c = run_box[a][K * size_t(runs.id[a][i]) + k];
         if (std::find(out, out + n, c) == out + n) out[n++] = c;
       }
     std::sort(out, out + n);
     return n;
-  };
-  // Start boxes: a cover of the passable voxels. In voxel order, a voxel takes the largest of its
-  // candidates already in the cover, else the largest of all its candidates, which joins the cover
-  // (ties: lower index). The cover is far smaller than "each voxel's largest candidate", and every
-  // box in it is stored, so it bounds the atlas.
-  b.start_box.assign(N, kNone);
-  {
-    std::vector<uint8_t> in_cover(b.maximal.size(), 0);
-    uint32_t c[9];
-    for (size_t i = 0; i < N; ++i) {
-      if (media.m[i] == World::kOpaque) continue;
-      const int n = candidates(i, c);
-      uint32_t best = kNone, any = c[0];
-      for (int k = 0; k < n; ++k) {
-        if (b.maximal[c[k]].volume() > b.maximal[any].volume()) any = c[k];
-        if (in_cover[c[k]] && (best == kNone || b.maximal[c[k]].volume() > b.maximal[best].volume())) best = c[k];
-      }
-      if (best == kNone) best = any, in_cover[any] = 1;
-      b.start_box[i] = best;
-    }
   }
-  phase("start cover");
-  // The closure. Faces needed: every texel of every stored div's faces whose voxel beyond is not
-  // opaque (and the exterior div's, the world box entered from outside).
+};
+
+// Start boxes: a cover of the passable voxels. In voxel order, a voxel takes the largest of its
+// candidates already in the cover, else the largest of all its candidates, which joins the cover
+// (ties: lower index). The cover is far smaller than "each voxel's largest candidate", and every
+// box in it is stored, so it bounds the atlas.
+void start_cover(PortalBuild& b, const MediumGrid& media, const Candidates& candidates) {
+  const size_t N = b.world.voxel_count();
+  b.start_box.assign(N, kNone);
+  std::vector<uint8_t> in_cover(b.maximal.size(), 0);
+  uint32_t c[9];
+  for (size_t i = 0; i < N; ++i) {
+    if (media.m[i] == World::kOpaque) continue;
+    const int n = candidates(i, c);
+    uint32_t best = kNone, any = c[0];
+    for (int k = 0; k < n; ++k) {
+      if (b.maximal[c[k]].volume() > b.maximal[any].volume()) any = c[k];
+      if (in_cover[c[k]] && (best == kNone || b.maximal[c[k]].volume() > b.maximal[best].volume())) best = c[k];
+    }
+    if (best == kNone) best = any, in_cover[any] = 1;
+    b.start_box[i] = best;
+  }
+}
+
+// The representative of (u, f): the first voxel, in the world-aligned block x block square of u's
+// plane (normal f / 2) that holds u, whose candidates are u's (cand[0..n)). A function of the world
+// alone, so the choice stays deterministic however the rounds are scheduled.
+glm::ivec3 representative(const World& w, const MediumGrid& media, const Candidates& candidates, int block,
+                          glm::ivec3 u, uint32_t f, const uint32_t* cand, int n) {
+  if (block == 1) return u;
+  const glm::ivec3 dims(w.dims);
+  const int a = int(f / 2), ta = int(shared::portal_tangent0(f / 2)), tb = int(shared::portal_tangent1(f / 2));
+  glm::ivec3 r = u;
+  const int a0 = u[ta] / block * block, b0 = u[tb] / block * block;
+  uint32_t other[9];
+  for (int jb = b0; jb < std::min(b0 + block, dims[tb]); ++jb)
+    for (int ia = a0; ia < std::min(a0 + block, dims[ta]); ++ia) {
+      r[ta] = ia, r[tb] = jb;
+      if (r == u) return u;
+      const size_t ri = w.index(glm::uvec3(r));
+      if (media.m[ri] != media.m[w.index(glm::uvec3(u))]) continue;
+      // Rays must be able to enter r through f as they enter u: the voxel they come from passable.
+      glm::ivec3 from = r;
+      from[a] += (f & 1u) ? 1 : -1;
+      if (w.inside(from) && media(from) == World::kOpaque) continue;
+      if (candidates(ri, other) == n && std::equal(cand, cand + n, other)) return r;
+    }
+  return u;
+}
+
+// The closure. Faces needed: every texel of every stored div's faces whose voxel beyond is not
+// opaque (and the exterior div's, the world box entered from outside). A face's choice may store
+// a new div, whose faces are then needed: rounds over the frontier of new divs, each round's faces
+// evaluated in parallel. Writes b.choice (kNone where no face needed a choice) and the counts.
+void close_faces(PortalBuild& b, const FluxDensity& flux, const MediumGrid& media, const FluxPrefix& prefix,
+                 const Candidates& candidates, const PortalOptions& opt, unsigned T) {
+  const World& w = b.world;
+  const glm::ivec3 dims(w.dims);
+  const size_t N = w.voxel_count();
   std::vector<std::atomic<uint32_t>> choice(N * 6);
   for (auto& c : choice) c.store(kNone, std::memory_order_relaxed);
   std::vector<std::atomic<uint8_t>> stored(b.maximal.size());
@@ -731,26 +747,6 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
   // The representative of (u, f): the first voxel, in the world-aligned block x block square of
   // u's plane (normal f / 2) that holds u, whose candidates are u's. A function of the world alone,
   // so the choice stays deterministic however the rounds are scheduled.
-  auto representative = [&](glm::ivec3 u, uint32_t f, const uint32_t* cand, int n) {
-    if (block == 1) return u;
-    const int a = int(f / 2), ta = int(shared::portal_tangent0(f / 2)), tb = int(shared::portal_tangent1(f / 2));
-    glm::ivec3 r = u;
-    const int a0 = u[ta] / block * block, b0 = u[tb] / block * block;
-    uint32_t other[9];
-    for (int jb = b0; jb < std::min(b0 + block, dims[tb]); ++jb)
-      for (int ia = a0; ia < std::min(a0 + block, dims[ta]); ++ia) {
-        r[ta] = ia, r[tb] = jb;
-        if (r == u) return u;
-        const size_t ri = w.index(glm::uvec3(r));
-        if (media.m[ri] != media.m[w.index(glm::uvec3(u))]) continue;
-        // Rays must be able to enter r through f as they enter u: the voxel they come from passable.
-        glm::ivec3 from = r;
-        from[a] += (f & 1u) ? 1 : -1;
-        if (w.inside(from) && media(from) == World::kOpaque) continue;
-        if (candidates(ri, other) == n && std::equal(cand, cand + n, other)) return r;
-      }
-    return u;
-  };
   std::function<uint32_t(glm::ivec3, uint32_t)> choose = [&](glm::ivec3 u, uint32_t f) -> uint32_t {
     const size_t key = w.index(glm::uvec3(u)) * 6 + f;
     uint32_t c = choice[key].load(std::memory_order_relaxed);
@@ -758,7 +754,7 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
     uint32_t cand[9];
     const int n = candidates(w.index(glm::uvec3(u)), cand);
     uint64_t best = ~0ull;
-    const glm::ivec3 rep = n == 1 ? u : representative(u, f, cand, n);
+    const glm::ivec3 rep = n == 1 ? u : representative(w, media, candidates, block, u, f, cand, n);
     if (n == 1) {
       best = cand[0];
     } else if (rep != u) {
@@ -831,12 +827,60 @@ void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& m
     admit(next);
     frontier = std::move(next);
   }
-  phase("closure");
   b.choice.assign(N * 6, kNone);
   for (size_t i = 0; i < N * 6; ++i) b.choice[i] = choice[i].load(std::memory_order_relaxed);
-  phase("copy");
   b.stats.candidates_evaluated = evaluated;
   b.stats.faces_chosen = faces;
+}
+
+// The bounded choice (build.h, DivChoice::bounded): candidates, start boxes, then the closure of
+// the stored divs' face textures, round by round, each round's faces evaluated in parallel.
+void choose_bounded(PortalBuild& b, const FluxDensity& flux, const MediumGrid& media, const FluxPrefix& prefix,
+                    const PortalOptions& opt, unsigned T) {
+  const glm::ivec3 dims(b.world.dims);
+  const bool timing = std::getenv("GRIDRT_PORTAL_TIMING") != nullptr;
+  const uint32_t K = opt.choice_per_run >= 3 ? 3 : 2;  // greedy boxes per run
+  auto tick = Clock::now();
+  auto phase = [&](const char* what) {
+    if (timing) std::fprintf(stderr, "portal build (bounded): %s %.3f s\n", what, seconds_since(tick));
+    tick = Clock::now();
+  };
+  const AxisRuns runs = axis_runs(media, dims);
+  phase("runs");
+  // Media present, one summed-area table each.
+  std::vector<uint32_t> media_present;
+  for (uint32_t i : runs.start[0])
+    if (std::find(media_present.begin(), media_present.end(), media.m[i]) == media_present.end())
+      media_present.push_back(media.m[i]);
+  std::sort(media_present.begin(), media_present.end());
+  std::vector<std::unique_ptr<MediumSat>> sats;
+  for (uint32_t m : media_present) sats.push_back(std::make_unique<MediumSat>(media, m));
+  auto sat_of = [&](uint32_t m) -> const MediumSat& {
+    return *sats[size_t(std::lower_bound(media_present.begin(), media_present.end(), m) - media_present.begin())];
+  };
+  std::vector<Box> grown[3];
+  for (int a = 0; a < 3; ++a) grown[a] = greedy_boxes(runs, media, sat_of, a, K, T);
+  sats.clear();
+  phase("greedy boxes");
+  for (int a = 0; a < 3; ++a)
+    for (size_t x = 0; x < grown[a].size(); ++x)
+      if (x == 0 || !(grown[a][x] == grown[a][x - 1])) b.maximal.push_back(grown[a][x]);  // copies are adjacent often
+  std::sort(b.maximal.begin(), b.maximal.end(), box_less);
+  b.maximal.erase(std::unique(b.maximal.begin(), b.maximal.end()), b.maximal.end());
+  Candidates candidates{runs, K, {}};
+  for (int a = 0; a < 3; ++a) {
+    candidates.run_box[a].resize(grown[a].size());
+    for (size_t k = 0; k < grown[a].size(); ++k)
+      candidates.run_box[a][k] =
+          uint32_t(std::lower_bound(b.maximal.begin(), b.maximal.end(), grown[a][k], box_less) - b.maximal.begin());
+    grown[a] = {};
+  }
+  b.stats.maximal = b.maximal.size();
+  phase("sort");
+  start_cover(b, media, candidates);
+  phase("start cover");
+  close_faces(b, flux, media, prefix, candidates, opt, T);
+  phase("closure");
 }
 
 }  // namespace
@@ -894,46 +938,25 @@ DivInfo read_div_info(const PackedPortal& p, uint32_t d) {
   return info;
 }
 
-PortalBuild build_portal(World world, const PortalOptions& opt) {
-  world.validate();
-  if (opt.info_width < 8 || opt.info_width % 8 != 0)
-    throw Error("portal build: div-info texture width " + std::to_string(opt.info_width) + " must be a positive multiple of 8");
-  if (opt.atlas_width < 1 || opt.atlas_width > 65536)
-    throw Error("portal build: atlas width " + std::to_string(opt.atlas_width) + " outside 1 .. 65536 (16-bit atlas coordinates)");
-  const auto t_start = Clock::now();
-  const unsigned T = thread_count(opt.threads);
-  PortalBuild b;
-  b.world = std::move(world);
+namespace {
+
+// 2-3 (the exact choice): every maximal div, then for every entry face of every passable voxel the
+// best candidate, an atomic min of (cost bits << 32 | maximal index); the start div of a voxel:
+// its largest candidate.
+void choose_exact(PortalBuild& b, const FluxDensity& flux, const MediumGrid& media, const FluxPrefix& prefix,
+                  const PortalOptions& opt, unsigned T) {
   const World& w = b.world;
-  const glm::ivec3 dims(w.dims);
   const size_t N = w.voxel_count();
-
-  b.stats.choice = opt.choice;
-  // 1. The flux-density table (once per process).
-  auto t = Clock::now();
-  const FluxDensity& flux = FluxDensity::get();
-  b.stats.seconds_flux = since(t);
-  const MediumGrid media(w);
-  const FluxPrefix prefix(flux);
-
-  if (opt.choice == DivChoice::bounded) {
-    // 2-3. Greedy candidates, start boxes and the closure of the needed faces (build.h).
-    t = Clock::now();
-    const FluxPrefix near(flux, int(opt.choice_range));
-    choose_bounded(b, flux, media, near, opt, T);
-    b.stats.seconds_choice = since(t);
-  } else {
   // 2. Maximal divs.
   if (N > kExactChoiceMaxVoxels)
     throw Error("portal build: world '" + w.name + "' has " + std::to_string(N) + " voxels; the exact div choice takes at most " +
                 std::to_string(kExactChoiceMaxVoxels) + " (it grows about as resolution^5; use the bounded choice)");
-  t = Clock::now();
+  auto t = Clock::now();
   b.maximal = maximal_divs(w, T, 4 * kExactChoiceMaxVoxels);
   b.stats.maximal = b.maximal.size();
-  b.stats.seconds_maximal = since(t);
+  b.stats.seconds_maximal = seconds_since(t);
 
-  // 3. For every entry face of every passable voxel, the best candidate: atomic min of
-  //    (cost bits << 32 | maximal index); the start div of a voxel: the largest candidate.
+  // 3. For every entry face of every passable voxel, the best candidate.
   t = Clock::now();
   std::vector<std::atomic<uint64_t>> best(N * 6);
   std::vector<std::atomic<uint64_t>> largest(N);
@@ -1011,11 +1034,13 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
     if (k) b.start_box[i] = 0xFFFFFFFFu - uint32_t(k & 0xFFFFFFFFu);
   }
   for (uint32_t c : b.choice) b.stats.faces_chosen += c != kNone;
-  b.stats.seconds_choice = since(t);
-  }
+  b.stats.seconds_choice = seconds_since(t);
+}
 
-  // 4. Stored divs: the exterior div, then every maximal div some face or voxel uses, in order.
-  t = Clock::now();
+// 4. Stored divs: the exterior div, then every maximal div some face or voxel uses, in order.
+void store_divs(PortalBuild& b) {
+  const World& w = b.world;
+  const glm::ivec3 dims(w.dims);
   b.div_of_maximal.assign(b.maximal.size(), kNone);
   for (uint32_t c : b.choice)
     if (c != kNone) b.div_of_maximal[c] = 0;
@@ -1030,19 +1055,11 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
   if (b.divs.size() > shared::kPortalMaxDivs)
     throw Error("portal build: world '" + w.name + "' needs " + std::to_string(b.divs.size()) +
                 " divs, the 16-bit atlas texels address at most 32768 (use a coarser voxelization)");
+}
 
-  // 5. Pack: texel values, the atlas (shelf packing, tallest faces first), div info, start map.
+// 5a. The atlas's layout: shelf packing, tallest faces first; each (div, face)'s texel corner.
+std::vector<glm::uvec2> place_faces(PortalBuild& b, const PortalOptions& opt) {
   PackedPortal& p = b.packed;
-  p.dims = w.dims, p.origin = w.origin, p.voxel_size = w.voxel_size;
-  p.div_count = uint32_t(b.divs.size());
-  auto texel_for = [&](glm::ivec3 beyond, uint32_t entry_face) -> uint16_t {
-    if (!w.inside(beyond)) return uint16_t(shared::kPortalOutside);
-    const uint16_t m = w.at(beyond);
-    if (w.medium(beyond) == World::kOpaque) return uint16_t(shared::kPortalWallBit + m);
-    const uint32_t c = b.choice[w.index(glm::uvec3(beyond)) * 6 + entry_face];
-    if (c == kNone) throw Error("portal build: internal error, no div chosen for an entered face");
-    return uint16_t(b.div_of_maximal[c]);
-  };
   struct FaceRef { uint32_t div, face; glm::ivec2 ext; };
   std::vector<FaceRef> faces;
   for (uint32_t d = 0; d < b.divs.size(); ++d)
@@ -1064,6 +1081,22 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
     throw Error("portal build: atlas would need " + std::to_string(atlas_h) +
                 " rows, beyond the 16-bit atlas coordinates (raise the atlas width)");
   p.atlas_width = opt.atlas_width, p.atlas_height = uint32_t(atlas_h);
+  return face_uv;
+}
+
+// 5b. The atlas's texels: per face texel, the div the ray enters beyond it (or the wall, or outside).
+void fill_atlas(PortalBuild& b, const std::vector<glm::uvec2>& face_uv, unsigned T) {
+  const World& w = b.world;
+  const glm::ivec3 dims(w.dims);
+  PackedPortal& p = b.packed;
+  auto texel_for = [&](glm::ivec3 beyond, uint32_t entry_face) -> uint16_t {
+    if (!w.inside(beyond)) return uint16_t(shared::kPortalOutside);
+    const uint16_t m = w.at(beyond);
+    if (w.medium(beyond) == World::kOpaque) return uint16_t(shared::kPortalWallBit + m);
+    const uint32_t c = b.choice[w.index(glm::uvec3(beyond)) * 6 + entry_face];
+    if (c == kNone) throw Error("portal build: internal error, no div chosen for an entered face");
+    return uint16_t(b.div_of_maximal[c]);
+  };
   p.atlas.assign(size_t(p.atlas_width) * p.atlas_height, 0);
   parallel_for(b.divs.size(), T, [&](size_t d) {
     const Box& B = b.divs[d];
@@ -1089,6 +1122,11 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
         }
     }
   });
+}
+
+// 5c. Div info: 8 texels a div (its faces' atlas corners, size and glass material, corner and type).
+void pack_div_info(PortalBuild& b, const std::vector<glm::uvec2>& face_uv, const PortalOptions& opt) {
+  PackedPortal& p = b.packed;
   const uint64_t info_texels = uint64_t(b.divs.size()) * 8;
   p.info_width = opt.info_width;
   p.info_height = uint32_t((info_texels + p.info_width - 1) / p.info_width);
@@ -1108,6 +1146,13 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
     put(6, B.size().x, B.size().y, B.size().z, glass ? B.medium : 0);
     put(7, B.lo.x, B.lo.y, B.lo.z, d == 0 ? shared::kPortalDivExterior : glass ? shared::kPortalDivGlass : shared::kPortalDivAir);
   }
+}
+
+// 5d. The start map: per voxel its start div, or the wall bit and the voxel's material.
+void pack_start(PortalBuild& b) {
+  const World& w = b.world;
+  const size_t N = w.voxel_count();
+  PackedPortal& p = b.packed;
   p.start.assign(N, 0);
   for (size_t i = 0; i < N; ++i) {
     if (b.start_box[i] != kNone) {
@@ -1116,15 +1161,61 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
       p.start[i] = uint16_t(shared::kPortalWallBit + w.voxels[i]);
     }
   }
-  p.start_depth = dims.z;
+}
+
+}  // namespace
+
+PortalBuild build_portal(World world, const PortalOptions& opt) {
+  world.validate();
+  if (opt.info_width < 8 || opt.info_width % 8 != 0)
+    throw Error("portal build: div-info texture width " + std::to_string(opt.info_width) + " must be a positive multiple of 8");
+  if (opt.atlas_width < 1 || opt.atlas_width > 65536)
+    throw Error("portal build: atlas width " + std::to_string(opt.atlas_width) + " outside 1 .. 65536 (16-bit atlas coordinates)");
+  const auto t_start = Clock::now();
+  const unsigned T = thread_count(opt.threads);
+  PortalBuild b;
+  b.world = std::move(world);
+  const World& w = b.world;
+
+  b.stats.choice = opt.choice;
+  // 1. The flux-density table (once per process).
+  auto t = Clock::now();
+  const FluxDensity& flux = FluxDensity::get();
+  b.stats.seconds_flux = seconds_since(t);
+  const MediumGrid media(w);
+  const FluxPrefix prefix(flux);
+
+  if (opt.choice == DivChoice::bounded) {
+    // 2-3. Greedy candidates, start boxes and the closure of the needed faces (build.h).
+    t = Clock::now();
+    const FluxPrefix near(flux, int(opt.choice_range));
+    choose_bounded(b, flux, media, near, opt, T);
+    b.stats.seconds_choice = seconds_since(t);
+  } else {
+    choose_exact(b, flux, media, prefix, opt, T);
+  }
+
+  // 4. Stored divs.
+  t = Clock::now();
+  store_divs(b);
+
+  // 5. Pack: texel values, the atlas (shelf packing, tallest faces first), div info, start map.
+  PackedPortal& p = b.packed;
+  p.dims = w.dims, p.origin = w.origin, p.voxel_size = w.voxel_size;
+  p.div_count = uint32_t(b.divs.size());
+  const std::vector<glm::uvec2> face_uv = place_faces(b, opt);
+  fill_atlas(b, face_uv, T);
+  pack_div_info(b, face_uv, opt);
+  pack_start(b);
+  p.start_depth = glm::ivec3(w.dims).z;
   p.coverage.assign(w.materials.size(), 1.0f);
   p.resolve.assign(w.materials.size(), 0);
-  b.stats.seconds_pack = since(t);
+  b.stats.seconds_pack = seconds_since(t);
   if (opt.mip_levels > 1) add_mip_levels(b, opt);
   b.stats.divs = b.divs.size();
   b.stats.atlas_texels = p.atlas.size();
   b.stats.bytes = p.bytes();
-  b.stats.seconds_total = since(t_start);
+  b.stats.seconds_total = seconds_since(t_start);
   return b;
 }
 

@@ -35,7 +35,7 @@ struct Box {
 // `max_boxes` (0: none) stops the enumeration with an Error once more boxes than that are found.
 std::vector<Box> maximal_divs(const World& world, unsigned threads = 0, size_t max_boxes = 0);
 
-// The seed's FluxDensity: rays start uniformly on the unit square z = 0 (voxel (0, 0, 0)'s -z
+// The paper's FluxDensity: rays start uniformly on the unit square z = 0 (voxel (0, 0, 0)'s -z
 // face), cosine-distributed over the hemisphere dz > 0; for every voxel face of the octant
 // x, y >= 0 (folded: the distribution is symmetric in x and in y), the fraction of rays that cross
 // it, and for every voxel the mean length of ray inside it. Offsets up to `range` voxels; beyond,
@@ -53,12 +53,12 @@ struct FluxDensity {
   static const FluxDensity& get();  // range 64, 2^18 rays
 };
 
-// The seed's heuristic for rays entering voxel `v` through its face `entry_face` (moving inwards)
+// The paper's heuristic for rays entering voxel `v` through its face `entry_face` (moving inwards)
 // into the maximal div `div` (which contains v), integrated over the sub-cuboid they can enter:
 //   p_open  = sum of flux over the cuboid's exit voxel faces whose far voxel is of the same medium
 //   p_wall  = the same over faces to a wall, another medium or outside the world
 //   length  = expected length of ray inside the cuboid (sum of mean lengths of its voxels)
-//   cost    = p_open / length  (the seed's "expected length over the probability of reaching an
+//   cost    = p_open / length  (the paper's "expected length over the probability of reaching an
 //             exit face", inverted so that 0 is the best and nothing divides by zero)
 struct EntryCost {
   double p_open = 0, p_wall = 0, length = 0, cost = 0;
@@ -74,7 +74,7 @@ EntryCost integrate_flux_density_fast(const World& world, glm::ivec3 v, uint32_t
 //  bounded: candidates are the greedy maximal divs grown from the voxel's three axis runs (at most
 //           six per voxel, each maximal), and only the faces the stored divs' textures reference are
 //           evaluated (a closure from the start map): near-linear in the voxel count. The default.
-//  exact:   every maximal div of every voxel, every entered face (the seed's choice); refused
+//  exact:   every maximal div of every voxel, every entered face (the paper's choice); refused
 //           beyond kExactChoiceMaxVoxels voxels or kExactChoiceMaxEvaluations evaluations.
 enum class DivChoice { bounded, exact };
 inline constexpr size_t kExactChoiceMaxVoxels = size_t(1) << 20;

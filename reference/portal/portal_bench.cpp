@@ -73,10 +73,7 @@ int main(int argc, char** argv) try {
     const double t_build = now() - t0;
     const PortalBuild& b = pt.portal();
     const Camera cam = b.world.camera;
-    std::vector<Ray> rays;
-    rays.reserve(size_t(width) * height);
-    for (uint32_t y = 0; y < height; ++y)
-      for (uint32_t x = 0; x < width; ++x) rays.push_back(camera_ray(cam, width, height, x, y));
+    const std::vector<Ray> rays = camera_rays(cam, width, height);
     std::vector<Hit> hp(rays.size()), hd(rays.size());
     VoxelDdaTracer dt(b.world);
     // Best of three for each tracer.

@@ -125,8 +125,8 @@ class VoxelDdaTracer final : public Tracer {
 // ---- Rendering -------------------------------------------------------------------------------
 
 struct RenderOptions {
-  uint32_t width = 720, height = 360;  // the seed's resolution
-  bool state_machine = true;   // one loop with state transitions (seed's FSM); false: three loops
+  uint32_t width = 720, height = 360;  // the paper's resolution
+  bool state_machine = true;   // one loop with state transitions (the paper's FSM); false: three loops
   bool refraction = true;      // glass refracts (never forks; total internal reflection reflects)
   unsigned threads = 0;        // 0: hardware concurrency
   float ambient = 0.15f;

@@ -14,7 +14,7 @@
 namespace gridrt::portal {
 
 inline constexpr uint16_t kEmpty = 0xFFFF;      // a voxel of empty space
-inline constexpr uint32_t kMaxWorldAxis = 255;  // div sizes and origins are 8-bit (seed's format)
+inline constexpr uint32_t kMaxWorldAxis = 255;  // div sizes and origins are 8-bit (the paper's format)
 // The largest tile map, in voxels with floor and ceiling: the whole range of the div format
 // (255 x 255 x 253 and its floor and ceiling). The bounded div choice builds the largest such world
 // in about half a minute on two cores with 1.76 GB (docs/PORTAL.md), and fails in seconds, naming

@@ -15,10 +15,7 @@ int main() {
   grid.build(scene, 0.0f);
 
   // One ray per pixel of a 64 x 48 image from the scene's camera
-  const uint32_t width = 64, height = 48;
-  std::vector<gridrt::Ray> rays;
-  for (uint32_t y = 0; y < height; ++y)
-    for (uint32_t x = 0; x < width; ++x) rays.push_back(gridrt::camera_ray(scene.frame_camera(), width, height, x, y));
+  const std::vector<gridrt::Ray> rays = gridrt::camera_rays(scene.frame_camera(), 64, 48);
   std::vector<gridrt::Hit> hits(rays.size());
   grid.trace(rays, hits);
 

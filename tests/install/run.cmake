@@ -1,6 +1,20 @@
 # ctest -R install: install this build into a scratch prefix, then configure, build and run a
 # project that finds it with find_package(gridrt).
 file(REMOVE_RECURSE "${WORK}")
+# docs/API.md shows this very program: the two must not drift apart.
+file(READ "${SOURCE}/../../docs/API.md" api)
+file(READ "${SOURCE}/main.cpp" program)
+string(FIND "${api}" "```cpp\n" begin)
+if(begin LESS 0)
+  message(FATAL_ERROR "docs/API.md has no C++ example")
+endif()
+math(EXPR begin "${begin} + 7")
+string(SUBSTRING "${api}" ${begin} -1 api)
+string(FIND "${api}" "```" end)
+string(SUBSTRING "${api}" 0 ${end} example)
+if(NOT example STREQUAL program)
+  message(FATAL_ERROR "docs/API.md's example differs from tests/install/main.cpp")
+endif()
 execute_process(COMMAND ${CMAKE_COMMAND} --install "${BUILD}" --prefix "${WORK}/prefix" RESULT_VARIABLE rc OUTPUT_QUIET)
 if(rc)
   message(FATAL_ERROR "cmake --install failed: ${rc}")

@@ -1,7 +1,7 @@
 #version 460
 // portal_render.comp: primary + two shadow rays per pixel through the portal tracer, with
 // non-forking refraction (reference/portal/render.cpp, function by function, same names and
-// heading comments). Push constant `pass`: 0 runs the single-loop state machine (the seed's FSM:
+// heading comments). Push constant `pass`: 0 runs the single-loop state machine (the paper's FSM:
 // one loop, the same step_ray for every kind of ray, transitions at the end of each iteration);
 // 1, 2, 3 are the three separate loops (all primary rays, then all first shadow rays, then all
 // second), one dispatch each, the pixel's state kept in the pixel buffer between them.

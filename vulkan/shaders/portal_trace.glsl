@@ -1,7 +1,7 @@
 // portal_trace.glsl: the portal tracer on the GPU ("A Novel Raytracing Algorithm for GPU": stackless traversal of divs, only
 // the current div index as state). It follows reference/portal/trace.cpp function by function,
 // with the same names and heading comments; the per-ray math is common/shared/portal.h, the same
-// functions the reference calls. The textures are the reference's PackedPortal as the seed stores
+// functions the reference calls. The textures are the reference's PackedPortal as the paper stores
 // them: the atlas R16_UINT, the div info RGBA8_UINT (8 texels per div, lexicographically packed),
 // the start map R16_UINT 3D, all read by point-sampled texel fetches.
 #ifndef GRIDRT_PORTAL_TRACE_GLSL
