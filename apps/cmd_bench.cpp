@@ -88,7 +88,8 @@ nlohmann::json spill_json(const shared::SpillHeader& h, uint32_t flags) {
 struct PhaseTimes {
   double build = 0.0;
   std::vector<double> update, trace;
-  std::string clock = "host";  // "gpu timestamps" or "host"
+  std::string clock = "host";  // how the times were taken, as printed
+  bool device_stamps = false;   // the Vulkan phases come from timestamp queries
 };
 
 // Distribution of one per-ray counter over the real rays of a frame.
@@ -542,7 +543,10 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const shared::GridParams& gp = vk->params();
   const VulkanMemory mem = vulkan_memory(o, scene, gp, frame, spill);
   const std::string device = vk->context().info().name;
-  const std::string clock = stamps ? "gpu timestamps" : "host (submit to fence; the frame's phases not split)";
+  const std::string clock = !stamps ? "host (submit to fence; the frame's phases not split)"
+                            : vk->context().info().type == VK_PHYSICAL_DEVICE_TYPE_CPU
+                                ? "device timestamps of a CPU implementation"
+                                : "gpu timestamps";
   const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
                             : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
                                                                                : "raster";
@@ -604,7 +608,9 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
   if (vk) {
     device = vk->context().info().name;
     if (vk->timings().build_ms > 0.0) {
-      times.clock = "gpu timestamps";
+      times.device_stamps = true;
+      times.clock = vk->context().info().type == VK_PHYSICAL_DEVICE_TYPE_CPU ? "device timestamps (CPU implementation)"
+                                                                             : "gpu timestamps";
       times.build = vk->timings().build_ms;
     }
   }
@@ -627,7 +633,7 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
     tracer->trace(rays, hits);
     double trace_ms = ms_since(t0);
 #ifdef GRIDRT_HAVE_VULKAN
-    if (vk && times.clock == "gpu timestamps") {
+    if (vk && times.device_stamps) {
       update_ms = vk->timings().update_ms;
       trace_ms = vk->timings().trace_ms;
     } else if (vk) {
@@ -641,7 +647,7 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
       tracer->trace(shadow, shadow_hits);
       shadow_trace_ms = ms_since(t0);
 #ifdef GRIDRT_HAVE_VULKAN
-      if (vk) shadow_trace_ms = times.clock == "gpu timestamps" ? vk->timings().trace_ms : vk->timings().trace_host_ms;
+      if (vk) shadow_trace_ms = times.device_stamps ? vk->timings().trace_ms : vk->timings().trace_host_ms;
 #endif
     }
     if (f < o.warmup) continue;
