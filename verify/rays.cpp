@@ -221,256 +221,303 @@ Scene without_alpha(const Scene& scene) {
   return s;
 }
 
+namespace {
+
+// One family's rays: what the generators read and where they write.
+struct FamilyMaker {
+  const Scene& scene;
+  const Topology& topo;
+  Tracer& oracle;
+  const sh::GridParams& g;
+  const glm::vec3 lo, hi;  // the grid's box
+  const float scale;       // its diagonal
+  const size_t n;          // rays wanted
+  const Camera cam;
+  Rng rng;
+  FamilyRays& out;
+
+  void push(const Ray& r, std::vector<uint32_t> aimed = {}) {
+    out.rays.push_back(r);
+    out.aimed.push_back(std::move(aimed));
+  }
+
+  // A camera's rays over a 16:9 image of about n pixels
+  void camera_rays() {
+    const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(n) * 16.0 / 9.0)));
+    const uint32_t h = std::max<uint32_t>(1, uint32_t((n + w - 1) / w));
+    for (uint32_t y = 0; y < h && out.rays.size() < n; ++y)
+      for (uint32_t x = 0; x < w && out.rays.size() < n; ++x) push(camera_ray(cam, w, h, x, y));
+  }
+
+  // Off the oracle's primary hits: mirror and cosine-weighted, alternately
+  void bounce_rays() {
+    const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(n) * 16.0 / 9.0)));
+    const uint32_t h = std::max<uint32_t>(1, uint32_t((n + w - 1) / w));
+    const GatherBuffer gb = make_gather(scene, oracle, cam, w, h, 0.0f);
+    for (size_t p = 0; p < gb.size() && out.rays.size() < n; ++p) {
+      if (!gb.valid[p]) continue;
+      const glm::vec3 nrm = gb.normal[p];
+      const glm::vec3 d = (p % 2) ? rng.hemisphere(nrm) : glm::reflect(gb.incident[p], nrm);
+      Ray r = make_ray(gb.position[p], d);
+      r.launch_normal = nrm;
+      r.launch_ref = gb.launch_ref[p];
+      push(r);
+    }
+  }
+
+  // Origins in the grid's box, directions on the sphere
+  void random_rays() {
+    for (size_t i = 0; i < n; ++i) push(make_ray(rng.in_box(lo, hi), rng.sphere()));
+  }
+
+  // From a triangle's interior, vertex or edge midpoint: in front, behind or grazing
+  void surface_rays() {
+    if (topo.tri.empty()) return;
+    for (size_t i = 0; i < n; ++i) {
+      const size_t k = rng.index(topo.tri.size());
+      const auto& t = topo.tri[k];
+      const glm::vec3 nrm = unit_normal(t);
+      if (nrm == glm::vec3(0.0f)) continue;
+      glm::vec3 p;
+      switch (i % 3) {
+        case 0: {  // interior
+          float a = float(rng.uniform()), b = float(rng.uniform());
+          if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+          p = t[0] + a * (t[1] - t[0]) + b * (t[2] - t[0]);
+          break;
+        }
+        case 1: p = t[rng.index(3)]; break;                                  // a vertex
+        default: {                                                             // an edge midpoint
+          const size_t e = rng.index(3);
+          p = (t[e] + t[(e + 1) % 3]) * 0.5f;
+        }
+      }
+      glm::vec3 d, ln = nrm;
+      switch ((i / 3) % 3) {
+        case 0: d = rng.hemisphere(nrm); break;                         // in front
+        case 1: d = rng.hemisphere(-nrm), ln = -nrm; break;             // behind
+        default: {                                                     // grazing, either side
+          const glm::vec3 tg = glm::normalize(glm::cross(nrm, rng.sphere()));
+          d = glm::normalize(tg + nrm * float(rng.uniform() < 0.5 ? 1e-4 : -1e-4));
+        }
+      }
+      Ray r = make_ray(p, d);
+      r.launch_normal = ln;
+      r.launch_ref = topo.ref[k];
+      push(r);
+    }
+  }
+
+  // Through a shared edge's midpoint or a shared vertex, exactly
+  void aimed_rays(bool edge) {
+    const size_t pool = edge ? topo.shared_edges.size() : topo.shared_vertices.size();
+    if (pool == 0) return;
+    for (size_t i = 0; i < n * 4 && out.rays.size() < n; ++i) {
+      ++out.attempts;
+      Ray r;
+      std::vector<uint32_t> aimed;
+      if (edge) {
+        const auto [pa, pb] = topo.shared_edges[rng.index(pool)];
+        if (!aim_exactly(rng, topo.positions[pa], topo.positions[pb], true, 0.25f * scale, r)) continue;
+        for (uint32_t k : topo.by_vertex_index[pa]) aimed.push_back(topo.ref[k]);
+        for (uint32_t k : topo.by_vertex_index[pb]) aimed.push_back(topo.ref[k]);
+      } else {
+        const uint32_t pv = topo.shared_vertices[rng.index(pool)];
+        if (!aim_exactly(rng, topo.positions[pv], topo.positions[pv], false, 0.25f * scale, r)) continue;
+        for (uint32_t k : topo.by_vertex_index[pv]) aimed.push_back(topo.ref[k]);
+      }
+      push(r, std::move(aimed));
+    }
+  }
+
+  // Axis-aligned, signed-zero and denormal directions
+  void axis_rays() {
+    const float denorm[] = {1e-40f, -1e-42f, 1.4e-45f, -3e-39f};
+    for (size_t i = 0; i < n; ++i) {
+      const glm::vec3 o = rng.in_box(lo, hi);
+      glm::vec3 d(0.0f);
+      const int k = int(rng.index(3));
+      const float s = rng.uniform() < 0.5 ? -1.0f : 1.0f;
+      switch (i % 4) {
+        case 0:  // axis-aligned, the others +0 or -0
+          d[k] = s;
+          d[(k + 1) % 3] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
+          d[(k + 2) % 3] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
+          break;
+        case 1: {  // one component zero (signed)
+          const glm::vec3 u = rng.sphere();
+          d = u;
+          d[k] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
+          if (d == glm::vec3(0.0f)) d[(k + 1) % 3] = 1.0f;
+          break;
+        }
+        case 2:  // axis-aligned plus denormal components
+          d[k] = s;
+          d[(k + 1) % 3] = denorm[rng.index(4)];
+          d[(k + 2) % 3] = denorm[rng.index(4)];
+          break;
+        default: {  // a random direction with one denormal component
+          d = rng.sphere();
+          d[k] = denorm[rng.index(4)];
+        }
+      }
+      push(make_ray(o, d));
+    }
+  }
+
+  // In the plane of an axis-aligned triangle
+  void plane_rays() {
+    std::vector<size_t> flat;  // triangles whose vertices share one coordinate
+    std::vector<int> axis_of;
+    for (size_t k = 0; k < topo.tri.size(); ++k)
+      for (int a = 0; a < 3; ++a)
+        if (topo.tri[k][0][a] == topo.tri[k][1][a] && topo.tri[k][0][a] == topo.tri[k][2][a]) {
+          flat.push_back(k);
+          axis_of.push_back(a);
+          break;
+        }
+    if (flat.empty()) return;
+    for (size_t i = 0; i < n; ++i) {
+      const size_t j = rng.index(flat.size());
+      const auto& t = topo.tri[flat[j]];
+      const int a = axis_of[j];
+      glm::vec3 o = rng.in_box(lo, hi);
+      o[a] = t[0][a];
+      glm::vec3 d;
+      if (i % 2) {
+        d = (t[0] + t[1] + t[2]) * (1.0f / 3.0f) - o;  // towards the centroid, in the plane
+      } else {
+        d = rng.sphere();
+      }
+      d[a] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
+      if (d == glm::vec3(0.0f)) d[(a + 1) % 3] = 1.0f;
+      push(make_ray(o, d));
+    }
+  }
+
+  // From the cells' lattice planes, some along an axis
+  void lattice_rays() {
+    for (size_t i = 0; i < n; ++i) {
+      glm::vec3 o = rng.in_box(lo, hi);
+      const int planes = (i % 3 == 2) ? 3 : int(i % 3) + 1;  // one, two or all three coordinates
+      for (int q = 0; q < planes; ++q) {
+        const int a = planes == 3 ? q : int(rng.index(3));
+        const uint32_t c = uint32_t(rng.index(g.cells[a] + 1));
+        o[a] = g.origin[a] + float(c) * g.cell_size;
+      }
+      glm::vec3 d = rng.sphere();
+      if (i % 4 == 3) {  // along an axis, along the lattice
+        d = glm::vec3(0.0f);
+        d[rng.index(3)] = rng.uniform() < 0.5 ? -1.0f : 1.0f;
+      }
+      push(make_ray(o, d));
+    }
+  }
+
+  // Grazing the largest triangles
+  void graze_rays() {
+    if (topo.tri.empty()) return;
+    std::vector<size_t> order(topo.tri.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+    const size_t big = std::min<size_t>(order.size(), 64);
+    std::partial_sort(order.begin(), order.begin() + ptrdiff_t(big), order.end(), [&](size_t x, size_t y) {
+      const auto area = [&](size_t k) {
+        return glm::length(glm::cross(topo.tri[k][1] - topo.tri[k][0], topo.tri[k][2] - topo.tri[k][0]));
+      };
+      return area(x) > area(y);
+    });
+    for (size_t i = 0; i < n; ++i) {
+      const auto& t = topo.tri[order[rng.index(big)]];
+      const glm::vec3 nrm = unit_normal(t);
+      float a = float(rng.uniform()), b = float(rng.uniform());
+      if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+      const glm::vec3 q = t[0] + a * (t[1] - t[0]) + b * (t[2] - t[0]);
+      const glm::vec3 tg = glm::normalize(glm::cross(nrm, rng.sphere()));
+      const float len = glm::length(t[1] - t[0]) * float(0.1 + rng.uniform());
+      const float h = len * float(std::exp2(-4.0 - 16.0 * rng.uniform())) * (rng.uniform() < 0.5 ? 1.0f : -1.0f);
+      const glm::vec3 o = q + tg * len + nrm * h;
+      push(make_ray(o, q - o));
+    }
+  }
+
+  // From 1e4 to 1e6 away, aimed at the surfaces
+  void far_rays() {
+    if (topo.tri.empty()) return;
+    const glm::vec3 center = (lo + hi) * 0.5f;
+    for (size_t i = 0; i < n; ++i) {
+      const auto& t = topo.tri[rng.index(topo.tri.size())];
+      float a = float(rng.uniform()), b = float(rng.uniform());
+      if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+      const glm::vec3 q = t[0] + a * (t[1] - t[0]) + b * (t[2] - t[0]);
+      const float dist = float(std::pow(10.0, 4.0 + 2.0 * rng.uniform()));
+      const glm::vec3 o = center + rng.sphere() * dist;
+      glm::vec3 d = q - o;
+      if (i % 2) d = glm::normalize(d);
+      push(make_ray(o, d));
+    }
+  }
+
+  // Outside the domain or empty: huge, tiny, inf and NaN, tmin >= tmax, tmin < 0
+  void degenerate_rays() {
+    const glm::vec3 c = (lo + hi) * 0.5f;
+    for (size_t i = 0; i < n; ++i) {
+      const glm::vec3 u = rng.sphere();
+      Ray r = make_ray(rng.in_box(lo, hi), c - rng.in_box(lo, hi));
+      if (r.dir == glm::vec3(0.0f)) r.dir = u;
+      switch (i % 16) {
+        case 0: r.dir = u * 1e19f; break;                    // huge (beyond Embree's limit)
+        case 1: r.dir = u * 3e6f; break;                     // above 2^20
+        case 2: r.dir = u * 1e-20f; break;                   // tiny
+        case 3: r.dir = u * 5e-7f; break;                    // below 2^-20
+        case 4: r.dir.x = kInf; break;
+        case 5: r.dir.y = kNaN; break;
+        case 6: r.org.z = kNaN; break;
+        case 7: r.org.x = -kInf; break;
+        case 8: r.dir = glm::vec3(0.0f); break;
+        case 9: r.dir = glm::vec3(-0.0f, 0.0f, -0.0f); break;
+        case 10: r.tmin = 2.0f, r.tmax = 1.0f; break;       // empty interval
+        case 11: r.tmin = r.tmax = 0.5f; break;             // empty interval
+        case 12: r.tmin = -1.0f; break;                      // tmin < 0
+        case 13: r.tmin = kNaN; break;
+        case 14: r.org = u * 3e18f, r.dir = -u; break;       // beyond Embree's limit, far outside
+        default: r.org = c + u * 2e7f, r.org.x = 3e7f, r.dir = -u;  // beyond 2^24
+      }
+      push(r);
+    }
+  }
+};
+
+}  // namespace
+
 FamilyRays make_family(Family f, const Scene& scene, const reference::GridData& grid, const Topology& topo,
                        Tracer& oracle, const FamilyOptions& opt) {
   FamilyRays out;
   out.family = f;
-  Rng rng(opt.seed * 0x9E3779B97F4A7C15ull + uint64_t(f) + 1);
   const sh::GridParams& g = grid.params;
-  const glm::vec3 lo = g.origin, hi = g.upper;
-  const float scale = glm::length(hi - lo);
-  const size_t n = opt.rays;
-  const auto push = [&](const Ray& r, std::vector<uint32_t> aimed = {}) {
-    out.rays.push_back(r);
-    out.aimed.push_back(std::move(aimed));
-  };
-  const Camera cam = scene.frame_camera();
+  FamilyMaker maker{scene,
+                    topo,
+                    oracle,
+                    g,
+                    g.origin,
+                    g.upper,
+                    glm::length(g.upper - g.origin),
+                    opt.rays,
+                    scene.frame_camera(),
+                    Rng(opt.seed * 0x9E3779B97F4A7C15ull + uint64_t(f) + 1),
+                    out};
   switch (f) {
-    case Family::camera: {
-      const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(n) * 16.0 / 9.0)));
-      const uint32_t h = std::max<uint32_t>(1, uint32_t((n + w - 1) / w));
-      for (uint32_t y = 0; y < h && out.rays.size() < n; ++y)
-        for (uint32_t x = 0; x < w && out.rays.size() < n; ++x) push(camera_ray(cam, w, h, x, y));
-      break;
-    }
-    case Family::bounce: {
-      const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(n) * 16.0 / 9.0)));
-      const uint32_t h = std::max<uint32_t>(1, uint32_t((n + w - 1) / w));
-      const GatherBuffer gb = make_gather(scene, oracle, cam, w, h, 0.0f);
-      for (size_t p = 0; p < gb.size() && out.rays.size() < n; ++p) {
-        if (!gb.valid[p]) continue;
-        const glm::vec3 nrm = gb.normal[p];
-        const glm::vec3 d = (p % 2) ? rng.hemisphere(nrm) : glm::reflect(gb.incident[p], nrm);
-        Ray r = make_ray(gb.position[p], d);
-        r.launch_normal = nrm;
-        r.launch_ref = gb.launch_ref[p];
-        push(r);
-      }
-      break;
-    }
-    case Family::random:
-      for (size_t i = 0; i < n; ++i) push(make_ray(rng.in_box(lo, hi), rng.sphere()));
-      break;
-    case Family::surface: {
-      if (topo.tri.empty()) break;
-      for (size_t i = 0; i < n; ++i) {
-        const size_t k = rng.index(topo.tri.size());
-        const auto& t = topo.tri[k];
-        const glm::vec3 nrm = unit_normal(t);
-        if (nrm == glm::vec3(0.0f)) continue;
-        glm::vec3 p;
-        switch (i % 3) {
-          case 0: {  // interior
-            float a = float(rng.uniform()), b = float(rng.uniform());
-            if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
-            p = t[0] + a * (t[1] - t[0]) + b * (t[2] - t[0]);
-            break;
-          }
-          case 1: p = t[rng.index(3)]; break;                                  // a vertex
-          default: {                                                             // an edge midpoint
-            const size_t e = rng.index(3);
-            p = (t[e] + t[(e + 1) % 3]) * 0.5f;
-          }
-        }
-        glm::vec3 d, ln = nrm;
-        switch ((i / 3) % 3) {
-          case 0: d = rng.hemisphere(nrm); break;                         // in front
-          case 1: d = rng.hemisphere(-nrm), ln = -nrm; break;             // behind
-          default: {                                                     // grazing, either side
-            const glm::vec3 tg = glm::normalize(glm::cross(nrm, rng.sphere()));
-            d = glm::normalize(tg + nrm * float(rng.uniform() < 0.5 ? 1e-4 : -1e-4));
-          }
-        }
-        Ray r = make_ray(p, d);
-        r.launch_normal = ln;
-        r.launch_ref = topo.ref[k];
-        push(r);
-      }
-      break;
-    }
-    case Family::edge:
-    case Family::vertex: {
-      const bool edge = f == Family::edge;
-      const size_t pool = edge ? topo.shared_edges.size() : topo.shared_vertices.size();
-      if (pool == 0) break;
-      for (size_t i = 0; i < n * 4 && out.rays.size() < n; ++i) {
-        ++out.attempts;
-        Ray r;
-        std::vector<uint32_t> aimed;
-        if (edge) {
-          const auto [pa, pb] = topo.shared_edges[rng.index(pool)];
-          if (!aim_exactly(rng, topo.positions[pa], topo.positions[pb], true, 0.25f * scale, r)) continue;
-          for (uint32_t k : topo.by_vertex_index[pa]) aimed.push_back(topo.ref[k]);
-          for (uint32_t k : topo.by_vertex_index[pb]) aimed.push_back(topo.ref[k]);
-        } else {
-          const uint32_t pv = topo.shared_vertices[rng.index(pool)];
-          if (!aim_exactly(rng, topo.positions[pv], topo.positions[pv], false, 0.25f * scale, r)) continue;
-          for (uint32_t k : topo.by_vertex_index[pv]) aimed.push_back(topo.ref[k]);
-        }
-        push(r, std::move(aimed));
-      }
-      break;
-    }
-    case Family::axis: {
-      const float denorm[] = {1e-40f, -1e-42f, 1.4e-45f, -3e-39f};
-      for (size_t i = 0; i < n; ++i) {
-        const glm::vec3 o = rng.in_box(lo, hi);
-        glm::vec3 d(0.0f);
-        const int k = int(rng.index(3));
-        const float s = rng.uniform() < 0.5 ? -1.0f : 1.0f;
-        switch (i % 4) {
-          case 0:  // axis-aligned, the others +0 or -0
-            d[k] = s;
-            d[(k + 1) % 3] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
-            d[(k + 2) % 3] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
-            break;
-          case 1: {  // one component zero (signed)
-            const glm::vec3 u = rng.sphere();
-            d = u;
-            d[k] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
-            if (d == glm::vec3(0.0f)) d[(k + 1) % 3] = 1.0f;
-            break;
-          }
-          case 2:  // axis-aligned plus denormal components
-            d[k] = s;
-            d[(k + 1) % 3] = denorm[rng.index(4)];
-            d[(k + 2) % 3] = denorm[rng.index(4)];
-            break;
-          default: {  // a random direction with one denormal component
-            d = rng.sphere();
-            d[k] = denorm[rng.index(4)];
-          }
-        }
-        push(make_ray(o, d));
-      }
-      break;
-    }
-    case Family::plane: {
-      std::vector<size_t> flat;  // triangles whose vertices share one coordinate
-      std::vector<int> axis_of;
-      for (size_t k = 0; k < topo.tri.size(); ++k)
-        for (int a = 0; a < 3; ++a)
-          if (topo.tri[k][0][a] == topo.tri[k][1][a] && topo.tri[k][0][a] == topo.tri[k][2][a]) {
-            flat.push_back(k);
-            axis_of.push_back(a);
-            break;
-          }
-      if (flat.empty()) break;
-      for (size_t i = 0; i < n; ++i) {
-        const size_t j = rng.index(flat.size());
-        const auto& t = topo.tri[flat[j]];
-        const int a = axis_of[j];
-        glm::vec3 o = rng.in_box(lo, hi);
-        o[a] = t[0][a];
-        glm::vec3 d;
-        if (i % 2) {
-          d = (t[0] + t[1] + t[2]) * (1.0f / 3.0f) - o;  // towards the centroid, in the plane
-        } else {
-          d = rng.sphere();
-        }
-        d[a] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
-        if (d == glm::vec3(0.0f)) d[(a + 1) % 3] = 1.0f;
-        push(make_ray(o, d));
-      }
-      break;
-    }
-    case Family::lattice: {
-      for (size_t i = 0; i < n; ++i) {
-        glm::vec3 o = rng.in_box(lo, hi);
-        const int planes = (i % 3 == 2) ? 3 : int(i % 3) + 1;  // one, two or all three coordinates
-        for (int q = 0; q < planes; ++q) {
-          const int a = planes == 3 ? q : int(rng.index(3));
-          const uint32_t c = uint32_t(rng.index(g.cells[a] + 1));
-          o[a] = g.origin[a] + float(c) * g.cell_size;
-        }
-        glm::vec3 d = rng.sphere();
-        if (i % 4 == 3) {  // along an axis, along the lattice
-          d = glm::vec3(0.0f);
-          d[rng.index(3)] = rng.uniform() < 0.5 ? -1.0f : 1.0f;
-        }
-        push(make_ray(o, d));
-      }
-      break;
-    }
-    case Family::graze: {
-      if (topo.tri.empty()) break;
-      std::vector<size_t> order(topo.tri.size());
-      for (size_t k = 0; k < order.size(); ++k) order[k] = k;
-      const size_t big = std::min<size_t>(order.size(), 64);
-      std::partial_sort(order.begin(), order.begin() + ptrdiff_t(big), order.end(), [&](size_t x, size_t y) {
-        const auto area = [&](size_t k) {
-          return glm::length(glm::cross(topo.tri[k][1] - topo.tri[k][0], topo.tri[k][2] - topo.tri[k][0]));
-        };
-        return area(x) > area(y);
-      });
-      for (size_t i = 0; i < n; ++i) {
-        const auto& t = topo.tri[order[rng.index(big)]];
-        const glm::vec3 nrm = unit_normal(t);
-        float a = float(rng.uniform()), b = float(rng.uniform());
-        if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
-        const glm::vec3 q = t[0] + a * (t[1] - t[0]) + b * (t[2] - t[0]);
-        const glm::vec3 tg = glm::normalize(glm::cross(nrm, rng.sphere()));
-        const float len = glm::length(t[1] - t[0]) * float(0.1 + rng.uniform());
-        const float h = len * float(std::exp2(-4.0 - 16.0 * rng.uniform())) * (rng.uniform() < 0.5 ? 1.0f : -1.0f);
-        const glm::vec3 o = q + tg * len + nrm * h;
-        push(make_ray(o, q - o));
-      }
-      break;
-    }
-    case Family::far: {
-      if (topo.tri.empty()) break;
-      const glm::vec3 center = (lo + hi) * 0.5f;
-      for (size_t i = 0; i < n; ++i) {
-        const auto& t = topo.tri[rng.index(topo.tri.size())];
-        float a = float(rng.uniform()), b = float(rng.uniform());
-        if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
-        const glm::vec3 q = t[0] + a * (t[1] - t[0]) + b * (t[2] - t[0]);
-        const float dist = float(std::pow(10.0, 4.0 + 2.0 * rng.uniform()));
-        const glm::vec3 o = center + rng.sphere() * dist;
-        glm::vec3 d = q - o;
-        if (i % 2) d = glm::normalize(d);
-        push(make_ray(o, d));
-      }
-      break;
-    }
-    case Family::degenerate: {
-      const glm::vec3 c = (lo + hi) * 0.5f;
-      for (size_t i = 0; i < n; ++i) {
-        const glm::vec3 u = rng.sphere();
-        Ray r = make_ray(rng.in_box(lo, hi), c - rng.in_box(lo, hi));
-        if (r.dir == glm::vec3(0.0f)) r.dir = u;
-        switch (i % 16) {
-          case 0: r.dir = u * 1e19f; break;                    // huge (beyond Embree's limit)
-          case 1: r.dir = u * 3e6f; break;                     // above 2^20
-          case 2: r.dir = u * 1e-20f; break;                   // tiny
-          case 3: r.dir = u * 5e-7f; break;                    // below 2^-20
-          case 4: r.dir.x = kInf; break;
-          case 5: r.dir.y = kNaN; break;
-          case 6: r.org.z = kNaN; break;
-          case 7: r.org.x = -kInf; break;
-          case 8: r.dir = glm::vec3(0.0f); break;
-          case 9: r.dir = glm::vec3(-0.0f, 0.0f, -0.0f); break;
-          case 10: r.tmin = 2.0f, r.tmax = 1.0f; break;       // empty interval
-          case 11: r.tmin = r.tmax = 0.5f; break;             // empty interval
-          case 12: r.tmin = -1.0f; break;                      // tmin < 0
-          case 13: r.tmin = kNaN; break;
-          case 14: r.org = u * 3e18f, r.dir = -u; break;       // beyond Embree's limit, far outside
-          default: r.org = c + u * 2e7f, r.org.x = 3e7f, r.dir = -u;  // beyond 2^24
-        }
-        push(r);
-      }
-      break;
-    }
+    case Family::camera: maker.camera_rays(); break;
+    case Family::bounce: maker.bounce_rays(); break;
+    case Family::random: maker.random_rays(); break;
+    case Family::surface: maker.surface_rays(); break;
+    case Family::edge: maker.aimed_rays(true); break;
+    case Family::vertex: maker.aimed_rays(false); break;
+    case Family::axis: maker.axis_rays(); break;
+    case Family::plane: maker.plane_rays(); break;
+    case Family::lattice: maker.lattice_rays(); break;
+    case Family::graze: maker.graze_rays(); break;
+    case Family::far: maker.far_rays(); break;
+    case Family::degenerate: maker.degenerate_rays(); break;
   }
   return out;
 }
