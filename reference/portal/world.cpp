@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <optional>
 #include <random>
 #include <cmath>
 #include <fstream>
@@ -92,11 +93,12 @@ void World::validate() const {
   if (!(voxel_size > 0.0f) || !std::isfinite(voxel_size)) throw Error("portal world '" + name + "': bad voxel size");
 }
 
-World parse_tile_map(std::string_view text, const std::string& name, bool require_eye) {
-  World w;
-  w.name = name;
-  // Default materials: '0'..'9' walls 0..9, 'G' glass 10, floor 11, ceiling 12.
-  std::string chars;
+namespace {
+
+// Default materials: '0'..'9' walls 0..9, 'G' glass 10, floor 11, ceiling 12. `chars` holds each
+// material's map character ('\0' for those no tile names).
+constexpr uint16_t kFloorMaterial = 11, kCeilingMaterial = 12;
+void default_materials(World& w, std::string& chars) {
   for (int i = 0; i < 10; ++i) {
     chars.push_back(char('0' + i));
     w.materials.push_back({std::string("wall") + char('0' + i), palette(uint32_t(i)), false, 1.5f, glm::vec3(1.0f)});
@@ -107,12 +109,63 @@ World parse_tile_map(std::string_view text, const std::string& name, bool requir
   w.materials.push_back({"floor", glm::vec3(0.45f, 0.42f, 0.4f), false, 1.5f, glm::vec3(1.0f)});
   chars.push_back('\0');
   w.materials.push_back({"ceiling", glm::vec3(0.75f, 0.75f, 0.78f), false, 1.5f, glm::vec3(1.0f)});
-  const uint16_t floor_m = 11, ceiling_m = 12;
+}
 
-  uint32_t W = 0, D = 0, H = 0;
-  bool have_size = false, in_map = false;
+// A tile map's text split into its header and its rows.
+struct TileMapText {
+  uint32_t W = 0, D = 0, H = 0;  // width, depth, height in tiles
   std::vector<std::string> rows;
-  std::vector<size_t> row_lines;
+  std::vector<size_t> row_lines;  // each row's line number
+};
+
+// 'size WIDTH DEPTH HEIGHT', within the div format and the volume limit
+void parse_size(std::istringstream& ls, const std::string& name, size_t lineno, TileMapText& t) {
+  long long a = -1, b = -1, c = -1;
+  if (!(ls >> a >> b >> c)) fail(name, lineno, "expected 'size WIDTH DEPTH HEIGHT'");
+  if (a <= 0 || b <= 0 || c <= 0) fail(name, lineno, "size must be positive (empty world)");
+  if (a > kMaxWorldAxis || b > kMaxWorldAxis || c + 2 > kMaxWorldAxis)
+    fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) +
+                           " exceeds the div format's 255 voxels per axis (height + 2 for floor and ceiling)");
+  // The portal build's time grows with the world's volume (a legal 255 x 255 x 253 map takes
+  // minutes before the atlas limit stops it): a stated bound, checked before any work.
+  const uint64_t volume = uint64_t(a) * uint64_t(b) * uint64_t(c + 2);
+  if (volume > kMaxTileMapVoxels)
+    fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) + " makes " +
+                           std::to_string(volume) + " voxels with floor and ceiling, more than the limit of " +
+                           std::to_string(kMaxTileMapVoxels));
+  t.W = uint32_t(a), t.D = uint32_t(b), t.H = uint32_t(c);
+}
+
+// 'material CHAR NAME R G B [glass IOR]': a new material, or one replacing a default
+void parse_material(std::istringstream& ls, const std::string& name, size_t lineno, World& w, std::string& chars) {
+  std::string c, mname;
+  float r, g, b;
+  if (!(ls >> c >> mname >> r >> g >> b) || c.size() != 1)
+    fail(name, lineno, "expected 'material CHAR NAME R G B [glass IOR]'");
+  if (!std::isfinite(r) || !std::isfinite(g) || !std::isfinite(b) || r < 0.0f || g < 0.0f || b < 0.0f)
+    fail(name, lineno, "material colour must be finite and not negative");
+  if (c[0] == '.' || c[0] == 'E' || c[0] == 'L' || c[0] == ' ') fail(name, lineno, "'" + c + "' is reserved");
+  WallMaterial m{mname, glm::vec3(r, g, b), false, 1.5f, glm::vec3(1.0f)};
+  std::string opt;
+  if (ls >> opt) {
+    if (opt != "glass" || !(ls >> m.ior) || !(m.ior > 0.0f) || !std::isfinite(m.ior))
+      fail(name, lineno, "expected 'glass IOR' (a positive finite number) after the colour");
+    m.glass = true;
+    m.filter = m.color;
+  }
+  const size_t at = chars.find(c[0]);
+  if (at != std::string::npos) {
+    w.materials[at] = m;
+  } else {
+    chars.push_back(c[0]);
+    w.materials.push_back(m);
+  }
+}
+
+// The header's lines (comments, size, materials) up to 'map', then the rows
+TileMapText read_tile_map(std::string_view text, const std::string& name, World& w, std::string& chars) {
+  TileMapText t;
+  bool have_size = false, in_map = false;
   size_t lineno = 0;
   std::string line;
   std::istringstream in{std::string(text)};
@@ -120,9 +173,9 @@ World parse_tile_map(std::string_view text, const std::string& name, bool requir
     ++lineno;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (in_map) {
-      if (line.empty() && rows.size() == D) continue;
-      rows.push_back(line);
-      row_lines.push_back(lineno);
+      if (line.empty() && t.rows.size() == t.D) continue;
+      t.rows.push_back(line);
+      t.row_lines.push_back(lineno);
       continue;
     }
     const size_t first = line.find_first_not_of(" \t");
@@ -131,44 +184,10 @@ World parse_tile_map(std::string_view text, const std::string& name, bool requir
     std::string key;
     ls >> key;
     if (key == "size") {
-      long long a = -1, b = -1, c = -1;
-      if (!(ls >> a >> b >> c)) fail(name, lineno, "expected 'size WIDTH DEPTH HEIGHT'");
-      if (a <= 0 || b <= 0 || c <= 0) fail(name, lineno, "size must be positive (empty world)");
-      if (a > kMaxWorldAxis || b > kMaxWorldAxis || c + 2 > kMaxWorldAxis)
-        fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) +
-                               " exceeds the div format's 255 voxels per axis (height + 2 for floor and ceiling)");
-      // The portal build's time grows with the world's volume (a legal 255 x 255 x 253 map takes
-      // minutes before the atlas limit stops it): a stated bound, checked before any work.
-      const uint64_t volume = uint64_t(a) * uint64_t(b) * uint64_t(c + 2);
-      if (volume > kMaxTileMapVoxels)
-        fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) + " makes " +
-                               std::to_string(volume) + " voxels with floor and ceiling, more than the limit of " +
-                               std::to_string(kMaxTileMapVoxels));
-      W = uint32_t(a), D = uint32_t(b), H = uint32_t(c);
+      parse_size(ls, name, lineno, t);
       have_size = true;
     } else if (key == "material") {
-      std::string c, mname;
-      float r, g, b;
-      if (!(ls >> c >> mname >> r >> g >> b) || c.size() != 1)
-        fail(name, lineno, "expected 'material CHAR NAME R G B [glass IOR]'");
-      if (!std::isfinite(r) || !std::isfinite(g) || !std::isfinite(b) || r < 0.0f || g < 0.0f || b < 0.0f)
-        fail(name, lineno, "material colour must be finite and not negative");
-      if (c[0] == '.' || c[0] == 'E' || c[0] == 'L' || c[0] == ' ') fail(name, lineno, "'" + c + "' is reserved");
-      WallMaterial m{mname, glm::vec3(r, g, b), false, 1.5f, glm::vec3(1.0f)};
-      std::string opt;
-      if (ls >> opt) {
-        if (opt != "glass" || !(ls >> m.ior) || !(m.ior > 0.0f) || !std::isfinite(m.ior))
-          fail(name, lineno, "expected 'glass IOR' (a positive finite number) after the colour");
-        m.glass = true;
-        m.filter = m.color;
-      }
-      const size_t at = chars.find(c[0]);
-      if (at != std::string::npos) {
-        w.materials[at] = m;
-      } else {
-        chars.push_back(c[0]);
-        w.materials.push_back(m);
-      }
+      parse_material(ls, name, lineno, w, chars);
     } else if (key == "map") {
       if (!have_size) fail(name, lineno, "'map' before 'size'");
       in_map = true;
@@ -178,62 +197,82 @@ World parse_tile_map(std::string_view text, const std::string& name, bool requir
   }
   if (!have_size) fail(name, 0, "no 'size' line (empty world)");
   if (!in_map) fail(name, 0, "no 'map' section");
-  if (rows.size() != D)
-    fail(name, 0, "expected " + std::to_string(D) + " map rows, found " + std::to_string(rows.size()));
+  if (t.rows.size() != t.D)
+    fail(name, 0, "expected " + std::to_string(t.D) + " map rows, found " + std::to_string(t.rows.size()));
+  return t;
+}
 
+// The voxels: each tile a column of its material between the floor and the ceiling; the eye and
+// the lights' tiles noted
+void fill_voxels(const TileMapText& t, const std::string& name, const std::string& chars, World& w,
+                 std::optional<glm::ivec2>& eye_tile, std::vector<glm::ivec2>& light_tiles) {
+  const uint32_t W = t.W, D = t.D, H = t.H;
   w.dims = glm::uvec3(W, H + 2, D);
   w.voxels.assign(w.voxel_count(), kEmpty);
-  bool eye = false;
-  glm::ivec2 eye_tile{0};
-  std::vector<glm::ivec2> light_tiles;
   for (uint32_t z = 0; z < D; ++z) {
-    const std::string& r = rows[z];
+    const std::string& r = t.rows[z];
     if (r.size() != W)
-      fail(name, row_lines[z], "row has " + std::to_string(r.size()) + " characters, expected " + std::to_string(W) +
-                                   " (ragged map)");
+      fail(name, t.row_lines[z], "row has " + std::to_string(r.size()) + " characters, expected " + std::to_string(W) +
+                                     " (ragged map)");
     for (uint32_t x = 0; x < W; ++x) {
       const char c = r[x];
       uint16_t m = kEmpty;
       if (c == '.') {
       } else if (c == 'E') {
-        if (eye) fail(name, row_lines[z], "a second eye 'E' at column " + std::to_string(x + 1));
-        eye = true;
-        eye_tile = {int(x), int(z)};
+        if (eye_tile) fail(name, t.row_lines[z], "a second eye 'E' at column " + std::to_string(x + 1));
+        eye_tile = glm::ivec2{int(x), int(z)};
       } else if (c == 'L') {
         light_tiles.push_back({int(x), int(z)});
       } else {
         const size_t at = c ? chars.find(c) : std::string::npos;
         if (at == std::string::npos)
-          fail(name, row_lines[z], std::string("unknown character '") + c + "' at column " + std::to_string(x + 1));
+          fail(name, t.row_lines[z], std::string("unknown character '") + c + "' at column " + std::to_string(x + 1));
         m = uint16_t(at);
       }
-      w.voxels[w.index(x, 0, z)] = floor_m;
-      w.voxels[w.index(x, H + 1, z)] = ceiling_m;
+      w.voxels[w.index(x, 0, z)] = kFloorMaterial;
+      w.voxels[w.index(x, H + 1, z)] = kCeilingMaterial;
       for (uint32_t y = 1; y <= H; ++y) w.voxels[w.index(x, y, z)] = m;
     }
   }
-  if (require_eye && !eye) fail(name, 0, "no eye 'E' in the map");
-  // Camera: at the eye tile, half way up, looking along the longest free run of tiles.
+}
+
+// Camera: at the eye tile, half way up, looking along the longest free run of tiles.
+void place_camera(World& w, glm::ivec2 eye_tile, const TileMapText& t) {
+  const uint32_t W = t.W, D = t.D, H = t.H;
   const float mid = 1.0f + 0.5f * float(H);
-  if (eye) {
-    w.has_eye = true;
-    const glm::ivec2 dirs[4] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
-    int best = 0, best_len = -1;
-    for (int d = 0; d < 4; ++d) {
-      int len = 0;
-      glm::ivec2 p = eye_tile + dirs[d];
-      while (p.x >= 0 && p.y >= 0 && p.x < int(W) && p.y < int(D) && w.voxels[w.index(p.x, 1, p.y)] == kEmpty) {
-        ++len;
-        p += dirs[d];
-      }
-      if (len > best_len) best_len = len, best = d;
+  w.has_eye = true;
+  const glm::ivec2 dirs[4] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+  int best = 0, best_len = -1;
+  for (int d = 0; d < 4; ++d) {
+    int len = 0;
+    glm::ivec2 p = eye_tile + dirs[d];
+    while (p.x >= 0 && p.y >= 0 && p.x < int(W) && p.y < int(D) && w.voxels[w.index(p.x, 1, p.y)] == kEmpty) {
+      ++len;
+      p += dirs[d];
     }
-    w.camera.eye = glm::vec3(float(eye_tile.x) + 0.5f, mid, float(eye_tile.y) + 0.5f);
-    w.camera.target = w.camera.eye + glm::vec3(float(dirs[best].x), 0.0f, float(dirs[best].y));
-    w.camera.up = glm::vec3(0.0f, 1.0f, 0.0f);
-    w.camera.vfov_degrees = 60.0f;
+    if (len > best_len) best_len = len, best = d;
   }
-  for (const glm::ivec2& l : light_tiles) w.lights.push_back(glm::vec3(float(l.x) + 0.5f, float(H) + 0.5f, float(l.y) + 0.5f));
+  w.camera.eye = glm::vec3(float(eye_tile.x) + 0.5f, mid, float(eye_tile.y) + 0.5f);
+  w.camera.target = w.camera.eye + glm::vec3(float(dirs[best].x), 0.0f, float(dirs[best].y));
+  w.camera.up = glm::vec3(0.0f, 1.0f, 0.0f);
+  w.camera.vfov_degrees = 60.0f;
+}
+
+}  // namespace
+
+World parse_tile_map(std::string_view text, const std::string& name, bool require_eye) {
+  World w;
+  w.name = name;
+  std::string chars;
+  default_materials(w, chars);
+  const TileMapText t = read_tile_map(text, name, w, chars);
+  std::optional<glm::ivec2> eye_tile;
+  std::vector<glm::ivec2> light_tiles;
+  fill_voxels(t, name, chars, w, eye_tile, light_tiles);
+  if (require_eye && !eye_tile) fail(name, 0, "no eye 'E' in the map");
+  if (eye_tile) place_camera(w, *eye_tile, t);
+  for (const glm::ivec2& l : light_tiles)
+    w.lights.push_back(glm::vec3(float(l.x) + 0.5f, float(t.H) + 0.5f, float(l.y) + 0.5f));
   w.validate();
   return w;
 }
