@@ -253,12 +253,10 @@ bool load_image_checked(tinygltf::Image* image, const int index, std::string* er
   return tinygltf::LoadImageData(image, index, err, warn, req_w, req_h, bytes, size, user);
 }
 
-}  // namespace
-
-std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCache& textures) {
-  // Read the file here (a regular file within the size bound), check the JSON's nesting depth
-  // before TinyGLTF's recursive parser sees it, and let TinyGLTF read external buffers and
-  // decode images only through the checked callbacks below.
+// The model: the file read here (a regular file within the size bound), the JSON's nesting depth
+// checked before TinyGLTF's recursive parser sees it, external buffers and images read and decoded
+// only through the checked callbacks above.
+tinygltf::Model parse_model(const std::string& path) {
   const std::string data = read_input_file(path, "glTF");
   tinygltf::TinyGLTF loader;
   tinygltf::Model model;
@@ -292,17 +290,19 @@ std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCa
     for (std::string w; std::getline(ws, w);)
       if (!w.empty()) std::cerr << "warning: " << path << ": " << w << "\n";
   }
-  const Ctx c{path, model};
+  return model;
+}
 
-  // Materials and their textures.
-  const uint32_t material_base = uint32_t(scene.materials.size());
+// Materials and their textures, appended to the scene's.
+void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
+  const std::string& path = c.path;
   auto texture_of = [&](int texture_index) -> int {
-    if (texture_index < 0 || size_t(texture_index) >= model.textures.size())
+    if (texture_index < 0 || size_t(texture_index) >= c.model.textures.size())
       c.fail("texture " + std::to_string(texture_index) + " does not exist");
-    return model.textures[size_t(texture_index)].source;
+    return c.model.textures[size_t(texture_index)].source;
   };
-  for (size_t mi = 0; mi < model.materials.size(); ++mi) {
-    const tinygltf::Material& gm = model.materials[mi];
+  for (size_t mi = 0; mi < c.model.materials.size(); ++mi) {
+    const tinygltf::Material& gm = c.model.materials[mi];
     const auto& pbr = gm.pbrMetallicRoughness;
     Material mat;
     mat.name = gm.name.empty() ? "material" + std::to_string(mi) : gm.name;
@@ -343,14 +343,16 @@ std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCa
     }
     scene.materials.push_back(std::move(mat));
   }
-  int64_t default_material = -1;
+}
 
-  // Meshes: triangle primitives merged, one Mesh per glTF mesh.
-  const uint32_t mesh_base = uint32_t(scene.meshes.size());
-  for (size_t mi = 0; mi < model.meshes.size(); ++mi) {
-    const tinygltf::Mesh& gmesh = model.meshes[mi];
+// Meshes: triangle primitives merged, one Mesh per glTF mesh. A primitive without a material gets
+// one "default" material, added on first use.
+void add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
+  int64_t default_material = -1;
+  for (size_t mi = 0; mi < c.model.meshes.size(); ++mi) {
+    const tinygltf::Mesh& gmesh = c.model.meshes[mi];
     Mesh mesh;
-    mesh.name = gmesh.name.empty() ? fs::path(path).stem().string() + "/mesh" + std::to_string(mi) : gmesh.name;
+    mesh.name = gmesh.name.empty() ? fs::path(c.path).stem().string() + "/mesh" + std::to_string(mi) : gmesh.name;
     bool all_normals = true, any_uv = false;
     std::vector<glm::vec3> normals;
     for (size_t pi = 0; pi < gmesh.primitives.size(); ++pi) {
@@ -388,7 +390,7 @@ std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCa
 
       uint32_t material;
       if (prim.material >= 0) {
-        if (size_t(prim.material) >= model.materials.size()) c.fail(where + ": material " + std::to_string(prim.material) + " does not exist");
+        if (size_t(prim.material) >= c.model.materials.size()) c.fail(where + ": material " + std::to_string(prim.material) + " does not exist");
         material = material_base + uint32_t(prim.material);
       } else {
         if (default_material < 0) {
@@ -413,21 +415,24 @@ std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCa
     if (!any_uv) mesh.uvs.clear();
     scene.meshes.push_back(std::move(mesh));
   }
+}
 
-  // Nodes: one instance per node with a mesh, at its world matrix.
+// Nodes: one instance per node with a mesh, at its world matrix (every mesh once, untransformed,
+// where there are no nodes at all).
+std::vector<Instance> node_instances(const Ctx& c, const Scene& scene, uint32_t mesh_base) {
   std::vector<Instance> instances;
-  std::vector<int> depth_of(model.nodes.size(), -1);
+  std::vector<int> depth_of(c.model.nodes.size(), -1);
   std::function<void(int, const glm::mat4&, int)> visit = [&](int ni, const glm::mat4& parent, int depth) {
-    if (ni < 0 || size_t(ni) >= model.nodes.size()) c.fail("node " + std::to_string(ni) + " does not exist");
+    if (ni < 0 || size_t(ni) >= c.model.nodes.size()) c.fail("node " + std::to_string(ni) + " does not exist");
     if (depth > int(input_limits().max_node_depth))
       c.fail("node " + std::to_string(ni) + ": the node hierarchy is deeper than " +
              std::to_string(input_limits().max_node_depth) + " levels (the limit)");
     if (depth_of[size_t(ni)] >= 0) c.fail("node " + std::to_string(ni) + " is reached twice (a cycle or a shared child)");
     depth_of[size_t(ni)] = depth;
-    const tinygltf::Node& node = model.nodes[size_t(ni)];
+    const tinygltf::Node& node = c.model.nodes[size_t(ni)];
     const glm::mat4 world = parent * local_matrix(node);
     if (node.mesh >= 0) {
-      if (size_t(node.mesh) >= model.meshes.size()) c.fail("node " + std::to_string(ni) + ": mesh " + std::to_string(node.mesh) + " does not exist");
+      if (size_t(node.mesh) >= c.model.meshes.size()) c.fail("node " + std::to_string(ni) + ": mesh " + std::to_string(node.mesh) + " does not exist");
       Instance inst;
       inst.name = node.name.empty() ? "node" + std::to_string(ni) : node.name;
       inst.mesh = mesh_base + uint32_t(node.mesh);
@@ -437,23 +442,36 @@ std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCa
     for (int child : node.children) visit(child, world, depth + 1);
   };
   std::vector<int> roots;
-  if (!model.scenes.empty()) {
-    const int s = model.defaultScene >= 0 && size_t(model.defaultScene) < model.scenes.size() ? model.defaultScene : 0;
-    roots = model.scenes[size_t(s)].nodes;
+  if (!c.model.scenes.empty()) {
+    const int s = c.model.defaultScene >= 0 && size_t(c.model.defaultScene) < c.model.scenes.size() ? c.model.defaultScene : 0;
+    roots = c.model.scenes[size_t(s)].nodes;
   } else {
-    std::vector<bool> is_child(model.nodes.size(), false);
-    for (const auto& n : model.nodes)
+    std::vector<bool> is_child(c.model.nodes.size(), false);
+    for (const auto& n : c.model.nodes)
       for (int ch : n.children)
-        if (ch >= 0 && size_t(ch) < model.nodes.size()) is_child[size_t(ch)] = true;
-    for (size_t i = 0; i < model.nodes.size(); ++i)
+        if (ch >= 0 && size_t(ch) < c.model.nodes.size()) is_child[size_t(ch)] = true;
+    for (size_t i = 0; i < c.model.nodes.size(); ++i)
       if (!is_child[i]) roots.push_back(int(i));
   }
   for (int r : roots) visit(r, glm::mat4(1.0f), 0);
-  if (instances.empty() && model.nodes.empty()) {
+  if (instances.empty() && c.model.nodes.empty()) {
     // No nodes at all: every mesh once, untransformed.
-    for (size_t mi = 0; mi < model.meshes.size(); ++mi)
+    for (size_t mi = 0; mi < c.model.meshes.size(); ++mi)
       instances.push_back(Instance{.name = scene.meshes[mesh_base + mi].name, .mesh = mesh_base + uint32_t(mi)});
   }
+  return instances;
+}
+
+}  // namespace
+
+std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCache& textures) {
+  const tinygltf::Model model = parse_model(path);
+  const Ctx c{path, model};
+  const uint32_t material_base = uint32_t(scene.materials.size());
+  add_materials(c, scene, textures);
+  const uint32_t mesh_base = uint32_t(scene.meshes.size());
+  add_meshes(c, scene, material_base);
+  const std::vector<Instance> instances = node_instances(c, scene, mesh_base);
   uint64_t triangles = 0;
   for (const Instance& inst : instances) triangles += scene.meshes[inst.mesh].triangle_count();
   if (triangles == 0) throw Error("glTF '" + path + "' has no triangles: an empty model");
