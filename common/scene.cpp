@@ -76,13 +76,10 @@ std::vector<Mesh> split_mesh(const Mesh& mesh) {
   return pieces;
 }
 
-}  // namespace
-
-void Scene::finalize() {
-  // Validate every mesh: sizes, indices, finite numbers.
-  if (materials.empty()) materials.push_back(Material{.name = "default"});
-  for (const Mesh& m : meshes) {
-    const std::string where = "scene '" + name + "', mesh '" + m.name + "'";
+// Every mesh's sizes, indices and numbers, and the vertex limit
+void validate_meshes(const Scene& s) {
+  for (const Mesh& m : s.meshes) {
+    const std::string where = "scene '" + s.name + "', mesh '" + m.name + "'";
     if (!m.normals.empty() && m.normals.size() != m.positions.size())
       throw Error(where + ": " + std::to_string(m.normals.size()) + " normals for " +
                   std::to_string(m.positions.size()) + " vertices");
@@ -110,19 +107,21 @@ void Scene::finalize() {
           throw Error(where + ": triangle " + std::to_string(t) + " uses vertex " +
                       std::to_string(m.triangles[t][k]) + " of " + std::to_string(m.positions.size()));
     for (uint32_t mat : m.materials)
-      if (mat >= materials.size())
+      if (mat >= s.materials.size())
         throw Error(where + ": material index " + std::to_string(mat) + " of " +
-                    std::to_string(materials.size()));
+                    std::to_string(s.materials.size()));
   }
-  {
-    uint64_t vertices = 0;
-    for (const Mesh& m : meshes) vertices += m.positions.size();
-    if (vertices > input_limits().max_vertices)
-      throw Error("scene '" + name + "' has " + std::to_string(vertices) + " vertices, more than the limit of " +
-                  std::to_string(input_limits().max_vertices));
-  }
-  for (const Texture& t : textures) {
-    const std::string where = "scene '" + name + "', texture '" + t.path + "'";
+  uint64_t vertices = 0;
+  for (const Mesh& m : s.meshes) vertices += m.positions.size();
+  if (vertices > input_limits().max_vertices)
+    throw Error("scene '" + s.name + "' has " + std::to_string(vertices) + " vertices, more than the limit of " +
+                std::to_string(input_limits().max_vertices));
+}
+
+// Every texture's size, material's values and instance's mesh, transform and motion
+void validate_textures_materials_instances(const Scene& s) {
+  for (const Texture& t : s.textures) {
+    const std::string where = "scene '" + s.name + "', texture '" + t.path + "'";
     if (t.width == 0 || t.height == 0 || uint64_t(t.width) * t.height > input_limits().max_texture_pixels)
       throw Error(where + ": size " + std::to_string(t.width) + " x " + std::to_string(t.height) +
                   " is zero or above the limit of " + std::to_string(input_limits().max_texture_pixels) +
@@ -131,8 +130,8 @@ void Scene::finalize() {
       throw Error(where + ": " + std::to_string(t.rgba.size()) + " bytes for " + std::to_string(t.width) + " x " +
                   std::to_string(t.height) + " RGBA8 texels");
   }
-  for (const Material& mat : materials) {
-    const std::string where = "scene '" + name + "', material '" + mat.name + "'";
+  for (const Material& mat : s.materials) {
+    const std::string where = "scene '" + s.name + "', material '" + mat.name + "'";
     if (!finite(mat.diffuse) || mat.diffuse.x < 0.0f || mat.diffuse.y < 0.0f || mat.diffuse.z < 0.0f)
       throw Error(where + ": the diffuse colour must be finite and not negative");
     if (!(mat.opacity >= 0.0f && mat.opacity <= 1.0f))
@@ -140,16 +139,16 @@ void Scene::finalize() {
     for (int32_t tex : {mat.diffuse_texture, mat.alpha_texture})
       if (tex < -1) throw Error(where + ": texture index " + std::to_string(tex) + " (only -1 means none)");
     for (int32_t tex : {mat.diffuse_texture, mat.alpha_texture})
-      if (tex >= int32_t(textures.size()))
+      if (tex >= int32_t(s.textures.size()))
         throw Error("material '" + mat.name + "' uses texture " + std::to_string(tex) + " of " +
-                    std::to_string(textures.size()));
+                    std::to_string(s.textures.size()));
     if (!(mat.glossiness >= 0.0f && mat.glossiness <= 1.0f))
       throw Error("material '" + mat.name + "': glossiness must lie in [0, 1]");
   }
-  for (const Instance& inst : instances) {
-    if (inst.mesh >= meshes.size())
+  for (const Instance& inst : s.instances) {
+    if (inst.mesh >= s.meshes.size())
       throw Error("instance '" + inst.name + "' uses mesh " + std::to_string(inst.mesh) + " of " +
-                  std::to_string(meshes.size()));
+                  std::to_string(s.meshes.size()));
     if (!finite(inst.transform) || !finite(inst.motion.axis) || !finite(inst.motion.pivot) ||
         !std::isfinite(inst.motion.angular_speed) || !std::isfinite(inst.motion.path_period))
       throw Error("instance '" + inst.name + "' has a non-finite transform or motion");
@@ -162,25 +161,27 @@ void Scene::finalize() {
     if (inst.motion.path_points.size() > 1 && !(inst.motion.path_period >= kMinPathPeriod))
       throw Error("instance '" + inst.name + "': path period must be at least 0.001 seconds");
   }
+}
 
-  // Split meshes at the 16-bit triangle limit; every instance of a split mesh becomes one
-  // instance per piece, with the same transform and motion.
-  std::vector<std::vector<uint32_t>> pieces_of(meshes.size());
+// Meshes split at the 16-bit triangle limit; every instance of a split mesh becomes one instance
+// per piece, with the same transform and motion.
+void split_large_meshes(Scene& s) {
+  std::vector<std::vector<uint32_t>> pieces_of(s.meshes.size());
   std::vector<Mesh> out_meshes;
-  for (size_t m = 0; m < meshes.size(); ++m) {
-    if (meshes[m].triangle_count() <= kMaxTrianglesPerMesh) {
+  for (size_t m = 0; m < s.meshes.size(); ++m) {
+    if (s.meshes[m].triangle_count() <= kMaxTrianglesPerMesh) {
       pieces_of[m].push_back(uint32_t(out_meshes.size()));
-      out_meshes.push_back(std::move(meshes[m]));
+      out_meshes.push_back(std::move(s.meshes[m]));
     } else {
-      for (Mesh& piece : split_mesh(meshes[m])) {
+      for (Mesh& piece : split_mesh(s.meshes[m])) {
         pieces_of[m].push_back(uint32_t(out_meshes.size()));
         out_meshes.push_back(std::move(piece));
       }
     }
   }
-  meshes = std::move(out_meshes);
+  s.meshes = std::move(out_meshes);
   std::vector<Instance> out_instances;
-  for (const Instance& inst : instances)
+  for (const Instance& inst : s.instances)
     for (size_t p = 0; p < pieces_of[inst.mesh].size(); ++p) {
       Instance piece = inst;
       piece.mesh = pieces_of[inst.mesh][p];
@@ -190,41 +191,47 @@ void Scene::finalize() {
   // Static first, dynamic after: the order that makes dynamic ids "offset by the static count".
   std::stable_partition(out_instances.begin(), out_instances.end(),
                         [](const Instance& i) { return !i.dynamic; });
-  instances = std::move(out_instances);
+  s.instances = std::move(out_instances);
+}
 
-  if (instances.size() > kMaxInstances)
-    throw Error("scene '" + name + "' has " + std::to_string(instances.size()) +
+// The limits on instances and triangles after the split, and bounds with an extent
+void validate_geometry(const Scene& s) {
+  if (s.instances.size() > kMaxInstances)
+    throw Error("scene '" + s.name + "' has " + std::to_string(s.instances.size()) +
                 " instances after splitting meshes at 65,536 triangles; the 16-bit instance "
                 "field of a reference holds at most 65,535");
-  if (triangle_count() == 0) throw Error("scene '" + name + "' is empty: it has no triangles");
-  if (triangle_count() > input_limits().max_triangles)
-    throw Error("scene '" + name + "' has " + std::to_string(triangle_count()) +
+  if (s.triangle_count() == 0) throw Error("scene '" + s.name + "' is empty: it has no triangles");
+  if (s.triangle_count() > input_limits().max_triangles)
+    throw Error("scene '" + s.name + "' has " + std::to_string(s.triangle_count()) +
                 " triangles over its instances, more than the limit of " + std::to_string(input_limits().max_triangles) +
                 " (--max-triangles)");
-  {
-    const Bounds b = bounds(0.0f);
-    const glm::vec3 e = b.extent();
-    if (!finite(b.lo) || !finite(b.hi) || !finite(e) || !std::isfinite(glm::length(e)))
-      throw Error("scene '" + name + "': the geometry's world bounds overflow single precision (coordinates too large)");
-    if (std::max({e.x, e.y, e.z}) <= 0.0f)
-      throw Error("scene '" + name + "': every vertex lies at one point (the geometry has no extent)");
-  }
-  {
-    // The scene's camera, or the one frame_camera() makes for a scene without one: either way
-    // the camera that renders it must be usable.
-    const Camera c = frame_camera();
-    const char* whose = camera ? "camera" : "the camera framed around the geometry";
-    if (!finite(c.eye) || !finite(c.target) || !finite(c.up) ||
-        !(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
-      throw Error("scene '" + name + "': " + whose + " has non-finite values or a field of view outside (0, 180)");
-    if (c.eye == c.target) throw Error("scene '" + name + "': " + whose + ": eye equals its target");
-    const glm::vec3 forward = glm::normalize(c.target - c.eye);  // as the camera frame takes it
-    if (!(glm::length(glm::cross(forward, c.up)) > 1e-6f * glm::length(c.up)))
-      throw Error("scene '" + name + "': " + whose + ": up is zero or parallel to the view direction");
-  }
-  for (size_t i = 0; i < lights.size(); ++i) {
-    const Light& l = lights[i];
-    const std::string where = "scene '" + name + "', light " + std::to_string(i);
+  const Bounds b = s.bounds(0.0f);
+  const glm::vec3 e = b.extent();
+  if (!finite(b.lo) || !finite(b.hi) || !finite(e) || !std::isfinite(glm::length(e)))
+    throw Error("scene '" + s.name + "': the geometry's world bounds overflow single precision (coordinates too large)");
+  if (std::max({e.x, e.y, e.z}) <= 0.0f)
+    throw Error("scene '" + s.name + "': every vertex lies at one point (the geometry has no extent)");
+}
+
+// The scene's camera, or the one frame_camera() makes for a scene without one: either way the
+// camera that renders it must be usable.
+void validate_camera(const Scene& s) {
+  const Camera c = s.frame_camera();
+  const char* whose = s.camera ? "camera" : "the camera framed around the geometry";
+  if (!finite(c.eye) || !finite(c.target) || !finite(c.up) ||
+      !(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
+    throw Error("scene '" + s.name + "': " + whose + " has non-finite values or a field of view outside (0, 180)");
+  if (c.eye == c.target) throw Error("scene '" + s.name + "': " + whose + ": eye equals its target");
+  const glm::vec3 forward = glm::normalize(c.target - c.eye);  // as the camera frame takes it
+  if (!(glm::length(glm::cross(forward, c.up)) > 1e-6f * glm::length(c.up)))
+    throw Error("scene '" + s.name + "': " + whose + ": up is zero or parallel to the view direction");
+}
+
+// Lights, background and the scene's grid overrides
+void validate_lights_and_grid(const Scene& s) {
+  for (size_t i = 0; i < s.lights.size(); ++i) {
+    const Light& l = s.lights[i];
+    const std::string where = "scene '" + s.name + "', light " + std::to_string(i);
     if (!finite(l.position) || !finite(l.color) || !std::isfinite(l.intensity))
       throw Error(where + ": non-finite values");
     if (l.intensity < 0.0f || l.color.x < 0.0f || l.color.y < 0.0f || l.color.z < 0.0f)
@@ -232,14 +239,26 @@ void Scene::finalize() {
     if (l.directional && !(glm::length(l.position) > 0.0f))
       throw Error(where + ": zero direction (a directional light needs a direction towards the light)");
   }
-  if (!finite(background) || background.x < 0.0f || background.y < 0.0f || background.z < 0.0f)
-    throw Error("scene '" + name + "': the background colour must be finite and not negative");
-  if (grid.capacity && (*grid.capacity == 0 || *grid.capacity > 1024))
-    throw Error("scene '" + name + "': grid capacity must lie in [1, 1024]");
-  if (grid.resolution && (grid.resolution->x == 0 || grid.resolution->y == 0 || grid.resolution->z == 0))
-    throw Error("scene '" + name + "': grid resolution must be at least 1 cell per axis");
-  if (grid.cell_size && !(*grid.cell_size > 0.0f && std::isfinite(*grid.cell_size)))
-    throw Error("scene '" + name + "': grid cell size must be a positive finite number");
+  if (!finite(s.background) || s.background.x < 0.0f || s.background.y < 0.0f || s.background.z < 0.0f)
+    throw Error("scene '" + s.name + "': the background colour must be finite and not negative");
+  if (s.grid.capacity && (*s.grid.capacity == 0 || *s.grid.capacity > 1024))
+    throw Error("scene '" + s.name + "': grid capacity must lie in [1, 1024]");
+  if (s.grid.resolution && (s.grid.resolution->x == 0 || s.grid.resolution->y == 0 || s.grid.resolution->z == 0))
+    throw Error("scene '" + s.name + "': grid resolution must be at least 1 cell per axis");
+  if (s.grid.cell_size && !(*s.grid.cell_size > 0.0f && std::isfinite(*s.grid.cell_size)))
+    throw Error("scene '" + s.name + "': grid cell size must be a positive finite number");
+}
+
+}  // namespace
+
+void Scene::finalize() {
+  if (materials.empty()) materials.push_back(Material{.name = "default"});
+  validate_meshes(*this);
+  validate_textures_materials_instances(*this);
+  split_large_meshes(*this);
+  validate_geometry(*this);
+  validate_camera(*this);
+  validate_lights_and_grid(*this);
 }
 
 uint32_t Scene::static_instance_count() const {
