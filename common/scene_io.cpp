@@ -357,22 +357,34 @@ static_assert(std::endian::native == std::endian::little, "the .gridscene writer
 constexpr char kMagic[8] = {'G', 'R', 'I', 'D', 'S', 'C', 'N', '\0'};
 constexpr char kEndMagic[8] = {'E', 'N', 'D', 'S', 'C', 'N', '\0', '\0'};
 
+// The cache's records are written and read by one list of fields (transfer_scene below): the
+// Writer's and the Reader's calls of the same name write a field and read it back.
 class Writer {
  public:
+  static constexpr bool kReading = false;
   template <class T>
-  void pod(const T& v) {
+  void pod(const T& v, const char* = nullptr) {
     static_assert(std::is_trivially_copyable_v<T>);
     const char* p = reinterpret_cast<const char*>(&v);
     out.append(p, sizeof(T));
   }
   template <class T>
-  void vec(const std::vector<T>& v) {
+  void vec(const std::vector<T>& v, const char* = nullptr) {
     pod(uint64_t(v.size()));
     if (!v.empty()) out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
   }
-  void str(const std::string& s) {
+  void str(const std::string& s, const char* = nullptr) {
     pod(uint64_t(s.size()));
     out.append(s);
+  }
+  void flag(bool b, const char* = nullptr) { pod(uint8_t(b)); }
+  template <class T>
+  void items(const std::vector<T>& v, const char*, size_t) { pod(uint64_t(v.size())); }
+  // A flag, then the value (a zero where there is none)
+  template <class T>
+  void optional(const std::optional<T>& v, const char*, const char*) {
+    flag(v.has_value());
+    pod(v.value_or(T(0)));
   }
   std::string out;
 };
@@ -415,6 +427,22 @@ class Reader {
     if (b > 1) fail(std::string(what) + ": flag byte " + std::to_string(b) + " is neither 0 nor 1");
     return b != 0;
   }
+  // The Writer's calls, reading into the field
+  static constexpr bool kReading = true;
+  template <class T>
+  void pod(T& v, const char* what) { v = pod<T>(what); }
+  template <class T>
+  void vec(std::vector<T>& v, const char* what) { v = vec<T>(what); }
+  void str(std::string& s, const char* what) { s = str(what); }
+  void flag(bool& b, const char* what) { b = flag(what); }
+  template <class T>
+  void items(std::vector<T>& v, const char* what, size_t min_bytes_each) { v.resize(count(what, min_bytes_each)); }
+  template <class T>
+  void optional(std::optional<T>& v, const char* flag_what, const char* value_what) {
+    const bool has = flag(flag_what);
+    const T value = pod<T>(value_what);
+    if (has) v = value;
+  }
   void need(uint64_t n, const char* what) const {
     if (n > d_.size() - pos_) fail(std::string("truncated at ") + what + " (byte " + std::to_string(pos_) + " of " + std::to_string(d_.size()) + ")");
   }
@@ -429,6 +457,83 @@ class Reader {
   const std::string& path_;
   size_t pos_ = 0;
 };
+
+// Every field of the cache after the version, in file order. `A` is the Writer (with a const
+// Scene) or the Reader; each record's count comes before its items.
+template <class A, class S>
+void transfer_scene(A& a, S& s) {
+  a.str(s.name, "the scene name");
+  a.pod(s.background, "the background");
+  a.items(s.meshes, "the mesh count", 48);
+  for (auto& m : s.meshes) {
+    a.str(m.name, "a mesh name");
+    a.vec(m.positions, "positions");
+    a.vec(m.normals, "normals");
+    a.vec(m.uvs, "uvs");
+    a.vec(m.triangles, "triangles");
+    a.vec(m.materials, "material ids");
+  }
+  a.items(s.materials, "the material count", 32);
+  for (auto& m : s.materials) {
+    a.str(m.name, "a material name");
+    a.pod(m.diffuse, "a diffuse colour");
+    a.pod(m.diffuse_texture, "a diffuse texture");
+    a.pod(m.alpha_texture, "an alpha texture");
+    a.pod(m.glossiness, "a glossiness");
+    a.pod(m.opacity, "an opacity");
+  }
+  a.items(s.textures, "the texture count", 25);
+  for (auto& t : s.textures) {
+    a.str(t.path, "a texture path");
+    a.pod(t.width, "a texture width");
+    a.pod(t.height, "a texture height");
+    a.flag(t.has_alpha, "a texture alpha flag");
+    if constexpr (A::kReading) {  // the size checked before the texels are allocated
+      if (t.width == 0 || t.height == 0 || uint64_t(t.width) * t.height > input_limits().max_texture_pixels)
+        a.fail("texture '" + t.path + "': size " + std::to_string(t.width) + " x " + std::to_string(t.height) +
+               " is zero or above the limit of " + std::to_string(input_limits().max_texture_pixels) +
+               " pixels (--max-texture-pixels)");
+    }
+    a.vec(t.rgba, "texels");
+    if constexpr (A::kReading) {
+      if (t.rgba.size() != uint64_t(t.width) * t.height * 4)
+        a.fail("texture '" + t.path + "': " + std::to_string(t.rgba.size()) + " bytes for " + std::to_string(t.width) +
+               " x " + std::to_string(t.height) + " RGBA8");
+    }
+  }
+  a.items(s.instances, "the instance count", 100);
+  for (auto& i : s.instances) {
+    a.str(i.name, "an instance name");
+    a.pod(i.mesh, "an instance mesh");
+    a.pod(i.transform, "an instance transform");
+    a.flag(i.dynamic, "an instance dynamic flag");
+    a.pod(i.motion.axis, "a motion axis");
+    a.pod(i.motion.pivot, "a motion pivot");
+    a.pod(i.motion.angular_speed, "an angular speed");
+    a.vec(i.motion.path_points, "path points");
+    a.pod(i.motion.path_period, "a path period");
+  }
+  bool has_camera = s.camera.has_value();
+  a.flag(has_camera, "the camera flag");
+  if (has_camera) {
+    if constexpr (A::kReading) s.camera.emplace();
+    auto& c = *s.camera;
+    a.pod(c.eye, "the camera eye");
+    a.pod(c.target, "the camera target");
+    a.pod(c.up, "the camera up");
+    a.pod(c.vfov_degrees, "the camera field of view");
+  }
+  a.items(s.lights, "the light count", 29);
+  for (auto& l : s.lights) {
+    a.pod(l.position, "a light position");
+    a.pod(l.color, "a light colour");
+    a.pod(l.intensity, "a light intensity");
+    a.flag(l.directional, "a light directional flag");
+  }
+  a.optional(s.grid.resolution, "the grid resolution flag", "the grid resolution");
+  a.optional(s.grid.capacity, "the grid capacity flag", "the grid capacity");
+  a.optional(s.grid.cell_size, "the grid cell size flag", "the grid cell size");
+}
 
 }  // namespace
 
@@ -488,66 +593,7 @@ void save_scene_binary(const Scene& s, const std::string& path) {
   Writer w;
   w.out.append(kMagic, 8);
   w.pod(kSceneBinaryVersion);
-  w.str(s.name);
-  w.pod(s.background);
-  w.pod(uint64_t(s.meshes.size()));
-  for (const Mesh& m : s.meshes) {
-    w.str(m.name);
-    w.vec(m.positions);
-    w.vec(m.normals);
-    w.vec(m.uvs);
-    w.vec(m.triangles);
-    w.vec(m.materials);
-  }
-  w.pod(uint64_t(s.materials.size()));
-  for (const Material& m : s.materials) {
-    w.str(m.name);
-    w.pod(m.diffuse);
-    w.pod(m.diffuse_texture);
-    w.pod(m.alpha_texture);
-    w.pod(m.glossiness);
-    w.pod(m.opacity);
-  }
-  w.pod(uint64_t(s.textures.size()));
-  for (const Texture& t : s.textures) {
-    w.str(t.path);
-    w.pod(t.width);
-    w.pod(t.height);
-    w.pod(uint8_t(t.has_alpha));
-    w.vec(t.rgba);
-  }
-  w.pod(uint64_t(s.instances.size()));
-  for (const Instance& i : s.instances) {
-    w.str(i.name);
-    w.pod(i.mesh);
-    w.pod(i.transform);
-    w.pod(uint8_t(i.dynamic));
-    w.pod(i.motion.axis);
-    w.pod(i.motion.pivot);
-    w.pod(i.motion.angular_speed);
-    w.vec(i.motion.path_points);
-    w.pod(i.motion.path_period);
-  }
-  w.pod(uint8_t(s.camera.has_value()));
-  if (s.camera) {
-    w.pod(s.camera->eye);
-    w.pod(s.camera->target);
-    w.pod(s.camera->up);
-    w.pod(s.camera->vfov_degrees);
-  }
-  w.pod(uint64_t(s.lights.size()));
-  for (const Light& l : s.lights) {
-    w.pod(l.position);
-    w.pod(l.color);
-    w.pod(l.intensity);
-    w.pod(uint8_t(l.directional));
-  }
-  w.pod(uint8_t(s.grid.resolution.has_value()));
-  w.pod(s.grid.resolution.value_or(glm::uvec3(0)));
-  w.pod(uint8_t(s.grid.capacity.has_value()));
-  w.pod(s.grid.capacity.value_or(0u));
-  w.pod(uint8_t(s.grid.cell_size.has_value()));
-  w.pod(s.grid.cell_size.value_or(0.0f));
+  transfer_scene(w, s);
   w.out.append(kEndMagic, 8);
 
   // Temp file beside the target, checked, synced, then renamed: never a half-written cache.
@@ -564,77 +610,7 @@ Scene load_scene_binary(const std::string& path) {
   if (version != kSceneBinaryVersion)
     r.fail("version " + std::to_string(version) + ", this build reads version " + std::to_string(kSceneBinaryVersion));
   Scene s;
-  s.name = r.str("the scene name");
-  s.background = r.pod<glm::vec3>("the background");
-  s.meshes.resize(r.count("the mesh count", 48));
-  for (Mesh& m : s.meshes) {
-    m.name = r.str("a mesh name");
-    m.positions = r.vec<glm::vec3>("positions");
-    m.normals = r.vec<glm::vec3>("normals");
-    m.uvs = r.vec<glm::vec2>("uvs");
-    m.triangles = r.vec<glm::uvec3>("triangles");
-    m.materials = r.vec<uint32_t>("material ids");
-  }
-  s.materials.resize(r.count("the material count", 32));
-  for (Material& m : s.materials) {
-    m.name = r.str("a material name");
-    m.diffuse = r.pod<glm::vec3>("a diffuse colour");
-    m.diffuse_texture = r.pod<int32_t>("a diffuse texture");
-    m.alpha_texture = r.pod<int32_t>("an alpha texture");
-    m.glossiness = r.pod<float>("a glossiness");
-    m.opacity = r.pod<float>("an opacity");
-  }
-  s.textures.resize(r.count("the texture count", 25));
-  for (Texture& t : s.textures) {
-    t.path = r.str("a texture path");
-    t.width = r.pod<uint32_t>("a texture width");
-    t.height = r.pod<uint32_t>("a texture height");
-    t.has_alpha = r.flag("a texture alpha flag");
-    if (t.width == 0 || t.height == 0 || uint64_t(t.width) * t.height > input_limits().max_texture_pixels)
-      r.fail("texture '" + t.path + "': size " + std::to_string(t.width) + " x " + std::to_string(t.height) +
-             " is zero or above the limit of " + std::to_string(input_limits().max_texture_pixels) +
-             " pixels (--max-texture-pixels)");
-    t.rgba = r.vec<uint8_t>("texels");
-    if (t.rgba.size() != uint64_t(t.width) * t.height * 4)
-      r.fail("texture '" + t.path + "': " + std::to_string(t.rgba.size()) + " bytes for " + std::to_string(t.width) + " x " +
-             std::to_string(t.height) + " RGBA8");
-  }
-  s.instances.resize(r.count("the instance count", 100));
-  for (Instance& i : s.instances) {
-    i.name = r.str("an instance name");
-    i.mesh = r.pod<uint32_t>("an instance mesh");
-    i.transform = r.pod<glm::mat4>("an instance transform");
-    i.dynamic = r.flag("an instance dynamic flag");
-    i.motion.axis = r.pod<glm::vec3>("a motion axis");
-    i.motion.pivot = r.pod<glm::vec3>("a motion pivot");
-    i.motion.angular_speed = r.pod<float>("an angular speed");
-    i.motion.path_points = r.vec<glm::vec3>("path points");
-    i.motion.path_period = r.pod<float>("a path period");
-  }
-  if (r.flag("the camera flag")) {
-    Camera c;
-    c.eye = r.pod<glm::vec3>("the camera eye");
-    c.target = r.pod<glm::vec3>("the camera target");
-    c.up = r.pod<glm::vec3>("the camera up");
-    c.vfov_degrees = r.pod<float>("the camera field of view");
-    s.camera = c;
-  }
-  s.lights.resize(r.count("the light count", 29));
-  for (Light& l : s.lights) {
-    l.position = r.pod<glm::vec3>("a light position");
-    l.color = r.pod<glm::vec3>("a light colour");
-    l.intensity = r.pod<float>("a light intensity");
-    l.directional = r.flag("a light directional flag");
-  }
-  const bool has_res = r.flag("the grid resolution flag");
-  const glm::uvec3 res = r.pod<glm::uvec3>("the grid resolution");
-  if (has_res) s.grid.resolution = res;
-  const bool has_cap = r.flag("the grid capacity flag");
-  const uint32_t cap = r.pod<uint32_t>("the grid capacity");
-  if (has_cap) s.grid.capacity = cap;
-  const bool has_cell = r.flag("the grid cell size flag");
-  const float cell = r.pod<float>("the grid cell size");
-  if (has_cell) s.grid.cell_size = cell;
+  transfer_scene(r, s);
   r.need(8, "the end marker");
   if (std::memcmp(r.at(), kEndMagic, 8) != 0) r.fail("end marker missing");
   r.skip(8);
