@@ -32,7 +32,22 @@ constexpr const char* kGrid = "Grid";
 constexpr const char* kExpert = "Grid (expert)";
 constexpr uint64_t kMaxWorkSamplePixels = 256 * 144;  // the trace-cost sample, traced once per candidate
 
+std::string choice_type(const std::vector<std::string>& names) {
+  std::string type;
+  for (const std::string& n : names) type += (type.empty() ? "" : "|") + n;
+  return type;
+}
+
 }  // namespace
+
+CLI::Option* add_choice(CLI::App* cmd, const std::string& name, std::string& value, const std::vector<std::string>& names,
+                        const std::string& help) {
+  return cmd->add_option(name, value, help)->check(CLI::IsMember(names).description(""))->type_name(choice_type(names));
+}
+
+CLI::Option* add_json_option(CLI::App* cmd, std::string& path, const std::string& what) {
+  return cmd->add_option("--json", path, "Also write " + what + " as JSON to this file")->type_name("FILE");
+}
 
 std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(const std::string& name) {
   using P = reference::GridOptions::CapacityPolicy;
@@ -187,8 +202,8 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
 
 // The Vulkan backend's own ("Vulkan").
 void add_vulkan_options(CLI::App* cmd, BackendOptions& o) {
-  cmd->add_option("--vk-build", o.vk_build, "Vulkan build: raster (geometry shader, the paper's) or compute")
-      ->check(CLI::IsMember({"raster", "compute"}).description(""))->type_name("raster|compute")->group("Vulkan");
+  add_choice(cmd, "--vk-build", o.vk_build, {"raster", "compute"}, "Vulkan build: raster (geometry shader, the paper's) or compute")
+      ->group("Vulkan");
   cmd->add_flag("--fallback-cpu", o.fallback_cpu, "Without a usable Vulkan device, use the CPU reference")
       ->group("Vulkan");
 }
@@ -283,7 +298,8 @@ void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
          },
          "Shadow rays from the gather to each light (at most 8 lights): on, off, or auto = on iff the scene has "
          "lights (default: auto)")
-      ->check(CLI::IsMember({"on", "off", "auto"}));
+      ->check(CLI::IsMember({"on", "off", "auto"}).description(""))
+      ->type_name("on|off|auto");
 }
 
 GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,

@@ -47,6 +47,15 @@ void add_backend_options(CLI::App* cmd, BackendOptions& options);
 // the embedded atrium).
 CLI::Option* add_scene_argument(CLI::App* cmd, std::string& scene);
 
+// The command line's vocabulary, one form for every verb:
+// - a choice among names (--kind, --validation, --div-choice...): the help shows "a|b|c", not
+//   CLI11's internals; an unknown name is a command-line error (exit 2);
+// - --json FILE (and --junit FILE): also write the result to FILE, replaced only by a complete new
+//   one; the text report stays on stdout.
+CLI::Option* add_choice(CLI::App* cmd, const std::string& name, std::string& value, const std::vector<std::string>& names,
+                        const std::string& help);
+CLI::Option* add_json_option(CLI::App* cmd, std::string& path, const std::string& what);
+
 // Names this build knows, in the order `--help` lists them (the first is the default).
 std::vector<std::string> backend_names();
 std::string backend_list();  // "cpu, vulkan, embree"

@@ -823,11 +823,10 @@ void add_bench_command(CLI::App& app) {
       ->needs(rtx);
   cmd->add_flag("--rtx-rebuild", o->rtx_rebuild, "With --rtx: rebuild the dynamic BLASes each frame instead of refitting")
       ->needs(rtx);
-  cmd->add_option("--gather", o->gather,
+  add_choice(cmd, "--gather", o->gather, {"compute", "boxes", "raster"},
                   "Vulkan: the frame's gather: compute (the CPU gather's ray test through a rasterizer's bins, tiles "
                   "and depth culling; needs 64-bit buffer atomics), boxes (the same test on every pixel of each "
-                  "triangle's box) or raster (the paper's raster pass)")
-      ->check(CLI::IsMember({"compute", "boxes", "raster"}).description(""))->type_name("compute|boxes|raster");
+                  "triangle's box) or raster (the paper's raster pass)");
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");
@@ -835,7 +834,7 @@ void add_bench_command(CLI::App& app) {
                   "Vulkan: timed frames whose hit records are read back for the trace's counters")
       ->check(CLI::Range(0u, 1000u));
   add_shadows_option(cmd, o->shadows);
-  cmd->add_option("--json", o->json, "Also write the figures as JSON to this file");
+  add_json_option(cmd, o->json, "the figures");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_bench(*o); });
 }

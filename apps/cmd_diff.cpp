@@ -612,16 +612,14 @@ void add_diff_command(CLI::App& app) {
   cmd->add_flag("--gpu-frame", o->gpu_frame,
                 "Also run the GPU frame's own passes (gather, bounce, trace) and compare its bounce rays "
                 "and hits, bit for bit, with the reference's from the same gather");
-  cmd->add_option("--validation", o->validation,
+  add_choice(cmd, "--validation", o->validation, {"on", "best-practices", "off"},
                   "The Khronos validation layer (with synchronization validation): on (default; any message "
-                  "fails the run with exit 4), best-practices (also the layer's best-practices checks), off")
-      ->check(CLI::IsMember({"on", "best-practices", "off"}));
-  cmd->add_option("--inject-difference", o->inject,
+                  "fails the run with exit 4), best-practices (also the layer's best-practices checks), off");
+  add_choice(cmd, "--inject-difference", o->inject, {"texel", "hit"},
                   "For testing the reports: change one texel or one hit record of the port's before comparing")
-      ->check(CLI::IsMember({"texel", "hit"}))
       ->group("");  // hidden
-  cmd->add_option("--json", o->json_path, "Also write the result as JSON to this file");
-  cmd->add_option("--junit", o->junit_path, "Also write the result as a JUnit XML report to this file");
+  add_json_option(cmd, o->json_path, "the result");
+  cmd->add_option("--junit", o->junit_path, "Also write the result as a JUnit XML report to this file")->type_name("FILE");
   cmd->callback([o, cmd] {
     o->explain_flags = given_grid_flags(cmd);
     const int code = DiffRun(*o).run();

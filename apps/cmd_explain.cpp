@@ -2,7 +2,7 @@
 // --backend vulkan the shader's own record beside it, aligned event by event.
 //   which ray   --pixel X,Y with --kind primary|bounce|shadow (the ray the frame makes for the
 //               pixel; --gpu-frame: the GPU frame's own), or --ray / --ray-file (any ray)
-//   how         full (every float in decimal and hex), --brief, --json
+//   how         full (every float in decimal and hex) or --brief on stdout; --json FILE
 //   pictures    --export ray.obj, --svg ray.svg, --html page.html (the step-by-step viewer)
 #include <cmath>
 #include <cstring>
@@ -60,7 +60,8 @@ struct ExplainOptions {
   std::string ray_file;
   bool gpu_frame = false;
   std::optional<uint32_t> light;
-  bool brief = false, json = false;
+  bool brief = false;
+  std::string json;  // --json FILE
   std::string obj, svg, html;
   bool traversal_given = false;
 };
@@ -294,7 +295,7 @@ void run_explain(const ExplainOptions& options) {
 #ifndef GRIDRT_HAVE_VULKAN
   if (vulkan) throw Error("explain --backend vulkan: this build has no Vulkan (it has: " + backend_list() + ")");
 #endif
-  for (const std::string* path : {&o.obj, &o.svg, &o.html})
+  for (const std::string* path : {&o.obj, &o.svg, &o.html, &o.json})
     if (!path->empty()) check_output_path(*path);
   resolve_image_limit(o.backend_options, vulkan);
   const Scene scene = load_scene_or_default(o.scene);
@@ -343,7 +344,7 @@ void run_explain(const ExplainOptions& options) {
     }
 #endif
     const std::string got_label = "shader";
-    if (o.json) {
+    if (!o.json.empty()) {
       nlohmann::json j{{"label", it.label},
                        {"header", it.header},
                        {"traversal", traversal_name(it.traversal)},
@@ -358,19 +359,19 @@ void run_explain(const ExplainOptions& options) {
                           {"t", reference::hex(it.frame_hit->t)},
                           {"same_as_reference", std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0}};
       json_rays.push_back(std::move(j));
-    } else {
-      if (items.size() > 1) std::printf("%s== ray %zu of %zu ==\n", i ? "\n" : "", i + 1, items.size());
-      for (const std::string& h : it.header) std::printf("%s\n", h.c_str());
-      std::printf("\n== CPU reference ==\n%s", plan::explain_text(want, fmt).c_str());
-      if (got) {
-        std::printf("\n== Vulkan (%s) ==\n%s", device.c_str(),
-                    plan::divergence_text(want, *got, fmt, "reference", got_label).c_str());
-      }
-      if (it.frame_hit) {
-        const bool same = std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0;
-        std::printf("the GPU frame's own hit of this ray %s the reference's%s\n", same ? "equals" : "DIFFERS from",
-                    same ? " bit for bit" : "");
-      }
+    }
+    // The text on stdout (the JSON goes to its file)
+    if (items.size() > 1) std::printf("%s== ray %zu of %zu ==\n", i ? "\n" : "", i + 1, items.size());
+    for (const std::string& h : it.header) std::printf("%s\n", h.c_str());
+    std::printf("\n== CPU reference ==\n%s", plan::explain_text(want, fmt).c_str());
+    if (got) {
+      std::printf("\n== Vulkan (%s) ==\n%s", device.c_str(),
+                  plan::divergence_text(want, *got, fmt, "reference", got_label).c_str());
+    }
+    if (it.frame_hit) {
+      const bool same = std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0;
+      std::printf("the GPU frame's own hit of this ray %s the reference's%s\n", same ? "equals" : "DIFFERS from",
+                  same ? " bit for bit" : "");
     }
     if (!o.obj.empty()) {
       const std::string path = numbered(o.obj, i, items.size());
@@ -387,10 +388,13 @@ void run_explain(const ExplainOptions& options) {
     if (!o.html.empty())
       views.push_back(reference::explain_view(it.label, it.header, want, got ? &*got : nullptr, ref.data(), fmt));
   }
-  if (o.json)
-    std::printf("%s\n", nlohmann::json{{"scene", scene.name}, {"rays", json_rays}}
-                            .dump(1, ' ', false, nlohmann::json::error_handler_t::replace)
-                            .c_str());
+  if (!o.json.empty()) {
+    write_file_atomically(o.json, "JSON",
+                          nlohmann::json{{"scene", scene.name}, {"rays", json_rays}}.dump(
+                              1, ' ', false, nlohmann::json::error_handler_t::replace) +
+                              "\n");
+    written.push_back(o.json);
+  }
   if (!o.html.empty()) {
     write_file_atomically(o.html, "HTML viewer", reference::explain_html("gridrt explain: " + scene.name, views));
     written.push_back(o.html);
@@ -412,17 +416,16 @@ void add_explain_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "explain",
       "Every step of one ray through the grid (a pixel's primary, bounce or shadow ray, or any ray), the shader's "
-      "own record beside it with --backend vulkan; as text, --brief, --json, OBJ, SVG or an HTML viewer");
+      "own record beside it with --backend vulkan; as text or --brief, and --json, OBJ, SVG or an HTML viewer");
   add_scene_argument(cmd, o->scene);
   cmd->add_option("--width", o->width, "Image width of the frame whose pixel is explained")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--height", o->height, "Image height of the frame")->check(CLI::Range(1u, 16384u));
   cmd->add_option("--time,-t", o->time, "Scene time in seconds");
   cmd->add_option("--frame", o->frame, "The frame number that seeds the glossy bounce's per-pixel random numbers");
   auto* pixel = cmd->add_option("--pixel,-p", o->pixel, "The pixel X,Y whose ray is explained")->delimiter(',')->expected(2);
-  cmd->add_option("--kind", o->kind,
-                  "Which of the pixel's rays: primary, bounce (its glossy bounce), shadow (toward each light from "
-                  "its primary hit), auto (the bounce where the pixel has one, else the primary)")
-      ->check(CLI::IsMember({"auto", "primary", "bounce", "shadow"}));
+  add_choice(cmd, "--kind", o->kind, {"auto", "primary", "bounce", "shadow"},
+             "Which of the pixel's rays: primary, bounce (its glossy bounce), shadow (toward each light from its "
+             "primary hit), auto (the bounce where the pixel has one, else the primary)");
   cmd->add_flag("--primary", o->primary, "The same as --kind primary");
   cmd->add_option("--light", o->light, "--kind shadow: only the shadow ray toward this light (its index)");
   auto* ray = cmd->add_option("--ray", o->rays,
@@ -435,10 +438,10 @@ void add_explain_command(CLI::App& app) {
   cmd->add_flag("--gpu-frame", o->gpu_frame,
                 "--pixel: take the ray from the GPU frame's own passes (its gather, its bounce pass) and compare "
                 "the frame's own hit (--backend vulkan)");
-  cmd->add_option("--backend,-b", o->backend, "cpu, or vulkan to show the shader's own record beside the reference's")
-      ->check(CLI::IsMember({"cpu", "vulkan"}));
+  add_choice(cmd, "--backend,-b", o->backend, {"cpu", "vulkan"},
+             "cpu, or vulkan to show the shader's own record beside the reference's");
   cmd->add_flag("--brief", o->brief, "One line an event, no hex, runs of empty cells folded");
-  cmd->add_flag("--json", o->json, "The event records as JSON (with names), on stdout");
+  add_json_option(cmd, o->json, "the event records (with names)");
   cmd->add_option("--export", o->obj,
                   "Write the ray, its visited cells (boxes), the tested triangles and the hit as a Wavefront OBJ "
                   "(with a .mtl beside it)");

@@ -180,8 +180,7 @@ void add_grid_commands(CLI::App& app) {
     cmd->add_option("--slices", o->slices,
                     "Also draw the grid slice by slice into this folder (occupancy.png: references per cell, "
                     "saturated cells, with a legend)");
-    cmd->add_option("--slice-axis", o->slice_axis, "--slices: the axis the slices are cut along")
-        ->check(CLI::IsMember({"x", "y", "z"}).description(""))->type_name("x|y|z");
+    add_choice(cmd, "--slice-axis", o->slice_axis, {"x", "y", "z"}, "--slices: the axis the slices are cut along");
     cmd->add_option("--ray-pixel", o->ray_pixel,
                     "--slices: also draw the camera ray of pixel X,Y (of --width x --height): the cells its traversal "
                     "visits and its samples")

@@ -283,8 +283,7 @@ void add_world_options(CLI::App* cmd, std::string& spec, uint32_t& voxels, std::
                   "A tile map (.map), builtin:level (default), gen:WxDxH[:SEED] (a generated level), or a scene to "
                   "voxelize");
   cmd->add_option("--voxels", voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 253u));
-  cmd->add_option("--div-choice", choice, "How divs are chosen: bounded (near-linear, default) or exact (small worlds)")
-      ->check(CLI::IsMember({"bounded", "exact"}));
+  add_choice(cmd, "--div-choice", choice, {"bounded", "exact"}, "How divs are chosen: bounded (near-linear, default) or exact (small worlds)");
   cmd->add_option("--atlas-width", atlas_width, "Atlas texels per row (more for large worlds: the atlas has at most 65536 rows)")
       ->check(CLI::Range(1u, 65536u));
 }
@@ -373,10 +372,9 @@ void add_portal_command(CLI::App& app) {
     cmd->add_flag("--separate-loops", o->separate_loops, "Three loops (primary, shadow 1, shadow 2), not the state machine");
     cmd->add_option("--backend,-b", o->backend, "Tracer: " + portal_backends());
     cmd->add_option("-o,--output", o->output, "Image file");
-    cmd->add_option("--view", o->view,
+    add_choice(cmd, "--view", o->view, {"shaded", "divs", "dda"},
                     "What the picture shows: shaded (the render), or per pixel with a colour bar: divs (divs the "
-                    "portal traversal visits per camera ray) or dda (voxels an exact voxel DDA steps through)")
-        ->check(CLI::IsMember({"shaded", "divs", "dda"}).description(""))->type_name("shaded|divs|dda");
+                    "portal traversal visits per camera ray) or dda (voxels an exact voxel DDA steps through)");
     cmd->callback([o] { o->view == "shaded" ? run_portal_render(*o) : run_portal_view(*o); });
   }
   {

@@ -193,16 +193,14 @@ void add_render_command(CLI::App& app) {
   add_shadows_option(cmd, o->shadows);
   cmd->add_flag("--no-bounce", o->no_bounce, "Primary rays only, no glossy bounce");
   cmd->add_option("-o,--output", o->output, "Image file: .png, .jpg, .exr, .hdr, .tif (OpenImageIO), .ppm, .pfm");
-  cmd->add_option("--view", o->view,
+  add_choice(cmd, "--view", o->view, view_names(),
                   "What the picture shows: shaded (the render), or per pixel with a colour bar or legend: cells "
                   "(visited), tests (references tested), saturation (saturated cells visited), gap-fill (a gap-fill "
                   "voxel answered), spill (a spilled reference answered), diff (CPU reference vs Vulkan shader; "
-                  "needs --backend vulkan)")
-      ->check(CLI::IsMember(view_names()).description(""))->type_name("shaded|cells|tests|saturation|gap-fill|spill|diff")->group("Views");
-  cmd->add_option("--rays", o->rays,
+                  "needs --backend vulkan)")->group("Views");
+  add_choice(cmd, "--rays", o->rays, {"bounce", "primary"},
                   "--view: which ray of each pixel: bounce (its glossy bounce, as the frame traces it; the camera "
-                  "rays where the scene has no glossy material) or primary (the camera ray, through the grid)")
-      ->check(CLI::IsMember({"bounce", "primary"}).description(""))->type_name("bounce|primary")->group("Views");
+                  "rays where the scene has no glossy material) or primary (the camera ray, through the grid)")->group("Views");
   cmd->add_option("--scale", o->scale, "--view: figure pixels per image pixel")->check(CLI::Range(1, 16))->group("Views");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_render(*o); });

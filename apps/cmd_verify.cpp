@@ -103,7 +103,7 @@ void add_verify_command(CLI::App& app) {
   cmd->add_flag("--no-translated", o->no_translated, "Skip the run on the scene moved far from the origin");
   cmd->add_option("--offset", o->offset, "Offset X,Y,Z of the translated run (default 1e5,-5e4,7.5e4)")
       ->delimiter(',')->expected(3);
-  cmd->add_option("--json", o->json, "Write the results as JSON");
+  add_json_option(cmd, o->json, "the results");
   cmd->add_flag("--strict", o->strict, "Fail on wrong answers and cracks with the paper traversal too");
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o] { run_verify(*o); });

@@ -25,7 +25,8 @@ fs::path scratch(const std::string& name) {
 }  // namespace
 
 TEST_CASE("CLI: every verb has --help", "[cli]") {
-  for (const char* verb : {"render", "convert", "explain", "stats", "bench", "diff", "portal render", "portal explain"}) {
+  for (const char* verb : {"render", "convert", "explain", "stats", "bench", "diff", "sweep", "portal render",
+                           "portal explain", "portal bench", "portal diff"}) {
     const Run r = run_tool(std::string(verb) + " --help");
     INFO(r.output);
     CHECK(r.exit_code == 0);
@@ -33,6 +34,10 @@ TEST_CASE("CLI: every verb has --help", "[cli]") {
     // One vocabulary: image sizes are --width/--height wherever a verb takes one
     if (std::string(verb) != "convert") CHECK_THAT(r.output, Catch::Contains("--width") && Catch::Contains("--height"));
     CHECK_THAT(r.output, !Catch::Contains("--size"));
+    // Readable choices ("a|b|c"), not CLI11's internals ("ENUM:value in {a->1}", "TEXT:{a,b}")
+    CHECK_THAT(r.output, !Catch::Contains("ENUM") && !Catch::Contains("->") && !Catch::Contains(":{"));
+    // --json takes a FILE on every verb that writes JSON
+    if (r.output.find("--json") != std::string::npos) CHECK_THAT(r.output, Catch::Contains("--json FILE"));
   }
 }
 

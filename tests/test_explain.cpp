@@ -293,16 +293,16 @@ TEST_CASE("Explain: the command line - any ray, ray files, kinds, brief, JSON, p
   const fs::path f = scratch("cli-rays.txt");
   std::ofstream(f) << "# the box's centre, looking down, up and askew\n2.78,2.74,2.79,0,-1,0\n"
                       "2.78,2.74,2.79,0x0p+0,0x1p+0,0\nnan,0,0,1,0,0 # rejected\n";
-  const fs::path obj = scratch("ray.obj"), svg = scratch("ray.svg"), html = scratch("ray.html");
-  for (const fs::path& q : {obj, svg, html}) fs::remove(q);
-  const test::Run j = run_tool("explain builtin:cornell --ray-file " + f.string() + " --json --export " + obj.string() +
-                               " --svg " + svg.string() + " --html " + html.string());
+  const fs::path obj = scratch("ray.obj"), svg = scratch("ray.svg"), html = scratch("ray.html"),
+                 json = scratch("rays.json");
+  for (const fs::path& q : {obj, svg, html, json}) fs::remove(q);
+  const test::Run j = run_tool("explain builtin:cornell --ray-file " + f.string() + " --brief --json " + json.string() +
+                               " --export " + obj.string() + " --svg " + svg.string() + " --html " + html.string());
   INFO(j.output);
   REQUIRE(j.exit_code == 0);
-  // stdout's JSON, then stderr's "wrote FILE" lines
-  const size_t from = j.output.find('{'), to = j.output.rfind('}');
-  REQUIRE(to != std::string::npos);
-  const nlohmann::json doc = nlohmann::json::parse(j.output.substr(from, to - from + 1));
+  // --json FILE as on every verb: the JSON in the file, the text report still on stdout
+  CHECK_THAT(j.output, Catch::Contains("== ray 3 of 3 ==") && Catch::Contains("wrote " + json.string()));
+  const nlohmann::json doc = nlohmann::json::parse(slurp(json));
   REQUIRE(doc["rays"].size() == 3);
   CHECK(doc["rays"][0]["reference"]["events"].size() > 2);
   CHECK(doc["rays"][1]["reference"]["ray"]["dir"][1] == 1.0);
@@ -317,6 +317,7 @@ TEST_CASE("Explain: the command line - any ray, ray files, kinds, brief, JSON, p
   CHECK(bad.exit_code == 1);
   CHECK_THAT(bad.output, Catch::Contains("ox,oy,oz,dx,dy,dz"));
   CHECK(run_tool("explain builtin:cornell").exit_code == 2);
+  CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,-1,0 --json").exit_code == 2);  // --json needs FILE
   CHECK(run_tool("explain builtin:cornell --pixel 1,1 --gpu-frame").exit_code == 2);  // it needs --backend vulkan
   CHECK(run_tool("explain builtin:cornell --pixel 1,1 --ray 0,0,0,1,0,0").exit_code == 2);
   const test::Run nob = run_tool("explain builtin:cornell --width 48 --height 36 --pixel 24,18 --kind bounce");

@@ -3,6 +3,8 @@
 #include <catch2/catch.hpp>
 
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 
 #include <nlohmann/json.hpp>
 
@@ -24,11 +26,14 @@ TEST_CASE("Explain: --backend vulkan sets the shader's record beside the referen
   CHECK_THAT(t.output, Catch::Contains("== Vulkan (") && Catch::Contains("traversal exact"));
   CHECK_THAT(t.output, Catch::Contains("identical: all ") && Catch::Contains("agree bit for bit"));
   // Any ray, as JSON: the two records and their alignment, every row paired and equal
-  const gridrt::test::Run j =
-      run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0x1p-1,-1,0.25 --backend vulkan --json");
+  const std::filesystem::path json = std::filesystem::temp_directory_path() / "gridrt_vulkan_explain.json";
+  std::filesystem::remove(json);
+  const gridrt::test::Run j = run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0x1p-1,-1,0.25 --backend vulkan "
+                                       "--json " + json.string());
   INFO(j.output);
   REQUIRE(j.exit_code == 0);
-  const nlohmann::json doc = nlohmann::json::parse(j.output.substr(j.output.find("{\n")));
+  std::ifstream in(json);
+  const nlohmann::json doc = nlohmann::json::parse(in);
   const nlohmann::json& ray = doc["rays"][0];
   REQUIRE(ray["shader"]["events"].size() == ray["reference"]["events"].size());
   CHECK(ray["alignment"]["identical"] == true);
