@@ -2,9 +2,9 @@
 // and the trace's flags.
 #include <algorithm>
 #include <cmath>
-#include <thread>
 
 #include "gridrt/common/invocations.h"
+#include "gridrt/common/parallel.h"
 #include "gridrt/common/shared/transform.h"
 #include "gridrt/plan/plan.h"
 #include "gridrt/plan/policy.h"
@@ -13,10 +13,7 @@ namespace gridrt::plan {
 
 using shared::GridParams;
 
-unsigned thread_count(const EmulationOptions& options) {
-  if (options.threads) return options.threads;
-  return std::max(1u, std::thread::hardware_concurrency());
-}
+unsigned thread_count(const EmulationOptions& options) { return thread_count_or_hardware(options.threads); }
 
 // ---- Grid bounds over the animation ----
 

@@ -20,9 +20,22 @@ if(rc)
   message(FATAL_ERROR "cmake --install failed: ${rc}")
 endif()
 execute_process(COMMAND ${CMAKE_COMMAND} -S "${SOURCE}" -B "${WORK}/build" -G Ninja "-DCMAKE_PREFIX_PATH=${WORK}/prefix"
-                RESULT_VARIABLE rc)
+                        -DCMAKE_EXPORT_COMPILE_COMMANDS=ON RESULT_VARIABLE rc)
 if(rc)
   message(FATAL_ERROR "configuring the consumer failed: ${rc}")
+endif()
+# COMPONENTS reference pulls only its own dependencies: no search for Vulkan, Embree, OpenImageIO
+# or the mesh loaders' packages (a find leaves its _DIR or include entry in the consumer's cache).
+file(READ "${WORK}/build/CMakeCache.txt" cache)
+foreach(foreign Vulkan_INCLUDE_DIR embree_DIR OpenImageIO_DIR tinyobjloader_DIR TinyGLTF_DIR)
+  if(cache MATCHES "\n${foreign}:")
+    message(FATAL_ERROR "find_package(gridrt COMPONENTS reference) searched for ${foreign}")
+  endif()
+endforeach()
+# The floating-point flags the shared math's bits depend on reach the consumer's compile line.
+file(READ "${WORK}/build/compile_commands.json" commands)
+if(NOT commands MATCHES "-ffp-contract=off")
+  message(FATAL_ERROR "the consumer is compiled without -ffp-contract=off: ${commands}")
 endif()
 execute_process(COMMAND ${CMAKE_COMMAND} --build "${WORK}/build" RESULT_VARIABLE rc)
 if(rc)
