@@ -212,10 +212,10 @@ struct TripleHash {
   }
 };
 
-}  // namespace
-
-std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCache& textures) {
-  // Check what tinyobjloader lets pass: numbers, indices, material libraries and names.
+// The file parsed by tinyobjloader after the checks of what it lets pass (numbers, indices,
+// material libraries and names), from the same normalized text the checks read (the libraries'
+// text is handed to it for every mtllib statement); every usemtl names a material of the libraries.
+tinyobj::ObjReader parse_obj(const std::string& path) {
   const std::string text = read_file(path, "OBJ file");
   const ObjScan scan = scan_obj(path, text);
   const fs::path dir = fs::path(path).parent_path();
@@ -229,8 +229,6 @@ std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCac
     mtl_text += "\n";
   }
 
-  // Parse with tinyobjloader, from the same normalized text the checks read (the libraries'
-  // text is handed to it for every mtllib statement).
   tinyobj::ObjReaderConfig config;
   config.triangulate = true;
   config.vertex_color = false;
@@ -240,24 +238,22 @@ std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCac
     while (!err.empty() && err.back() == '\n') err.pop_back();
     throw Error("cannot load OBJ '" + path + "': " + (err.empty() ? "tinyobjloader failed" : err));
   }
-  const tinyobj::attrib_t& attrib = file_reader.GetAttrib();
-  const auto& shapes = file_reader.GetShapes();
-  const auto& mats = file_reader.GetMaterials();
 
   // Every usemtl must name a material of the libraries.
   std::set<std::string> names;
-  for (const auto& m : mats) names.insert(m.name);
+  for (const auto& m : file_reader.GetMaterials()) names.insert(m.name);
   for (const auto& [name, line] : scan.usemtls)
     if (!names.count(name)) fail_at(path, line, "usemtl '" + name + "': no such material in the material libraries");
 
-  {
-    std::istringstream warnings(file_reader.Warning());
-    for (std::string w; std::getline(warnings, w);)
-      if (!w.empty()) std::cerr << "warning: " << path << ": " << w << "\n";
-  }
+  std::istringstream warnings(file_reader.Warning());
+  for (std::string w; std::getline(warnings, w);)
+    if (!w.empty()) std::cerr << "warning: " << path << ": " << w << "\n";
+  return file_reader;
+}
 
-  // Materials, with their textures.
-  const uint32_t base = uint32_t(scene.materials.size());
+// Materials, with their textures, appended to the scene's.
+void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const fs::path& dir, Scene& scene,
+                       TextureCache& textures) {
   for (const auto& m : mats) {
     Material mat;
     mat.name = m.name;
@@ -269,9 +265,15 @@ std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCac
       mat.alpha_texture = textures.load(scene, texture_path(dir, m.alpha_texname), AlphaSource::kFirstChannel);
     scene.materials.push_back(std::move(mat));
   }
-  int64_t default_material = -1;  // for faces without usemtl, added on first use
+}
 
-  // One vertex per distinct (v, vt, vn) triple.
+// The mesh: one vertex per distinct (v, vt, vn) triple; faces without usemtl get one "default"
+// material, added on first use. `base`: the scene's index of the file's first material.
+Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, uint32_t base, Scene& scene) {
+  const tinyobj::attrib_t& attrib = file_reader.GetAttrib();
+  const auto& shapes = file_reader.GetShapes();
+  const auto& mats = file_reader.GetMaterials();
+  int64_t default_material = -1;
   Mesh mesh;
   mesh.name = fs::path(path).stem().string();
   std::unordered_map<std::array<int, 3>, uint32_t, TripleHash> vertex_of;
@@ -334,6 +336,16 @@ std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCac
     if (!std::isfinite(mesh.positions[i].x) || !std::isfinite(mesh.positions[i].y) || !std::isfinite(mesh.positions[i].z))
       throw Error("OBJ '" + path + "': vertex " + std::to_string(i) + " has a non-finite coordinate (out of float range)");
 
+  return mesh;
+}
+
+}  // namespace
+
+std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCache& textures) {
+  const tinyobj::ObjReader file_reader = parse_obj(path);
+  const uint32_t base = uint32_t(scene.materials.size());
+  add_obj_materials(file_reader.GetMaterials(), fs::path(path).parent_path(), scene, textures);
+  Mesh mesh = obj_mesh(path, file_reader, base, scene);
   Instance inst;
   inst.name = mesh.name;
   inst.mesh = uint32_t(scene.meshes.size());
