@@ -112,10 +112,8 @@ void diff_view(const ViewOptions& o, const Scene& scene, const reference::GridOp
 }
 #endif
 
-}  // namespace
-
-void run_view(const ViewOptions& options) {
-  ViewOptions o = options;
+// Whether the options name a view this build can draw from the backend asked for.
+void check_view(const ViewOptions& o) {
   const auto& names = view_names();
   if (std::find(names.begin(), names.end(), o.view) == names.end()) throw Error("unknown view '" + o.view + "'");
   if (o.view == "diff" && o.backend != "vulkan")
@@ -128,15 +126,12 @@ void run_view(const ViewOptions& options) {
 #endif
   if (!plot::available())
     throw Error("--view needs OpenImageIO and the DejaVu fonts (Debian: libopenimageio-dev, fonts-dejavu-core)");
-  check_output_path(o.output);
-  resolve_image_limit(o.backend_options, o.view == "diff");
-  const Scene scene = load_scene_or_default(o.scene);
-  const reference::GridOptions grid = grid_options_for(o.backend_options, scene);
-  reference::ReferenceGridTracer ref(grid);
-  ref.build(scene, o.time);
-  const sh::GridParams& g = ref.params();
+}
 
-  // The rays: glossy bounces off a gather buffer made through the exact traversal, or camera rays.
+// The rays: glossy bounces off a gather buffer made through the exact traversal, or camera rays
+// (o.primary); a scene without glossy materials gets the camera rays too (o.primary set, as the
+// trace-cost policy samples it). `used`: the rays that are not unused.
+std::vector<Ray> view_rays(ViewOptions& o, const Scene& scene, const reference::GridOptions& grid, size_t& used) {
   const uint32_t w = o.width, h = o.height;
   const size_t n = size_t(w) * h;
   std::vector<Ray> rays;
@@ -150,7 +145,7 @@ void run_view(const ViewOptions& options) {
     const GatherBuffer gather = make_gather(scene, traced, scene.frame_camera(), w, h, o.time);
     rays = bounce_rays(scene, gather, 0);
   }
-  size_t used = 0;
+  used = 0;
   for (const Ray& r : rays) used += !is_unused(r);
   if (used == 0) {
     // A scene without glossy materials: the camera rays (as the trace-cost policy samples it)
@@ -159,6 +154,76 @@ void run_view(const ViewOptions& options) {
     rays = camera_rays(scene.frame_camera(), w, h);
     used = n;
   }
+  return rays;
+}
+
+// The figure a view draws into, with the per-pixel records it draws from.
+struct ViewFigure {
+  plot::ImageFigure& f;
+  const std::vector<PixelRecord>& px;
+  size_t used;
+  const plot::LegendEntry& no_ray;
+  const std::string& view;
+};
+
+// A heat view: value(p) per ray on viridis, with its bar.
+template <class Value>
+void heat(const ViewFigure& v, const std::string& title, const std::string& label, Value value) {
+  plot::ImageFigure& f = v.f;
+  const std::vector<PixelRecord>& px = v.px;
+  const size_t n = px.size(), used = v.used;
+  double lo = 0.0, hi = 0.0, sum = 0.0;
+  for (size_t i = 0; i < n; ++i)
+    if (px[i].used) hi = std::max(hi, double(value(px[i]))), sum += double(value(px[i]));
+  for (size_t i = 0; i < n; ++i)
+    if (px[i].used) f.rgb[i] = plot::viridis(hi > lo ? float((double(value(px[i])) - lo) / (hi - lo)) : 0.0f);
+  char t[160];
+  std::snprintf(t, sizeof t, "%s (mean %.2f, max %.0f per ray)", title.c_str(), sum / double(used), hi);
+  f.title = t;
+  std::printf("view %s: %zu rays, mean %.3f, max %.0f per ray\n", v.view.c_str(), used, sum / double(used), hi);
+  f.has_bar = true;
+  f.bar = {float(lo), float(std::max(hi, 1.0)), label, true};
+  if (used < n) f.legend.push_back(v.no_ray);
+}
+
+// A mask view: the rays pred(p) holds for in yes_color, the others white (a hit) or dark (a miss).
+template <class Pred>
+void mask(const ViewFigure& v, const std::string& title, const std::string& yes, glm::vec3 yes_color, Pred pred) {
+  plot::ImageFigure& f = v.f;
+  const std::vector<PixelRecord>& px = v.px;
+  const size_t n = px.size(), used = v.used;
+  size_t count = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (!px[i].used) continue;
+    const bool y = pred(px[i]);
+    count += y;
+    f.rgb[i] = y ? yes_color : is_miss(px[i].hit) ? plot::colors::dark_grey : plot::colors::white;
+  }
+  char t[160];
+  std::snprintf(t, sizeof t, "%s: %zu of %zu rays", title.c_str(), count, used);
+  f.title = t;
+  std::printf("view %s: %zu of %zu rays\n", v.view.c_str(), count, used);
+  f.legend = {{yes_color, yes}, {plot::colors::white, "another hit"}, {plot::colors::dark_grey, "miss"}};
+  if (used < n) f.legend.push_back(v.no_ray);
+}
+
+}  // namespace
+
+void run_view(const ViewOptions& options) {
+  ViewOptions o = options;
+  check_view(o);
+  check_output_path(o.output);
+  resolve_image_limit(o.backend_options, o.view == "diff");
+  const Scene scene = load_scene_or_default(o.scene);
+  const reference::GridOptions grid = grid_options_for(o.backend_options, scene);
+  reference::ReferenceGridTracer ref(grid);
+  ref.build(scene, o.time);
+  const sh::GridParams& g = ref.params();
+
+  const uint32_t w = o.width, h = o.height;
+  const size_t n = size_t(w) * h;
+  size_t used = 0;
+  const std::vector<Ray> rays = view_rays(o, scene, grid, used);
 
   std::vector<PixelRecord> px(n);
   {
@@ -181,49 +246,18 @@ void run_view(const ViewOptions& options) {
   f.subtitle = grid_text;
   const plot::LegendEntry no_ray{plot::colors::light_grey, o.primary ? "no ray" : "no glossy bounce"};
 
-  auto heat = [&](const std::string& title, const std::string& label, auto value) {
-    double lo = 0.0, hi = 0.0, sum = 0.0;
-    for (size_t i = 0; i < n; ++i)
-      if (px[i].used) hi = std::max(hi, double(value(px[i]))), sum += double(value(px[i]));
-    for (size_t i = 0; i < n; ++i)
-      if (px[i].used) f.rgb[i] = plot::viridis(hi > lo ? float((double(value(px[i])) - lo) / (hi - lo)) : 0.0f);
-    char t[160];
-    std::snprintf(t, sizeof t, "%s (mean %.2f, max %.0f per ray)", title.c_str(), sum / double(used), hi);
-    f.title = t;
-    std::printf("view %s: %zu rays, mean %.3f, max %.0f per ray\n", o.view.c_str(), used, sum / double(used), hi);
-    f.has_bar = true;
-    f.bar = {float(lo), float(std::max(hi, 1.0)), label, true};
-    if (used < n) f.legend.push_back(no_ray);
-  };
-  auto mask = [&](const std::string& title, const std::string& yes, glm::vec3 yes_color, auto pred) {
-    size_t count = 0, hits = 0;
-    for (size_t i = 0; i < n; ++i) {
-      if (!px[i].used) continue;
-      const bool y = pred(px[i]);
-      count += y;
-      hits += !is_miss(px[i].hit);
-      f.rgb[i] = y ? yes_color : is_miss(px[i].hit) ? plot::colors::dark_grey : plot::colors::white;
-    }
-    char t[160];
-    std::snprintf(t, sizeof t, "%s: %zu of %zu rays", title.c_str(), count, used);
-    f.title = t;
-    std::printf("view %s: %zu of %zu rays\n", o.view.c_str(), count, used);
-    f.legend = {{yes_color, yes}, {plot::colors::white, "another hit"}, {plot::colors::dark_grey, "miss"}};
-    if (used < n) f.legend.push_back(no_ray);
-    (void)hits;
-  };
-
+  const ViewFigure v{f, px, used, no_ray, o.view};
   if (o.view == "cells") {
-    heat("Cells visited per ray", "cells", [](const PixelRecord& p) { return p.hit.cells; });
+    heat(v, "Cells visited per ray", "cells", [](const PixelRecord& p) { return p.hit.cells; });
   } else if (o.view == "tests") {
-    heat("References tested per ray", "tests", [](const PixelRecord& p) { return p.hit.tests; });
+    heat(v, "References tested per ray", "tests", [](const PixelRecord& p) { return p.hit.tests; });
   } else if (o.view == "saturation") {
-    heat("Saturated cells visited per ray", "saturated", [](const PixelRecord& p) { return p.saturated; });
+    heat(v, "Saturated cells visited per ray", "saturated", [](const PixelRecord& p) { return p.saturated; });
   } else if (o.view == "gap-fill") {
-    mask("Answered by a gap-fill voxel", "gap-fill voxel", plot::colors::red,
+    mask(v, "Answered by a gap-fill voxel", "gap-fill voxel", plot::colors::red,
          [](const PixelRecord& p) { return (p.hit.flags & sh::kHitGapFill) != 0u; });
   } else if (o.view == "spill") {
-    mask("Answered by a spilled reference", "spilled reference", plot::colors::orange,
+    mask(v, "Answered by a spilled reference", "spilled reference", plot::colors::orange,
          [](const PixelRecord& p) { return p.spill; });
   } else if (o.view == "diff") {
 #ifdef GRIDRT_HAVE_VULKAN
