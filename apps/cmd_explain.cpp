@@ -288,6 +288,84 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
   return items;
 }
 
+// --ray and --ray-file: each ray explained by the grid's traversal of the options.
+std::vector<Item> ray_items(const ExplainOptions& o, Explainer& ex) {
+  std::vector<Item> items;
+  std::vector<Ray> rays;
+  for (const std::string& r : o.rays) rays.push_back(plan::parse_ray(r));
+  if (!o.ray_file.empty())
+    for (const Ray& r : plan::read_ray_file(o.ray_file)) rays.push_back(r);
+  const Traversal t = ex.options().traversal;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    Item it;
+    it.ray = rays[i];
+    it.traversal = t;
+    it.label = "ray " + std::to_string(i) + ": " + ray_words(rays[i]);
+    it.header = {it.label,
+                 std::string("explained by the ") + traversal_name(t) + " traversal (" +
+                     (t == Traversal::exact ? "the frame's gather traversal"
+                                            : "the frame's bounce traversal; --traversal exact for its gather's") +
+                     ") on " + ex.grid(t)};
+    items.push_back(it);
+  }
+  return items;
+}
+
+// One explained ray as JSON: the reference's record, and the shader's with their alignment.
+nlohmann::json item_json(const Item& it, const reference::ExplainRecord& want,
+                         const std::optional<reference::ExplainRecord>& got, const std::string& device,
+                         const plan::ExplainFormat& fmt) {
+  nlohmann::json j{{"label", it.label},
+                   {"header", it.header},
+                   {"traversal", traversal_name(it.traversal)},
+                   {"reference", plan::explain_json(want, fmt)}};
+  if (got) {
+    j["device"] = device;
+    j["shader"] = plan::explain_json(*got, fmt);
+    j["alignment"] = plan::alignment_json(want, *got, plan::align_events(want.events, got->events));
+  }
+  if (it.frame_hit)
+    j["frame_hit"] = {{"instance", it.frame_hit->instance}, {"triangle", it.frame_hit->triangle},
+                      {"t", reference::hex(it.frame_hit->t)},
+                      {"same_as_reference", std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0}};
+  return j;
+}
+
+// One explained ray as text: its header, the reference's record, the shader's divergence from it.
+void print_item(const Item& it, size_t i, size_t count, const reference::ExplainRecord& want,
+                const std::optional<reference::ExplainRecord>& got, const std::string& device,
+                const plan::ExplainFormat& fmt) {
+  if (count > 1) std::printf("%s== ray %zu of %zu ==\n", i ? "\n" : "", i + 1, count);
+  for (const std::string& h : it.header) std::printf("%s\n", h.c_str());
+  std::printf("\n== CPU reference ==\n%s", plan::explain_text(want, fmt).c_str());
+  if (got) {
+    std::printf("\n== Vulkan (%s) ==\n%s", device.c_str(),
+                plan::divergence_text(want, *got, fmt, "reference", "shader").c_str());
+  }
+  if (it.frame_hit) {
+    const bool same = std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0;
+    std::printf("the GPU frame's own hit of this ray %s the reference's%s\n", same ? "equals" : "DIFFERS from",
+                same ? " bit for bit" : "");
+  }
+}
+
+// --export and --svg: ray i's pictures (numbered where there are several rays).
+void write_pictures(const ExplainOptions& o, size_t i, size_t count, const reference::ExplainRecord& want,
+                    const reference::GridData& data, const plan::ExplainFormat& fmt, std::vector<std::string>& written) {
+  if (!o.obj.empty()) {
+    const std::string path = numbered(o.obj, i, count);
+    const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
+    write_file_atomically(mtl.string(), "OBJ materials", reference::explain_mtl());
+    write_file_atomically(path, "OBJ", reference::explain_obj(want, data, mtl.filename().string()));
+    written.push_back(path + " (and " + mtl.string() + ")");
+  }
+  if (!o.svg.empty()) {
+    const std::string path = numbered(o.svg, i, count);
+    write_file_atomically(path, "SVG", reference::explain_svg(want, data, fmt));
+    written.push_back(path);
+  }
+}
+
 void run_explain(const ExplainOptions& options) {
   check_frame_size(options.width, options.height);
   ExplainOptions o = options;
@@ -304,28 +382,7 @@ void run_explain(const ExplainOptions& options) {
   const plan::ExplainFormat fmt{o.brief, &names};
 
   // The rays
-  std::vector<Item> items;
-  if (!o.pixel.empty()) {
-    items = pixel_items(o, scene, ex);
-  } else {
-    std::vector<Ray> rays;
-    for (const std::string& r : o.rays) rays.push_back(plan::parse_ray(r));
-    if (!o.ray_file.empty())
-      for (const Ray& r : plan::read_ray_file(o.ray_file)) rays.push_back(r);
-    const Traversal t = ex.options().traversal;
-    for (size_t i = 0; i < rays.size(); ++i) {
-      Item it;
-      it.ray = rays[i];
-      it.traversal = t;
-      it.label = "ray " + std::to_string(i) + ": " + ray_words(rays[i]);
-      it.header = {it.label,
-                   std::string("explained by the ") + traversal_name(t) + " traversal (" +
-                       (t == Traversal::exact ? "the frame's gather traversal"
-                                              : "the frame's bounce traversal; --traversal exact for its gather's") +
-                       ") on " + ex.grid(t)};
-      items.push_back(it);
-    }
-  }
+  const std::vector<Item> items = !o.pixel.empty() ? pixel_items(o, scene, ex) : ray_items(o, ex);
 
   // Each ray through the reference, and the shader
   nlohmann::json json_rays = nlohmann::json::array();
@@ -343,48 +400,9 @@ void run_explain(const ExplainOptions& options) {
       device = ex.device();
     }
 #endif
-    const std::string got_label = "shader";
-    if (!o.json.empty()) {
-      nlohmann::json j{{"label", it.label},
-                       {"header", it.header},
-                       {"traversal", traversal_name(it.traversal)},
-                       {"reference", plan::explain_json(want, fmt)}};
-      if (got) {
-        j["device"] = device;
-        j["shader"] = plan::explain_json(*got, fmt);
-        j["alignment"] = plan::alignment_json(want, *got, plan::align_events(want.events, got->events));
-      }
-      if (it.frame_hit)
-        j["frame_hit"] = {{"instance", it.frame_hit->instance}, {"triangle", it.frame_hit->triangle},
-                          {"t", reference::hex(it.frame_hit->t)},
-                          {"same_as_reference", std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0}};
-      json_rays.push_back(std::move(j));
-    }
-    // The text on stdout (the JSON goes to its file)
-    if (items.size() > 1) std::printf("%s== ray %zu of %zu ==\n", i ? "\n" : "", i + 1, items.size());
-    for (const std::string& h : it.header) std::printf("%s\n", h.c_str());
-    std::printf("\n== CPU reference ==\n%s", plan::explain_text(want, fmt).c_str());
-    if (got) {
-      std::printf("\n== Vulkan (%s) ==\n%s", device.c_str(),
-                  plan::divergence_text(want, *got, fmt, "reference", got_label).c_str());
-    }
-    if (it.frame_hit) {
-      const bool same = std::memcmp(&*it.frame_hit, &want.hit, sizeof(Hit)) == 0;
-      std::printf("the GPU frame's own hit of this ray %s the reference's%s\n", same ? "equals" : "DIFFERS from",
-                  same ? " bit for bit" : "");
-    }
-    if (!o.obj.empty()) {
-      const std::string path = numbered(o.obj, i, items.size());
-      const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
-      write_file_atomically(mtl.string(), "OBJ materials", reference::explain_mtl());
-      write_file_atomically(path, "OBJ", reference::explain_obj(want, ref.data(), mtl.filename().string()));
-      written.push_back(path + " (and " + mtl.string() + ")");
-    }
-    if (!o.svg.empty()) {
-      const std::string path = numbered(o.svg, i, items.size());
-      write_file_atomically(path, "SVG", reference::explain_svg(want, ref.data(), fmt));
-      written.push_back(path);
-    }
+    if (!o.json.empty()) json_rays.push_back(item_json(it, want, got, device, fmt));
+    print_item(it, i, items.size(), want, got, device, fmt);
+    write_pictures(o, i, items.size(), want, ref.data(), fmt, written);
     if (!o.html.empty())
       views.push_back(reference::explain_view(it.label, it.header, want, got ? &*got : nullptr, ref.data(), fmt));
   }
