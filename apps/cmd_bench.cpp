@@ -484,6 +484,25 @@ nlohmann::json trace_counter_report(const std::map<std::string, std::vector<doub
   return c;
 }
 
+vulkan::FrameOptions frame_options(const BenchOptions& o, const Scene& scene) {
+  vulkan::FrameOptions fo{.width = o.width, .height = o.height};
+  fo.gather = o.gather == "raster"  ? vulkan::GatherMode::raster
+              : o.gather == "boxes" ? vulkan::GatherMode::boxes
+                                    : vulkan::GatherMode::compute;
+  fo.compact_rays = o.compact_rays;
+  fo.shadows = shadows_for(o.shadows, scene);
+  return fo;
+}
+
+// With GRIDRT_VALIDATION=1: what the validation layer said (the tool's only way to show it)
+void report_validation(vulkan::Context& ctx, nlohmann::json& j) {
+  if (!ctx.validation()) return;
+  const std::vector<std::string> msgs = ctx.messages();
+  std::fprintf(stderr, "validation layer: %zu messages\n", msgs.size());
+  for (size_t i = 0; i < msgs.size() && i < 20; ++i) std::fprintf(stderr, "  %s\n", msgs[i].c_str());
+  j["validation_messages"] = msgs.size();
+}
+
 // The whole frame on the GPU: the grid's static build once, then per frame the update (clear,
 // dynamic insert) and VulkanFrame::render (gather, bounce, trace, shade), GPU timestamps.
 void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::json& out) {
@@ -497,13 +516,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const double build_host = ms_since(t0);
   const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
   const double build = stamps ? vk->timings().build_ms : build_host;
-  vulkan::FrameOptions fo{.width = o.width, .height = o.height};
-  fo.gather = o.gather == "raster"  ? vulkan::GatherMode::raster
-              : o.gather == "boxes" ? vulkan::GatherMode::boxes
-                                    : vulkan::GatherMode::compute;
-  fo.compact_rays = o.compact_rays;
-  fo.shadows = shadows_for(o.shadows, scene);
-  vulkan::VulkanFrame frame(*vk, scene, fo);
+  vulkan::VulkanFrame frame(*vk, scene, frame_options(o, scene));
   // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
   std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
   vulkan::Buffer rtx_hits;
@@ -576,13 +589,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     j[k + "_ms_all"] = v;
   }
   if (o.rtx) j["rtx"] = rtx_report(o, m, build, mrays, mem.grid, rays, rtx_first, rtx_memory, rtx_dynamic, agree);
-  // With GRIDRT_VALIDATION=1: what the validation layer said (the tool's only way to show it)
-  if (vk->context().validation()) {
-    const std::vector<std::string> msgs = vk->context().messages();
-    std::fprintf(stderr, "validation layer: %zu messages\n", msgs.size());
-    for (size_t i = 0; i < msgs.size() && i < 20; ++i) std::fprintf(stderr, "  %s\n", msgs[i].c_str());
-    j["validation_messages"] = msgs.size();
-  }
+  report_validation(vk->context(), j);
   if (!trace_counters.empty()) j["trace_counters"] = trace_counters;
   out["backends"]["vulkan"] = j;
 
