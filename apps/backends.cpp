@@ -49,6 +49,12 @@ CLI::Option* add_json_option(CLI::App* cmd, std::string& path, const std::string
   return cmd->add_option("--json", path, "Also write " + what + " as JSON to this file")->type_name("FILE");
 }
 
+void add_image_size(CLI::App* cmd, uint32_t& width, uint32_t& height, const std::string& whose) {
+  const std::string of = whose.empty() ? "" : " " + whose;
+  cmd->add_option("--width", width, "Image width" + of)->check(CLI::Range(1u, 16384u));
+  cmd->add_option("--height", height, "Image height" + of)->check(CLI::Range(1u, 16384u));
+}
+
 std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(const std::string& name) {
   using P = reference::GridOptions::CapacityPolicy;
   if (name == "auto" || name == "trace-cost") return P::trace_cost;

@@ -55,6 +55,9 @@ CLI::Option* add_scene_argument(CLI::App* cmd, std::string& scene);
 CLI::Option* add_choice(CLI::App* cmd, const std::string& name, std::string& value, const std::vector<std::string>& names,
                         const std::string& help);
 CLI::Option* add_json_option(CLI::App* cmd, std::string& path, const std::string& what);
+// --width W --height H: an image's size in pixels, each in [1, 16384]; `whose` ends the help
+// ("of the gather buffer").
+void add_image_size(CLI::App* cmd, uint32_t& width, uint32_t& height, const std::string& whose);
 
 // Names this build knows, in the order `--help` lists them (the first is the default).
 std::vector<std::string> backend_names();

@@ -805,8 +805,7 @@ void add_bench_command(CLI::App& app) {
   add_scene_argument(cmd, o->scene);
   cmd->add_option("--backend,-b", o->backends, "Backends to time, one after the other: " + backend_list())
       ->delimiter(',');
-  cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
-  cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
+  add_image_size(cmd, o->width, o->height, "");
   cmd->add_option("--frames", o->frames, "Timed frames")->check(CLI::Range(1u, 100000u));
   cmd->add_option("--warmup", o->warmup, "Untimed frames first")->check(CLI::Range(0u, 1000u));
   cmd->add_option("--back-to-back", o->back_to_back,

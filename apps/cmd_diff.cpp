@@ -598,8 +598,7 @@ void add_diff_command(CLI::App& app) {
       "Run the CPU reference and the Vulkan port on a scene: grid images and every hit, over frames, with the "
       "validation layer on. Exit 0 agree, 1 bad input, 2 bad command line, 3 differ, 4 validation messages");
   add_scene_argument(cmd, o->scene);
-  cmd->add_option("--width", o->width, "Image width of the gather buffer")->check(CLI::Range(1u, 16384u));
-  cmd->add_option("--height", o->height, "Image height of the gather buffer")->check(CLI::Range(1u, 16384u));
+  add_image_size(cmd, o->width, o->height, "of the gather buffer");
   cmd->add_option("--time,-t", o->time, "Scene time in seconds");
   add_backend_options(cmd, o->backend_options);
   cmd->add_option("--frames", o->frames, "Animated frames to compare (the first is a build, then updates)")

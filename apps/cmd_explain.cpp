@@ -436,8 +436,7 @@ void add_explain_command(CLI::App& app) {
       "Every step of one ray through the grid (a pixel's primary, bounce or shadow ray, or any ray), the shader's "
       "own record beside it with --backend vulkan; as text or --brief, and --json, OBJ, SVG or an HTML viewer");
   add_scene_argument(cmd, o->scene);
-  cmd->add_option("--width", o->width, "Image width of the frame whose pixel is explained")->check(CLI::Range(1u, 16384u));
-  cmd->add_option("--height", o->height, "Image height of the frame")->check(CLI::Range(1u, 16384u));
+  add_image_size(cmd, o->width, o->height, "of the frame whose pixel is explained");
   cmd->add_option("--time,-t", o->time, "Scene time in seconds");
   cmd->add_option("--frame", o->frame, "The frame number that seeds the glossy bounce's per-pixel random numbers");
   auto* pixel = cmd->add_option("--pixel,-p", o->pixel, "The pixel X,Y whose ray is explained")->delimiter(',')->expected(2);

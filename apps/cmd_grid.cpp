@@ -41,8 +41,7 @@ struct GridVerbOptions {
 
 void add_common(CLI::App* cmd, GridVerbOptions& o) {
   add_scene_argument(cmd, o.scene);
-  cmd->add_option("--width", o.width, "Image width of the gather buffer")->check(CLI::Range(1u, 16384u));
-  cmd->add_option("--height", o.height, "Image height of the gather buffer")->check(CLI::Range(1u, 16384u));
+  add_image_size(cmd, o.width, o.height, "of the gather buffer");
   cmd->add_option("--time,-t", o.time, "Scene time in seconds");
   add_backend_options(cmd, o.backend_options);
 }

@@ -367,8 +367,7 @@ void add_portal_command(CLI::App& app) {
     add_mip_options(cmd, o->mip_levels, o->mip_distance);
     cmd->add_flag("--mip-compare", o->mip_compare,
                   "Also render without the coarse levels and print the difference (RMSE, PSNR, pixels) and the steps");
-    cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
-    cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
+    add_image_size(cmd, o->width, o->height, "");
     cmd->add_flag("--separate-loops", o->separate_loops, "Three loops (primary, shadow 1, shadow 2), not the state machine");
     cmd->add_option("--backend,-b", o->backend, "Tracer: " + portal_backends());
     cmd->add_option("-o,--output", o->output, "Image file");
@@ -390,8 +389,7 @@ void add_portal_command(CLI::App& app) {
     CLI::App* cmd = portal_cmd->add_subcommand("explain", "Every div, face and texel one pixel's primary ray visits");
     add_world_options(cmd, *spec, *voxels, *choice, *atlas);
     add_mip_options(cmd, *mip_levels, *mip_distance);
-    cmd->add_option("--width", *width, "Width of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
-    cmd->add_option("--height", *height, "Height of the image the pixel lies in")->check(CLI::Range(1u, 16384u));
+    add_image_size(cmd, *width, *height, "of the image the pixel lies in");
     cmd->add_option("--pixel,-p", *pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
     cmd->add_option("--backend,-b", *backend,
                     "Tracer: " + portal_backends() + " (portal-vulkan: the shader's own record beside the reference's)");
@@ -441,8 +439,7 @@ void add_portal_command(CLI::App& app) {
         "diff", "portal-cpu against portal-vulkan: every camera ray's hit record and the render; exit 3 if they differ");
     add_world_options(cmd, o->spec, o->voxels, o->choice, o->atlas_width);
     add_mip_options(cmd, o->mip_levels, o->mip_distance);
-    cmd->add_option("--width", o->width, "Image width")->check(CLI::Range(1u, 16384u));
-    cmd->add_option("--height", o->height, "Image height")->check(CLI::Range(1u, 16384u));
+    add_image_size(cmd, o->width, o->height, "");
     cmd->add_option("--ulps", o->ulps, "Allow t of otherwise identical hits to differ by this many ulps (default 0)")
         ->check(CLI::Range(0u, 1000000u));
     cmd->add_option("--uv-tolerance", o->uv, "Allow u, v of otherwise identical hits to differ by this much")

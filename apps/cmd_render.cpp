@@ -184,8 +184,7 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--backend,-b", o->backend,
                   "Tracer: " + backend_list() + ", or portal-cpu, portal-vulkan (voxel worlds: a .map, builtin:level, a scene voxelized) "
                   "(default: the first)");
-  cmd->add_option("--width", o->width, "Image width in pixels")->check(CLI::Range(1u, 16384u));
-  cmd->add_option("--height", o->height, "Image height in pixels")->check(CLI::Range(1u, 16384u));
+  add_image_size(cmd, o->width, o->height, "in pixels");
   cmd->add_option("--time,-t", o->time, "Scene time in seconds (animation)");
   cmd->add_option("--frames", o->frames, "Frames to render, --fps apart, written as NAME_0000.EXT ...")
       ->check(CLI::Range(1u, 100000u));

@@ -560,8 +560,7 @@ void add_sweep_command(CLI::App& app) {
       "sweep", "Accuracy against Embree vs time over a grid of the grid's knobs, per scene: CSV, Markdown, PNG plot");
   cmd->add_option("scenes", o->scenes, "Scene files, meshes or builtin:NAME")->required();
   cmd->add_option("--backend,-b", o->backends, "Backends: cpu, vulkan (comma separated)")->delimiter(',');
-  cmd->add_option("--width", o->width, "Gather buffer width")->check(CLI::Range(1u, 16384u));
-  cmd->add_option("--height", o->height, "Gather buffer height")->check(CLI::Range(1u, 16384u));
+  add_image_size(cmd, o->width, o->height, "of the gather buffer");
   cmd->add_option("-o,--output-dir", o->out, "Output folder, not a file (per scene: NAME.csv, NAME.md, NAME.png)");
   cmd->add_option("--rays", o->rays,
                   "The rays swept: auto (the frame's glossy bounce rays, else diffuse bounces), glossy, primary, "
