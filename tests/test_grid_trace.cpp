@@ -55,19 +55,24 @@ Agreement compare(const reference::GridData& g, std::span<const Ray> rays, std::
   return a;
 }
 
-}  // namespace
-
-TEST_CASE("Exact mode agrees with a double-precision brute force on random triangles", "[grid]") {
+// 3000 random rays through a grid of `o` over 400 random triangles, against the brute force.
+Agreement random_triangles_agreement(const GridOptions& o) {
   const Scene scene = random_scene(400, 0.6f, 10.0f, 1);
-  GridOptions o;
-  o.traversal = reference::Traversal::exact;
-  o.threads = 2;
   ReferenceGridTracer tracer(o);
   tracer.build(scene, 0.0f);
   const std::vector<Ray> rays = random_rays(3000, 10.0f, 2);
   std::vector<Hit> hits(rays.size());
   tracer.trace(rays, hits);
-  const Agreement a = compare(tracer.data(), rays, hits);
+  return compare(tracer.data(), rays, hits);
+}
+
+}  // namespace
+
+TEST_CASE("Exact mode agrees with a double-precision brute force on random triangles", "[grid]") {
+  GridOptions o;
+  o.traversal = reference::Traversal::exact;
+  o.threads = 2;
+  const Agreement a = random_triangles_agreement(o);
   INFO("agree " << a.same << "/" << a.rays << " holes " << a.holes << " false " << a.false_hits << " first:\n"
                 << a.first_difference);
   CHECK(a.gap_fills == 0);
@@ -76,16 +81,10 @@ TEST_CASE("Exact mode agrees with a double-precision brute force on random trian
 }
 
 TEST_CASE("Paper mode finds nearly every hit on random triangles", "[grid]") {
-  const Scene scene = random_scene(400, 0.6f, 10.0f, 1);
   GridOptions o;
   o.threads = 2;
   o.gap_fill = false;
-  ReferenceGridTracer tracer(o);
-  tracer.build(scene, 0.0f);
-  const std::vector<Ray> rays = random_rays(3000, 10.0f, 2);
-  std::vector<Hit> hits(rays.size());
-  tracer.trace(rays, hits);
-  const Agreement a = compare(tracer.data(), rays, hits);
+  const Agreement a = random_triangles_agreement(o);
   INFO("agree " << a.same << "/" << a.rays << " holes " << a.holes << " false " << a.false_hits << " first:\n"
                 << a.first_difference);
   CHECK(double(a.same) >= 0.97 * a.rays);

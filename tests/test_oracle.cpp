@@ -86,14 +86,20 @@ Scene one_mesh_scene(Mesh m) {
   return s;
 }
 
-}  // namespace
-
-TEST_CASE("Oracle: axis-aligned quads, exact t, barycentrics, back faces", "[oracle]") {
+// Two unit quads facing +z, "front" at z = 0 and "back" at z = -1.
+Scene two_quads() {
   Scene s;
   s.name = "quads";
   s.meshes = {quad_mesh(-1, 1, -1, 1, 0), quad_mesh(-1, 1, -1, 1, -1)};
   s.instances = {Instance{.name = "front", .mesh = 0}, Instance{.name = "back", .mesh = 1}};
   s.finalize();
+  return s;
+}
+
+}  // namespace
+
+TEST_CASE("Oracle: axis-aligned quads, exact t, barycentrics, back faces", "[oracle]") {
+  const Scene s = two_quads();
   EmbreeTracer tracer(2);
   tracer.build(s, 0.0f);
   const Hit h = tracer.trace_one(make_ray({0.25f, 0.5f, 5.0f}, {0, 0, -1}));
@@ -121,11 +127,7 @@ TEST_CASE("Oracle: axis-aligned quads, exact t, barycentrics, back faces", "[ora
 }
 
 TEST_CASE("Oracle: rays parallel to a quad miss - tmin and tmax are strict", "[oracle]") {
-  Scene s;
-  s.name = "quads";
-  s.meshes = {quad_mesh(-1, 1, -1, 1, 0), quad_mesh(-1, 1, -1, 1, -1)};
-  s.instances = {Instance{.name = "front", .mesh = 0}, Instance{.name = "back", .mesh = 1}};
-  s.finalize();
+  const Scene s = two_quads();
   EmbreeTracer tracer(1);
   tracer.build(s, 0.0f);
   CHECK(is_miss(tracer.trace_one(make_ray({-3.0f, 0.1f, 0.0f}, {1, 0, 0}))));   // in the plane
@@ -166,11 +168,7 @@ TEST_CASE("Oracle: NaN, inf and zero-direction rays are rejected", "[oracle][bad
 }
 
 TEST_CASE("Oracle: launch_ref excludes exactly the launch triangle", "[oracle]") {
-  Scene s;
-  s.name = "quads";
-  s.meshes = {quad_mesh(-1, 1, -1, 1, 0), quad_mesh(-1, 1, -1, 1, -1)};
-  s.instances = {Instance{.name = "front", .mesh = 0}, Instance{.name = "back", .mesh = 1}};
-  s.finalize();
+  const Scene s = two_quads();
   EmbreeTracer tracer(1);
   tracer.build(s, 0.0f);
   const glm::vec3 o(0.5f, -0.5f, 5.0f), d(0, 0, -1);
