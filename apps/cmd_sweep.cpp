@@ -567,32 +567,41 @@ void add_sweep_command(CLI::App& app) {
                   "diffuse, or a verify family (random, surface, edge, ...); about WIDTH x HEIGHT of them");
   cmd->add_option("--repeat", o->repeat, "Trace each configuration this many times (median)")
       ->check(CLI::Range(1u, 1000u));
-  cmd->add_option("--traversal", o->traversal, "Knob values: paper,exact")->delimiter(',')->group("Knobs");
-  cmd->add_option("--triangle-test", o->triangle_test, "Knob values: moller,watertight")->delimiter(',')->group("Knobs");
+  cmd->add_option("--traversal", o->traversal, "Knob values: paper,exact")->delimiter(',')->type_name("A,B,..")->group("Knobs");
+  cmd->add_option("--triangle-test", o->triangle_test, "Knob values: moller,watertight")->delimiter(',')->type_name("A,B,..")->group("Knobs");
   cmd->add_option("--capacity", o->capacity,
                   "Knob values: auto (the default rule), trace-cost, no-saturation (no saturation where the "
                   "limits allow), percentile (the original 0.99 percentile clamped to 64), or "
                   "a number of slots (the same values as the other verbs' --capacity)")
-      ->delimiter(',')->group("Knobs");
-  cmd->add_option("--enlargement", o->enlargement, "Knob values: sphere enlargement")->delimiter(',')->group("Knobs");
-  cmd->add_option("--elongation", o->elongation, "Knob values: segment elongation (paper)")->delimiter(',')->group("Knobs");
+      ->delimiter(',')->type_name("A,B,..")->group("Knobs");
+  cmd->add_option("--enlargement", o->enlargement, "Knob values: sphere enlargement")->delimiter(',')->type_name("A,B,..")->group("Knobs");
+  cmd->add_option("--elongation", o->elongation, "Knob values: segment elongation (paper)")->delimiter(',')->type_name("A,B,..")->group("Knobs");
   cmd->add_option("--aabb-padding", o->padding, "Knob values: cells added on each side of a triangle's AABB (build), or auto (the default)")
-      ->delimiter(',')->group("Knobs");
-  cmd->add_option("--revisit", o->repeats, "Knob values: merge,skip,retest (paper: consecutive samples in one cell)")->delimiter(',')->group("Knobs");
-  cmd->add_option("--gap-fill", o->gap_fill, "Knob values: on,off (paper)")->delimiter(',')->group("Knobs");
+      ->delimiter(',')->type_name("A,B,..")->group("Knobs");
+  cmd->add_option("--revisit", o->repeats, "Knob values: merge,skip,retest (paper: consecutive samples in one cell)")->delimiter(',')->type_name("A,B,..")->group("Knobs");
+  cmd->add_option("--gap-fill", o->gap_fill, "Knob values: on,off (paper)")->delimiter(',')->type_name("A,B,..")->group("Knobs");
   cmd->add_option("--spill", o->spill, "Knob values: auto,on,off (the spill list; auto: on for exact)")
-      ->delimiter(',')->group("Knobs");
-  cmd->add_option("--self-hit", o->launch, "Knob values: exclude,keep (the launch triangle)")->delimiter(',')->group("Knobs");
+      ->delimiter(',')->type_name("A,B,..")->group("Knobs");
+  cmd->add_option("--self-hit", o->launch, "Knob values: exclude,keep (the launch triangle)")->delimiter(',')->type_name("A,B,..")->group("Knobs");
   cmd->add_option("--max-image-dimension", o->max_dim, "Knob values: image limit (4096 lavapipe, 16384 NVIDIA)")
-      ->delimiter(',')->group("Knobs");
-  cmd->add_option("--threads", o->backend_options.grid.threads, "CPU threads (0: all)");
-  cmd->add_option("--density", o->backend_options.grid.density, "Target cells per triangle")->check(CLI::Range(1.0e-3f, 1.0e3f));
+      ->delimiter(',')->type_name("A,B,..")->group("Knobs");
+  cmd->add_option("--threads", o->backend_options.grid.threads, "CPU threads (0: all)")->group("Grid");
+  // The fixed expert knobs of every configuration, grouped as on the other verbs
+  constexpr const char* kExpert = "Grid (expert)";
+  cmd->add_option("--density", o->backend_options.grid.density, "Target cells per triangle")
+      ->check(CLI::Range(1.0e-3f, 1.0e3f))
+      ->group(kExpert);
   cmd->add_option("--cell-visit-cost", o->backend_options.grid.cell_visit_cost,
-                  "trace-cost policy: the cost of visiting a cell, in reference tests");
+                  "trace-cost policy: the cost of visiting a cell, in reference tests")
+      ->group(kExpert);
   cmd->add_option("--saturation-cost", o->backend_options.grid.saturation_cost,
-                  "trace-cost policy: the cost of a ray whose answer the grid changes, in reference tests");
+                  "trace-cost policy: the cost of a ray whose answer the grid changes, in reference tests")
+      ->group(kExpert);
   cmd->add_option("--work-sample", o->work_sample, "trace-cost policy: the sample's gather buffer W,H")
-      ->delimiter(',')->expected(2);
+      ->delimiter(',')
+      ->expected(2)
+      ->type_name("W,H")
+      ->group(kExpert);
   cmd->callback([o] { run_sweep(*o); });
 }
 
