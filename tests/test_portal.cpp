@@ -295,6 +295,19 @@ TEST_CASE("Portal: rays along voxel edges and corners, axis-aligned rays, tmax",
   const Ray shortr = make_ray(r.org, r.dir, 0.0f, full.t * 0.5f);
   CHECK(is_miss(trace_portal(b.packed, shortr)));
   CHECK(is_miss(trace_dda(b.world, shortr)));
+  // From outside the world box: an interval that ends before the box is a miss for both, one that
+  // reaches it finds the same surface, no nearer than the box's face (10 voxels away).
+  const Ray outside = make_ray(glm::vec3(-10.0f, 2.5f, 2.5f), glm::vec3(1, 0, 0));
+  const Hit po = trace_portal(b.packed, outside), pd = trace_dda(b.world, outside);
+  REQUIRE_FALSE(is_miss(po));
+  CHECK(hex(po.t) == hex(pd.t));
+  CHECK(po.t >= 10.0f);
+  for (float tmax : {2.0f, 9.99f}) {
+    INFO("tmax " << tmax);
+    const Ray before = make_ray(outside.org, outside.dir, 0.0f, tmax);
+    CHECK(is_miss(trace_portal(b.packed, before)));
+    CHECK(is_miss(trace_dda(b.world, before)));
+  }
 }
 
 TEST_CASE("Portal: heuristic picks the paper's 3x1 / 1x3 divs", "[portal][unit]") {

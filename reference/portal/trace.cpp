@@ -99,7 +99,8 @@ Entry enter_world(glm::uvec3 dims, const VoxelRay& r) {
   const uint32_t a = sh::portal_entry_axis(glm::vec3(0.0f), hi, r.org, r.dir, num);
   if (a == 3) return e;
   const float ad = std::abs(r.dir[a]);
-  if (num < r.tmin * ad) return e;  // the box lies before tmin
+  if (num < r.tmin * ad) return e;                       // the box lies before tmin
+  if (!sh::portal_before_tmax(num, ad, r.tmax)) return e;  // or after tmax
   e.kind = Entry::kEnter;
   e.axis = a, e.num = num, e.ad = ad;
   e.voxel[a] = r.dir[a] > 0.0f ? 0 : int(dims[a]) - 1;

@@ -168,7 +168,8 @@ Entry enter_world(uvec3 dims, VoxelRay r) {
   if (a == 3u) return e;
   const float ad = abs(r.dir[a]);
   precise float lim = r.tmin * ad;
-  if (num < lim) return e;  // the box lies before tmin
+  if (num < lim) return e;                             // the box lies before tmin
+  if (!portal_before_tmax(num, ad, r.tmax)) return e;  // or after tmax
   e.kind = kEntryEnter;
   e.axis = a;
   e.num = num;
