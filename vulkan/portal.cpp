@@ -154,6 +154,8 @@ void PortalVulkanTracer::build(const Scene& scene, float) {
 void PortalVulkanTracer::upload() {
   Context& ctx = *ctx_;
   const portal::PackedPortal& p = portal().packed;
+  if (p.scale_log2)
+    throw Error("portal-vulkan: instanced worlds are not traced on the device yet (use portal-cpu or --flatten)");
   gpu_.reset();
   gpu_ = std::make_unique<Gpu>();
   Gpu& gpu = *gpu_;
