@@ -198,3 +198,51 @@ TEST_CASE("Portal instancing: bad block maps are clear errors", "[portal][instan
   mip.mip_levels = 2, mip.mip_distance = 4.0f;
   CHECK_THROWS_WITH(build_instanced(builtin_blocks(), mip), Catch::Contains("mip levels are not supported"));
 }
+
+#include <filesystem>
+#include <fstream>
+
+#include "tests/run_tool.h"
+
+TEST_CASE("Portal instancing: data/maps/blocks.map is builtin:blocks", "[portal][instance]") {
+  std::ifstream f(std::string(GRIDRT_DATA_DIR) + "/maps/blocks.map", std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(f)), {});
+  CHECK(text == builtin_blocks_text());
+  CHECK(is_block_map(text));
+  CHECK_FALSE(is_block_map(builtin_level_text()));
+}
+
+TEST_CASE("CLI: portal verbs on instanced worlds - --flatten, --flat-compare, explain, bad block maps",
+          "[cli][portal][instance]") {
+  using gridrt::test::run_tool;
+  const std::string map = std::string(GRIDRT_DATA_DIR) + "/maps/blocks.map";
+  const std::string out = (std::filesystem::temp_directory_path() / "gridrt_instance.ppm").string();
+  const auto r = run_tool("portal render " + map + " --width 48 --height 24 --flat-compare -o " + out);
+  INFO(r.output);
+  REQUIRE(r.exit_code == 0);
+  CHECK_THAT(r.output, Catch::Contains("0 of 1152 pixels differ"));
+  CHECK_THAT(r.output, Catch::Contains("top level +"));
+  const auto e = run_tool("portal explain builtin:blocks --width 48 --height 24 --pixel 24,12");
+  INFO(e.output);
+  REQUIRE(e.exit_code == 0);
+  CHECK_THAT(e.output, Catch::Contains("instanced world 'builtin:blocks'"));
+  const auto fl = run_tool("portal explain builtin:blocks --flatten --width 48 --height 24 --pixel 24,12");
+  INFO(fl.output);
+  REQUIRE(fl.exit_code == 0);
+  CHECK_THAT(fl.output, Catch::Contains("(agrees)"));
+  // Hostile input: clear messages, exit 1 (bad input) or 2 (command line).
+  const auto big = run_tool("portal render gen-blocks:255x255x4 --flatten --width 8 --height 4 -o " + out);
+  CHECK(big.exit_code == 1);
+  CHECK_THAT(big.output, Catch::Contains("only the instanced world fits"));
+  const std::string bad = (std::filesystem::temp_directory_path() / "gridrt_bad_blocks.map").string();
+  std::ofstream(bad) << "scale 4\nsize 5 5 1\nblock a\nbox 0 0 0 4 4 4 A\nend\ntile A a\nmap\nAAAAA\nA...A\nA.E.A\nA...A\nAAAAA\n";
+  const auto rec = run_tool("portal render " + bad + " --width 8 --height 4 -o " + out);
+  CHECK(rec.exit_code == 1);
+  CHECK_THAT(rec.output, Catch::Contains("blocks inside blocks are not supported"));
+  const auto nf = run_tool("portal render builtin:level --flat-compare --width 8 --height 4 -o " + out);
+  CHECK(nf.exit_code == 1);
+  CHECK_THAT(nf.output, Catch::Contains("--flat-compare needs an instanced world"));
+  const auto gen = run_tool("portal bench gen-blocks:9x9 --repeat 1");
+  CHECK(gen.exit_code == 1);
+  CHECK_THAT(gen.output, Catch::Contains("expected gen-blocks:"));
+}
