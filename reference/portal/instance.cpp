@@ -514,19 +514,11 @@ PortalBuild build_instanced(const InstancedWorld& iw, const PortalOptions& opt) 
 }
 
 glm::ivec3 instance_fine_voxel(const PackedPortal& p, const VoxelRay& r, uint32_t a, float num, float ad, glm::ivec3 tile) {
-  const int S = 1 << p.scale_log2;
-  glm::ivec3 f;
-  f[a] = r.dir[a] > 0.0f ? tile[a] * S : tile[a] * S + S - 1;
-  for (uint32_t b : {sh::portal_tangent0(a), sh::portal_tangent1(a)})
-    f[b] = int(sh::portal_cross_index(a, num, ad, b, r.org[b], r.dir[b], uint32_t(tile[b] * S), uint32_t(tile[b] * S + S)));
-  return f;
+  return sh::portal_instance_fine_voxel(a, num, ad, r.org, r.dir, tile, p.scale_log2);
 }
 
 uint16_t block_start_texel(const PackedPortal& p, uint32_t m, glm::ivec3 tile, glm::ivec3 fine) {
-  const uint32_t S = 1u << p.scale_log2;
-  const glm::uvec3 l = glm::uvec3(fine - tile * int(S));
-  const size_t i = size_t(p.block_start) + size_t(m - p.instance_base) * S * S * S + l.x + S * (l.y + size_t(S) * l.z);
-  return p.atlas[i];
+  return p.atlas[sh::portal_block_start_index(p.block_start, m - p.instance_base, p.scale_log2, tile, fine)];
 }
 
 // ---- The renderer -----------------------------------------------------------------------------

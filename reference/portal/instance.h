@@ -70,7 +70,7 @@ glm::ivec3 instance_fine_voxel(const PackedPortal& packed, const VoxelRay& ray, 
 // The start texel of fine voxel `fine` (fine space) in the block of material `m` at tile `tile`.
 uint16_t block_start_texel(const PackedPortal& packed, uint32_t m, glm::ivec3 tile, glm::ivec3 fine);
 inline bool is_instance_material(const PackedPortal& p, uint32_t m) {
-  return p.scale_log2 != 0 && m >= p.instance_base && m < p.instance_base + p.blocks;
+  return shared::portal_is_instance(m, p.scale_log2, p.instance_base, p.blocks);
 }
 
 // Where a fine-space ray starts: outside (the top level's exterior div 0), in a top-level div, in

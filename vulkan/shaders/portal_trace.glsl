@@ -400,26 +400,17 @@ HitRecord mip_surface_hit(VoxelRay r, uint level, uint a, float num, float ad, i
 // ---- Instanced subspaces (reference/portal/trace.cpp: instanced_start, instanced_advance, trace_instanced) ----
 
 bool is_instance_material(uint m) {
-  return params.scale_log2 != 0u && m >= params.instance_base && m < params.instance_base + params.blocks;
+  return portal_is_instance(m, params.scale_log2, params.instance_base, params.blocks);
 }
 
 uvec3 fine_dims() { return params.dims << params.scale_log2; }
 
 ivec3 instance_fine_voxel(VoxelRay r, uint a, float num, float ad, ivec3 tile) {
-  const int S = 1 << params.scale_log2;
-  ivec3 f = ivec3(0);
-  f[a] = r.dir[a] > 0.0f ? tile[a] * S : tile[a] * S + S - 1;
-  const uint b0 = portal_tangent0(a);
-  const uint b1 = portal_tangent1(a);
-  f[b0] = int(portal_cross_index(a, num, ad, b0, r.org[b0], r.dir[b0], uint(tile[b0] * S), uint(tile[b0] * S + S)));
-  f[b1] = int(portal_cross_index(a, num, ad, b1, r.org[b1], r.dir[b1], uint(tile[b1] * S), uint(tile[b1] * S + S)));
-  return f;
+  return portal_instance_fine_voxel(a, num, ad, r.org, r.dir, tile, params.scale_log2);
 }
 
 uint block_start_texel(uint m, ivec3 tile, ivec3 fine) {
-  const uint S = 1u << params.scale_log2;
-  const uvec3 l = uvec3(fine - tile * int(S));
-  const uint i = params.block_start + (m - params.instance_base) * S * S * S + l.x + S * (l.y + S * l.z);
+  const uint i = portal_block_start_index(params.block_start, m - params.instance_base, params.scale_log2, tile, fine);
   return atlas_at(uvec2(i % params.atlas_width, i / params.atlas_width));
 }
 
