@@ -162,6 +162,7 @@ void run_portal_render(const PortalRenderOptions& o) {
     flat = std::move(fw.build);
     flat_build_s = fw.seconds;
   }
+  const double flux_s = build.stats.seconds_flux;
   const std::string size_text = build_size_text(build);
   const std::string flat_size_text = flat ? build_size_text(*flat) : "";
   std::vector<glm::vec3> flat_rgb;
@@ -231,9 +232,9 @@ void run_portal_render(const PortalRenderOptions& o) {
     for (size_t i = 0; i < rgb.size(); ++i) differ += std::memcmp(&rgb[i], &flat_rgb[i], sizeof(glm::vec3)) != 0;
     const glm::uvec3 fd = build.packed.fine_dims();
     std::printf("instanced against flattened (%u x %u x %u fine voxels): %zu of %zu pixels differ; instanced %s, built in "
-                "%.3f s; flattened %s, built in %.3f s; steps per primary ray %.3f (flattened %.3f), per shadow ray %.3f "
+                "%.3f s (%.3f s of it the flux table, once per process); flattened %s, built in %.3f s; steps per primary ray %.3f (flattened %.3f), per shadow ray %.3f "
                 "(flattened %.3f); render %.3f s (flattened %.3f s)\n",
-                fd.x, fd.y, fd.z, differ, rgb.size(), size_text.c_str(), build_s, flat_size_text.c_str(), flat_build_s,
+                fd.x, fd.y, fd.z, differ, rgb.size(), size_text.c_str(), build_s, flux_s, flat_size_text.c_str(), flat_build_s,
                 double(stats.primary_steps) / double(stats.primary_rays),
                 double(flat_stats.primary_steps) / double(flat_stats.primary_rays),
                 stats.shadow_rays ? double(stats.shadow_steps) / double(stats.shadow_rays) : 0.0,
