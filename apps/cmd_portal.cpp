@@ -550,6 +550,24 @@ void add_portal_command(CLI::App& app) {
     add_flatten_option(cmd, *flat);
     cmd->callback([=] { run_portal_bench(*spec, *voxels, *width, *height, *repeats, *vulkan_only, *choice, *atlas, *flat); });
   }
+  {
+    auto spec = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto flat = std::make_shared<bool>(false);
+    CLI::App* cmd = portal_cmd->add_subcommand(
+        "export", "A block map as a triangle scene for the grid: a .json scene beside its .obj meshes (instances of the blocks)");
+    cmd->add_option("world", *spec, "A block map: builtin:blocks, gen-blocks:WxDxH[:SEED] or a .map starting with 'scale'")
+        ->required();
+    cmd->add_option("-o,--output", *output, "The scene file (.json); the meshes are written beside it")->required();
+    add_flatten_option(cmd, *flat);
+    cmd->callback([=] {
+      std::optional<portal::InstancedWorld> iw = load_instanced(*spec);
+      if (!iw) throw Error("portal export: '" + *spec + "' is not a block map");
+      const size_t triangles = portal::export_scene(*iw, *output, *flat);
+      std::printf("%s: %zu triangles%s -> %s\n", iw->top.name.c_str(), triangles,
+                  *flat ? " (flattened, one mesh)" : " (blocks placed by instances)", output->c_str());
+    });
+  }
 #ifdef GRIDRT_HAVE_VULKAN
   {
     auto o = std::make_shared<PortalDiffOptions>();

@@ -246,3 +246,24 @@ TEST_CASE("CLI: portal verbs on instanced worlds - --flatten, --flat-compare, ex
   CHECK(gen.exit_code == 1);
   CHECK_THAT(gen.output, Catch::Contains("expected gen-blocks:"));
 }
+
+#include "gridrt/common/scene_io.h"
+
+TEST_CASE("Portal instancing: export as a triangle scene - the grid's instances and the flattened mesh", "[portal][instance]") {
+  const auto dir = std::filesystem::temp_directory_path() / "gridrt_instance_export";
+  std::filesystem::create_directories(dir);
+  const InstancedWorld iw = generated_blocks_spec("gen-blocks:9x8x1:3");
+  const size_t inst = export_scene(iw, (dir / "level.json").string(), false);
+  const size_t flat = export_scene(iw, (dir / "flat.json").string(), true);
+  const Scene a = load_scene_file((dir / "level.json").string());
+  const Scene b = load_scene_file((dir / "flat.json").string());
+  CHECK(a.triangle_count() == inst);
+  CHECK(b.triangle_count() == flat);
+  // The instanced scene also holds the faces where an instance touches another or a wall (hidden
+  // there), the flattened one only faces towards empty voxels: never fewer instanced.
+  CHECK(inst >= flat);
+  CHECK(flat > 1000);
+  CHECK(a.instances.size() > 10);
+  CHECK(glm::length(a.camera->eye - iw.top.camera.eye) == 0.0f);
+  CHECK_THROWS_WITH(export_scene(iw, (dir / "level.obj").string(), false), Catch::Contains(".json"));
+}

@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -674,6 +676,147 @@ std::vector<glm::vec3> render_instanced(const PortalBuild& build, const Camera& 
     stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
   return image;
+}
+
+}  // namespace gridrt::portal
+
+// ---- Export as a triangle scene (instance.h) ---------------------------------------------------
+
+namespace gridrt::portal {
+
+namespace {
+
+// The faces of the solid voxels of a grid that face a non-solid neighbour, as quads grouped by
+// material: `solid(v)` and `material(v)` over [0, dims); `open_outside`: faces on the grid's
+// boundary are emitted too. Vertices at (v + corner) * cell + offset.
+template <class Solid, class Mat>
+void grid_faces(glm::ivec3 dims, float cell, glm::vec3 offset, bool open_outside, Solid solid, Mat material,
+                std::map<uint32_t, std::vector<glm::vec3>>& quads) {
+  for (int z = 0; z < dims.z; ++z)
+    for (int y = 0; y < dims.y; ++y)
+      for (int x = 0; x < dims.x; ++x) {
+        const glm::ivec3 v(x, y, z);
+        if (!solid(v)) continue;
+        for (int a = 0; a < 3; ++a)
+          for (int sgn : {-1, 1}) {
+            glm::ivec3 n = v;
+            n[a] += sgn;
+            const bool out = n[a] < 0 || n[a] >= dims[a];
+            if (out ? !open_outside : solid(n)) continue;
+            const int u = (a + 1) % 3, w = (a + 2) % 3;
+            glm::vec3 p0(v);
+            if (sgn > 0) p0[a] += 1.0f;
+            glm::vec3 du(0.0f), dw(0.0f);
+            du[u] = 1.0f, dw[w] = 1.0f;
+            glm::vec3 c[4] = {p0, p0 + du, p0 + du + dw, p0 + dw};  // counter-clockwise seen from +a
+            if (sgn < 0) std::swap(c[1], c[3]);
+            std::vector<glm::vec3>& q = quads[material(v)];
+            for (const glm::vec3& p : c) q.push_back(p * cell + offset);
+          }
+      }
+}
+
+void write_obj(const std::string& path, const std::string& mtl, const std::map<uint32_t, std::vector<glm::vec3>>& quads) {
+  std::ofstream f(path);
+  if (!f) throw Error("portal export: cannot write " + path);
+  f << "# gridrt portal export: voxel faces (docs/PORTAL.md, \"Instanced subspaces\")\nmtllib " << mtl << "\n";
+  size_t base = 1;
+  for (const auto& [m, q] : quads) {
+    f << "usemtl m" << m << "\n";
+    for (const glm::vec3& p : q) f << "v " << p.x << " " << p.y << " " << p.z << "\n";
+    for (size_t i = 0; i < q.size(); i += 4) {
+      f << "f " << base + i << " " << base + i + 1 << " " << base + i + 2 << "\n";
+      f << "f " << base + i << " " << base + i + 2 << " " << base + i + 3 << "\n";
+    }
+    base += q.size();
+  }
+  if (!f) throw Error("portal export: cannot write " + path);
+}
+
+std::string json_vec(glm::vec3 v) {
+  char b[128];
+  std::snprintf(b, sizeof b, "[%.9g, %.9g, %.9g]", double(v.x), double(v.y), double(v.z));
+  return b;
+}
+
+}  // namespace
+
+size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool flat) {
+  namespace fs = std::filesystem;
+  const fs::path jp(json_path);
+  if (jp.extension() != ".json") throw Error("portal export: the output must be a .json scene file");
+  const std::string stem = jp.stem().string();
+  if (json_path.find_first_of("\"\\") != std::string::npos)
+    throw Error("portal export: the output path may not contain '\"' or '\\'");
+  const fs::path dir = jp.parent_path().empty() ? fs::path(".") : jp.parent_path();
+  const World& w = iw.top;
+  const std::string mtl = stem + ".mtl";
+  {
+    std::ofstream f(dir / mtl);
+    if (!f) throw Error("portal export: cannot write " + (dir / mtl).string());
+    for (size_t m = 0; m < w.materials.size(); ++m)
+      f << "newmtl m" << m << "\nKd " << w.materials[m].color.x << " " << w.materials[m].color.y << " "
+        << w.materials[m].color.z << "\n";
+  }
+  std::string meshes, instances;
+  size_t triangles = 0;
+  auto count = [&](const std::map<uint32_t, std::vector<glm::vec3>>& q) {
+    for (const auto& [m, v] : q) triangles += v.size() / 2;
+  };
+  if (flat) {
+    const World fw = flatten(iw);
+    std::map<uint32_t, std::vector<glm::vec3>> q;
+    grid_faces(glm::ivec3(fw.dims), fw.voxel_size, fw.origin, false, [&](glm::ivec3 v) { return fw.solid(v); },
+               [&](glm::ivec3 v) { return uint32_t(fw.at(v)); }, q);
+    write_obj((dir / (stem + "_flat.obj")).string(), mtl, q);
+    count(q);
+    meshes = "\"world\": {\"file\": \"" + stem + "_flat.obj\"}";
+    instances = "{\"name\": \"world\", \"mesh\": \"world\"}";
+  } else {
+    // The plain tiles once; each block once, placed by one instance per instance tile.
+    auto plain = [&](glm::ivec3 v) { return w.solid(v) && w.at(v) < iw.instance_base; };
+    std::map<uint32_t, std::vector<glm::vec3>> q;
+    grid_faces(glm::ivec3(w.dims), w.voxel_size, w.origin, false, plain, [&](glm::ivec3 v) { return uint32_t(w.at(v)); }, q);
+    write_obj((dir / (stem + "_tiles.obj")).string(), mtl, q);
+    count(q);
+    meshes = "\"tiles\": {\"file\": \"" + stem + "_tiles.obj\"}";
+    instances = "{\"name\": \"tiles\", \"mesh\": \"tiles\"}";
+    const int S = int(iw.scale);
+    for (size_t b = 0; b < iw.blocks.size(); ++b) {
+      const Block& bl = iw.blocks[b];
+      auto at = [&](glm::ivec3 v) { return bl.voxels[size_t(v.x) + S * (size_t(v.y) + S * size_t(v.z))]; };
+      std::map<uint32_t, std::vector<glm::vec3>> bq;
+      grid_faces(glm::ivec3(S), w.voxel_size / float(S), glm::vec3(0.0f), true,
+                 [&](glm::ivec3 v) { return at(v) != kEmpty; }, [&](glm::ivec3 v) { return uint32_t(at(v)); }, bq);
+      const std::string file = stem + "_block_" + bl.name + ".obj";
+      write_obj((dir / file).string(), mtl, bq);
+      meshes += ", \"block " + bl.name + "\": {\"file\": \"" + file + "\"}";
+      size_t placed = 0;
+      for (uint32_t z = 0; z < w.dims.z; ++z)
+        for (uint32_t y = 0; y < w.dims.y; ++y)
+          for (uint32_t x = 0; x < w.dims.x; ++x)
+            if (w.at(glm::ivec3(x, y, z)) == iw.instance_base + b) {
+              instances += ", {\"name\": \"" + bl.name + " " + std::to_string(x) + "," + std::to_string(y) + "," +
+                           std::to_string(z) + "\", \"mesh\": \"block " + bl.name + "\", \"translate\": " +
+                           json_vec(w.origin + glm::vec3(x, y, z) * w.voxel_size) + "}";
+              ++placed;
+            }
+      for (const auto& [m, v] : bq) triangles += placed * (v.size() / 2);
+    }
+  }
+  std::ofstream f(json_path);
+  if (!f) throw Error("portal export: cannot write " + json_path);
+  f << "{\n  \"name\": \"" << w.name << (flat ? " (flattened)" : "") << "\",\n"
+    << "  \"description\": \"gridrt portal export of a block map: the voxel faces as triangles"
+    << (flat ? ", one mesh" : ", each block one mesh placed by instances") << "\",\n"
+    << "  \"meshes\": {" << meshes << "},\n  \"instances\": [" << instances << "],\n"
+    << "  \"camera\": {\"eye\": " << json_vec(w.camera.eye) << ", \"target\": " << json_vec(w.camera.target)
+    << ", \"up\": " << json_vec(w.camera.up) << ", \"vfov\": " << w.camera.vfov_degrees << "},\n  \"lights\": [";
+  for (size_t i = 0; i < w.lights.size(); ++i)
+    f << (i ? ", " : "") << "{\"position\": " << json_vec(w.lights[i]) << ", \"intensity\": 10}";
+  f << "]\n}\n";
+  if (!f) throw Error("portal export: cannot write " + json_path);
+  return triangles;
 }
 
 }  // namespace gridrt::portal

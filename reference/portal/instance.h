@@ -55,6 +55,12 @@ InstancedWorld generated_blocks_spec(const std::string& spec);
 // Throws Error when it breaks the plain world's limits (255 voxels per axis).
 World flatten(const InstancedWorld& world);
 
+// The world as a triangle scene for the grid (the voxel faces facing empty space, two triangles
+// each): `json_path` (a scene file) beside its .obj meshes and .mtl. Instanced: the plain tiles
+// one mesh, each block one mesh placed by one instance per instance tile; `flat`: the flattened
+// world as one mesh. Returns the triangles placed in the scene.
+size_t export_scene(const InstancedWorld& world, const std::string& json_path, bool flat);
+
 // The top level's divs, each block's divs once, packed into one PackedPortal (build.h).
 PortalBuild build_instanced(const InstancedWorld& world, const PortalOptions& options = {});
 

@@ -5,7 +5,7 @@
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- ../shared/data/scenes/bunny/bunny.obj data/scenes/bunny.json
 # There: bash tools/gpu/portal-bench.sh (G=.gpu by default). Logs go to $OUT (default
 # /tmp/gridrt-out): portal-bench.log (everything, in order), one log per run under $OUT/runs, and
-# instanced-summary.txt (instanced against flattened, runs 1-6). INSTANCED_ONLY=1: only those
+# instanced-summary.txt (instanced against flattened, and the grid on the same level, runs 1-10). INSTANCED_ONLY=1: only those
 # runs (about a minute).
 # A failing run is logged with its exit code and the script goes on; the exit code is the number of
 # failed runs (0: all ran).
@@ -91,6 +91,18 @@ d_blocks=$n
 run "instanced gen-blocks:255x255x4 (flattened: 2040 voxels wide, beyond the format)" \
   gridrt portal bench gen-blocks:255x255x4 "${P[@]}"
 g_bench=$n
+# The grid on the same level: its voxel faces as triangles (gridrt portal export), the blocks as the
+# grid's own instances, and flattened into one mesh.
+mkdir -p "$OUT/scenes/blocks"
+run "export builtin:blocks as triangles (instances)" gridrt portal export builtin:blocks -o "$OUT/scenes/blocks/blocks.json"
+run "export builtin:blocks as triangles (flattened)" gridrt portal export builtin:blocks --flatten \
+  -o "$OUT/scenes/blocks/blocks_flat.json"
+run "grid builtin:blocks (instances)" gridrt bench "$OUT/scenes/blocks/blocks.json" --backend vulkan --frames 30 \
+  --warmup 5 "${S[@]}"
+gi_bench=$n
+run "grid builtin:blocks (flattened)" gridrt bench "$OUT/scenes/blocks/blocks_flat.json" --backend vulkan --frames 30 \
+  --warmup 5 "${S[@]}"
+gf_bench=$n
 {
   echo "Instanced subspaces on $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo '?'),"
   echo "$(nproc) CPU cores; 720 x 360, best of 5 (full logs: $OUT/runs/NN.log)."
@@ -98,6 +110,11 @@ g_bench=$n
     f=$OUT/runs/$(printf '%02d' "$k").log
     echo "--- run $k"
     grep -E '^world |^\| portal-|^\| voxel-|^render portal-|vs portal-cpu|vs voxel-dda' "$f" 2>/dev/null || echo "(no output)"
+  done
+  for k in "$gi_bench" "$gf_bench"; do
+    f=$OUT/runs/$(printf '%02d' "$k").log
+    echo "--- run $k (the grid)"
+    grep -E '^bench:|^\| vulkan' "$f" 2>/dev/null || echo "(no output)"
   done
   for k in "$c_cmp" "$v_cmp" "$d_blocks"; do
     f=$OUT/runs/$(printf '%02d' "$k").log
