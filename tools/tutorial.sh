@@ -30,7 +30,7 @@ slices() {  # slices NAME ARGS...: stats --slices into a folder of its own, kept
 }
 stats_size="--width 16 --height 9"
 # One camera ray drawn into the slices: pixel (250, 60) of 320 x 180, scaled to the image size
-ray="$size --ray-pixel $((w * 250 / 320)),$((h * 60 / 180)) --slice-axis y"
+ray="$size --pixel $((w * 250 / 320)),$((h * 60 / 180)) --slice-axis y"
 
 run render builtin:cornell $size --traversal exact -o "$out/00-cornell.png"
 slices 01-build builtin:cornell $roomy $stats_size
