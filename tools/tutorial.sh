@@ -51,6 +51,7 @@ slices 13-update-t2 builtin:atrium --resolution 16,8,16 --capacity 8 --threads "
 run portal render builtin:level --width $((w * 2)) --height $w -o "$out/14-portal-level.png"
 run portal render builtin:level --width $((w * 2)) --height $w --view divs -o "$out/15-portal-divs.png"
 run portal render builtin:level --width $((w * 2)) --height $w --view dda -o "$out/16-portal-dda.png"
+run portal render builtin:blocks --width $((w * 2)) --height $w -o "$out/17-portal-blocks.png"
 
 n=0
 for f in "$out"/*.png; do [ -s "$f" ] && n=$((n + 1)); done
