@@ -559,7 +559,7 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("world", *spec, "A block map: builtin:blocks, gen-blocks:WxDxH[:SEED] or a .map starting with 'scale'")
         ->required();
     cmd->add_option("-o,--output", *output, "The scene file (.json); the meshes are written beside it")->required();
-    add_flatten_option(cmd, *flat);
+    cmd->add_flag("--flatten", *flat, "One mesh of the flattened world instead of the blocks as instances");
     cmd->callback([=] {
       std::optional<portal::InstancedWorld> iw = load_instanced(*spec);
       if (!iw) throw Error("portal export: '" + *spec + "' is not a block map");
