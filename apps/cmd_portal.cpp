@@ -97,6 +97,12 @@ portal::PortalOptions portal_options(const std::string& div_choice, uint32_t atl
   return options;
 }
 
+// The camera of `spec` (a block map's own, not flattened).
+Camera world_camera(const std::string& spec, uint32_t voxels) {
+  if (std::optional<portal::InstancedWorld> iw = load_instanced(spec)) return iw->top.camera;
+  return load_world(spec, voxels).camera;
+}
+
 // The world of `spec` built: instanced (block maps, unless `flat`), else as load_world.
 struct BuiltWorld {
   portal::PortalBuild build;
@@ -147,7 +153,7 @@ void run_portal_render(const PortalRenderOptions& o) {
   options.mip_levels = o.mip_levels;
   if (o.mip_levels > 1) {
     // The level rule's default distance needs the camera before the build.
-    options.mip_distance = mip_distance_for(o.mip_distance, load_world(o.scene, o.voxels).camera, o.height);
+    options.mip_distance = mip_distance_for(o.mip_distance, world_camera(o.scene, o.voxels), o.height);
   }
   if (o.mip_compare && o.mip_levels < 2) throw Error("--mip-compare needs --mip-levels 2 or more");
   BuiltWorld bw = build_world(o.scene, o.voxels, options, o.flatten);
@@ -414,7 +420,7 @@ void run_portal_diff(const PortalDiffOptions& o) {
   check_frame_size(o.width, o.height);
   portal::PortalOptions options = portal_options(o.choice, o.atlas_width, false);
   options.mip_levels = o.mip_levels;
-  if (o.mip_levels > 1) options.mip_distance = mip_distance_for(o.mip_distance, load_world(o.spec, o.voxels).camera, o.height);
+  if (o.mip_levels > 1) options.mip_distance = mip_distance_for(o.mip_distance, world_camera(o.spec, o.voxels), o.height);
   BuiltWorld bw = build_world(o.spec, o.voxels, options, o.flatten);
   const Camera camera = bw.camera;
   portal::PortalBuild build = std::move(bw.build);
@@ -517,7 +523,7 @@ void add_portal_command(CLI::App& app) {
       if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
       portal::PortalOptions options = portal_options(*choice, *atlas, true);
       options.mip_levels = *mip_levels;
-      if (*mip_levels > 1) options.mip_distance = mip_distance_for(*mip_distance, load_world(*spec, *voxels).camera, h);
+      if (*mip_levels > 1) options.mip_distance = mip_distance_for(*mip_distance, world_camera(*spec, *voxels), h);
       BuiltWorld bw = build_world(*spec, *voxels, options, *flat);
       const Ray ray = camera_ray(bw.camera, w, h, x, y);
 #ifdef GRIDRT_HAVE_VULKAN
