@@ -267,3 +267,28 @@ TEST_CASE("Portal instancing: export as a triangle scene - the grid's instances 
   CHECK(glm::length(a.camera->eye - iw.top.camera.eye) == 0.0f);
   CHECK_THROWS_WITH(export_scene(iw, (dir / "level.obj").string(), false), Catch::Contains(".json"));
 }
+
+TEST_CASE("Portal instancing: the DDA over instanced voxels - the flattened DDA's records, and the truth beyond flatten",
+          "[portal][instance]") {
+  {
+    const InstancedWorld iw = builtin_blocks();
+    const World flat = flatten(iw);
+    for (const Ray& r : test_rays(iw, 41)) {
+      const Hit a = trace_dda_instanced(iw, r), b = trace_dda(flat, r);
+      require_same_hit(a, b, r);
+      REQUIRE(a.cells == b.cells);
+      REQUIRE(a.tests == b.tests);
+    }
+  }
+  // 640 x 32 x 560 fine voxels: only the instanced world exists; the DDA over its voxels is the truth.
+  const InstancedWorld big = generated_blocks_spec("gen-blocks:80x70x2:9");
+  CHECK_THROWS(flatten(big));
+  const PortalBuild b = build_instanced(big, PortalOptions{1024, 1024, 0, false});
+  size_t hits = 0;
+  for (const Ray& r : test_rays(big, 42)) {
+    const Hit a = trace_portal(b.packed, r);
+    require_same_hit(a, trace_dda_instanced(big, r), r);
+    hits += !is_miss(a);
+  }
+  CHECK(hits > 1000);
+}

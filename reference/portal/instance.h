@@ -69,6 +69,10 @@ PortalBuild build_instanced(const InstancedWorld& world, const PortalOptions& op
 // flatten(world) (t, material, voxel, face, u, v; cells and tests count this structure's steps).
 Hit trace_instanced(const PackedPortal& packed, const Ray& ray, std::string* log = nullptr);
 
+// The voxel DDA over the fine voxels of an instanced world without writing them out: the same
+// records as trace_dda(flatten(world)), also where flatten refuses (beyond 255 voxels per axis).
+Hit trace_dda_instanced(const InstancedWorld& world, const Ray& ray);
+
 // Where a ray crossing plane (axis, num, ad: fine space) into tile `tile` meets that tile's fine
 // voxels: the fine voxel beyond the plane at the crossing.
 glm::ivec3 instance_fine_voxel(const PackedPortal& packed, const VoxelRay& ray, uint32_t axis, float num, float ad,

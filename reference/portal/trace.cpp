@@ -527,22 +527,28 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
   return miss_hit(steps, texels);
 }
 
-Hit trace_dda(const World& w, const Ray& ray, std::string* log) {
-  const VoxelRay r = to_voxel_ray(w.origin, w.voxel_size, ray);
-  const Entry e = enter_world(w.dims, r);
+namespace {
+// The voxel DDA over any occupancy: `at(v)` the voxel's material or kEmpty, v within dims.
+template <class At>
+Hit dda_over(glm::uvec3 dims, glm::vec3 origin, float voxel_size, At at, const Ray& ray, std::string* log) {
+  const VoxelRay r = to_voxel_ray(origin, voxel_size, ray);
+  const Entry e = enter_world(dims, r);
   if (e.kind == Entry::kMiss) {
     if (log) *log += "dda: the ray never enters the world box: miss\n";
     return miss_hit(0, 0);
   }
+  auto inside = [&](glm::ivec3 v) {
+    return v.x >= 0 && v.y >= 0 && v.z >= 0 && uint32_t(v.x) < dims.x && uint32_t(v.y) < dims.y && uint32_t(v.z) < dims.z;
+  };
   glm::ivec3 c = e.voxel;
   uint32_t steps = 1, tests = 1;
-  if (w.solid(c)) {
-    if (e.kind == Entry::kInside) return inside_hit(w.dims, r, c, w.at(c));
+  if (at(c) != kEmpty) {
+    if (e.kind == Entry::kInside) return inside_hit(dims, r, c, at(c));
     // Entering from outside straight into a wall: the boundary face.
     glm::ivec3 side = c;
-    return wall_hit(w.dims, r, e.axis, e.num, e.ad, side, c, w.at(c), steps, tests);
+    return wall_hit(dims, r, e.axis, e.num, e.ad, side, c, at(c), steps, tests);
   }
-  const uint32_t limit = 3u * (w.dims.x + w.dims.y + w.dims.z) + 8u;
+  const uint32_t limit = 3u * (dims.x + dims.y + dims.z) + 8u;
   while (steps < limit) {
     float num = 0.0f;
     const uint32_t a = sh::portal_exit_axis(glm::vec3(c), glm::vec3(c) + 1.0f, r.org, r.dir, num);
@@ -552,13 +558,30 @@ Hit trace_dda(const World& w, const Ray& ray, std::string* log) {
     glm::ivec3 n = c;
     n[a] += r.dir[a] > 0.0f ? 1 : -1;
     if (log) *log += fmt("dda: voxel (%d, %d, %d) -> (%d, %d, %d)\n", c.x, c.y, c.z, n.x, n.y, n.z);
-    if (!w.inside(n)) return miss_hit(steps, tests);
+    if (!inside(n)) return miss_hit(steps, tests);
     ++tests;
-    if (w.solid(n)) return wall_hit(w.dims, r, a, num, ad, c, n, w.at(n), steps, tests);
+    if (at(n) != kEmpty) return wall_hit(dims, r, a, num, ad, c, n, at(n), steps, tests);
     c = n;
     ++steps;
   }
   return miss_hit(steps, tests);
+}
+}  // namespace
+
+Hit trace_dda(const World& w, const Ray& ray, std::string* log) {
+  return dda_over(w.dims, w.origin, w.voxel_size, [&](glm::ivec3 v) { return w.at(v); }, ray, log);
+}
+
+Hit trace_dda_instanced(const InstancedWorld& iw, const Ray& ray) {
+  const uint32_t S = iw.scale;
+  const World& t = iw.top;
+  return dda_over(iw.fine_dims(), t.origin, t.voxel_size / float(S), [&](glm::ivec3 v) -> uint16_t {
+    const glm::uvec3 f(v);
+    const uint16_t m = t.voxels[t.index(f / S)];
+    if (m == kEmpty || m < iw.instance_base) return m;
+    const glm::uvec3 l = f % S;
+    return iw.blocks[m - iw.instance_base].voxels[l.x + S * (l.y + size_t(S) * l.z)];
+  }, ray, nullptr);
 }
 
 std::string explain_portal(const PackedPortal& p, const World& w, const Ray& ray) {
