@@ -277,7 +277,8 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
   std::map<char, uint32_t> tile_block;
   std::vector<std::string> used;  // block names in the order their instance materials take
   for (const auto& [c, ref] : tiles) {
-    const auto it = std::find_if(defs.begin(), defs.end(), [&](const BlockDef& d) { return d.name == ref.first; });
+    const std::string& block = ref.first;  // a named copy: clang 14 does not capture structured bindings
+    const auto it = std::find_if(defs.begin(), defs.end(), [&](const BlockDef& d) { return d.name == block; });
     if (it == defs.end()) fail(name, ref.second, "tile '" + std::string(1, c) + "' references an unknown block '" + ref.first + "'");
     tile_block[c] = uint32_t(it - defs.begin());
   }
