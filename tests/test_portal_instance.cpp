@@ -189,6 +189,9 @@ TEST_CASE("Portal instancing: bad block maps are clear errors", "[portal][instan
   CHECK_THAT(err("scale 4\nsize 256 5 1\n"), Catch::Contains("255 tiles"));
   CHECK_THAT(err("scale 4\nsize 5 5 1\n" + rows), Catch::Contains("no blocks"));
   CHECK_THAT(err("scale 4\nsize 5 5 1\nblock a\nend\nblock a\nend\n" + rows), Catch::Contains("defined twice"));
+  // Block names become file names in `portal export`: no path separators, quotes or dots.
+  CHECK_THAT(err("scale 4\nsize 5 5 1\nblock ../x\nend\n" + rows), Catch::Contains("block name '../x'"));
+  CHECK_THAT(err("scale 4\nsize 5 5 1\nblock a\"b\nend\n" + rows), Catch::Contains("letters, digits"));
   // A world whose flattened form breaks the plain world's 255 voxels per axis still builds instanced.
   const InstancedWorld big = generated_blocks_spec("gen-blocks:40x40x1");
   CHECK_THROWS_WITH(flatten(big), Catch::Contains("only the instanced world fits"));

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -248,6 +249,11 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
     } else if (key == "block") {
       std::string bname, extra;
       if (!(ls >> bname) || (ls >> extra)) fail(name, lineno, "expected 'block NAME'");
+      // Names become file names in `portal export`: letters, digits, '_' and '-' only.
+      if (bname.size() > 32 || !std::all_of(bname.begin(), bname.end(), [](char ch) {
+            return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-';
+          }))
+        fail(name, lineno, "block name '" + bname + "': 1 to 32 letters, digits, '_' or '-'");
       for (const BlockDef& d : defs)
         if (d.name == bname) fail(name, lineno, "block '" + bname + "' defined twice");
       if (defs.size() >= kMaxBlocks) fail(name, lineno, "more than " + std::to_string(kMaxBlocks) + " blocks");
@@ -717,9 +723,10 @@ void grid_faces(glm::ivec3 dims, float cell, glm::vec3 offset, bool open_outside
       }
 }
 
+// Every file of the export is written whole or not at all (write_file_atomically).
 void write_obj(const std::string& path, const std::string& mtl, const std::map<uint32_t, std::vector<glm::vec3>>& quads) {
-  std::ofstream f(path);
-  if (!f) throw Error("portal export: cannot write " + path);
+  std::ostringstream f;
+  f.precision(9);  // a float's shortest round-trip width
   f << "# gridrt portal export: voxel faces (docs/PORTAL.md, \"Instanced subspaces\")\nmtllib " << mtl << "\n";
   size_t base = 1;
   for (const auto& [m, q] : quads) {
@@ -731,7 +738,22 @@ void write_obj(const std::string& path, const std::string& mtl, const std::map<u
     }
     base += q.size();
   }
-  if (!f) throw Error("portal export: cannot write " + path);
+  write_file_atomically(path, "portal export mesh", f.str());
+}
+
+// A JSON string literal of `s` (names come from map files: quotes, backslashes and control
+// characters escaped).
+std::string json_string(const std::string& s) {
+  std::string out = "\"";
+  for (const char c : s) {
+    if (c == '"' || c == '\\') out += '\\', out += c;
+    else if (static_cast<unsigned char>(c) < 0x20) {
+      char b[8];
+      std::snprintf(b, sizeof b, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
+      out += b;
+    } else out += c;
+  }
+  return out + "\"";
 }
 
 std::string json_vec(glm::vec3 v) {
@@ -753,11 +775,11 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
   const World& w = iw.top;
   const std::string mtl = stem + ".mtl";
   {
-    std::ofstream f(dir / mtl);
-    if (!f) throw Error("portal export: cannot write " + (dir / mtl).string());
+    std::ostringstream f;
     for (size_t m = 0; m < w.materials.size(); ++m)
       f << "newmtl m" << m << "\nKd " << w.materials[m].color.x << " " << w.materials[m].color.y << " "
         << w.materials[m].color.z << "\n";
+    write_file_atomically((dir / mtl).string(), "portal export materials", f.str());
   }
   std::string meshes, instances;
   size_t triangles = 0;
@@ -791,23 +813,23 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
                  [&](glm::ivec3 v) { return at(v) != kEmpty; }, [&](glm::ivec3 v) { return uint32_t(at(v)); }, bq);
       const std::string file = stem + "_block_" + bl.name + ".obj";
       write_obj((dir / file).string(), mtl, bq);
-      meshes += ", \"block " + bl.name + "\": {\"file\": \"" + file + "\"}";
+      meshes += ", " + json_string("block " + bl.name) + ": {\"file\": " + json_string(file) + "}";
       size_t placed = 0;
       for (uint32_t z = 0; z < w.dims.z; ++z)
         for (uint32_t y = 0; y < w.dims.y; ++y)
           for (uint32_t x = 0; x < w.dims.x; ++x)
             if (w.at(glm::ivec3(x, y, z)) == iw.instance_base + b) {
-              instances += ", {\"name\": \"" + bl.name + " " + std::to_string(x) + "," + std::to_string(y) + "," +
-                           std::to_string(z) + "\", \"mesh\": \"block " + bl.name + "\", \"translate\": " +
+              instances += ", {\"name\": " +
+                           json_string(bl.name + " " + std::to_string(x) + "," + std::to_string(y) + "," + std::to_string(z)) +
+                           ", \"mesh\": " + json_string("block " + bl.name) + ", \"translate\": " +
                            json_vec(w.origin + glm::vec3(x, y, z) * w.voxel_size) + "}";
               ++placed;
             }
       for (const auto& [m, v] : bq) triangles += placed * (v.size() / 2);
     }
   }
-  std::ofstream f(json_path);
-  if (!f) throw Error("portal export: cannot write " + json_path);
-  f << "{\n  \"name\": \"" << w.name << (flat ? " (flattened)" : "") << "\",\n"
+  std::ostringstream f;
+  f << "{\n  \"name\": " << json_string(w.name + (flat ? " (flattened)" : "")) << ",\n"
     << "  \"description\": \"gridrt portal export of a block map: the voxel faces as triangles"
     << (flat ? ", one mesh" : ", each block one mesh placed by instances") << "\",\n"
     << "  \"meshes\": {" << meshes << "},\n  \"instances\": [" << instances << "],\n"
@@ -816,7 +838,7 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
   for (size_t i = 0; i < w.lights.size(); ++i)
     f << (i ? ", " : "") << "{\"position\": " << json_vec(w.lights[i]) << ", \"intensity\": 10}";
   f << "]\n}\n";
-  if (!f) throw Error("portal export: cannot write " + json_path);
+  write_file_atomically(json_path, "portal export scene", f.str());
   return triangles;
 }
 
