@@ -582,6 +582,13 @@ TEST_CASE("Portal: build limits fail fast with the limit named", "[portal][unit]
   CHECK_THAT(msg([] { generated_level_spec("gen:300x10x4"); }), Catch::Contains("255"));
   CHECK_THAT(msg([] { generated_level_spec("gen:30x10x254"); }), Catch::Contains("height at most 253"));
   CHECK_THAT(msg([] { generated_level_spec("gen:30x10"); }), Catch::Contains("gen:WIDTHxDEPTHxHEIGHT"));
+  // Nothing after the numbers is ignored: letters, signs, spaces, a seed past 2^32 - 1.
+  for (const char* bad : {"gen:30x10x4:abc", "gen:30x10x4:-1", "gen:30x10x4x", "gen:30x10x4 ", "gen:+30x10x4",
+                          "gen:30x10x4:4294967296", "gen:30x10x4:1:2", "gen:30x10x4:"}) {
+    INFO(bad);
+    CHECK_THAT(msg([bad] { generated_level_spec(bad); }), Catch::Contains("gen:WIDTHxDEPTHxHEIGHT"));
+  }
+  CHECK(generated_level_spec("gen:30x10x4:4294967295").dims.x > 0);
   CHECK_THAT(msg([] { parse_div_choice("best"); }), Catch::Contains("bounded, exact"));
   // The exact choice refuses worlds beyond its voxel limit before any work.
   World open;

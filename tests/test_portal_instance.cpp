@@ -197,6 +197,8 @@ TEST_CASE("Portal instancing: bad block maps are clear errors", "[portal][instan
   CHECK_THROWS_WITH(flatten(big), Catch::Contains("only the instanced world fits"));
   CHECK_THROWS_WITH(generated_blocks_spec("gen-blocks:4x40x1"), Catch::Contains("5 .. 255"));
   CHECK_THROWS_WITH(generated_blocks_spec("gen-blocks:40x40"), Catch::Contains("expected gen-blocks:"));
+  CHECK_THROWS_WITH(generated_blocks_spec("gen-blocks:40x40x1:abc"), Catch::Contains("expected gen-blocks:"));
+  CHECK_THROWS_WITH(generated_blocks_spec("gen-blocks:40x40x1:-1"), Catch::Contains("expected gen-blocks:"));
   PortalOptions mip{1024, 1024, 0, false};
   mip.mip_levels = 2, mip.mip_distance = 4.0f;
   CHECK_THROWS_WITH(build_instanced(builtin_blocks(), mip), Catch::Contains("mip levels are not supported"));

@@ -440,12 +440,29 @@ World generated_level(uint32_t width, uint32_t depth, uint32_t height, uint32_t 
                         "gen:" + std::to_string(width) + "x" + std::to_string(depth) + "x" + std::to_string(height), true);
 }
 
+bool parse_generated_spec(const std::string& spec, const std::string& prefix, uint32_t& w, uint32_t& d, uint32_t& h,
+                          uint32_t& seed) {
+  if (spec.compare(0, prefix.size(), prefix) != 0) return false;
+  size_t at = prefix.size();
+  auto number = [&](uint32_t& out) {
+    const size_t start = at;
+    uint64_t v = 0;
+    while (at < spec.size() && spec[at] >= '0' && spec[at] <= '9' && at - start < 10) v = v * 10 + uint64_t(spec[at++] - '0');
+    if (at == start || v > 0xffffffffull || (at < spec.size() && spec[at] >= '0' && spec[at] <= '9')) return false;
+    out = uint32_t(v);
+    return true;
+  };
+  auto expect = [&](char c) { return at < spec.size() && spec[at] == c ? (++at, true) : false; };
+  seed = 1;
+  if (!number(w) || !expect('x') || !number(d) || !expect('x') || !number(h)) return false;
+  if (at == spec.size()) return true;
+  return expect(':') && number(seed) && at == spec.size();
+}
+
 World generated_level_spec(const std::string& spec) {
   // gen:WxDxH or gen:WxDxH:SEED
-  unsigned w = 0, d = 0, h = 0, seed = 1;
-  char tail = 0;
-  const int n = std::sscanf(spec.c_str(), "gen:%ux%ux%u:%u%c", &w, &d, &h, &seed, &tail);
-  if (n != 3 && n != 4)
+  uint32_t w = 0, d = 0, h = 0, seed = 1;
+  if (!parse_generated_spec(spec, "gen:", w, d, h, seed))
     throw Error("generated level '" + spec + "': expected gen:WIDTHxDEPTHxHEIGHT[:SEED] (tiles, tiles, voxels)");
   return generated_level(w, d, h, seed);
 }

@@ -89,6 +89,11 @@ std::string_view builtin_level_text();
 std::string generated_level_text(uint32_t width, uint32_t depth, uint32_t height, uint32_t seed = 1);
 World generated_level(uint32_t width, uint32_t depth, uint32_t height, uint32_t seed = 1);
 World generated_level_spec(const std::string& spec);
+// The numbers of a generated world spec "PREFIXWxDxH[:SEED]" (PREFIX "gen:" or "gen-blocks:"):
+// decimal digits only, each at most 2^32 - 1 (seed 1 when absent). False on anything else,
+// trailing characters included.
+bool parse_generated_spec(const std::string& spec, const std::string& prefix, uint32_t& w, uint32_t& d, uint32_t& h,
+                          uint32_t& seed);
 
 // Voxelize every instance of `scene` at time 0: a voxel is solid when a triangle overlaps it
 // (triangle/box separating-axis test, Akenine-Moeller), its material the scene material of the
