@@ -150,7 +150,7 @@ void run_stats(const StatsOptions& o) {
     if (!o.ray_pixel.empty()) {
       const uint32_t x = o.ray_pixel[0], y = o.ray_pixel[1];
       if (x >= o.width || y >= o.height)
-        throw Error("--ray-pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
+        throw Error("--pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
                     std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
       ray = ref.explain_ray(camera_ray(scene.frame_camera(), o.width, o.height, x, y));
       ray_name = "camera ray of pixel " + std::to_string(x) + "," + std::to_string(y) + " of " +
@@ -180,7 +180,7 @@ void add_grid_commands(CLI::App& app) {
                     "Also draw the grid slice by slice into this folder (occupancy.png: references per cell, "
                     "saturated cells, with a legend)");
     add_choice(cmd, "--slice-axis", o->slice_axis, {"x", "y", "z"}, "--slices: the axis the slices are cut along");
-    cmd->add_option("--ray-pixel", o->ray_pixel,
+    cmd->add_option("--pixel,-p,--ray-pixel", o->ray_pixel,
                     "--slices: also draw the camera ray of pixel X,Y (of --width x --height): the cells its traversal "
                     "visits and its samples")
         ->delimiter(',')->expected(2)->type_name("X,Y");

@@ -11,9 +11,12 @@
 #include "apps/commands.h"
 #include "gridrt/common/camera.h"
 #include "gridrt/common/image_io.h"
+#include "gridrt/common/parallel.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/scene_io.h"
 #include "gridrt/common/util.h"
 #include "gridrt/reference/portal/build.h"
+#include "gridrt/reference/portal/instance.h"
 #include "gridrt/reference/portal/trace.h"
 #include "gridrt/reference/portal/world.h"
 #ifdef GRIDRT_HAVE_VULKAN
@@ -65,7 +68,20 @@ void add_mip_options(CLI::App* cmd, uint32_t& levels, float& distance) {
 
 // A world from a tile map (.map), the built-in level (empty or builtin:level), a generated level
 // (gen:WxDxH[:SEED]), or any scene voxelized at `voxels` per longest axis.
+// Instanced worlds (block maps: builtin:blocks, gen-blocks:WxDxH[:SEED], a .map starting with
+// `scale`) are flattened here; the portal verbs build them instanced (load_instanced).
+std::optional<portal::InstancedWorld> load_instanced(const std::string& spec) {
+  if (spec == "builtin:blocks") return portal::builtin_blocks();
+  if (spec.rfind("gen-blocks:", 0) == 0) return portal::generated_blocks_spec(spec);
+  if (ends_with(spec, ".map")) {
+    const std::string text = normalize_text(read_input_file(spec, "tile map"));
+    if (portal::is_block_map(text)) return portal::parse_block_map(text, spec);
+  }
+  return std::nullopt;
+}
+
 portal::World load_world(const std::string& spec, uint32_t voxels) {
+  if (std::optional<portal::InstancedWorld> iw = load_instanced(spec)) return portal::flatten(*iw);
   if (spec.empty() || spec == "builtin:level") return portal::builtin_level();
   if (spec.rfind("gen:", 0) == 0) return portal::generated_level_spec(spec);
   if (ends_with(spec, ".map")) return portal::load_tile_map(spec);
@@ -82,20 +98,82 @@ portal::PortalOptions portal_options(const std::string& div_choice, uint32_t atl
   return options;
 }
 
+// The camera of `spec` (a block map's own, not flattened).
+Camera world_camera(const std::string& spec, uint32_t voxels) {
+  if (std::optional<portal::InstancedWorld> iw = load_instanced(spec)) return iw->top.camera;
+  return load_world(spec, voxels).camera;
+}
+
+// The world of `spec` built: instanced (block maps, unless `flat`), else as load_world.
+struct BuiltWorld {
+  portal::PortalBuild build;
+  Camera camera;
+  double seconds = 0;
+  std::optional<portal::InstancedWorld> instanced;  // the block map, when built instanced
+};
+BuiltWorld build_world(const std::string& spec, uint32_t voxels, const portal::PortalOptions& options, bool flat) {
+  BuiltWorld b;
+  std::optional<portal::InstancedWorld> iw = load_instanced(spec);
+  if (iw && !flat) {
+    b.camera = iw->top.camera;
+    const auto t0 = std::chrono::steady_clock::now();
+    b.build = portal::build_instanced(*iw, options);
+    b.seconds = seconds_since(t0);
+    b.instanced = std::move(iw);
+    return b;
+  }
+  portal::World world = iw ? portal::flatten(*iw) : load_world(spec, voxels);
+  b.camera = world.camera;
+  const auto t0 = std::chrono::steady_clock::now();
+  b.build = portal::build_portal(std::move(world), options);
+  b.seconds = seconds_since(t0);
+  return b;
+}
+
+// The structure's size: divs (top level + blocks) and the textures' bytes.
+std::string build_size_text(const portal::PortalBuild& b) {
+  char buf[256];
+  const portal::PackedPortal& p = b.packed;
+  if (p.scale_log2)
+    std::snprintf(buf, sizeof buf, "%u divs (%u top level + %zu in %u blocks), %.0f KiB", p.div_count, p.top_divs,
+                  b.block_divs, p.blocks, double(p.bytes()) / 1024.0);
+  else
+    std::snprintf(buf, sizeof buf, "%u divs, %.0f KiB", p.div_count, double(p.bytes()) / 1024.0);
+  return buf;
+}
+
 void run_portal_render(const PortalRenderOptions& o) {
   check_frame_size(o.width, o.height);
   check_output_path(o.output);
   check_image_extension(o.output);
   check_portal_backend(o.backend);
-  portal::World world = load_world(o.scene, o.voxels);
-  const Camera camera = world.camera;
-  auto t0 = std::chrono::steady_clock::now();
+  if (o.flat_compare && o.flatten) throw Error("--flat-compare renders both: leave out --flatten");
+  const bool instanced = load_instanced(o.scene).has_value();
+  if (o.flat_compare && !instanced) throw Error("--flat-compare needs an instanced world (a block map)");
   portal::PortalOptions options = portal_options(o.div_choice, o.atlas_width, true);
   options.mip_levels = o.mip_levels;
-  options.mip_distance = mip_distance_for(o.mip_distance, camera, o.height);
+  if (o.mip_levels > 1) {
+    // The level rule's default distance needs the camera before the build.
+    options.mip_distance = mip_distance_for(o.mip_distance, world_camera(o.scene, o.voxels), o.height);
+  }
   if (o.mip_compare && o.mip_levels < 2) throw Error("--mip-compare needs --mip-levels 2 or more");
-  portal::PortalBuild build = portal::build_portal(std::move(world), options);
-  const double build_s = seconds_since(t0);
+  BuiltWorld bw = build_world(o.scene, o.voxels, options, o.flatten);
+  const Camera camera = bw.camera;
+  portal::PortalBuild build = std::move(bw.build);
+  const double build_s = bw.seconds;
+  // --flat-compare: the flattened world, built and rendered on the same backend.
+  std::optional<portal::PortalBuild> flat;
+  double flat_build_s = 0;
+  if (o.flat_compare) {
+    BuiltWorld fw = build_world(o.scene, o.voxels, options, true);
+    flat = std::move(fw.build);
+    flat_build_s = fw.seconds;
+  }
+  const double flux_s = build.stats.seconds_flux;
+  const std::string size_text = build_size_text(build);
+  const std::string flat_size_text = flat ? build_size_text(*flat) : "";
+  std::vector<glm::vec3> flat_rgb;
+  portal::RenderStats flat_stats;
   portal::RenderOptions ro;
   ro.width = o.width;
   ro.height = o.height;
@@ -103,7 +181,7 @@ void run_portal_render(const PortalRenderOptions& o) {
   portal::RenderStats stats;
   std::vector<glm::vec3> rgb;
   const std::string name = build.world.name;
-  const size_t divs = build.divs.size();
+  const size_t divs = build.packed.div_count;
   std::string device;
   // --mip-compare: the same world without the coarse levels (level 0 only) on the same backend.
   std::vector<glm::vec3> full_rgb;
@@ -116,6 +194,7 @@ void run_portal_render(const PortalRenderOptions& o) {
   if (o.backend == "portal-cpu") {
     rgb = portal::render(build, camera, ro, &stats);
     if (full) full_rgb = portal::render(*full, camera, ro, &full_stats);
+    if (flat) flat_rgb = portal::render(*flat, camera, ro, &flat_stats);
   } else {
 #ifdef GRIDRT_HAVE_VULKAN
     vulkan::PortalVulkanTracer tracer(std::move(build), options);
@@ -126,6 +205,11 @@ void run_portal_render(const PortalRenderOptions& o) {
       vulkan::PortalVulkanTracer full_tracer(std::move(*full), options);
       full_rgb = full_tracer.render(camera, ro, &full_stats);
       full_rgb = full_tracer.render(camera, ro, &full_stats);
+    }
+    if (flat) {
+      vulkan::PortalVulkanTracer flat_tracer(std::move(*flat), options);
+      flat_rgb = flat_tracer.render(camera, ro, &flat_stats);
+      flat_rgb = flat_tracer.render(camera, ro, &flat_stats);
     }
 #endif
   }
@@ -150,6 +234,20 @@ void run_portal_render(const PortalRenderOptions& o) {
                 full_stats.shadow_rays ? double(full_stats.shadow_steps) / double(full_stats.shadow_rays) : 0.0,
                 stats.seconds, full_stats.seconds);
   }
+  if (o.flat_compare) {
+    size_t differ = 0;
+    for (size_t i = 0; i < rgb.size(); ++i) differ += std::memcmp(&rgb[i], &flat_rgb[i], sizeof(glm::vec3)) != 0;
+    const glm::uvec3 fd = build.packed.fine_dims();
+    std::printf("instanced against flattened (%u x %u x %u fine voxels): %zu of %zu pixels differ; instanced %s, built in "
+                "%.3f s (%.3f s of it the flux table, once per process); flattened %s, built in %.3f s; steps per primary ray %.3f (flattened %.3f), per shadow ray %.3f "
+                "(flattened %.3f); render %.3f s (flattened %.3f s)\n",
+                fd.x, fd.y, fd.z, differ, rgb.size(), size_text.c_str(), build_s, flux_s, flat_size_text.c_str(), flat_build_s,
+                double(stats.primary_steps) / double(stats.primary_rays),
+                double(flat_stats.primary_steps) / double(flat_stats.primary_rays),
+                stats.shadow_rays ? double(stats.shadow_steps) / double(stats.shadow_rays) : 0.0,
+                flat_stats.shadow_rays ? double(flat_stats.shadow_steps) / double(flat_stats.shadow_rays) : 0.0,
+                stats.seconds, flat_stats.seconds);
+  }
   write_image(o.output, o.width, o.height, rgb);
   std::fprintf(stderr,
                "%s%s: %s: %zu divs built in %.2f s; %llu primary + %llu shadow rays, %.2f divs per primary ray, "
@@ -164,18 +262,19 @@ void run_portal_render(const PortalRenderOptions& o) {
 // world's camera rays, best of `repeats`; then the renderer (primary + 2 shadow rays) as the
 // state machine and as three loops (docs/PORTAL.md, "Measurements").
 void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, uint32_t height, uint32_t repeats,
-                      bool vulkan_only, const std::string& div_choice, uint32_t atlas_width) {
+                      bool vulkan_only, const std::string& div_choice, uint32_t atlas_width, bool flat) {
   check_frame_size(width, height);
-  portal::World world = load_world(spec, voxels);
-  const Camera camera = world.camera;
   const portal::PortalOptions options = portal_options(div_choice, atlas_width, false);
-  const auto t0 = std::chrono::steady_clock::now();
-  portal::PortalBuild build = portal::build_portal(std::move(world), options);
-  const double build_s = seconds_since(t0);
+  BuiltWorld bw = build_world(spec, voxels, options, flat);
+  const Camera camera = bw.camera;
+  portal::PortalBuild build = std::move(bw.build);
+  const double build_s = bw.seconds;
   const std::vector<Ray> rays = camera_rays(camera, width, height);
   const double n = double(rays.size());
-  std::printf("world %s: %u x %u x %u voxels, %zu divs (%s choice), built in %.2f s; %u x %u camera rays, best of %u\n",
-              build.world.name.c_str(), build.world.dims.x, build.world.dims.y, build.world.dims.z, build.divs.size(),
+  const bool instanced = build.packed.scale_log2 != 0;
+  const glm::uvec3 vd = instanced ? build.packed.fine_dims() : build.world.dims;
+  std::printf("world %s: %u x %u x %u voxels%s, %s (%s choice), built in %.2f s; %u x %u camera rays, best of %u\n",
+              build.world.name.c_str(), vd.x, vd.y, vd.z, instanced ? " (instanced)" : "", build_size_text(build).c_str(),
               portal::div_choice_name(options.choice), build_s, width, height, repeats);
   std::printf("| tracer | device | ms | rays/s | steps/ray | hits |\n|---|---|---|---|---|---|\n");
   auto report = [&](const char* tracer, const std::string& device, double ms, const std::vector<Hit>& hits) {
@@ -188,7 +287,6 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
   std::vector<glm::vec3> cpu_image;
   if (!vulkan_only) {
     portal::PortalTracer cpu(build, options);
-    portal::VoxelDdaTracer dda(build.world);
     double best = 1e30;
     for (uint32_t r = 0; r < repeats; ++r) {
       const auto s = std::chrono::steady_clock::now();
@@ -197,13 +295,40 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
     }
     report("portal-cpu", "CPU threads", best, hits);
     cpu_hits = hits;
-    best = 1e30;
-    for (uint32_t r = 0; r < repeats; ++r) {
-      const auto s = std::chrono::steady_clock::now();
-      dda.trace(rays, hits);
-      best = std::min(best, seconds_since(s) * 1000.0);
+    if (instanced && !bw.instanced) throw Error("portal bench: instanced build without its world");
+    std::optional<portal::World> dda_world;
+    if (!instanced) dda_world = build.world;
+    else if (glm::all(glm::lessThanEqual(vd, glm::uvec3(portal::kMaxWorldAxis)))) dda_world = portal::flatten(*bw.instanced);
+    if (dda_world) {  // the voxel DDA over the (flattened) voxels
+      portal::VoxelDdaTracer dda(std::move(*dda_world));
+      best = 1e30;
+      std::vector<Hit> dda_hits(rays.size());
+      for (uint32_t r = 0; r < repeats; ++r) {
+        const auto s = std::chrono::steady_clock::now();
+        dda.trace(rays, dda_hits);
+        best = std::min(best, seconds_since(s) * 1000.0);
+      }
+      report("voxel-dda", "CPU threads", best, dda_hits);
+      size_t same = 0;
+      for (size_t i = 0; i < rays.size(); ++i)
+        same += dda_hits[i].instance == hits[i].instance && dda_hits[i].triangle == hits[i].triangle &&
+                std::memcmp(&dda_hits[i].t, &hits[i].t, 4) == 0;
+      std::printf("portal-cpu vs voxel-dda: %zu of %zu hits identical (material, voxel, face, t)\n", same, rays.size());
+    } else if (bw.instanced) {  // beyond flatten: the DDA over the instanced world's fine voxels
+      std::vector<Hit> dda_hits(rays.size());
+      best = 1e30;
+      for (uint32_t r = 0; r < repeats; ++r) {
+        const auto s = std::chrono::steady_clock::now();
+        parallel_for(rays.size(), 0, [&](size_t i) { dda_hits[i] = portal::trace_dda_instanced(*bw.instanced, rays[i]); });
+        best = std::min(best, seconds_since(s) * 1000.0);
+      }
+      report("voxel-dda (instanced voxels)", "CPU threads", best, dda_hits);
+      size_t same = 0;
+      for (size_t i = 0; i < rays.size(); ++i)
+        same += dda_hits[i].instance == hits[i].instance && dda_hits[i].triangle == hits[i].triangle &&
+                std::memcmp(&dda_hits[i].t, &hits[i].t, 4) == 0;
+      std::printf("portal-cpu vs voxel-dda: %zu of %zu hits identical (material, voxel, face, t)\n", same, rays.size());
     }
-    report("voxel-dda", "CPU threads", best, hits);
     portal::RenderOptions ro;
     ro.width = width, ro.height = height;
     for (bool fsm : {true, false}) {
@@ -278,9 +403,15 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
 #endif
 }
 
+void add_flatten_option(CLI::App* cmd, bool& flat) {
+  cmd->add_flag("--flatten", flat,
+                "Instanced worlds (block maps): trace the flattened world (every instance written out as voxels)");
+}
+
 void add_world_options(CLI::App* cmd, std::string& spec, uint32_t& voxels, std::string& choice, uint32_t& atlas_width) {
   cmd->add_option("world", spec,
-                  "A tile map (.map), builtin:level (default), gen:WxDxH[:SEED] (a generated level), or a scene to "
+                  "A tile map (.map), builtin:level (default), gen:WxDxH[:SEED] (a generated level), a block map "
+                  "(instanced: builtin:blocks, gen-blocks:WxDxH[:SEED], a .map starting with 'scale'), or a scene to "
                   "voxelize");
   cmd->add_option("--voxels", voxels, "Voxels along a voxelized scene's longest axis")->check(CLI::Range(1u, 253u));
   add_choice(cmd, "--div-choice", choice, {"bounded", "exact"}, "How divs are chosen: bounded (near-linear, default) or exact (small worlds)");
@@ -296,17 +427,18 @@ struct PortalDiffOptions {
   double pixels = 0.0;
   uint32_t mip_levels = 1;
   float mip_distance = 0.0f;
+  bool flatten = false;
 };
 
 // Both tracers on the same build: every camera ray's record, then the state-machine render.
 void run_portal_diff(const PortalDiffOptions& o) {
   check_frame_size(o.width, o.height);
-  portal::World world = load_world(o.spec, o.voxels);
-  const Camera camera = world.camera;
   portal::PortalOptions options = portal_options(o.choice, o.atlas_width, false);
   options.mip_levels = o.mip_levels;
-  options.mip_distance = mip_distance_for(o.mip_distance, camera, o.height);
-  portal::PortalBuild build = portal::build_portal(std::move(world), options);
+  if (o.mip_levels > 1) options.mip_distance = mip_distance_for(o.mip_distance, world_camera(o.spec, o.voxels), o.height);
+  BuiltWorld bw = build_world(o.spec, o.voxels, options, o.flatten);
+  const Camera camera = bw.camera;
+  portal::PortalBuild build = std::move(bw.build);
   const std::string name = build.world.name;
   const std::vector<Ray> rays = camera_rays(camera, o.width, o.height);
   std::vector<Hit> ref(rays.size()), dev(rays.size());
@@ -365,6 +497,10 @@ void add_portal_command(CLI::App& app) {
     CLI::App* cmd = portal_cmd->add_subcommand("render", "Render a world: one primary and two shadow rays per pixel");
     add_world_options(cmd, o->scene, o->voxels, o->div_choice, o->atlas_width);
     add_mip_options(cmd, o->mip_levels, o->mip_distance);
+    add_flatten_option(cmd, o->flatten);
+    cmd->add_flag("--flat-compare", o->flat_compare,
+                  "Instanced worlds: also build and render the flattened world, print the pixels that differ and both "
+                  "structures' sizes");
     cmd->add_flag("--mip-compare", o->mip_compare,
                   "Also render without the coarse levels and print the difference (RMSE, PSNR, pixels) and the steps");
     add_image_size(cmd, o->width, o->height, "");
@@ -386,8 +522,10 @@ void add_portal_command(CLI::App& app) {
     auto atlas = std::make_shared<uint32_t>(1024);
     auto mip_levels = std::make_shared<uint32_t>(1);
     auto mip_distance = std::make_shared<float>(0.0f);
+    auto flat = std::make_shared<bool>(false);
     CLI::App* cmd = portal_cmd->add_subcommand("explain", "Every div, face and texel one pixel's primary ray visits");
     add_world_options(cmd, *spec, *voxels, *choice, *atlas);
+    add_flatten_option(cmd, *flat);
     add_mip_options(cmd, *mip_levels, *mip_distance);
     add_image_size(cmd, *width, *height, "of the image the pixel lies in");
     cmd->add_option("--pixel,-p", *pixel, "The pixel X,Y")->delimiter(',')->expected(2)->required();
@@ -398,20 +536,19 @@ void add_portal_command(CLI::App& app) {
       check_frame_size(*width, *height);
       const uint32_t w = *width, h = *height, x = (*pixel)[0], y = (*pixel)[1];
       if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
-      portal::World world = load_world(*spec, *voxels);
       portal::PortalOptions options = portal_options(*choice, *atlas, true);
-      const Camera camera = world.camera;
       options.mip_levels = *mip_levels;
-      options.mip_distance = mip_distance_for(*mip_distance, camera, h);
-      const Ray ray = camera_ray(camera, w, h, x, y);
+      if (*mip_levels > 1) options.mip_distance = mip_distance_for(*mip_distance, world_camera(*spec, *voxels), h);
+      BuiltWorld bw = build_world(*spec, *voxels, options, *flat);
+      const Ray ray = camera_ray(bw.camera, w, h, x, y);
 #ifdef GRIDRT_HAVE_VULKAN
       if (*backend == "portal-vulkan") {
-        vulkan::PortalVulkanTracer tracer(std::move(world), options);
+        vulkan::PortalVulkanTracer tracer(std::move(bw.build), options);
         std::printf("%s", tracer.explain(ray).c_str());
         return;
       }
 #endif
-      portal::PortalTracer tracer(std::move(world), options);
+      portal::PortalTracer tracer(std::move(bw.build), options);
       std::printf("%s", tracer.explain(ray).c_str());
     });
   }
@@ -423,6 +560,7 @@ void add_portal_command(CLI::App& app) {
     auto vulkan_only = std::make_shared<bool>(false);
     auto choice = std::make_shared<std::string>("bounded");
     auto atlas = std::make_shared<uint32_t>(1024);
+    auto flat = std::make_shared<bool>(false);
     CLI::App* cmd = portal_cmd->add_subcommand(
         "bench", "Rays/s and steps per ray: portal-cpu, voxel-dda, portal-vulkan; the renderer as FSM and three loops");
     add_world_options(cmd, *spec, *voxels, *choice, *atlas);
@@ -430,7 +568,26 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("--height", *height, "Image height (the paper's: 360)")->check(CLI::Range(1u, 16384u));
     cmd->add_option("--repeat", *repeats, "Best of this many runs")->check(CLI::Range(1u, 1000u));
     cmd->add_flag("--vulkan-only", *vulkan_only, "Measure portal-vulkan only");
-    cmd->callback([=] { run_portal_bench(*spec, *voxels, *width, *height, *repeats, *vulkan_only, *choice, *atlas); });
+    add_flatten_option(cmd, *flat);
+    cmd->callback([=] { run_portal_bench(*spec, *voxels, *width, *height, *repeats, *vulkan_only, *choice, *atlas, *flat); });
+  }
+  {
+    auto spec = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto flat = std::make_shared<bool>(false);
+    CLI::App* cmd = portal_cmd->add_subcommand(
+        "export", "A block map as a triangle scene for the grid: a .json scene beside its .obj meshes (instances of the blocks)");
+    cmd->add_option("world", *spec, "A block map: builtin:blocks, gen-blocks:WxDxH[:SEED] or a .map starting with 'scale'")
+        ->required();
+    cmd->add_option("-o,--output", *output, "The scene file (.json); the meshes are written beside it")->required();
+    cmd->add_flag("--flatten", *flat, "One mesh of the flattened world instead of the blocks as instances");
+    cmd->callback([=] {
+      std::optional<portal::InstancedWorld> iw = load_instanced(*spec);
+      if (!iw) throw Error("portal export: '" + *spec + "' is not a block map");
+      const size_t triangles = portal::export_scene(*iw, *output, *flat);
+      std::printf("%s: %zu triangles%s -> %s\n", iw->top.name.c_str(), triangles,
+                  *flat ? " (flattened, one mesh)" : " (blocks placed by instances)", output->c_str());
+    });
   }
 #ifdef GRIDRT_HAVE_VULKAN
   {
@@ -439,6 +596,7 @@ void add_portal_command(CLI::App& app) {
         "diff", "portal-cpu against portal-vulkan: every camera ray's hit record and the render; exit 3 if they differ");
     add_world_options(cmd, o->spec, o->voxels, o->choice, o->atlas_width);
     add_mip_options(cmd, o->mip_levels, o->mip_distance);
+    add_flatten_option(cmd, o->flatten);
     add_image_size(cmd, o->width, o->height, "");
     cmd->add_option("--ulps", o->ulps, "Allow t of otherwise identical hits to differ by this many ulps (default 0)")
         ->check(CLI::Range(0u, 1000000u));

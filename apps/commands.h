@@ -43,6 +43,8 @@ struct PortalRenderOptions {
   uint32_t mip_levels = 1;       // mip-mapped space (docs/PORTAL.md): levels, 1 = none
   float mip_distance = 0.0f;     // the level rule's distance in voxels; 0: one voxel per pixel
   bool mip_compare = false;      // also render at full resolution and print the difference
+  bool flatten = false;          // instanced worlds: trace the flattened world instead
+  bool flat_compare = false;     // instanced worlds: also render the flattened world and compare
 };
 
 // Thrown by a diff whose two sides disagree: the tool exits with 3 (1 is bad input, 2 the command line).

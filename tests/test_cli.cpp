@@ -242,13 +242,13 @@ TEST_CASE("CLI: stats --slices draws the grid slice by slice", "[cli][views]") {
   const fs::path dir = scratch("slices");
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const Run r = run_tool("stats builtin:cornell --width 16 --height 9 --ray-pixel 8,4 --slices " + dir.string());
+  const Run r = run_tool("stats builtin:cornell --width 16 --height 9 --pixel 8,4 --slices " + dir.string());
   INFO(r.output);
   CHECK(r.exit_code == 0);
   CHECK(fs::exists(dir / "occupancy.png"));
   const Run missing = run_tool("stats builtin:cornell --width 16 --height 9 --slices /nonexistent/dir");
   CHECK(missing.exit_code == 1);
-  const Run outside = run_tool("stats builtin:cornell --width 16 --height 9 --ray-pixel 16,4 --slices " + dir.string());
+  const Run outside = run_tool("stats builtin:cornell --width 16 --height 9 --pixel 16,4 --slices " + dir.string());
   CHECK(outside.exit_code == 1);
   CHECK_THAT(outside.output, Catch::Contains("outside the 16x9 image"));
 }

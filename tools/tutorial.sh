@@ -30,7 +30,7 @@ slices() {  # slices NAME ARGS...: stats --slices into a folder of its own, kept
 }
 stats_size="--width 16 --height 9"
 # One camera ray drawn into the slices: pixel (250, 60) of 320 x 180, scaled to the image size
-ray="$size --ray-pixel $((w * 250 / 320)),$((h * 60 / 180)) --slice-axis y"
+ray="$size --pixel $((w * 250 / 320)),$((h * 60 / 180)) --slice-axis y"
 
 run render builtin:cornell $size --traversal exact -o "$out/00-cornell.png"
 slices 01-build builtin:cornell $roomy $stats_size
@@ -51,6 +51,7 @@ slices 13-update-t2 builtin:atrium --resolution 16,8,16 --capacity 8 --threads "
 run portal render builtin:level --width $((w * 2)) --height $w -o "$out/14-portal-level.png"
 run portal render builtin:level --width $((w * 2)) --height $w --view divs -o "$out/15-portal-divs.png"
 run portal render builtin:level --width $((w * 2)) --height $w --view dda -o "$out/16-portal-dda.png"
+run portal render builtin:blocks --width $((w * 2)) --height $w -o "$out/17-portal-blocks.png"
 
 n=0
 for f in "$out"/*.png; do [ -s "$f" ] && n=$((n + 1)); done

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <cstdio>
+#include <cstdlib>
 
 #include <gmpxx.h>
 
@@ -72,8 +75,13 @@ double max_abs(glm::dvec3 v) { return std::max({std::abs(v.x), std::abs(v.y), st
 }  // namespace
 
 ExactTest exact_test(const Ray& ray, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2) {
+  return exact_test_from(ray.org, ray.dir, sh::origin_tmin(ray.org, ray.dir, ray.tmin), ray.tmax, v0, v1, v2);
+}
+
+ExactTest exact_test_from(const glm::vec3& org, const glm::vec3& dir, float t_lo, float tmax, const glm::vec3& v0,
+                          const glm::vec3& v1, const glm::vec3& v2) {
   ExactTest r;
-  const V3 o = scaled(ray.org), d = scaled(ray.dir), a = scaled(v0), b = scaled(v1), c = scaled(v2);
+  const V3 o = scaled(org), d = scaled(dir), a = scaled(v0), b = scaled(v1), c = scaled(v2);
   const V3 e1 = sub(b, a), e2 = sub(c, a), s = sub(o, a);
   const V3 p = cross(d, e2);
   mpz_class det = dot(e1, p);
@@ -91,8 +99,8 @@ ExactTest exact_test(const Ray& ray, const glm::vec3& v0, const glm::vec3& v1, c
   // tmin < t < tmax: T 2^kScale against tmin (times 2^kScale) * det
   mpz_class Ts = T;
   mpz_mul_2exp(Ts.get_mpz_t(), Ts.get_mpz_t(), kScale);
-  if (!(Ts > scaled(sh::origin_tmin(ray.org, ray.dir, ray.tmin)) * det)) return r;
-  if (std::isfinite(ray.tmax) && !(Ts < scaled(ray.tmax) * det)) return r;
+  if (!(Ts > scaled(t_lo) * det)) return r;
+  if (std::isfinite(tmax) && !(Ts < scaled(tmax) * det)) return r;
   r.hit = true;
   r.boundary = U == 0 || V == 0 || UV == det;
   r.t = mpq_class(T, det).get_d();
@@ -143,39 +151,177 @@ ExactTest Referee::test(const Ray& ray, uint32_t ref) const {
   return exact_test(ray, t[0], t[1], t[2]);
 }
 
-bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got, std::vector<uint32_t> cand) const {
-  // The float tests round v - org to the ulps of the larger of |v| and |org|: an answer that is the
-  // exact one for the ray with its origin moved by at most kNearUlps of those ulps (the 26
-  // neighbours of the origin on a cube of that half-width, and at half of it) is as good as
-  // float inputs allow. The candidates: the given ones, the answer's triangle and its neighbours.
+std::vector<size_t> Referee::near_line(const Ray& ray, double reach) const {
+  const glm::dvec3 o(ray.org), d = glm::normalize(glm::dvec3(ray.dir));
+  std::vector<size_t> out;
+  for (size_t k = 0; k < topo_.tri.size(); ++k) {
+    const auto& t = topo_.tri[k];
+    // The triangle's distance from the line is at least that of its box in any direction across it
+    double lo_x = INFINITY, hi_x = -INFINITY, lo_y = INFINITY, hi_y = -INFINITY, lo_z = INFINITY, hi_z = -INFINITY, along = -INFINITY;
+    for (const glm::vec3& v : t) {
+      const glm::dvec3 a = glm::dvec3(v) - o;
+      along = std::max(along, glm::dot(a, d));
+      lo_x = std::min(lo_x, a.x), hi_x = std::max(hi_x, a.x);
+      lo_y = std::min(lo_y, a.y), hi_y = std::max(hi_y, a.y);
+      lo_z = std::min(lo_z, a.z), hi_z = std::max(hi_z, a.z);
+    }
+    if (along < -reach) continue;  // wholly behind the origin
+    // Box [lo, hi] (relative to the origin) against the line s d, inflated by reach: slab test
+    double t0 = -INFINITY, t1 = INFINITY;
+    bool hit = true;
+    const double lo[3] = {lo_x - reach, lo_y - reach, lo_z - reach}, hi[3] = {hi_x + reach, hi_y + reach, hi_z + reach};
+    for (int a = 0; a < 3 && hit; ++a) {
+      if (d[a] == 0.0) {
+        hit = lo[a] <= 0.0 && hi[a] >= 0.0;
+        continue;
+      }
+      const double ta = lo[a] / d[a], tb = hi[a] / d[a];
+      t0 = std::max(t0, std::min(ta, tb));
+      t1 = std::min(t1, std::max(ta, tb));
+    }
+    if (hit && t0 <= t1) out.push_back(k);
+  }
+  return out;
+}
+
+bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got) const {
+  // The ray as traced: both triangle tests start from v - org rounded to float per vertex (the
+  // watertight test for all three vertices; the same rounding of a shared vertex in every
+  // triangle, so the surface stays closed). In that frame the origin is 0; the tests' later
+  // steps (the shear, the edge functions) round relative to |v - org| |dir|, which moving the ray
+  // perpendicular to itself by kNearUlps ulps of the largest coordinate covers.
   const auto ref_of = [](const Hit& h) { return sh::ref_pack(h.instance, h.triangle); };
   const bool miss = is_miss(got);
-  if (!miss) {
-    cand.push_back(ref_of(got));
-    const size_t i = topo_.index_of(ref_of(got));
-    if (i != SIZE_MAX)
-      for (uint32_t n : topo_.neighbours(uint32_t(i))) cand.push_back(topo_.ref[n]);
-  }
-  const glm::dvec3 o(ray.org);
-  const double reach = std::max(max_abs(o), miss || !std::isfinite(got.t) ? 0.0 : max_abs(o + glm::dvec3(ray.dir) * double(got.t)));
-  const double delta = kNearUlps * 0x1p-24 * reach;
-  for (double scale : {1.0, 0.5})
-    for (int e = 0; e < 27; ++e) {
-      if (e == 13) continue;  // the origin itself
-      Ray moved = ray;
-      moved.org = glm::vec3(o + glm::dvec3(e % 3 - 1, e / 3 % 3 - 1, e / 9 - 1) * (delta * scale));
-      ExactTest best;
-      uint32_t best_ref = 0;
-      for (uint32_t r : cand) {
-        const ExactTest x = test(moved, r);
-        if (x.hit && (!best.hit || compare_t(x, best) < 0 || (compare_t(x, best) == 0 && r < best_ref))) best = x, best_ref = r;
-      }
-      if (miss ? !best.hit : best.hit && best_ref == ref_of(got)) return true;
-      if (!miss && best.hit) {
-        const ExactTest g = test(moved, ref_of(got));
-        if (g.hit && compare_t(g, best) == 0) return true;  // a tie at the closest t
-      }
+  if (got.flags & sh::kHitGapFill) return false;
+  const glm::dvec3 o(ray.org), dd(ray.dir);
+  const double reach_pt = miss || !std::isfinite(got.t) ? 0.0 : max_abs(o + dd * double(got.t));
+  const double delta = kNearUlps * 0x1p-24 * std::max(max_abs(o), reach_pt);
+  const std::vector<size_t> near = near_line(ray, 2.0 * delta);
+  const size_t got_index = miss ? SIZE_MAX : topo_.index_of(ref_of(got));
+  if (!miss && got_index == SIZE_MAX) return false;
+  const size_t gi = miss ? SIZE_MAX : size_t(std::find(near.begin(), near.end(), got_index) - near.begin());
+  if (!miss && gi == near.size()) return false;
+  // The triangles as traced (float v - org), and their projections across the ray (double)
+  const float t_lo = sh::origin_tmin(ray.org, ray.dir, ray.tmin);
+  const glm::dvec3 dn = glm::normalize(dd);
+  const glm::dvec3 b1 = glm::normalize(std::abs(dn.x) < 0.6 ? glm::cross(dn, glm::dvec3(1, 0, 0)) : glm::cross(dn, glm::dvec3(0, 1, 0)));
+  const glm::dvec3 b2 = glm::cross(dn, b1);
+  std::vector<std::array<glm::vec3, 3>> traced(near.size());
+  std::vector<std::array<glm::dvec2, 3>> flat(near.size());
+  std::vector<int> facing(near.size());  // sign of the normal along the ray
+  double extent = delta;
+  for (size_t i = 0; i < near.size(); ++i) {
+    for (int c = 0; c < 3; ++c) {
+      traced[i][c] = topo_.tri[near[i]][c] - ray.org;  // float: the tests' rounding
+      const glm::dvec3 a(traced[i][c]);
+      flat[i][c] = glm::dvec2(glm::dot(a, b1), glm::dot(a, b2));
+      extent = std::max(extent, max_abs(a));
     }
+    const auto& t = topo_.tri[near[i]];
+    facing[i] = glm::dot(glm::cross(glm::dvec3(t[1]) - glm::dvec3(t[0]), glm::dvec3(t[2]) - glm::dvec3(t[0])), dn) < 0.0 ? -1 : 1;
+  }
+  // The triangles by 2D bin, for the per-offset tests
+  constexpr int kBins = 16;
+  std::vector<std::vector<size_t>> bins(kBins * kBins);
+  const auto bin_of = [&](double x) { return std::clamp(int(std::floor((x / delta + 1.0) * 0.5 * kBins)), 0, kBins - 1); };
+  for (size_t i = 0; i < near.size(); ++i) {
+    double lx = INFINITY, hx = -INFINITY, ly = INFINITY, hy = -INFINITY;
+    for (const glm::dvec2& p : flat[i]) lx = std::min(lx, p.x), hx = std::max(hx, p.x), ly = std::min(ly, p.y), hy = std::max(hy, p.y);
+    if (lx > delta * 1.01 || hx < -delta * 1.01 || ly > delta * 1.01 || hy < -delta * 1.01) continue;
+    for (int y = bin_of(ly); y <= bin_of(hy); ++y)
+      for (int x = bin_of(lx); x <= bin_of(hx); ++x) bins[size_t(y * kBins + x)].push_back(i);
+  }
+  const double tol = 1e-9 * extent;  // the projection's own rounding, generously
+  const auto may_contain = [&](size_t i, glm::dvec2 q) {
+    bool pos = false, neg = false;
+    for (int e = 0; e < 3; ++e) {
+      const glm::dvec2 a = flat[i][e], b = flat[i][(e + 1) % 3], ab = b - a;
+      const double len = glm::length(ab);
+      const double side = ab.x * (q.y - a.y) - ab.y * (q.x - a.x);
+      if (side > tol * len) pos = true;
+      if (side < -tol * len) neg = true;
+    }
+    return !(pos && neg);
+  };
+  // Whether the ray moved by q (across it, |q| <= delta) gives got: a miss where it misses every
+  // triangle; a hit where it hits got's triangle, and nothing more than delta nearer (the depth's
+  // rounding)
+  const auto gives_got = [&](glm::dvec2 q) {
+    if (glm::length(q) > delta * (1.0 + 1e-9)) return false;
+    const glm::vec3 org(glm::dvec3(q.x * b1 + q.y * b2));  // the moved origin, in the traced frame
+    ExactTest best, g;
+    size_t best_i = SIZE_MAX;
+    for (size_t i : bins[size_t(bin_of(q.y) * kBins + bin_of(q.x))]) {
+      if (!may_contain(i, q)) continue;
+      const ExactTest x = exact_test_from(org, ray.dir, t_lo, ray.tmax, traced[i][0], traced[i][1], traced[i][2]);
+      if (!x.hit || topo_.ref[near[i]] == ray.launch_ref) continue;
+      if (i == gi) g = x;
+      if (!best.hit || compare_t(x, best) < 0) best = x, best_i = i;
+    }
+    if (miss) return !best.hit;
+    return best.hit && g.hit && (best_i == gi || (g.t - best.t) * glm::length(dd) <= delta);
+  };
+  // Where the answer can change within the disc: the answer's own edges, and the outline of the
+  // surfaces as seen along the ray (edges of one triangle, of more than two, or between a front and
+  // a back face). Tried: the ray itself, points just inside and outside each such edge at its point
+  // nearest the ray, and a polar grid of the disc.
+  std::vector<glm::dvec2> offsets{glm::dvec2(0.0)};
+  const double eta = 1e-4 * delta;
+  bool outline_near = false;
+  const auto add_edge_points = [&](size_t i, int e) {
+    const glm::dvec2 a = flat[i][e], b = flat[i][(e + 1) % 3], ab = b - a;
+    const glm::dvec2 centroid = (flat[i][0] + flat[i][1] + flat[i][2]) / 3.0;
+    const double len2 = glm::dot(ab, ab);
+    const double s = len2 > 0.0 ? std::clamp(-glm::dot(a, ab) / len2, 0.0, 1.0) : 0.0;
+    const glm::dvec2 c = a + ab * s;  // the edge's point nearest the ray
+    if (glm::length(c) > delta) return false;
+    glm::dvec2 n = len2 > 0.0 ? glm::dvec2(-ab.y, ab.x) / std::sqrt(len2) : glm::dvec2(0.0);
+    if (glm::dot(n, centroid - c) < 0.0) n = -n;  // inward
+    for (double f : {1.0, 0.01}) {
+      offsets.push_back(c + n * (eta * f));  // just inside
+      offsets.push_back(c - n * (eta * f));  // just outside
+    }
+    offsets.push_back(c + (centroid - c) * 1e-3);  // toward the centroid (slivers)
+    return true;
+  };
+  if (!miss) {
+    for (int e = 0; e < 3; ++e) add_edge_points(gi, e);
+    const glm::dvec2 centroid = (flat[gi][0] + flat[gi][1] + flat[gi][2]) / 3.0;
+    if (glm::length(centroid) <= delta) offsets.push_back(centroid);
+  }
+  for (double r : {0.125, 0.25, 0.5, 1.0})
+    for (int k = 0; k < 16; ++k) offsets.push_back(r * delta * glm::dvec2(std::cos(k * M_PI / 8), std::sin(k * M_PI / 8)));
+  for (const glm::dvec2& q : offsets)
+    if (gives_got(q)) return true;
+  offsets.clear();
+  {
+    std::map<std::pair<uint32_t, uint32_t>, std::vector<std::pair<size_t, int>>> edges;  // position pair -> (near index, edge)
+    for (size_t i = 0; i < near.size(); ++i)
+      for (int e = 0; e < 3; ++e) {
+        const uint32_t a = topo_.corner[near[i]][e], b = topo_.corner[near[i]][(e + 1) % 3];
+        edges[{std::min(a, b), std::max(a, b)}].push_back({i, e});
+      }
+    for (const auto& [key, uses] : edges) {
+      const bool outline = uses.size() != 2 || facing[uses[0].first] != facing[uses[1].first];
+      if (outline)
+        for (const auto& [i, e] : uses) outline_near = add_edge_points(i, e) || outline_near;
+    }
+  }
+  for (const glm::dvec2& q : offsets)
+    if (gives_got(q)) return true;
+  // A hit where the ray passes within delta of an outline of the surfaces and of got's triangle:
+  // the rounding of each vertex (not a rigid move of the ray) can fold the outline over the ray,
+  // so the surface behind it is as good as the input resolves
+  if (!miss && outline_near) {
+    double dist = INFINITY;
+    for (int e = 0; e < 3; ++e) {
+      const glm::dvec2 a = flat[gi][e], b = flat[gi][(e + 1) % 3], ab = b - a;
+      const double len2 = glm::dot(ab, ab);
+      const double s = len2 > 0.0 ? std::clamp(-glm::dot(a, ab) / len2, 0.0, 1.0) : 0.0;
+      dist = std::min(dist, glm::length(a + ab * s));
+    }
+    if (may_contain(gi, glm::dvec2(0.0)) || dist <= delta) return true;
+  }
   return false;
 }
 
@@ -205,6 +351,10 @@ Judgement Referee::judge(const Ray& ray, const Hit& got, const Hit& want, const 
 
   // Candidates: both answers, Embree's every hit, the aimed triangles, and their neighbours
   std::vector<uint32_t> cand = embree_.hits_along(ray);
+  {  // every triangle the exact ray can meet (Embree's float hits may miss some)
+    const double reach = 0x1p-20 * std::max(max_abs(glm::dvec3(ray.org)), 1.0);
+    for (size_t k : near_line(ray, reach)) cand.push_back(topo_.ref[k]);
+  }
   std::vector<uint32_t> seeds = aimed;
   if (!is_miss(got)) seeds.push_back(ref_of(got));
   if (!is_miss(want)) seeds.push_back(ref_of(want));
@@ -281,29 +431,14 @@ Judgement Referee::judge(const Ray& ray, const Hit& got, const Hit& want, const 
       const ExactTest e = test(ray, ref_of(got));
       farther = !e.hit || compare_t(e, best) > 0;
     }
-    // Whether the origin's rounding exceeds the triangles involved
-    const auto longest_edge = [&](uint32_t ref) {
-      const size_t k = topo_.index_of(ref);
-      if (k == SIZE_MAX) return 0.0;
-      const auto& t = topo_.tri[k];
-      return std::max({glm::length(glm::dvec3(t[1]) - glm::dvec3(t[0])), glm::length(glm::dvec3(t[2]) - glm::dvec3(t[1])),
-                       glm::length(glm::dvec3(t[0]) - glm::dvec3(t[2]))});
-    };
-    double size = 0.0;
-    if (!is_miss(got)) size = std::max(size, longest_edge(ref_of(got)));
-    if (!is_miss(want)) size = std::max(size, longest_edge(ref_of(want)));
-    if (best.hit) size = std::max(size, longest_edge(best_ref));
-    const double delta = kNearUlps * 0x1p-24 * max_abs(glm::dvec3(ray.org));
-    if (delta >= size) {
-      j.verdict = Verdict::unresolved;
-      j.why = "the origin's rounding exceeds the triangles' size";
-    } else if (best.hit && best.boundary && farther) {
+    if (best.hit && best.boundary && farther) {
       j.verdict = Verdict::crack;
       j.why = is_miss(got) ? "passes through an edge or vertex and hits nothing"
                            : "passes through an edge or vertex and reports a farther triangle";
-    } else if (exact_for_moved_origin(ray, got, cand)) {
+    } else if (exact_for_moved_origin(ray, got)) {
       j.verdict = Verdict::unresolved;
-      j.why = "the exact answer of the ray with its origin moved within its rounding";
+      j.why = is_miss(got) ? "a miss: the ray as traced (v - org in float), moved within its rounding, misses every triangle"
+                           : "the exact answer of the ray as traced (v - org in float), moved within its rounding";
     } else {
       j.verdict = Verdict::grid_wrong;
       j.why = (got.flags & sh::kHitGapFill) ? "a gap-fill voxel"

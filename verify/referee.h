@@ -34,6 +34,9 @@ struct ExactTest {
   std::shared_ptr<const struct Fraction> exact;  // t = T / det as exact integers (hits only)
 };
 ExactTest exact_test(const Ray& ray, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2);
+// The same with the lower bound given: a hit needs t > t_lo (exact_test uses origin_tmin).
+ExactTest exact_test_from(const glm::vec3& org, const glm::vec3& dir, float t_lo, float tmax, const glm::vec3& v0,
+                          const glm::vec3& v1, const glm::vec3& v2);
 // -1, 0, 1 as a's t is smaller, equal, larger than b's (both hits).
 int compare_t(const ExactTest& a, const ExactTest& b);
 // t of a hit rounded to float (round to nearest, from the exact fraction).
@@ -53,11 +56,13 @@ enum class Verdict {
                   // or the reverse, or reports a NaN t
   crack,          // the exact closest hit lies on an edge or vertex, and the tracer reports
                   // nothing or something farther
-  unresolved,     // the tracer is not exactly right, but kNearUlps ulps of the origin's largest
-                  // coordinate exceed the longest edge of the triangles involved, or its answer is
-                  // the exact one of the ray with the origin moved by at most that much: the float
-                  // inputs (v - org) cannot resolve them (a far origin, a tiny model); counted,
-                  // not failed
+  unresolved,     // the tracer is not exactly right for the ray as given, but it is for the ray it
+                  // traced: the scene as seen from the origin in float (every vertex v - org rounded
+                  // to float, the tests' first step), the ray moved perpendicular to itself by at
+                  // most kNearUlps ulps of the largest coordinate involved (the rounding of the
+                  // tests' next steps), or near an outline (exact_for_moved_origin); a miss only
+                  // where such a ray misses every triangle (docs/ACCURACY.md, "The referee's rule
+                  // for rounded inputs"); counted, not failed
 };
 inline constexpr size_t kVerdicts = 7;
 const char* to_string(Verdict v);
@@ -77,9 +82,22 @@ class Referee {
   Judgement judge(const Ray& ray, const Hit& got, const Hit& want, const std::vector<uint32_t>& aimed) const;
   // The exact test of one ref.
   ExactTest test(const Ray& ray, uint32_t ref) const;
-  // Whether `got` is the exact closest hit (or miss) among `cand` and got's neighbours of the ray
-  // with its origin moved within the rounding of the float tests' inputs (kNearUlps ulps).
-  bool exact_for_moved_origin(const Ray& ray, const Hit& got, std::vector<uint32_t> cand) const;
+  // Whether `got` is the exact answer of the ray as traced (the unresolved verdict): the exact
+  // closest hit (or a tie with it), or a miss, among every triangle near the ray, in the scene as
+  // seen from the origin in float (each vertex v - org rounded to float), for the ray itself or the
+  // ray moved perpendicular to its direction by at most kNearUlps ulps of the largest coordinate of
+  // its origin and hit point. The moved rays tried: a polar grid of the disc of that radius, and
+  // just inside and just outside every edge of the triangles near the ray (where the answer
+  // changes), so a region of the disc whose answer is `got` is found unless it is narrower than
+  // 1e-4 of the radius. A hit is also accepted where the ray passes within that radius of both
+  // got's triangle and an outline of the surfaces (an edge of one triangle, of more than two, or
+  // between a face turned towards the ray and one turned away): there the rounding of each vertex
+  // (not a rigid move) can fold the outline over the ray. A miss only by a moved ray that misses
+  // every triangle.
+  bool exact_for_moved_origin(const Ray& ray, const Hit& got) const;
+  // The indices (into the topology) of every triangle that passes within `reach` of the ray's line,
+  // not wholly behind its origin: a superset of those the ray or a ray moved by `reach` can hit.
+  std::vector<size_t> near_line(const Ray& ray, double reach) const;
 
  private:
   const reference::GridData& grid_;

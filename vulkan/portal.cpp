@@ -177,6 +177,11 @@ void PortalVulkanTracer::upload() {
   params.info_width = p.info_width;
   params.levels = p.levels;
   params.mip_distance = p.mip_distance;
+  params.scale_log2 = p.scale_log2;
+  params.instance_base = p.instance_base;
+  params.blocks = p.blocks;
+  params.top_divs = p.scale_log2 ? p.top_divs : p.div_count;  // no instancing: every div is the top level's
+  params.block_start = p.block_start;
   gpu.params = make_buffer(ctx, std::vector<sh::PortalParams>{params});
   std::vector<sh::PortalMaterial> materials;
   for (const portal::WallMaterial& m : portal().world.materials)
@@ -291,6 +296,11 @@ std::vector<glm::vec3> PortalVulkanTracer::render(const Camera& camera, const po
   rp.ambient = opt.ambient;
   rp.light0 = w.to_voxel(w.lights.size() > 0 ? w.lights[0] : camera.eye);
   rp.light1 = w.to_voxel(w.lights.size() > 1 ? w.lights[1] : camera.eye);
+  if (portal().packed.scale_log2) {  // instanced: fine voxel space (render_instanced)
+    const portal::PackedPortal& p = portal().packed;
+    rp.light0 = ((w.lights.size() > 0 ? w.lights[0] : camera.eye) - p.origin) * (1.0f / p.voxel_size);
+    rp.light1 = ((w.lights.size() > 1 ? w.lights[1] : camera.eye) - p.origin) * (1.0f / p.voxel_size);
+  }
   rp.max_interfaces = opt.max_interfaces;
   rp.refraction = opt.refraction ? 1u : 0u;
   rp.background = opt.background;
@@ -359,8 +369,69 @@ PortalExplainRecord PortalVulkanTracer::explain_ray(const Ray& ray) {
 
 // The shader's record in the words of the reference's log (reference/portal/trace.cpp,
 // trace_portal), so that the two compare line by line.
+std::string to_text_instanced(const PortalExplainRecord& rec, const portal::PortalBuild& build) {
+  const portal::PackedPortal& p = build.packed;
+  const int S = 1 << p.scale_log2;
+  std::string s;
+  glm::ivec3 tile(0);
+  for (const sh::PortalExplainEvent& e : rec.events) {
+    if (e.kind == 0) {
+      tile = glm::ivec3(glm::uvec3(e.voxel) >> p.scale_log2);
+      if (e.step == 2) s += "start: the ray never enters the world box: miss\n";
+      else if (e.step == 1)
+        s += fmt("start: fine voxel (%d, %d, %d) of tile (%d, %d, %d): inside a wall of material %u\n", e.voxel.x,
+                 e.voxel.y, e.voxel.z, tile.x, tile.y, tile.z, e.div);
+      else if (e.div == sh::kPortalExteriorDiv) s += "start: outside the world box: exterior div 0\n";
+      else
+        s += fmt("start: fine voxel (%d, %d, %d) of tile (%d, %d, %d): div %u%s\n", e.voxel.x, e.voxel.y, e.voxel.z,
+                 tile.x, tile.y, tile.z, e.div, e.div >= p.top_divs ? " (in the instance)" : "");
+      continue;
+    }
+    if (e.kind == 4) {
+      tile = glm::ivec3(int(e.face & 255u), int((e.face >> 8) & 255u), int(e.face >> 16));
+      s += fmt("enter instance: block %u at tile (%d, %d, %d), fine voxel (%d, %d, %d), block start texel %s\n", e.div,
+               tile.x, tile.y, tile.z, e.voxel.x, e.voxel.y, e.voxel.z, texel_text(e.texel).c_str());
+      continue;
+    }
+    if (e.kind == 5) {
+      if (e.step == 1) s += "leave instance: beyond the world: miss\n";
+      else
+        s += fmt("leave instance: tile (%d, %d, %d) beyond, top-level start texel %s\n", e.voxel.x, e.voxel.y, e.voxel.z,
+                 texel_text(e.texel).c_str());
+      continue;
+    }
+    const auto kind = portal::StepKind(e.step);
+    if (kind == portal::StepKind::kNoDirection) {
+      s += fmt("div %u: no face ahead (zero direction or missed box): miss\n", e.div);
+      continue;
+    }
+    const bool in_block = e.div >= p.top_divs;
+    portal::DivInfo d = portal::read_div_info(p, e.div);
+    if (in_block) d.lo += tile * S;
+    s += fmt("div %u [%d,%d,%d .. %d,%d,%d) %s%s: %s face %s at t = %.7g, %s (%d, %d, %d)", e.div, d.lo.x, d.lo.y, d.lo.z,
+             d.lo.x + d.size.x, d.lo.y + d.size.y, d.lo.z + d.size.z, in_block ? "fine voxels" : "tiles",
+             e.div == sh::kPortalExteriorDiv ? " (exterior)" : in_block ? " (block div)" : "",
+             e.div == sh::kPortalExteriorDiv ? "enters by" : "exits by", face_name(e.face), double(e.num / e.ad),
+             in_block ? "fine voxel" : "tile", e.voxel.x, e.voxel.y, e.voxel.z);
+    if (kind == portal::StepKind::kTmax) {
+      s += ": beyond tmax, miss\n";
+      continue;
+    }
+    s += fmt(", atlas texel (%u, %u) = %s\n", e.texel_uv.x, e.texel_uv.y, texel_text(e.texel).c_str());
+  }
+  const Hit& h = rec.hit;
+  if (!is_miss(h) && (h.triangle & 7u) != sh::kPortalFaceInside) {
+    const glm::uvec3 f = p.fine_dims();
+    const uint32_t i = h.triangle >> 3;
+    s += fmt("hit: fine voxel (%u, %u, %u) face %s, material %u, t = %.9g, uv = (%.6g, %.6g)\n", i % f.x, (i / f.x) % f.y,
+             i / (f.x * f.y), face_name(h.triangle & 7u), h.instance, double(h.t), double(h.u), double(h.v));
+  }
+  return s;
+}
+
 std::string to_text(const PortalExplainRecord& rec, const portal::PortalBuild& build) {
   const portal::PackedPortal& p = build.packed;
+  if (p.scale_log2) return to_text_instanced(rec, build);
   std::string s;
   for (const sh::PortalExplainEvent& e : rec.events) {
     if (e.kind == 0) {

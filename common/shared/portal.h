@@ -232,6 +232,37 @@ SH_INLINE uint portal_mip_aligned_level(uint plane, uint lc, uint target) {
   return l;
 }
 
+// ---- Instanced subspaces (docs/PORTAL.md, "Instanced subspaces") ----
+// Tiles of 2^scale_log2 fine voxels per axis; the top level is traced in tile space (the ray times
+// 2^-scale_log2, exact, as a mip level), block divs in fine space offset by their tile's corner.
+
+// Whether wall material m is an instance (of block m - base).
+SH_INLINE bool portal_is_instance(uint m, uint scale_log2, uint base, uint blocks) {
+  return scale_log2 != 0u && m >= base && m < base + blocks;
+}
+
+// The fine voxel a ray meets entering tile `tile` across the plane of axis a (num, ad in fine
+// space): along a the tile's first fine layer in the direction of travel, along the tangents the
+// voxel the DDA would be in at the crossing (the same binary search as every crossing).
+SH_INLINE ivec3 portal_instance_fine_voxel(uint a, float num, float ad, SH_IN(vec3) org, SH_IN(vec3) dir, ivec3 tile,
+                                           uint scale_log2) {
+  const int S = 1 << scale_log2;
+  ivec3 f = ivec3(0);
+  f[a] = dir[a] > 0.0f ? tile[a] * S : tile[a] * S + S - 1;
+  const uint b0 = portal_tangent0(a);
+  const uint b1 = portal_tangent1(a);
+  f[b0] = int(portal_cross_index(a, num, ad, b0, org[b0], dir[b0], uint(tile[b0] * S), uint(tile[b0] * S + S)));
+  f[b1] = int(portal_cross_index(a, num, ad, b1, org[b1], dir[b1], uint(tile[b1] * S), uint(tile[b1] * S + S)));
+  return f;
+}
+
+// The atlas texel index (row-major) of fine voxel `fine` in the start map of `block` at `tile`.
+SH_INLINE uint portal_block_start_index(uint block_start, uint block, uint scale_log2, ivec3 tile, ivec3 fine) {
+  const uint S = 1u << scale_log2;
+  const uvec3 l = uvec3(fine - tile * int(S));
+  return block_start + block * S * S * S + l.x + S * (l.y + S * l.z);
+}
+
 SH_END
 
 #endif

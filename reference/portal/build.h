@@ -136,6 +136,19 @@ struct PackedPortal {
   uint16_t start_at(uint32_t level, glm::ivec3 v) const {
     return start[uint32_t(v.x) + dims.x * (uint32_t(v.y) + dims.y * (start_z(level) + uint32_t(v.z)))];
   }
+  // Instanced subspaces (docs/PORTAL.md, "Instanced subspaces"); scale_log2 = 0: none. Then
+  // `dims` are the top level's tiles, each 2^scale_log2 fine voxels per axis; origin and voxel_size
+  // map world space to fine voxel space (rays are traced there). Divs 0 .. top_divs - 1 are the
+  // top level's (level nibble scale_log2: traced in tile space, the ray times 2^-scale_log2, exact);
+  // the blocks' divs follow. A top-level wall texel of material instance_base + b (b < blocks) is
+  // an instance of block b; block b's start map (one texel per fine voxel of the block, x fastest)
+  // is atlas texels block_start + b * 8^scale_log2 ... (row-major in the atlas).
+  uint32_t scale_log2 = 0;
+  uint32_t instance_base = 0xFFFFu;
+  uint32_t blocks = 0;
+  uint32_t top_divs = 0;
+  uint32_t block_start = 0;
+  glm::uvec3 fine_dims() const { return dims * (1u << scale_log2); }
   size_t bytes() const { return atlas.size() * 2 + info.size() + start.size() * 2; }
 };
 
@@ -173,6 +186,9 @@ struct PortalBuild {
   std::vector<uint32_t> div_of_maximal;  // maximal index -> stored div index, kNone if unused
   PackedPortal packed;
   BuildStats stats;
+  // Instanced subspaces: the block divs (stored after divs' top-level ones in packed); `world` is
+  // then the top level (tiles; block instances are walls of the instance materials).
+  size_t block_divs = 0;
 };
 
 // Build everything for `world`. Throws Error when the world breaks a format limit (more than

@@ -9,6 +9,7 @@
 #include "gridrt/common/camera.h"
 #include "gridrt/common/parallel.h"
 #include "gridrt/reference/portal/trace.h"
+#include "gridrt/reference/portal/instance.h"
 
 namespace gridrt::portal {
 
@@ -259,6 +260,7 @@ void transition(const Context& c, PixelState& s, const Step& st) {
 }  // namespace
 
 std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, const RenderOptions& opt, RenderStats* stats) {
+  if (build.packed.scale_log2) return render_instanced(build, camera, opt, stats);
   if (opt.width == 0 || opt.height == 0) throw Error("portal render: image size must be at least 1 x 1");
   const auto t0 = std::chrono::steady_clock::now();
   const World& w = build.world;

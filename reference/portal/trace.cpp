@@ -13,6 +13,7 @@
 
 #include "gridrt/common/camera.h"
 #include "gridrt/common/shared/portal.h"
+#include "gridrt/reference/portal/instance.h"
 
 namespace gridrt::portal {
 
@@ -226,9 +227,10 @@ void mip_fine_voxels(const PackedPortal& p, const VoxelRay& r, uint32_t level, u
   side[a] += pos ? -1 : 1;
 }
 
-Step step_ray(const PackedPortal& p, uint32_t div, const VoxelRay& r0) {
+Step step_ray(const PackedPortal& p, uint32_t div, const VoxelRay& r0, glm::ivec3 base) {
   Step s;
-  const DivInfo d = read_div_info(p, div);
+  DivInfo d = read_div_info(p, div);
+  d.lo += base;  // instanced subspaces: a block div in its instance tile
   const VoxelRay r = level_ray(r0, d.level);  // mip-mapped space: the div's level
   const glm::vec3 lo(d.lo), hi(d.lo + d.size);
   float num = 0.0f;
@@ -265,7 +267,181 @@ Step step_ray(const PackedPortal& p, uint32_t div, const VoxelRay& r0) {
   return s;
 }
 
+// ---- Instanced subspaces (docs/PORTAL.md, "Instanced subspaces") -------------------------------
+
+InstancedStart instanced_start(const PackedPortal& p, const VoxelRay& r) {
+  InstancedStart s;
+  const Entry e = enter_world(p.fine_dims(), r);  // fine space: the flattened world's decision
+  if (e.kind == Entry::kMiss) return s;
+  if (e.kind == Entry::kEnter) {
+    s.kind = InstancedStart::kDiv;
+    s.div = sh::kPortalExteriorDiv;
+    return s;
+  }
+  s.voxel = e.voxel;
+  s.tile = glm::ivec3(glm::uvec3(e.voxel) >> p.scale_log2);
+  uint32_t t = p.start[voxel_linear(p.dims, s.tile)];
+  s.texels = 1;
+  if (sh::portal_texel_is_wall(t) && is_instance_material(p, t - sh::kPortalWallBit)) {
+    t = block_start_texel(p, t - sh::kPortalWallBit, s.tile, s.voxel);  // inside an instance: its block's start map
+    s.texels = 2;
+  }
+  if (sh::portal_texel_is_wall(t)) {
+    s.kind = InstancedStart::kInsideSolid;
+    s.material = t - sh::kPortalWallBit;
+    return s;
+  }
+  s.kind = InstancedStart::kDiv;
+  s.div = t;
+  return s;
+}
+
+namespace {
+// enter_instance: the ray crosses into instance tile `tile` (material m) at fine voxel `fine`
+// (`side`: the fine voxel before the plane): the block's start texel there is its first div, or
+// a wall met on this plane.
+InstancedEvent enter_instance(const PackedPortal& p, InstancedEvent e, uint32_t m, glm::ivec3 tile, glm::ivec3 fine,
+                              glm::ivec3 side, uint32_t& div, glm::ivec3& cur_tile, uint32_t& texels, std::string* log) {
+  ++texels;
+  const uint16_t bt = block_start_texel(p, m, tile, fine);
+  if (log)
+    *log += fmt("enter instance: block %u at tile (%d, %d, %d), fine voxel (%d, %d, %d), block start texel %s\n",
+                m - p.instance_base, tile.x, tile.y, tile.z, fine.x, fine.y, fine.z, texel_text(bt).c_str());
+  if (sh::portal_texel_is_wall(bt)) {
+    e.kind = InstancedEvent::kWall;
+    e.wall = fine, e.side = side, e.material = bt - sh::kPortalWallBit;
+    return e;
+  }
+  e.kind = InstancedEvent::kContinue;
+  div = bt;
+  cur_tile = tile;
+  return e;
+}
+}  // namespace
+
+InstancedEvent instanced_advance(const PackedPortal& p, const VoxelRay& r, uint32_t& div, glm::ivec3& tile, const Step& st,
+                                 uint32_t& texels, std::string* log) {
+  InstancedEvent e;
+  if (st.kind == StepKind::kNoDirection || st.kind == StepKind::kTmax) return e;
+  ++texels;
+  const int S = 1 << p.scale_log2;
+  const bool in_block = div >= p.top_divs;
+  const float up = in_block ? 1.0f : float(S);  // top-level planes in fine space (exact)
+  const uint32_t a = st.axis;
+  const int sg = r.dir[a] > 0.0f ? 1 : -1;
+  e.axis = a, e.num = st.num * up, e.ad = st.ad * up;
+  if (st.kind == StepKind::kNext) {
+    e.kind = InstancedEvent::kContinue;
+    div = st.texel;
+    return e;
+  }
+  if (in_block) {
+    glm::ivec3 beyond = st.voxel;
+    beyond[a] += sg;
+    if (st.kind == StepKind::kWall) {
+      e.kind = InstancedEvent::kWall;
+      e.wall = beyond, e.side = st.voxel, e.material = st.texel - sh::kPortalWallBit;
+      return e;
+    }
+    // leave_instance: out of the block's box, back to the top level through the tile beyond the
+    // face (recomputed from the exit, no stack): its start texel.
+    glm::ivec3 nt = tile;
+    nt[a] += sg;
+    if (nt[a] < 0 || nt[a] >= int(p.dims[a])) {
+      if (log) *log += "leave instance: beyond the world: miss\n";
+      return e;
+    }
+    ++texels;
+    const uint16_t tt = p.start[voxel_linear(p.dims, nt)];
+    if (log)
+      *log += fmt("leave instance: tile (%d, %d, %d) beyond, top-level start texel %s\n", nt.x, nt.y, nt.z,
+                  texel_text(tt).c_str());
+    if (!sh::portal_texel_is_wall(tt)) {
+      e.kind = InstancedEvent::kContinue;
+      div = tt;
+      return e;
+    }
+    const uint32_t m = tt - sh::kPortalWallBit;
+    if (is_instance_material(p, m)) return enter_instance(p, e, m, nt, beyond, st.voxel, div, tile, texels, log);
+    e.kind = InstancedEvent::kWall;
+    e.wall = beyond, e.side = st.voxel, e.material = m;
+    return e;
+  }
+  if (st.kind == StepKind::kOutside) return e;
+  // A top-level wall texel: the tile beyond the plane (the exterior div: the boundary tile).
+  glm::ivec3 wt = st.voxel;
+  if (div != sh::kPortalExteriorDiv) wt[a] += sg;
+  const uint32_t m = st.texel - sh::kPortalWallBit;
+  const glm::ivec3 fine = instance_fine_voxel(p, r, a, e.num, e.ad, wt);
+  if (is_instance_material(p, m)) return enter_instance(p, e, m, wt, fine, fine, div, tile, texels, log);
+  e.kind = InstancedEvent::kWall;
+  e.wall = fine, e.side = fine, e.material = m;
+  return e;
+}
+
+Hit trace_instanced(const PackedPortal& p, const Ray& ray, std::string* log) {
+  const VoxelRay r = to_voxel_ray(p.origin, p.voxel_size, ray);
+  const glm::uvec3 fd = p.fine_dims();
+  if (log)
+    *log += fmt("fine-voxel-space ray: org (%.6g, %.6g, %.6g) dir (%.6g, %.6g, %.6g) t in (%g, %g)\n", r.org.x, r.org.y,
+                r.org.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax);
+  const InstancedStart st = instanced_start(p, r);
+  if (st.kind == InstancedStart::kMiss) {
+    if (log) *log += "start: the ray never enters the world box: miss\n";
+    return miss_hit(0, 0);
+  }
+  if (st.kind == InstancedStart::kInsideSolid) {
+    if (log)
+      *log += fmt("start: fine voxel (%d, %d, %d) of tile (%d, %d, %d): inside a wall of material %u\n", st.voxel.x,
+                  st.voxel.y, st.voxel.z, st.tile.x, st.tile.y, st.tile.z, st.material);
+    return inside_hit(fd, r, st.voxel, st.material);
+  }
+  if (log) {
+    if (st.div == sh::kPortalExteriorDiv) *log += "start: outside the world box: exterior div 0\n";
+    else
+      *log += fmt("start: fine voxel (%d, %d, %d) of tile (%d, %d, %d): div %u%s\n", st.voxel.x, st.voxel.y, st.voxel.z,
+                  st.tile.x, st.tile.y, st.tile.z, st.div, st.div >= p.top_divs ? " (in the instance)" : "");
+  }
+  uint32_t cur = st.div, steps = 0, texels = st.texels;
+  glm::ivec3 tile = st.tile;
+  const int S = 1 << p.scale_log2;
+  const uint32_t limit = 4u * p.div_count + 16u + 4u * (fd.x + fd.y + fd.z);
+  while (steps < limit) {
+    const bool in_block = cur >= p.top_divs;
+    const glm::ivec3 base = in_block ? tile * S : glm::ivec3(0);
+    const Step s = step_ray(p, cur, r, base);
+    ++steps;
+    if (log) {
+      DivInfo d = read_div_info(p, cur);
+      d.lo += base;
+      const char* unit = in_block ? "fine voxels" : "tiles";
+      if (s.kind == StepKind::kNoDirection)
+        *log += fmt("div %u: no face ahead (zero direction or missed box): miss\n", cur);
+      else
+        *log += fmt("div %u [%d,%d,%d .. %d,%d,%d) %s%s: %s face %s at t = %.7g, %s (%d, %d, %d)%s", cur, d.lo.x, d.lo.y,
+                    d.lo.z, d.lo.x + d.size.x, d.lo.y + d.size.y, d.lo.z + d.size.z, unit,
+                    cur == sh::kPortalExteriorDiv ? " (exterior)" : in_block ? " (block div)" : "",
+                    cur == sh::kPortalExteriorDiv ? "enters by" : "exits by", face_name(s.face), double(s.num / s.ad),
+                    in_block ? "fine voxel" : "tile", s.voxel.x, s.voxel.y, s.voxel.z,
+                    s.kind == StepKind::kTmax ? ": beyond tmax, miss\n"
+                                              : fmt(", atlas texel (%u, %u) = %s\n", s.texel_uv.x, s.texel_uv.y,
+                                                    texel_text(s.texel).c_str()).c_str());
+    }
+    const InstancedEvent e = instanced_advance(p, r, cur, tile, s, texels, log);
+    if (e.kind == InstancedEvent::kContinue) continue;
+    if (e.kind == InstancedEvent::kMiss) return miss_hit(steps, texels);
+    const Hit h = wall_hit(fd, r, e.axis, e.num, e.ad, e.side, e.wall, e.material, steps, texels);
+    if (log)
+      *log += fmt("hit: fine voxel (%d, %d, %d) face %s, material %u, t = %.9g, uv = (%.6g, %.6g)\n", e.wall.x, e.wall.y,
+                  e.wall.z, face_name(hit_face(h)), h.instance, double(h.t), double(h.u), double(h.v));
+    return h;
+  }
+  if (log) *log += "step limit reached: miss\n";
+  return miss_hit(steps, texels);
+}
+
 Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
+  if (p.scale_log2) return trace_instanced(p, ray, log);
   const VoxelRay r = to_voxel_ray(p.origin, p.voxel_size, ray);
   if (log) *log += fmt("voxel-space ray: org (%.6g, %.6g, %.6g) dir (%.6g, %.6g, %.6g) t in (%g, %g)\n", r.org.x, r.org.y,
                        r.org.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax);
@@ -351,22 +527,28 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
   return miss_hit(steps, texels);
 }
 
-Hit trace_dda(const World& w, const Ray& ray, std::string* log) {
-  const VoxelRay r = to_voxel_ray(w.origin, w.voxel_size, ray);
-  const Entry e = enter_world(w.dims, r);
+namespace {
+// The voxel DDA over any occupancy: `at(v)` the voxel's material or kEmpty, v within dims.
+template <class At>
+Hit dda_over(glm::uvec3 dims, glm::vec3 origin, float voxel_size, At at, const Ray& ray, std::string* log) {
+  const VoxelRay r = to_voxel_ray(origin, voxel_size, ray);
+  const Entry e = enter_world(dims, r);
   if (e.kind == Entry::kMiss) {
     if (log) *log += "dda: the ray never enters the world box: miss\n";
     return miss_hit(0, 0);
   }
+  auto inside = [&](glm::ivec3 v) {
+    return v.x >= 0 && v.y >= 0 && v.z >= 0 && uint32_t(v.x) < dims.x && uint32_t(v.y) < dims.y && uint32_t(v.z) < dims.z;
+  };
   glm::ivec3 c = e.voxel;
   uint32_t steps = 1, tests = 1;
-  if (w.solid(c)) {
-    if (e.kind == Entry::kInside) return inside_hit(w.dims, r, c, w.at(c));
+  if (at(c) != kEmpty) {
+    if (e.kind == Entry::kInside) return inside_hit(dims, r, c, at(c));
     // Entering from outside straight into a wall: the boundary face.
     glm::ivec3 side = c;
-    return wall_hit(w.dims, r, e.axis, e.num, e.ad, side, c, w.at(c), steps, tests);
+    return wall_hit(dims, r, e.axis, e.num, e.ad, side, c, at(c), steps, tests);
   }
-  const uint32_t limit = 3u * (w.dims.x + w.dims.y + w.dims.z) + 8u;
+  const uint32_t limit = 3u * (dims.x + dims.y + dims.z) + 8u;
   while (steps < limit) {
     float num = 0.0f;
     const uint32_t a = sh::portal_exit_axis(glm::vec3(c), glm::vec3(c) + 1.0f, r.org, r.dir, num);
@@ -376,16 +558,51 @@ Hit trace_dda(const World& w, const Ray& ray, std::string* log) {
     glm::ivec3 n = c;
     n[a] += r.dir[a] > 0.0f ? 1 : -1;
     if (log) *log += fmt("dda: voxel (%d, %d, %d) -> (%d, %d, %d)\n", c.x, c.y, c.z, n.x, n.y, n.z);
-    if (!w.inside(n)) return miss_hit(steps, tests);
+    if (!inside(n)) return miss_hit(steps, tests);
     ++tests;
-    if (w.solid(n)) return wall_hit(w.dims, r, a, num, ad, c, n, w.at(n), steps, tests);
+    if (at(n) != kEmpty) return wall_hit(dims, r, a, num, ad, c, n, at(n), steps, tests);
     c = n;
     ++steps;
   }
   return miss_hit(steps, tests);
 }
+}  // namespace
+
+Hit trace_dda(const World& w, const Ray& ray, std::string* log) {
+  return dda_over(w.dims, w.origin, w.voxel_size, [&](glm::ivec3 v) { return w.at(v); }, ray, log);
+}
+
+Hit trace_dda_instanced(const InstancedWorld& iw, const Ray& ray) {
+  const uint32_t S = iw.scale;
+  const World& t = iw.top;
+  return dda_over(iw.fine_dims(), t.origin, t.voxel_size / float(S), [&](glm::ivec3 v) -> uint16_t {
+    const glm::uvec3 f(v);
+    const uint16_t m = t.voxels[t.index(f / S)];
+    if (m == kEmpty || m < iw.instance_base) return m;
+    const glm::uvec3 l = f % S;
+    return iw.blocks[m - iw.instance_base].voxels[l.x + S * (l.y + size_t(S) * l.z)];
+  }, ray, nullptr);
+}
 
 std::string explain_portal(const PackedPortal& p, const World& w, const Ray& ray) {
+  if (p.scale_log2) {
+    const glm::uvec3 f = p.fine_dims();
+    std::string s = fmt("portal-cpu: instanced world '%s' %u x %u x %u tiles of %u^3 fine voxels (%u x %u x %u), %u divs "
+                        "(%u top level, %u in %u blocks), atlas %u x %u\n", w.name.c_str(), p.dims.x, p.dims.y, p.dims.z,
+                        1u << p.scale_log2, f.x, f.y, f.z, p.div_count, p.top_divs, p.div_count - p.top_divs, p.blocks,
+                        p.atlas_width, p.atlas_height);
+    s += fmt("ray: org (%.6g, %.6g, %.6g) dir (%.6g, %.6g, %.6g)\n", ray.org.x, ray.org.y, ray.org.z, ray.dir.x, ray.dir.y,
+             ray.dir.z);
+    const Hit h = trace_portal(p, ray, &s);
+    if (is_miss(h)) s += fmt("result: miss after %u divs, %u texels read\n", h.cells, h.tests);
+    else {
+      const uint32_t i = hit_voxel_index(h);
+      s += fmt("result: material %u ('%s') at fine voxel (%u, %u, %u) face %s, t = %.9g, after %u divs, %u texels read\n",
+               h.instance, h.instance < w.materials.size() ? w.materials[h.instance].name.c_str() : "?", i % f.x,
+               (i / f.x) % f.y, i / (f.x * f.y), face_name(hit_face(h)), double(h.t), h.cells, h.tests);
+    }
+    return s;
+  }
   std::string s = fmt("portal-cpu: world '%s' %u x %u x %u voxels, %u divs, atlas %u x %u\n", w.name.c_str(), p.dims.x,
                       p.dims.y, p.dims.z, p.div_count, p.atlas_width, p.atlas_height);
   s += fmt("ray: org (%.6g, %.6g, %.6g) dir (%.6g, %.6g, %.6g)\n", ray.org.x, ray.org.y, ray.org.z, ray.dir.x, ray.dir.y,

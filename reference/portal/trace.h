@@ -35,7 +35,9 @@ struct Step {
   glm::uvec2 texel_uv{0};     // atlas coordinates read
   uint32_t texel = 0;         // the atlas texel value
 };
-Step step_ray(const PackedPortal& packed, uint32_t div, const VoxelRay& ray);
+// `base`: instanced subspaces (docs/PORTAL.md, "Instanced subspaces"): a block div's box is
+// offset by `base` fine voxels (its instance tile's corner); 0 for every other div.
+Step step_ray(const PackedPortal& packed, uint32_t div, const VoxelRay& ray, glm::ivec3 base = glm::ivec3(0));
 
 // Where a ray starts: the div holding the voxel at org + tmin dir (start map), the exterior div
 // (div 0) when that point lies outside the world, or a hit (the point is inside a solid voxel:

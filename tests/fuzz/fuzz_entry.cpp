@@ -9,6 +9,8 @@
 #include <unistd.h>
 
 #include "gridrt/common/scene_io.h"
+#include "gridrt/common/safe_io.h"
+#include "gridrt/reference/portal/instance.h"
 #include "gridrt/reference/portal/world.h"
 
 namespace gridrt::fuzz {
@@ -41,7 +43,10 @@ const char* extension(Kind kind) {
 
 void load_input(const std::string& path, Kind kind, const std::string& scratch) {
   if (kind == Kind::map) {
-    portal::load_tile_map(path, false);
+    // A block map (first keyword `scale`) or a tile map, as the tool reads them.
+    const std::string text = normalize_text(read_input_file(path, "tile map"));
+    if (portal::is_block_map(text)) portal::parse_block_map(text, path, false);
+    else portal::load_tile_map(path, false);
     return;
   }
   const Scene scene = load_scene(path);

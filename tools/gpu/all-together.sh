@@ -3,8 +3,8 @@
 # "What agrees where"), from the repo root, after staging here:
 #   cmake --preset gpu && cmake --build --preset gpu -j2 --target gridrt
 #   for s in sibenik-teapots sponza-teapots ons-reborn-teapot; do
-#     build/release/apps/gridrt convert data/scenes/$s.json -o /tmp/gs/$s.gridscene; done
-#   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- /tmp/gs/*.gridscene tools/gpu/all-together.sh \
+#     build/release/apps/gridrt convert $GRIDRT_SCENES/$s.json -o /tmp/gs/$s.gridscene; done
+#   pack.sh build/gpu/apps/gridrt -- /tmp/gs/*.gridscene tools/gpu/all-together.sh \
 #       /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so \
 #       /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
 # There: PART=diff|bench|all bash .gpu/extra/all-together.sh (G=.gpu by default); logs to $OUT.

@@ -2,7 +2,7 @@
 # The GPU machine's full run (docs/BENCHMARKS.md, docs/VULKAN.md), from the repo root, after
 # staging here:
 #   cmake --preset gpu-embree && cmake --build --preset gpu-embree -j2 --target gridrt
-#   ../shared/gpu/pack.sh build/gpu-embree/apps/gridrt -- /tmp/gs/*.gridscene.gz \
+#   pack.sh build/gpu-embree/apps/gridrt -- /tmp/gs/*.gridscene.gz \
 #       /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so \
 #       /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
 #   xz -6 .gpu/lib/libembree3.so.3 .gpu/extra/libVkLayer_khronos_validation.so

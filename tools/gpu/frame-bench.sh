@@ -2,7 +2,7 @@
 # The frame benchmark of docs/BENCHMARKS.md ("The paper's frame on the H200"), on the GPU machine,
 # from the repo root. Staging, here:
 #   cmake --preset gpu-embree && cmake --build --preset gpu-embree -j2 --target gridrt
-#   ../shared/gpu/pack.sh build/gpu-embree/apps/gridrt [BASELINE_BINARY] -- /tmp/gs/*.gridscene.gz
+#   pack.sh build/gpu-embree/apps/gridrt [BASELINE_BINARY] -- /tmp/gs/*.gridscene.gz
 #   xz -6 .gpu/lib/libembree3.so.3   # 42 MiB -> 9 MiB: pack.sh's 60 MiB check fails before this
 # There: bash tools/gpu/frame-bench.sh (G=.gpu by default; BASELINE=name of a staged binary to
 # time it beside gridrt). Logs and JSON go to $OUT.

@@ -4,7 +4,7 @@
 #   cmake --preset gpu && cmake --build --preset gpu -j2 --target gridrt
 #   for s in sibenik-teapots sponza-teapots ons-reborn-teapot; do
 #     build/release/apps/gridrt convert data/scenes/$s.json -o /tmp/gs/$s.gridscene; done
-#   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- /tmp/gs/*.gridscene tools/gpu/gather-bench.sh \
+#   pack.sh build/gpu/apps/gridrt -- /tmp/gs/*.gridscene tools/gpu/gather-bench.sh \
 #       /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so \
 #       /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
 # There: PART=diff|bench|all bash .gpu/extra/gather-bench.sh (G=.gpu by default); logs to $OUT.

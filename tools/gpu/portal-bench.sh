@@ -4,7 +4,9 @@
 #   cmake --preset gpu && cmake --build --preset gpu -j2 --target gridrt
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- ../shared/data/scenes/bunny/bunny.obj data/scenes/bunny.json
 # There: bash tools/gpu/portal-bench.sh (G=.gpu by default). Logs go to $OUT (default
-# /tmp/gridrt-out): portal-bench.log (everything, in order) and one log per run under $OUT/runs.
+# /tmp/gridrt-out): portal-bench.log (everything, in order), one log per run under $OUT/runs, and
+# instanced-summary.txt (instanced against flattened, and the grid on the same level, runs 1-10). INSTANCED_ONLY=1: only those
+# runs (about a minute).
 # A failing run is logged with its exit code and the script goes on; the exit code is the number of
 # failed runs (0: all ran).
 #
@@ -68,6 +70,63 @@ nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv,noheader >
 nproc >>"$L"
 S=(--width 720 --height 360)
 P=(--repeat 5 "${S[@]}")
+
+# Instanced subspaces (docs/PORTAL.md, "Instanced subspaces"): the built-in block level instanced
+# and flattened (the same voxels written out), the pixels that differ between the two renders, the
+# device against the reference, and a generated block level that only fits instanced. First, so
+# that its summary ($OUT/instanced-summary.txt) is written even if a later run is cut off.
+run "instanced builtin:blocks" gridrt portal bench builtin:blocks "${P[@]}"
+i_bench=$n
+run "flattened builtin:blocks" gridrt portal bench builtin:blocks --flatten "${P[@]}"
+f_bench=$n
+run "instanced vs flattened render, portal-cpu" gridrt portal render builtin:blocks --flat-compare "${S[@]}" \
+  -o "$OUT/blocks-cpu.png"
+c_cmp=$n
+run "instanced vs flattened render, portal-vulkan" gridrt portal render builtin:blocks --flat-compare \
+  --backend portal-vulkan "${S[@]}" -o "$OUT/blocks-vulkan.png"
+v_cmp=$n
+run "portal diff builtin:blocks (NVIDIA division: t within 3 ulps)" \
+  gridrt portal diff builtin:blocks "${S[@]}" --ulps 3 --uv-tolerance 1e-4 --pixels 0.5
+d_blocks=$n
+run "instanced gen-blocks:255x255x4 (flattened: 2040 voxels wide, beyond the format)" \
+  gridrt portal bench gen-blocks:255x255x4 "${P[@]}"
+g_bench=$n
+# The grid on the same level: its voxel faces as triangles (gridrt portal export), the blocks as the
+# grid's own instances, and flattened into one mesh.
+mkdir -p "$OUT/scenes/blocks"
+run "export builtin:blocks as triangles (instances)" gridrt portal export builtin:blocks -o "$OUT/scenes/blocks/blocks.json"
+run "export builtin:blocks as triangles (flattened)" gridrt portal export builtin:blocks --flatten \
+  -o "$OUT/scenes/blocks/blocks_flat.json"
+run "grid builtin:blocks (instances)" gridrt bench "$OUT/scenes/blocks/blocks.json" --backend vulkan --frames 30 \
+  --warmup 5 "${S[@]}"
+gi_bench=$n
+run "grid builtin:blocks (flattened)" gridrt bench "$OUT/scenes/blocks/blocks_flat.json" --backend vulkan --frames 30 \
+  --warmup 5 "${S[@]}"
+gf_bench=$n
+{
+  echo "Instanced subspaces on $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo '?'),"
+  echo "$(nproc) CPU cores; 720 x 360, best of 5 (full logs: $OUT/runs/NN.log)."
+  for k in "$i_bench" "$f_bench" "$g_bench"; do
+    f=$OUT/runs/$(printf '%02d' "$k").log
+    echo "--- run $k"
+    grep -E '^world |^\| portal-|^\| voxel-|^render portal-|vs portal-cpu|vs voxel-dda' "$f" 2>/dev/null || echo "(no output)"
+  done
+  for k in "$gi_bench" "$gf_bench"; do
+    f=$OUT/runs/$(printf '%02d' "$k").log
+    echo "--- run $k (the grid)"
+    grep -E '^bench:|^\| vulkan' "$f" 2>/dev/null || echo "(no output)"
+  done
+  for k in "$c_cmp" "$v_cmp" "$d_blocks"; do
+    f=$OUT/runs/$(printf '%02d' "$k").log
+    echo "--- run $k"
+    grep -E 'instanced against flattened|hit records|render:|agree|DIFFER|error' "$f" 2>/dev/null || echo "(no output)"
+  done
+} >"$OUT/instanced-summary.txt"
+cat "$OUT/instanced-summary.txt" >>"$L"
+if [ "${INSTANCED_ONLY:-0}" = 1 ]; then
+  echo "=== $failed of $n runs failed" | tee -a "$L"
+  exit "$failed"
+fi
 
 # Portal: tile maps (no triangle version, so no grid beside them).
 run "portal builtin level" gridrt portal bench builtin:level "${P[@]}"

@@ -2,7 +2,7 @@
 # On the GPU machine, from the repo root: the device's ray tracing pipeline beside the grid
 # (`gridrt bench --rtx`, docs/BENCHMARKS.md "The device's RT pipeline side by side") on the paper's
 # three frames. Staged in $STAGE (default .gpu; the measured run used .gpu-rtx) by
-# ../shared/gpu/pack.sh with gridrt, optionally gridrt_rtx_tests (docs/VULKAN.md says how it is
+# pack.sh with gridrt, optionally gridrt_rtx_tests (docs/VULKAN.md says how it is
 # linked), and as extra files the three *.gridscene.gz, libVkLayer_khronos_validation.so and its
 # JSON. Writes every log and JSON to $OUT/rtx-run.tgz.
 #   1. validation layer on (480x270, both ways of ignoring the launch triangle): 0 messages?

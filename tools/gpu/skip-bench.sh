@@ -2,7 +2,7 @@
 # Empty-space skipping on the GPU machine (docs/BENCHMARKS.md "Empty-space skipping"), from the
 # repo root, after staging here:
 #   cmake --preset gpu && cmake --build --preset gpu -j2
-#   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- X.gridscene ...   (gridrt convert data/scenes/X.json -o X.gridscene)
+#   pack.sh build/gpu/apps/gridrt -- X.gridscene ...   (gridrt convert data/scenes/X.json -o X.gridscene)
 # There: bash tools/gpu/skip-bench.sh (G=.gpu by default). Per scene, in one run on the same rays:
 # the exact traversal with the compute build beside the RT pipeline, skipping off and on; the
 # paper traversal's figures unchanged; then gridrt diff (the reference against the shaders, bit for

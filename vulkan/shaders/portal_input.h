@@ -19,6 +19,15 @@ struct PortalParams {
   uint info_width;      // texels per div-info row (a multiple of 8)
   uint levels;          // mip-mapped space: levels (1: none)
   float mip_distance;   // the level rule's distance (fine voxels)
+  // Instanced subspaces (PackedPortal): scale_log2 0 for none; top_divs = div_count then.
+  uint scale_log2;      // fine voxels per tile edge: 2^scale_log2
+  uint instance_base;   // material of block 0's instances
+  uint blocks;          // blocks
+  uint top_divs;        // divs of the top level (block divs follow)
+  uint block_start;     // atlas texel (row-major) of block 0's start map
+  uint pad0;
+  uint pad1;
+  uint pad2;
 };
 
 // The renderer's constants (reference/portal/render.cpp: Context and RenderOptions).
@@ -79,12 +88,19 @@ struct PortalPixel {
   uint pad0;
   vec3 mip_acc;      // mip-mapped space: light of the translucent coarse voxels passed
   uint pad1;
+  ivec3 tile;        // instanced subspaces: the instance tile of the current block div
+  uint pad2;
+  ivec3 hit_tile;    // the tile of hit_div
+  uint pad3;
 };
 
 // One explain event of the traced ray: the start, then one per div visited.
 struct PortalExplainEvent {
   uint kind;     // 0 start, 1 step, 2 mip: a coarser level (div = level, voxel = coarse voxel, texel = its
-                 // start texel), 3 mip: a coarse wall met (div = level, voxel = coarse voxel, texel = material)
+                 // start texel), 3 mip: a coarse wall met (div = level, voxel = coarse voxel, texel = material),
+                 // 4 enter instance (div = block, face = tile x | y << 8 | z << 16, voxel = fine voxel, texel =
+                 // block start texel), 5 leave instance (voxel = the tile beyond, texel = its start texel;
+                 // step 1: beyond the world)
   uint div;      // start: the start div (or wall texel); step: the div left
   uint face;     // step: the face left by (exterior: entered by)
   uint texel;    // the texel read (start: the start-map texel)
@@ -126,10 +142,10 @@ struct PortalRenderPush {
 SH_END
 
 #ifdef __cplusplus
-static_assert(sizeof(gridrt::shared::PortalParams) == 48, "std430 layout of PortalParams");
+static_assert(sizeof(gridrt::shared::PortalParams) == 80, "std430 layout of PortalParams");
 static_assert(sizeof(gridrt::shared::PortalRenderParams) == 112, "std430 layout of PortalRenderParams");
 static_assert(sizeof(gridrt::shared::PortalMaterial) == 48, "std430 layout of PortalMaterial");
-static_assert(sizeof(gridrt::shared::PortalPixel) == 176, "std430 layout of PortalPixel");
+static_assert(sizeof(gridrt::shared::PortalPixel) == 208, "std430 layout of PortalPixel");
 static_assert(sizeof(gridrt::shared::PortalExplainEvent) == 48, "std430 layout of PortalExplainEvent");
 static_assert(sizeof(gridrt::shared::PortalTracePush) == 16, "layout of PortalTracePush");
 static_assert(sizeof(gridrt::shared::PortalRenderPush) == 4, "layout of PortalRenderPush");

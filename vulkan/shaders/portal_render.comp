@@ -87,6 +87,7 @@ void begin_shadow(inout PortalPixel s, uint i) {
     s.tmin = 0.0f;
     s.tmax = 1.0f;      // reaching t = 1 is reaching the light
     s.div = s.hit_div;  // the shadow ray starts in the div the primary ray ended in: no offset needed
+    s.tile = s.hit_tile;
     s.mode = kShadowA + i;
     ++s.shadow_rays;
     return;
@@ -100,6 +101,23 @@ void begin_primary(inout PortalPixel s, RayRecord ray) {
   s.dir = r.dir;
   s.tmin = r.tmin;
   s.tmax = r.tmax;
+  if (params.scale_log2 != 0u) {  // instanced subspaces
+    const InstancedStart is = instanced_start(r);
+    if (is.kind == kInstancedMiss) {
+      s.color = rp.background;
+      s.mode = kDone;
+    } else if (is.kind == kInstancedInsideSolid) {
+      s.albedo = materials[is.material].color;
+      precise vec3 c = s.albedo * rp.ambient;
+      s.color = c;
+      s.mode = kDone;
+    } else {
+      s.div = is.div;
+      s.tile = is.tile;
+      s.mode = kPrimary;
+    }
+    return;
+  }
   const Start st = start_ray(r);
   if (st.kind == kStartMiss) {
     s.color = rp.background;
@@ -204,7 +222,50 @@ void mip_surface(inout PortalPixel s, uint level, uint axis, float num, float ad
 vec3 pow3(vec3 f, float d) { return vec3(pow(f.x, d), pow(f.y, d), pow(f.z, d)); }
 
 // The state transitions: what one step's result does to the pixel.
+// Instanced subspaces (reference/portal/instance.cpp, render_instanced): no glass, no mip levels;
+// the state is the div and, in a block div, its tile.
+void transition_instanced(inout PortalPixel s, Step st) {
+  ++s.iterations;
+  uint texels = 0u;
+  const uint from = s.div;
+  const ivec3 from_tile = s.tile;
+  if (s.mode == kPrimary) {
+    ++s.steps_primary;
+    const InstancedEvent e = instanced_advance(pixel_ray(s), s.div, s.tile, st, texels);
+    if (e.kind == kEventContinue) return;
+    if (e.kind == kEventWall) {
+      s.point = crossing_at(s, e.num, e.ad);
+      s.normal = vec3(0.0f);
+      s.normal[e.axis] = s.dir[e.axis] > 0.0f ? -1.0f : 1.0f;
+      s.albedo = materials[e.material].color;
+      s.hit_div = from;
+      s.hit_tile = from_tile;
+      begin_shadow(s, 0u);
+      return;
+    }
+    precise vec3 c = s.filter_acc * rp.background + s.mip_acc;
+    s.color = c;
+    s.mode = kDone;
+    return;
+  }
+  ++s.steps_shadow;
+  const uint i = s.mode - kShadowA;
+  if (st.kind == kStepTmax) {
+    precise float l = s.light + sh_dot(s.normal, ref_normalize(s.dir));
+    s.light = l;
+    begin_shadow(s, i + 1u);
+    return;
+  }
+  const InstancedEvent e = instanced_advance(pixel_ray(s), s.div, s.tile, st, texels);
+  if (e.kind == kEventContinue) return;
+  begin_shadow(s, i + 1u);
+}
+
 void transition(inout PortalPixel s, Step st) {
+  if (params.scale_log2 != 0u) {
+    transition_instanced(s, st);
+    return;
+  }
   ++s.iterations;
   if (s.mode == kPrimary) {
     ++s.steps_primary;
@@ -348,6 +409,10 @@ PortalPixel new_pixel() {
   s.pad0 = 0u;
   s.mip_acc = vec3(0.0f);
   s.pad1 = 0u;
+  s.tile = ivec3(0);
+  s.pad2 = 0u;
+  s.hit_tile = ivec3(0);
+  s.pad3 = 0u;
   return s;
 }
 
@@ -365,11 +430,11 @@ void main() {
   }
   if (pc.pass == 0u) {
     // One loop: the same step for every kind of ray, transitions at the end of each iteration.
-    while (s.mode != kDone) transition(s, step_ray(s.div, pixel_ray(s)));
+    while (s.mode != kDone) transition(s, step_instanced(s.div, s.tile, pixel_ray(s)));
   } else {
     // One of the three loops: this pass's kind of ray only.
     const uint mode = pc.pass - 1u;
-    while (s.mode == mode) transition(s, step_ray(s.div, pixel_ray(s)));
+    while (s.mode == mode) transition(s, step_instanced(s.div, s.tile, pixel_ray(s)));
   }
   pixels[p] = s;
 }

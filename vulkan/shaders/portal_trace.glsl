@@ -308,7 +308,8 @@ Start start_ray(VoxelRay r) {
   return s;
 }
 
-Step step_ray(uint div, VoxelRay r0) {
+// `base`: instanced subspaces: a block div's box offset by its instance tile's corner (fine voxels).
+Step step_ray(uint div, VoxelRay r0, ivec3 base) {
   Step s;
   s.kind = kStepNoDirection;
   s.axis = 3u;
@@ -318,7 +319,8 @@ Step step_ray(uint div, VoxelRay r0) {
   s.voxel = ivec3(0);
   s.texel_uv = uvec2(0u);
   s.texel = 0u;
-  const DivInfo d = read_div_info(div);
+  DivInfo d = read_div_info(div);
+  d.lo += base;  // instanced subspaces: a block div in its instance tile
   const VoxelRay r = level_ray(r0, d.level);  // mip-mapped space: the div's level
   const vec3 lo = vec3(d.lo);
   const vec3 hi = vec3(d.lo + d.size);
@@ -395,7 +397,205 @@ HitRecord mip_surface_hit(VoxelRay r, uint level, uint a, float num, float ad, i
   return wall_hit(params.dims, r, a, num0, ad0, side, wall, material, steps, texels);
 }
 
+// ---- Instanced subspaces (reference/portal/trace.cpp: instanced_start, instanced_advance, trace_instanced) ----
+
+bool is_instance_material(uint m) {
+  return portal_is_instance(m, params.scale_log2, params.instance_base, params.blocks);
+}
+
+uvec3 fine_dims() { return params.dims << params.scale_log2; }
+
+ivec3 instance_fine_voxel(VoxelRay r, uint a, float num, float ad, ivec3 tile) {
+  return portal_instance_fine_voxel(a, num, ad, r.org, r.dir, tile, params.scale_log2);
+}
+
+uint block_start_texel(uint m, ivec3 tile, ivec3 fine) {
+  const uint i = portal_block_start_index(params.block_start, m - params.instance_base, params.scale_log2, tile, fine);
+  return atlas_at(uvec2(i % params.atlas_width, i / params.atlas_width));
+}
+
+const uint kInstancedDiv = 0u;
+const uint kInstancedInsideSolid = 1u;
+const uint kInstancedMiss = 2u;
+struct InstancedStart {
+  uint kind;
+  uint div;
+  ivec3 tile;
+  ivec3 voxel;
+  uint material;
+  uint texels;
+};
+
+InstancedStart instanced_start(VoxelRay r) {
+  InstancedStart s;
+  s.kind = kInstancedMiss;
+  s.div = 0u;
+  s.tile = ivec3(0);
+  s.voxel = ivec3(0);
+  s.material = 0u;
+  s.texels = 0u;
+  const Entry e = enter_world(fine_dims(), r);  // fine space: the flattened world's decision
+  if (e.kind == kEntryMiss) return s;
+  if (e.kind == kEntryEnter) {
+    s.kind = kInstancedDiv;
+    s.div = kPortalExteriorDiv;
+    return s;
+  }
+  s.voxel = e.voxel;
+  s.tile = ivec3(uvec3(e.voxel) >> params.scale_log2);
+  uint t = texelFetch(start_tex, s.tile, 0).r;
+  s.texels = 1u;
+  if (portal_texel_is_wall(t) && is_instance_material(t - kPortalWallBit)) {
+    t = block_start_texel(t - kPortalWallBit, s.tile, s.voxel);  // inside an instance: its block's start map
+    s.texels = 2u;
+  }
+  if (portal_texel_is_wall(t)) {
+    s.kind = kInstancedInsideSolid;
+    s.material = t - kPortalWallBit;
+    return s;
+  }
+  s.kind = kInstancedDiv;
+  s.div = t;
+  return s;
+}
+
+const uint kEventContinue = 0u;
+const uint kEventWall = 1u;
+const uint kEventMiss = 2u;
+struct InstancedEvent {
+  uint kind;
+  uint axis;
+  float num;  // fine space: t = num / ad
+  float ad;
+  ivec3 wall;
+  ivec3 side;
+  uint material;
+};
+
+// enter_instance: into instance tile `tile` (material m) at fine voxel `fine`.
+InstancedEvent enter_instance(InstancedEvent e, uint m, ivec3 tile, ivec3 fine, ivec3 side, inout uint div,
+                              inout ivec3 cur_tile, inout uint texels) {
+  ++texels;
+  const uint bt = block_start_texel(m, tile, fine);
+  emit(4u, m - params.instance_base, uint(tile.x) | (uint(tile.y) << 8) | (uint(tile.z) << 16), bt, fine, 0u, uvec2(0u),
+       0.0f, 0.0f);
+  if (portal_texel_is_wall(bt)) {
+    e.kind = kEventWall;
+    e.wall = fine;
+    e.side = side;
+    e.material = bt - kPortalWallBit;
+    return e;
+  }
+  e.kind = kEventContinue;
+  div = bt;
+  cur_tile = tile;
+  return e;
+}
+
+InstancedEvent instanced_advance(VoxelRay r, inout uint div, inout ivec3 tile, Step st, inout uint texels) {
+  InstancedEvent e;
+  e.kind = kEventMiss;
+  e.axis = 0u;
+  e.num = 0.0f;
+  e.ad = 0.0f;
+  e.wall = ivec3(0);
+  e.side = ivec3(0);
+  e.material = 0u;
+  if (st.kind == kStepNoDirection || st.kind == kStepTmax) return e;
+  ++texels;
+  const int S = 1 << params.scale_log2;
+  const bool in_block = div >= params.top_divs;
+  const float up = in_block ? 1.0f : float(S);  // top-level planes in fine space (exact)
+  const uint a = st.axis;
+  const int sg = r.dir[a] > 0.0f ? 1 : -1;
+  e.axis = a;
+  float fn = st.num * up;
+  float fa = st.ad * up;
+  e.num = fn;
+  e.ad = fa;
+  if (st.kind == kStepNext) {
+    e.kind = kEventContinue;
+    div = st.texel;
+    return e;
+  }
+  if (in_block) {
+    ivec3 beyond = st.voxel;
+    beyond[a] += sg;
+    if (st.kind == kStepWall) {
+      e.kind = kEventWall;
+      e.wall = beyond;
+      e.side = st.voxel;
+      e.material = st.texel - kPortalWallBit;
+      return e;
+    }
+    // leave_instance: back to the top level through the tile beyond the block's face.
+    ivec3 nt = tile;
+    nt[a] += sg;
+    if (nt[a] < 0 || nt[a] >= int(params.dims[a])) {
+      emit(5u, 0u, 0u, 0u, nt, 1u, uvec2(0u), 0.0f, 0.0f);
+      return e;
+    }
+    ++texels;
+    const uint tt = texelFetch(start_tex, nt, 0).r;
+    emit(5u, 0u, 0u, tt, nt, 0u, uvec2(0u), 0.0f, 0.0f);
+    if (!portal_texel_is_wall(tt)) {
+      e.kind = kEventContinue;
+      div = tt;
+      return e;
+    }
+    const uint m = tt - kPortalWallBit;
+    if (is_instance_material(m)) return enter_instance(e, m, nt, beyond, st.voxel, div, tile, texels);
+    e.kind = kEventWall;
+    e.wall = beyond;
+    e.side = st.voxel;
+    e.material = m;
+    return e;
+  }
+  if (st.kind == kStepOutside) return e;
+  ivec3 wt = st.voxel;
+  if (div != kPortalExteriorDiv) wt[a] += sg;
+  const uint m = st.texel - kPortalWallBit;
+  const ivec3 fine = instance_fine_voxel(r, a, e.num, e.ad, wt);
+  if (is_instance_material(m)) return enter_instance(e, m, wt, fine, fine, div, tile, texels);
+  e.kind = kEventWall;
+  e.wall = fine;
+  e.side = fine;
+  e.material = m;
+  return e;
+}
+
+// The step of div `div` (a block div: in instance tile `tile`).
+Step step_instanced(uint div, ivec3 tile, VoxelRay r) {
+  const ivec3 base = div >= params.top_divs ? tile * (1 << params.scale_log2) : ivec3(0);
+  return step_ray(div, r, base);
+}
+
+HitRecord trace_instanced(RayRecord ray) {
+  const VoxelRay r = to_voxel_ray(ray);
+  const uvec3 fd = fine_dims();
+  const InstancedStart st = instanced_start(r);
+  emit(0u, st.kind == kInstancedInsideSolid ? st.material : st.div, 0u, 0u, st.voxel, st.kind, uvec2(0u), 0.0f, 0.0f);
+  if (st.kind == kInstancedMiss) return miss_hit(0u, 0u);
+  if (st.kind == kInstancedInsideSolid) return inside_hit(fd, r, st.voxel, st.material);
+  uint cur = st.div;
+  uint steps = 0u;
+  uint texels = st.texels;
+  ivec3 tile = st.tile;
+  const uint limit = 4u * params.div_count + 16u + 4u * (fd.x + fd.y + fd.z);
+  while (steps < limit) {
+    const Step s = step_instanced(cur, tile, r);
+    ++steps;
+    emit(1u, cur, s.face, s.texel, s.voxel, s.kind, s.texel_uv, s.num, s.ad);
+    const InstancedEvent e = instanced_advance(r, cur, tile, s, texels);
+    if (e.kind == kEventContinue) continue;
+    if (e.kind == kEventMiss) return miss_hit(steps, texels);
+    return wall_hit(fd, r, e.axis, e.num, e.ad, e.side, e.wall, e.material, steps, texels);
+  }
+  return miss_hit(steps, texels);
+}
+
 HitRecord trace_portal(RayRecord ray) {
+  if (params.scale_log2 != 0u) return trace_instanced(ray);
   const VoxelRay r = to_voxel_ray(ray);
   const Start st = start_ray(r);
   emit(0u, st.div, 0u, st.texel, st.voxel, st.kind, uvec2(0u), 0.0f, 0.0f);
@@ -408,7 +608,7 @@ HitRecord trace_portal(RayRecord ray) {
   while (steps < limit) {
     const DivInfo d = read_div_info(cur);
     ++steps;
-    const Step s = step_ray(cur, r);
+    const Step s = step_ray(cur, r, ivec3(0));
     emit(1u, cur, s.face, s.texel, s.voxel, s.kind, s.texel_uv, s.num, s.ad);
     if (s.kind == kStepNoDirection) return miss_hit(steps, texels);
     if (s.kind == kStepTmax) return miss_hit(steps, texels);
