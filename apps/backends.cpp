@@ -109,6 +109,12 @@ void add_grid_options(CLI::App* cmd, BackendOptions& o) {
            "Spill list: references no slot takes are kept and traced in saturated cells (on), or dropped (off); "
            "auto: on for the exact traversal, off for the paper's (which gap-fills instead)")
       ->group(kGrid);
+  add_enum(cmd, "--layout", g.layout,
+           {{"auto", GO::Layout::automatic}, {"compact", GO::Layout::compact}, {"image", GO::Layout::image}},
+           "Grid layout: compact (static references in one array ordered per cell, dynamic ones in the spill "
+           "list; exact traversal), image (the paper's fixed-capacity 3D image) or auto (compact for the exact "
+           "traversal, image for the paper's)")
+      ->group(kGrid);
   add_enum(cmd, "--gap-fill", g.gap_fill, {{"on", true}, {"off", false}},
            "paper traversal: gap-fill in saturated cells (default on)")
       ->group(kGrid);
@@ -149,8 +155,13 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
                   "backend runs, else 4096)")
       ->check(CLI::Range(2u, 65536u))->group(kExpert);
   cmd->add_option_function<double>(
-         "--memory-budget", [&g](double mib) { g.max_texels = uint64_t(mib * 1024.0 * 1024.0 / 4.0); },
-         "Largest grid image in MiB (default 1024)")
+         "--memory-budget",
+         [&g](double mib) {
+           g.max_texels = uint64_t(mib * 1024.0 * 1024.0 / 4.0);
+           g.memory_budget = uint64_t(mib * 1024.0 * 1024.0);
+         },
+         "The grid's memory in MiB: the image layout's largest image (default 1024), the compact layout's whole "
+         "grid (default 320 bytes per scene triangle, at least 4)")
       ->check(CLI::Range(0.001, 1.0e6))->group(kExpert);
   cmd->add_option("--max-capacity", g.max_capacity, "Largest automatic capacity")
       ->check(CLI::Range(1u, 65535u))->group(kExpert);

@@ -292,7 +292,7 @@ nlohmann::json rtx_report(const BenchOptions& o, std::map<std::string, double>& 
   // Side by side: each tracer's static build, per-frame update, trace and structure
   std::printf("| tracer | build ms, once | update ms per frame | trace ms | update + trace ms | Mrays/s | structure "
               "MiB |\n|---|---|---|---|---|---|---|\n");
-  std::printf("| grid | %.3f | %.3f (clear %.3f + insert %.3f) | %.3f | %.3f | %.0f | %.1f (image) |\n", build,
+  std::printf("| grid | %.3f | %.3f (clear %.3f + insert %.3f) | %.3f | %.3f | %.0f | %.1f (all the grid keeps) |\n", build,
               m["update"], m["clear"], m["insert"], m["trace"], m["update"] + m["trace"], mrays, grid_mib);
   std::printf("| rtx | %.3f (static BLASes %.3f) | %.3f (dynamic BLASes %.3f + TLAS %.3f) | %.3f | %.3f | %.0f | %.1f "
               "(static %.1f + dynamic %.1f + TLAS %.2f) |\n",
@@ -385,20 +385,24 @@ void embree_on_frame_rays(const BenchOptions& o, const Scene& scene, const Frame
   }
 }
 
-// The grid's memory and the frame's buffers, MiB.
+// The grid's memory (everything it keeps on the device, as allocated: VulkanGridTracer::memory)
+// and the frame's buffers, MiB.
 struct VulkanMemory {
-  double grid = 0.0, skip = 0.0, spill = 0.0, frame = 0.0;
+  double grid = 0.0, skip = 0.0, spill = 0.0, frame = 0.0;  // grid: the image, or the offsets and references
+  double dirty = 0.0, total = 0.0;
+  bool compact = false;
 };
-VulkanMemory vulkan_memory(const BenchOptions& o, const Scene& scene, const shared::GridParams& gp,
-                           const vulkan::VulkanFrame& frame, const shared::SpillHeader& spill) {
+VulkanMemory vulkan_memory(const BenchOptions& o, const Scene& scene, const vulkan::VulkanGridTracer& vk,
+                           const vulkan::VulkanFrame& frame) {
   VulkanMemory mem;
-  const glm::uvec3 ext = shared::grid_image_extent(gp);
-  mem.grid = double(ext.x) * ext.y * ext.z * 4.0 / (1 << 20);
-  mem.skip = (gp.flags & shared::kGridSkipEmpty) != 0u ? double(shared::skip_words(gp)) * 4.0 / (1 << 20) : 0.0;
-  mem.spill = (gp.flags & shared::kGridSpill) != 0u
-                  ? (double(spill.capacity) * sizeof(shared::SpillEntry) + 4.0 * 4.0 * double(shared::grid_cell_count(gp))) /
-                        (1 << 20)
-                  : 0.0;
+  const plan::GridMemory gm = vk.memory();
+  const double mib = 1.0 / (1 << 20);
+  mem.compact = (vk.params().flags & shared::kGridCompact) != 0u;
+  mem.grid = double(mem.compact ? gm.offsets + gm.refs : gm.image) * mib;
+  mem.skip = double(gm.skip) * mib;
+  mem.spill = (vk.params().flags & shared::kGridSpill) != 0u ? double(gm.spill + gm.heads) * mib : 0.0;
+  mem.dirty = double(gm.dirty) * mib;
+  mem.total = double(gm.total()) * mib;
   const size_t frame_rays = 1 + (frame.shadows() ? scene.lights.size() : 0);  // bounce, then shadow rays
   mem.frame =
       double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + frame_rays * (sizeof(Ray) + sizeof(Hit)) + 4) /
@@ -432,12 +436,12 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
                             : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
                                                                                : "raster";
   std::printf("| build ms (first, warm) | update ms (clear + insert) | gather ms | bounce rays ms | trace ms | shade ms | frame ms "
-              "(update..shade) | Mrays/s (trace) | grid MiB | frame buffers MiB |\n"
+              "(update..shade) | Mrays/s (trace) | grid MiB (all it keeps) | frame buffers MiB |\n"
               "|---|---|---|---|---|---|---|---|---|---|\n");
   std::printf("| %.3f, %.3f | %.3f (%.3f + %.3f) | %.3f | %.3f | %.3f | %.3f | %.3f | %.0f | %.1f | %.1f |\n\n", build,
               build_warm,
               m["update"], m["clear"], m["insert"], m["gather"], m["bounce"], m["trace"], m["shade"], m["frame"], mrays,
-              mem.grid, mem.frame);
+              mem.total, mem.frame);
   if (frame.shadows() && stamps)
     std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u): rays %.3f + trace %.3f = %.3f ms (in "
                 "the frame above, between trace and shade)%s\n\n",
@@ -456,8 +460,10 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
               "dynamic instances %.3f ms\n",
               gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
               o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_skip"], m["build_dynamic"]);
-  std::printf("grid memory: image %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, total %.1f MiB\n",
-              mem.grid, mem.spill, mem.skip, mem.grid + mem.spill + mem.skip);
+  std::printf("grid memory (%s layout): %s %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, dirty-cell "
+              "list %.1f MiB, total %.1f MiB\n",
+              mem.compact ? "compact" : "image", mem.compact ? "offsets and references" : "image", mem.grid, mem.spill,
+              mem.skip, mem.dirty, mem.total);
 }
 
 // The trace's counters (medians over the counted frames): printed, and as JSON (empty without).
@@ -554,7 +560,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   for (auto& [k, v] : t) m[k] = median(v);
   const double mrays = m["trace"] > 0.0 ? double(rays) / (m["trace"] * 1e3) : 0.0;
   const shared::GridParams& gp = vk->params();
-  const VulkanMemory mem = vulkan_memory(o, scene, gp, frame, spill);
+  const VulkanMemory mem = vulkan_memory(o, scene, *vk, frame);
   const std::string device = vk->context().info().name;
   const std::string clock = !stamps ? "host (submit to fence; the frame's phases not split)"
                             : vk->context().info().type == VK_PHYSICAL_DEVICE_TYPE_CPU
@@ -563,9 +569,10 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
                             : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
                                                                                : "raster";
-  std::printf("\nvulkan, the whole frame on the GPU (%s; %s): %zu bounce rays per frame, grid %ux%ux%u capacity %u, "
+  std::printf("\nvulkan, the whole frame on the GPU (%s; %s): %zu bounce rays per frame, grid %ux%ux%u %s %u, "
               "%s gather, %s trace\n",
-              device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z, gp.capacity, gather_name,
+              device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z,
+              (gp.flags & shared::kGridCompact) != 0u ? "compact, largest cell" : "capacity", gp.capacity, gather_name,
               o.compact_rays ? "compacted" : "every-pixel");
   print_frame_tables(o, scene, frame, m, t, stamps, gather_tiles, build, build_warm, mrays, mem, spill_text(spill, spill_flags));
   const nlohmann::json trace_counters = trace_counter_report(counters, rays, m["trace"], counted);
@@ -577,6 +584,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   std::fflush(stdout);
   nlohmann::json j = {{"device", device}, {"clock", clock},       {"build_ms", build}, {"build_warm_ms", build_warm}, {"rays_per_frame", rays},
                       {"mrays_per_s", mrays}, {"grid_mib", mem.grid}, {"skip_mib", mem.skip}, {"spill_mib", mem.spill}, {"frame_mib", mem.frame},
+                      {"grid_total_mib", mem.total}, {"layout", mem.compact ? "compact" : "image"},
                       {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity},
                       {"spill", spill_json(spill, spill_flags)}};
   j["gather_mode"] = gather_name;
@@ -588,7 +596,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
   }
-  if (o.rtx) j["rtx"] = rtx_report(o, m, build, mrays, mem.grid, rays, rtx_first, rtx_memory, rtx_dynamic, agree);
+  if (o.rtx) j["rtx"] = rtx_report(o, m, build, mrays, mem.total, rays, rtx_first, rtx_memory, rtx_dynamic, agree);
   report_validation(vk->context(), j);
   if (!trace_counters.empty()) j["trace_counters"] = trace_counters;
   out["backends"]["vulkan"] = j;
@@ -622,10 +630,14 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
     }
   }
 #endif
+  // Everything the grid keeps (the image or the compact arrays, spill list, heads, skip field)
   if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
-    grid_mib = double(ref->stats().image_bytes) / (1 << 20);
+    grid_mib = double(ref->stats().memory.total()) / (1 << 20);
+#ifdef GRIDRT_HAVE_VULKAN
+  if (vk) grid_mib = double(vk->memory().total()) / (1 << 20);
+#endif
   const AccelDump dump = tracer->dump();
-  if (!dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
+  if (grid_mib == 0.0 && !dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
 
   std::vector<Hit> hits, shadow_hits(shadow.size());
   std::vector<double> shadow_ms;

@@ -100,7 +100,7 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
                 i == choice.chosen ? "**chosen**" : "", c.cells.x, c.cells.y, c.cells.z, double(c.cell_size),
                 double(c.aabb_padding),
                 c.capacity, c.max_count, (unsigned long long)c.saturated_cells, (unsigned long long)c.dropped,
-                double(c.texels) * 4.0 / 1048576.0, c.work.cells, c.work.tests, 100.0 * c.work.at_risk, 100.0 * c.work.skipped, 100.0 * c.work.lost, c.cost);
+                double(c.memory ? c.memory : c.texels * 4) / 1048576.0, c.work.cells, c.work.tests, 100.0 * c.work.at_risk, 100.0 * c.work.skipped, 100.0 * c.work.lost, c.cost);
     if (o.measure) {
       reference::GridOptions gc = go;
       gc.cell_size = c.cell_size;

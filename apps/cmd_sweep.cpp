@@ -456,6 +456,7 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
   const reference::GridOptions go = grid_options_for(bo, scene);
   if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
     const reference::GridStats s = ref->stats();
+    row.grid_mib = double(s.memory.total()) / (1 << 20);  // everything the grid keeps, either layout
     row.saturated = s.saturated_static + s.saturated_dynamic;
     row.spill_on = s.spill_on;
     row.spill_stored = s.spill_stored;

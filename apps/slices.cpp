@@ -63,13 +63,12 @@ SlicePanels colour_cells(const reference::GridData& grid, const SliceLayout& l) 
       for (uint32_t i = 0; i < nu; ++i) {
         glm::uvec3 cell(0);
         cell[l.a] = s, cell[l.u] = i, cell[l.v] = j;
-        uint32_t n = 0;
-        for (uint32_t r; n < g.capacity &&
-                           (r = reference::imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, cell, n)))) != sh::kBlank;
-             ++n)
+        const std::vector<uint32_t> refs = reference::cell_references(grid, cell);
+        const uint32_t n = uint32_t(refs.size());
+        for (uint32_t r : refs)
           if (r >= g.comparison_offset) p.moving[s][size_t(nv - 1 - j) * nu + i] = 1, p.any_moving = true;
         p.largest = std::max(p.largest, n);
-        const uint32_t status = reference::imageLoad(grid.image, glm::ivec3(sh::cell_status_texel(g, cell)));
+        const uint32_t status = reference::cell_status(grid, cell);
         glm::vec3 c = n == 0 ? plot::colors::light_grey
                              : plot::viridis(g.capacity > 1 ? float(n - 1) / float(g.capacity - 1) : 1.0f);
         if (n == 0) ++p.empty;

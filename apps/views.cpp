@@ -53,7 +53,7 @@ PixelRecord summarize(const reference::ExplainRecord& r, const reference::GridDa
   for (const sh::ExplainEvent& e : r.events) {
     switch (e.kind) {
       case sh::kEvCell: {
-        const uint32_t status = reference::imageLoad(grid.image, glm::ivec3(sh::cell_status_texel(grid.params, e.cell)));
+        const uint32_t status = reference::cell_status(grid, e.cell);
         p.saturated += status != 0u;
         break;
       }

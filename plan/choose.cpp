@@ -17,40 +17,111 @@ unsigned thread_count(const EmulationOptions& options) { return thread_count_or_
 
 // ---- Grid bounds over the animation ----
 
-Bounds animation_bounds(const Scene& scene, float time) {
+namespace {
+// One instance's bounds over the whole animation: at `time` where it does not move, else swept.
+Bounds instance_animation_bounds(const Scene& scene, const Instance& inst, float time) {
   Bounds b;
-  for (const Instance& inst : scene.instances) {
-    const Mesh& mesh = scene.meshes[inst.mesh];
-    if (!inst.dynamic || !inst.motion.moves()) {
-      const glm::mat4 m = inst.transform_at(time);
-      for (const glm::vec3& p : mesh.positions) b.grow(glm::vec3(m * glm::vec4(p, 1.0f)));
-      continue;
-    }
-    // Swept bounds: world p = path(t) + pivot + R(t) (base p - pivot). A rotating instance stays
-    // in the sphere around its pivot through its farthest base vertex; the path offsets stay in
-    // the hull of the path points (piecewise linear).
-    const Motion& mo = inst.motion;
-    Bounds local;
-    if (mo.angular_speed != 0.0f) {
-      float r = 0.0f;
-      for (const glm::vec3& p : mesh.positions)
-        r = std::max(r, glm::length(glm::vec3(inst.transform * glm::vec4(p, 1.0f)) - mo.pivot));
-      r = r * 1.0001f + 1e-6f;
-      local.grow(mo.pivot - glm::vec3(r));
-      local.grow(mo.pivot + glm::vec3(r));
-    } else {
-      for (const glm::vec3& p : mesh.positions) local.grow(glm::vec3(inst.transform * glm::vec4(p, 1.0f)));
-    }
-    if (mo.path_points.empty()) {
-      b.grow(local);
-    } else {
-      for (const glm::vec3& off : mo.path_points) {
-        b.grow(local.lo + off);
-        b.grow(local.hi + off);
-      }
+  const Mesh& mesh = scene.meshes[inst.mesh];
+  if (!inst.dynamic || !inst.motion.moves()) {
+    const glm::mat4 m = inst.transform_at(time);
+    for (const glm::vec3& p : mesh.positions) b.grow(glm::vec3(m * glm::vec4(p, 1.0f)));
+    return b;
+  }
+  // Swept bounds: world p = path(t) + pivot + R(t) (base p - pivot). A rotating instance stays
+  // in the sphere around its pivot through its farthest base vertex; the path offsets stay in
+  // the hull of the path points (piecewise linear).
+  const Motion& mo = inst.motion;
+  Bounds local;
+  if (mo.angular_speed != 0.0f) {
+    float r = 0.0f;
+    for (const glm::vec3& p : mesh.positions)
+      r = std::max(r, glm::length(glm::vec3(inst.transform * glm::vec4(p, 1.0f)) - mo.pivot));
+    r = r * 1.0001f + 1e-6f;
+    local.grow(mo.pivot - glm::vec3(r));
+    local.grow(mo.pivot + glm::vec3(r));
+  } else {
+    for (const glm::vec3& p : mesh.positions) local.grow(glm::vec3(inst.transform * glm::vec4(p, 1.0f)));
+  }
+  if (mo.path_points.empty()) {
+    b.grow(local);
+  } else {
+    for (const glm::vec3& off : mo.path_points) {
+      b.grow(local.lo + off);
+      b.grow(local.hi + off);
     }
   }
   return b;
+}
+}  // namespace
+
+Bounds animation_bounds(const Scene& scene, float time) {
+  Bounds b;
+  for (const Instance& inst : scene.instances) b.grow(instance_animation_bounds(scene, inst, time));
+  return b;
+}
+
+CellBox dynamic_region(const Scene& scene, float time, const GridParams& g) {
+  Bounds b;
+  for (size_t i = scene.static_instance_count(); i < scene.instances.size(); ++i)
+    b.grow(instance_animation_bounds(scene, scene.instances[i], time));
+  CellBox r;
+  if (b.empty()) return r;
+  // One cell of margin beyond the AABB padding: the swept bounds are computed with other float
+  // operations than the build's transform_point
+  const glm::vec3 margin(1.0f + g.aabb_padding);
+  r.lo = shared::cell_of_local(g, shared::grid_local(g, b.lo) - margin);
+  r.hi = shared::cell_of_local(g, shared::grid_local(g, b.hi) + margin);
+  return r;
+}
+
+std::vector<uint32_t> compact_heads(const CellBox& region) {
+  std::vector<uint32_t> w(shared::kCompactHeadsHeader + 2 * region.cells(), shared::kSpillEnd);
+  w[0] = region.lo.x, w[1] = region.lo.y, w[2] = region.lo.z, w[3] = 0u;
+  w[4] = region.hi.x, w[5] = region.hi.y, w[6] = region.hi.z, w[7] = 0u;
+  return w;
+}
+
+bool compact_enabled(const AlgorithmOptions& o) {
+  switch (o.layout) {
+    case AlgorithmOptions::Layout::compact: return true;
+    case AlgorithmOptions::Layout::image: return false;
+    case AlgorithmOptions::Layout::automatic: break;
+  }
+  return o.traversal == Traversal::exact && spill_enabled(o);
+}
+
+void compact_check(const AlgorithmOptions& o) {
+  if (o.layout != AlgorithmOptions::Layout::compact) return;
+  if (o.traversal != Traversal::exact)
+    throw Error("grid: the compact layout is for the exact traversal (the paper traversal keeps the image: --layout image)");
+  if (!spill_enabled(o))
+    throw Error("grid: the compact layout keeps the dynamic references in the spill list: it needs --spill on");
+}
+
+uint64_t compact_budget(const PlanOptions& o, uint64_t scene_triangles) {
+  if (o.memory_budget) return *o.memory_budget;
+  return std::max(kCompactMinBudget, kCompactBytesPerTriangle * scene_triangles);
+}
+
+GridMemory grid_memory(const GridParams& g, uint64_t static_refs, uint32_t spill_capacity, uint64_t region_cells) {
+  GridMemory m;
+  const uint64_t cells = uint64_t(g.cells.x) * g.cells.y * g.cells.z;
+  const bool spill = (g.flags & shared::kGridSpill) != 0u;
+  m.spill = sizeof(shared::SpillHeader) + uint64_t(std::max(spill_capacity, 1u)) * sizeof(shared::SpillEntry);
+  m.skip = (g.flags & shared::kGridSkipEmpty) != 0u ? uint64_t(shared::skip_words(g)) * 4 : 0;
+  if ((g.flags & shared::kGridCompact) != 0u) {
+    m.image = 4;  // a one-texel stand-in keeps the image binding valid
+    m.offsets = (cells + 1) * 4;
+    m.refs = std::max<uint64_t>(static_refs, 1) * 4;
+    m.heads = (shared::kCompactHeadsHeader + 2 * region_cells) * 4;
+    m.dirty = shared::kWorkListHeaderWords * 4;  // a stand-in (an empty list's header): no dirty-cell list
+  } else {
+    const glm::uvec3 e = shared::grid_image_extent(g);
+    m.image = uint64_t(e.x) * e.y * e.z * 4;
+    m.heads = spill ? 16 * cells : 0;
+    m.dirty = uint64_t(shared::dirty_list_words(g)) * 4;
+  }
+  return m;
 }
 
 namespace {
@@ -164,14 +235,31 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
   c.aabb_padding = g.aabb_padding;
   c.cells = cells;
   c.slot_axis = slot_axis_for(cells, o);
+  const bool compact = (g.flags & shared::kGridCompact) != 0u;
   const uint32_t allowed = capacity_allowed(cells, c.slot_axis, o);
   const uint32_t lowest = cap_over ? *cap_over : o.min_capacity;
-  c.fits = allowed >= lowest;
+  c.fits = compact || allowed >= lowest;
   if (!c.fits) return c;
   set_cell_size(g, cs, o);
   g.cells = cells;
   TrialCounts counts = trial_counts(scene, time, g, o.capacity_time_samples);
   counts.for_each_largest([&](uint32_t n) { c.max_count = std::max(c.max_count, n); });
+  if (compact) {
+    // No slots: nothing is dropped (capacity = the largest count, so that the estimate tests every
+    // reference); fits within the memory budget, counted by grid_memory
+    c.capacity = std::max(c.max_count, 1u);
+    uint64_t fixed = 0, moving = 0;
+    for (uint32_t n : counts.fixed) fixed += n;
+    for (uint32_t n : counts.moving_max) moving += n;
+    const uint64_t spill = moving + moving / 4 + 64;
+    uint64_t triangles = 0;
+    for (const Instance& inst : scene.instances) triangles += scene.meshes[inst.mesh].triangle_count();
+    c.memory = grid_memory(g, fixed, uint32_t(std::min<uint64_t>(spill, 1u << 28)),
+                           dynamic_region(scene, time, g).cells()).total();
+    c.fits = c.memory <= compact_budget(o, triangles);
+    if (counts_out) *counts_out = std::move(counts);
+    return c;
+  }
   c.capacity = cap_over ? *cap_over : std::clamp(c.max_count, o.min_capacity, allowed);
   if (c.max_count > c.capacity)
     counts.for_each_largest([&](uint32_t n) {
@@ -262,7 +350,8 @@ GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
   g.flags = (o.exclude_launch_ref ? shared::kGridExcludeLaunchRef : 0u) |
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
             (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u)) |
-            (skip_enabled(o) ? shared::kGridSkipEmpty : 0u) | (cell_box_enabled(o) ? shared::kGridCellBox : 0u);
+            (skip_enabled(o) ? shared::kGridSkipEmpty : 0u) | (cell_box_enabled(o) ? shared::kGridCellBox : 0u) |
+            (compact_enabled(o) ? shared::kGridCompact : 0u);
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
@@ -420,6 +509,8 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
   // Resolution: density cells per triangle, cubic cells, or the overrides
   const float cs = target_cell_size(scene, o, b);
   GridParams g = algorithm_params(o, scene);
+  // A capacity asked for (option or scene) has a meaning in the image alone: auto takes the image
+  if (o.capacity && o.layout == AlgorithmOptions::Layout::automatic) g.flags &= ~shared::kGridCompact;
   g.origin = b.lo;
   if (o.capacity_policy == GridOptions::CapacityPolicy::percentile && !o.capacity)
     return choose_by_percentile(scene, time, o, g, e, cs);
@@ -485,7 +576,14 @@ uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions
   if ((g.flags & shared::kGridSpill) == 0u) return 0;
   if (o.spill_capacity) return *o.spill_capacity;
   uint64_t dropped = 0;
-  if (!choice.candidates.empty()) {
+  if ((g.flags & shared::kGridCompact) != 0u) {
+    // Compact: every dynamic reference is spilled; the moving instances' largest counts over the
+    // trial's samples, and the dynamic instances that do not move at `time`
+    const TrialCounts tc = trial_counts(scene, time, g, o.capacity_time_samples);
+    for (uint32_t n : tc.moving_max) dropped += n;
+    for (size_t i = scene.static_instance_count(); i < scene.instances.size(); ++i)
+      if (!scene.instances[i].motion.moves()) for_each_triangle_cell(scene, i, time, g, [&](uint32_t, size_t) { ++dropped; });
+  } else if (!choice.candidates.empty()) {
     dropped = choice.candidates[choice.chosen].dropped;
   } else {
     // The percentile policy weighs no candidate: count on the chosen grid
@@ -505,8 +603,14 @@ uint32_t trace_flags(uint32_t requested, const AlgorithmOptions& o, uint32_t spi
 
 GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options) {
   GridPlan plan;
+  compact_check(options);
   plan.params = choose_grid(scene, time, options, &plan.choice);
   plan.spill_capacity = choose_spill_capacity(scene, time, options, plan.params, plan.choice);
+  if ((plan.params.flags & shared::kGridCompact) != 0u) {
+    for (size_t i = 0; i < scene.static_instance_count(); ++i)
+      for_each_triangle_cell(scene, i, time, plan.params, [&](uint32_t, size_t) { ++plan.static_references; });
+    plan.region = dynamic_region(scene, time, plan.params);
+  }
   plan.tables = pack_tables(scene);
   return plan;
 }

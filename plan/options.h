@@ -55,6 +55,12 @@ struct AlgorithmOptions {
   // traversal, off for the paper's (which answers saturation with gap-fill; spill on turns
   // gap-fill off). Its capacity is a plan knob (PlanOptions::spill_capacity).
   enum class Spill { automatic, on, off } spill = Spill::automatic;
+  // The grid's layout (docs/SPEC.md "Compact layout"): image, the paper's fixed-capacity 3D image
+  // (slots per cell, status texels); compact, the static references in one array ordered per cell
+  // (a cells + 1 offsets array) and the dynamic ones only in the spill list (exact traversal with
+  // the spill list only); automatic: compact for the exact traversal (with the spill list, and
+  // no capacity asked for), image for the paper's.
+  enum class Layout { automatic, compact, image } layout = Layout::automatic;
   // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
   // skip (the literal reading of visited-cell tracking), retest (a second visit)
   enum class Repeats { merge, skip, retest } repeats = Repeats::merge;
@@ -90,6 +96,10 @@ struct PlanOptions {
   enum class SlotAxis { automatic, x, y, z } slot_axis = SlotAxis::automatic;
   uint32_t max_image_dimension = 4096;    // 4096 on lavapipe, 16384 on NVIDIA
   uint64_t max_texels = uint64_t(1) << 28;  // the memory budget: 2^28 texels = 1 GiB of image
+  // The compact layout's memory budget in bytes (grid_memory: everything the grid keeps); none:
+  // kCompactBytesPerTriangle per scene triangle, at least kCompactMinBudget. --memory-budget sets it
+  // (and max_texels for the image layout).
+  std::optional<uint64_t> memory_budget;
   uint32_t capacity_time_samples = 16;    // dynamic instances counted at this many times of their motion
   // The spill list's entries; default: the references choose_grid's trial would drop, with margin
   // (choose_spill_capacity).

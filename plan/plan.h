@@ -21,6 +21,42 @@ inline constexpr float kMinCellUlps = 64.0f;
 inline float min_cell_size(float reach) { return reach * (kMinCellUlps * 0x1p-23f); }
 
 
+// Whether `o` takes the compact layout (kGridCompact: compact, or automatic with the exact
+// traversal). The compact layout needs the exact traversal and the spill list: compact_check
+// throws a clear message where the options ask for it otherwise.
+bool compact_enabled(const AlgorithmOptions& o);
+void compact_check(const AlgorithmOptions& o);
+
+// The compact layout's default memory budget (PlanOptions::memory_budget unset): per scene
+// triangle, and the least.
+inline constexpr uint64_t kCompactBytesPerTriangle = 320;
+inline constexpr uint64_t kCompactMinBudget = uint64_t(4) << 20;
+uint64_t compact_budget(const PlanOptions& o, uint64_t scene_triangles);
+
+// Everything the grid keeps on the device (both backends allocate exactly this; bytes): the image
+// layout's 3D image, or the compact layout's offsets and references; the spill list (header and
+// entries) and its heads (image: four per cell; compact: the header and two per dynamic-region
+// cell); the skip field; the dirty-cell list (image layout only).
+struct GridMemory {
+  uint64_t image = 0, offsets = 0, refs = 0, spill = 0, heads = 0, skip = 0, dirty = 0;
+  uint64_t total() const { return image + offsets + refs + spill + heads + skip + dirty; }
+};
+// `static_refs`: the compact layout's references; `region_cells`: its dynamic region's cells.
+GridMemory grid_memory(const shared::GridParams& g, uint64_t static_refs, uint32_t spill_capacity,
+                       uint64_t region_cells);
+
+// The compact layout's dynamic region: the box of cells every dynamic instance's references can
+// reach over the whole animation (its swept bounds, as animation_bounds, one cell of margin, the
+// AABB padding), clamped to the grid; empty (lo > hi) without dynamic instances.
+struct CellBox {
+  glm::uvec3 lo{1u}, hi{0u};
+  bool empty() const { return lo.x > hi.x || lo.y > hi.y || lo.z > hi.z; }
+  uint64_t cells() const { return empty() ? 0 : uint64_t(hi.x - lo.x + 1) * (hi.y - lo.y + 1) * (hi.z - lo.z + 1); }
+};
+CellBox dynamic_region(const Scene& scene, float time, const shared::GridParams& g);
+// The compact layout's spill heads buffer: the header (the region's box) and every head empty.
+std::vector<uint32_t> compact_heads(const CellBox& region);
+
 // Whether `o` turns empty-space skipping on (kGridSkipEmpty: the exact traversal with skip_empty).
 bool skip_enabled(const AlgorithmOptions& o);
 // Whether `o` takes the separating-axis cell test (kGridCellBox: box, or automatic with the exact traversal).
@@ -73,7 +109,8 @@ struct GridCandidate {
   uint64_t dropped = 0;          // sum over cells of max(0, count - capacity)
   uint64_t saturated_cells = 0;  // cells with count > capacity
   uint64_t texels = 0;
-  bool fits = false;             // within max_image_dimension and max_texels
+  uint64_t memory = 0;           // compact layout: grid_memory's total (the budget's measure)
+  bool fits = false;             // within max_image_dimension and max_texels (compact: the memory budget)
   WorkEstimate work;             // trace_cost policy: the estimated work on its ray sample
   double cost = 0.0;             // trace_cost policy: work_cost(work)
 };
@@ -120,6 +157,10 @@ void append_rgba8(const Texture& tex, std::vector<uint32_t>& texels);
 struct GridPlan {
   shared::GridParams params{};
   uint32_t spill_capacity = 0;
+  // The compact layout: the static references the build will store (counted as the build's count
+  // pass does) and the dynamic region
+  uint64_t static_references = 0;
+  CellBox region;
   GridChoice choice;
   GridTables tables;
 };

@@ -18,10 +18,14 @@ struct SpillDump {
   bool on = false;  // kGridSpill: with spill off the count only counts, and nothing overflows
   shared::SpillHeader header{};
   std::vector<shared::SpillEntry> entries;
-  std::vector<uint32_t> heads;
+  std::vector<uint32_t> heads;  // four per cell (spill_head_index, spill_arrival_index); the compact
+                                // layout's region heads are expanded to this form (expand_compact_heads)
   uint32_t stored() const { return header.count < header.capacity ? header.count : header.capacity; }
   uint32_t overflow() const { return on && header.count > header.capacity ? header.count - header.capacity : 0u; }
 };
+// The compact layout's spill heads (its header and two per region cell) as the image layout's
+// four per cell of `cells` cells: the dynamic heads of the region's cells, every other head empty.
+std::vector<uint32_t> expand_compact_heads(const std::vector<uint32_t>& heads, glm::uvec3 cells);
 // The explanation of one ray: the events in order, and the hit.
 struct ExplainRecord {
   Ray ray{};

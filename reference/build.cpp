@@ -32,7 +32,7 @@ void skip_table_pass(const GridData& grid, std::vector<uint32_t>& table, uint32_
       const glm::uvec3 c = pass == 0 ? glm::uvec3(k, a, b) : pass == 1 ? glm::uvec3(a, k, b) : glm::uvec3(a, b, k);
       const uint32_t i = shared::skip_table_index(g, c + 1u);
       if (pass == 0) {
-        const bool occupied = imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, c, 0u))) != kBlank;
+        const bool occupied = cell_occupied(grid, c);
         sum += occupied ? 1u : 0u;
         table[i] = sum;
       } else {
@@ -102,7 +102,151 @@ void spill_reference(GridData& grid, glm::uvec3 cell, uint32_t ref) {
   const uint32_t c = shared::cell_linear_index(g, cell);
   grid.spill[i].cell = c;
   grid.spill[i].ref = ref;
-  grid.spill[i].arrival = atomicExchange(grid.spill_heads[shared::spill_arrival_index(c, ref >= g.comparison_offset)], i);
+  uint32_t arrival = shared::spill_arrival_index(c, ref >= g.comparison_offset);
+  if ((g.flags & shared::kGridCompact) != 0u) {
+    // Compact: the heads of the dynamic region's cells (no reference reaches a cell outside it:
+    // the region bounds the dynamic instances' swept bounds with a cell of margin)
+    const glm::uvec3 lo(grid.spill_heads[0], grid.spill_heads[1], grid.spill_heads[2]);
+    const glm::uvec3 hi(grid.spill_heads[4], grid.spill_heads[5], grid.spill_heads[6]);
+    if (!shared::region_contains(cell, lo, hi)) return;
+    arrival = shared::compact_arrival_index(shared::region_index(cell, lo, hi));
+  }
+  grid.spill[i].arrival = atomicExchange(grid.spill_heads[arrival], i);
+}
+
+// ---- The compact layout (kGridCompact; docs/SPEC.md "Compact layout") ----
+
+// The count pass (the static pass's insertion): the cell's count, and the (cell, ref) pair at the
+// next index of the pair list (its capacity is the plan's count of the static references).
+void compact_count(GridData& grid, glm::uvec3 cell, uint32_t ref) {
+  const uint32_t c = shared::cell_linear_index(grid.params, cell);
+  atomicAdd(grid.compact_counts[c], 1u);
+  const uint32_t k = atomicAdd(grid.compact_pair_count, 1u);
+  if (2 * size_t(k) + 1 < grid.compact_pairs.size()) {
+    grid.compact_pairs[2 * size_t(k)] = c;
+    grid.compact_pairs[2 * size_t(k) + 1] = ref;
+  }
+}
+
+// The offsets pass: the exclusive scan of the counts, as compact.comp's three steps: per block of
+// kCompactBlock cells its sum; the blocks' exclusive scan (one workgroup of kCompactScanLanes
+// lanes, each summing a share of the blocks, the lanes' sums scanned by lane 0, then each lane
+// writing its blocks' offsets); per block the cells' offsets, which also become the scatter's
+// cursors (offsets[cells] = the total). Integer sums: the same bits in any order.
+void compact_offsets(GridData& grid, const GridOptions& o) {
+  const uint32_t cells = shared::grid_cell_count(grid.params);
+  const uint32_t blocks = (cells + shared::kCompactBlock - 1u) / shared::kCompactBlock;
+  std::vector<uint32_t> block(blocks, 0u);
+  run_invocations(blocks, thread_count(o), std::nullopt, [&](uint32_t b) {
+    uint32_t sum = 0u;
+    for (uint32_t i = b * shared::kCompactBlock; i < std::min(cells, (b + 1u) * shared::kCompactBlock); ++i)
+      sum += grid.compact_counts[i];
+    block[b] = sum;
+  }, 64);
+  const uint32_t per_lane = (blocks + shared::kCompactScanLanes - 1u) / shared::kCompactScanLanes;
+  std::vector<uint32_t> lane_sum(shared::kCompactScanLanes, 0u);
+  for (uint32_t l = 0; l < shared::kCompactScanLanes; ++l)
+    for (uint32_t b = l * per_lane; b < std::min(blocks, (l + 1u) * per_lane); ++b) lane_sum[l] += block[b];
+  uint32_t running = 0u;
+  for (uint32_t l = 0; l < shared::kCompactScanLanes; ++l) {
+    const uint32_t s = lane_sum[l];
+    lane_sum[l] = running;
+    running += s;
+  }
+  for (uint32_t l = 0; l < shared::kCompactScanLanes; ++l) {
+    uint32_t r = lane_sum[l];
+    for (uint32_t b = l * per_lane; b < std::min(blocks, (l + 1u) * per_lane); ++b) {
+      const uint32_t s = block[b];
+      block[b] = r;
+      r += s;
+    }
+  }
+  run_invocations(blocks, thread_count(o), std::nullopt, [&](uint32_t b) {
+    uint32_t r = block[b];
+    for (uint32_t i = b * shared::kCompactBlock; i < std::min(cells, (b + 1u) * shared::kCompactBlock); ++i) {
+      const uint32_t n = grid.compact_counts[i];
+      grid.offsets[i] = r;
+      grid.compact_counts[i] = r;  // the scatter's cursor
+      r += n;
+    }
+    if (std::min(cells, (b + 1u) * shared::kCompactBlock) == cells) grid.offsets[cells] = r;
+  }, 64);
+}
+
+// The scatter pass, one invocation per pair: the reference into its cell's run at the cell's
+// cursor (an atomic add: the order within a run is the device's timing).
+void compact_scatter(GridData& grid, const GridOptions& o) {
+  const uint32_t pairs = std::min<uint32_t>(grid.compact_pair_count, uint32_t(grid.compact_pairs.size() / 2));
+  run_invocations(pairs, thread_count(o), std::nullopt, [&](uint32_t k) {
+    const uint32_t c = grid.compact_pairs[2 * size_t(k)], ref = grid.compact_pairs[2 * size_t(k) + 1];
+    const uint32_t at = atomicAdd(grid.compact_counts[c], 1u);
+    grid.compact_scattered[at] = ref;
+  }, 64);
+}
+
+// The order pass, one invocation per pair: its rank in its cell's scattered run (the references
+// of a cell are distinct: a triangle visits a cell once) is its place in the ordered run; so the
+// runs are in ascending order whatever the scatter's order (k steps for a run of k).
+void compact_order(GridData& grid, const GridOptions& o) {
+  const uint32_t pairs = std::min<uint32_t>(grid.compact_pair_count, uint32_t(grid.compact_pairs.size() / 2));
+  run_invocations(pairs, thread_count(o), std::nullopt, [&](uint32_t k) {
+    const uint32_t c = grid.compact_pairs[2 * size_t(k)], ref = grid.compact_pairs[2 * size_t(k) + 1];
+    const uint32_t begin = grid.offsets[c], end = grid.offsets[c + 1];
+    uint32_t rank = 0u;
+    for (uint32_t j = begin; j < end; ++j) rank += grid.compact_scattered[j] < ref ? 1u : 0u;
+    grid.refs[begin + rank] = ref;
+  }, 64);
+}
+
+// The update's clear step of the compact layout: the spill counter back to the static count (no
+// static reference is spilled there: 0) and every dynamic head of the region empty (Vulkan: a copy
+// and a fill of the heads after the header).
+void clear_dynamic_spill(GridData& grid) {
+  grid.spill_header.count = grid.spill_header.static_count;
+  std::fill(grid.spill_heads.begin() + shared::kCompactHeadsHeader, grid.spill_heads.end(), shared::kSpillEnd);
+}
+
+bool cell_occupied(const GridData& grid, glm::uvec3 cell) {
+  const GridParams& g = grid.params;
+  if ((g.flags & shared::kGridCompact) != 0u) {
+    const uint32_t i = shared::cell_linear_index(g, cell);
+    return grid.offsets[i + 1] > grid.offsets[i];
+  }
+  return imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, 0u))) != kBlank;
+}
+
+std::vector<uint32_t> cell_references(const GridData& grid, glm::uvec3 cell) {
+  const GridParams& g = grid.params;
+  std::vector<uint32_t> out;
+  if ((g.flags & shared::kGridCompact) != 0u) {
+    const uint32_t i = shared::cell_linear_index(g, cell);
+    out.assign(grid.refs.begin() + grid.offsets[i], grid.refs.begin() + grid.offsets[i + 1]);
+    return out;
+  }
+  for (uint32_t s = 0; s < g.capacity; ++s) {
+    const uint32_t ref = imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, s)));
+    if (ref == kBlank) break;
+    out.push_back(ref);
+  }
+  return out;
+}
+
+uint32_t cell_status(const GridData& grid, glm::uvec3 cell) {
+  // The compact layout drops nothing: no cell is saturated
+  if ((grid.params.flags & shared::kGridCompact) != 0u) return 0u;
+  return imageLoad(grid.image, glm::ivec3(shared::cell_status_texel(grid.params, cell)));
+}
+
+plan::GridMemory grid_allocated(const GridData& grid) {
+  plan::GridMemory m;
+  m.image = uint64_t(grid.image.size()) * 4;
+  m.offsets = grid.offsets.size() * 4;
+  m.refs = grid.refs.size() * 4;
+  m.spill = sizeof(shared::SpillHeader) + std::max<size_t>(grid.spill.size(), 1) * sizeof(shared::SpillEntry);
+  m.heads = grid.spill_heads.size() * 4;
+  m.skip = grid.skip.size() * 4;
+  m.dirty = uint64_t(grid.dirty.size) * 4;
+  return m;
 }
 
 // The order pass, one invocation per entry of [first, stored): walk the entry's arrival list for
@@ -119,16 +263,24 @@ void spill_order(GridData& grid, const GridOptions& o, uint32_t first) {
     const uint32_t i = first + invocation;
     const shared::SpillEntry e = grid.spill[i];
     const bool dynamic = e.ref >= g.comparison_offset;
+    uint32_t head = shared::spill_head_index(e.cell, dynamic), arrival = shared::spill_arrival_index(e.cell, dynamic);
+    if ((g.flags & shared::kGridCompact) != 0u) {
+      const glm::uvec3 lo(grid.spill_heads[0], grid.spill_heads[1], grid.spill_heads[2]);
+      const glm::uvec3 hi(grid.spill_heads[4], grid.spill_heads[5], grid.spill_heads[6]);
+      const glm::uvec3 cell = shared::cell_of_linear_index(g, e.cell);
+      if (!shared::region_contains(cell, lo, hi)) return;
+      head = shared::compact_head_index(shared::region_index(cell, lo, hi));
+      arrival = shared::compact_arrival_index(shared::region_index(cell, lo, hi));
+    }
     uint32_t next = shared::kSpillEnd, next_ref = kBlank;
     bool smallest = true;
-    for (uint32_t j = grid.spill_heads[shared::spill_arrival_index(e.cell, dynamic)]; j != shared::kSpillEnd;
-         j = grid.spill[j].arrival) {
+    for (uint32_t j = grid.spill_heads[arrival]; j != shared::kSpillEnd; j = grid.spill[j].arrival) {
       const uint32_t r = grid.spill[j].ref;
       if (r < e.ref) smallest = false;
       if (r > e.ref && r < next_ref) next = j, next_ref = r;
     }
     grid.spill[i].next = next;
-    if (smallest) grid.spill_heads[shared::spill_head_index(e.cell, dynamic)] = i;
+    if (smallest) grid.spill_heads[head] = i;
   }, 64);
 }
 
@@ -202,7 +354,8 @@ SpillDump spill_dump(const GridData& grid) {
   d.on = (grid.params.flags & shared::kGridSpill) != 0u;
   d.header = grid.spill_header;
   d.entries.assign(grid.spill.begin(), grid.spill.begin() + ptrdiff_t(d.stored()));
-  d.heads = grid.spill_heads;
+  d.heads = (grid.params.flags & shared::kGridCompact) != 0u ? plan::expand_compact_heads(grid.spill_heads, grid.params.cells)
+                                                              : grid.spill_heads;
   return d;
 }
 
@@ -250,6 +403,13 @@ void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t i
       for (uint32_t x = lo.x; x <= hi.x; ++x) {
         const glm::uvec3 cell(x, y, z);
         if (!shared::triangle_overlaps_cell(g, v0, v1, v2, n, nn, cell)) continue;
+        if ((g.flags & shared::kGridCompact) != 0u) {
+          // Compact: a static reference is counted (and its pair kept) for the offsets; a dynamic
+          // one goes to its cell's dynamic spill list
+          if (ref < g.comparison_offset) compact_count(grid, cell, ref);
+          else spill_reference(grid, cell, ref);
+          continue;
+        }
         if (ref >= g.comparison_offset) append_dirty_cell(grid.dirty, g, cell);
         if (g.insertion == shared::kInsertSorted) insert_sorted(grid, cell, ref);
         else insert_first_empty(grid, cell, ref);
@@ -301,17 +461,45 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
   grid.materials = std::move(plan.tables.materials);
   grid.texels = std::move(plan.tables.texels);
   // The image, every texel blank; status texels 0; the dirty-cell list empty
-  grid.image = Image3D(shared::grid_image_extent(g), kBlank);
-  grid.dirty = WordBuffer(shared::dirty_list_words(g), 0u);
-  run_invocations(g.cells.x * g.cells.y * g.cells.z, thread_count(o), std::nullopt, [&](uint32_t c) {
-    const glm::uvec3 cell(c % g.cells.x, (c / g.cells.x) % g.cells.y, c / (g.cells.x * g.cells.y));
-    imageStore(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), 0u);
-  }, 4096);
+  const bool compact = (g.flags & shared::kGridCompact) != 0u;
+  if (compact) {
+    // Compact: a one-texel image and an empty dirty list's header as stand-ins; the region's heads, empty;
+    // the counts zero, room for the plan's count of static references
+    grid.image = Image3D(glm::uvec3(1u), kBlank);
+    grid.dirty = WordBuffer(shared::kWorkListHeaderWords, 0u);
+    grid.spill_heads = plan::compact_heads(plan.region);
+    const size_t refs = std::max<uint64_t>(plan.static_references, 1);
+    grid.offsets.assign(size_t(shared::grid_cell_count(g)) + 1, 0u);
+    grid.refs.assign(refs, kBlank);
+    grid.compact_counts.assign(shared::grid_cell_count(g), 0u);
+    grid.compact_pairs.assign(2 * refs, 0u);
+    grid.compact_scattered.assign(refs, kBlank);
+    grid.compact_pair_count = 0u;
+  } else {
+    grid.image = Image3D(shared::grid_image_extent(g), kBlank);
+    grid.dirty = WordBuffer(shared::dirty_list_words(g), 0u);
+    run_invocations(g.cells.x * g.cells.y * g.cells.z, thread_count(o), std::nullopt, [&](uint32_t c) {
+      const glm::uvec3 cell(c % g.cells.x, (c / g.cells.x) % g.cells.y, c / (g.cells.x * g.cells.y));
+      imageStore(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)), 0u);
+    }, 4096);
+  }
   // Static instances first (their references fill the first slots and are spilled first), then
   // the dynamic ones
   insert_instances(grid, scene, time, o, 0, grid.static_instances);
   grid.spill_header.static_count = grid.spill_header.count;
   spill_order(grid, o, 0);
+  if (compact) {
+    // The compact layout's offsets, scatter and order passes; then the temporaries go
+    if (grid.compact_pair_count != plan.static_references)
+      throw Error("compact build: " + std::to_string(grid.compact_pair_count) + " static references, the plan counted " +
+                  std::to_string(plan.static_references));
+    compact_offsets(grid, o);
+    compact_scatter(grid, o);
+    compact_order(grid, o);
+    grid.compact_counts = {};
+    grid.compact_pairs = {};
+    grid.compact_scattered = {};
+  }
   // The skip field from the static references; the dynamic boxes at `time`
   if ((g.flags & shared::kGridSkipEmpty) != 0u) {
     grid.skip.assign(shared::skip_words(g), 0u);
@@ -366,6 +554,15 @@ void clear_dynamic_references(GridData& grid, const GridOptions& o) {
 }
 
 std::vector<uint32_t> dirty_cells(const GridData& grid) {
+  if ((grid.params.flags & shared::kGridCompact) != 0u) {
+    // Compact: no list; the cells the dynamic references reached are their spill entries' cells
+    std::vector<uint32_t> out;
+    std::vector<uint8_t> seen(shared::grid_cell_count(grid.params), 0u);
+    const uint32_t stored = std::min(grid.spill_header.count, grid.spill_header.capacity);
+    for (uint32_t i = grid.spill_header.static_count; i < stored; ++i)
+      if (!seen[grid.spill[i].cell]++) out.push_back(grid.spill[i].cell);
+    return out;
+  }
   if (grid.dirty.size == 0) return {};
   const uint32_t n = grid.dirty.load(shared::kWorkListAppendedWord);
   std::vector<uint32_t> out(n);
@@ -375,7 +572,8 @@ std::vector<uint32_t> dirty_cells(const GridData& grid) {
 
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& o) {
   if (grid.static_instances == scene.instances.size()) return;
-  clear_dynamic_references(grid, o);
+  if ((grid.params.flags & shared::kGridCompact) != 0u) clear_dynamic_spill(grid);
+  else clear_dynamic_references(grid, o);
   if ((grid.params.flags & shared::kGridSkipEmpty) != 0u) {
     const std::vector<uint32_t> boxes = plan::skip_box_words(scene, time, grid.params);
     std::copy(boxes.begin(), boxes.end(), grid.skip.begin());

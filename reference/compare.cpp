@@ -221,11 +221,8 @@ Difference classify_difference(const GridData& grid, const Ray& ray, const Hit& 
            sh::triangle_overlaps_cell(g, tri.v0, tri.v1, tri.v2, n, nn, c);
   };
   const auto stored = [&](glm::uvec3 c) {
-    for (uint32_t s = 0; s < g.capacity; ++s) {
-      const uint32_t v = imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, c, s)));
-      if (v == sh::kBlank) return false;
+    for (uint32_t v : cell_references(grid, c))
       if (v == w_ref) return true;
-    }
     return false;
   };
   sh::RaySetup rs;

@@ -74,6 +74,14 @@ struct GridData {
   // The skip field (kGridSkipEmpty; shared::skip_words words): the dynamic boxes, then the static
   // distances (shared/grid.h, "The skip field"); empty without kGridSkipEmpty
   std::vector<uint32_t> skip;
+  // The compact layout (kGridCompact; docs/SPEC.md "Compact layout"): cell i's static references
+  // are refs[offsets[i] .. offsets[i + 1]) in ascending order; `spill_heads` is then the region's
+  // header and two heads per region cell (shared::compact_head_index); the image a one-texel
+  // stand-in. The build's temporaries (the count pass's per-cell counts, later the scatter's
+  // cursors, and its (cell, ref) pairs) are emptied after the build.
+  std::vector<uint32_t> offsets, refs;
+  std::vector<uint32_t> compact_counts, compact_pairs, compact_scattered;
+  uint32_t compact_pair_count = 0;
   uint32_t requested_flags = 0;                  // GridParams::flags as chosen; params.flags is what
                                                  // the trace runs (trace_flags)
 };
@@ -91,11 +99,30 @@ void insert_first_empty(GridData& grid, glm::uvec3 cell, uint32_t ref);
 void insert_sorted(GridData& grid, glm::uvec3 cell, uint32_t ref);
 void spill_reference(GridData& grid, glm::uvec3 cell, uint32_t ref);
 void spill_order(GridData& grid, const GridOptions& options, uint32_t first);
+// The compact layout's passes (docs/SPEC.md "Compact layout"): count (in the static pass: per cell
+// an atomic count, and the (cell, ref) pair appended), offsets (the exclusive scan of the counts:
+// block sums, the blocks' scan, each block's offsets, which also set the cursors), scatter (each
+// pair to its cell's run at an atomic cursor), order (each reference to its rank in its run), and
+// the update's clear_dynamic_spill (the counter back to the static count, every dynamic head empty).
+void compact_count(GridData& grid, glm::uvec3 cell, uint32_t ref);
+void compact_offsets(GridData& grid, const GridOptions& options);
+void compact_scatter(GridData& grid, const GridOptions& options);
+void compact_order(GridData& grid, const GridOptions& options);
+void clear_dynamic_spill(GridData& grid);
+// Whether a cell holds a static reference (slot 0 not blank, or a non-empty run).
+bool cell_occupied(const GridData& grid, glm::uvec3 cell);
+// A cell's references in order (the slots up to the first blank, or its compact run: static only)
+// and its status texel (compact: 0, no cell saturates).
+std::vector<uint32_t> cell_references(const GridData& grid, glm::uvec3 cell);
+uint32_t cell_status(const GridData& grid, glm::uvec3 cell);
+// Everything the grid keeps, as allocated (plan::grid_memory's parts).
+plan::GridMemory grid_allocated(const GridData& grid);
 
 uint32_t first_slot_at_least(const Image3D& image, const shared::GridParams& g, glm::uvec3 cell, uint32_t bound);
 void append_dirty_cell(WordBuffer& dirty, const shared::GridParams& g, glm::uvec3 cell);
 // The dirty-cell list's cells (linear indices, shared::cell_linear_index) in list order: the
-// cells appended since the last clear pass.
+// cells appended since the last clear pass (compact layout, which keeps no list: the cells of the
+// dynamic spill entries, in entry order).
 std::vector<uint32_t> dirty_cells(const GridData& grid);
 
 SpillDump spill_dump(const GridData& grid);
@@ -111,6 +138,9 @@ struct GridStats {
   uint32_t capacity = 0;
   glm::uvec3 image_extent{0};
   uint64_t image_bytes = 0, geometry_bytes = 0;   // the image; triangles + uvs + tables + masks
+  bool compact = false;                           // the compact layout (image_extent: its stand-in)
+  uint64_t region_cells = 0;                      // compact: the dynamic region's cells
+  plan::GridMemory memory;                        // everything the grid keeps
   uint64_t cell_count = 0, empty_cells = 0;
   uint64_t saturated_static = 0, saturated_dynamic = 0;  // cells with that status bit
   // The spill list: references that found no slot (appended, with spill off only counted), of

@@ -130,6 +130,42 @@ void test_spilled(const GridData& grid, TraceState& st, uvec3 cell, uint step, f
   }
 }
 
+// The compact layout (kGridCompact): a cell's static references are its run refs[offsets[i] ..
+// offsets[i + 1]) (one event per reference, its index in the run as the slot), in ascending order;
+// then, for a cell of the dynamic region, its dynamic spill list (the region's head: its status is
+// kStatusDynamic where the list is not empty). Cells outside the region read no head.
+void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint step, float t_lo, float t_hi) {
+  const GridParams& g = grid.params;
+  const uint i = cell_linear_index(g, cell);
+  const uint begin = grid.offsets[i];
+  const uint end = grid.offsets[i + 1u];
+  for (uint j = begin; j < end; ++j) {
+    const uint ref = grid.refs[j];
+    emit(st, kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
+    test_reference(grid, st, ref, step, cell, j - begin, t_lo, t_hi);
+  }
+  // The run's end, as the image's first blank slot
+  emit(st, kEvSlot, 0u, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
+  const uvec3 lo = uvec3(grid.spill_heads[0], grid.spill_heads[1], grid.spill_heads[2]);
+  const uvec3 hi = uvec3(grid.spill_heads[4], grid.spill_heads[5], grid.spill_heads[6]);
+  if (!region_contains(cell, lo, hi)) return;
+  uint e = grid.spill_heads[compact_head_index(region_index(cell, lo, hi))];
+  const uint status = e != kSpillEnd ? kStatusDynamic : 0u;
+  emit(st, kEvStatus, status, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
+  if (status == 0u) return;
+  const uint appended = grid.spill_header.count;
+  emit(st, kEvSpillScan, min(appended, grid.spill_header.capacity), kBlank, step, cell, appended, vec4(0.0f),
+       vec4(0.0f));
+  uint k = 0u;
+  while (e != kSpillEnd && k < grid.spill_header.capacity) {
+    const SpillEntry entry = grid.spill[e];
+    emit(st, kEvSpilled, 0u, entry.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
+    test_reference(grid, st, entry.ref, step, cell, k, t_lo, t_hi);
+    k += 1u;
+    e = entry.next;
+  }
+}
+
 Hit report(TraceState& st, uint step) {
   Hit h{};
   h.t = st.best_t;
@@ -266,9 +302,14 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
       // Test the cell's references against the whole ray
       emit(st, kEvCell, 0u, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
-      const uint last_ref = test_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
-      // A saturated cell's spilled references
-      if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(grid, st, cell, k, st.rs.t_lo, st.tmax);
+      if ((g.flags & kGridCompact) != 0u) {
+        // The compact layout: the cell's run, then its dynamic list
+        test_compact_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
+      } else {
+        const uint last_ref = test_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
+        // A saturated cell's spilled references
+        if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(grid, st, cell, k, st.rs.t_lo, st.tmax);
+      }
     } else {
       emit(st, kEvSkip, d, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));

@@ -40,6 +40,14 @@ void ReferenceGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) 
 
 AccelDump ReferenceGridTracer::dump() const {
   AccelDump d;
+  if ((grid_.params.flags & shared::kGridCompact) != 0u) {
+    // The compact layout: the offsets (cells + 1), then the references, as one row
+    d.kind = "grid-compact";
+    d.texels = grid_.offsets;
+    d.texels.insert(d.texels.end(), grid_.refs.begin(), grid_.refs.end());
+    d.extent = glm::uvec3(uint32_t(d.texels.size()), 1u, 1u);
+    return d;
+  }
   d.kind = "grid";
   d.extent = grid_.image.extent;
   d.texels = grid_.image.snapshot();
@@ -69,6 +77,10 @@ GridStats grid_stats(const GridData& grid) {
   s.capacity = g.capacity;
   s.image_extent = grid.image.extent;
   s.image_bytes = uint64_t(grid.image.size()) * 4;
+  s.compact = (g.flags & shared::kGridCompact) != 0u;
+  if (s.compact && grid.spill_heads.size() >= shared::kCompactHeadsHeader)
+    s.region_cells = (grid.spill_heads.size() - shared::kCompactHeadsHeader) / 2;
+  s.memory = grid_allocated(grid);
   s.geometry_bytes = grid.triangles.size() * sizeof(shared::GridTriangle) +
                      grid.uvs.size() * sizeof(shared::GridTriangleUv) +
                      grid.instances.size() * sizeof(shared::GridInstance) +
@@ -83,15 +95,15 @@ GridStats grid_stats(const GridData& grid) {
     for (uint32_t y = 0; y < g.cells.y; ++y)
       for (uint32_t x = 0; x < g.cells.x; ++x) {
         const glm::uvec3 cell(x, y, z);
-        uint32_t n = 0;
         refs.clear();
-        for (; n < g.capacity; ++n) {
-          const uint32_t ref = imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, n)));
-          if (ref == shared::kBlank) break;
+        const std::vector<uint32_t> stored = cell_references(grid, cell);
+        const uint32_t n = uint32_t(stored.size());
+        for (uint32_t ref : stored) {
           const uint32_t k = grid.instances[shared::ref_instance(ref)].tri_offset + shared::ref_triangle(ref);
           ++per_triangle[k];
           refs.push_back(k);
         }
+        if (n >= s.occupancy.size()) s.occupancy.resize(n + 1, 0);
         uint32_t log2n = 0;
         while ((1ull << log2n) < uint64_t(n) + 1) ++log2n;
         for (uint32_t k : refs) {
@@ -102,7 +114,7 @@ GridStats grid_stats(const GridData& grid) {
         s.occupancy[n] += 1;
         s.references += n;
         if (n == 0) ++s.empty_cells;
-        const uint32_t status = imageLoad(grid.image, glm::ivec3(shared::cell_status_texel(g, cell)));
+        const uint32_t status = cell_status(grid, cell);
         if (status & shared::kStatusStatic) ++s.saturated_static;
         if (status & shared::kStatusDynamic) ++s.saturated_dynamic;
       }
@@ -142,9 +154,19 @@ std::string to_text(const GridStats& s) {
   std::ostringstream os;
   os << "grid: " << s.cells.x << " x " << s.cells.y << " x " << s.cells.z << " cells of "
      << s.cell_size << " units, origin (" << s.origin.x << ", " << s.origin.y << ", " << s.origin.z
-     << "), capacity " << s.capacity << "\n";
-  os << "image: " << s.image_extent.x << " x " << s.image_extent.y << " x " << s.image_extent.z
-     << " texels, " << s.image_bytes << " bytes; geometry and tables " << s.geometry_bytes << " bytes\n";
+     << (s.compact ? "), compact layout (largest cell count " : "), capacity ") << s.capacity << (s.compact ? ")" : "")
+     << "\n";
+  if (s.compact)
+    os << "layout: compact: offsets " << s.memory.offsets << " bytes, references " << s.memory.refs
+       << " bytes, dynamic region " << s.region_cells << " cells (heads " << s.memory.heads
+       << " bytes); geometry and tables " << s.geometry_bytes << " bytes\n";
+  else
+    os << "layout: image " << s.image_extent.x << " x " << s.image_extent.y << " x " << s.image_extent.z
+       << " texels, " << s.image_bytes << " bytes; geometry and tables " << s.geometry_bytes << " bytes\n";
+  os << "grid memory (everything the grid keeps): " << s.memory.total() << " bytes ("
+     << double(s.memory.total()) / double(1 << 20) << " MiB: image " << s.memory.image << ", offsets "
+     << s.memory.offsets << ", references " << s.memory.refs << ", spill list " << s.memory.spill << ", heads "
+     << s.memory.heads << ", skip field " << s.memory.skip << ", dirty-cell list " << s.memory.dirty << ")\n";
   os << "cells: " << s.cell_count << ", empty " << s.empty_cells << " ("
      << (s.cell_count ? 100.0 * double(s.empty_cells) / double(s.cell_count) : 0.0) << "%), saturated by static "
      << s.saturated_static << ", by dynamic " << s.saturated_dynamic << "\n";

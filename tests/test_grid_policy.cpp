@@ -35,7 +35,7 @@ GridChoice choose(const Scene& scene, const GridOptions& o) {
 // A grid built at exactly one candidate's cells, capacity and padding.
 GridOptions at_candidate(GridOptions o, const GridCandidate& c) {
   o.cell_size = c.cell_size;
-  o.capacity = c.capacity;
+  if (!plan::compact_enabled(o)) o.capacity = c.capacity;  // the compact layout has no capacity
   o.aabb_padding = c.aabb_padding;
   return o;
 }

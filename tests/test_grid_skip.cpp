@@ -64,8 +64,8 @@ std::vector<uint32_t> bfs_distances(const reference::GridData& grid) {
   std::vector<uint32_t> dist(n, ~0u);
   std::deque<uint32_t> queue;
   for (uint32_t i = 0; i < n; ++i)
-    if (reference::imageLoad(grid.image, glm::ivec3(sh::cell_slot_texel(g, sh::cell_of_linear_index(g, i), 0u))) <
-        g.comparison_offset) {
+    if (const std::vector<uint32_t> refs = reference::cell_references(grid, sh::cell_of_linear_index(g, i));
+        !refs.empty() && refs.front() < g.comparison_offset) {
       dist[i] = 0;
       queue.push_back(i);
     }

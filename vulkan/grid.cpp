@@ -46,6 +46,12 @@ struct VulkanGridTracer::Gpu {
   Buffer params, instances, triangles, uvs, materials, texels, build_instances, positions, indices;
   Buffer rays, hits, explain, dirty, no_ray_list, build_list, spill, spill_heads;
   Buffer skip, skip_table;  // the skip field (kGridSkipEmpty); its table lives for the build only
+  // The compact layout (kGridCompact): the offsets and references, and the build's temporaries
+  // (per-cell counts, the pairs, the scattered references, the scan's blocks), 16-byte stand-ins
+  // after the build and without the compact layout
+  Buffer offsets, refs, compact_counts, compact_pairs, compact_scattered, compact_blocks;
+  uint32_t compact_pair_capacity = 0;
+  std::unique_ptr<Pipeline> compact;
   uint32_t spill_capacity = 0;  // entries the spill list holds (0: spill off)
   uint32_t build_list_capacity = 0;
   VkBuffer ray_list = VK_NULL_HANDLE;  // bound by bind_ray_buffers (not owned)
@@ -184,13 +190,30 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   gpu.rays = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.hits = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.no_ray_list = ctx.create_buffer(sizeof(shared::WorkListHeader), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-  gpu.dirty = ctx.create_buffer(VkDeviceSize(shared::dirty_list_words(g)) * 4,
+  gpu.dirty = ctx.create_buffer((g.flags & shared::kGridCompact) != 0u ? VkDeviceSize(shared::kWorkListHeaderWords) * 4
+                                                                     : VkDeviceSize(shared::dirty_list_words(g)) * 4,
                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
   // The runs of long cell ranges, both builds (build.glsl): at most 2^20 items (8 MiB)
   gpu.build_list_capacity = uint32_t(std::min<uint64_t>((dev.limits.maxStorageBufferRange - 32) / 8, 1u << 20));
   gpu.build_list = ctx.create_buffer(sizeof(shared::WorkListHeader) + uint64_t(gpu.build_list_capacity) * 8,
                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
-  gpu.image = ctx.create_image3d(shared::grid_image_extent(g));
+  const bool compact = (g.flags & shared::kGridCompact) != 0u;
+  gpu.image = ctx.create_image3d(compact ? glm::uvec3(1u) : shared::grid_image_extent(g));
+  // The compact layout: the offsets, room for the plan's count of static references, and the
+  // build's temporaries (stand-ins of 16 bytes without the compact layout)
+  const VkBufferUsageFlags sbu = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  const uint64_t cells = shared::grid_cell_count(g);
+  const uint64_t refs = std::max<uint64_t>(plan.static_references, 1);
+  if (refs > uint64_t(dev.limits.maxComputeWorkGroupCount[0]) * 1024u || refs >= (uint64_t(1) << 31))
+    throw Error("a compact grid of " + std::to_string(refs) + " references needs more workgroups than "
+                "maxComputeWorkGroupCount on " + dev.name + ": use --layout image or fewer cells");
+  gpu.compact_pair_capacity = compact ? uint32_t(refs) : 0u;
+  gpu.offsets = ctx.create_buffer(compact ? (cells + 1) * 4 : 16, sbu);
+  gpu.refs = ctx.create_buffer(compact ? refs * 4 : 16, sbu);
+  gpu.compact_counts = ctx.create_buffer(compact ? cells * 4 : 16, sbu);
+  gpu.compact_pairs = ctx.create_buffer(compact ? 16 + refs * 8 : 16, sbu);
+  gpu.compact_scattered = ctx.create_buffer(compact ? refs * 4 : 16, sbu);
+  gpu.compact_blocks = ctx.create_buffer(compact ? uint64_t(groups(uint32_t(cells), shared::kCompactBlock)) * 4 : 16, sbu);
   // The spill list: the header (count 0), the entries, four heads per cell (docs/SPEC.md)
   gpu.spill = ctx.create_buffer(sizeof(shared::SpillHeader) + VkDeviceSize(std::max(spill_capacity, 1u)) *
                                                                   sizeof(shared::SpillEntry),
@@ -202,8 +225,14 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   if (uint64_t(gpu.spill_capacity) > uint64_t(dev.limits.maxComputeWorkGroupCount[0]) * 64u)
     throw Error("a spill list of " + std::to_string(gpu.spill_capacity) + " entries needs more workgroups than "
                 "maxComputeWorkGroupCount on " + dev.name + ": use a smaller --spill-capacity");
-  gpu.spill_heads = ctx.create_buffer(spill_on ? 4 * VkDeviceSize(shared::grid_cell_count(g)) * sizeof(uint32_t) : 16,
-                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  if (compact) {
+    // The region's header and its cells' heads, every one empty
+    const std::vector<uint32_t> heads = plan::compact_heads(plan.region);
+    gpu.spill_heads = make_buffer(ctx, heads);
+  } else {
+    gpu.spill_heads = ctx.create_buffer(spill_on ? 4 * VkDeviceSize(shared::grid_cell_count(g)) * sizeof(uint32_t) : 16,
+                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  }
   overflow_warned_ = false;
   // The skip field: the dynamic boxes (build and update upload them), the distances (written by
   // the skip_field passes), and the summed-volume table those use during the build
@@ -244,6 +273,12 @@ void VulkanGridTracer::create_pipelines() {
   set.bind(shared::kGridBindSpillHeads, gpu.spill_heads);
   set.bind(shared::kGridBindSkip, gpu.skip);
   set.bind(shared::kGridBindSkipTable, gpu.skip_table);
+  set.bind(shared::kGridBindOffsets, gpu.offsets);
+  set.bind(shared::kGridBindRefs, gpu.refs);
+  set.bind(shared::kGridBindCompactCounts, gpu.compact_counts);
+  set.bind(shared::kGridBindCompactPairs, gpu.compact_pairs);
+  set.bind(shared::kGridBindCompactScattered, gpu.compact_scattered);
+  set.bind(shared::kGridBindCompactBlocks, gpu.compact_blocks);
   gpu.dirty_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{sb});
   gpu.dirty_set->bind(0, gpu.dirty);
 
@@ -265,6 +300,9 @@ void VulkanGridTracer::create_pipelines() {
   if (gpu.spill_capacity)
     gpu.order = std::make_unique<Pipeline>(ctx, "spill_order.comp", set.layout(), uint32_t(sizeof(shared::SpillOrderPush)),
                                            spec_for(g, false));
+  if ((g.flags & shared::kGridCompact) != 0u)
+    gpu.compact = std::make_unique<Pipeline>(ctx, "compact.comp", set.layout(), uint32_t(sizeof(shared::CompactPush)),
+                                             spec_for(g, false));
   if ((g.flags & shared::kGridSkipEmpty) != 0u)
     gpu.skip_field = std::make_unique<Pipeline>(ctx, "skip_field.comp", set.layout(), uint32_t(sizeof(shared::SkipFieldPush)),
                                                 spec_for(g, false));
@@ -298,7 +336,15 @@ void VulkanGridTracer::record_build(uint32_t instance_count) {
     // over the status texels took 5-7 times longer on the H200, docs/BENCHMARKS.md)
     gpu.init->bind(cb, set.set());
     vkCmdDispatch(cb, groups(extent.x, 4), groups(extent.y, 4), groups(extent.z, 4));
-    vkCmdFillBuffer(cb, gpu.spill_heads.buffer, 0, VK_WHOLE_SIZE, shared::kSpillEnd);  // every spill list empty
+    if (gpu.compact) {
+      // Every dynamic head of the region empty (the header stays), the counts and pairs zero
+      if (gpu.spill_heads.size > shared::kCompactHeadsHeader * 4)
+        vkCmdFillBuffer(cb, gpu.spill_heads.buffer, shared::kCompactHeadsHeader * 4, VK_WHOLE_SIZE, shared::kSpillEnd);
+      vkCmdFillBuffer(cb, gpu.compact_counts.buffer, 0, VK_WHOLE_SIZE, 0u);
+      vkCmdFillBuffer(cb, gpu.compact_pairs.buffer, 0, 16, 0u);
+    } else {
+      vkCmdFillBuffer(cb, gpu.spill_heads.buffer, 0, VK_WHOLE_SIZE, shared::kSpillEnd);  // every spill list empty
+    }
     barrier(cb);
     if (stamps) stamps->write(cb, 1);
     insert_instances(cb, 0, static_instances_);
@@ -310,6 +356,7 @@ void VulkanGridTracer::record_build(uint32_t instance_count) {
     vkCmdCopyBuffer(cb, gpu.spill.buffer, gpu.spill.buffer, 1, &count_to_static);
     barrier(cb);
     record_spill_order(cb, false);
+    record_compact(cb);
     if (stamps) stamps->write(cb, 2);
     record_skip_field(cb);
     if (stamps) stamps->write(cb, 3);
@@ -318,6 +365,23 @@ void VulkanGridTracer::record_build(uint32_t instance_count) {
     record_spill_order(cb, true);
     if (stamps) stamps->write(cb, 4, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
+  // The compact build's temporaries are the build's alone: its pair count checked, then 16-byte
+  // stand-ins keep the bindings valid
+  if (gpu.compact) {
+    uint32_t pairs = 0;
+    ctx.download(gpu.compact_pairs, &pairs, sizeof pairs);
+    if (pairs != gpu.compact_pair_capacity)
+      throw Error("vulkan-grid: the compact build counted " + std::to_string(pairs) + " static references, the plan " +
+                  std::to_string(gpu.compact_pair_capacity));
+    gpu.compact_counts = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    gpu.compact_pairs = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    gpu.compact_scattered = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    gpu.compact_blocks = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    set.bind(shared::kGridBindCompactCounts, gpu.compact_counts);
+    set.bind(shared::kGridBindCompactPairs, gpu.compact_pairs);
+    set.bind(shared::kGridBindCompactScattered, gpu.compact_scattered);
+    set.bind(shared::kGridBindCompactBlocks, gpu.compact_blocks);
+  }
   // The table is the build's alone: a 16-byte stand-in keeps the binding valid
   if (gpu.skip_field) {
     gpu.skip_table = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
@@ -344,6 +408,22 @@ void VulkanGridTracer::record_spill_order(VkCommandBuffer cb, bool dynamic) {
   gpu.order->push(cb, shared::SpillOrderPush{uint32_t(dynamic)});
   vkCmdDispatch(cb, groups(gpu.spill_capacity, 64), 1, 1);  // within maxComputeWorkGroupCount: checked at build
   barrier(cb);
+}
+
+// The compact layout's passes after the static count (compact.comp): block sums, the blocks' scan,
+// offsets and cursors, scatter, order; barriers between. Nothing without the compact layout.
+void VulkanGridTracer::record_compact(VkCommandBuffer cb) {
+  Gpu& gpu = *gpu_;
+  if (!gpu.compact) return;
+  const uint32_t blocks = groups(shared::grid_cell_count(params_), shared::kCompactBlock);
+  const uint32_t items[5] = {blocks, shared::kCompactScanLanes, blocks, gpu.compact_pair_capacity,
+                             gpu.compact_pair_capacity};
+  gpu.compact->bind(cb, gpu.set->set());
+  for (uint32_t pass = 0; pass < 5; ++pass) {
+    gpu.compact->push(cb, shared::CompactPush{pass});
+    vkCmdDispatch(cb, groups(items[pass], shared::kCompactScanLanes), 1, 1);
+    barrier(cb);
+  }
 }
 
 // The skip field's passes (skip_field.comp) over the static references: the table zeroed, its
@@ -451,17 +531,23 @@ void VulkanGridTracer::update(float time) {
     const VkBufferCopy static_to_count{offsetof(shared::SpillHeader, static_count), offsetof(shared::SpillHeader, count),
                                        sizeof(uint32_t)};
     vkCmdCopyBuffer(cb, gpu.spill.buffer, gpu.spill.buffer, 1, &static_to_count);
-    // Clear the dynamic references of the cells on the dirty-cell list, a workgroup per cell
-    const shared::WorkListDispatchPush dispatch_push{1u, ctx_->info().limits.maxComputeWorkGroupCount[0],
-                                                     shared::grid_cell_count(g)};
-    gpu.dirty_dispatch->bind(cb, gpu.dirty_set->set());
-    gpu.dirty_dispatch->push(cb, dispatch_push);
-    vkCmdDispatch(cb, 1, 1, 1);
-    barrier(cb);
-    gpu.clear->bind(cb, gpu.set->set());
-    gpu.clear->push(cb, shared::ClearPush{g.comparison_offset});
-    vkCmdDispatchIndirect(cb, gpu.dirty.buffer, 0);
-    barrier(cb);
+    if (gpu.compact) {
+      // clear_dynamic_spill: every dynamic head of the region empty (the header stays)
+      if (gpu.spill_heads.size > shared::kCompactHeadsHeader * 4) vkCmdFillBuffer(cb, gpu.spill_heads.buffer, shared::kCompactHeadsHeader * 4, VK_WHOLE_SIZE, shared::kSpillEnd);
+      barrier(cb);
+    } else {
+      // Clear the dynamic references of the cells on the dirty-cell list, a workgroup per cell
+      const shared::WorkListDispatchPush dispatch_push{1u, ctx_->info().limits.maxComputeWorkGroupCount[0],
+                                                       shared::grid_cell_count(g)};
+      gpu.dirty_dispatch->bind(cb, gpu.dirty_set->set());
+      gpu.dirty_dispatch->push(cb, dispatch_push);
+      vkCmdDispatch(cb, 1, 1, 1);
+      barrier(cb);
+      gpu.clear->bind(cb, gpu.set->set());
+      gpu.clear->push(cb, shared::ClearPush{g.comparison_offset});
+      vkCmdDispatchIndirect(cb, gpu.dirty.buffer, 0);
+      barrier(cb);
+    }
     if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
     // Insert the dynamic instances at their new transforms, then order their spill lists
     insert_instances(cb, static_instances_, n);
@@ -587,6 +673,15 @@ void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count, uint32_t
 AccelDump VulkanGridTracer::dump() const {
   if (!gpu_) return {};
   AccelDump d;
+  if ((params_.flags & shared::kGridCompact) != 0u) {
+    // The compact layout: the offsets (cells + 1), then the references, as one row
+    d.kind = "grid-compact";
+    d.texels = ctx_->download<uint32_t>(gpu_->offsets, gpu_->offsets.size / 4);
+    const std::vector<uint32_t> refs = ctx_->download<uint32_t>(gpu_->refs, gpu_->refs.size / 4);
+    d.texels.insert(d.texels.end(), refs.begin(), refs.end());
+    d.extent = glm::uvec3(uint32_t(d.texels.size()), 1u, 1u);
+    return d;
+  }
   d.kind = "grid";
   d.extent = gpu_->image.extent;
   d.texels = ctx_->download(gpu_->image);
@@ -616,7 +711,23 @@ plan::SpillDump VulkanGridTracer::spill() const {
   ctx_->download(gpu_->spill, &d.header, sizeof d.header);
   d.entries = ctx_->download<shared::SpillEntry>(gpu_->spill, d.stored(), sizeof(shared::SpillHeader));
   if (d.on) d.heads = ctx_->download<uint32_t>(gpu_->spill_heads, gpu_->spill_heads.size / sizeof(uint32_t));
+  if (d.on && (params_.flags & shared::kGridCompact) != 0u) d.heads = plan::expand_compact_heads(d.heads, params_.cells);
   return d;
+}
+
+plan::GridMemory VulkanGridTracer::memory() const {
+  plan::GridMemory m;
+  if (!gpu_) return m;
+  const Gpu& gpu = *gpu_;
+  const bool compact = (params_.flags & shared::kGridCompact) != 0u;
+  const glm::uvec3 e = gpu.image.extent;
+  m.image = uint64_t(e.x) * e.y * e.z * 4;
+  if (compact) m.offsets = gpu.offsets.size, m.refs = gpu.refs.size;
+  m.spill = gpu.spill.size;
+  m.heads = (params_.flags & shared::kGridSpill) != 0u ? gpu.spill_heads.size : 0;
+  m.skip = (params_.flags & shared::kGridSkipEmpty) != 0u ? gpu.skip.size : 0;
+  m.dirty = gpu.dirty.size;
+  return m;
 }
 
 std::vector<shared::GridTriangle> VulkanGridTracer::download_triangles() const {

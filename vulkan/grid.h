@@ -81,6 +81,8 @@ class VulkanGridTracer : public Tracer {
   std::vector<shared::GridTriangle> download_triangles() const;
   // The spill list as the device holds it: the header and the stored entries (append order).
   plan::SpillDump spill() const;
+  // Everything the grid keeps on the device, as allocated (plan::grid_memory's parts).
+  plan::GridMemory memory() const;
   // The spill list's header as read back after the last build or update.
   const shared::SpillHeader& spill_header() const { return spill_header_; }
 
@@ -132,6 +134,7 @@ class VulkanGridTracer : public Tracer {
   const Pipeline& trace_pipeline(bool explain, bool list = false);
   void upload_transforms(float time, uint32_t first, uint32_t last);
   void record_skip_field(VkCommandBuffer cb);
+  void record_compact(VkCommandBuffer cb);
   void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index);
 
   std::unique_ptr<Context> owned_;

@@ -40,6 +40,10 @@ SH_CONST uint kGridSkipEmpty = 16u;        // exact traversal: the DDA jumps ove
 SH_CONST uint kGridCellBox = 32u;          // build: a cell takes a triangle only if the separating-axis
                                            // test finds no axis between the triangle and the padded cell
                                            // box too (triangle_overlaps_cell; docs/SPEC.md "Cell test")
+SH_CONST uint kGridCompact = 64u;          // the compact layout (docs/SPEC.md "Compact layout"): static
+                                           // references in one array ordered per cell (offsets, refs),
+                                           // dynamic ones only in the spill list's dynamic lists, whose
+                                           // heads exist for the dynamic region's cells alone; no image
 // Bits 8-9: the scene axis laid along the image's x, the axis that carries the slots (0 x, 1 y,
 // 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis"). The
 // image swaps that axis with x; every other axis keeps its place.
@@ -195,6 +199,29 @@ SH_INLINE uint dirty_list_words(SH_IN(GridParams) g) {
 // `cell` is the linear index (cell_linear_index, SpillEntry::cell).
 SH_INLINE uint spill_head_index(uint cell, bool dynamic) { return 4u * cell + (dynamic ? 1u : 0u); }
 SH_INLINE uint spill_arrival_index(uint cell, bool dynamic) { return 4u * cell + (dynamic ? 3u : 2u); }
+// The compact layout (kGridCompact; docs/SPEC.md "Compact layout"). The spill heads buffer holds
+// a header of kCompactHeadsHeader words, the dynamic region's box of cells (lo.xyz, pad, hi.xyz,
+// pad: every cell a dynamic reference can reach over the animation), then per region cell (x
+// fastest) two words: the ordered head of its dynamic list and its last arrival. The offsets buffer
+// holds cells + 1 words: cell i's static references are refs[offsets[i] .. offsets[i + 1]).
+SH_CONST uint kCompactHeadsHeader = 8u;
+SH_CONST uint kCompactBlock = 256u;      // the offsets pass: cells per block of the scan
+SH_CONST uint kCompactScanLanes = 1024u; // the offsets pass: lanes of the blocks' scan (one workgroup)
+SH_INLINE bool region_contains(SH_IN(uvec3) c, SH_IN(uvec3) lo, SH_IN(uvec3) hi) {
+  return c.x >= lo.x && c.y >= lo.y && c.z >= lo.z && c.x <= hi.x && c.y <= hi.y && c.z <= hi.z;
+}
+SH_INLINE uint region_index(SH_IN(uvec3) c, SH_IN(uvec3) lo, SH_IN(uvec3) hi) {
+  uvec3 n = hi - lo + uvec3(1u);
+  uvec3 r = c - lo;
+  return (r.z * n.y + r.y) * n.x + r.x;
+}
+SH_INLINE uint region_cell_count(SH_IN(uvec3) lo, SH_IN(uvec3) hi) {
+  uvec3 n = hi - lo + uvec3(1u);
+  return n.x * n.y * n.z;
+}
+SH_INLINE uint compact_head_index(uint region_cell) { return kCompactHeadsHeader + 2u * region_cell; }
+SH_INLINE uint compact_arrival_index(uint region_cell) { return kCompactHeadsHeader + 2u * region_cell + 1u; }
+
 // Linear index of a texel, x fastest (the layout of AccelDump::texels).
 SH_INLINE uint texel_index(SH_IN(uvec3) texel, SH_IN(uvec3) extent) {
   return (texel.z * extent.y + texel.y) * extent.x + texel.x;

@@ -24,7 +24,38 @@ void spill_reference(GridParams g, uvec3 cell, uint ref) {
   const uint c = cell_linear_index(g, cell);
   spill_entries[i].cell = c;
   spill_entries[i].ref = ref;
-  spill_entries[i].arrival = atomicExchange(spill_heads[spill_arrival_index(c, ref >= g.comparison_offset)], i);
+  uint arrival = spill_arrival_index(c, ref >= g.comparison_offset);
+  if ((g.flags & kGridCompact) != 0u) {
+    // Compact: the heads of the dynamic region's cells (no reference reaches a cell outside it:
+    // the region bounds the dynamic instances' swept bounds with a cell of margin)
+    const uvec3 lo = uvec3(spill_heads[0], spill_heads[1], spill_heads[2]);
+    const uvec3 hi = uvec3(spill_heads[4], spill_heads[5], spill_heads[6]);
+    if (!region_contains(cell, lo, hi)) return;
+    arrival = compact_arrival_index(region_index(cell, lo, hi));
+  }
+  spill_entries[i].arrival = atomicExchange(spill_heads[arrival], i);
+}
+
+// ---- The compact layout (kGridCompact; docs/SPEC.md "Compact layout") ----
+layout(std430, binding = kGridBindCompactCounts) buffer CompactCounts { uint compact_counts[]; };
+layout(std430, binding = kGridBindCompactPairs) buffer CompactPairs {
+  uint compact_pair_count;
+  uint compact_pairs_pad0;
+  uint compact_pairs_pad1;
+  uint compact_pairs_pad2;
+  uint compact_pairs[];
+};
+
+// The count pass (the static pass's insertion): the cell's count, and the (cell, ref) pair at the
+// next index of the pair list (its capacity is the plan's count of the static references).
+void compact_count(GridParams g, uvec3 cell, uint ref) {
+  const uint c = cell_linear_index(g, cell);
+  atomicAdd(compact_counts[c], 1u);
+  const uint k = atomicAdd(compact_pair_count, 1u);
+  if (2u * k + 1u < uint(compact_pairs.length())) {
+    compact_pairs[2u * k] = c;
+    compact_pairs[2u * k + 1u] = ref;
+  }
 }
 
 // The dirty-cell list (common/shared/worklist.h, grid.h): header, items, listed bits.
@@ -127,6 +158,13 @@ void insert_range_cells(GridParams g, uint ref, vec3 v0, vec3 v1, vec3 v2, vec3 
   for (uint i = first; i < last; ++i) {
     const uvec3 cell = lo + uvec3(i % size.x, (i / size.x) % size.y, i / (size.x * size.y));
     if (!triangle_overlaps_cell(g, v0, v1, v2, n, nn, cell)) continue;
+    if ((g.flags & kGridCompact) != 0u) {
+      // Compact: a static reference is counted (and its pair kept) for the offsets; a dynamic one
+      // goes to its cell's dynamic spill list
+      if (ref < g.comparison_offset) compact_count(g, cell, ref);
+      else spill_reference(g, cell, ref);
+      continue;
+    }
     if (ref >= g.comparison_offset) append_dirty_cell(g, cell);
     if (g.insertion == kInsertSorted) insert_sorted(g, cell, ref);
     else insert_first_empty(g, cell, ref);

@@ -32,7 +32,14 @@ SH_CONST uint kGridBindSpill = 16u;          // SpillHeader, then SpillEntry[]
 SH_CONST uint kGridBindSpillHeads = 17u;     // four heads per cell
 SH_CONST uint kGridBindSkip = 18u;           // the skip field (shared::skip_words; kGridSkipEmpty)
 SH_CONST uint kGridBindSkipTable = 19u;      // its summed-volume table (the build only)
-SH_CONST uint kGridBindingCount = 20u;
+// The compact layout (kGridCompact; docs/SPEC.md "Compact layout"); 16-byte stand-ins otherwise
+SH_CONST uint kGridBindOffsets = 20u;        // cells + 1 offsets into the references
+SH_CONST uint kGridBindRefs = 21u;           // the static references, ordered per cell
+SH_CONST uint kGridBindCompactCounts = 22u;  // the build only: per cell its count, then its cursor
+SH_CONST uint kGridBindCompactPairs = 23u;   // the build only: the pair count (4 words), (cell, ref) pairs
+SH_CONST uint kGridBindCompactScattered = 24u;  // the build only: the references as scattered
+SH_CONST uint kGridBindCompactBlocks = 25u;  // the build only: the scan's block sums, then offsets
+SH_CONST uint kGridBindingCount = 26u;
 
 // Specialization-constant ids of the grid's shaders: the GridParams fields that shape the code.
 SH_CONST uint kGridSpecCapacity = 0u;      // GridParams::capacity
@@ -63,6 +70,11 @@ struct SpillOrderPush {
   uint dynamic;  // 0: order the static entries, 1: the dynamic ones
 };
 
+// Push constants of compact.comp.
+struct CompactPush {
+  uint pass;  // 0 block sums, 1 the blocks' scan, 2 offsets and cursors, 3 scatter, 4 order
+};
+
 // Push constants of skip_field.comp.
 struct SkipFieldPush {
   uint pass;  // 0-2: the summed-volume table along x, y, z; 3: the distances
@@ -83,6 +95,7 @@ static_assert(sizeof(gridrt::shared::TracePush) == 16, "layout of TracePush");
 static_assert(sizeof(gridrt::shared::ClearPush) == 4, "layout of ClearPush");
 static_assert(sizeof(gridrt::shared::SpillOrderPush) == 4, "layout of SpillOrderPush");
 static_assert(sizeof(gridrt::shared::SkipFieldPush) == 4, "layout of SkipFieldPush");
+static_assert(sizeof(gridrt::shared::CompactPush) == 4, "layout of CompactPush");
 static_assert(sizeof(gridrt::shared::ExplainHeader) == 16, "std430 layout of ExplainHeader");
 #endif
 

@@ -11,6 +11,7 @@
 
 layout(local_size_x = 64) in;
 layout(binding = kGridBindImage, r32ui) uniform readonly uimage3D grid_image;
+layout(std430, binding = kGridBindOffsets) readonly buffer Offsets { uint compact_offsets[]; };
 layout(std430, binding = kGridBindSkip) buffer Skip { uint skip[]; };
 layout(std430, binding = kGridBindSkipTable) buffer SkipTable { uint table[]; };
 layout(push_constant) uniform Push { SkipFieldPush pc; };
@@ -40,7 +41,9 @@ void main() {
       const uvec3 c = pc.pass == 0u ? uvec3(k, a, b) : (pc.pass == 1u ? uvec3(a, k, b) : uvec3(a, b, k));
       const uint i = skip_table_index(g, c + uvec3(1u));
       if (pc.pass == 0u) {
-        const bool occupied = imageLoad(grid_image, ivec3(cell_slot_texel(g, c, 0u))).x != kBlank;
+        const uint ci = cell_linear_index(g, c);
+        const bool occupied = (g.flags & kGridCompact) != 0u ? compact_offsets[ci + 1u] > compact_offsets[ci]
+                                                             : imageLoad(grid_image, ivec3(cell_slot_texel(g, c, 0u))).x != kBlank;
         sum += occupied ? 1u : 0u;
         table[i] = sum;
       } else {

@@ -23,10 +23,20 @@ void main() {
   if (i >= stored) return;
   const SpillEntry e = spill_entries[i];
   const bool dynamic = e.ref >= g.comparison_offset;
+  uint head = spill_head_index(e.cell, dynamic);
+  uint arrival = spill_arrival_index(e.cell, dynamic);
+  if ((g.flags & kGridCompact) != 0u) {
+    const uvec3 lo = uvec3(spill_heads[0], spill_heads[1], spill_heads[2]);
+    const uvec3 hi = uvec3(spill_heads[4], spill_heads[5], spill_heads[6]);
+    const uvec3 cell = cell_of_linear_index(g, e.cell);
+    if (!region_contains(cell, lo, hi)) return;
+    head = compact_head_index(region_index(cell, lo, hi));
+    arrival = compact_arrival_index(region_index(cell, lo, hi));
+  }
   uint next = kSpillEnd;
   uint next_ref = kBlank;
   bool smallest = true;
-  for (uint j = spill_heads[spill_arrival_index(e.cell, dynamic)]; j != kSpillEnd; j = spill_entries[j].arrival) {
+  for (uint j = spill_heads[arrival]; j != kSpillEnd; j = spill_entries[j].arrival) {
     const uint r = spill_entries[j].ref;
     if (r < e.ref) smallest = false;
     if (r > e.ref && r < next_ref) {
@@ -35,5 +45,5 @@ void main() {
     }
   }
   spill_entries[i].next = next;
-  if (smallest) spill_heads[spill_head_index(e.cell, dynamic)] = i;
+  if (smallest) spill_heads[head] = i;
 }

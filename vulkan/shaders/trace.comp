@@ -18,6 +18,9 @@ layout(std430, binding = kGridBindSpill) readonly buffer Spill {
 layout(std430, binding = kGridBindSpillHeads) readonly buffer SpillHeads { uint spill_heads[]; };
 // The skip field (kGridSkipEmpty; common/shared/grid.h): the dynamic boxes, then the distances.
 layout(std430, binding = kGridBindSkip) readonly buffer Skip { uint skip[]; };
+// The compact layout (kGridCompact): per cell its run of static references.
+layout(std430, binding = kGridBindOffsets) readonly buffer Offsets { uint compact_offsets[]; };
+layout(std430, binding = kGridBindRefs) readonly buffer Refs { uint compact_refs[]; };
 layout(std430, binding = kGridBindExplain) buffer Explain {
   uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
   uint explain_pad0;
@@ -153,6 +156,40 @@ void test_spilled(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
   }
 }
 
+// The compact layout (kGridCompact): a cell's static references are its run refs[offsets[i] ..
+// offsets[i + 1]) (one event per reference, its index in the run as the slot), in ascending order;
+// then, for a cell of the dynamic region, its dynamic spill list (the region's head: its status is
+// kStatusDynamic where the list is not empty). Cells outside the region read no head.
+uvec3 region_lo;
+uvec3 region_hi;
+void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
+  const uint i = cell_linear_index(g, cell);
+  const uint begin = compact_offsets[i];
+  const uint end = compact_offsets[i + 1u];
+  for (uint j = begin; j < end; ++j) {
+    const uint ref = compact_refs[j];
+    emit(kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
+    test_reference(g, ref, step, cell, j - begin, t_lo, t_hi);
+  }
+  // The run's end, as the image's first blank slot
+  emit(kEvSlot, 0u, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
+  if (!region_contains(cell, region_lo, region_hi)) return;
+  uint e = spill_heads[compact_head_index(region_index(cell, region_lo, region_hi))];
+  const uint status = e != kSpillEnd ? kStatusDynamic : 0u;
+  emit(kEvStatus, status, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
+  if (status == 0u) return;
+  const uint appended = spill_header.count;
+  emit(kEvSpillScan, min(appended, spill_header.capacity), kBlank, step, cell, appended, vec4(0.0f), vec4(0.0f));
+  uint k = 0u;
+  while (e != kSpillEnd && k < spill_header.capacity) {
+    const SpillEntry entry = spill_entries[e];
+    emit(kEvSpilled, 0u, entry.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
+    test_reference(g, entry.ref, step, cell, k, t_lo, t_hi);
+    k += 1u;
+    e = entry.next;
+  }
+}
+
 HitRecord report(uint step) {
   HitRecord h;
   h.t = st.best_t;
@@ -276,6 +313,10 @@ HitRecord trace_exact(GridParams g) {
   const vec3 inv_dir = dda_inverse_direction(st.dir);
   DdaWalk w = dda_walk_begin(g, st.org, st.dir, st.rs.t_start);
   float t_entry = st.rs.t_start;
+  if ((g.flags & kGridCompact) != 0u) {
+    region_lo = uvec3(spill_heads[0], spill_heads[1], spill_heads[2]);
+    region_hi = uvec3(spill_heads[4], spill_heads[5], spill_heads[6]);
+  }
   for (uint k = 0u; k < g.max_segments; ++k) {
     // Empty-space skipping: an empty cell's distance d to the nearest reference; the walk passes
     // the box of radius d - 1 around it at once (docs/SPEC.md "Empty-space skipping")
@@ -288,9 +329,14 @@ HitRecord trace_exact(GridParams g) {
       // Test the cell's references against the whole ray
       emit(kEvCell, 0u, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
-      const uint last_ref = test_cell(g, cell, k, st.rs.t_lo, st.tmax);
-      // A saturated cell's spilled references
-      if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(g, cell, k, st.rs.t_lo, st.tmax);
+      if ((g.flags & kGridCompact) != 0u) {
+        // The compact layout: the cell's run, then its dynamic list
+        test_compact_cell(g, cell, k, st.rs.t_lo, st.tmax);
+      } else {
+        const uint last_ref = test_cell(g, cell, k, st.rs.t_lo, st.tmax);
+        // A saturated cell's spilled references
+        if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(g, cell, k, st.rs.t_lo, st.tmax);
+      }
     } else {
       emit(kEvSkip, d, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));

@@ -1,0 +1,209 @@
+// test_compact.cpp: the compact layout (docs/SPEC.md "Compact layout") on the CPU reference: the
+// same hits as the image layout, every ray in bits, on random scenes and through update frames;
+// its arrays' invariants (offsets monotone, each cell's run ascending, every (triangle, cell) pair
+// the cell test accepts present exactly once, the dynamic references in their cells' spill lists);
+// the memory function equal to what the build allocates; bad combinations refused clearly.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <random>
+
+#include "gridrt/reference/compare.h"
+#include "tests/run_tool.h"
+#include "tests/test_grid_util.h"
+
+using namespace gridrt;
+using reference::GridOptions;
+using reference::ReferenceGridTracer;
+using reference::Traversal;
+namespace sh = gridrt::shared;
+
+namespace {
+
+GridOptions compact_options(GridOptions::Layout layout) {
+  GridOptions o;
+  o.traversal = Traversal::exact;
+  o.layout = layout;
+  o.threads = 2;
+  return o;
+}
+
+// Rays from random points of the box [0, extent]^3, most toward a point of a random triangle.
+std::vector<Ray> box_rays(const reference::GridData& g, uint32_t count, float extent, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(0.0f, extent), unit(0.0f, 1.0f);
+  std::vector<Ray> rays;
+  for (uint32_t i = 0; i < count; ++i) {
+    const glm::vec3 o(pos(rng), pos(rng), pos(rng));
+    glm::vec3 target(pos(rng), pos(rng), pos(rng));
+    if (i % 4 != 3) {
+      const sh::GridTriangle& t = g.triangles[std::uniform_int_distribution<size_t>(0, g.triangles.size() - 1)(rng)];
+      float a = unit(rng), b = unit(rng);
+      if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+      target = t.v0 + a * (t.v1 - t.v0) + b * (t.v2 - t.v0);
+    }
+    const glm::vec3 d = target - o;
+    rays.push_back(gridtest::make_ray(o, glm::dot(d, d) > 1e-6f ? d : glm::vec3(0.0f, 0.0f, 1.0f)));
+  }
+  return rays;
+}
+
+size_t differing(std::span<const Hit> a, std::span<const Hit> b) {
+  size_t n = 0;
+  for (size_t i = 0; i < a.size(); ++i) n += std::memcmp(&a[i], &b[i], sizeof(Hit)) != 0;
+  return n;
+}
+
+// The compact arrays against the candidates recomputed from the geometry buffer.
+void check_compact_invariants(const reference::GridData& grid) {
+  const sh::GridParams& g = grid.params;
+  REQUIRE((g.flags & sh::kGridCompact) != 0u);
+  const size_t cells = sh::grid_cell_count(g);
+  REQUIRE(grid.offsets.size() == cells + 1);
+  CHECK(grid.offsets.front() == 0u);
+  CHECK(grid.offsets.back() <= grid.refs.size());  // refs: the plan's count (at least one word)
+  const std::vector<std::vector<uint32_t>> cand = reference::cell_candidates(grid);
+  size_t bad_order = 0, bad_set = 0, bad_dynamic = 0;
+  const reference::SpillDump spill = reference::spill_dump(grid);
+  std::string problem;
+  const std::vector<reference::SpillList> lists = reference::walk_spill_lists(spill, &problem);
+  CHECK(problem.empty());
+  std::vector<std::vector<uint32_t>> dynamic(cells);
+  for (const reference::SpillList& l : lists) {
+    REQUIRE(l.head % 4 == 1);  // only dynamic lists
+    dynamic[l.head / 4] = l.refs;
+  }
+  for (size_t c = 0; c < cells; ++c) {
+    REQUIRE(grid.offsets[c] <= grid.offsets[c + 1]);
+    const std::vector<uint32_t> run(grid.refs.begin() + grid.offsets[c], grid.refs.begin() + grid.offsets[c + 1]);
+    if (!std::is_sorted(run.begin(), run.end()) || std::adjacent_find(run.begin(), run.end()) != run.end()) ++bad_order;
+    std::vector<uint32_t> want_static, want_dynamic;
+    for (uint32_t r : cand[c]) (r < g.comparison_offset ? want_static : want_dynamic).push_back(r);
+    std::sort(want_static.begin(), want_static.end());
+    std::sort(want_dynamic.begin(), want_dynamic.end());
+    if (run != want_static) ++bad_set;
+    if (dynamic[c] != want_dynamic) ++bad_dynamic;
+  }
+  CHECK(bad_order == 0);
+  CHECK(bad_set == 0);
+  CHECK(bad_dynamic == 0);
+}
+
+}  // namespace
+
+TEST_CASE("Compact layout: the arrays hold every (triangle, cell) pair the cell test accepts once, each run "
+          "ascending - the dynamic references in their cells' spill lists, through updates",
+          "[grid][compact]") {
+  const Scene scene = gridtest::random_scene(600, 0.6f, 8.0f, 11, 120);
+  for (bool skip : {true, false}) {
+    GridOptions o = compact_options(GridOptions::Layout::automatic);  // auto: compact for the exact traversal
+    o.skip_empty = skip;
+    o.shuffle_seed = 5;
+    ReferenceGridTracer t(o);
+    t.build(scene, 0.0f);
+    check_compact_invariants(t.data());
+    CHECK(t.data().spill_header.static_count == 0u);
+    CHECK(t.data().spill_header.count > 0u);
+    for (float time : {0.7f, 1.9f}) {
+      INFO("t = " << time);
+      t.update(time);
+      check_compact_invariants(t.data());
+    }
+  }
+}
+
+TEST_CASE("Compact layout: the same hit as the image layout for every ray, in bits, on random scenes through "
+          "update frames",
+          "[grid][compact]") {
+  for (uint32_t seed : {3u, 8u}) {
+    INFO("seed " << seed);
+    const Scene scene = gridtest::random_scene(500, 0.7f, 8.0f, seed, 90);
+    GridOptions oc = compact_options(GridOptions::Layout::compact), oi = compact_options(GridOptions::Layout::image);
+    // The same cells for both (the image layout's capacity small: saturated cells spill)
+    oc.resolution = oi.resolution = glm::uvec3(14, 12, 13);
+    oi.capacity = 6;
+    ReferenceGridTracer c(oc), i(oi);
+    c.build(scene, 0.0f);
+    i.build(scene, 0.0f);
+    REQUIRE((c.params().flags & sh::kGridCompact) != 0u);
+    REQUIRE((i.params().flags & sh::kGridCompact) == 0u);
+    REQUIRE(i.data().spill_header.static_count > 0u);
+    for (float time : {0.0f, 1.1f, 2.6f}) {
+      INFO("t = " << time);
+      if (time > 0.0f) c.update(time), i.update(time);
+      const std::vector<Ray> rays = box_rays(c.data(), 3000, 8.0f, seed * 7 + uint32_t(time * 10));
+      std::vector<Hit> hc(rays.size()), hi(rays.size());
+      c.trace(rays, hc);
+      i.trace(rays, hi);
+      CHECK(differing(hc, hi) == 0);
+      size_t hits = 0;
+      for (const Hit& h : hc) hits += !is_miss(h);
+      CHECK(hits > rays.size() / 2);
+    }
+    // The explained ray: the same report
+    const Ray ray = box_rays(c.data(), 1, 8.0f, 99)[0];
+    const reference::ExplainRecord ec = c.explain_ray(ray), ei = i.explain_ray(ray);
+    CHECK(std::memcmp(&ec.hit, &ei.hit, sizeof(Hit)) == 0);
+  }
+  // Each layout's own default grid: the same hits (instance, triangle, t, u, v)
+  const Scene scene = gridtest::random_scene(400, 0.5f, 6.0f, 21, 60);
+  ReferenceGridTracer c(compact_options(GridOptions::Layout::compact)), i(compact_options(GridOptions::Layout::image));
+  c.build(scene, 0.5f);
+  i.build(scene, 0.5f);
+  const std::vector<Ray> rays = box_rays(c.data(), 2000, 6.0f, 4);
+  std::vector<Hit> hc(rays.size()), hi(rays.size());
+  c.trace(rays, hc);
+  i.trace(rays, hi);
+  size_t other = 0;
+  for (size_t k = 0; k < rays.size(); ++k)
+    other += hc[k].instance != hi[k].instance || hc[k].triangle != hi[k].triangle || std::memcmp(&hc[k].t, &hi[k].t, 4) != 0 ||
+             std::memcmp(&hc[k].u, &hi[k].u, 4) != 0 || std::memcmp(&hc[k].v, &hi[k].v, 4) != 0;
+  CHECK(other == 0);
+}
+
+TEST_CASE("Compact layout: the memory function equals what the build allocates, and the policy keeps within "
+          "the budget",
+          "[grid][compact][unit]") {
+  const Scene scene = gridtest::random_scene(700, 0.5f, 8.0f, 2, 80);
+  for (GridOptions::Layout layout : {GridOptions::Layout::compact, GridOptions::Layout::image}) {
+    ReferenceGridTracer t(compact_options(layout));
+    t.build(scene, 0.0f);
+    const plan::GridPlan p = plan::plan_grid(scene, 0.0f, compact_options(layout));
+    const plan::GridMemory want = plan::grid_memory(t.params(), p.static_references, p.spill_capacity, p.region.cells());
+    const plan::GridMemory got = reference::grid_allocated(t.data());
+    CHECK(want.image == got.image);
+    CHECK(want.offsets == got.offsets);
+    CHECK(want.refs == got.refs);
+    CHECK(want.spill == got.spill);
+    CHECK(want.heads == got.heads);
+    CHECK(want.skip == got.skip);
+    CHECK(want.dirty == got.dirty);
+    CHECK(t.stats().memory.total() == want.total());
+    if (layout == GridOptions::Layout::compact) {
+      CHECK(want.total() <= plan::compact_budget(compact_options(layout), 780));
+      CHECK(t.data().refs.size() == p.static_references);
+    }
+  }
+  // A tight budget: coarser cells, still within it
+  GridOptions tight = compact_options(GridOptions::Layout::compact);
+  tight.memory_budget = 96 * 1024;
+  ReferenceGridTracer t(tight);
+  t.build(scene, 0.0f);
+  CHECK(t.stats().memory.total() <= 96u * 1024u);
+}
+
+TEST_CASE("Compact layout: the paper traversal or spill off is refused with a clear message", "[grid][compact][cli]") {
+  GridOptions o;
+  o.layout = GridOptions::Layout::compact;
+  const Scene scene = gridtest::random_scene(50, 0.5f, 4.0f, 1);
+  ReferenceGridTracer paper(o);
+  CHECK_THROWS_WITH(paper.build(scene, 0.0f), Catch::Contains("exact traversal"));
+  o.traversal = Traversal::exact;
+  o.spill = GridOptions::Spill::off;
+  ReferenceGridTracer nospill(o);
+  CHECK_THROWS_WITH(nospill.build(scene, 0.0f), Catch::Contains("--spill on"));
+  const auto r = gridrt::test::run_tool("stats builtin:teapot --layout compact --traversal paper");
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Catch::Contains("compact layout is for the exact traversal"));
+}
