@@ -151,6 +151,7 @@ TEST_CASE("Exact traversal at its defaults: no crack, no wrong answer on every f
       INFO(name << " " << r.name << ":\n" << to_table({r}));
       CHECK(r.count(Verdict::crack) == 0);
       CHECK(r.count(Verdict::grid_wrong) == 0);  // far origins included: judged as traced (referee.h)
+      CHECK(r.max_ulps <= kTBoundUlps);  // t on the well-conditioned exact hits (kappa <= 100)
       CHECK(r.nan_t == 0);
       if (r.name != "plane") CHECK(r.rays > 0);  // plane: only scenes with axis-aligned triangles
     }

@@ -105,9 +105,11 @@ class Referee {
   EmbreeTracer& embree_;
 };
 
-// The t bound on well-conditioned hits (docs/ACCURACY.md, "Exact referee"): |t - exact| in ulps
-// of the float t, where the ray meets the triangle's plane at more than kWellConditionedCos.
-inline constexpr double kWellConditionedCos = 0.1;
+// The t bound on well-conditioned hits (docs/ACCURACY.md, "t against the exact t"): |t - exact| in
+// ulps of the float t, where the condition number kappa = (|org| + max |v_i| + t |dir|) /
+// (t |dir| |cos|) is at most kWellConditioned; there the exact traversal's t is within kTBoundUlps.
+inline constexpr double kWellConditioned = 100.0;
+inline constexpr uint32_t kTBoundUlps = 32;
 // The "near" verdict's tolerances: barycentric margin and relative t.
 inline constexpr double kNearMargin = 1.0e-5;
 inline constexpr double kNearT = 1.0e-5;

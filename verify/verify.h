@@ -35,7 +35,7 @@ struct FamilyResult {
   std::array<size_t, kVerdicts> verdicts{};  // per Verdict
   size_t attempts = 0;            // edge/vertex: exact constructions tried
   // t of the tracer's (and Embree's) hits against the exact t, in ulps of the float t, over the
-  // well-conditioned hits (the ray meets the plane at |cos| >= kWellConditionedCos) that are exact hits
+  // well-conditioned hits (kappa <= kWellConditioned, referee.h) that are exact hits
   size_t t_checked = 0;
   uint32_t max_ulps = 0, max_ulps_embree = 0;
   double mean_ulps = 0.0;
