@@ -29,26 +29,6 @@ GridOptions compact_options(GridOptions::Layout layout) {
   return o;
 }
 
-// Rays from random points of the box [0, extent]^3, most toward a point of a random triangle.
-std::vector<Ray> box_rays(const reference::GridData& g, uint32_t count, float extent, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> pos(0.0f, extent), unit(0.0f, 1.0f);
-  std::vector<Ray> rays;
-  for (uint32_t i = 0; i < count; ++i) {
-    const glm::vec3 o(pos(rng), pos(rng), pos(rng));
-    glm::vec3 target(pos(rng), pos(rng), pos(rng));
-    if (i % 4 != 3) {
-      const sh::GridTriangle& t = g.triangles[std::uniform_int_distribution<size_t>(0, g.triangles.size() - 1)(rng)];
-      float a = unit(rng), b = unit(rng);
-      if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
-      target = t.v0 + a * (t.v1 - t.v0) + b * (t.v2 - t.v0);
-    }
-    const glm::vec3 d = target - o;
-    rays.push_back(gridtest::make_ray(o, glm::dot(d, d) > 1e-6f ? d : glm::vec3(0.0f, 0.0f, 1.0f)));
-  }
-  return rays;
-}
-
 size_t differing(std::span<const Hit> a, std::span<const Hit> b) {
   size_t n = 0;
   for (size_t i = 0; i < a.size(); ++i) n += std::memcmp(&a[i], &b[i], sizeof(Hit)) != 0;
@@ -132,7 +112,7 @@ TEST_CASE("Compact layout: the same hit as the image layout for every ray, in bi
     for (float time : {0.0f, 1.1f, 2.6f}) {
       INFO("t = " << time);
       if (time > 0.0f) c.update(time), i.update(time);
-      const std::vector<Ray> rays = box_rays(c.data(), 3000, 8.0f, seed * 7 + uint32_t(time * 10));
+      const std::vector<Ray> rays = gridtest::box_rays(c.data(), 3000, 8.0f, seed * 7 + uint32_t(time * 10));
       std::vector<Hit> hc(rays.size()), hi(rays.size());
       c.trace(rays, hc);
       i.trace(rays, hi);
@@ -142,7 +122,7 @@ TEST_CASE("Compact layout: the same hit as the image layout for every ray, in bi
       CHECK(hits > rays.size() / 2);
     }
     // The explained ray: the same report
-    const Ray ray = box_rays(c.data(), 1, 8.0f, 99)[0];
+    const Ray ray = gridtest::box_rays(c.data(), 1, 8.0f, 99)[0];
     const reference::ExplainRecord ec = c.explain_ray(ray), ei = i.explain_ray(ray);
     CHECK(std::memcmp(&ec.hit, &ei.hit, sizeof(Hit)) == 0);
   }
@@ -151,7 +131,7 @@ TEST_CASE("Compact layout: the same hit as the image layout for every ray, in bi
   ReferenceGridTracer c(compact_options(GridOptions::Layout::compact)), i(compact_options(GridOptions::Layout::image));
   c.build(scene, 0.5f);
   i.build(scene, 0.5f);
-  const std::vector<Ray> rays = box_rays(c.data(), 2000, 6.0f, 4);
+  const std::vector<Ray> rays = gridtest::box_rays(c.data(), 2000, 6.0f, 4);
   std::vector<Hit> hc(rays.size()), hi(rays.size());
   c.trace(rays, hc);
   i.trace(rays, hi);

@@ -189,4 +189,25 @@ inline std::vector<Ray> fan_rays(const reference::GridData& g, uint32_t count, u
   return rays;
 }
 
+// Rays from random points of the box [0, extent]^3, three in four toward a point of a random
+// triangle of any instance (the compact layout's tests, CPU and Vulkan).
+inline std::vector<Ray> box_rays(const reference::GridData& g, uint32_t count, float extent, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(0.0f, extent), unit(0.0f, 1.0f);
+  std::vector<Ray> rays;
+  for (uint32_t i = 0; i < count; ++i) {
+    const glm::vec3 o(pos(rng), pos(rng), pos(rng));
+    glm::vec3 target(pos(rng), pos(rng), pos(rng));
+    if (i % 4 != 3) {
+      const shared::GridTriangle& t = g.triangles[std::uniform_int_distribution<size_t>(0, g.triangles.size() - 1)(rng)];
+      float a = unit(rng), b = unit(rng);
+      if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+      target = t.v0 + a * (t.v1 - t.v0) + b * (t.v2 - t.v0);
+    }
+    const glm::vec3 d = target - o;
+    rays.push_back(make_ray(o, glm::dot(d, d) > 1e-6f ? d : glm::vec3(0.0f, 0.0f, 1.0f)));
+  }
+  return rays;
+}
+
 }  // namespace gridtest

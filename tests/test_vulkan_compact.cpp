@@ -22,29 +22,6 @@ using reference::ReferenceGridTracer;
 using reference::Traversal;
 namespace sh = gridrt::shared;
 
-namespace {
-
-std::vector<Ray> scene_rays(const reference::GridData& g, uint32_t count, float extent, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> pos(0.0f, extent), unit(0.0f, 1.0f);
-  std::vector<Ray> rays;
-  for (uint32_t i = 0; i < count; ++i) {
-    const glm::vec3 o(pos(rng), pos(rng), pos(rng));
-    glm::vec3 target(pos(rng), pos(rng), pos(rng));
-    if (i % 4 != 3) {
-      const sh::GridTriangle& t = g.triangles[std::uniform_int_distribution<size_t>(0, g.triangles.size() - 1)(rng)];
-      float a = unit(rng), b = unit(rng);
-      if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
-      target = t.v0 + a * (t.v1 - t.v0) + b * (t.v2 - t.v0);
-    }
-    const glm::vec3 d = target - o;
-    rays.push_back(gridtest::make_ray(o, glm::dot(d, d) > 1e-6f ? d : glm::vec3(0.0f, 0.0f, 1.0f)));
-  }
-  return rays;
-}
-
-}  // namespace
-
 TEST_CASE("Vulkan compact layout: arrays, spill lists, hits and explain events bit for bit with the reference "
           "through updates - compute and raster build",
           "[vulkan][diff][grid][compact]") {
@@ -83,7 +60,7 @@ TEST_CASE("Vulkan compact layout: arrays, spill lists, hits and explain events b
       CHECK(sd.only_want.empty());
       CHECK(sd.only_got.empty());
       CHECK(vk.download_skip() == ref.data().skip);
-      const std::vector<Ray> rays = scene_rays(ref.data(), 2000, 8.0f, uint32_t(time * 10) + 1);
+      const std::vector<Ray> rays = gridtest::box_rays(ref.data(), 2000, 8.0f, uint32_t(time * 10) + 1);
       std::vector<Hit> w(rays.size()), g(rays.size());
       ref.trace(rays, w);
       vk.trace(rays, g);
