@@ -431,14 +431,22 @@ Judgement Referee::judge(const Ray& ray, const Hit& got, const Hit& want, const 
       const ExactTest e = test(ray, ref_of(got));
       farther = !e.hit || compare_t(e, best) > 0;
     }
-    if (best.hit && best.boundary && farther) {
+    // A crack is a ray that passes through the surface at an edge or vertex: where the ray only
+    // touches an outline there (a silhouette edge or vertex, the surface on one side of the ray),
+    // a ray moved within the inputs' rounding gets the tracer's answer, and no rule of a triangle
+    // test can promise the touch: such a ray is unresolved, not a crack
+    const bool moved = exact_for_moved_origin(ray, got);
+    const bool at_edge = best.hit && best.boundary && farther;
+    if (at_edge && !moved) {
       j.verdict = Verdict::crack;
       j.why = is_miss(got) ? "passes through an edge or vertex and hits nothing"
                            : "passes through an edge or vertex and reports a farther triangle";
-    } else if (exact_for_moved_origin(ray, got)) {
+    } else if (moved) {
       j.verdict = Verdict::unresolved;
-      j.why = is_miss(got) ? "a miss: the ray as traced (v - org in float), moved within its rounding, misses every triangle"
-                           : "the exact answer of the ray as traced (v - org in float), moved within its rounding";
+      j.why = at_edge       ? "touches an outline at an edge or vertex: the ray as traced (v - org in float), moved "
+                              "within its rounding, gets the same answer"
+              : is_miss(got) ? "a miss: the ray as traced (v - org in float), moved within its rounding, misses every triangle"
+                             : "the exact answer of the ray as traced (v - org in float), moved within its rounding";
     } else {
       j.verdict = Verdict::grid_wrong;
       j.why = (got.flags & sh::kHitGapFill) ? "a gap-fill voxel"
