@@ -54,6 +54,21 @@ const char* test_reason(uint32_t code) {
   }
 }
 
+// Why a ray is outside the domain (shared::ray_domain), from the record's ray event.
+std::string rejection_reason(const ExplainRecord& rec) {
+  for (const ExplainEvent& e : rec.events) {
+    if (e.kind != kEvRay) continue;
+    switch (ray_domain(glm::vec3(e.f0), glm::vec3(e.f1), e.f0.w, e.f1.w)) {
+      case kDomainNonFinite: return "a NaN or infinite component of the origin or direction";
+      case kDomainDirection: return "the direction's largest component is outside [2^-20, 2^20] (or zero)";
+      case kDomainOrigin: return "an origin component beyond 2^24";
+      case kDomainInterval: return "tmin or tmax is NaN, or tmin < 0";
+      default: break;
+    }
+  }
+  return "outside the ray domain (docs/SPEC.md, \"Domain\")";
+}
+
 const char* miss_reason(uint32_t code) {
   switch (code) {
     case kMissOutsideGrid: return "the ray does not meet the grid box within [tmin, tmax]";
@@ -239,7 +254,7 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
       line();
       break;
     case kEvRejected:
-      os << "REJECTED: NaN/inf in the ray or a zero direction; reported as a miss with kHitRejected";
+      os << "REJECTED: " << rejection_reason(rec) << "; reported as a miss with kHitRejected";
       line();
       break;
     case kEvSetup:
@@ -364,7 +379,7 @@ std::string event_summary(const ExplainRecord& rec, size_t i, const ExplainForma
          << num(e.f0.w, fmt) << ", " << num(e.f1.w, fmt) << ")"
          << (e.ref == kNoRef ? "" : ", launched from " + ref(e.ref));
       break;
-    case kEvRejected: os << "REJECTED: NaN/inf in the ray or a zero direction"; break;
+    case kEvRejected: os << "REJECTED: " << rejection_reason(rec); break;
     case kEvSetup:
       if (e.slot)
         os << "setup: a cell edge is " << num(e.f0.x, fmt) << " in t; the grid box from t " << num(e.f0.y, fmt)

@@ -274,7 +274,18 @@ TEST_CASE("CLI: explain --ray takes nan and inf and shows the rejection, --time 
   const Run r = run_tool("explain builtin:cornell --ray=nan,0,0,0,0,1 --brief");
   INFO(r.output);
   CHECK(r.exit_code == 0);
-  CHECK_THAT(r.output, Catch::Contains("REJECTED"));
+  CHECK_THAT(r.output, Catch::Contains("REJECTED: a NaN or infinite component"));
+  // Each domain rule names itself (shared::ray_domain)
+  for (const auto& [ray, why] : std::vector<std::pair<std::string, std::string>>{
+           {"0,0,0,1e30,1e-30,0", "direction's largest component"},
+           {"0,0,0,0x1p-149,0,0", "direction's largest component"},
+           {"1e12,0,0,-1,0,0", "origin component beyond 2^24"},
+           {"0,0,0,0,0,1,-1,5", "tmin < 0"}}) {
+    const Run d = run_tool("explain builtin:cornell --ray=" + ray + " --brief");
+    INFO(ray << ": " << d.output);
+    CHECK(d.exit_code == 0);
+    CHECK_THAT(d.output, Catch::Contains("REJECTED: ") && Catch::Contains(why));
+  }
   const Run t = run_tool("render builtin:cornell --time nan -o never.png");
   INFO(t.output);
   CHECK(t.exit_code == 2);
