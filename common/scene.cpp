@@ -308,12 +308,14 @@ Camera Scene::frame_camera() const {
   const float radius = 0.5f * glm::length(b.extent());
   c.target = center;
   // Far enough to see the whole bounding sphere; and, for geometry tiny next to its distance from
-  // the origin, at least a few thousand ulps of the centre away, so that the eye differs from the
-  // target; and at least 2^-50, so that the view vector's squared length (normalize) does not
-  // underflow for a model at a subnormal scale.
+  // the origin, at least 64 ulps of the centre away (2^-18 of its largest coordinate), so that the
+  // eye differs from the target and the view direction is resolved to a few percent (a model of a
+  // tenth of a unit at 1e5 then fills a tenth of the picture instead of a pixel); and at least
+  // 2^-50, so that the view vector's squared length (normalize) does not underflow for a model at
+  // a subnormal scale.
   const float reach = std::max({std::abs(center.x), std::abs(center.y), std::abs(center.z)});
   const float fit = radius / std::tan(glm::radians(c.vfov_degrees) * 0.5f);
-  const float dist = std::max({fit, reach * 0x1p-10f, 0x1p-50f});
+  const float dist = std::max({fit, reach * 0x1p-18f, 0x1p-50f});
   c.eye = center + glm::vec3(0.0f, 0.25f, 1.0f) * dist;
   return c;
 }

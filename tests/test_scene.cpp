@@ -105,6 +105,28 @@ TEST_CASE("The camera framed for a scene without one is usable at any scale and 
     }
 }
 
+TEST_CASE("A small model far from the origin is framed to be seen, not a speck", "[unit][scene]") {
+  // A triangle 0.1 across at (1e5, 2e5, -1e5): its bounding sphere must fill a fair part of the
+  // framed view (it used to sit 2^-10 of the centre's reach away: one pixel in 64)
+  Scene s;
+  s.name = "far-speck";
+  Mesh m;
+  const glm::vec3 o(1e5f, 2e5f, -1e5f);
+  m.positions = {o, o + glm::vec3(0.1f, 0.0f, 0.0f), o + glm::vec3(0.0f, 0.1f, 0.0f)};
+  m.triangles = {{0, 1, 2}};
+  m.materials = {0};
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  REQUIRE_NOTHROW(s.finalize());
+  const Camera c = s.frame_camera();
+  REQUIRE(c.eye != c.target);
+  const Bounds b = s.bounds(0.0f);
+  const float radius = 0.5f * glm::length(b.extent());
+  const float half_view = glm::length(c.eye - c.target) * std::tan(glm::radians(c.vfov_degrees) * 0.5f);
+  INFO("radius " << radius << ", half view " << half_view);
+  CHECK(radius / half_view > 0.05f);
+}
+
 TEST_CASE("A scene's camera whose up is parallel to its view is refused when the scene loads", "[unit][scene][badinput]") {
   Scene s;
   s.name = "up";
