@@ -8,6 +8,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "gridrt/common/safe_io.h"
+#include "gridrt/common/shared/grid.h"
 
 namespace gridrt {
 
@@ -222,6 +223,12 @@ void validate_camera(const Scene& s) {
       !(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
     throw Error("scene '" + s.name + "': " + whose + " has non-finite values or a field of view outside (0, 180)");
   if (c.eye == c.target) throw Error("scene '" + s.name + "': " + whose + ": eye equals its target");
+  // Every primary ray starts at the eye: beyond the ray domain's origin limit each one would be
+  // rejected (docs/SPEC.md, "Domain"), a picture of nothing. (A framed camera is beyond it only
+  // for geometry beyond it, which the grid refuses with its own message.)
+  if (s.camera && !(std::max({std::abs(c.eye.x), std::abs(c.eye.y), std::abs(c.eye.z)}) <= shared::kDomainMaxCoordinate))
+    throw Error("scene '" + s.name + "': " + whose + ": the eye lies beyond 2^24 from the origin, outside the ray " +
+                "domain (docs/SPEC.md, \"Domain\"): every primary ray would be rejected; move it nearer");
   const glm::vec3 forward = glm::normalize(c.target - c.eye);  // as the camera frame takes it
   if (!(glm::length(glm::cross(forward, c.up)) > 1e-6f * glm::length(c.up)))
     throw Error("scene '" + s.name + "': " + whose + ": up is zero or parallel to the view direction");

@@ -105,6 +105,17 @@ TEST_CASE("The camera framed for a scene without one is usable at any scale and 
     }
 }
 
+TEST_CASE("A camera whose eye lies outside the ray domain is refused when the scene loads", "[unit][scene][badinput]") {
+  Scene s;
+  s.name = "far-eye";
+  s.meshes.push_back(strip(2));
+  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  s.camera = Camera{.eye = {3e18f, 1e17f, 2e17f}, .target = {0, 0, 0}, .up = {0, 1, 0}};
+  CHECK_THROWS_WITH(s.finalize(), Catch::Contains("beyond 2^24"));
+  s.camera = Camera{.eye = {1.6e7f, 0, 0}, .target = {0, 0, 0}, .up = {0, 1, 0}};  // just inside
+  CHECK_NOTHROW(s.finalize());
+}
+
 TEST_CASE("A small model far from the origin is framed to be seen, not a speck", "[unit][scene]") {
   // A triangle 0.1 across at (1e5, 2e5, -1e5): its bounding sphere must fill a fair part of the
   // framed view (it used to sit 2^-10 of the centre's reach away: one pixel in 64)
