@@ -7,8 +7,11 @@
 // second), one dispatch each, the pixel's state kept in the pixel buffer between them.
 //
 // The host math of the reference is mirrored exactly: glm::normalize is v * (1 / sqrt(dot(v, v))),
-// glm::dot the ordered sum sh_dot, glm::length sqrt(dot(v, v)), every temporary `precise`. The one
-// function that is not the reference's to the bit is pow (std::pow on the CPU): the glass filter.
+// glm::dot the ordered sum sh_dot, glm::length sqrt(dot(v, v)), every temporary `precise`; each
+// division and square root is the correctly rounded sh_div / sh_sqrt (common/shared/rounding.h),
+// as IEEE's `/` and std::sqrt on the CPU, since the device's own are not on every GPU (NVIDIA's
+// differ by 1-3 ulps). The one function that is not the reference's to the bit is pow (std::pow on
+// the CPU): the glass filter.
 #extension GL_GOOGLE_include_directive : require
 #include "portal_trace.glsl"
 
@@ -26,13 +29,13 @@ float infinity() { return uintBitsToFloat(0x7F800000u); }
 
 // glm::normalize and glm::length, as GLM computes them.
 vec3 ref_normalize(vec3 v) {
-  precise float len = sqrt(sh_dot(v, v));
-  precise float inv = 1.0f / len;
+  precise float len = sh_sqrt(sh_dot(v, v));
+  precise float inv = sh_div(1.0f, len);
   precise vec3 r = v * inv;
   return r;
 }
 float ref_length(vec3 v) {
-  precise float len = sqrt(sh_dot(v, v));
+  precise float len = sh_sqrt(sh_dot(v, v));
   return len;
 }
 
@@ -46,7 +49,7 @@ bool refract_or_reflect(vec3 d, vec3 n, float eta, out vec3 o) {
     o = r;
     return false;
   }
-  precise vec3 v = eta * d + (eta * cosi - sqrt(k)) * n;
+  precise vec3 v = eta * d + (eta * cosi - sh_sqrt(k)) * n;
   o = ref_normalize(v);
   return true;
 }
@@ -54,9 +57,9 @@ bool refract_or_reflect(vec3 d, vec3 n, float eta, out vec3 o) {
 // The ray through the centre of pixel (x, y) (common/camera.cpp, camera_ray).
 RayRecord camera_ray(uint x, uint y) {
   // Pixel centre in normalized device coordinates, [-1, 1], y up.
-  precise float sx = (2.0f * (float(x) + 0.5f) / float(rp.width) - 1.0f) * rp.tan_half_fov *
-                     (float(rp.width) / float(rp.height));
-  precise float sy = (1.0f - 2.0f * (float(y) + 0.5f) / float(rp.height)) * rp.tan_half_fov;
+  precise float sx = (sh_div(2.0f * (float(x) + 0.5f), float(rp.width)) - 1.0f) * rp.tan_half_fov *
+                     sh_div(float(rp.width), float(rp.height));
+  precise float sy = (1.0f - sh_div(2.0f * (float(y) + 0.5f), float(rp.height))) * rp.tan_half_fov;
   precise vec3 v = rp.forward + sx * rp.right + sy * rp.up;
   RayRecord ray;
   ray.org = rp.eye;
@@ -136,13 +139,13 @@ void begin_primary(inout PortalPixel s, RayRecord ray) {
 VoxelRay pixel_ray(PortalPixel s) { return VoxelRay(s.org, s.dir, s.tmin, s.tmax); }
 
 vec3 crossing(PortalPixel s, Step st) {
-  precise float t = st.num / st.ad;
+  precise float t = sh_div(st.num, st.ad);
   precise vec3 x = s.org + t * s.dir;
   return x;
 }
 
 vec3 crossing_at(PortalPixel s, float num, float ad) {
-  precise float t = num / ad;
+  precise float t = sh_div(num, ad);
   precise vec3 x = s.org + t * s.dir;
   return x;
 }
@@ -313,7 +316,7 @@ void transition(inout PortalPixel s, Step st) {
       }
       const float n_from = in_glass ? materials[s.glass].ior : 1.0f;
       const float n_to = next_glass ? materials[nd.glass_material].ior : 1.0f;
-      precise float eta = n_from / n_to;
+      precise float eta = sh_div(n_from, n_to);
       vec3 d;
       if (refract_or_reflect(ref_normalize(s.dir), n, eta, d)) {
         ++s.refractions;

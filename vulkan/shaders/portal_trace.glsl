@@ -122,7 +122,7 @@ HitRecord wall_hit(uvec3 dims, VoxelRay r, uint axis, float num, float ad, ivec3
   HitRecord h = miss_hit(steps, texels);
   const uint t0 = portal_tangent0(axis);
   const uint t1 = portal_tangent1(axis);
-  precise float t = num / ad;
+  precise float t = sh_div(num, ad);  // correctly rounded (rounding.h): the same bits on every device
   h.t = t;
   h.instance = material;
   h.triangle = (voxel_linear(dims, wall) << kPortalFaceBits) | portal_hit_face(axis, r.dir[axis]);
