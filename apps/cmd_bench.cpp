@@ -26,6 +26,7 @@
 #include "apps/backends.h"
 #include "gridrt/common/util.h"
 #include "apps/commands.h"
+#include "gridrt/common/camera.h"
 #include "gridrt/common/gather.h"
 #include "gridrt/common/safe_io.h"
 #include "gridrt/reference/grid.h"
@@ -755,7 +756,17 @@ void run_bench(const BenchOptions& options) {
     if (given.empty()) throw Error("bench: " + scene.name + " gives no " + kind + " rays");
     bounce_count = given.size();
 #else
-    throw Error("bench: --rays " + kind + " needs the Embree backend (this build has none): use --rays glossy");
+    // Without the oracle only the camera rays can be made: verify's camera family (a 16:9 grid of
+    // about WIDTH x HEIGHT camera rays, verify/rays.cpp), which needs no Embree
+    if (kind != "primary" && kind != "camera")
+      throw Error("bench: --rays " + kind + " needs the Embree backend (this build has none): use --rays glossy or primary");
+    const size_t n = size_t(o.width) * o.height;
+    const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(n) * 16.0 / 9.0)));
+    const uint32_t h = std::max<uint32_t>(1, uint32_t((n + w - 1) / w));
+    const Camera cam = scene.frame_camera();
+    for (uint32_t y = 0; y < h && given.size() < n; ++y)
+      for (uint32_t x = 0; x < w && given.size() < n; ++x) given.push_back(camera_ray(cam, w, h, x, y));
+    bounce_count = given.size();
 #endif
   }
   if (cpu_rays && frame_rays) {

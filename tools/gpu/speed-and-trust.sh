@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# The mailbox, the faster static build and bit-exactness on the GPU machine (docs/BENCHMARKS.md
+# "Mailbox and the static build's passes", docs/VULKAN.md "Bit for bit on NVIDIA"), from the repo
+# root, after staging here:
+#   cmake --preset gpu && cmake --build --preset gpu -j2 --target gridrt        (this tree)
+#   the same in a worktree of the baseline commit, its binary copied as gridrt-base
+#   gridrt convert data/scenes/X.json -o /tmp/gs/X.gridscene   (sibenik-teapots, sponza-teapots,
+#                                                              ons-reborn-teapot, bunny)
+#   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- gridrt-base /tmp/gs/*.gridscene \
+#     /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
+# There: PART=diff|bench|portal bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
+#   diff    gridrt diff (reference against the shaders, validation on) on the three frames: paper
+#           traversal + raster build + the GPU frame's passes, exact + compute build + the GPU
+#           frame, exact + raster build; portal diff bit for bit on the built-in level, its mip
+#           levels and the instanced block level
+#   bench   per scene, in one run on the same rays: the baseline binary at its defaults, this one
+#           with --mailbox off and on (its default), each beside the RT pipeline; the untuned bunny
+#           (primary rays) and atrium with the mailbox off and on
+#   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
+set -u
+G=${G:-.gpu}
+out=${OUT:-/tmp/gridrt-out}
+mkdir -p "$out"
+source "$G/env.sh"
+E=$G/extra
+export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
+[ -f "$E/gridrt-base" ] && chmod +x "$E/gridrt-base"
+nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv,noheader | tee "$out/device.txt"
+scenes=(sibenik-teapots sponza-teapots ons-reborn-teapot)
+keep='^(diff|frame|AGREE|DIFFER|spill|validation|  first|gridrt|portal diff|  hit records|  render|  agree)|error'
+case ${PART:-diff} in
+diff)
+  {
+    for s in "${scenes[@]}"; do
+      X=$E/$s.gridscene
+      echo "== diff $s paper, raster build, the GPU frame's passes"
+      timeout 120 gridrt diff $X --traversal paper --vk-build raster --gpu-frame --width 480 --height 270 --frames 2 2>&1 |
+        grep -E "$keep" | tail -6
+      echo "== diff $s exact (compact layout, mailbox), compute build, the GPU frame's passes"
+      timeout 120 gridrt diff $X --traversal exact --vk-build compute --gpu-frame --width 480 --height 270 --frames 2 2>&1 |
+        grep -E "$keep" | tail -6
+      echo "== diff $s exact, raster build, image layout"
+      timeout 120 gridrt diff $X --traversal exact --vk-build raster --layout image --width 480 --height 270 --frames 2 2>&1 |
+        grep -E "$keep" | tail -6
+    done
+    for w in builtin:level builtin:blocks "builtin:level --mip-levels 3"; do
+      echo "== portal diff $w (bit for bit)"
+      # shellcheck disable=SC2086
+      timeout 120 gridrt portal diff $w --width 720 --height 360 2>&1 | grep -E "$keep" | tail -6
+    done
+  } 2>&1 | tee "$out/diff.txt"
+  ;;
+bench)
+  B="--backend vulkan --traversal exact --vk-build compute --rtx --frames 30 --warmup 5"
+  sel='^\| (grid|rtx|[0-9])|^agree|^grid memory|warm build split|^vulkan|error'
+  {
+    for s in "${scenes[@]}"; do
+      echo "== bench $s: baseline binary, defaults"
+      timeout 90 "$E/gridrt-base" bench $E/$s.gridscene $B 2>&1 | grep -E "$sel" | cut -c1-400
+      for m in off on; do
+        echo "== bench $s: this binary, --mailbox $m"
+        timeout 90 gridrt bench $E/$s.gridscene $B --mailbox $m 2>&1 | grep -E "$sel" | cut -c1-400
+      done
+    done
+    for m in off on; do
+      echo "== bench builtin:atrium: this binary, --mailbox $m"
+      timeout 90 gridrt bench builtin:atrium $B --mailbox $m 2>&1 | grep -E "$sel" | cut -c1-400
+      echo "== bench bunny (primary rays): this binary, --mailbox $m"
+      timeout 90 gridrt bench $E/bunny.gridscene --backend vulkan --traversal exact --vk-build compute --rays primary \
+        --frames 30 --warmup 5 --mailbox $m 2>&1 | grep -E "$sel" | cut -c1-400
+    done
+  } 2>&1 | tee "$out/bench.txt"
+  ;;
+portal)
+  INSTANCED_ONLY=1 G=$G OUT=$out bash tools/gpu/portal-bench.sh > "$out/portal-stdout.txt" 2>&1
+  echo "portal-bench exit $?" | tee -a "$out/portal-stdout.txt"
+  ;;
+esac
