@@ -47,11 +47,21 @@ layout(std430, binding = kGridBindCompactPairs) buffer CompactPairs {
 };
 
 // The count pass (the static pass's insertion): the cell's count, and the (cell, ref) pair at the
-// next index of the pair list (its capacity is the plan's count of the static references).
+// next index of the pair list (its capacity is the plan's count of the static references). The
+// compute build (GRIDRT_BUILD_SUBGROUP) takes the indices of the lanes counting together with one
+// atomic add of the subgroup on the shared counter (its lowest lane's), each lane its rank among
+// them: the same set of indices as one add per pair, without millions of adds on one address.
 void compact_count(GridParams g, uvec3 cell, uint ref) {
   const uint c = cell_linear_index(g, cell);
   atomicAdd(compact_counts[c], 1u);
+#ifdef GRIDRT_BUILD_SUBGROUP
+  const uvec4 lanes = subgroupBallot(true);
+  uint first = 0u;
+  if (subgroupElect()) first = atomicAdd(compact_pair_count, subgroupBallotBitCount(lanes));
+  const uint k = subgroupBroadcastFirst(first) + subgroupBallotExclusiveBitCount(lanes);
+#else
   const uint k = atomicAdd(compact_pair_count, 1u);
+#endif
   if (2u * k + 1u < uint(compact_pairs.length())) {
     compact_pairs[2u * k] = c;
     compact_pairs[2u * k + 1u] = ref;
