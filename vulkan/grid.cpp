@@ -444,7 +444,7 @@ void VulkanGridTracer::record_skip_field(VkCommandBuffer cb) {
   barrier(cb);
   gpu.skip_field->bind(cb, gpu.set->set());
   const glm::uvec3 n = g.cells;
-  const uint32_t items[4] = {n.y * n.z, n.x * n.z, n.x * n.y, (shared::grid_cell_count(g) + 3u) / 4u};
+  const uint32_t items[4] = {n.y * n.z, n.x * n.z, n.x * n.y, shared::grid_cell_count(g)};  // lines, lines, lines, cells
   for (uint32_t pass = 0; pass < 4; ++pass) {
     gpu.skip_field->push(cb, shared::SkipFieldPush{pass});
     const glm::uvec3 grid = shared::work_list_groups(items[pass], 64u, max_x);
