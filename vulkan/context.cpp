@@ -118,9 +118,6 @@ DeviceInfo query_info(VkPhysicalDevice pd) {
                                        VK_SUBGROUP_FEATURE_BALLOT_BIT;
     info.subgroup_arithmetic_ballot =
         (p11.subgroupSupportedOperations & ops) == ops && (p11.subgroupSupportedStages & VK_SHADER_STAGE_COMPUTE_BIT);
-    const VkSubgroupFeatureFlags ballot = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT;
-    info.subgroup_ballot =
-        (p11.subgroupSupportedOperations & ballot) == ballot && (p11.subgroupSupportedStages & VK_SHADER_STAGE_COMPUTE_BIT);
     VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
     f2.pNext = &f12;

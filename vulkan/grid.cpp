@@ -118,9 +118,9 @@ void VulkanGridTracer::check_device() const {
                 " storage buffers per shader stage, over maxPerStageDescriptorStorageBuffers (" +
                 std::to_string(dev.limits.maxPerStageDescriptorStorageBuffers) + ") on " + dev.name +
                 "; use --backend cpu");
-  if (!dev.subgroup_ballot)
-    throw Error(dev.name + " lacks subgroup ballot in compute shaders (the build's count pass, build.comp and "
-                           "build_cells.comp): use --backend cpu");
+  if (!dev.subgroup_arithmetic_ballot)
+    throw Error(dev.name + " lacks subgroup ballot and arithmetic in compute shaders (the build's atomic counters, "
+                           "build.comp and build_cells.comp): use --backend cpu");
   if (vk_.build == BuildMode::raster && (!dev.geometry_shader || !dev.vertex_pipeline_stores_and_atomics))
     throw Error(dev.name + " lacks geometryShader or vertexPipelineStoresAndAtomics for the raster build: use "
                            "the compute build (--build compute)");

@@ -4,7 +4,8 @@
 // (build.glsl) as the geometry shader.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_ballot : require
-#define GRIDRT_BUILD_SUBGROUP  // build.glsl: the count pass's pair indices a subgroup at a time
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#define GRIDRT_BUILD_SUBGROUP  // build.glsl: the count pass's pairs and the runs a subgroup at a time
 #include "build.glsl"
 
 layout(local_size_x = 64) in;

@@ -205,7 +205,16 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
     // Long range: runs of kBuildRun cells for build_cells.comp, unless the list is full
     const uint runs = (count + kBuildRun - 1u) / kBuildRun;
     const uint capacity = uint(build_items.length()) / 2u;
+#ifdef GRIDRT_BUILD_SUBGROUP
+    // The subgroup's lanes here take their runs with one atomic add of their sum (the lowest
+    // lane's), each lane after the lanes below it: the same as one add each in that order
+    uint base = 0u;
+    const uint total = subgroupAdd(runs);
+    if (subgroupElect()) base = atomicAdd(build_header.appended, total);
+    const uint first = subgroupBroadcastFirst(base) + subgroupExclusiveAdd(runs);
+#else
     const uint first = atomicAdd(build_header.appended, runs);
+#endif
     if (first <= capacity && runs <= capacity - first) {
       for (uint r = 0u; r < runs; ++r) {
         build_items[2u * (first + r)] = ref;
