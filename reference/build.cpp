@@ -128,11 +128,11 @@ void compact_count(GridData& grid, glm::uvec3 cell, uint32_t ref) {
   }
 }
 
-// The offsets pass: the exclusive scan of the counts, as compact.comp's three steps: per block of
-// kCompactBlock cells its sum; the blocks' exclusive scan (one workgroup of kCompactScanLanes
-// lanes, each summing a share of the blocks, the lanes' sums scanned by lane 0, then each lane
-// writing its blocks' offsets); per block the cells' offsets, which also become the scatter's
-// cursors (offsets[cells] = the total). Integer sums: the same bits in any order.
+// The offsets pass: the exclusive scan of the counts in three steps: per block of kCompactBlock
+// cells its sum; the blocks' exclusive scan (kCompactScanLanes shares of the blocks, each share's
+// sum, the shares' sums scanned, then each share's blocks' offsets); per block the cells' offsets,
+// which also become the scatter's cursors (offsets[cells] = the total). Integer sums: the same
+// bits in any order (compact.comp groups the work otherwise: docs/SPEC.md "Compact layout").
 void compact_offsets(GridData& grid, const GridOptions& o) {
   const uint32_t cells = shared::grid_cell_count(grid.params);
   const uint32_t blocks = (cells + shared::kCompactBlock - 1u) / shared::kCompactBlock;

@@ -57,7 +57,8 @@ struct DeviceInfo {
   bool fragment_stores_and_atomics = false;
   // shaderInt64 + shaderBufferInt64Atomics (enabled when present: the compute gather's key)
   bool buffer_int64_atomics = false;
-  // Subgroup arithmetic and ballot in compute shaders (the compute gather's appends)
+  // Subgroup arithmetic and ballot in compute shaders (the compute gather's appends, the build's
+  // counters: build.glsl)
   bool subgroup_arithmetic_ballot = false;
   // Float controls (VkPhysicalDeviceFloatControlsProperties), 32-bit floats.
   bool denorm_preserve_f32 = false;

@@ -118,6 +118,9 @@ void VulkanGridTracer::check_device() const {
                 " storage buffers per shader stage, over maxPerStageDescriptorStorageBuffers (" +
                 std::to_string(dev.limits.maxPerStageDescriptorStorageBuffers) + ") on " + dev.name +
                 "; use --backend cpu");
+  if (!dev.subgroup_arithmetic_ballot)
+    throw Error(dev.name + " lacks subgroup ballot and arithmetic in compute shaders (the build's atomic counters, "
+                           "build.comp and build_cells.comp): use --backend cpu");
   if (vk_.build == BuildMode::raster && (!dev.geometry_shader || !dev.vertex_pipeline_stores_and_atomics))
     throw Error(dev.name + " lacks geometryShader or vertexPipelineStoresAndAtomics for the raster build: use "
                            "the compute build (--build compute)");
@@ -204,16 +207,18 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   const VkBufferUsageFlags sbu = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
   const uint64_t cells = shared::grid_cell_count(g);
   const uint64_t refs = std::max<uint64_t>(plan.static_references, 1);
-  if (refs > uint64_t(dev.limits.maxComputeWorkGroupCount[0]) * 1024u || refs >= (uint64_t(1) << 31))
-    throw Error("a compact grid of " + std::to_string(refs) + " references needs more workgroups than "
-                "maxComputeWorkGroupCount on " + dev.name + ": use --layout image or fewer cells");
+  const uint64_t max_items = uint64_t(dev.limits.maxComputeWorkGroupCount[0]) * shared::kCompactScanLanes;
+  if (compact && (refs > max_items || cells > max_items || refs >= (uint64_t(1) << 31)))
+    throw Error("a compact grid of " + std::to_string(cells) + " cells and " + std::to_string(refs) +
+                " references needs more workgroups than maxComputeWorkGroupCount on " + dev.name +
+                ": use --layout image or fewer cells");
   gpu.compact_pair_capacity = compact ? uint32_t(refs) : 0u;
   gpu.offsets = ctx.create_buffer(compact ? (cells + 1) * 4 : 16, sbu);
   gpu.refs = ctx.create_buffer(compact ? refs * 4 : 16, sbu);
   gpu.compact_counts = ctx.create_buffer(compact ? cells * 4 : 16, sbu);
   gpu.compact_pairs = ctx.create_buffer(compact ? 16 + refs * 8 : 16, sbu);
-  gpu.compact_scattered = ctx.create_buffer(compact ? refs * 4 : 16, sbu);
-  gpu.compact_blocks = ctx.create_buffer(compact ? uint64_t(groups(uint32_t(cells), shared::kCompactBlock)) * 4 : 16, sbu);
+  gpu.compact_scattered = ctx.create_buffer(compact ? refs * 8 : 16, sbu);  // the references, then their cells
+  gpu.compact_blocks = ctx.create_buffer(compact ? uint64_t(groups(uint32_t(cells), shared::kCompactScanLanes)) * 4 : 16, sbu);
   // The spill list: the header (count 0), the entries, four heads per cell (docs/SPEC.md)
   gpu.spill = ctx.create_buffer(sizeof(shared::SpillHeader) + VkDeviceSize(std::max(spill_capacity, 1u)) *
                                                                   sizeof(shared::SpillEntry),
@@ -415,8 +420,10 @@ void VulkanGridTracer::record_spill_order(VkCommandBuffer cb, bool dynamic) {
 void VulkanGridTracer::record_compact(VkCommandBuffer cb) {
   Gpu& gpu = *gpu_;
   if (!gpu.compact) return;
-  const uint32_t blocks = groups(shared::grid_cell_count(params_), shared::kCompactBlock);
-  const uint32_t items[5] = {blocks, shared::kCompactScanLanes, blocks, gpu.compact_pair_capacity,
+  // Workgroups of kCompactScanLanes: a lane per cell (passes 0 and 2), one workgroup (pass 1), a
+  // lane per pair (passes 3 and 4); within maxComputeWorkGroupCount (checked by create_resources)
+  const uint32_t cells = shared::grid_cell_count(params_);
+  const uint32_t items[5] = {cells, shared::kCompactScanLanes, cells, gpu.compact_pair_capacity,
                              gpu.compact_pair_capacity};
   gpu.compact->bind(cb, gpu.set->set());
   for (uint32_t pass = 0; pass < 5; ++pass) {
@@ -437,7 +444,7 @@ void VulkanGridTracer::record_skip_field(VkCommandBuffer cb) {
   barrier(cb);
   gpu.skip_field->bind(cb, gpu.set->set());
   const glm::uvec3 n = g.cells;
-  const uint32_t items[4] = {n.y * n.z, n.x * n.z, n.x * n.y, (shared::grid_cell_count(g) + 3u) / 4u};
+  const uint32_t items[4] = {n.y * n.z, n.x * n.z, n.x * n.y, shared::grid_cell_count(g)};  // lines, lines, lines, cells
   for (uint32_t pass = 0; pass < 4; ++pass) {
     gpu.skip_field->push(cb, shared::SkipFieldPush{pass});
     const glm::uvec3 grid = shared::work_list_groups(items[pass], 64u, max_x);

@@ -3,6 +3,9 @@
 // one invocation per triangle of instances [first_instance, last_instance), the same build step
 // (build.glsl) as the geometry shader.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#define GRIDRT_BUILD_SUBGROUP  // build.glsl: the count pass's pairs and the runs a subgroup at a time
 #include "build.glsl"
 
 layout(local_size_x = 64) in;

@@ -47,11 +47,21 @@ layout(std430, binding = kGridBindCompactPairs) buffer CompactPairs {
 };
 
 // The count pass (the static pass's insertion): the cell's count, and the (cell, ref) pair at the
-// next index of the pair list (its capacity is the plan's count of the static references).
+// next index of the pair list (its capacity is the plan's count of the static references). The
+// compute build (GRIDRT_BUILD_SUBGROUP) takes the indices of the lanes counting together with one
+// atomic add of the subgroup on the shared counter (its lowest lane's), each lane its rank among
+// them: the same set of indices as one add per pair, without millions of adds on one address.
 void compact_count(GridParams g, uvec3 cell, uint ref) {
   const uint c = cell_linear_index(g, cell);
   atomicAdd(compact_counts[c], 1u);
+#ifdef GRIDRT_BUILD_SUBGROUP
+  const uvec4 lanes = subgroupBallot(true);
+  uint first = 0u;
+  if (subgroupElect()) first = atomicAdd(compact_pair_count, subgroupBallotBitCount(lanes));
+  const uint k = subgroupBroadcastFirst(first) + subgroupBallotExclusiveBitCount(lanes);
+#else
   const uint k = atomicAdd(compact_pair_count, 1u);
+#endif
   if (2u * k + 1u < uint(compact_pairs.length())) {
     compact_pairs[2u * k] = c;
     compact_pairs[2u * k + 1u] = ref;
@@ -195,7 +205,16 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
     // Long range: runs of kBuildRun cells for build_cells.comp, unless the list is full
     const uint runs = (count + kBuildRun - 1u) / kBuildRun;
     const uint capacity = uint(build_items.length()) / 2u;
+#ifdef GRIDRT_BUILD_SUBGROUP
+    // The subgroup's lanes here take their runs with one atomic add of their sum (the lowest
+    // lane's), each lane after the lanes below it: the same as one add each in that order
+    uint base = 0u;
+    const uint total = subgroupAdd(runs);
+    if (subgroupElect()) base = atomicAdd(build_header.appended, total);
+    const uint first = subgroupBroadcastFirst(base) + subgroupExclusiveAdd(runs);
+#else
     const uint first = atomicAdd(build_header.appended, runs);
+#endif
     if (first <= capacity && runs <= capacity - first) {
       for (uint r = 0u; r < runs; ++r) {
         build_items[2u * (first + r)] = ref;

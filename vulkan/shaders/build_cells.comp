@@ -3,6 +3,9 @@
 // (reference, run) of the build list, dispatched indirectly: the triangle as build.comp wrote it
 // to the geometry buffer, its AABB range again, and the run's kBuildRun cells of that range.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#define GRIDRT_BUILD_SUBGROUP  // build.glsl: the count pass's pairs and the runs a subgroup at a time
 #include "build.glsl"
 
 layout(local_size_x = 64) in;

@@ -3,9 +3,13 @@
 // skipping"), after the static references are in. Four passes, one pipeline, the pass a push
 // constant (reference/build.cpp, skip_field_build and skip_table_pass, block by block):
 //   0-2: the summed-volume table of the occupancy (slot 0 not blank): pass 0 one invocation per x
-//        line, writing its running count; passes 1 and 2 add along y and z.
-//   3:   one invocation per word of 4 cells: each cell's distance, the smallest r whose cube holds
-//        an occupied cell, by binary search over [0, kSkipMaxDistance].
+//        line, writing its running count; passes 1 and 2 add along y and z. Each line is read
+//        kSkipLineBatch values at a time before they are written: the batch's loads are in flight
+//        together (a load after a store to the same buffer is not moved above it).
+//   3:   one invocation per cell (adjacent lanes, adjacent cells: the table's corners coalesce):
+//        its distance, the smallest r whose cube holds an occupied cell, by binary search over
+//        [0, kSkipMaxDistance]; the four cells of a word meet in shared memory, the word's first
+//        lane writes it (the reference: one invocation per word).
 #extension GL_GOOGLE_include_directive : require
 #include "grid_common.glsl"
 
@@ -16,6 +20,9 @@ layout(std430, binding = kGridBindSkip) buffer Skip { uint skip[]; };
 layout(std430, binding = kGridBindSkipTable) buffer SkipTable { uint table[]; };
 layout(push_constant) uniform Push { SkipFieldPush pc; };
 
+const uint kSkipLineBatch = 8u;
+shared uint words[64u / 4u];  // pass 3: the workgroup's cells' distances, 4 to a word
+
 // Occupied cells in the cube of radius r around c, from the table.
 uint skip_cube_count(GridParams g, uvec3 c, uint r) {
   uint count = 0u;
@@ -24,6 +31,25 @@ uint skip_cube_count(GridParams g, uvec3 c, uint r) {
     count = skip_corner_positive(j) ? count + v : count - v;
   }
   return count;
+}
+
+// Cell k of line (a, b) of table pass `pass` (along x, y, z).
+uvec3 line_cell(uint pass, uint a, uint b, uint k) {
+  return pass == 0u ? uvec3(k, a, b) : (pass == 1u ? uvec3(a, k, b) : uvec3(a, b, k));
+}
+
+// The table's word of cell c (1-based: index 0 along an axis is "before the grid").
+uint line_table_index(GridParams g, uvec3 c) {
+  const uint i = skip_table_index(g, c + uvec3(1u));
+  return i;
+}
+
+// Pass 0's value of cell c: 1 if it is occupied.
+uint occupancy(GridParams g, uvec3 c) {
+  const uint ci = cell_linear_index(g, c);
+  const bool occupied = (g.flags & kGridCompact) != 0u ? compact_offsets[ci + 1u] > compact_offsets[ci]
+                                                       : imageLoad(grid_image, ivec3(cell_slot_texel(g, c, 0u))).x != kBlank;
+  return occupied ? 1u : 0u;
 }
 
 void main() {
@@ -37,28 +63,26 @@ void main() {
     const uint a = item % lines.x;
     const uint b = item / lines.x;
     uint sum = 0u;
-    for (uint k = 0u; k < lines.z; ++k) {
-      const uvec3 c = pc.pass == 0u ? uvec3(k, a, b) : (pc.pass == 1u ? uvec3(a, k, b) : uvec3(a, b, k));
-      const uint i = skip_table_index(g, c + uvec3(1u));
-      if (pc.pass == 0u) {
-        const uint ci = cell_linear_index(g, c);
-        const bool occupied = (g.flags & kGridCompact) != 0u ? compact_offsets[ci + 1u] > compact_offsets[ci]
-                                                             : imageLoad(grid_image, ivec3(cell_slot_texel(g, c, 0u))).x != kBlank;
-        sum += occupied ? 1u : 0u;
-        table[i] = sum;
-      } else {
-        sum += table[i];
-        table[i] = sum;
+    for (uint k0 = 0u; k0 < lines.z; k0 += kSkipLineBatch) {
+      uint v[kSkipLineBatch];
+      for (uint q = 0u; q < kSkipLineBatch; ++q) {
+        const uvec3 c = line_cell(pc.pass, a, b, min(k0 + q, lines.z - 1u));  // past the end: unused
+        v[q] = pc.pass == 0u ? occupancy(g, c) : table[line_table_index(g, c)];
+      }
+      for (uint q = 0u; q < kSkipLineBatch && k0 + q < lines.z; ++q) {
+        sum += v[q];
+        table[line_table_index(g, line_cell(pc.pass, a, b, k0 + q))] = sum;
       }
     }
     return;
   }
-  // The distances, one invocation per word (4 cells)
+  // The distances, one invocation per cell (every lane reaches the barriers)
   const uint cells = grid_cell_count(g);
-  if (item >= (cells + 3u) / 4u) return;
-  uint packed = 0u;
-  for (uint q = 0u; q < 4u && 4u * item + q < cells; ++q) {
-    const uint i = 4u * item + q;
+  const uint l = gl_LocalInvocationID.x;
+  if (l < 64u / 4u) words[l] = 0u;
+  barrier();
+  if (item < cells) {
+    const uint i = item;
     const uvec3 c = cell_of_linear_index(g, i);
     uint lo = 0u;
     uint hi = kSkipMaxDistance;
@@ -67,7 +91,8 @@ void main() {
       if (skip_cube_count(g, c, mid) > 0u) hi = mid;
       else lo = mid + 1u;
     }
-    packed |= lo << skip_distance_shift(i);
+    atomicOr(words[l / 4u], lo << skip_distance_shift(i));
   }
-  skip[kSkipHeaderWords + item] = packed;
+  barrier();
+  if (item < cells && item % 4u == 0u) skip[kSkipHeaderWords + item / 4u] = words[l / 4u];
 }
