@@ -73,6 +73,18 @@ def apply(text, m):
     return text[:s.start()] + repl + text[s.end():]
 
 
+def catch_filter(tests, scenes):
+    """The Catch2 filter of a `tests:` line: every name pattern quoted (Catch2 2.x reads an unquoted
+    name pattern up to the next tag, so `~[scenes]~*66049*` or `~*a*~*b*` excluded nothing), and
+    without `scenes` the real-scene tests left out of each comma-separated part."""
+    parts = []
+    for part in tests.split(","):
+        tokens = re.findall(r'(~?)(\[[^\]]*\]|"[^"]*"|[^~\["]+)', part.strip())
+        text = "".join(neg + (tok if tok[0] in '["' else '"' + tok + '"') for neg, tok in tokens)
+        parts.append(text + ("" if scenes else "~[scenes]"))
+    return ",".join(parts)
+
+
 def run(cmd, cwd, timeout=None, env=None):
     try:
         p = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=timeout, env=env,
@@ -142,11 +154,7 @@ def main():
             if rc != 0:
                 r.update(status="stillborn", why="build failed: " + " ".join(out.strip().splitlines()[-3:])[:300])
             else:
-                # ~[scenes] right after the tags (Catch2 reads a name exclusion before it wrongly)
-                filt = m["tests"] if a.scenes else ",".join(
-                    t.split("~", 1)[0] + "~[scenes]" + ("~" + t.split("~", 1)[1] if "~" in t else "")
-                    for t in m["tests"].split(","))
-                rc, out = run([binary, filt, "--abort"], work, timeout=a.timeout, env=env)
+                rc, out = run([binary, catch_filter(m["tests"], a.scenes), "--abort"], work, timeout=a.timeout, env=env)
                 if rc == 0:
                     r.update(status="survived")
                 elif rc == 124:
