@@ -5,8 +5,8 @@ Copies the source tree (tracked and untracked-but-not-ignored files) to build/mu
 it once (the release preset, ccache), then for each mutant of tools/mutate/mutants.txt: restores
 the pristine file, applies the mutant, rebuilds (-j1 by default) and runs the Catch2 tests the
 mutant names (its `tests:` filter, the real-scene tests left out unless --scenes). A mutant is
-  stillborn  its original text is not found exactly once, or the build fails (a shader that does
-             not compile);
+  stillborn  its original text is not found exactly once, the build fails (a shader that does
+             not compile), or its `tests:` filter matches no test;
   killed     the tests fail;
   timeout    the tests ran past --timeout (inconclusive on a loaded machine: not counted);
   survived   the tests pass.
@@ -154,8 +154,12 @@ def main():
             if rc != 0:
                 r.update(status="stillborn", why="build failed: " + " ".join(out.strip().splitlines()[-3:])[:300])
             else:
-                rc, out = run([binary, catch_filter(m["tests"], a.scenes), "--abort"], work, timeout=a.timeout, env=env)
-                if rc == 0:
+                # --warn NoTests: a filter that matches no test fails (it would pass as a survivor)
+                rc, out = run([binary, catch_filter(m["tests"], a.scenes), "--abort", "--warn", "NoTests"], work,
+                              timeout=a.timeout, env=env)
+                if "No tests ran" in out:
+                    r.update(status="stillborn", why="the tests: filter matches no test")
+                elif rc == 0:
                     r.update(status="survived")
                 elif rc == 124:
                     r.update(status="timeout", why=f"tests ran past {a.timeout} s")
