@@ -5,7 +5,9 @@
 // mode is unstable by design the case says so and asserts what it does; exact mode must pass.
 #include <cmath>
 #include <cstring>
+#include <algorithm>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include <catch2/catch.hpp>
@@ -549,4 +551,107 @@ TEST_CASE("hardcase: a small triangle in a corner cell the paper's samples step 
     INFO(m.name);
     expect_hit(rays[0], trace(scene, options_for(m, fixed), rays)[0], 1, 0, t_hit);
   }
+}
+
+// The paper's report rule "t < 1": a candidate exactly at the segment's end is not reported there;
+// the next segment's elongated test may find a nearer triangle its cell alone holds. Segment 0's
+// sample lies in cell C = (3, 4, 4); the ray leaves C at t = 0.752 cells. A, a tilted triangle
+// that reaches back into C, is met at t == segment_end(0) exactly (its position searched ulp by
+// ulp with the shared test); B, across the ray in cell (4, 4, 4) only (padding 1e-3), is met at
+// t = 0.852 cells, before A but after C: only segment 1 (sample in (4, 4, 4)) tests it.
+TEST_CASE("hardcase: paper: a hit exactly at the segment's end is not reported before the next segment's nearer one",
+          "[hardcase][vulkan]") {
+  GridOptions o = options_for(kPaper, GridOptions{{}, {.resolution = glm::uvec3(8, 8, 8)}});
+  o.aabb_padding = 1e-3f;
+  const glm::vec3 org(3.248f, 4.5f, 4.5f), dir(1.0f, 0.0f, 0.0f);
+  const std::vector<Ray> rays{ray(org, dir)};
+  ReferenceGridTracer empty(o);
+  empty.build(room(), 0.0f);
+  sh::RaySetup rs{};
+  REQUIRE(sh::ray_setup(empty.params(), org, dir, sh::origin_tmin(org, dir, 0.0f), INFINITY, rs));
+  const float seg_end = sh::segment_end(rs, 0);
+  const auto tilted = [&](float x) -> std::array<glm::vec3, 3> {  // the plane x - X = y - 4.5 through (X, 4.5, 4.5)
+    return {glm::vec3(x - 0.6f, 3.9f, 4.0f), glm::vec3(x + 0.6f, 5.1f, 4.0f), glm::vec3(x, 4.5f, 5.2f)};
+  };
+  std::optional<std::array<glm::vec3, 3>> a;
+  float up = org.x + seg_end, down = up;
+  for (int i = 0; i < 200 && !a; ++i, up = std::nextafter(up, 8.0f), down = std::nextafter(down, 0.0f)) {
+    for (const float x : {up, down}) {
+      const std::array<glm::vec3, 3> t = tilted(x);
+      sh::TriangleTest r{};
+      if (!a && sh::moller_trumbore(org, dir, t[0], t[1], t[2], 0.0f, INFINITY, INFINITY, r) == sh::kTestAccepted &&
+          sh::moller_trumbore_t(r) == seg_end)
+        a = t;
+    }
+  }
+  REQUIRE(a);
+  const std::array<glm::vec3, 3> b{glm::vec3(4.1f, 4.3f, 4.3f), glm::vec3(4.1f, 4.7f, 4.3f), glm::vec3(4.1f, 4.5f, 4.8f)};
+  const Scene scene = room({*a, b});
+  ReferenceGridTracer grid(o);
+  grid.build(scene, 0.0f);
+  REQUIRE(grid.params().origin == empty.params().origin);
+  REQUIRE(grid.params().cell_size == empty.params().cell_size);
+  // Segment 0 in C, which holds A and not B; segment 1 in B's cell
+  const glm::uvec3 c = sh::segment_cell(grid.params(), org, dir, rs, 0);
+  CHECK(c == glm::uvec3(3, 4, 4));
+  CHECK(sh::segment_cell(grid.params(), org, dir, rs, 1) == glm::uvec3(4, 4, 4));
+  const std::vector<uint32_t> refs = reference::cell_references(grid.data(), c);
+  CHECK(std::find(refs.begin(), refs.end(), sh::ref_pack(1, 0)) != refs.end());
+  CHECK(std::find(refs.begin(), refs.end(), sh::ref_pack(1, 1)) == refs.end());
+  const std::vector<Hit> h = trace(scene, o, rays);
+  expect_hit(rays[0], h[0], 1, 1, 0.852f);
+}
+
+// Gap-fill's "inside the ray" test t_mid > t_lo at equality: a ray starting inside the grid has
+// t_start = its origin epsilon and its first segment's midpoint t_mid = t_start + 0.5 seg_t;
+// self_hit_offset is chosen (searched ulp by ulp about 0.5) so that t_lo = self_hit_offset *
+// seg_t equals t_mid exactly. Its first visit is a saturated cell (8 triangles, capacity 4, none
+// on the ray) with the segment alone (the next sample in the next cell), and gap_fill_distance
+// 0.25 lets the sample leave the (normal-less) origin: the sample is not inside the ray, so no
+// false hit; the ray goes on to the wall.
+TEST_CASE("hardcase: paper gap-fill: a first sample exactly at t_lo is outside the ray (no false hit)",
+          "[hardcase][vulkan]") {
+  std::vector<std::array<glm::vec3, 3>> stack;
+  for (int i = 0; i < 8; ++i) {
+    const float z = 4.3f + 0.05f * float(i);
+    stack.push_back({glm::vec3(4.6f, 4.6f, z), glm::vec3(4.9f, 4.6f, z), glm::vec3(4.6f, 4.9f, z)});
+  }
+  const Scene scene = room(stack);
+  GridOptions o = options_for(kPaper, GridOptions{{}, {.resolution = glm::uvec3(8, 8, 8), .capacity = 4}});
+  o.aabb_padding = 1e-3f;
+  o.gap_fill_distance = 0.25f;
+  o.gap_fill_if_saturated = false;
+  const glm::vec3 org(4.2f, 4.2f, 4.1f), dir(0.0f, 0.0f, 1.0f);
+  const std::vector<Ray> rays{ray(org, dir)};
+  {
+    ReferenceGridTracer plain(o);
+    plain.build(scene, 0.0f);
+    sh::RaySetup rs{};
+    REQUIRE(sh::ray_setup(plain.params(), org, dir, sh::origin_tmin(org, dir, 0.0f), INFINITY, rs));
+    const float t_mid = sh::segment_sample_t(rs, 0);
+    std::optional<float> offset;
+    float up = 0.5f, down = 0.5f;
+    for (int i = 0; i < 4096 && !offset; ++i, up = std::nextafter(up, 1.0f), down = std::nextafter(down, 0.0f))
+      for (const float f : {up, down})
+        if (!offset && f * rs.seg_t == t_mid) offset = f;
+    REQUIRE(offset);
+    o.self_hit_offset = *offset;
+  }
+  ReferenceGridTracer grid(o);
+  grid.build(scene, 0.0f);
+  // The boundary is reached: the first gap-fill decision samples at t_lo exactly and finds it outside
+  const plan::ExplainRecord e = grid.explain_ray(rays[0]);
+  float t_lo = -1.0f;
+  const sh::ExplainEvent* gap = nullptr;
+  for (const sh::ExplainEvent& ev : e.events) {
+    if (ev.kind == sh::kEvSetup) t_lo = ev.f0.w;
+    if (ev.kind == sh::kEvGapFill && !gap) gap = &ev;
+  }
+  REQUIRE(gap);
+  CHECK(gap->step == 0u);
+  CHECK(gap->f0.z == t_lo);
+  CHECK(gap->code == sh::kGapOutsideRay);
+  const std::vector<Hit> h = trace(scene, o, rays);
+  expect_hit(rays[0], h[0], 0, h[0].triangle, 3.9f);
+  CHECK(h[0].triangle / 2 == 5u);  // the +z wall
 }

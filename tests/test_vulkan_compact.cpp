@@ -107,3 +107,117 @@ TEST_CASE("Vulkan compact layout on a grid of over a million cells: the offsets'
   CHECK(sd.same_lists);
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
+
+// The compact passes at their boundaries: a grid of 81 x 80 x 41 cells (1038 blocks of
+// kCompactBlock cells, so the blocks' scan gives each of its kCompactScanLanes lanes two blocks; a
+// partial last block, empty: the room fills the lower half of the x and y rows only), the room's
+// walls in cells on block boundaries, 24 references stacked in one cell (their counts and
+// scatter cursors contend in one SIMD batch), and a dynamic instance of 6 triangles in one cell of
+// a non-cubic dynamic region whose list holds exactly the spill list's capacity.
+TEST_CASE("Vulkan compact layout: two blocks a scan lane, block boundaries, a crowded cell, a full dynamic list - "
+          "bit for bit with the reference",
+          "[vulkan][diff][grid][compact]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  Scene s = gridtest::random_scene(200, 0.3f, 7.2f, 23);  // moved inside the room: [0.1, 7.9]^3
+  for (glm::vec3& p : s.meshes[0].positions) p += glm::vec3(0.4f);
+  s.meshes.push_back(gridtest::box_mesh(glm::vec3(0.0f), glm::vec3(8.0f)));
+  s.instances.push_back(Instance{.name = "room", .mesh = 1});
+  // The crowded cell (20, 20, 20): [3.902, 4.098)^3
+  Mesh stack;
+  stack.name = "stack";
+  for (uint32_t i = 0; i < 24; ++i) {
+    const float z = 3.93f + 0.006f * float(i);
+    stack.positions.insert(stack.positions.end(), {{3.95f, 3.95f, z}, {4.05f, 3.95f, z}, {3.95f, 4.05f, z}});
+    stack.triangles.push_back({3 * i, 3 * i + 1, 3 * i + 2});
+  }
+  stack.materials.assign(stack.triangles.size(), 0u);
+  s.meshes.push_back(stack);
+  s.instances.push_back(Instance{.name = "stack", .mesh = 2});
+  // The dynamic cell (10, 25, 30): [1.947, 2.143) x [4.880, 5.075) x [5.857, 6.053); it does not move
+  Mesh dyn;
+  dyn.name = "dynamic";
+  for (uint32_t i = 0; i < 6; ++i) {
+    const float z = 5.88f + 0.025f * float(i);
+    dyn.positions.insert(dyn.positions.end(), {{1.98f, 4.92f, z}, {2.10f, 4.92f, z}, {1.98f, 5.04f, z}});
+    dyn.triangles.push_back({3 * i, 3 * i + 1, 3 * i + 2});
+  }
+  dyn.materials.assign(dyn.triangles.size(), 0u);
+  s.meshes.push_back(dyn);
+  s.instances.push_back(Instance{.name = "dynamic", .mesh = 3, .dynamic = true});
+  s.finalize();
+  const uint32_t dynamic_instance = uint32_t(s.instances.size() - 1);
+
+  GridOptions o;
+  o.traversal = Traversal::exact;
+  o.layout = GridOptions::Layout::compact;
+  o.resolution = glm::uvec3(81, 80, 41);
+  o.memory_budget = uint64_t(1) << 28;
+  o.spill_capacity = 6;
+  o.threads = 2;
+  o.shuffle_seed = 5;
+  ReferenceGridTracer ref(o);
+  ref.build(s, 0.0f);
+  // The boundaries are reached (on the reference's arrays)
+  const reference::GridData& d = ref.data();
+  const uint32_t cells = sh::grid_cell_count(d.params);
+  const uint32_t blocks = (cells + sh::kCompactBlock - 1) / sh::kCompactBlock;
+  REQUIRE(d.params.cells == glm::uvec3(81, 80, 41));
+  REQUIRE((d.params.flags & sh::kGridCompact) != 0u);
+  CHECK((blocks + sh::kCompactScanLanes - 1) / sh::kCompactScanLanes == 2u);
+  CHECK(cells % sh::kCompactBlock != 0u);
+  CHECK(d.offsets[(blocks - 1) * sh::kCompactBlock] == d.offsets[cells]);  // the last block empty
+  CHECK(d.offsets[cells] == d.refs.size());
+  uint32_t boundary_cells = 0;  // blocks whose last cell holds references
+  for (uint32_t b = 0; b + 1 < blocks; ++b)
+    boundary_cells += d.offsets[(b + 1) * sh::kCompactBlock] > d.offsets[(b + 1) * sh::kCompactBlock - 1];
+  CHECK(boundary_cells > 10u);
+  const uint32_t crowded = sh::cell_linear_index(d.params, glm::uvec3(20, 20, 20));
+  CHECK(d.offsets[crowded + 1] - d.offsets[crowded] == 24u);
+  const glm::uvec3 rlo(d.spill_heads[0], d.spill_heads[1], d.spill_heads[2]);
+  const glm::uvec3 rhi(d.spill_heads[4], d.spill_heads[5], d.spill_heads[6]);
+  CHECK(rhi.y != rhi.z);
+  CHECK(ref.spill().header.capacity == 6u);
+  CHECK(ref.spill().header.count == 6u);
+  for (const sh::SpillEntry& e : ref.spill().entries)
+    CHECK(e.cell == sh::cell_linear_index(d.params, glm::uvec3(10, 25, 30)));
+
+  for (BuildMode mode : {BuildMode::compute, BuildMode::raster}) {
+    if (mode == BuildMode::raster && (!ctx.info().geometry_shader || !ctx.info().vertex_pipeline_stores_and_atomics))
+      continue;
+    INFO((mode == BuildMode::compute ? "compute build" : "raster build"));
+    ReferenceGridTracer cpu(o);
+    VulkanGridTracer vk(ctx, o, {.build = mode});
+    cpu.build(s, 0.0f);
+    vk.build(s, 0.0f);
+    for (float time : {0.0f, 1.0f}) {
+      INFO("t = " << time);
+      if (time > 0.0f) cpu.update(time), vk.update(time);
+      CHECK(reference::compare_texels(cpu.dump(), vk.dump()).differing.empty());
+      const reference::SpillDiff sd = reference::compare_spill(cpu.spill(), vk.spill());
+      CHECK(sd.same());
+      CHECK(vk.download_skip() == cpu.data().skip);
+      const std::vector<Ray> rays = gridtest::box_rays(cpu.data(), 2000, 8.0f, 7 + uint32_t(time));
+      std::vector<Hit> w(rays.size()), g(rays.size());
+      cpu.trace(rays, w);
+      vk.trace(rays, g);
+      size_t differ = 0, dynamic_hits = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        differ += std::memcmp(&w[i], &g[i], sizeof(Hit)) != 0;
+        dynamic_hits += w[i].instance == dynamic_instance;
+      }
+      CHECK(differ == 0);
+      CHECK(dynamic_hits > 0u);
+      // A ray that hits the dynamic cell: the same events (its list walked in ascending order)
+      for (size_t i = 0; i < rays.size(); ++i) {
+        if (w[i].instance != dynamic_instance) continue;
+        const plan::ExplainRecord re = cpu.explain_ray(rays[i]);
+        const plan::ExplainRecord ge = vk.explain_ray(rays, uint32_t(i));
+        REQUIRE(re.events.size() == ge.events.size());
+        CHECK(std::memcmp(re.events.data(), ge.events.data(), re.events.size() * sizeof(sh::ExplainEvent)) == 0);
+        break;
+      }
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}

@@ -289,6 +289,48 @@ TEST_CASE("Vulkan grid, sorted: images identical texel for texel, raster and com
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
+// The build's run list at its capacity (VulkanGridOptions::build_list_capacity): the room's 12
+// walls over a 16^3 grid hand out R runs of 8 cells; a list of exactly R runs takes them all, one of
+// R - 5 overflows within a triangle's runs (those that fit are listed, the rest walked by the
+// triangle's invocation), one of R + 1 has a run to spare. Every item the list dispatches must be
+// written: the images equal the reference's in every case, both builds.
+TEST_CASE("Vulkan grid: a build run list filled exactly, overflowed within a triangle, or with room to spare",
+          "[vulkan][diff][grid]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  Scene scene;
+  scene.name = "room";
+  scene.meshes.push_back(gridtest::box_mesh(glm::vec3(0.0f), glm::vec3(8.0f)));
+  scene.instances.push_back(Instance{.name = "room", .mesh = 0});
+  scene.finalize();
+  GridOptions o = options(reference::Insertion::sorted, reference::Traversal::paper, 4);
+  o.resolution = glm::uvec3(16, 16, 16);
+  ReferenceGridTracer ref(o);
+  ref.build(scene, 0.0f);
+  uint32_t runs = 0;
+  for (const sh::GridTriangle& t : ref.data().triangles) {
+    glm::uvec3 lo, hi;
+    sh::triangle_cell_range(ref.params(), t.v0, t.v1, t.v2, lo, hi);
+    const glm::uvec3 size = hi - lo + 1u;
+    const uint32_t count = size.x * size.y * size.z;
+    if (count > 8u) runs += (count + 7u) / 8u;
+  }
+  REQUIRE(runs > 100u);
+  for (BuildMode mode : {BuildMode::raster, BuildMode::compute}) {
+    if (mode == BuildMode::raster && (!ctx.info().geometry_shader || !ctx.info().vertex_pipeline_stores_and_atomics))
+      continue;
+    for (uint32_t capacity : {runs, runs - 5u, runs + 1u}) {
+      INFO((mode == BuildMode::raster ? "raster build" : "compute build") << ", a list of " << capacity << " runs for "
+                                                                           << runs);
+      VulkanGridTracer vk(ctx, o, {.build = mode, .build_list_capacity = capacity});
+      vk.build(scene, 0.0f);
+      CHECK(vk.download_build_runs() == std::min(runs, capacity));
+      CHECK(compare_texels(ref.dump(), vk.dump()) == 0);
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
 TEST_CASE("Vulkan grid, separating-axis cell test: images identical texel for texel, raster and compute builds",
           "[vulkan][diff][grid]") {
   vulkan::Context& ctx = vk_context();

@@ -22,46 +22,53 @@ TEST_CASE("Vulkan skip field and skipping trace identical in bits to the referen
   vulkan::Context& ctx = vk_context();
   ctx.clear_messages();
   const Scene scene = gridtest::random_scene(200, 0.6f, 10.0f, 12, 40);
-  GridOptions o;
-  o.threads = 2;
-  o.traversal = reference::Traversal::exact;
-  ReferenceGridTracer ref(o);
-  ref.build(scene, 0.0f);
-  VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute});
-  vk.build(scene, 0.0f);
-  REQUIRE((vk.params().flags & sh::kGridSkipEmpty) != 0u);
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> p(-1.0f, 11.0f), d(-1.0f, 1.0f);
-  for (float time : {0.0f, 0.8f, 1.9f}) {
-    INFO("time " << time);
-    if (time > 0.0f) {
-      ref.update(time);
-      vk.update(time);
+  // The compact layout (the exact traversal's default) and the image layout: the skip field reads
+  // a cell's occupancy from its offsets or from its first slot
+  for (const GridOptions::Layout layout : {GridOptions::Layout::compact, GridOptions::Layout::image}) {
+    INFO((layout == GridOptions::Layout::compact ? "compact layout" : "image layout"));
+    GridOptions o;
+    o.threads = 2;
+    o.traversal = reference::Traversal::exact;
+    o.layout = layout;
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute});
+    vk.build(scene, 0.0f);
+    REQUIRE((vk.params().flags & sh::kGridSkipEmpty) != 0u);
+    REQUIRE(((vk.params().flags & sh::kGridCompact) != 0u) == (layout == GridOptions::Layout::compact));
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> p(-1.0f, 11.0f), d(-1.0f, 1.0f);
+    for (float time : {0.0f, 0.8f, 1.9f}) {
+      INFO("time " << time);
+      if (time > 0.0f) {
+        ref.update(time);
+        vk.update(time);
+      }
+      const std::vector<uint32_t> got = vk.download_skip();
+      REQUIRE(got.size() == ref.data().skip.size());
+      for (size_t i = 0; i < got.size(); ++i) {
+        INFO("word " << i);
+        REQUIRE(got[i] == ref.data().skip[i]);
+      }
+      std::vector<Ray> rays;
+      for (uint32_t i = 0; i < 4000; ++i) {
+        glm::vec3 dir(d(rng), d(rng), d(rng));
+        if (i % 5 == 0) dir.y = 0.0f;
+        if (glm::dot(dir, dir) < 1e-6f) dir = {1.0f, 0.0f, 0.0f};
+        rays.push_back(gridtest::make_ray({p(rng), p(rng), p(rng)}, dir, 0.0f, (i % 3) ? INFINITY : 5.0f));
+      }
+      std::vector<Hit> want(rays.size()), hits(rays.size());
+      ref.trace(rays, want);
+      vk.trace(rays, hits);
+      size_t found = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        INFO("ray " << i << " " << gridtest::hx(rays[i]) << "\nref " << gridtest::hx(want[i]) << "\nvk  "
+                    << gridtest::hx(hits[i]));
+        REQUIRE(std::memcmp(&want[i], &hits[i], sizeof(Hit)) == 0);
+        found += !is_miss(want[i]);
+      }
+      CHECK(found > rays.size() / 20);
     }
-    const std::vector<uint32_t> got = vk.download_skip();
-    REQUIRE(got.size() == ref.data().skip.size());
-    for (size_t i = 0; i < got.size(); ++i) {
-      INFO("word " << i);
-      REQUIRE(got[i] == ref.data().skip[i]);
-    }
-    std::vector<Ray> rays;
-    for (uint32_t i = 0; i < 4000; ++i) {
-      glm::vec3 dir(d(rng), d(rng), d(rng));
-      if (i % 5 == 0) dir.y = 0.0f;
-      if (glm::dot(dir, dir) < 1e-6f) dir = {1.0f, 0.0f, 0.0f};
-      rays.push_back(gridtest::make_ray({p(rng), p(rng), p(rng)}, dir, 0.0f, (i % 3) ? INFINITY : 5.0f));
-    }
-    std::vector<Hit> want(rays.size()), hits(rays.size());
-    ref.trace(rays, want);
-    vk.trace(rays, hits);
-    size_t found = 0;
-    for (size_t i = 0; i < rays.size(); ++i) {
-      INFO("ray " << i << " " << gridtest::hx(rays[i]) << "\nref " << gridtest::hx(want[i]) << "\nvk  "
-                  << gridtest::hx(hits[i]));
-      REQUIRE(std::memcmp(&want[i], &hits[i], sizeof(Hit)) == 0);
-      found += !is_miss(want[i]);
-    }
-    CHECK(found > rays.size() / 20);
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

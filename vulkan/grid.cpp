@@ -197,7 +197,8 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
                                                                      : VkDeviceSize(shared::dirty_list_words(g)) * 4,
                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
   // The runs of long cell ranges, both builds (build.glsl): at most 2^20 items (8 MiB)
-  gpu.build_list_capacity = uint32_t(std::min<uint64_t>((dev.limits.maxStorageBufferRange - 32) / 8, 1u << 20));
+  gpu.build_list_capacity = uint32_t(std::min<uint64_t>((dev.limits.maxStorageBufferRange - 32) / 8,
+                                                        vk_.build_list_capacity ? vk_.build_list_capacity : 1u << 20));
   gpu.build_list = ctx.create_buffer(sizeof(shared::WorkListHeader) + uint64_t(gpu.build_list_capacity) * 8,
                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
   const bool compact = (g.flags & shared::kGridCompact) != 0u;

@@ -36,6 +36,9 @@ struct VulkanGridOptions {
   BuildMode build = BuildMode::raster;
   uint32_t explain_capacity = 1u << 16;  // events the explain buffer holds
   bool ray_tracing = false;  // an owned context enables ray tracing where present (vulkan/rtx.h)
+  // The build's run list (build.glsl) in runs; 0: 2^20, within maxStorageBufferRange (tests set a
+  // small one to fill it exactly or to overflow it)
+  uint32_t build_list_capacity = 0;
 };
 
 // Time of the last build, update and trace, milliseconds: on the device (timestamp queries

@@ -5,8 +5,8 @@ Copies the source tree (tracked and untracked-but-not-ignored files) to build/mu
 it once (the release preset, ccache), then for each mutant of tools/mutate/mutants.txt: restores
 the pristine file, applies the mutant, rebuilds (-j1 by default) and runs the Catch2 tests the
 mutant names (its `tests:` filter, the real-scene tests left out unless --scenes). A mutant is
-  stillborn  its original text is not found exactly once, or the build fails (a shader that does
-             not compile);
+  stillborn  its original text is not found exactly once, the build fails (a shader that does
+             not compile), or its `tests:` filter matches no test;
   killed     the tests fail;
   timeout    the tests ran past --timeout (inconclusive on a loaded machine: not counted);
   survived   the tests pass.
@@ -71,6 +71,18 @@ def apply(text, m):
     indent = re.match(r"[ \t]*", text[line_start:]).group(0)
     repl = ("\n" + indent).join(l.strip() for l in m["replacement"])
     return text[:s.start()] + repl + text[s.end():]
+
+
+def catch_filter(tests, scenes):
+    """The Catch2 filter of a `tests:` line: every name pattern quoted (Catch2 2.x reads an unquoted
+    name pattern up to the next tag, so `~[scenes]~*66049*` or `~*a*~*b*` excluded nothing), and
+    without `scenes` the real-scene tests left out of each comma-separated part."""
+    parts = []
+    for part in tests.split(","):
+        tokens = re.findall(r'(~?)(\[[^\]]*\]|"[^"]*"|[^~\["]+)', part.strip())
+        text = "".join(neg + (tok if tok[0] in '["' else '"' + tok + '"') for neg, tok in tokens)
+        parts.append(text + ("" if scenes else "~[scenes]"))
+    return ",".join(parts)
 
 
 def run(cmd, cwd, timeout=None, env=None):
@@ -142,12 +154,12 @@ def main():
             if rc != 0:
                 r.update(status="stillborn", why="build failed: " + " ".join(out.strip().splitlines()[-3:])[:300])
             else:
-                # ~[scenes] right after the tags (Catch2 reads a name exclusion before it wrongly)
-                filt = m["tests"] if a.scenes else ",".join(
-                    t.split("~", 1)[0] + "~[scenes]" + ("~" + t.split("~", 1)[1] if "~" in t else "")
-                    for t in m["tests"].split(","))
-                rc, out = run([binary, filt, "--abort"], work, timeout=a.timeout, env=env)
-                if rc == 0:
+                # --warn NoTests: a filter that matches no test fails (it would pass as a survivor)
+                rc, out = run([binary, catch_filter(m["tests"], a.scenes), "--abort", "--warn", "NoTests"], work,
+                              timeout=a.timeout, env=env)
+                if "No tests ran" in out:
+                    r.update(status="stillborn", why="the tests: filter matches no test")
+                elif rc == 0:
                     r.update(status="survived")
                 elif rc == 124:
                     r.update(status="timeout", why=f"tests ran past {a.timeout} s")

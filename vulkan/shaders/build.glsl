@@ -201,8 +201,11 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
   const uint ref = ref_pack(instance, triangle);
   const uvec3 size = hi - lo + 1u;
   const uint count = size.x * size.y * size.z;
+  uint walked = 0u;
   if (split && count > kBuildRun) {
-    // Long range: runs of kBuildRun cells for build_cells.comp, unless the list is full
+    // Long range: runs of kBuildRun cells for build_cells.comp, as many as the list has room for;
+    // the runs past a full list are walked here. Every item below the list's size (the appended
+    // count, at most the capacity) is so written: build_cells.comp reads no stale item.
     const uint runs = (count + kBuildRun - 1u) / kBuildRun;
     const uint capacity = uint(build_items.length()) / 2u;
 #ifdef GRIDRT_BUILD_SUBGROUP
@@ -215,15 +218,15 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
 #else
     const uint first = atomicAdd(build_header.appended, runs);
 #endif
-    if (first <= capacity && runs <= capacity - first) {
-      for (uint r = 0u; r < runs; ++r) {
-        build_items[2u * (first + r)] = ref;
-        build_items[2u * (first + r) + 1u] = r;
-      }
-      return;
+    const uint listed = first < capacity ? min(runs, capacity - first) : 0u;
+    for (uint r = 0u; r < listed; ++r) {
+      build_items[2u * (first + r)] = ref;
+      build_items[2u * (first + r) + 1u] = r;
     }
+    if (listed == runs) return;
+    walked = listed * kBuildRun;
   }
-  insert_range_cells(g, ref, v0, v1, v2, n, nn, lo, hi, 0u, count);
+  insert_range_cells(g, ref, v0, v1, v2, n, nn, lo, hi, walked, count);
 }
 
 #endif
