@@ -532,7 +532,12 @@ bool spill_enabled(const AlgorithmOptions& o) {
 
 bool skip_enabled(const AlgorithmOptions& o) { return o.skip_empty && o.traversal == Traversal::exact; }
 
-bool mailbox_enabled(const AlgorithmOptions& o) { return o.mailbox && o.traversal == Traversal::exact; }
+// The mailbox's test count depends on the order of a cell's references: with first-empty insertion
+// (the paper's compare-and-swap) that order is the build's timing, so the count would differ
+// between runs and backends: the mailbox is for the sorted insertion only.
+bool mailbox_enabled(const AlgorithmOptions& o) {
+  return o.mailbox && o.traversal == Traversal::exact && o.insertion == Insertion::sorted;
+}
 
 bool cell_box_enabled(const AlgorithmOptions& o) {
   return o.cell_test == AlgorithmOptions::CellTest::box ||

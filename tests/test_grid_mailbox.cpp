@@ -192,27 +192,36 @@ TEST_CASE("Mailbox: the last kMailboxSize references put, newest first", "[unit]
   // The paper traversal never takes it; the exact one with the flag only
   sh::GridParams g{};
   g.flags = sh::kGridMailbox;
+  g.insertion = sh::kInsertSorted;
   g.traversal = sh::kTraversalPaper;
   CHECK_FALSE(sh::mailbox_enabled(g));
   g.traversal = sh::kTraversalExact;
   CHECK(sh::mailbox_enabled(g));
+  g.insertion = sh::kInsertFirstEmpty;  // a cell's slot order is the build's timing
+  CHECK_FALSE(sh::mailbox_enabled(g));
+  g.insertion = sh::kInsertSorted;
   g.flags = 0u;
   CHECK_FALSE(sh::mailbox_enabled(g));
 }
 
-TEST_CASE("Mailbox: on and off by the options - exact traversal only", "[grid][mailbox]") {
+TEST_CASE("Mailbox: on and off by the options - exact traversal with sorted insertion only", "[grid][mailbox]") {
   const Scene scene = make_builtin("cornell");
+  using reference::Insertion;
   for (Traversal t : {Traversal::paper, Traversal::exact})
-    for (bool mailbox : {false, true}) {
-      GridOptions o;
-      o.threads = 2;
-      o.traversal = t;
-      o.mailbox = mailbox;
-      CHECK(plan::mailbox_enabled(o) == (mailbox && t == Traversal::exact));
-      ReferenceGridTracer grid(o);
-      grid.build(scene, 0.0f);
-      CHECK(((grid.params().flags & sh::kGridMailbox) != 0u) == (mailbox && t == Traversal::exact));
-    }
+    for (Insertion insertion : {Insertion::sorted, Insertion::first_empty})
+      for (bool mailbox : {false, true}) {
+        INFO("traversal " << int(t) << ", insertion " << int(insertion) << ", mailbox " << mailbox);
+        GridOptions o;
+        o.threads = 2;
+        o.traversal = t;
+        o.insertion = insertion;
+        o.mailbox = mailbox;
+        const bool on = mailbox && t == Traversal::exact && insertion == Insertion::sorted;
+        CHECK(plan::mailbox_enabled(o) == on);
+        ReferenceGridTracer grid(o);
+        grid.build(scene, 0.0f);
+        CHECK(((grid.params().flags & sh::kGridMailbox) != 0u) == on);
+      }
   // The default: on for the exact traversal
   GridOptions o;
   o.traversal = Traversal::exact;

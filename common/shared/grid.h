@@ -46,7 +46,7 @@ SH_CONST uint kGridCompact = 64u;          // the compact layout (docs/SPEC.md "
                                            // heads exist for the dynamic region's cells alone; no image
 SH_CONST uint kGridMailbox = 128u;         // exact traversal: a reference tested earlier on the ray (one of
                                            // the last kMailboxSize tested) is not tested again; the paper
-                                           // traversal ignores it (docs/SPEC.md "Mailbox")
+                                           // traversal and first-empty insertion ignore it (docs/SPEC.md "Mailbox")
 // Bits 8-9: the scene axis laid along the image's x, the axis that carries the slots (0 x, 1 y,
 // 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis"). The
 // image swaps that axis with x; every other axis keeps its place.
@@ -691,9 +691,11 @@ SH_CONST uint kMailboxSize = 8u;
 struct Mailbox {
   uint refs[kMailboxSize];  // kBlank where empty
 };
-// Whether the grid's trace takes the mailbox: kGridMailbox, exact traversal only.
+// Whether the grid's trace takes the mailbox: kGridMailbox, exact traversal and sorted insertion
+// only (first-empty insertion orders a cell's slots by the build's timing, and the mailbox's test
+// count depends on the order: it would differ between runs and backends).
 SH_INLINE bool mailbox_enabled(SH_IN(GridParams) g) {
-  return (g.flags & kGridMailbox) != 0u && g.traversal == kTraversalExact;
+  return (g.flags & kGridMailbox) != 0u && g.traversal == kTraversalExact && g.insertion == kInsertSorted;
 }
 SH_INLINE void mailbox_clear(SH_OUT(Mailbox) m) {
   for (uint i = 0u; i < kMailboxSize; ++i) m.refs[i] = kBlank;
