@@ -693,6 +693,25 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
               times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
   const bool grid = !dump.texels.empty();
   if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
+  // The grid's per-ray counters (the hit records' cells and tests) over the last frame's rays
+  nlohmann::json counters_json;
+  if (grid) {
+    const std::vector<Ray> rays = frame_rays ? bounce_rays(scene, gather, o.warmup + o.frames - 1) : given;
+    std::vector<uint32_t> cells, tests;
+    for (size_t i = 0; i < rays.size() && i < hits.size(); ++i)
+      if (!is_unused(rays[i])) {
+        cells.push_back(hits[i].cells);
+        tests.push_back(hits[i].tests);
+      }
+    const CounterStats c = counter_stats(cells), tt = counter_stats(tests);
+    char line[256];
+    std::snprintf(line, sizeof line, "%s: per traced ray of the last frame: cells mean %.2f (p99 %.0f, max %.0f), "
+                  "references tested mean %.2f (p99 %.0f, max %.0f)%s", name.c_str(), c.mean, c.p99, c.max, tt.mean,
+                  tt.p99, tt.max, (spill_flags & shared::kGridMailbox) != 0u ? ", mailbox on" : "");
+    notes.push_back(line);
+    counters_json = {{"cells_mean", c.mean}, {"cells_p99", c.p99}, {"cells_max", c.max},
+                     {"tests_mean", tt.mean}, {"tests_p99", tt.p99}, {"tests_max", tt.max}};
+  }
   if (!shadow.empty()) {
     char line[256];
     std::snprintf(line, sizeof line, "%s: shadow pass: %zu shadow rays per frame (%zu light(s)), their trace %.3f ms "
@@ -706,6 +725,7 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
                            {"trace_ms_all", times.trace}, {"shadow_rays", shadow.size()},
                            {"shadow_trace_ms", median(shadow_ms)}, {"shadow_trace_ms_all", shadow_ms}};
   if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
+  if (!counters_json.empty()) out["backends"][name]["trace_counters"] = counters_json;
 }
 
 void run_bench(const BenchOptions& options) {

@@ -510,12 +510,13 @@ int DiffRun::run() {
   vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
   gpu_ = std::make_unique<vulkan::VulkanGridTracer>(*ctx_, grid_, vk);
   ref_ = std::make_unique<reference::ReferenceGridTracer>(grid_);
-  std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, spill %s, Vulkan device %s (%s build), "
+  std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, spill %s, mailbox %s, Vulkan device %s (%s build), "
               "validation %s\n",
               scene_.name.c_str(), o.width, o.height, o.frames,
               grid_.traversal == reference::Traversal::paper ? "paper" : "exact",
               grid_.insertion == reference::Insertion::sorted ? "sorted" : "first-empty",
-              reference::spill_enabled(grid_) ? "on" : "off", ctx_->info().name.c_str(),
+              reference::spill_enabled(grid_) ? "on" : "off", plan::mailbox_enabled(grid_) ? "on" : "off",
+              ctx_->info().name.c_str(),
               o.backend_options.vk_build.c_str(), o.validation.c_str());
   for (uint32_t frame = 0; frame < o.frames; ++frame) {
     const float time = o.time + float(frame) / o.fps;

@@ -351,7 +351,7 @@ GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
             (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u)) |
             (skip_enabled(o) ? shared::kGridSkipEmpty : 0u) | (cell_box_enabled(o) ? shared::kGridCellBox : 0u) |
-            (compact_enabled(o) ? shared::kGridCompact : 0u);
+            (compact_enabled(o) ? shared::kGridCompact : 0u) | (mailbox_enabled(o) ? shared::kGridMailbox : 0u);
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
@@ -531,6 +531,13 @@ bool spill_enabled(const AlgorithmOptions& o) {
 // ---- Empty-space skipping: which traversal takes it, the dynamic boxes ----
 
 bool skip_enabled(const AlgorithmOptions& o) { return o.skip_empty && o.traversal == Traversal::exact; }
+
+// The mailbox's test count depends on the order of a cell's references: with first-empty insertion
+// (the paper's compare-and-swap) that order is the build's timing, so the count would differ
+// between runs and backends: the mailbox is for the sorted insertion only.
+bool mailbox_enabled(const AlgorithmOptions& o) {
+  return o.mailbox && o.traversal == Traversal::exact && o.insertion == Insertion::sorted;
+}
 
 bool cell_box_enabled(const AlgorithmOptions& o) {
   return o.cell_test == AlgorithmOptions::CellTest::box ||

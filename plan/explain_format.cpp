@@ -50,6 +50,7 @@ const char* test_reason(uint32_t code) {
     case kTestSelfHit: return "skipped: the ray's launch triangle (self-hit)";
     case kTestAlphaKeyed: return "rejected: alpha-keyed out by the mask";
     case kTestTieLost: return "rejected: t not smaller than the best hit's (ties keep the smaller reference)";
+    case kTestMailboxed: return "skipped: tested earlier on this ray (mailbox), the result cannot change";
     default: return "?";
   }
 }
@@ -134,7 +135,8 @@ std::string event_code_name(uint32_t kind, uint32_t code) {
     case kEvSetup: return code == kTraversalExact ? "exact" : "paper";
     case kEvTest: {
       static const char* names[] = {"accepted", "parallel", "outside-u",  "outside-v",   "outside-uv", "behind",
-                                    "beyond",   "not-closer", "self-hit", "alpha-keyed", "tie-lost"};
+                                    "beyond",   "not-closer", "self-hit", "alpha-keyed", "tie-lost",
+                                    "mailboxed"};
       return code < std::size(names) ? names[code] : "?";
     }
     case kEvAlpha: return code ? "kept" : "cut";
@@ -231,6 +233,7 @@ std::string grid_text(const GridParams& g, const ExplainFormat& fmt) {
      << (exact ? "exact (3D DDA)" : "paper (cell-sized segments)") << ", insertion "
      << (g.insertion == kInsertSorted ? "sorted" : "first-empty") << ((g.flags & kGridSpill) ? ", spill list on" : "")
      << ((g.flags & kGridSkipEmpty) ? ", empty-space skipping on" : "")
+     << (mailbox_enabled(g) ? ", mailbox on" : "")
      << ((g.flags & kGridGapFill) ? ", gap-fill on" : "");
   return os.str();
 }
@@ -292,7 +295,7 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
     case kEvTest:
       os << "    test " << ref(e.ref) << ": " << test_reason(e.code);
       line();
-      if (e.code != kTestSelfHit) {
+      if (e.code != kTestSelfHit && e.code != kTestMailboxed) {
         os << "      det " << num(e.f0.x, fmt) << (e.f0.x < 0.0f ? " (back face)" : "") << ", u*|det| "
            << num(e.f0.y, fmt) << ", v*|det| " << num(e.f0.z, fmt);
         line();
@@ -514,6 +517,7 @@ nlohmann::json explain_json(const ExplainRecord& rec, const ExplainFormat& fmt) 
                  {"insertion", g.insertion == kInsertSorted ? "sorted" : "first-empty"},
                  {"spill", (g.flags & kGridSpill) != 0u},
                  {"skip_empty", (g.flags & kGridSkipEmpty) != 0u},
+                 {"mailbox", mailbox_enabled(g)},
                  {"gap_fill", (g.flags & kGridGapFill) != 0u},
                  {"alpha_keying", (g.flags & kGridAlphaKeying) != 0u},
                  {"elongation", jnum(g.elongation)},

@@ -45,6 +45,12 @@ struct AlgorithmOptions {
   // boxes of empty cells at once, by the skip field built after the static references. Exact
   // traversal only; the paper traversal stays the paper's.
   bool skip_empty = true;
+  // The mailbox (docs/SPEC.md "Mailbox"): the exact traversal does not test again a reference it
+  // tested among the last kMailboxSize on the ray (the hit cannot change; only the test count
+  // drops). Exact traversal with sorted insertion only; the paper traversal tests per segment and
+  // stays the paper's; first-empty insertion orders a cell's slots by the build's timing, which the
+  // test count would then depend on.
+  bool mailbox = true;
   // The build's cell test (docs/SPEC.md "Cell test"): sphere, the paper's (the triangle's plane
   // through the cell's enlarged bounding sphere, within its AABB's cell range); box, that and the
   // separating-axis test against the padded cell box (kGridCellBox: fewer references); automatic:

@@ -59,6 +59,8 @@ std::vector<uint32_t> compact_heads(const CellBox& region);
 
 // Whether `o` turns empty-space skipping on (kGridSkipEmpty: the exact traversal with skip_empty).
 bool skip_enabled(const AlgorithmOptions& o);
+// Whether `o` turns the mailbox on (kGridMailbox: the exact traversal with mailbox and sorted insertion).
+bool mailbox_enabled(const AlgorithmOptions& o);
 // Whether `o` takes the separating-axis cell test (kGridCellBox: box, or automatic with the exact traversal).
 bool cell_box_enabled(const AlgorithmOptions& o);
 

@@ -97,6 +97,7 @@ ExplainGeometry explain_geometry(const ExplainRecord& rec, const GridData& grid)
         if ((e.kind == kEvSpillScan || e.code != 0u) && !g.cells.empty()) g.cells.back().saturated = true;
         break;
       case kEvTest: {
+        if (e.code == kTestMailboxed) break;  // tested earlier on the ray: its first result stands
         if (e.code == kTestAccepted || e.code == kTestAlphaKeyed || e.code == kTestTieLost) g.event_t[i] = e.f1.w;
         auto it = tri_index.find(e.ref);
         if (it == tri_index.end()) {

@@ -27,6 +27,7 @@ struct TraceState {
   uint best_flags;
   uint cells;
   uint tests;
+  Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
   ExplainRecord* ex;
 };
 
@@ -44,6 +45,14 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   if ((g.flags & kGridExcludeLaunchRef) != 0u && ref == st.launch_ref) {
     emit(st, kEvTest, kTestSelfHit, ref, step, cell, slot, vec4(0.0f), vec4(0.0f));
     return;
+  }
+  // The mailbox: a reference tested earlier on the ray is not tested again
+  if (mailbox_enabled(g)) {
+    if (mailbox_holds(st.mailbox, ref)) {
+      emit(st, kEvTest, kTestMailboxed, ref, step, cell, slot, vec4(0.0f), vec4(0.0f));
+      return;
+    }
+    mailbox_put(st.mailbox, ref);
   }
   const GridInstance inst = grid.instances[ref_instance(ref)];
   const GridTriangle tri = grid.triangles[inst.tri_offset + ref_triangle(ref)];
@@ -339,6 +348,7 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain) {
   st.has_best = false;
   st.best_t = 0.0f;
   st.best_ref = kBlank;
+  mailbox_clear(st.mailbox);
   st.ex = explain;
   if (explain) {
     explain->ray = ray;

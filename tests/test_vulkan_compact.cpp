@@ -72,6 +72,18 @@ TEST_CASE("Vulkan compact layout: arrays, spill lists, hits and explain events b
       const plan::ExplainRecord ge = vk.explain_ray(rays, 5);
       REQUIRE(re.events.size() == ge.events.size());
       CHECK(std::memcmp(re.events.data(), ge.events.data(), re.events.size() * sizeof(sh::ExplainEvent)) == 0);
+      // A ray whose mailbox (kGridMailbox, the exact traversal's default) skips a re-test: the same events
+      REQUIRE((vk.params().flags & sh::kGridMailbox) != 0u);
+      size_t m = rays.size();
+      for (size_t i = 0; i < rays.size() && m == rays.size(); ++i)
+        if (w[i].tests > 4)
+          for (const sh::ExplainEvent& e : ref.explain_ray(rays[i]).events)
+            if (e.kind == sh::kEvTest && e.code == sh::kTestMailboxed) m = i;
+      REQUIRE(m < rays.size());
+      const plan::ExplainRecord rm = ref.explain_ray(rays[m]);
+      const plan::ExplainRecord gm = vk.explain_ray(rays, uint32_t(m));
+      REQUIRE(rm.events.size() == gm.events.size());
+      CHECK(std::memcmp(rm.events.data(), gm.events.data(), rm.events.size() * sizeof(sh::ExplainEvent)) == 0);
     }
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);

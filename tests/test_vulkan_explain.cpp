@@ -40,3 +40,24 @@ TEST_CASE("Explain: --backend vulkan sets the shader's record beside the referen
   CHECK(ray["alignment"]["rows"].size() == ray["reference"]["events"].size());
   for (const auto& row : ray["alignment"]["rows"]) CHECK(row[2] == true);
 }
+
+TEST_CASE("Explain: --backend vulkan with the mailbox - the skipped re-tests on both backends alike, --mailbox off "
+          "tests them",
+          "[vulkan][cli][explain][mailbox]") {
+  setenv("GRIDRT_VALIDATION", "1", 1);
+  struct Unset {
+    ~Unset() { unsetenv("GRIDRT_VALIDATION"); }
+  } unset;
+  // A primary ray of the atrium through the foliage: triangles met again in later cells
+  const std::string ray = "explain builtin:atrium --width 160 --height 90 --pixel 120,60 --backend vulkan --brief";
+  const gridrt::test::Run on = run_tool(ray);
+  INFO(on.output);
+  REQUIRE(on.exit_code == 0);
+  CHECK_THAT(on.output, Catch::Contains("mailbox on") && Catch::Contains(": mailboxed"));
+  CHECK_THAT(on.output, Catch::Contains("identical: all ") && Catch::Contains("agree bit for bit"));
+  const gridrt::test::Run off = run_tool(ray + " --mailbox off");
+  INFO(off.output);
+  REQUIRE(off.exit_code == 0);
+  CHECK_THAT(off.output, !Catch::Contains("mailbox"));
+  CHECK_THAT(off.output, Catch::Contains("identical: all ") && Catch::Contains("agree bit for bit"));
+}

@@ -444,15 +444,17 @@ TEST_CASE("Vulkan grid: alpha keying, features off and the paper's repeat modes 
   const Scene scene = test_scene(6);
   // Rays straight at the alpha-keyed quads: some cut, some kept
   GridOptions o = options(reference::Insertion::sorted, reference::Traversal::exact, 8);
-  for (int variant = 0; variant < 5; ++variant) {
+  for (int variant = 0; variant < 6; ++variant) {
+    o.mailbox = variant != 5;  // 5: exact without the mailbox
     o.alpha_keying = variant != 1;
     o.gap_fill = variant != 2;
-    o.traversal = variant >= 2 ? reference::Traversal::paper : reference::Traversal::exact;
+    o.traversal = variant >= 2 && variant <= 4 ? reference::Traversal::paper : reference::Traversal::exact;
     o.repeats = variant == 3   ? GridOptions::Repeats::skip
                 : variant == 4 ? GridOptions::Repeats::retest
                                : GridOptions::Repeats::merge;
     INFO("alpha keying " << o.alpha_keying << ", gap-fill " << o.gap_fill << ", traversal "
-                         << (variant >= 2 ? "paper" : "exact") << ", repeats " << int(o.repeats));
+                         << (o.traversal == reference::Traversal::paper ? "paper" : "exact") << ", repeats "
+                         << int(o.repeats) << ", mailbox " << o.mailbox);
     ReferenceGridTracer ref(o);
     ref.build(scene, 0.0f);
     VulkanGridTracer vk(ctx, o);
@@ -494,6 +496,17 @@ TEST_CASE("Vulkan grid: the explained ray leaves the reference's events, bit for
         chosen.push_back(i);
         break;
       }
+    // Exact: a ray whose mailbox skips a re-test (kTestMailboxed)
+    if (traversal == reference::Traversal::exact) {
+      bool found = false;
+      for (uint32_t i = 0; i < rays.size() && !found; i += 7) {
+        const reference::ExplainRecord rec = ref.explain_ray(rays[i]);
+        for (const sh::ExplainEvent& e : rec.events)
+          if (e.kind == sh::kEvTest && e.code == sh::kTestMailboxed) found = true;
+        if (found) chosen.push_back(i);
+      }
+      CHECK(found);
+    }
     for (uint32_t index : chosen) {
       INFO((traversal == reference::Traversal::paper ? "paper" : "exact") << " ray " << index << ": "
                                                                           << hex_ray(rays[index]));

@@ -44,6 +44,9 @@ SH_CONST uint kGridCompact = 64u;          // the compact layout (docs/SPEC.md "
                                            // references in one array ordered per cell (offsets, refs),
                                            // dynamic ones only in the spill list's dynamic lists, whose
                                            // heads exist for the dynamic region's cells alone; no image
+SH_CONST uint kGridMailbox = 128u;         // exact traversal: a reference tested earlier on the ray (one of
+                                           // the last kMailboxSize tested) is not tested again; the paper
+                                           // traversal and first-empty insertion ignore it (docs/SPEC.md "Mailbox")
 // Bits 8-9: the scene axis laid along the image's x, the axis that carries the slots (0 x, 1 y,
 // 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis"). The
 // image swaps that axis with x; every other axis keeps its place.
@@ -674,6 +677,38 @@ SH_INLINE bool dda_walk_next(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) d
     w.cell.z = a == 2u ? last.z : dda_axis_cell_at(g.origin.z, g.cell_size, org.z, dir.z, inv_dir.z, c.z, last.z, f.z, t, false);
   }
   return dda_step(g, dir, a, w.cell);
+}
+
+// ---- The exact traversal's mailbox (kGridMailbox; docs/SPEC.md "Mailbox") ----
+// The exact traversal tests every reference against the whole ray (t_lo, tmax) with the best hit
+// so far as the bound, so a second test of a reference, in a later cell, cannot change the hit:
+// it is rejected again (the bound only shrinks), or it loses to the best hit (which is it, or
+// nearer, or as near with a smaller reference). The mailbox holds the last kMailboxSize references
+// tested on the ray, newest first (a shift register: constant indices only, so that the shader
+// keeps it in registers); a reference it holds is not tested again. Written once: the reference
+// trace and the trace shader call these under the same names.
+SH_CONST uint kMailboxSize = 8u;
+struct Mailbox {
+  uint refs[kMailboxSize];  // kBlank where empty
+};
+// Whether the grid's trace takes the mailbox: kGridMailbox, exact traversal and sorted insertion
+// only (first-empty insertion orders a cell's slots by the build's timing, and the mailbox's test
+// count depends on the order: it would differ between runs and backends).
+SH_INLINE bool mailbox_enabled(SH_IN(GridParams) g) {
+  return (g.flags & kGridMailbox) != 0u && g.traversal == kTraversalExact && g.insertion == kInsertSorted;
+}
+SH_INLINE void mailbox_clear(SH_OUT(Mailbox) m) {
+  for (uint i = 0u; i < kMailboxSize; ++i) m.refs[i] = kBlank;
+}
+SH_INLINE bool mailbox_holds(SH_IN(Mailbox) m, uint ref) {
+  bool held = false;
+  for (uint i = 0u; i < kMailboxSize; ++i) held = held || m.refs[i] == ref;
+  return held;
+}
+// A reference about to be tested: it enters at the front, the oldest drops off the back.
+SH_INLINE void mailbox_put(SH_INOUT(Mailbox) m, uint ref) {
+  for (uint i = kMailboxSize - 1u; i > 0u; --i) m.refs[i] = m.refs[i - 1u];
+  m.refs[0] = ref;
 }
 
 // ---- Paper traversal's visits, written once (reference/trace.cpp, trace.comp, reference/policy.cpp) ----

@@ -28,6 +28,8 @@ SH_CONST uint kTestNotCloser = 7u;   // t * det > best_t * |det|: the best hit s
 SH_CONST uint kTestSelfHit = 8u;     // the ray's launch triangle (by reference); not tested
 SH_CONST uint kTestAlphaKeyed = 9u;  // accepted geometrically, cut away by the alpha mask
 SH_CONST uint kTestTieLost = 10u;    // reported t not smaller than the best (ties: smaller ref)
+SH_CONST uint kTestMailboxed = 11u;  // exact traversal, kGridMailbox: tested earlier on this ray (in the
+                                     // mailbox), not tested again: the result cannot change
 
 // The values a test decides on: everything scaled by |det|, so that no division is needed.
 struct TriangleTest {

@@ -54,6 +54,7 @@ struct TraceState {
   uint best_flags;
   uint cells;
   uint tests;
+  Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
 };
 
 TraceState st;
@@ -73,6 +74,14 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   if ((g.flags & kGridExcludeLaunchRef) != 0u && ref == st.launch_ref) {
     emit(kEvTest, kTestSelfHit, ref, step, cell, slot, vec4(0.0f), vec4(0.0f));
     return;
+  }
+  // The mailbox: a reference tested earlier on the ray is not tested again
+  if (mailbox_enabled(g)) {
+    if (mailbox_holds(st.mailbox, ref)) {
+      emit(kEvTest, kTestMailboxed, ref, step, cell, slot, vec4(0.0f), vec4(0.0f));
+      return;
+    }
+    mailbox_put(st.mailbox, ref);
   }
   const GridInstance inst = instances[ref_instance(ref)];
   const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(ref)];
@@ -367,6 +376,7 @@ HitRecord scene_trace(GridParams g, RayRecord ray) {
   st.best_flags = 0u;
   st.cells = 0u;
   st.tests = 0u;
+  mailbox_clear(st.mailbox);
   emit(kEvRay, 0u, ray.launch_ref, 0u, uvec3(0u), 0u, vec4(ray.org, ray.tmin), vec4(ray.dir, ray.tmax));
   // Reject rays with NaN/inf values or a zero direction
   if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax)) {
