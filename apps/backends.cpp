@@ -123,9 +123,9 @@ void add_grid_options(CLI::App* cmd, BackendOptions& o) {
            "(on, the default) or visit every cell (off)")
       ->group(kGrid);
   add_enum(cmd, "--mailbox", g.mailbox, {{"on", true}, {"off", false}},
-           "exact traversal: do not test again a reference among the last 8 tested on the ray (on, the default: "
-           "the hits are the same, fewer tests) or test every reference of every cell (off); the paper "
-           "traversal and first-empty insertion ignore it")
+           "exact traversal: do not test again a reference among the last 8 tested on the ray (on: the hits are "
+           "the same, fewer tests, but slower on the GPU measured) or test every reference of every cell (off, the "
+           "default); the paper traversal and first-empty insertion ignore it")
       ->group(kGrid);
   add_enum(cmd, "--self-hit", g.exclude_launch_ref, {{"exclude", true}, {"keep", false}},
            "The ray's launch triangle: exclude (never accept it, the default) or keep (test it like any other)")

@@ -49,8 +49,11 @@ struct AlgorithmOptions {
   // tested among the last kMailboxSize on the ray (the hit cannot change; only the test count
   // drops). Exact traversal with sorted insertion only; the paper traversal tests per segment and
   // stays the paper's; first-empty insertion orders a cell's slots by the build's timing, which the
-  // test count would then depend on.
-  bool mailbox = true;
+  // test count would then depend on. Off by default: on an NVIDIA H100 it took 12-22 % of the
+  // tests off the three frames' bounce rays but made their trace 11-16 % slower (the shift
+  // register's compares and moves cost more than the re-tests, whose triangles are still cached;
+  // docs/BENCHMARKS.md "The mailbox").
+  bool mailbox = false;
   // The build's cell test (docs/SPEC.md "Cell test"): sphere, the paper's (the triangle's plane
   // through the cell's enlarged bounding sphere, within its AABB's cell range); box, that and the
   // separating-axis test against the padded cell box (kGridCellBox: fewer references); automatic:

@@ -348,7 +348,7 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain) {
   st.has_best = false;
   st.best_t = 0.0f;
   st.best_ref = kBlank;
-  mailbox_clear(st.mailbox);
+  if (mailbox_enabled(g)) mailbox_clear(st.mailbox);
   st.ex = explain;
   if (explain) {
     explain->ray = ray;

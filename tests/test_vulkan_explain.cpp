@@ -50,7 +50,7 @@ TEST_CASE("Explain: --backend vulkan with the mailbox - the skipped re-tests on 
   } unset;
   // A primary ray of the atrium through the foliage: triangles met again in later cells
   const std::string ray = "explain builtin:atrium --width 160 --height 90 --pixel 120,60 --backend vulkan --brief";
-  const gridrt::test::Run on = run_tool(ray);
+  const gridrt::test::Run on = run_tool(ray + " --mailbox on");
   INFO(on.output);
   REQUIRE(on.exit_code == 0);
   CHECK_THAT(on.output, Catch::Contains("mailbox on") && Catch::Contains(": mailboxed"));

@@ -376,7 +376,7 @@ HitRecord scene_trace(GridParams g, RayRecord ray) {
   st.best_flags = 0u;
   st.cells = 0u;
   st.tests = 0u;
-  mailbox_clear(st.mailbox);
+  if (mailbox_enabled(g)) mailbox_clear(st.mailbox);
   emit(kEvRay, 0u, ray.launch_ref, 0u, uvec3(0u), 0u, vec4(ray.org, ray.tmin), vec4(ray.dir, ray.tmax));
   // Reject rays with NaN/inf values or a zero direction
   if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax)) {
