@@ -6,7 +6,8 @@
 #   apply the mutant to a copy of the tree (tools/mutate/mutate.py's rule), build the gpu preset's
 #   gridrt, copy it as /tmp/gridrt-ID; then
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- /tmp/gridrt-gather-atomicmin-plain \
-#     /tmp/gridrt-clear-barrier /tmp/gridrt-build-no-coherent /tmp/gs/*.gridscene
+#     /tmp/gridrt-clear-barrier /tmp/gridrt-build-no-coherent /tmp/gs/*.gridscene \
+#     /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
 # There: bash tools/gpu/race-mutants.sh (G=.gpu by default); log $OUT/race.txt. A mutant is killed
 # when a diff that reaches its code reports DIFFER (exit 3); each diff runs twice (races vary).
 # The unmutated gridrt runs the same diffs once first, as the control: they must agree.
@@ -16,6 +17,7 @@ out=${OUT:-/tmp/gridrt-out}
 mkdir -p "$out"
 source "$G/env.sh"
 E=$G/extra
+export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH  # the validation layer, staged
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | tee "$out/device.txt"
 scenes=(sibenik-teapots sponza-teapots ons-reborn-teapot)
 # The diffs that reach each mutant's code: the compute gather (every frame's); the image layout's
@@ -35,9 +37,13 @@ run_diffs() {  # binary, mutant id, tries per scene
       echo "$id $s try $rep: exit $rc $(grep -E '^(AGREE|DIFFER)' "$out/run.txt" | cut -c1-160)"
       [ $rc -eq 3 ] && killed=1
       [ $rc -eq 3 ] && grep -E "differ|DIFFER" "$out/run.txt" | head -4
+      [ $rc -ne 0 ] && [ $rc -ne 3 ] && { killed=2; tail -2 "$out/run.txt"; }
     done
   done
-  echo "== $id with $(basename "$bin"): $([ $killed = 1 ] && echo killed || echo not told apart)"
+  local verdict="not told apart"
+  [ $killed = 1 ] && verdict=killed
+  [ $killed = 2 ] && verdict="error (see above)"
+  echo "== $id with $(basename "$bin"): $verdict"
 }
 {
   for id in gather-atomicmin-plain clear-barrier build-no-coherent; do
