@@ -126,7 +126,9 @@ TEST_CASE("Vulkan compact layout on a grid of over a million cells: the offsets'
 // partial last block, empty: the room fills the lower half of the x and y rows only), the room's
 // walls in cells on block boundaries, 24 references stacked in one cell (their counts and
 // scatter cursors contend in one SIMD batch), and a dynamic instance of 6 triangles in one cell of
-// a non-cubic dynamic region whose list holds exactly the spill list's capacity.
+// a non-cubic dynamic region whose list holds exactly the spill list's capacity. (The blocks are
+// the reference's scan's; the shaders' scan has since worked in groups of 1024 cells, which this
+// grid's 265,680 cells end mid-group: docs/SPEC.md "Compact layout".)
 TEST_CASE("Vulkan compact layout: two blocks a scan lane, block boundaries, a crowded cell, a full dynamic list - "
           "bit for bit with the reference",
           "[vulkan][diff][grid][compact]") {
