@@ -780,12 +780,7 @@ void run_bench(const BenchOptions& options) {
     // about WIDTH x HEIGHT camera rays, verify/rays.cpp), which needs no Embree
     if (kind != "primary" && kind != "camera")
       throw Error("bench: --rays " + kind + " needs the Embree backend (this build has none): use --rays glossy or primary");
-    const size_t n = size_t(o.width) * o.height;
-    const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(n) * 16.0 / 9.0)));
-    const uint32_t h = std::max<uint32_t>(1, uint32_t((n + w - 1) / w));
-    const Camera cam = scene.frame_camera();
-    for (uint32_t y = 0; y < h && given.size() < n; ++y)
-      for (uint32_t x = 0; x < w && given.size() < n; ++x) given.push_back(camera_ray(cam, w, h, x, y));
+    given = camera_grid_rays(scene.frame_camera(), size_t(o.width) * o.height);
     bounce_count = given.size();
 #endif
   }

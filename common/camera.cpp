@@ -1,5 +1,6 @@
 #include "gridrt/common/camera.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -54,6 +55,16 @@ std::vector<Ray> camera_rays(const Camera& camera, uint32_t width, uint32_t heig
   rays.reserve(size_t(width) * height);
   for (uint32_t y = 0; y < height; ++y)
     for (uint32_t x = 0; x < width; ++x) rays.push_back(camera_ray(camera, width, height, x, y));
+  return rays;
+}
+
+std::vector<Ray> camera_grid_rays(const Camera& camera, size_t n) {
+  const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(n) * 16.0 / 9.0)));
+  const uint32_t h = std::max<uint32_t>(1, uint32_t((n + w - 1) / w));
+  std::vector<Ray> rays;
+  rays.reserve(n);
+  for (uint32_t y = 0; y < h && rays.size() < n; ++y)
+    for (uint32_t x = 0; x < w && rays.size() < n; ++x) rays.push_back(camera_ray(camera, w, h, x, y));
   return rays;
 }
 

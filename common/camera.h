@@ -19,6 +19,9 @@ namespace gridrt {
 Ray camera_ray(const Camera& camera, uint32_t width, uint32_t height, uint32_t x, uint32_t y);
 // Every pixel's camera_ray, row by row from the top (ray y * width + x).
 std::vector<Ray> camera_rays(const Camera& camera, uint32_t width, uint32_t height);
+// n camera rays: the first n pixels, row by row, of a 16:9 image of about n pixels (verify's camera
+// family, and bench's primary rays).
+std::vector<Ray> camera_grid_rays(const Camera& camera, size_t n);
 
 // The camera's orthonormal frame: right, up, and forward (towards the target).
 struct CameraFrame {

@@ -243,10 +243,7 @@ struct FamilyMaker {
 
   // A camera's rays over a 16:9 image of about n pixels
   void camera_rays() {
-    const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(n) * 16.0 / 9.0)));
-    const uint32_t h = std::max<uint32_t>(1, uint32_t((n + w - 1) / w));
-    for (uint32_t y = 0; y < h && out.rays.size() < n; ++y)
-      for (uint32_t x = 0; x < w && out.rays.size() < n; ++x) push(camera_ray(cam, w, h, x, y));
+    for (const Ray& r : camera_grid_rays(cam, n - std::min(n, out.rays.size()))) push(r);
   }
 
   // Off the oracle's primary hits: mirror and cosine-weighted, alternately
