@@ -19,7 +19,15 @@ namespace {
 struct Counts {
   size_t triangles = 0, set_up = 0, accepted = 0, missed = 0, rejected_pixels = 0, rejected_tiles = 0;
   size_t pixel_fail = 0, tile_fail = 0, bin_fail = 0, depth_fail = 0;
+  // The gather's box (gather_box): accepted pixels outside it (edge box: any; frustum box: any
+  // whose hit lies beyond the near plane), and accepted pixels whose hit is nearer than the near
+  // plane, which a frustum box leaves out by its rule and the edge box holds
+  size_t box_fail = 0, frustum_boxes = 0, within_near = 0, within_near_boxed = 0;
+  size_t bound_needed = 0;  // accepted pixels beyond the near plane outside the frustum box without its rounding bound
 };
+
+// The frame's near plane for the test's scale (VulkanFrame: the scene's extent x 1e-6).
+constexpr float kNear = 1.0e-5f;
 
 // Every pixel of a w x h image against one triangle.
 void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2,
@@ -28,6 +36,14 @@ void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const gl
   float t_lo = 0.0f;
   ++n.triangles;
   n.set_up += shared::raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo);
+  glm::uvec4 box(0u);
+  glm::vec3 b0, b1, b2;
+  float b_lo = 0.0f;
+  const bool boxed = shared::gather_box(c, kNear, v0, v1, v2, box, b0, b1, b2, b_lo);
+  const bool edge_box = shared::raster_setup(c, v0, v1, v2, b0, b1, b2, b_lo);
+  n.frustum_boxes += !edge_box;
+  glm::uvec4 box0(0u);
+  const bool boxed0 = !edge_box && shared::gather_frustum_box(c, kNear, v0, v1, v2, 0.0f, box0);
   for (uint32_t y = 0; y < c.height; ++y)
     for (uint32_t x = 0; x < c.width; ++x) {
       const glm::vec3 dir = shared::camera_direction(c, x, y);
@@ -48,6 +64,14 @@ void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const gl
         n.tile_fail += !tile;
         n.bin_fail += !bin;
         n.depth_fail += !(shared::moller_trumbore_t(r) >= t_lo);
+        const bool in_box = boxed && x >= box.x && x <= box.z && y >= box.y && y <= box.w;
+        const float depth = glm::dot(shared::moller_trumbore_t(r) * dir, c.forward);
+        const bool near = depth < kNear;
+        n.within_near += near;
+        n.within_near_boxed += near && in_box;
+        n.box_fail += !in_box && (edge_box || !near);
+        const bool in_box0 = boxed0 && x >= box0.x && x <= box0.z && y >= box0.y && y <= box0.w;
+        n.bound_needed += !edge_box && !near && !in_box0;
       } else {
         ++n.missed;
         n.rejected_pixels += !pixel;
@@ -62,7 +86,7 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   auto rvec = [&] { return glm::vec3(u(rng), u(rng), u(rng)); };
-  Counts n;
+  Counts n, near_eye;  // near_eye: the two near-eye families
   const uint32_t sizes[2][2] = {{64, 48}, {45, 37}};  // a multiple of the tile, and neither of tile nor bin
   for (int cam = 0; cam < 24; ++cam) {
     Camera camera;
@@ -80,10 +104,10 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
     };
     auto rpx = [&] { return (0.5f + 0.6f * u(rng)) * float(w); };
     auto rpy = [&] { return (0.5f + 0.6f * u(rng)) * float(h); };
-    for (int i = 0; i < 60; ++i) {
+    for (int i = 0; i < 72; ++i) {
       glm::vec3 v0, v1, v2;
       const float z = std::exp2(4.0f * u(rng));  // depths 1/16 .. 16
-      switch (i % 10) {
+      switch (i % 12) {
         case 0:  // ordinary, across tiles and bins
           v0 = at_pixel(rpx(), rpy(), z);
           v1 = at_pixel(rpx(), rpy(), z * (1.0f + 0.5f * u(rng)));
@@ -139,13 +163,34 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
           v2 = at_pixel(px + 3.0f, py + 3.0f * u(rng), far);
           break;
         }
+        case 10: {  // large, its plane a fraction of a near plane to 16 near planes from the eye
+          const glm::vec3 nrm = glm::normalize(rvec()), t1 = glm::normalize(glm::cross(nrm, rvec()));
+          const glm::vec3 t2 = glm::cross(nrm, t1);
+          const glm::vec3 o = eye + kNear * std::exp2(-1.0f + 5.0f * (0.5f + 0.5f * u(rng))) * nrm;
+          auto around = [&] {
+            const float a = 3.14159265f * u(rng), l = 10.0f * (1.0f + 0.5f * u(rng));
+            return o + l * (std::cos(a) * t1 + std::sin(a) * t2);
+          };
+          v0 = around();
+          v1 = around();
+          v2 = around();
+          break;
+        }
+        case 11: {  // large, an edge passing a fraction of a near plane to 16 near planes from the eye
+          const glm::vec3 a = glm::normalize(rvec()), nrm = glm::normalize(glm::cross(a, rvec()));
+          const glm::vec3 p = eye + kNear * std::exp2(-1.0f + 5.0f * (0.5f + 0.5f * u(rng))) * nrm;
+          v0 = p - 10.0f * (1.0f + 0.5f * u(rng)) * a;
+          v1 = p + 10.0f * (1.0f + 0.5f * u(rng)) * a;
+          v2 = p + 10.0f * glm::normalize(glm::cross(a, rvec()) + 0.5f * rvec());
+          break;
+        }
         default:  // a screen-filling one, partly behind the eye
           v0 = at_pixel(-2.0f * float(w), 0.5f * float(h), z);
           v1 = at_pixel(3.0f * float(w), -float(h), z * 0.5f);
           v2 = eye + z * (0.2f * u(rng) * f + 2.0f * up) - 4.0f * z * f;
           break;
       }
-      check_triangle(c, v0, v1, v2, n);
+      check_triangle(c, v0, v1, v2, i % 12 >= 10 ? near_eye : n);
     }
   }
   INFO(n.triangles << " triangles (" << n.set_up << " set up with bounds), " << n.accepted << " accepted pixels, "
@@ -156,6 +201,21 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
   CHECK(n.bin_fail == 0);
   CHECK(n.depth_fail == 0);
   CHECK(n.accepted > 10000);
+  // The gather's box holds every pixel the test accepts, hits within the near plane included
+  // where the edge functions give the box; the near-eye families reach such hits
+  CHECK(n.box_fail == 0);
+  {
+    const Counts& e = near_eye;
+    INFO("near the eye: " << e.triangles << " triangles, " << e.frustum_boxes << " boxed by the frustum, " << e.accepted
+                          << " accepted pixels, " << e.within_near << " with the hit nearer than the near plane, "
+                          << e.within_near_boxed << " of them in the box; " << e.bound_needed
+                          << " beyond it outside the frustum box without its rounding bound");
+    CHECK(e.pixel_fail + e.tile_fail + e.bin_fail + e.depth_fail == 0);
+    CHECK(e.box_fail == 0);
+    CHECK(e.accepted > 10000);
+    CHECK(e.within_near_boxed >= 100);
+    CHECK(e.bound_needed > 0);  // the family reaches where the bound is needed
+  }
   // The bounds exist for most triangles and reject most pixels the test misses
   CHECK(n.set_up >= n.triangles * 8 / 10);
   CHECK(n.rejected_pixels >= n.missed * 3 / 4);

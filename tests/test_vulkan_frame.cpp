@@ -5,6 +5,7 @@
 // against shade(). Validation on, zero messages.
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -13,6 +14,8 @@
 #include "gridrt/common/camera.h"
 #include "gridrt/common/gather.h"
 #include "gridrt/common/image_io.h"
+#include "gridrt/common/shared/raster.h"
+#include "gridrt/common/shared/triangle.h"
 #include "gridrt/common/scene_io.h"
 #include "gridrt/common/shade.h"
 #include "gridrt/common/shared/shadow.h"
@@ -304,7 +307,219 @@ Scene rasterizer_scene() {
   return s;
 }
 
+// One large triangle whose plane (even `seed`) or edge (odd) passes between half a
+// near plane and 16 near planes from the eye (the frame's near plane: the scene's extent x 1e-6),
+// for a camera at Camera's eye looking a random way with a field of view of 20 to 120 degrees:
+// where a triangle clipped at the near plane projects with errors of many pixels.
+Scene near_eye_scene(uint32_t seed) {
+  Scene s;
+  s.name = "near-eye";
+  s.materials = {Material{.name = "grey", .diffuse = {0.6f, 0.6f, 0.6f}}};
+  Mesh m;
+  m.name = "tris";
+  auto tri = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c) {
+    const uint32_t i = uint32_t(m.positions.size());
+    m.positions.insert(m.positions.end(), {a, b, c});
+    m.triangles.push_back({i, i + 1, i + 2});
+  };
+  const glm::vec3 eye = Camera{}.eye;
+  const float near_plane = 2.5e-5f;  // about the extent (20 to 30) x 1e-6
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  auto rvec = [&] { return glm::vec3(u(rng), u(rng), u(rng)); };
+  const float d = near_plane * std::exp2(-1.0f + 5.0f * (0.5f + 0.5f * u(rng)));
+  if (seed % 2 == 0) {
+    const glm::vec3 nrm = glm::normalize(rvec()), t1 = glm::normalize(glm::cross(nrm, rvec()));
+    const glm::vec3 t2 = glm::cross(nrm, t1), o = eye + d * nrm;
+    auto around = [&] {
+      const float a = 3.14159265f * u(rng), l = 10.0f * (1.0f + 0.5f * u(rng));
+      return o + l * (std::cos(a) * t1 + std::sin(a) * t2);
+    };
+    const glm::vec3 a = around(), b = around(), c = around();
+    tri(a, b, c);
+  } else {
+    const glm::vec3 a = glm::normalize(rvec()), nrm = glm::normalize(glm::cross(a, rvec()));
+    const glm::vec3 p = eye + d * nrm;
+    const glm::vec3 v0 = p - 10.0f * (1.0f + 0.5f * u(rng)) * a, v1 = p + 10.0f * (1.0f + 0.5f * u(rng)) * a;
+    tri(v0, v1, p + 10.0f * glm::normalize(glm::cross(a, rvec()) + 0.5f * rvec()));
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes = {m};
+  s.instances = {Instance{.name = "tris", .mesh = 0}};
+  Camera camera;
+  camera.target = eye + glm::vec3(u(rng), 0.3f * u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 0.01f);
+  camera.vfov_degrees = 20.0f + 100.0f * (0.5f + 0.5f * u(rng));
+  s.camera = camera;
+  s.finalize();
+  return s;
+}
+
+// A backdrop facing Camera's defaults and, in front of it, long triangles whose three vertices lie
+// exactly on a line (v2 - v0 = 2 (v1 - v0) in float: zero area, their edges' float cross product
+// exactly 0), across the image at many angles: the grid never inserts them, and a rasterizer
+// projecting them may still cover a pixel centre by rounding.
+Scene collinear_scene() {
+  Scene s;
+  s.name = "collinear";
+  s.materials = {Material{.name = "grey", .diffuse = {0.6f, 0.6f, 0.6f}}};
+  Mesh m;
+  m.name = "tris";
+  auto tri = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c) {
+    const uint32_t i = uint32_t(m.positions.size());
+    m.positions.insert(m.positions.end(), {a, b, c});
+    m.triangles.push_back({i, i + 1, i + 2});
+  };
+  tri({-20.0f, -15.0f, -10.0f}, {20.0f, -15.0f, -10.0f}, {0.0f, 20.0f, -10.0f});
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> k(-256, 256);
+  for (int i = 0; i < 400; ++i) {
+    // Multiples of 1/64 within a few units: every sum below is exact
+    const glm::vec3 v0(float(k(rng)) / 64.0f, 1.0f + float(k(rng)) / 128.0f, -2.0f - float(k(rng) + 256) / 128.0f);
+    const glm::vec3 e(float(k(rng)) / 256.0f, float(k(rng)) / 512.0f, float(k(rng)) / 1024.0f);
+    tri(v0, v0 + e, v0 + 2.0f * e);
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes = {m};
+  s.instances = {Instance{.name = "tris", .mesh = 0}};
+  s.camera = Camera{};
+  s.finalize();
+  return s;
+}
+
 }  // namespace
+
+// The compute gather's box (common/shared/raster.h gather_box) holds every pixel the ray test
+// accepts: on triangles passing within a few near planes of the eye, the compute gather finds the
+// CPU gather's triangle on every pixel whose hit lies beyond the near plane, in bits.
+TEST_CASE("Vulkan frame: the compute gather agrees with the CPU's on triangles passing by the eye",
+          "[vulkan][diff][frame][gather]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  if (!ctx.info().buffer_int64_atomics || !ctx.info().subgroup_arithmetic_ballot) {
+    WARN("skipped: the device has no 64-bit buffer atomics (no compute gather)");
+    return;
+  }
+  // The scenes: 16 seeds, and up to 4 more (at least 2) found where the frustum box without its rounding bound
+  // (common/shared/raster.h) leaves out pixels the ray test accepts beyond the near plane
+  auto size_of = [](uint32_t seed) { return seed % 4 < 2 ? glm::uvec2(64, 48) : glm::uvec2(45, 37); };
+  std::vector<uint32_t> seeds;
+  for (uint32_t seed = 0; seed < 16; ++seed) seeds.push_back(seed);
+  size_t bound_needed = 0;
+  for (uint32_t seed = 16; seed < 12000 && seeds.size() < 20; ++seed) {
+    const Scene scene = near_eye_scene(seed);
+    const float near_plane = std::max(glm::length(scene.bounds(0.0f).extent()), 1e-6f) * 1e-6f;
+    const glm::uvec2 size = size_of(seed);
+    const shared::CameraParams c = camera_params(scene.frame_camera(), size.x, size.y);
+    const Mesh& mesh = scene.meshes[0];
+    const glm::vec3 v0 = mesh.positions[0], v1 = mesh.positions[1], v2 = mesh.positions[2];
+    glm::vec3 e0, e1, e2;
+    float t_lo = 0.0f;
+    glm::uvec4 box0(0u);
+    if (shared::raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo)) continue;
+    const bool boxed0 = shared::gather_frustum_box(c, near_plane, v0, v1, v2, 0.0f, box0);
+    size_t outside = 0;
+    for (uint32_t y = 0; y < size.y; ++y)
+      for (uint32_t x = 0; x < size.x; ++x) {
+        const glm::vec3 dir = shared::camera_direction(c, x, y);
+        shared::TriangleTest r;
+        if (shared::moller_trumbore(c.eye, dir, v0, v1, v2, shared::origin_tmin(c.eye, dir, 0.0f), INFINITY, INFINITY, r) !=
+            shared::kTestAccepted)
+          continue;
+        const float depth = glm::dot(shared::moller_trumbore_t(r) * dir, c.forward);
+        outside += depth >= near_plane && !(boxed0 && x >= box0.x && x <= box0.z && y >= box0.y && y <= box0.w);
+      }
+    if (outside > 0) {
+      seeds.push_back(seed);
+      bound_needed += outside;
+    }
+  }
+  INFO(bound_needed << " pixels of " << seeds.size() - 16 << " found scenes need the frustum box's rounding bound");
+  REQUIRE(seeds.size() >= 18);
+  size_t near_eye = 0, within_near = 0, differ = 0;
+  for (const uint32_t seed : seeds) {
+    const Scene scene = near_eye_scene(seed);
+    const float near_plane = std::max(glm::length(scene.bounds(0.0f).extent()), 1e-6f) * 1e-6f;  // VulkanFrame's
+    GridOptions o;
+    o.threads = 2;
+    GridOptions oe = o;
+    oe.traversal = reference::Traversal::exact;
+    oe.triangle_test = GridOptions::TriangleTest::moller;
+    ReferenceGridTracer gather_tracer(oe);
+    gather_tracer.build(scene, 0.0f);
+    VulkanGridTracer vk(ctx, o);
+    vk.build(scene, 0.0f);
+    const Camera camera = scene.frame_camera();
+    const CameraFrame cf = camera_frame(camera);
+    const uint32_t w = size_of(seed).x, h = size_of(seed).y;
+    VulkanFrame frame(vk, scene, FrameOptions{.width = w, .height = h, .bounce = false, .shadows = false});
+    REQUIRE(frame.gather_mode() == GatherMode::compute);
+    frame.render(0);
+    const GatherBuffer gpu = frame.download_gather();
+    const GatherBuffer cpu = make_gather(scene, gather_tracer, camera, w, h, 0.0f);
+    for (size_t p = 0; p < cpu.size(); ++p) {
+      if (cpu.valid[p]) {
+        const float depth = glm::dot(cpu.position[p] - camera.eye, cf.forward);
+        if (depth < near_plane) {
+          ++within_near;
+          continue;
+        }
+        ++near_eye;
+      }
+      const bool same = cpu.launch_ref[p] == gpu.launch_ref[p] &&
+                        (!cpu.valid[p] || (bits(cpu.hit[p].t) == bits(gpu.hit[p].t) &&
+                                           same_vec(cpu.position[p], gpu.position[p]) && same_vec(cpu.normal[p], gpu.normal[p])));
+      if (!same && ++differ <= 3)
+        WARN("seed " << seed << " pixel " << p << ": cpu " << hex(cpu.launch_ref[p]) << " t " << cpu.hit[p].t
+                              << ", gpu " << hex(gpu.launch_ref[p]) << " t " << gpu.hit[p].t);
+    }
+  }
+  WARN("near-eye: " << near_eye << " pixels see the near-eye triangle beyond the near plane, " << within_near
+                    << " nearer than it (left out where the frustum boxes the triangle)");
+  CHECK(differ == 0);
+  CHECK(near_eye >= 300);
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+// Zero-area triangles are never seen: the grid does not insert them, the compute gather skips them,
+// and the raster gather culls them in its vertex shader; a rasterizer would otherwise cover pixel
+// centres with them by rounding, and the resolve would leave those pixels empty (no normal) where
+// the CPU's gather sees the surface behind. Both gathers, against the CPU's, on every pixel.
+TEST_CASE("Vulkan frame: zero-area triangles hide nothing in either gather", "[vulkan][diff][frame][gather]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = collinear_scene();
+  GridOptions o;
+  o.threads = 2;
+  GridOptions oe = o;
+  oe.traversal = reference::Traversal::exact;
+  oe.triangle_test = GridOptions::TriangleTest::moller;
+  ReferenceGridTracer gather_tracer(oe);
+  gather_tracer.build(scene, 0.0f);
+  VulkanGridTracer vk(ctx, o);
+  vk.build(scene, 0.0f);
+  const uint32_t w = 320, h = 192;
+  const GatherBuffer cpu = make_gather(scene, gather_tracer, scene.frame_camera(), w, h, 0.0f);
+  size_t valid = 0;
+  for (size_t p = 0; p < cpu.size(); ++p) valid += cpu.valid[p] && cpu.launch_ref[p] == 0u;
+  CHECK(valid > cpu.size() / 2);  // the backdrop, and nothing else, fills most of the image
+  for (const GatherMode mode : {GatherMode::raster, GatherMode::compute}) {
+    VulkanFrame frame(vk, scene, FrameOptions{.width = w, .height = h, .bounce = false, .shadows = false, .gather = mode});
+    if (frame.gather_mode() != mode) continue;  // no compute gather on this device
+    INFO((mode == GatherMode::raster ? "raster gather" : "compute gather"));
+    frame.render(0);
+    const GatherBuffer gpu = frame.download_gather();
+    size_t differ = 0;
+    for (size_t p = 0; p < cpu.size(); ++p) {
+      const bool same = cpu.launch_ref[p] == gpu.launch_ref[p] && cpu.valid[p] == gpu.valid[p] &&
+                        (!cpu.valid[p] || bits(cpu.hit[p].t) == bits(gpu.hit[p].t));
+      if (!same && ++differ <= 3)
+        WARN("pixel " << p << ": cpu " << hex(cpu.launch_ref[p]) << (cpu.valid[p] ? "" : " (none)") << ", gpu "
+                      << hex(gpu.launch_ref[p]) << (gpu.valid[p] ? "" : " (none)"));
+    }
+    CHECK(differ == 0);
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
 
 // The compute gather's rasterizer (bins, tiles and pixels rejected by edge functions, tiles culled
 // by depth: common/shared/raster.h) skips only pairs the ray test rejects or that lose: its gather

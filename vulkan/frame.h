@@ -24,8 +24,10 @@
 //   shade    shade.comp: as shade() into RGBA8, sRGB-encoded (with shadows: by their hits)
 // Each phase is bracketed by timestamp queries. Nothing goes through the host between phases.
 //
-// The compute gather decides each pixel as the CPU's primary ray does (closest accepted t, then
-// the smaller reference); it leaves out only hits within the near plane (scene extent * 1e-6).
+// The compute gather decides each pixel as the CPU's primary ray does (closest accepted t past
+// the origin epsilon, then the smaller reference), on every pixel; only where the eye lies within
+// a hair of a triangle's plane (common/shared/raster.h, raster_setup without bounds) does it leave
+// out that triangle's hits within the near plane (scene extent * 1e-6).
 // The tie rule of the raster gather: the rasterizer covers a pixel centre by Vulkan's rules (the
 // top-left rule on shared edges) and keeps the nearest interpolated depth; the CPU gather keeps the
 // ray's closest accepted hit (ties: the smaller reference). They pick different triangles only

@@ -22,7 +22,7 @@
 #  define SH_BEGIN namespace gridrt { namespace shared { \
      using glm::vec2; using glm::vec3; using glm::vec4; using glm::ivec3; using glm::uvec3; \
      using glm::uvec4; using glm::ivec2; using glm::uvec2; using uint = std::uint32_t; \
-     using glm::min; using glm::max; using glm::clamp; using glm::floor; using glm::abs; \
+     using glm::min; using glm::max; using glm::clamp; using glm::floor; using glm::ceil; using glm::abs; \
      using glm::sqrt; using glm::floatBitsToUint; using glm::uintBitsToFloat;
 #  define SH_END } }
 #  define SH_IN(T) const T&

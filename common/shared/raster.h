@@ -120,6 +120,155 @@ SH_INLINE bool raster_rect_may_hit(SH_IN(vec3) e0, SH_IN(vec3) e1, SH_IN(vec3) e
          raster_edge_max(e2, x0, y0, x1, y1) >= 0.0f;
 }
 
+// ---- The gather's screen box: the pixels a triangle's ray test may accept ----
+//
+// A convex polygon of at most 9 vertices (a triangle clipped by up to six half-spaces or
+// half-planes gains at most one vertex per clip).
+struct GatherPolygon {
+  vec3 v[9];
+  uint n;
+};
+
+// Clips `poly` to the half-space dot(plane.xyz, p) + plane.w >= 0 (Sutherland-Hodgman); a 2D
+// polygon is clipped with its points as (x, y, 0) and the line as (a, b, 0, c).
+SH_INLINE GatherPolygon gather_clip(SH_IN(GatherPolygon) poly, vec4 plane) {
+  GatherPolygon kept;
+  kept.n = 0u;
+  for (uint i = 0u; i < 9u; ++i) kept.v[i] = vec3(0.0f);
+  for (uint i = 0u; i < poly.n; ++i) {
+    const vec3 a = poly.v[i];
+    const vec3 b = poly.v[i + 1u == poly.n ? 0u : i + 1u];
+    SH_PRECISE float da = sh_dot(vec3(plane.x, plane.y, plane.z), a) + plane.w;
+    SH_PRECISE float db = sh_dot(vec3(plane.x, plane.y, plane.z), b) + plane.w;
+    if (da >= 0.0f && kept.n < 9u) kept.v[kept.n++] = a;
+    if ((da >= 0.0f) != (db >= 0.0f) && kept.n < 9u) {
+      SH_PRECISE float s = sh_div(da, da - db);
+      SH_PRECISE vec3 ab = b - a;
+      SH_PRECISE vec3 step = ab * s;
+      SH_PRECISE vec3 cut = a + step;
+      kept.v[kept.n++] = cut;
+    }
+  }
+  return kept;
+}
+
+// The inclusive pixel box (x0, y0, x1, y1) of the pixels in the continuous pixel-index bounds
+// [lo, hi] (x from floor(lo.x) to ceil(hi.x): a pixel's worth of rounding either way is kept),
+// clamped to the image; false when that is empty or NaN.
+SH_INLINE bool gather_box_of(SH_IN(CameraParams) c, vec2 lo, vec2 hi, SH_OUT(uvec4) box) {
+  box = uvec4(0u);
+  const vec2 size = vec2(float(c.width), float(c.height));
+  if (!(hi.x >= -1.0f && hi.y >= -1.0f && lo.x <= size.x && lo.y <= size.y)) return false;  // off the image, NaN
+  const vec2 first = clamp(floor(lo), vec2(0.0f), size - 1.0f);
+  const vec2 last = clamp(ceil(hi), vec2(0.0f), size - 1.0f);
+  if (!(first.x <= last.x && first.y <= last.y)) return false;
+  box = uvec4(uvec2(first), uvec2(last));
+  return true;
+}
+
+// The box of the pixels where all three edge functions of raster_setup may be >= 0: the image
+// rectangle, a pixel wider on every side, clipped by the three lines E_i = 0 in pixel-index space.
+// Every pixel the ray test accepts has all three computed E_i >= 0 (the slack), and the clipped
+// region rounds by far less than the pixel the box is widened by, so the box holds every such
+// pixel: hits at any depth in front of the eye, with no near plane and no projection of vertices
+// (the triangle may cross the eye's plane).
+SH_INLINE bool gather_edge_box(SH_IN(CameraParams) c, SH_IN(vec3) e0, SH_IN(vec3) e1, SH_IN(vec3) e2,
+                               SH_OUT(uvec4) box) {
+  const float w = float(c.width), h = float(c.height);
+  GatherPolygon poly;
+  for (uint i = 0u; i < 9u; ++i) poly.v[i] = vec3(0.0f);
+  poly.v[0] = vec3(-1.0f, -1.0f, 0.0f);
+  poly.v[1] = vec3(w, -1.0f, 0.0f);
+  poly.v[2] = vec3(w, h, 0.0f);
+  poly.v[3] = vec3(-1.0f, h, 0.0f);
+  poly.n = 4u;
+  poly = gather_clip(poly, vec4(e0.x, e0.y, 0.0f, e0.z));
+  poly = gather_clip(poly, vec4(e1.x, e1.y, 0.0f, e1.z));
+  poly = gather_clip(poly, vec4(e2.x, e2.y, 0.0f, e2.z));
+  box = uvec4(0u);
+  if (poly.n == 0u) return false;
+  vec2 lo = vec2(3.0e38f), hi = vec2(-3.0e38f);
+  for (uint i = 0u; i < poly.n; ++i) {
+    lo = min(lo, vec2(poly.v[i].x, poly.v[i].y));
+    hi = max(hi, vec2(poly.v[i].x, poly.v[i].y));
+  }
+  return gather_box_of(c, lo, hi, box);
+}
+
+// Camera space (right, up, forward) of a world point.
+SH_INLINE vec3 gather_camera_space(SH_IN(CameraParams) c, SH_IN(vec3) p) {
+  SH_PRECISE vec3 q = p - c.eye;
+  return vec3(sh_dot(q, c.right), sh_dot(q, c.up), sh_dot(q, c.forward));
+}
+
+// Continuous pixel indices of a camera-space point in front of the eye (the ray of pixel (x, y)
+// passes through (x, y)): the inverse of camera_direction.
+SH_INLINE vec2 gather_project(SH_IN(CameraParams) c, SH_IN(vec3) q) {
+  SH_PRECISE float sx = sh_div(q.x, q.z);
+  SH_PRECISE float sy = sh_div(q.y, q.z);
+  SH_PRECISE float fx = sh_div(sx, c.tan_half_fov * c.aspect) + 1.0f;
+  SH_PRECISE float fy = 1.0f - sh_div(sy, c.tan_half_fov);
+  SH_PRECISE float x = (fx * 0.5f) * float(c.width) - 0.5f;
+  SH_PRECISE float y = (fy * 0.5f) * float(c.height) - 0.5f;
+  return vec2(x, y);
+}
+
+// The fallback where raster_setup gives no bounds (the eye within a hair of the triangle's plane,
+// or magnitudes out of range): the triangle clipped to the view frustum (the near plane and the
+// four sides widened by two pixels, in camera space) and projected; hits nearer than the near
+// plane are left out. Each projected vertex is widened by a bound of its rounding and of the ray
+// test's: `rounding` M (1 + |sx| + |sy|) / z in tangent units (M = max |q_i|_1 over the vertices'
+// camera-space coordinates, z the vertex's depth); the gather's `rounding` is
+// kGatherFrustumRounding, 2^-16 (512 eps: the errors are a few eps M in position), which at the
+// near plane may cover the image. (A `rounding` of 0 is the box before this bound, for tests.)
+SH_CONST float kGatherFrustumRounding = 0.0000152587890625f;  // 2^-16
+
+SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                                  SH_IN(vec3) v2, float rounding, SH_OUT(uvec4) box) {
+  box = uvec4(0u);
+  GatherPolygon poly;
+  for (uint i = 0u; i < 9u; ++i) poly.v[i] = vec3(0.0f);
+  poly.v[0] = gather_camera_space(c, v0);
+  poly.v[1] = gather_camera_space(c, v1);
+  poly.v[2] = gather_camera_space(c, v2);
+  poly.n = 3u;
+  SH_PRECISE float m = max(raster_norm1(poly.v[0]), max(raster_norm1(poly.v[1]), raster_norm1(poly.v[2])));
+  SH_PRECISE float tx = c.tan_half_fov * c.aspect;
+  SH_PRECISE float kx = tx * (1.0f + sh_div(4.0f, float(c.width)));
+  SH_PRECISE float ky = c.tan_half_fov * (1.0f + sh_div(4.0f, float(c.height)));
+  poly = gather_clip(poly, vec4(0.0f, 0.0f, 1.0f, -near_plane));
+  if (poly.n >= 3u) poly = gather_clip(poly, vec4(1.0f, 0.0f, kx, 0.0f));
+  if (poly.n >= 3u) poly = gather_clip(poly, vec4(-1.0f, 0.0f, kx, 0.0f));
+  if (poly.n >= 3u) poly = gather_clip(poly, vec4(0.0f, 1.0f, ky, 0.0f));
+  if (poly.n >= 3u) poly = gather_clip(poly, vec4(0.0f, -1.0f, ky, 0.0f));
+  if (poly.n < 3u) return false;
+  // Pixels per tangent unit
+  SH_PRECISE float px = sh_div(0.5f * float(c.width), tx);
+  SH_PRECISE float py = sh_div(0.5f * float(c.height), c.tan_half_fov);
+  vec2 lo = vec2(3.0e38f), hi = vec2(-3.0e38f);
+  for (uint i = 0u; i < poly.n; ++i) {
+    SH_PRECISE float z = max(poly.v[i].z, near_plane);
+    const vec2 p = gather_project(c, vec3(poly.v[i].x, poly.v[i].y, z));
+    SH_PRECISE float s = (1.0f + abs(sh_div(poly.v[i].x, z))) + abs(sh_div(poly.v[i].y, z));
+    SH_PRECISE float e = sh_div(rounding * m, z) * s;
+    SH_PRECISE vec2 r = vec2(e * px, e * py);
+    lo = min(lo, p - r);
+    hi = max(hi, p + r);
+  }
+  return gather_box_of(c, lo, hi, box);
+}
+
+// The gather's box of a triangle (the pixels whose camera rays its ray test may accept) and its
+// raster set-up: the edge functions' box where raster_setup gives bounds (every accepted pixel),
+// else the frustum box (every accepted pixel whose hit lies beyond the near plane; edges that
+// keep every pixel). False: no pixel to test.
+SH_INLINE bool gather_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+                          SH_OUT(uvec4) box, SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2,
+                          SH_OUT(float) t_lo) {
+  if (raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo)) return gather_edge_box(c, e0, e1, e2, box);
+  return gather_frustum_box(c, near_plane, v0, v1, v2, kGatherFrustumRounding, box);
+}
+
 SH_END
 
 #endif

@@ -80,7 +80,10 @@ layout(std430, binding = kGridBindDirty) buffer Dirty {
 // (sorted insertion) or filled from slot 0 without gaps (first-empty), and static references
 // precede dynamic ones; so a slot seen below `bound` stays below it, with every slot before it,
 // whatever other invocations do meanwhile. Plain loads, galloping (slots 0, 2, 6, 14, ...) then
-// halving: about 2 log2(n) loads for n references, where a walk from slot 0 costs n.
+// halving: about 2 log2(n) loads for n references, where a walk from slot 0 costs n. A stale load
+// (one that misses another invocation's atomic in this pass) sees a value at least the slot's
+// current one, so it can only stop the search early, and the atomics from there pass the smaller
+// slots unchanged: the image is the same, `coherent` (the image's) only saves those atomics.
 bool slot_below(GridParams g, uvec3 cell, uint s, uint bound) {
   return imageLoad(grid_image, ivec3(cell_slot_texel(g, cell, s))).x < bound;
 }

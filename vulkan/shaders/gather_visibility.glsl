@@ -2,17 +2,19 @@
 // pixel's camera ray meets first, decided by the ray test the CPU's gather makes (make_gather:
 // primary rays through the exact traversal, common/shared/triangle.h moller_trumbore, the
 // smaller t and then the smaller reference), not by the rasterizer's coverage and depth.
-//   gather_bin.comp    per triangle: the screen box of the pixels its ray test can accept (the
-//                      triangle clipped to the view frustum); a box of at most 16 pixels is
-//                      tested there, a larger one appended to the list of large triangles with
-//                      its count of 8x8-pixel tiles
+//   gather_bin.comp    per triangle: the screen box of the pixels its ray test can accept
+//                      (common/shared/raster.h gather_box: the edge functions' region, or where
+//                      they give no bounds the triangle clipped to the view frustum); a box of at
+//                      most 16 pixels is tested there, a larger one appended to the list of large
+//                      triangles with its count of work items
 //   gather_tiles.comp  per tile, one invocation per pixel: the ray test; an accepted hit takes
 //                      the pixel's key (t bits << 32 | reference) by a 64-bit atomic min
-// The box only limits the work (a pixel of margin on every side); the ray test decides.
+// The box only limits the work; the ray test decides.
 #ifndef GRIDRT_GATHER_VISIBILITY_GLSL
 #define GRIDRT_GATHER_VISIBILITY_GLSL
 
 #include "frame_common.glsl"
+#include "gridrt/common/shared/raster.h"
 
 // The instance holding geometry-buffer triangle `k`: the last whose offset is <= k (build.comp).
 uint gather_instance_of(uint k, uint instance_count) {
@@ -26,67 +28,6 @@ uint gather_instance_of(uint k, uint instance_count) {
   return lo;
 }
 
-// Camera space (right, up, forward) of a world point, as gather.vert computes it.
-vec3 gather_camera_space(CameraParams c, vec3 p) {
-  const vec3 q = p - c.eye;
-  return vec3(sh_dot(q, c.right), sh_dot(q, c.up), sh_dot(q, c.forward));
-}
-
-// Continuous pixel coordinates of a camera-space point in front of the eye (pixel (x, y) covers
-// [x, x + 1) x [y, y + 1); its ray passes through the centre): the inverse of camera_direction.
-vec2 gather_project(CameraParams c, vec3 q) {
-  const float sx = q.x / q.z, sy = q.y / q.z;
-  return vec2((sx / (c.tan_half_fov * c.aspect) + 1.0f) * 0.5f * float(c.width),
-              (1.0f - sy / c.tan_half_fov) * 0.5f * float(c.height));
-}
-
-// Clips the convex polygon poly[0, n) to the half-space dot(plane.xyz, p) + plane.w >= 0
-// (Sutherland-Hodgman); returns the new vertex count (at most n + 1).
-uint gather_clip(inout vec3 poly[9], uint n, vec4 plane) {
-  vec3 kept[9];
-  uint m = 0u;
-  for (uint i = 0u; i < n; ++i) {
-    const vec3 a = poly[i], b = poly[i + 1u == n ? 0u : i + 1u];
-    const float da = dot(plane.xyz, a) + plane.w, db = dot(plane.xyz, b) + plane.w;
-    if (da >= 0.0f && m < 9u) kept[m++] = a;
-    if ((da >= 0.0f) != (db >= 0.0f) && m < 9u) kept[m++] = a + (da / (da - db)) * (b - a);
-  }
-  poly = kept;
-  return m;
-}
-
-// The box (x0, y0, x1, y1, inclusive) of the pixels whose centre rays may meet the triangle: its
-// part inside the view frustum (the near plane and the four sides, widened by two pixels) projected,
-// a pixel of margin on every side; false when nothing is left.
-bool gather_box(CameraParams c, float near_plane, vec3 v0, vec3 v1, vec3 v2, out uvec4 box) {
-  box = uvec4(0u);
-  vec3 poly[9];
-  poly[0] = gather_camera_space(c, v0);
-  poly[1] = gather_camera_space(c, v1);
-  poly[2] = gather_camera_space(c, v2);
-  const float kx = c.tan_half_fov * c.aspect * (1.0f + 4.0f / float(c.width));
-  const float ky = c.tan_half_fov * (1.0f + 4.0f / float(c.height));
-  uint n = gather_clip(poly, 3u, vec4(0.0f, 0.0f, 1.0f, -near_plane));
-  n = n >= 3u ? gather_clip(poly, n, vec4(1.0f, 0.0f, kx, 0.0f)) : 0u;
-  n = n >= 3u ? gather_clip(poly, n, vec4(-1.0f, 0.0f, kx, 0.0f)) : 0u;
-  n = n >= 3u ? gather_clip(poly, n, vec4(0.0f, 1.0f, ky, 0.0f)) : 0u;
-  n = n >= 3u ? gather_clip(poly, n, vec4(0.0f, -1.0f, ky, 0.0f)) : 0u;
-  if (n < 3u) return false;
-  vec2 lo = vec2(3.0e38f), hi = vec2(-3.0e38f);
-  for (uint i = 0u; i < n; ++i) {
-    const vec2 p = gather_project(c, vec3(poly[i].xy, max(poly[i].z, near_plane)));
-    lo = min(lo, p);
-    hi = max(hi, p);
-  }
-  // Pixel centres x + 0.5 in [lo, hi], widened by a pixel, clamped in float before converting
-  const vec2 size = vec2(float(c.width), float(c.height));
-  const vec2 first = clamp(floor(lo - 0.5f) - 1.0f, vec2(0.0f), size - 1.0f);
-  const vec2 last = clamp(ceil(hi - 0.5f) + 1.0f, vec2(0.0f), size - 1.0f);
-  if (!(first.x <= last.x && first.y <= last.y)) return false;  // NaN: nothing to test
-  box = uvec4(uvec2(first), uvec2(last));
-  return true;
-}
-
 // The 64-bit key of the pixel's ray (direction `dir`) against the triangle (t bits << 32 | ref; t >= 0, so its bits
 // order as the floats), or false when the shared test rejects it or the alpha mask cuts it. The
 // same test and alpha rule as the raster gather's fragment shader and the CPU's primary rays.
@@ -94,7 +35,9 @@ bool gather_key_along(uint ref, uint k, GridTriangle tri, vec3 dir, out uvec2 ke
   key = uvec2(kNoRef, 0xFFFFFFFFu);
   const CameraParams c = fp.camera;
   TriangleTest r;
-  if (moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, 0.0f, sh_infinity(), sh_infinity(), r) != kTestAccepted)
+  // The primary ray's interval as the CPU's traces it: (origin epsilon, inf)
+  if (moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, origin_tmin(c.eye, dir, 0.0f), sh_infinity(), sh_infinity(), r) !=
+      kTestAccepted)
     return false;
   const float t = moller_trumbore_t(r);
   if ((kFrameFlags & kFrameAlpha) != 0u) {
