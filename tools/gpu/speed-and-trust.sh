@@ -8,7 +8,7 @@
 #                                                              ons-reborn-teapot, bunny)
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- gridrt-base /tmp/gs/*.gridscene \
 #     /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
-# There: PART=diff|bench|portal bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
+# There: PART=diff|bench|gather|portal bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
 #   diff    gridrt diff (reference against the shaders, validation on) on the three frames: paper
 #           traversal + raster build + the GPU frame's passes, exact + compute build + the GPU
 #           frame, exact + raster build; portal diff bit for bit on the built-in level, its mip
@@ -16,6 +16,8 @@
 #   bench   per scene, in one run on the same rays: the baseline binary at its defaults, this one
 #           with --mailbox off and on (its default), each beside the RT pipeline; the untuned bunny
 #           (primary rays) and atrium with the mailbox off and on
+#   gather  per scene (and the bunny, primary rays), the baseline binary and this one at their
+#           defaults: the gather's time and split, its work items
 #   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
 set -u
 G=${G:-.gpu}
@@ -70,6 +72,23 @@ bench)
         --frames 30 --warmup 5 --mailbox $m 2>&1 | grep -E "$sel" | cut -c1-400
     done
   } 2>&1 | tee "$out/bench.txt"
+  ;;
+gather)
+  # The compute gather's screen box (common/shared/raster.h gather_box) against the baseline's:
+  # per scene, the baseline binary and this one at their defaults, one after the other
+  B="--backend vulkan --traversal exact --vk-build compute --frames 30 --warmup 5"
+  sel='^\| [0-9]|^gather split|^back to back|error'
+  {
+    for s in "${scenes[@]}" bunny; do
+      for bin in "$E/gridrt-base" gridrt; do
+        echo "== bench $s: $bin"
+        rays=""
+        [ "$s" = bunny ] && rays="--rays primary"
+        # shellcheck disable=SC2086
+        timeout 90 "$bin" bench $E/$s.gridscene $B $rays 2>&1 | grep -E "$sel" | cut -c1-400
+      done
+    done
+  } 2>&1 | tee "$out/gather.txt"
   ;;
 portal)
   INSTANCED_ONLY=1 G=$G OUT=$out bash tools/gpu/portal-bench.sh > "$out/portal-stdout.txt" 2>&1

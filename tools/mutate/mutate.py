@@ -167,9 +167,15 @@ def main():
                     fail = re.findall(r"^(.*?) FAILED:|^-{5,}\n(.*)$", out, re.M)
                     lines = [l for l in out.splitlines() if l.strip()]
                     r.update(status="killed", why=lines[-2] if len(lines) > 1 else "")
-                    names = re.findall(r"^-{70,}\n(.+)\n", out, re.M)
-                    if names:
-                        r["by"] = names[0]
+                    # The first test whose section of the report holds a failure (a test's
+                    # warnings print its name too)
+                    heads = [h for h in re.finditer(r"^-{70,}\n(.+)\n", out, re.M)
+                             if not re.search(r"\.\w+:\d+$", h.group(1)) and not h.group(1).startswith("-")]
+                    for i, h in enumerate(heads):
+                        end = heads[i + 1].start() if i + 1 < len(heads) else len(out)
+                        if "FAILED" in out[h.end():end]:
+                            r["by"] = h.group(1)
+                            break
         with open(path, "w") as f:
             f.write(pristine)
         r["seconds"] = round(time.time() - t0, 1)
