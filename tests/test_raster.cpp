@@ -5,6 +5,7 @@
 // pixel centres and tile edges); and they do reject: most pixels far from a triangle fail them.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -24,6 +25,7 @@ struct Counts {
   // plane, which a frustum box leaves out by its rule and the edge box holds
   size_t box_fail = 0, frustum_boxes = 0, within_near = 0, within_near_boxed = 0;
   size_t bound_needed = 0;  // accepted pixels beyond the near plane outside the frustum box without its rounding bound
+  size_t within_near_edge = 0;  // accepted pixels nearer than the near plane held by an edge box
 };
 
 // The frame's near plane for the test's scale (VulkanFrame: the scene's extent x 1e-6).
@@ -36,14 +38,18 @@ void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const gl
   float t_lo = 0.0f;
   ++n.triangles;
   n.set_up += shared::raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo);
+  // The gather's box; it holds every accepted pixel whose hit lies beyond the near plane, and
+  // every accepted pixel where the edge functions give it (set up, crossing the near plane)
   glm::uvec4 box(0u);
+  const bool boxed = shared::gather_box(c, kNear, v0, v1, v2, box);
+  const glm::vec3 q0 = shared::gather_camera_space(c, v0), q1 = shared::gather_camera_space(c, v1),
+                  q2 = shared::gather_camera_space(c, v2);
   glm::vec3 b0, b1, b2;
   float b_lo = 0.0f;
-  const bool boxed = shared::gather_box(c, kNear, v0, v1, v2, box, b0, b1, b2, b_lo);
-  const bool edge_box = shared::raster_setup(c, v0, v1, v2, b0, b1, b2, b_lo);
+  const bool edge_box = std::min({q0.z, q1.z, q2.z}) < kNear && shared::raster_setup(c, v0, v1, v2, b0, b1, b2, b_lo);
   n.frustum_boxes += !edge_box;
   glm::uvec4 box0(0u);
-  const bool boxed0 = !edge_box && shared::gather_frustum_box(c, kNear, v0, v1, v2, 0.0f, box0);
+  const bool boxed0 = !edge_box && shared::gather_frustum_box(c, kNear, q0, q1, q2, 0.0f, box0);
   for (uint32_t y = 0; y < c.height; ++y)
     for (uint32_t x = 0; x < c.width; ++x) {
       const glm::vec3 dir = shared::camera_direction(c, x, y);
@@ -69,6 +75,7 @@ void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const gl
         const bool near = depth < kNear;
         n.within_near += near;
         n.within_near_boxed += near && in_box;
+        n.within_near_edge += near && in_box && edge_box;
         n.box_fail += !in_box && (edge_box || !near);
         const bool in_box0 = boxed0 && x >= box0.x && x <= box0.z && y >= box0.y && y <= box0.w;
         n.bound_needed += !edge_box && !near && !in_box0;
@@ -104,10 +111,10 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
     };
     auto rpx = [&] { return (0.5f + 0.6f * u(rng)) * float(w); };
     auto rpy = [&] { return (0.5f + 0.6f * u(rng)) * float(h); };
-    for (int i = 0; i < 72; ++i) {
+    for (int i = 0; i < 78; ++i) {
       glm::vec3 v0, v1, v2;
       const float z = std::exp2(4.0f * u(rng));  // depths 1/16 .. 16
-      switch (i % 12) {
+      switch (i % 13) {
         case 0:  // ordinary, across tiles and bins
           v0 = at_pixel(rpx(), rpy(), z);
           v1 = at_pixel(rpx(), rpy(), z * (1.0f + 0.5f * u(rng)));
@@ -184,13 +191,20 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
           v2 = p + 10.0f * glm::normalize(glm::cross(a, rvec()) + 0.5f * rvec());
           break;
         }
+        case 12: {  // small, around the eye: crossing the near plane, hits nearer than it
+          const glm::vec3 o = eye + kNear * (2.0f * f + 2.0f * rvec());
+          v0 = o + 4.0f * kNear * rvec();
+          v1 = o + 4.0f * kNear * rvec();
+          v2 = o + 4.0f * kNear * rvec();
+          break;
+        }
         default:  // a screen-filling one, partly behind the eye
           v0 = at_pixel(-2.0f * float(w), 0.5f * float(h), z);
           v1 = at_pixel(3.0f * float(w), -float(h), z * 0.5f);
           v2 = eye + z * (0.2f * u(rng) * f + 2.0f * up) - 4.0f * z * f;
           break;
       }
-      check_triangle(c, v0, v1, v2, i % 12 >= 10 ? near_eye : n);
+      check_triangle(c, v0, v1, v2, i % 13 >= 10 ? near_eye : n);
     }
   }
   INFO(n.triangles << " triangles (" << n.set_up << " set up with bounds), " << n.accepted << " accepted pixels, "
@@ -209,12 +223,14 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
     INFO("near the eye: " << e.triangles << " triangles, " << e.frustum_boxes << " boxed by the frustum, " << e.accepted
                           << " accepted pixels, " << e.within_near << " with the hit nearer than the near plane, "
                           << e.within_near_boxed << " of them in the box; " << e.bound_needed
-                          << " beyond it outside the frustum box without its rounding bound");
+                          << " beyond it outside the frustum box without its rounding bound; " << e.within_near_edge
+                          << " nearer than the near plane held by an edge box");
     CHECK(e.pixel_fail + e.tile_fail + e.bin_fail + e.depth_fail == 0);
     CHECK(e.box_fail == 0);
     CHECK(e.accepted > 10000);
     CHECK(e.within_near_boxed >= 100);
-    CHECK(e.bound_needed > 0);  // the family reaches where the bound is needed
+    CHECK(e.bound_needed > 0);       // the families reach where the bound is needed
+    CHECK(e.within_near_edge >= 50);  // and hits nearer than the near plane, which edge boxes hold
   }
   // The bounds exist for most triangles and reject most pixels the test misses
   CHECK(n.set_up >= n.triangles * 8 / 10);

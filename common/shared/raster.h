@@ -213,26 +213,25 @@ SH_INLINE vec2 gather_project(SH_IN(CameraParams) c, SH_IN(vec3) q) {
   return vec2(x, y);
 }
 
-// The fallback where raster_setup gives no bounds (the eye within a hair of the triangle's plane,
-// or magnitudes out of range): the triangle clipped to the view frustum (the near plane and the
-// four sides widened by two pixels, in camera space) and projected; hits nearer than the near
-// plane are left out. Each projected vertex is widened by a bound of its rounding and of the ray
+// The frustum box of a triangle given in camera space (gather_camera_space): the triangle clipped
+// to the view frustum (the near plane and the four sides widened by two pixels) and projected;
+// hits nearer than the near plane are left out. Each projected vertex is widened by a bound of its rounding and of the ray
 // test's: `rounding` M (1 + |sx| + |sy|) / z in tangent units (M = max |q_i|_1 over the vertices'
 // camera-space coordinates, z the vertex's depth); the gather's `rounding` is
 // kGatherFrustumRounding, 2^-16 (512 eps: the errors are a few eps M in position), which at the
 // near plane may cover the image. (A `rounding` of 0 is the box before this bound, for tests.)
 SH_CONST float kGatherFrustumRounding = 0.0000152587890625f;  // 2^-16
 
-SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                                  SH_IN(vec3) v2, float rounding, SH_OUT(uvec4) box) {
+SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) q0, SH_IN(vec3) q1,
+                                  SH_IN(vec3) q2, float rounding, SH_OUT(uvec4) box) {
   box = uvec4(0u);
   GatherPolygon poly;
   for (uint i = 0u; i < 9u; ++i) poly.v[i] = vec3(0.0f);
-  poly.v[0] = gather_camera_space(c, v0);
-  poly.v[1] = gather_camera_space(c, v1);
-  poly.v[2] = gather_camera_space(c, v2);
+  poly.v[0] = q0;
+  poly.v[1] = q1;
+  poly.v[2] = q2;
   poly.n = 3u;
-  SH_PRECISE float m = max(raster_norm1(poly.v[0]), max(raster_norm1(poly.v[1]), raster_norm1(poly.v[2])));
+  SH_PRECISE float m = max(raster_norm1(q0), max(raster_norm1(q1), raster_norm1(q2)));
   SH_PRECISE float tx = c.tan_half_fov * c.aspect;
   SH_PRECISE float kx = tx * (1.0f + sh_div(4.0f, float(c.width)));
   SH_PRECISE float ky = c.tan_half_fov * (1.0f + sh_div(4.0f, float(c.height)));
@@ -258,15 +257,29 @@ SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN
   return gather_box_of(c, lo, hi, box);
 }
 
-// The gather's box of a triangle (the pixels whose camera rays its ray test may accept) and its
-// raster set-up: the edge functions' box where raster_setup gives bounds (every accepted pixel),
-// else the frustum box (every accepted pixel whose hit lies beyond the near plane; edges that
-// keep every pixel). False: no pixel to test.
+// The gather's box of a triangle: the pixels whose camera rays its ray test may accept, found
+// from the cheapest bound that holds (docs/SPEC.md, "The gather as a rasterizer"). False: no
+// pixel to test.
+//  - wholly behind the eye's plane (every depth below -2^-20 M; depths round by a few eps M):
+//    no ray of the image meets it;
+//  - wholly beyond the near plane: every hit is, and the frustum box holds them;
+//  - crossing the near plane: the edge functions' box, every accepted pixel at any depth; where
+//    raster_setup gives no bounds (the eye within a hair of the plane) the frustum box, which
+//    leaves out the hits nearer than the near plane.
 SH_INLINE bool gather_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
-                          SH_OUT(uvec4) box, SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2,
-                          SH_OUT(float) t_lo) {
+                          SH_OUT(uvec4) box) {
+  box = uvec4(0u);
+  const vec3 q0 = gather_camera_space(c, v0);
+  const vec3 q1 = gather_camera_space(c, v1);
+  const vec3 q2 = gather_camera_space(c, v2);
+  SH_PRECISE float m = max(raster_norm1(q0), max(raster_norm1(q1), raster_norm1(q2)));
+  if (max(q0.z, max(q1.z, q2.z)) < -0.00000095367431640625f * m) return false;  // 2^-20
+  if (min(q0.z, min(q1.z, q2.z)) >= near_plane)
+    return gather_frustum_box(c, near_plane, q0, q1, q2, kGatherFrustumRounding, box);
+  vec3 e0, e1, e2;
+  float t_lo;
   if (raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo)) return gather_edge_box(c, e0, e1, e2, box);
-  return gather_frustum_box(c, near_plane, v0, v1, v2, kGatherFrustumRounding, box);
+  return gather_frustum_box(c, near_plane, q0, q1, q2, kGatherFrustumRounding, box);
 }
 
 SH_END

@@ -16,7 +16,7 @@
 #   bench   per scene, in one run on the same rays: the baseline binary at its defaults, this one
 #           with --mailbox off and on (its default), each beside the RT pipeline; the untuned bunny
 #           (primary rays) and atrium with the mailbox off and on
-#   gather  per scene (and the bunny, primary rays), the baseline binary and this one at their
+#   gather  per scene (and the built-in atrium), the baseline binary and this one at their
 #           defaults: the gather's time and split, its work items
 #   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
 set -u
@@ -79,13 +79,12 @@ gather)
   B="--backend vulkan --traversal exact --vk-build compute --frames 30 --warmup 5"
   sel='^\| [0-9]|^gather split|^back to back|error'
   {
-    for s in "${scenes[@]}" bunny; do
+    for s in "${scenes[@]}" builtin:atrium; do
+      X=$E/$s.gridscene
+      [ "$s" = builtin:atrium ] && X=$s
       for bin in "$E/gridrt-base" gridrt; do
         echo "== bench $s: $bin"
-        rays=""
-        [ "$s" = bunny ] && rays="--rays primary"
-        # shellcheck disable=SC2086
-        timeout 90 "$bin" bench $E/$s.gridscene $B $rays 2>&1 | grep -E "$sel" | cut -c1-400
+        timeout 90 "$bin" bench "$X" $B 2>&1 | grep -E "$sel" | cut -c1-400
       done
     done
   } 2>&1 | tee "$out/gather.txt"

@@ -1,8 +1,8 @@
 #version 460
 // gather_bin.comp: the compute gather's first pass (gather_visibility.glsl), one invocation per
-// triangle of the geometry buffer: its set-up (common/shared/raster.h raster_setup: edge functions
-// and a depth bound) and screen box (gather_box); a box of at most 16 pixels is tested here, a
-// larger one is appended to the list of large triangles with its count of work items, the 32x32-pixel bins
+// triangle of the geometry buffer: its screen box (common/shared/raster.h gather_box); a box of at
+// most 16 pixels is tested here, a larger one is set up once (raster_setup: edge functions and a
+// depth bound) and appended to the list of large triangles with its count of work items, the 32x32-pixel bins
 // of the screen its box touches (with kFrameGatherBoxes: the 8x8-pixel tiles of its box). One
 // 64-bit atomic per subgroup gives each its list index and its first item; the item pass finds an
 // item's triangle by binary search, so no invocation writes its items one by one.
@@ -30,15 +30,13 @@ void main() {
   uvec4 box = uvec4(0u);
   bool here = false;  // a small box, tested by this invocation
   GridTriangle tri;
-  vec3 e0 = vec3(0.0f), e1 = vec3(0.0f), e2 = vec3(0.0f);
-  float t_lo = 0.0f;
   if (k < pc.triangle_count) {
     const uint instance = gather_instance_of(k, pc.instance_count);
     ref = ref_pack(instance, k - instances[instance].tri_offset);
     tri = triangles[k];
     // Zero-area triangles are never hit (the grid does not insert them)
     const vec3 n = triangle_normal(tri.v0, tri.v1, tri.v2);
-    if (sh_dot(n, n) != 0.0f && gather_box(c, fp.near_plane, tri.v0, tri.v1, tri.v2, box, e0, e1, e2, t_lo)) {
+    if (sh_dot(n, n) != 0.0f && gather_box(c, fp.near_plane, tri.v0, tri.v1, tri.v2, box)) {
       here = (box.z - box.x + 1u) * (box.w - box.y + 1u) <= 16u;
       if (!here) {
         if (boxes)
@@ -58,11 +56,11 @@ void main() {
   base = subgroupBroadcastFirst(base);
   if (large != 0u) {
     GatherRasterTriangle g;
-    // The box gather tests every pixel of the box: edges that keep every pixel, no depth bound
-    g.t_lo = boxes ? 0.0f : t_lo;
-    g.edge0 = boxes ? vec3(0.0f, 0.0f, 1.0f) : e0;
-    g.edge1 = boxes ? vec3(0.0f, 0.0f, 1.0f) : e1;
-    g.edge2 = boxes ? vec3(0.0f, 0.0f, 1.0f) : e2;
+    g.t_lo = 0.0f;
+    g.edge0 = vec3(0.0f, 0.0f, 1.0f);
+    g.edge1 = g.edge0;
+    g.edge2 = g.edge0;
+    if (!boxes) raster_setup(c, tri.v0, tri.v1, tri.v2, g.edge0, g.edge1, g.edge2, g.t_lo);
     g.ref = ref;
     g.first = base.x + items_before;
     g.box_lo = box.x | (box.y << 16u);

@@ -3,8 +3,9 @@
 // primary rays through the exact traversal, common/shared/triangle.h moller_trumbore, the
 // smaller t and then the smaller reference), not by the rasterizer's coverage and depth.
 //   gather_bin.comp    per triangle: the screen box of the pixels its ray test can accept
-//                      (common/shared/raster.h gather_box: the edge functions' region, or where
-//                      they give no bounds the triangle clipped to the view frustum); a box of at
+//                      (common/shared/raster.h gather_box: the triangle clipped to the view
+//                      frustum with a rounding bound, or across the near plane the edge
+//                      functions' region); a box of at
 //                      most 16 pixels is tested there, a larger one appended to the list of large
 //                      triangles with its count of work items
 //   gather_tiles.comp  per tile, one invocation per pixel: the ray test; an accepted hit takes
