@@ -201,18 +201,6 @@ SH_INLINE vec3 gather_camera_space(SH_IN(CameraParams) c, SH_IN(vec3) p) {
   return vec3(sh_dot(q, c.right), sh_dot(q, c.up), sh_dot(q, c.forward));
 }
 
-// Continuous pixel indices of a camera-space point in front of the eye (the ray of pixel (x, y)
-// passes through (x, y)): the inverse of camera_direction.
-SH_INLINE vec2 gather_project(SH_IN(CameraParams) c, SH_IN(vec3) q) {
-  SH_PRECISE float sx = sh_div(q.x, q.z);
-  SH_PRECISE float sy = sh_div(q.y, q.z);
-  SH_PRECISE float fx = sh_div(sx, c.tan_half_fov * c.aspect) + 1.0f;
-  SH_PRECISE float fy = 1.0f - sh_div(sy, c.tan_half_fov);
-  SH_PRECISE float x = (fx * 0.5f) * float(c.width) - 0.5f;
-  SH_PRECISE float y = (fy * 0.5f) * float(c.height) - 0.5f;
-  return vec2(x, y);
-}
-
 // The frustum box of a triangle given in camera space (gather_camera_space): the triangle clipped
 // to the view frustum (the near plane and the four sides widened by two pixels) and projected;
 // hits nearer than the near plane are left out. Each projected vertex is widened by a bound of its rounding and of the ray
@@ -241,15 +229,20 @@ SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN
   if (poly.n >= 3u) poly = gather_clip(poly, vec4(0.0f, 1.0f, ky, 0.0f));
   if (poly.n >= 3u) poly = gather_clip(poly, vec4(0.0f, -1.0f, ky, 0.0f));
   if (poly.n < 3u) return false;
-  // Pixels per tangent unit
+  // Pixels per tangent unit, and the pixel indices of the view's centre
   SH_PRECISE float px = sh_div(0.5f * float(c.width), tx);
   SH_PRECISE float py = sh_div(0.5f * float(c.height), c.tan_half_fov);
+  SH_PRECISE float cx = 0.5f * float(c.width) - 0.5f;
+  SH_PRECISE float cy = 0.5f * float(c.height) - 0.5f;
   vec2 lo = vec2(3.0e38f), hi = vec2(-3.0e38f);
   for (uint i = 0u; i < poly.n; ++i) {
-    SH_PRECISE float z = max(poly.v[i].z, near_plane);
-    const vec2 p = gather_project(c, vec3(poly.v[i].x, poly.v[i].y, z));
-    SH_PRECISE float s = (1.0f + abs(sh_div(poly.v[i].x, z))) + abs(sh_div(poly.v[i].y, z));
-    SH_PRECISE float e = sh_div(rounding * m, z) * s;
+    // Projected with one reciprocal (a few ulps of the tangents, far inside the bound)
+    SH_PRECISE float rz = sh_rcp(max(poly.v[i].z, near_plane));
+    SH_PRECISE float sx = poly.v[i].x * rz;
+    SH_PRECISE float sy = poly.v[i].y * rz;
+    const vec2 p = vec2(sx * px + cx, cy - sy * py);
+    SH_PRECISE float s = (1.0f + abs(sx)) + abs(sy);
+    SH_PRECISE float e = ((rounding * m) * rz) * s;
     SH_PRECISE vec2 r = vec2(e * px, e * py);
     lo = min(lo, p - r);
     hi = max(hi, p + r);

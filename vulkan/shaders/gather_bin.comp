@@ -75,7 +75,7 @@ void main() {
     for (uint x = box.x; x <= box.z; ++x) {
       uvec2 key;
       const bool hit = boxes ? gather_key(ref, k, tri, uvec2(x, y), key)
-                             : gather_key_along(ref, k, tri, pixel_dirs[y * c.width + x].xyz, key);
+                             : gather_key_along(ref, k, tri, pixel_dirs[y * c.width + x].xyz, pixel_dirs[y * c.width + x].w, key);
       if (hit) atomicMin(gather_keys64[y * c.width + x], packUint2x32(key));
     }
 }

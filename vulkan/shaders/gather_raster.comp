@@ -80,7 +80,7 @@ void main() {
         } else if (px.x >= qx0 && px.y >= qy0 && px.x <= qx1 && px.y <= qy1 &&
                    raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
           uvec2 key;
-          if (gather_key_along(g.ref, k, tri, pixel_dirs[px.y * c.width + px.x].xyz, key)) {
+          if (gather_key_along(g.ref, k, tri, pixel_dirs[px.y * c.width + px.x].xyz, pixel_dirs[px.y * c.width + px.x].w, key)) {
             const uint64_t old = atomicMin(gather_keys64[px.y * c.width + px.x], packUint2x32(key));
             v = min(unpackUint2x32(old).y, key.y);
           }

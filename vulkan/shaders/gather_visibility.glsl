@@ -29,16 +29,15 @@ uint gather_instance_of(uint k, uint instance_count) {
   return lo;
 }
 
-// The 64-bit key of the pixel's ray (direction `dir`) against the triangle (t bits << 32 | ref; t >= 0, so its bits
-// order as the floats), or false when the shared test rejects it or the alpha mask cuts it. The
-// same test and alpha rule as the raster gather's fragment shader and the CPU's primary rays.
-bool gather_key_along(uint ref, uint k, GridTriangle tri, vec3 dir, out uvec2 key) {
+// The 64-bit key of the pixel's ray (direction `dir`, interval (tmin, inf): tmin its origin
+// epsilon, origin_tmin) against the triangle (t bits << 32 | ref; t >= 0, so its bits order as
+// the floats), or false when the shared test rejects it or the alpha mask cuts it. The same test,
+// interval and alpha rule as the raster gather's fragment shader and the CPU's primary rays.
+bool gather_key_along(uint ref, uint k, GridTriangle tri, vec3 dir, float tmin, out uvec2 key) {
   key = uvec2(kNoRef, 0xFFFFFFFFu);
   const CameraParams c = fp.camera;
   TriangleTest r;
-  // The primary ray's interval as the CPU's traces it: (origin epsilon, inf)
-  if (moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, origin_tmin(c.eye, dir, 0.0f), sh_infinity(), sh_infinity(), r) !=
-      kTestAccepted)
+  if (moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, tmin, sh_infinity(), sh_infinity(), r) != kTestAccepted)
     return false;
   const float t = moller_trumbore_t(r);
   if ((kFrameFlags & kFrameAlpha) != 0u) {
@@ -54,9 +53,11 @@ bool gather_key_along(uint ref, uint k, GridTriangle tri, vec3 dir, out uvec2 ke
   return true;
 }
 
-// The same for pixel px's camera ray (camera_direction; the rasterizer reads it from pixel_dirs).
+// The same for pixel px's camera ray (camera_direction, origin_tmin; the rasterizer reads both from
+// pixel_dirs).
 bool gather_key(uint ref, uint k, GridTriangle tri, uvec2 px, out uvec2 key) {
-  return gather_key_along(ref, k, tri, camera_direction(fp.camera, px.x, px.y), key);
+  const vec3 dir = camera_direction(fp.camera, px.x, px.y);
+  return gather_key_along(ref, k, tri, dir, origin_tmin(fp.camera.eye, dir, 0.0f), key);
 }
 
 #endif
