@@ -23,8 +23,18 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The process's scratch folder, removed when the test process exits.
+struct ScratchRoot {
+  fs::path path = fs::temp_directory_path() / ("gridrt-hostile-" + std::to_string(::getpid()));
+  ~ScratchRoot() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
 fs::path scratch(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("gridrt-hostile-" + std::to_string(::getpid())) / name;
+  static const ScratchRoot root;
+  const fs::path d = root.path / name;
   fs::remove_all(d);
   fs::create_directories(d);
   return d;

@@ -61,12 +61,23 @@ void load_input(const std::string& path, Kind kind, const std::string& scratch) 
   }
 }
 
-int fuzz_one(Kind kind, const uint8_t* data, size_t size) {
-  static const std::string scratch = [] {
+// The process's scratch folder, removed when it exits normally.
+struct ScratchDir {
+  std::string path;
+  ScratchDir() {
     const fs::path d = fs::temp_directory_path() / ("gridrt-fuzz-" + std::to_string(::getpid()));
     fs::create_directories(d);
-    return d.string();
-  }();
+    path = d.string();
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+int fuzz_one(Kind kind, const uint8_t* data, size_t size) {
+  static const ScratchDir scratch_dir;
+  const std::string& scratch = scratch_dir.path;
   std::string_view text(reinterpret_cast<const char*>(data), size);
   std::string_view mtl;
   if (kind == Kind::obj) {
