@@ -46,7 +46,7 @@ const char* test_reason(uint32_t code) {
     case kTestOutsideUV: return "rejected: (u+v)*|det| > |det|, outside edge v1-v2";
     case kTestBehind: return "rejected: t*|det| <= t_lo*|det|, before the (elongated) segment or tmin";
     case kTestBeyond: return "rejected: t*|det| >= t_hi*|det|, beyond the (elongated) segment or tmax";
-    case kTestNotCloser: return "rejected: t*|det| > best_t*|det|, the best hit so far is closer";
+    case kTestNotCloser: return "rejected: t*|det| > best*|det| (best: best_t two ulps up), the best hit so far is closer";
     case kTestSelfHit: return "skipped: the ray's launch triangle (self-hit)";
     case kTestAlphaKeyed: return "rejected: alpha-keyed out by the mask";
     case kTestTieLost: return "rejected: t not smaller than the best hit's (ties keep the smaller reference)";

@@ -524,6 +524,70 @@ TEST_CASE("Vulkan frame: zero-area triangles hide nothing in either gather", "[v
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
+// Stacks of coplanar overlapping faces (z-fighting): many triangles meet a pixel's ray at the same
+// reported t. The CPU's gather (the exact traversal: cells in order, references in order within a
+// cell) and the compute gather (every triangle of the pixel, a 64-bit minimum) keep the same one,
+// the smallest (t, reference) (docs/SPEC.md, "The not closer bound").
+TEST_CASE("Vulkan frame: on coplanar overlapping faces the compute gather keeps the CPU's triangle",
+          "[vulkan][diff][frame][gather]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  if (!ctx.info().buffer_int64_atomics || !ctx.info().subgroup_arithmetic_ballot) {
+    WARN("skipped: the device has no 64-bit buffer atomics (no compute gather)");
+    return;
+  }
+  Scene s;
+  s.name = "z-fighting";
+  s.materials = {Material{.name = "grey", .diffuse = {0.6f, 0.6f, 0.6f}}};
+  Mesh m;
+  m.name = "stack";
+  auto quad = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d) {
+    const uint32_t i = uint32_t(m.positions.size());
+    m.positions.insert(m.positions.end(), {a, b, c, d});
+    m.triangles.push_back({i, i + 1, i + 2});
+    m.triangles.push_back({i, i + 2, i + 3});
+  };
+  for (int k = 0; k < 20; ++k) {  // staggered quads in the plane z = 0, each overlapping the next ones
+    const float x0 = 0.37f * float(k);
+    for (const float d : {0.0f, 0.1f}) quad({x0 + d, d / 2, 0}, {x0 + d + 1, d / 2, 0}, {x0 + d + 1, 1 + d / 2, 0}, {x0 + d, 1 + d / 2, 0});
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes = {m};
+  s.instances = {Instance{.name = "stack", .mesh = 0}};
+  Camera camera;
+  camera.eye = {4.0f, 1.0e-5f, 0.5f};
+  camera.target = {-3.0f, 1.0e-5f, 0.6f};
+  camera.vfov_degrees = 70.0f;
+  s.camera = camera;
+  s.finalize();
+  GridOptions o;
+  o.threads = 2;
+  GridOptions oe = o;
+  oe.traversal = reference::Traversal::exact;
+  oe.triangle_test = GridOptions::TriangleTest::moller;
+  ReferenceGridTracer gather_tracer(oe);
+  gather_tracer.build(s, 0.0f);
+  VulkanGridTracer vk(ctx, o);
+  vk.build(s, 0.0f);
+  const uint32_t w = 160, h = 90;
+  VulkanFrame frame(vk, s, FrameOptions{.width = w, .height = h, .bounce = false, .shadows = false});
+  REQUIRE(frame.gather_mode() == GatherMode::compute);
+  frame.render(0);
+  const GatherBuffer gpu = frame.download_gather();
+  const GatherBuffer cpu = make_gather(s, gather_tracer, camera, w, h, 0.0f);
+  size_t differ = 0, valid = 0;
+  for (size_t p = 0; p < cpu.size(); ++p) {
+    valid += cpu.valid[p];
+    const bool same = cpu.launch_ref[p] == gpu.launch_ref[p] && (!cpu.valid[p] || bits(cpu.hit[p].t) == bits(gpu.hit[p].t));
+    if (!same && ++differ <= 3)
+      WARN("pixel " << p << ": cpu " << hex(cpu.launch_ref[p]) << " t " << cpu.hit[p].t << ", gpu " << hex(gpu.launch_ref[p])
+                    << " t " << gpu.hit[p].t);
+  }
+  CHECK(valid >= 2000);  // the stack covers about a fifth of the image
+  CHECK(differ == 0);
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
 // The compute gather's rasterizer (bins, tiles and pixels rejected by edge functions, tiles culled
 // by depth: common/shared/raster.h) skips only pairs the ray test rejects or that lose: its gather
 // buffer is the box gather's (every pixel of every triangle's box), in bits, on the built-in scenes,

@@ -24,7 +24,7 @@ SH_CONST uint kTestOutsideV = 3u;    // v * det < 0: beyond edge v0-v1
 SH_CONST uint kTestOutsideUV = 4u;   // (u + v) * det > |det|: beyond edge v1-v2
 SH_CONST uint kTestBehind = 5u;      // t * det <= t_lo * |det|: before the (elongated) segment
 SH_CONST uint kTestBeyond = 6u;      // t * det >= t_hi * |det|: after the (elongated) segment
-SH_CONST uint kTestNotCloser = 7u;   // t * det > best_t * |det|: the best hit so far is closer
+SH_CONST uint kTestNotCloser = 7u;   // t * det > closest_bound(best_t) * |det|: the best hit so far is closer
 SH_CONST uint kTestSelfHit = 8u;     // the ray's launch triangle (by reference); not tested
 SH_CONST uint kTestAlphaKeyed = 9u;  // accepted geometrically, cut away by the alpha mask
 SH_CONST uint kTestTieLost = 10u;    // reported t not smaller than the best (ties: smaller ref)
@@ -39,12 +39,26 @@ struct TriangleTest {
   float t_det;     // t * |det|
   float lo_det;    // t_lo * |det|
   float hi_det;    // t_hi * |det|
-  float best_det;  // best_t * |det| (+inf without a best hit)
+  float best_det;  // closest_bound(best_t) * |det| (+inf without a best hit)
   uint code;       // kTest*
 };
 
+// The bound of the tests' "not closer" rejection: best_t raised by two ulps (+inf, and values
+// within two ulps of the largest float, give +inf). The rejection compares products
+// (T > bound * |det|); with best_t itself it could drop a candidate whose reported t
+// (T / |det|, correctly rounded) equals best_t, and which one survived would then depend on the
+// order of the tests. Two ulps above, a rejected candidate's reported t exceeds best_t (docs/
+// SPEC.md, "Moller-Trumbore"), so every candidate that could tie or win reaches the caller's tie
+// rule on the reported t and the reference, and the closest hit is the smallest (t, reference)
+// whatever the order.
+SH_INLINE float closest_bound(float best_t) {
+  const uint b = floatBitsToUint(best_t);
+  return b >= 0x7F7FFFFEu ? uintBitsToFloat(0x7F800000u) : uintBitsToFloat(b + 2u);
+}
+
 // Moller-Trumbore against the open interval (t_lo, t_hi), and not farther than best_t
-// (t * det <= best_t * |det|; ties are settled by the caller on the reported t and the reference).
+// (t * det <= closest_bound(best_t) * |det|; ties and near ties are settled by the caller on the
+// reported t and the reference).
 // Order of operations (both sides): e1 = v1 - v0, e2 = v2 - v0, p = cross(dir, e2),
 // det = dot(e1, p), s = org - v0, U = dot(s, p), q = cross(s, e1), V = dot(dir, q),
 // T = dot(e2, q); U, V, T multiplied by sign(det) (exact).
@@ -67,7 +81,7 @@ SH_INLINE uint moller_trumbore(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
   SH_PRECISE float uv = u + v;
   SH_PRECISE float lo = t_lo * ad;
   SH_PRECISE float hi = t_hi * ad;
-  SH_PRECISE float best = best_t * ad;
+  SH_PRECISE float best = closest_bound(best_t) * ad;
   r.det = det;
   r.u_det = u;
   r.v_det = v;
@@ -177,7 +191,7 @@ SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_I
   SH_PRECISE float t = T * sgn;
   SH_PRECISE float lo = t_lo * ad;
   SH_PRECISE float hi = t_hi * ad;
-  SH_PRECISE float best = best_t * ad;
+  SH_PRECISE float best = closest_bound(best_t) * ad;
   SH_PRECISE float u = V * sdet;
   SH_PRECISE float v = W * sdet;
   // D has the sign of moller_trumbore's det (< 0: back face)
