@@ -385,7 +385,7 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   if (fr.gather_mode() == vulkan::GatherMode::compute) {
     const Camera cam = scene_.frame_camera();
     const CameraFrame cf = camera_frame(cam);
-    const float near_plane = std::max(glm::length(scene_.bounds(0.0f).extent()), 1e-6f) * 1e-6f;
+    const float near_plane = vulkan::frame_near_plane(scene_);
     for (size_t p = 0; p < cpu.size(); ++p) {
       if (cpu.launch_ref[p] == gpu_gather.launch_ref[p]) continue;
       if (cpu.valid[p] && glm::dot(cpu.position[p] - cam.eye, cf.forward) < near_plane) continue;

@@ -232,20 +232,24 @@ void VulkanFrame::Gpu::create_raster(uint32_t width, uint32_t height, const VkSp
   GRIDRT_VK_CHECK(vkCreateGraphicsPipelines(d, VK_NULL_HANDLE, 1, &gi, nullptr, &raster));
 }
 
+float frame_near_plane(const Scene& scene) {
+  const Bounds b = scene.bounds(0.0f);
+  const float extent = b.empty() ? 1.0f : glm::length(b.extent());
+  return std::max(extent, 1e-6f) * 1e-6f;
+}
+
 namespace {
 
 // The frame's parameters: the camera of the CPU's primary rays; a near plane far inside the
-// scene's scale.
+// scene's scale (frame_near_plane).
 shared::FrameParams frame_params(const Scene& scene, const shared::CameraParams& camera, const FrameOptions& options) {
-  const Bounds b = scene.bounds(0.0f);
-  const float extent = b.empty() ? 1.0f : glm::length(b.extent());
   shared::FrameParams fp{};
   fp.camera = camera;
   fp.background = scene.background;
   fp.light_count = uint32_t(scene.lights.size());
   fp.ambient = options.ambient;
   fp.exposure = options.exposure;
-  fp.near_plane = std::max(extent, 1e-6f) * 1e-6f;
+  fp.near_plane = frame_near_plane(scene);
   fp.frame = 0;
   fp.material_count = uint32_t(scene.materials.size());
   return fp;

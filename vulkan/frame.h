@@ -66,6 +66,10 @@ enum class GatherMode {
   raster,   // the paper's raster pass
 };
 
+// The frame's near plane, the scene's extent (its bounds' diagonal at time 0) x 1e-6: the raster
+// gather's clip plane, and the compute gather's where a triangle's box needs it (the header comment).
+float frame_near_plane(const Scene& scene);
+
 struct FrameOptions {
   uint32_t width = 1920, height = 1080;
   float ambient = 0.2f, exposure = 1.0f;  // ShadeOptions

@@ -129,12 +129,18 @@ struct GatherPolygon {
   uint n;
 };
 
+// A polygon of no vertices (every slot zeroed: GLSL and C++ alike start from defined values).
+SH_INLINE GatherPolygon gather_polygon_empty() {
+  GatherPolygon poly;
+  poly.n = 0u;
+  for (uint i = 0u; i < 9u; ++i) poly.v[i] = vec3(0.0f);
+  return poly;
+}
+
 // Clips `poly` to the half-space dot(plane.xyz, p) + plane.w >= 0 (Sutherland-Hodgman); a 2D
 // polygon is clipped with its points as (x, y, 0) and the line as (a, b, 0, c).
 SH_INLINE GatherPolygon gather_clip(SH_IN(GatherPolygon) poly, vec4 plane) {
-  GatherPolygon kept;
-  kept.n = 0u;
-  for (uint i = 0u; i < 9u; ++i) kept.v[i] = vec3(0.0f);
+  GatherPolygon kept = gather_polygon_empty();
   for (uint i = 0u; i < poly.n; ++i) {
     const vec3 a = poly.v[i];
     const vec3 b = poly.v[i + 1u == poly.n ? 0u : i + 1u];
@@ -175,8 +181,7 @@ SH_INLINE bool gather_box_of(SH_IN(CameraParams) c, vec2 lo, vec2 hi, SH_OUT(uve
 SH_INLINE bool gather_edge_box(SH_IN(CameraParams) c, SH_IN(vec3) e0, SH_IN(vec3) e1, SH_IN(vec3) e2,
                                SH_OUT(uvec4) box) {
   const float w = float(c.width), h = float(c.height);
-  GatherPolygon poly;
-  for (uint i = 0u; i < 9u; ++i) poly.v[i] = vec3(0.0f);
+  GatherPolygon poly = gather_polygon_empty();
   poly.v[0] = vec3(-1.0f, -1.0f, 0.0f);
   poly.v[1] = vec3(w, -1.0f, 0.0f);
   poly.v[2] = vec3(w, h, 0.0f);
@@ -213,8 +218,7 @@ SH_CONST float kGatherFrustumRounding = 0.0000152587890625f;  // 2^-16
 SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) q0, SH_IN(vec3) q1,
                                   SH_IN(vec3) q2, float rounding, SH_OUT(uvec4) box) {
   box = uvec4(0u);
-  GatherPolygon poly;
-  for (uint i = 0u; i < 9u; ++i) poly.v[i] = vec3(0.0f);
+  GatherPolygon poly = gather_polygon_empty();
   poly.v[0] = q0;
   poly.v[1] = q1;
   poly.v[2] = q2;
