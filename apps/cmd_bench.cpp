@@ -187,6 +187,7 @@ struct FrameRun {
   std::vector<Hit> last_hits;
   float last_time = 0.0f;
   uint32_t counted = 0, gather_tiles = 0;
+  vulkan::GatherPairs gather_pairs;  // frame 0's tile lists (compute gather)
 };
 
 // The frames, warm-up then timed: per frame the update, the frame's passes and (with `rtx`) the
@@ -216,6 +217,7 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
     // The RT pipeline: the acceleration structures after the grid's update, then the same rays
     if (rtx) rtx->update_and_trace(frame.ray_buffer(), rtx_hits, frame.ray_count());
     if (f == 0) gather_tiles = frame.download_gather_tiles();
+    if (f == 0) run.gather_pairs = frame.download_gather_pairs();
     if (f < o.warmup) continue;
     if (rtx) {
       const vulkan::RtxTimings& rt = rtx->timings();
@@ -431,7 +433,7 @@ double warm_build_ms(vulkan::VulkanGridTracer& vk, const Scene& scene, bool stam
 // build's split, the grid's memory.
 void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan::VulkanFrame& frame,
                         std::map<std::string, double>& m, const std::map<std::string, std::vector<double>>& t,
-                        bool stamps, uint32_t gather_tiles, double build, double build_warm, double mrays,
+                        bool stamps, uint32_t gather_tiles, const vulkan::GatherPairs& pairs, double build, double build_warm, double mrays,
                         const VulkanMemory& mem, const std::string& spill_line) {
   const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
                             : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
@@ -456,10 +458,15 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
   else
     std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
   std::printf("%s (after the last frame's update)\n\n", spill_line.c_str());
-  std::printf("gather split: visibility (%s; %u work items in frame 0) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
+  const std::string pair_text =
+      frame.gather_mode() != vulkan::GatherMode::compute ? ""
+      : pairs.overflow ? ", " + std::to_string(pairs.pairs) + " tile pairs over the capacity " +
+                             std::to_string(pairs.capacity) + ": the item pass ran"
+                       : ", " + std::to_string(pairs.pairs) + " tile pairs, fine pass";
+  std::printf("gather split: visibility (%s; %u work items in frame 0%s) %.3f (bin %.3f + tiles %.3f), copy %.3f, "
               "resolve %.3f ms; warm build split (%s build): blank image %.3f, static instances %.3f, skip field %.3f, "
               "dynamic instances %.3f ms\n",
-              gather_name, gather_tiles, m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
+              gather_name, gather_tiles, pair_text.c_str(), m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
               o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_skip"], m["build_dynamic"]);
   std::printf("grid memory (%s layout): %s %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, dirty-cell "
               "list %.1f MiB, total %.1f MiB\n",
@@ -575,7 +582,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z,
               (gp.flags & shared::kGridCompact) != 0u ? "compact, largest cell" : "capacity", gp.capacity, gather_name,
               o.compact_rays ? "compacted" : "every-pixel");
-  print_frame_tables(o, scene, frame, m, t, stamps, gather_tiles, build, build_warm, mrays, mem, spill_text(spill, spill_flags));
+  print_frame_tables(o, scene, frame, m, t, stamps, gather_tiles, run.gather_pairs, build, build_warm, mrays, mem, spill_text(spill, spill_flags));
   const nlohmann::json trace_counters = trace_counter_report(counters, rays, m["trace"], counted);
   if (t.count("b2b_frame"))
     std::printf("back to back (%u frames per submission, the last timed; update as above): gather %.3f, bounce %.3f, "
@@ -590,6 +597,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
                       {"spill", spill_json(spill, spill_flags)}};
   j["gather_mode"] = gather_name;
   j["gather_tiles_frame0"] = gather_tiles;
+  j["gather_pairs_frame0"] = run.gather_pairs.pairs;
+  j["gather_pairs_overflow"] = run.gather_pairs.overflow;
   j["compact_rays"] = o.compact_rays;
   j["shadows"] = frame.shadows();
   j["shadow_rays_per_frame"] = frame.shadows() ? scene.lights.size() * o.width * o.height : 0;

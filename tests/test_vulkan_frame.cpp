@@ -30,6 +30,7 @@ using namespace gridrt;
 using namespace gridrt::test;
 using gridrt::vulkan::FrameOptions;
 using gridrt::vulkan::GatherMode;
+using gridrt::vulkan::GatherPairs;
 using gridrt::vulkan::VulkanFrame;
 using gridrt::vulkan::VulkanGridTracer;
 using reference::GridOptions;
@@ -588,7 +589,7 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
     scenes.emplace_back("sibenik-teapots", load_scene(std::string(GRIDRT_DATA_DIR) + "/scenes/sibenik-teapots.json"));
   else if (std::getenv("CI"))
     FAIL("the real scenes folder '" << dir << "' is missing, and CI must test with it");
-  size_t valid = 0, scenes_checked = 0;
+  size_t valid = 0, scenes_checked = 0, pairs = 0;
   for (const auto& [name, scene] : scenes) {
     GridOptions o;
     o.threads = 2;
@@ -599,25 +600,40 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
       VulkanFrame raster(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false});
       VulkanFrame boxes(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
                                                 .gather = GatherMode::boxes});
+      // The tile lists without room for a pair: the item pass instead of the fine pass
+      VulkanFrame items(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
+                                                .gather_pair_capacity = 0});
       REQUIRE(raster.gather_mode() == GatherMode::compute);
       REQUIRE(boxes.gather_mode() == GatherMode::boxes);
       raster.render(0);
       boxes.render(0);
-      const GatherBuffer a = raster.download_gather(), b = boxes.download_gather();
-      size_t differ = 0;
-      for (size_t p = 0; p < a.size(); ++p) {
-        valid += a.valid[p];
-        const bool same = a.launch_ref[p] == b.launch_ref[p] && bits(a.hit[p].t) == bits(b.hit[p].t) &&
-                          same_vec(a.position[p], b.position[p]) && same_vec(a.normal[p], b.normal[p]);
-        if (!same && ++differ <= 3)
-          UNSCOPED_INFO("pixel " << p << ": rasterizer " << hex(a.launch_ref[p]) << " t " << a.hit[p].t << ", boxes "
-                                 << hex(b.launch_ref[p]) << " t " << b.hit[p].t);
+      items.render(0);
+      const GatherPairs fine_pairs = raster.download_gather_pairs(), item_pairs = items.download_gather_pairs();
+      CHECK_FALSE(fine_pairs.overflow);
+      CHECK(fine_pairs.pairs <= fine_pairs.capacity);
+      CHECK(item_pairs.pairs == fine_pairs.pairs);
+      CHECK(item_pairs.overflow == (item_pairs.pairs > 0));
+      pairs += fine_pairs.pairs;
+      const GatherBuffer b = boxes.download_gather();
+      for (const VulkanFrame* f : {&raster, &items}) {
+        const GatherBuffer a = f->download_gather();
+        size_t differ = 0;
+        for (size_t p = 0; p < a.size(); ++p) {
+          valid += a.valid[p];
+          const bool same = a.launch_ref[p] == b.launch_ref[p] && bits(a.hit[p].t) == bits(b.hit[p].t) &&
+                            same_vec(a.position[p], b.position[p]) && same_vec(a.normal[p], b.normal[p]);
+          if (!same && ++differ <= 3)
+            UNSCOPED_INFO((f == &raster ? "fine pass" : "item pass")
+                          << ", pixel " << p << ": rasterizer " << hex(a.launch_ref[p]) << " t " << a.hit[p].t
+                          << ", boxes " << hex(b.launch_ref[p]) << " t " << b.hit[p].t);
+        }
+        CHECK(differ == 0);
       }
-      CHECK(differ == 0);
     }
     ++scenes_checked;
   }
   CHECK(valid > 0);
+  CHECK(pairs > 0);  // the fine pass had work
   CHECK(scenes_checked >= 4);
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

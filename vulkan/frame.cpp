@@ -76,9 +76,12 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
 struct VulkanFrame::Gpu {
   Context* ctx = nullptr;
   Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles, tile_depth, pixel_dirs;
+  Buffer tile_bins;  // the rasterizer's tile lists (GatherFineHeader, counts, starts, pairs)
+  uint32_t screen_tiles = 0, pair_capacity = 0;
   Image2D color, depth;
   std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
   std::unique_ptr<Pipeline> resolve, bounce, shadow, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch, dirs;
+  std::unique_ptr<Pipeline> pairs, scan, fine;  // the rasterizer's tile lists and fine pass
   std::unique_ptr<Timestamps> timestamps;
   // The raster gather
   VkPipelineLayout layout = VK_NULL_HANDLE;
@@ -381,9 +384,26 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     gpu.tiles = ctx.create_buffer(
         sizeof(shared::GatherTileHeader) + std::max<uint64_t>(tris, 1) * sizeof(shared::GatherRasterTriangle), list_usage);
     const uint32_t ts = shared::kGatherTileSize;
-    gpu.tile_depth = ctx.create_buffer(uint64_t((w + ts - 1) / ts) * ((h + ts - 1) / ts) * 4, sb);
+    const uint64_t screen_tiles = uint64_t((w + ts - 1) / ts) * ((h + ts - 1) / ts);
+    gpu.tile_depth = ctx.create_buffer(screen_tiles * 4, sb);
     gpu.pixel_dirs = ctx.create_buffer(gather_ == GatherMode::compute ? pixels * 16 : 16, sb);
+    // The tile lists: room for options.gather_pair_capacity pairs (more: the frame's item pass
+    // runs instead of the fine pass), within the device's buffer range
+    gpu.screen_tiles = uint32_t(screen_tiles);
+    uint64_t capacity = 0;
+    if (gather_ == GatherMode::compute) {
+      const uint64_t range = ctx.info().limits.maxStorageBufferRange;
+      const uint64_t fixed = sizeof(shared::GatherFineHeader) + 2 * screen_tiles * 4;
+      capacity = options_.gather_pair_capacity.value_or(64 * screen_tiles + 4 * tris);
+      capacity = std::min<uint64_t>(capacity, range > fixed ? (range - fixed) / 4 : 0);
+      capacity = std::min<uint64_t>(capacity, UINT32_MAX);
+    }
+    gpu.pair_capacity = uint32_t(capacity);
+    gpu.tile_bins = ctx.create_buffer(sizeof(shared::GatherFineHeader) +
+                                          (gather_ == GatherMode::compute ? 2 * screen_tiles * 4 + capacity * 4 : 0),
+                                      list_usage);
   } else {
+    gpu.tile_bins = ctx.create_buffer(sizeof(shared::GatherFineHeader), list_usage);
     gpu.pixel_dirs = ctx.create_buffer(16, sb);
     gpu.keys = ctx.create_buffer(16, sb);
     gpu.tile_depth = ctx.create_buffer(16, sb);
@@ -422,6 +442,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   set.bind(shared::kFrameBindTileList, gpu.tiles);
   set.bind(shared::kFrameBindTileDepth, gpu.tile_depth);
   set.bind(shared::kFrameBindPixelDirs, gpu.pixel_dirs);
+  set.bind(shared::kFrameBindTileBins, gpu.tile_bins);
   const uint32_t flags = (bounce_ ? shared::kFrameBounce : 0u) | (textured ? shared::kFrameTextures : 0u) |
                          (alpha ? shared::kFrameAlpha : 0u) | (compact ? shared::kFrameCompact : 0u) |
                          (compute ? shared::kFrameComputeGather : 0u) |
@@ -443,14 +464,21 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     gpu.ray_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.ray_list_set->layout(), list_push);
   }
   if (compute) {
-    gpu.tile_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
+    gpu.tile_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t, t});
     gpu.tile_set->bind(0, gpu.tiles);
+    gpu.tile_set->bind(1, gpu.tile_bins);
     gpu.tile_dispatch = std::make_unique<Pipeline>(ctx, "gather_tiles_dispatch.comp", gpu.tile_set->layout(),
                                                    uint32_t(sizeof(uint32_t)));
     gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(sizeof(shared::GatherBinPush)), spec());
     if (gather_ == GatherMode::compute) gpu.dirs = std::make_unique<Pipeline>(ctx, "gather_dirs.comp", set.layout(), 0, spec());
     gpu.tile_pass = std::make_unique<Pipeline>(
         ctx, gather_ == GatherMode::boxes ? "gather_tiles.comp" : "gather_raster.comp", set.layout(), 0, spec());
+    if (gather_ == GatherMode::compute) {
+      const uint32_t fine_push = uint32_t(sizeof(shared::GatherFinePush));
+      gpu.pairs = std::make_unique<Pipeline>(ctx, "gather_pairs.comp", set.layout(), fine_push, spec());
+      gpu.scan = std::make_unique<Pipeline>(ctx, "gather_scan.comp", set.layout(), fine_push, spec());
+      gpu.fine = std::make_unique<Pipeline>(ctx, "gather_fine.comp", set.layout(), fine_push, spec());
+    }
   } else {
     SpecConstants raster_spec = spec();
     gpu.create_raster(w, h, raster_spec.info());
@@ -486,6 +514,8 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         // ones), the triangles' set-up and work items, their pixels
         vkCmdFillBuffer(cb, gpu.keys.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
         vkCmdFillBuffer(cb, gpu.tile_depth.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
+        if (gpu.fine)  // the tile lists' counts
+          vkCmdFillBuffer(cb, gpu.tile_bins.buffer, sizeof(shared::GatherFineHeader), uint64_t(gpu.screen_tiles) * 4, 0u);
         if (gpu.dirs) {
           // The pixels' ray directions, once
           gpu.dirs->bind(cb, s);
@@ -505,6 +535,29 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         gpu.tile_dispatch->push(cb, max_groups_x);
         vkCmdDispatch(cb, 1, 1, 1);
         barrier(cb);
+        if (gpu.fine) {
+          // The rasterizer: each bin's screen tiles counted, the counts scanned, the pairs
+          // written, then one workgroup per screen tile; where the pairs overflowed, the item
+          // pass instead (the scan chose which of the two indirect dispatches has workgroups)
+          shared::GatherFinePush fine_push{gpu.screen_tiles, gpu.pair_capacity, max_groups_x, 0u};
+          gpu.pairs->bind(cb, s);
+          gpu.pairs->push(cb, fine_push);
+          vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
+          barrier(cb);
+          gpu.scan->bind(cb, s);
+          gpu.scan->push(cb, fine_push);
+          vkCmdDispatch(cb, 1, 1, 1);
+          barrier(cb);
+          fine_push.scatter = 1u;
+          gpu.pairs->bind(cb, s);
+          gpu.pairs->push(cb, fine_push);
+          vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
+          barrier(cb);
+          gpu.fine->bind(cb, s);
+          gpu.fine->push(cb, fine_push);
+          vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, 0);
+          barrier(cb);
+        }
         gpu.tile_pass->bind(cb, s);
         vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
         barrier(cb);
@@ -662,6 +715,12 @@ std::vector<uint8_t> VulkanFrame::download_rgba() const {
 
 std::vector<uint32_t> VulkanFrame::download_visibility() const {
   return grid_.context().download<uint32_t>(gpu_->visibility, size_t(options_.width) * options_.height);
+}
+
+GatherPairs VulkanFrame::download_gather_pairs() const {
+  if (!gpu_->fine) return {};
+  const auto h = grid_.context().download<shared::GatherFineHeader>(gpu_->tile_bins, 1)[0];
+  return {h.pairs, gpu_->pair_capacity, h.overflow != 0};
 }
 
 uint32_t VulkanFrame::download_gather_tiles() const {

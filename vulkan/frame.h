@@ -37,6 +37,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "gridrt/common/gather.h"
@@ -78,9 +79,21 @@ struct FrameOptions {
   // scene without lights compiles no shadow pass either way (shadows_for, common/gather.h)
   bool shadows = true;
   GatherMode gather = GatherMode::compute;  // compute falls back to raster without int64 atomics
+  // The compute gather's tile lists: room for this many (tile, large triangle) pairs; automatic
+  // (unset): 64 per 8x8-pixel screen tile and 4 per triangle, within the device's buffer range. A
+  // frame with more runs the item pass instead of the fine pass, with the same keys (slower;
+  // download_gather_pairs tells).
+  std::optional<uint64_t> gather_pair_capacity;
   // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
   // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
   bool compact_rays = false;
+};
+
+// The compute gather's tile lists of the last render (GatherMode::compute; zeros otherwise).
+struct GatherPairs {
+  uint32_t pairs = 0;     // (8x8-pixel screen tile, large triangle) pairs
+  uint32_t capacity = 0;  // pairs the lists hold
+  bool overflow = false;  // pairs > capacity: the item pass ran instead of the fine pass
 };
 
 class VulkanFrame {
@@ -109,6 +122,7 @@ class VulkanFrame {
   // The compute gather's work items of the last render: 32x32-pixel bins (8x8-pixel tiles with
   // GatherMode::boxes; 0 for the raster gather).
   uint32_t download_gather_tiles() const;
+  GatherPairs download_gather_pairs() const;
 
   // The device buffers of the bounce rays and hits (another tracer may trace the same rays).
   const Buffer& ray_buffer() const;

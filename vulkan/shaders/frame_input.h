@@ -62,6 +62,29 @@ struct GatherRasterTriangle {
   uint pad0;
 };
 
+// The rasterizer's tile lists (gather_pairs.comp, gather_scan.comp, gather_fine.comp): per 8x8-pixel
+// screen tile the large triangles that may cover it. This header, then `tiles` words of counts
+// (after the scan: the scatter's cursors, then each tile's end), `tiles` words of starts, then the
+// pairs' words (a triangle's index in the list of large triangles), `capacity` of them.
+struct GatherFineHeader {
+  uint groups_x;    // VkDispatchIndirectCommand of the fine pass: one workgroup per screen tile,
+  uint groups_y;    //   none when the pairs overflowed (the item pass runs instead)
+  uint groups_z;
+  uint pairs;       // (tile, large triangle) pairs of the frame (written by the scan)
+  uint items_x;     // VkDispatchIndirectCommand of the count and scatter passes: 64 work items
+  uint items_y;     //   (32x32-pixel bins) per workgroup (written by the dispatch step)
+  uint items_z;
+  uint overflow;    // 1: more pairs than the capacity; the fine pass does not run, the item pass does
+};
+
+// Push constants of gather_pairs.comp and gather_scan.comp.
+struct GatherFinePush {
+  uint tiles;         // 8x8-pixel screen tiles
+  uint capacity;      // pair words after the counts and starts
+  uint max_groups_x;  // maxComputeWorkGroupCount[0]
+  uint scatter;       // gather_pairs.comp: 0 counts the pairs, 1 writes them
+};
+
 // Pixels of a side of the rasterizer's bins (its work items) and tiles (its depth culling).
 SH_CONST uint kGatherBinSize = 32u;
 SH_CONST uint kGatherTileSize = 8u;
@@ -106,7 +129,8 @@ SH_CONST uint kFrameBindGatherKeys = 13u;
 SH_CONST uint kFrameBindTileList = 14u;
 SH_CONST uint kFrameBindTileDepth = 15u;  // the rasterizer's per-tile depth bound (t bits)
 SH_CONST uint kFrameBindPixelDirs = 16u;  // the rasterizer's camera_direction per pixel (vec4)
-SH_CONST uint kFrameBindingCount = 17u;
+SH_CONST uint kFrameBindTileBins = 17u;  // the rasterizer's tile lists (GatherFineHeader, counts, starts, pairs)
+SH_CONST uint kFrameBindingCount = 18u;
 // Specialization-constant id of the frame passes' feature bits (kFrame* above); clear of the
 // grid's ids (grid_interface.h), which the frame's trace pipeline also sets.
 SH_CONST uint kFrameSpecFlags = 10u;
@@ -126,6 +150,8 @@ static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameL
 static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");
 static_assert(sizeof(gridrt::shared::GatherRasterTriangle) == 64, "std430 layout of GatherRasterTriangle");
 static_assert(sizeof(gridrt::shared::GatherBinPush) == 8, "layout of GatherBinPush");
+static_assert(sizeof(gridrt::shared::GatherFineHeader) == 32, "std430 layout of GatherFineHeader");
+static_assert(sizeof(gridrt::shared::GatherFinePush) == 16, "layout of GatherFinePush");
 #endif
 
 #endif

@@ -1,0 +1,47 @@
+#version 460
+// gather_fine.comp: the compute gather's fine rasterizer (gather_visibility.glsl; Laine and Karras,
+// "High-Performance Software Rasterization on GPUs"): one workgroup per 8x8-pixel screen tile,
+// dispatched indirectly (none when the pairs overflowed), one invocation per pixel, which keeps its
+// key in a register: the key the bin pass left (small triangles' atomics), then the minimum over
+// the tile's list of large triangles (gather_pairs.comp), written back once. Per triangle of the
+// list:
+//   depth  the triangle is skipped by a whole subgroup when its lower t bound (raster_setup)
+//          exceeds the largest t of the subgroup's keys: it would have a larger t than every one
+//   pixel  the edge functions at the pixel (raster_pixel_may_hit), then the gather's ray test along
+//          the pixel's camera_direction (gather_dirs.comp); an accepted hit lowers the key
+// The skips only leave out pairs the ray test rejects or that cannot win, and the minimum does not
+// depend on the list's order: the keys end as gather_tiles.comp leaves them (docs/SPEC.md "The
+// gather as a rasterizer").
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#include "gather_visibility.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(std430, binding = kFrameBindGatherKeys) buffer GatherKeys64 { uint64_t gather_keys64[]; };
+layout(push_constant) uniform Push { GatherFinePush pc; };
+
+void main() {
+  const CameraParams c = fp.camera;
+  const uint tile = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 1u, 0u);
+  if (tile >= pc.tiles) return;
+  const uint tiles_x = (c.width + kGatherTileSize - 1u) / kGatherTileSize;
+  const uvec2 px = uvec2(tile % tiles_x, tile / tiles_x) * kGatherTileSize + gl_LocalInvocationID.xy;
+  const bool on = px.x < c.width && px.y < c.height;
+  const uint p = px.y * c.width + px.x;
+  uint64_t key = on ? gather_keys64[p] : 0ul;  // off the screen: t 0, never raises the depth
+  const uint64_t before = key;
+  const vec4 dir = on ? pixel_dirs[p] : vec4(0.0f);
+  const uint begin = tile_words[pc.tiles + tile], end = tile_words[tile];
+  for (uint i = begin; i < end; ++i) {
+    const GatherRasterTriangle g = tile_tris[tile_words[2u * pc.tiles + i]];
+    // Depth: the subgroup's largest t (keys only decrease: a bound of every later key); the
+    // subgroup leaves the triangle out together (no early continue: the subgroup stays converged)
+    const uint depth = subgroupMax(unpackUint2x32(key).y);
+    if (floatBitsToUint(g.t_lo) <= depth && on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
+      uvec2 k;
+      if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
+    }
+  }
+  if (on && key != before) gather_keys64[p] = key;
+}

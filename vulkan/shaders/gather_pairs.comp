@@ -1,0 +1,56 @@
+#version 460
+// gather_pairs.comp: the compute gather's tile lists (gather_visibility.glsl), one invocation per
+// work item (a large triangle's 32x32-pixel screen bin), dispatched indirectly; run twice with a
+// scan between. The item's triangle by binary search over the triangles' first items (gather_bin.comp
+// listed them), the bin's pixels within the triangle's box rejected as a whole when an edge
+// function is negative on all of them (raster_rect_may_hit), then per 8x8 screen tile of the bin
+// the same rejection; each tile left is a (tile, triangle) pair:
+//   count    (pc.scatter 0) the tile's count += 1
+//   scatter  (pc.scatter 1, after gather_scan.comp made the counts cursors) the triangle's list
+//            index at the tile's cursor; nothing when the pairs overflowed
+// The pairs' order within a tile follows the atomics; the fine pass takes a minimum over them.
+#extension GL_GOOGLE_include_directive : require
+#include "gather_visibility.glsl"
+
+layout(local_size_x = 64) in;
+layout(push_constant) uniform Push { GatherFinePush pc; };
+
+void main() {
+  const CameraParams c = fp.camera;
+  const uint item = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
+  if (item >= tile_header.tiles) return;
+  if (pc.scatter != 0u && fine_header.overflow != 0u) return;
+  // The triangle whose items hold this one: the last whose first item is <= item
+  uint lo = 0u;
+  uint hi = tile_header.triangles;
+  while (hi - lo > 1u) {
+    const uint mid = (lo + hi) / 2u;
+    if (tile_tris[mid].first <= item) lo = mid;
+    else hi = mid;
+  }
+  const GatherRasterTriangle g = tile_tris[lo];
+  const uint x0 = g.box_lo & 0xFFFFu, y0 = g.box_lo >> 16u, x1 = g.box_hi & 0xFFFFu, y1 = g.box_hi >> 16u;
+  const uint across = x1 / kGatherBinSize - x0 / kGatherBinSize + 1u;
+  const uint b = item - g.first;
+  const uint bx = x0 / kGatherBinSize + b % across, by = y0 / kGatherBinSize + b / across;
+  // Bin: its pixels within the box
+  const uint rx0 = max(x0, bx * kGatherBinSize), ry0 = max(y0, by * kGatherBinSize);
+  const uint rx1 = min(x1, bx * kGatherBinSize + kGatherBinSize - 1u), ry1 = min(y1, by * kGatherBinSize + kGatherBinSize - 1u);
+  if (!raster_rect_may_hit(g.edge0, g.edge1, g.edge2, rx0, ry0, rx1, ry1)) return;
+  const uint tiles_x = (c.width + kGatherTileSize - 1u) / kGatherTileSize;
+  for (uint ty = ry0 / kGatherTileSize; ty <= ry1 / kGatherTileSize; ++ty)
+    for (uint tx = rx0 / kGatherTileSize; tx <= rx1 / kGatherTileSize; ++tx) {
+      // Tile: its pixels within the bin's rectangle
+      const uint qx0 = max(rx0, tx * kGatherTileSize), qy0 = max(ry0, ty * kGatherTileSize);
+      const uint qx1 = min(rx1, tx * kGatherTileSize + kGatherTileSize - 1u);
+      const uint qy1 = min(ry1, ty * kGatherTileSize + kGatherTileSize - 1u);
+      if (!raster_rect_may_hit(g.edge0, g.edge1, g.edge2, qx0, qy0, qx1, qy1)) continue;
+      const uint tile = ty * tiles_x + tx;
+      if (pc.scatter == 0u) {
+        atomicAdd(tile_words[tile], 1u);
+      } else {
+        const uint at = atomicAdd(tile_words[tile], 1u);
+        if (at < pc.capacity) tile_words[2u * pc.tiles + at] = lo;  // always, unless overflowed
+      }
+    }
+}
