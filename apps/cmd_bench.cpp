@@ -269,6 +269,11 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
     t["copy"].push_back(stamps ? ft.copy_ms : 0.0);
     t["bin"].push_back(stamps ? ft.bin_ms : 0.0);
     t["tiles"].push_back(stamps ? ft.tiles_ms : 0.0);
+    t["gather_dirs"].push_back(stamps ? ft.dirs_ms : 0.0);
+    t["gather_count"].push_back(stamps ? ft.count_ms : 0.0);
+    t["gather_scan"].push_back(stamps ? ft.scan_ms : 0.0);
+    t["gather_scatter"].push_back(stamps ? ft.scatter_ms : 0.0);
+    t["gather_fine"].push_back(stamps ? ft.fine_ms : 0.0);
     t["resolve"].push_back(stamps ? ft.resolve_ms : 0.0);
     t["bounce"].push_back(stamps ? ft.bounce_ms : 0.0);
     t["trace"].push_back(stamps ? ft.trace_ms : 0.0);
@@ -468,6 +473,11 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
               "dynamic instances %.3f ms\n",
               gather_name, gather_tiles, pair_text.c_str(), m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
               o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_skip"], m["build_dynamic"]);
+  if (frame.gather_mode() == vulkan::GatherMode::compute && stamps)
+    std::printf("gather passes: fills and pixel directions %.3f, bin %.3f, count %.3f, scan %.3f, scatter %.3f, "
+                "fine (with its resolve) %.3f ms\n",
+                m["gather_dirs"], m["bin"] - m["gather_dirs"], m["gather_count"], m["gather_scan"], m["gather_scatter"],
+                m["gather_fine"]);
   std::printf("grid memory (%s layout): %s %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, dirty-cell "
               "list %.1f MiB, total %.1f MiB\n",
               mem.compact ? "compact" : "image", mem.compact ? "offsets and references" : "image", mem.grid, mem.spill,

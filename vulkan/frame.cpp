@@ -483,7 +483,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     SpecConstants raster_spec = spec();
     gpu.create_raster(w, h, raster_spec.info());
   }
-  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 9);
+  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 13);
 }
 
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
@@ -522,6 +522,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
         }
         barrier(cb);
+        if (timed) gpu.timestamps->write(cb, 9);
         if (triangles) {
           const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
           const shared::GatherBinPush push{triangles, uint32_t(instances.size())};
@@ -544,19 +545,24 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           gpu.pairs->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
           barrier(cb);
+          if (timed) gpu.timestamps->write(cb, 10);
           gpu.scan->bind(cb, s);
           gpu.scan->push(cb, fine_push);
           vkCmdDispatch(cb, 1, 1, 1);
           barrier(cb);
+          if (timed) gpu.timestamps->write(cb, 11);
           fine_push.scatter = 1u;
           gpu.pairs->bind(cb, s);
           gpu.pairs->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
           barrier(cb);
+          if (timed) gpu.timestamps->write(cb, 12);
           gpu.fine->bind(cb, s);
           gpu.fine->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, 0);
           barrier(cb);
+        } else if (timed) {
+          for (uint32_t q : {10u, 11u, 12u}) gpu.timestamps->write(cb, q);
         }
         gpu.tile_pass->bind(cb, s);
         vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
@@ -579,7 +585,8 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         for (uint32_t i = 0; i < instances.size(); ++i)
           if (instances[i].tri_count) vkCmdDraw(cb, 3 * instances[i].tri_count, 1, 0, i);
         vkCmdEndRenderPass(cb);
-        if (timed) gpu.timestamps->write(cb, 1);
+        if (timed)
+          for (uint32_t q : {9u, 1u, 10u, 11u, 12u}) gpu.timestamps->write(cb, q);
         VkBufferImageCopy region{};
         region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
         region.imageExtent = {w, h, 1};
@@ -588,9 +595,13 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 2);
       }
-      // Gather: position, normal, material, uv from the visible triangle
+      // Gather: position, normal, material, uv from the visible triangle (where the fine pass
+      // ran, it did this: the scan gave the resolve no workgroup)
       gpu.resolve->bind(cb, s);
-      vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+      if (gpu.fine)
+        vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, resolve_x));
+      else
+        vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
       barrier(cb);
       if (timed) gpu.timestamps->write(cb, 3);
       if (bounce_) {
@@ -642,6 +653,11 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     timings_.visibility_ms = ((compute ? ns[2] : ns[1]) - ns[0]) * 1e-6;
     timings_.bin_ms = compute ? (ns[1] - ns[0]) * 1e-6 : 0.0;
     timings_.tiles_ms = compute ? (ns[2] - ns[1]) * 1e-6 : 0.0;
+    timings_.dirs_ms = compute ? (ns[9] - ns[0]) * 1e-6 : 0.0;
+    timings_.count_ms = gpu.fine ? (ns[10] - ns[1]) * 1e-6 : 0.0;
+    timings_.scan_ms = gpu.fine ? (ns[11] - ns[10]) * 1e-6 : 0.0;
+    timings_.scatter_ms = gpu.fine ? (ns[12] - ns[11]) * 1e-6 : 0.0;
+    timings_.fine_ms = gpu.fine ? (ns[2] - ns[12]) * 1e-6 : 0.0;
     timings_.copy_ms = compute ? 0.0 : (ns[2] - ns[1]) * 1e-6;
     timings_.resolve_ms = (ns[3] - ns[2]) * 1e-6;
     timings_.gather_ms = (ns[3] - ns[0]) * 1e-6;

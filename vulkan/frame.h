@@ -57,6 +57,11 @@ struct FrameTimings {
   // fill) and its compute passes (bin with the fill, tiles with their dispatch step), the raster
   // attachment's copy to a buffer, the resolve pass
   double visibility_ms = 0.0, bin_ms = 0.0, tiles_ms = 0.0, copy_ms = 0.0, resolve_ms = 0.0;
+  // The compute gather's passes within bin_ms and tiles_ms: the fills with the pixel directions
+  // (of bin_ms); with the fine pass (of tiles_ms) the dispatch step with the count, the scan, the
+  // scatter, and the fine pass with its resolve (and the item pass, which has no workgroup unless
+  // the pairs overflowed)
+  double dirs_ms = 0.0, count_ms = 0.0, scan_ms = 0.0, scatter_ms = 0.0, fine_ms = 0.0;
   double total_ms = 0.0;  // gather + bounce + trace + shadow + shade
   double host_ms = 0.0;
 };

@@ -16,8 +16,9 @@
 #   bench   per scene, in one run on the same rays: the baseline binary at its defaults, this one
 #           with --mailbox off and on (its default), each beside the RT pipeline; the untuned bunny
 #           (primary rays) and atrium with the mailbox off and on
-#   gather  per scene (and the built-in atrium), the baseline binary and this one at their
-#           defaults: the gather's time and split, its work items
+#   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, an
+#           intermediate build, when staged) and this one at their defaults: the gather's time and
+#           split, its work items and tile pairs
 #   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
 set -u
 G=${G:-.gpu}
@@ -82,7 +83,9 @@ gather)
     for s in "${scenes[@]}" builtin:atrium; do
       X=$E/$s.gridscene
       [ "$s" = builtin:atrium ] && X=$s
-      for bin in "$E/gridrt-base" gridrt; do
+      bins=("$E/gridrt-base")
+      [ -f "$E/gridrt-A" ] && chmod +x "$E/gridrt-A" && bins+=("$E/gridrt-A")  # an intermediate build, when staged
+      for bin in "${bins[@]}" gridrt; do
         echo "== bench $s: $bin"
         timeout 90 "$bin" bench "$X" $B 2>&1 | grep -E "$sel" | cut -c1-400
       done

@@ -51,4 +51,32 @@ layout(std430, binding = kFrameBindTileBins) buffer TileBins {
   uint tile_words[];
 };
 
+// The gather texel of a pixel whose camera ray (direction `dir`: camera_direction) has `ref` as
+// its visible triangle (kNoRef: none): the ray meets that triangle where the shared
+// Moller-Trumbore test puts it, so position, normal, uv and material are computed exactly as
+// common/gather.cpp computes them from a traced primary hit (make_gather).
+GatherTexel gather_texel(uint ref, vec3 dir) {
+  const CameraParams c = fp.camera;
+  GatherTexel g = GatherTexel(vec3(0.0f), 0xFFFFFFFFu, vec3(0.0f), kNoRef, vec2(0.0f), 0.0f, 0u);
+  if (ref == kNoRef) return g;
+  const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
+  const GridTriangle tri = triangles[k];
+  // The primary hit: t of the shared triangle test, barycentrics by Cramer's rule
+  TriangleTest r;
+  moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, 0.0f, sh_infinity(), sh_infinity(), r);
+  const vec4 n = gather_normal(tri.v0, tri.v1, tri.v2, dir);
+  if (r.det != 0.0f && n.w > 0.0f) {
+    const float t = moller_trumbore_t(r);
+    const vec3 pos = point_at(c.eye, dir, t);
+    const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, pos);
+    g.position = pos;
+    g.material = tri.material;
+    g.normal = n.xyz;
+    g.launch_ref = ref;
+    g.uv = interpolate_uv(uvs[k].uv0, uvs[k].uv1, uvs[k].uv2, bc.x, bc.y);
+    g.t = t;
+  }
+  return g;
+}
+
 #endif

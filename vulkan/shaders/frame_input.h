@@ -75,6 +75,10 @@ struct GatherFineHeader {
   uint items_y;     //   (32x32-pixel bins) per workgroup (written by the dispatch step)
   uint items_z;
   uint overflow;    // 1: more pairs than the capacity; the fine pass does not run, the item pass does
+  uint resolve_x;   // VkDispatchIndirectCommand of gather_resolve.comp: none when the fine pass
+  uint resolve_y;   //   resolved every pixel, else 8x8 pixels per workgroup
+  uint resolve_z;
+  uint pad0;
 };
 
 // Push constants of gather_pairs.comp and gather_scan.comp.
@@ -150,7 +154,7 @@ static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameL
 static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");
 static_assert(sizeof(gridrt::shared::GatherRasterTriangle) == 64, "std430 layout of GatherRasterTriangle");
 static_assert(sizeof(gridrt::shared::GatherBinPush) == 8, "layout of GatherBinPush");
-static_assert(sizeof(gridrt::shared::GatherFineHeader) == 32, "std430 layout of GatherFineHeader");
+static_assert(sizeof(gridrt::shared::GatherFineHeader) == 48, "std430 layout of GatherFineHeader");
 static_assert(sizeof(gridrt::shared::GatherFinePush) == 16, "layout of GatherFinePush");
 #endif
 

@@ -3,8 +3,8 @@
 // "High-Performance Software Rasterization on GPUs"): one workgroup per 8x8-pixel screen tile,
 // dispatched indirectly (none when the pairs overflowed), one invocation per pixel, which keeps its
 // key in a register: the key the bin pass left (small triangles' atomics), then the minimum over
-// the tile's list of large triangles (gather_pairs.comp), written back once. Per triangle of the
-// list:
+// the tile's list of large triangles (gather_pairs.comp); then the pixel's gather texel from it
+// (gather_texel, as gather_resolve.comp would). Per triangle of the list:
 //   depth  the triangle is skipped by a whole subgroup when its lower t bound (raster_setup)
 //          exceeds the largest t of the subgroup's keys: it would have a larger t than every one
 //   pixel  the edge functions at the pixel (raster_pixel_may_hit), then the gather's ray test along
@@ -30,7 +30,6 @@ void main() {
   const bool on = px.x < c.width && px.y < c.height;
   const uint p = px.y * c.width + px.x;
   uint64_t key = on ? gather_keys64[p] : 0ul;  // off the screen: t 0, never raises the depth
-  const uint64_t before = key;
   const vec4 dir = on ? pixel_dirs[p] : vec4(0.0f);
   const uint begin = tile_words[pc.tiles + tile], end = tile_words[tile];
   for (uint i = begin; i < end; ++i) {
@@ -43,5 +42,11 @@ void main() {
       if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
     }
   }
-  if (on && key != before) gather_keys64[p] = key;
+  // The resolve, here: the gather texel along the same direction (gather_resolve.comp then runs
+  // for no pixel)
+  if (on) {
+    const uint ref = unpackUint2x32(key).x;
+    visibility[p] = ref;
+    gather[p] = gather_texel(ref, dir.xyz);
+  }
 }

@@ -1,9 +1,9 @@
 #version 460
 // gather_resolve.comp: the gather buffer from the visible triangle per pixel (the raster pass's,
-// copied to the visibility buffer; or the compute gather's key, whose low word it is). The
-// pixel's camera ray (common/shared/bounce.h, camera_direction) meets that triangle where the
-// shared Moller-Trumbore test puts it, so position, normal, uv and material are computed exactly
-// as common/gather.cpp computes them from a traced primary hit (make_gather).
+// copied to the visibility buffer; or the compute gather's key, whose low word it is), by
+// gather_texel (frame_common.glsl) along the pixel's camera_direction. The compute gather's fine
+// pass resolves its pixels itself (gather_fine.comp): this pass then runs only for the box gather
+// and where the fine pass did not run (dispatched indirectly, GatherFineHeader).
 #extension GL_GOOGLE_include_directive : require
 #include "frame_common.glsl"
 
@@ -14,8 +14,6 @@ void main() {
   const uvec2 px = gl_GlobalInvocationID.xy;
   if (px.x >= c.width || px.y >= c.height) return;
   const uint p = px.y * c.width + px.x;
-  const vec3 dir = camera_direction(c, px.x, px.y);
-  GatherTexel g = GatherTexel(vec3(0.0f), 0xFFFFFFFFu, vec3(0.0f), kNoRef, vec2(0.0f), 0.0f, 0u);
   uint ref;
   if ((kFrameFlags & kFrameComputeGather) != 0u) {
     ref = gather_keys[2u * p];  // the key's low word; untouched keys are all ones: kNoRef
@@ -23,24 +21,5 @@ void main() {
   } else {
     ref = visibility[p];
   }
-  if (ref != kNoRef) {
-    const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
-    const GridTriangle tri = triangles[k];
-    // The primary hit: t of the shared triangle test, barycentrics by Cramer's rule
-    TriangleTest r;
-    moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, 0.0f, sh_infinity(), sh_infinity(), r);
-    const vec4 n = gather_normal(tri.v0, tri.v1, tri.v2, dir);
-    if (r.det != 0.0f && n.w > 0.0f) {
-      const float t = moller_trumbore_t(r);
-      const vec3 pos = point_at(c.eye, dir, t);
-      const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, pos);
-      g.position = pos;
-      g.material = tri.material;
-      g.normal = n.xyz;
-      g.launch_ref = ref;
-      g.uv = interpolate_uv(uvs[k].uv0, uvs[k].uv1, uvs[k].uv2, bc.x, bc.y);
-      g.t = t;
-    }
-  }
-  gather[p] = g;
+  gather[p] = gather_texel(ref, camera_direction(c, px.x, px.y));
 }

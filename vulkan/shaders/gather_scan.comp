@@ -3,9 +3,10 @@
 // (gather_pairs.comp), one workgroup of 256: the tiles' counts scanned in order, 2048 at a time
 // (8 consecutive per invocation, a workgroup scan of their sums in shared memory). Each tile's
 // start is written, and its count becomes the scatter's cursor (the start); the total is the
-// frame's pairs. Pairs over the capacity: the fine pass gets no workgroup and the item pass
-// (gather_raster.comp) keeps its dispatch; else the fine pass one workgroup per tile and the item
-// pass none.
+// frame's pairs. Pairs over the capacity: the fine pass gets no workgroup, the item pass
+// (gather_raster.comp) keeps its dispatch and the resolve (gather_resolve.comp) gets its
+// workgroups; else the fine pass one workgroup per tile (it resolves its pixels), the item pass and
+// the resolve none.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #include "frame_common.glsl"
@@ -58,5 +59,9 @@ void main() {
     fine_header.pairs = uint(min(carry, uint64_t(0xFFFFFFFFu)));
     fine_header.overflow = overflow ? 1u : 0u;
     if (!overflow) tile_header.groups_x = 0u;
+    const CameraParams c = fp.camera;
+    fine_header.resolve_x = overflow ? (c.width + 7u) / 8u : 0u;
+    fine_header.resolve_y = (c.height + 7u) / 8u;
+    fine_header.resolve_z = 1u;
   }
 }
