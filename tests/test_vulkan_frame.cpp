@@ -289,6 +289,13 @@ Scene rasterizer_scene() {
     const float a = 0.5236f * float(i), b = a + 0.5236f;
     tri({0.5f, 1.2f, -2.5f}, {0.5f + std::cos(a), 1.2f + std::sin(a), -2.5f}, {0.5f + std::cos(b), 1.2f + std::sin(b), -2.5f});
   }
+  // A fan of 160 slivers: the tiles at its centre list every one (more than a batch of the fine
+  // pass, gather_fine.comp), while a pixel is covered by a few
+  for (int i = 0; i < 160; ++i) {
+    const float a = 0.03927f * float(i), b = a + 0.03927f, z = -2.2f - 0.001f * float(i % 7);
+    tri({-0.8f, 0.6f, z}, {-0.8f + 0.9f * std::cos(a), 0.6f + 0.9f * std::sin(a), z},
+        {-0.8f + 0.9f * std::cos(b), 0.6f + 0.9f * std::sin(b), z});
+  }
   // Huge, around the eye (behind it too), and one vertex behind the eye
   tri({-1.0e4f, -1.0f, 1.0e4f}, {1.0e4f, -1.0f, 1.0e4f}, {0.0f, -1.0f, -1.0e4f});
   tri({-0.5f, 1.8f, -3.0f}, {0.7f, 1.6f, -2.0f}, {0.0f, 1.9f, 8.0f});
@@ -595,7 +602,9 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
     o.threads = 2;
     VulkanGridTracer vk(ctx, o);
     vk.build(scene, 0.0f);
-    for (const glm::uvec2 size : {glm::uvec2(67, 45), glm::uvec2(128, 64)}) {
+    std::vector<glm::uvec2> sizes{glm::uvec2(67, 45), glm::uvec2(128, 64)};
+    if (name == "rasterizer") sizes.emplace_back(521, 515);  // 4290 screen tiles: the scan's blocks of 4096
+    for (const glm::uvec2 size : sizes) {
       INFO(name << " at " << size.x << "x" << size.y);
       VulkanFrame raster(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false});
       VulkanFrame boxes(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,

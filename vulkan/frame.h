@@ -3,10 +3,14 @@
 //            compute (default where the device has 64-bit buffer atomics): gather_bin.comp clips
 //              each triangle to the view frustum and tests a small screen box itself or sets the
 //              triangle up (edge functions, a depth bound) and lists it with its 32x32-pixel
-//              screen bins; gather_raster.comp rejects bins, 8x8 tiles and pixels the triangle
-//              cannot cover, culls tiles by depth, tests the rest's pixel rays with the shared ray
-//              test and keeps the smallest (t, reference) by a 64-bit atomic min
-//              (gather_visibility.glsl): the CPU gather's own rule
+//              screen bins; gather_pairs.comp and gather_scan.comp list per 8x8 screen tile
+//              the large triangles that may cover it; gather_fine.comp, a workgroup per tile,
+//              rejects pixels by the edge functions, culls triangles by depth per subgroup,
+//              tests the rest's pixel rays with the shared ray test and keeps the smallest
+//              (t, reference) (gather_visibility.glsl): the CPU gather's own rule; it writes
+//              the gather texels itself. Where the tile lists overflow their room,
+//              gather_raster.comp instead (per bin: rejects bins, tiles and pixels, culls tiles
+//              by depth, takes the keys by 64-bit atomic min), then gather_resolve.comp
 //            boxes: the same without the rasterizer's rejections (gather_tiles.comp: every pixel
 //              of the box's 8x8 tiles), kept to be measured against it
 //            raster (the paper's): gather.vert + gather.frag, the geometry buffer's world-space

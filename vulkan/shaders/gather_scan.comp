@@ -1,54 +1,66 @@
 #version 460
 // gather_scan.comp: the compute gather's tile lists between their count and their scatter
-// (gather_pairs.comp), one workgroup of 256: the tiles' counts scanned in order, 2048 at a time
-// (8 consecutive per invocation, a workgroup scan of their sums in shared memory). Each tile's
-// start is written, and its count becomes the scatter's cursor (the start); the total is the
-// frame's pairs. Pairs over the capacity: the fine pass gets no workgroup, the item pass
-// (gather_raster.comp) keeps its dispatch and the resolve (gather_resolve.comp) gets its
-// workgroups; else the fine pass one workgroup per tile (it resolves its pixels), the item pass and
-// the resolve none.
+// (gather_pairs.comp), one workgroup of 256: the tiles' counts scanned in order, 4096 at a time
+// (16 consecutive per invocation; the invocations' sums scanned by subgroup arithmetic, then
+// across the subgroups through shared memory: two barriers a block). Each tile's start is
+// written, and its count becomes the scatter's cursor (the start); the total is the frame's pairs.
+// Pairs over the capacity: the fine pass gets no workgroup, the item pass (gather_raster.comp)
+// keeps its dispatch and the resolve (gather_resolve.comp) gets its workgroups; else the fine pass
+// one workgroup per tile (it resolves its pixels), the item pass and the resolve none.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #include "frame_common.glsl"
 
 layout(local_size_x = 256) in;
 layout(push_constant) uniform Push { GatherFinePush pc; };
 
-shared uint64_t s_sum[256];  // 64 bits: no count can wrap the sums
+const uint kScanPerInvocation = 16u;
+const uint kScanBlock = 256u * kScanPerInvocation;
+shared uint64_t s_subgroup_sum[256];  // per subgroup of the block, its sum (64 bits: nothing wraps)
+shared uint64_t s_block_sum;
+
+// The inclusive scan of x over the subgroup, exact in 64 bits with 32-bit subgroup arithmetic:
+// x < 2^36 (16 counts) split into its low 16 bits and the rest (below 2^20); with at most 128
+// invocations a subgroup their scans stay below 2^23 and 2^27: neither wraps.
+uint64_t subgroup_inclusive_add64(uint64_t x) {
+  const uint lo = subgroupInclusiveAdd(uint(x & 0xFFFFul));
+  const uint hi = subgroupInclusiveAdd(uint(x >> 16));
+  return (uint64_t(hi) << 16) + uint64_t(lo);
+}
 
 void main() {
   const uint lid = gl_LocalInvocationID.x;
   uint64_t carry = 0ul;
-  for (uint base = 0u; base < pc.tiles; base += 2048u) {
-    // This invocation's 8 counts and their sum
-    uint v[8];
+  for (uint base = 0u; base < pc.tiles; base += kScanBlock) {
+    // This invocation's counts and their sum (below 16 * 2^32: its high part below 2^24)
+    const uint first = base + kScanPerInvocation * lid;
+    uint v[kScanPerInvocation];
     uint64_t sum = 0ul;
-    for (uint j = 0u; j < 8u; ++j) {
-      const uint i = base + 8u * lid + j;
+    for (uint j = 0u; j < kScanPerInvocation; ++j) {
+      const uint i = first + j;
       v[j] = i < pc.tiles ? tile_words[i] : 0u;
       sum += v[j];
     }
-    // Inclusive scan of the sums (Hillis-Steele)
-    s_sum[lid] = sum;
+    // Inclusive scan of the sums: within the subgroup, then the subgroups before this one
+    const uint64_t inclusive = subgroup_inclusive_add64(sum);
+    if (gl_SubgroupInvocationID == gl_SubgroupSize - 1u) s_subgroup_sum[gl_SubgroupID] = inclusive;
     barrier();
-    for (uint d = 1u; d < 256u; d *= 2u) {
-      const uint64_t add = lid >= d ? s_sum[lid - d] : 0ul;
-      barrier();
-      s_sum[lid] += add;
-      barrier();
-    }
+    uint64_t before = carry;
+    for (uint s = 0u; s < gl_SubgroupID; ++s) before += s_subgroup_sum[s];
+    if (lid == 255u) s_block_sum = before + inclusive;
     // Starts past the capacity are never read (the pairs overflowed: no scatter, no fine pass)
-    uint64_t at = carry + s_sum[lid] - sum;
-    for (uint j = 0u; j < 8u; ++j) {
-      const uint i = base + 8u * lid + j;
+    uint64_t at = before + inclusive - sum;
+    for (uint j = 0u; j < kScanPerInvocation; ++j) {
+      const uint i = first + j;
       if (i < pc.tiles) {
         tile_words[pc.tiles + i] = uint(at);  // the start
         tile_words[i] = uint(at);             // the scatter's cursor
       }
       at += v[j];
     }
-    carry += s_sum[255];
-    barrier();  // s_sum is read before the next block rewrites it
+    barrier();  // the subgroup sums are read before the next block rewrites them
+    carry = s_block_sum;
   }
   if (lid == 0u) {
     const bool overflow = carry > uint64_t(pc.capacity);
