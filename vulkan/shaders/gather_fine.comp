@@ -4,9 +4,7 @@
 // dispatched indirectly (none when the pairs overflowed), one invocation per pixel, which keeps its
 // key in a register: the key the bin pass left (small triangles' atomics), then the minimum over
 // the tile's list of large triangles (gather_pairs.comp); then the pixel's gather texel from it
-// (gather_texel, as gather_resolve.comp would). The list is read in batches of 64 pairs, each
-// invocation loading one pair's set-up and vertices into shared memory (the batch's loads in flight
-// together, not one chain of dependent loads per pair). Per triangle of the list:
+// (gather_texel, as gather_resolve.comp would). Per triangle of the list:
 //   depth  the triangle is skipped by a whole subgroup when its lower t bound (raster_setup)
 //          exceeds the largest t of the subgroup's keys: it would have a larger t than every one
 //   pixel  the edge functions at the pixel (raster_pixel_may_hit), then the gather's ray test along
@@ -23,11 +21,6 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = kFrameBindGatherKeys) buffer GatherKeys64 { uint64_t gather_keys64[]; };
 layout(push_constant) uniform Push { GatherFinePush pc; };
 
-// A tile's list is read in batches of one pair per invocation
-const uint kFineBatch = 64u;
-shared GatherRasterTriangle s_setup[kFineBatch];
-shared GridTriangle s_tri[kFineBatch];
-
 void main() {
   const CameraParams c = fp.camera;
   const uint tile = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 1u, 0u);
@@ -39,29 +32,15 @@ void main() {
   uint64_t key = on ? gather_keys64[p] : 0ul;  // off the screen: t 0, never raises the depth
   const vec4 dir = on ? pixel_dirs[p] : vec4(0.0f);
   const uint begin = tile_words[pc.tiles + tile], end = tile_words[tile];
-  const uint lid = gl_LocalInvocationIndex;
-  for (uint base = begin; base < end; base += kFineBatch) {
-    // The batch: each invocation loads one pair's triangle (its set-up and its vertices) into
-    // shared memory, so that the loads of the batch are in flight together
-    const uint n = min(kFineBatch, end - base);
-    if (lid < n) {
-      const GatherRasterTriangle g = tile_tris[tile_words[2u * pc.tiles + base + lid]];
-      s_setup[lid] = g;
-      s_tri[lid] = triangles[g.index];
+  for (uint i = begin; i < end; ++i) {
+    const GatherRasterTriangle g = tile_tris[tile_words[2u * pc.tiles + i]];
+    // Depth: the subgroup's largest t (keys only decrease: a bound of every later key); the
+    // subgroup leaves the triangle out together (no early continue: the subgroup stays converged)
+    const uint depth = subgroupMax(unpackUint2x32(key).y);
+    if (floatBitsToUint(g.t_lo) <= depth && on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
+      uvec2 k;
+      if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
     }
-    barrier();
-    for (uint j = 0u; j < n; ++j) {
-      // Depth: the subgroup's largest t (keys only decrease: a bound of every later key); the
-      // subgroup leaves the triangle out together (no early continue: the subgroup stays converged)
-      const uint depth = subgroupMax(unpackUint2x32(key).y);
-      if (floatBitsToUint(s_setup[j].t_lo) <= depth && on &&
-          raster_pixel_may_hit(s_setup[j].edge0, s_setup[j].edge1, s_setup[j].edge2, px.x, px.y)) {
-        uvec2 k;
-        if (gather_key_along(s_setup[j].ref, s_setup[j].index, s_tri[j], dir.xyz, dir.w, k))
-          key = min(key, packUint2x32(k));
-      }
-    }
-    barrier();  // the batch is read before the next one overwrites it
   }
   // The resolve, here: the gather texel along the same direction (gather_resolve.comp then runs
   // for no pixel)
