@@ -64,6 +64,18 @@ void create_image2d(Context& ctx, Image2D& img, VkFormat format, uint32_t width,
   GRIDRT_VK_CHECK(vkCreateImageView(ctx.device(), &vi, nullptr, &img.view));
 }
 
+// Between the compute gather's passes: shader (and the fills' transfer) writes made visible to
+// the next compute pass's reads and writes and to its indirect dispatch's arguments; narrower
+// than barrier()'s every stage to every stage.
+void gather_barrier(VkCommandBuffer cb) {
+  VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  mb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_INDIRECT_COMMAND_READ_BIT;
+  vkCmdPipelineBarrier(cb, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_DRAW_INDIRECT_BIT, 0, 1, &mb, 0, nullptr,
+                       0, nullptr);
+}
+
 template <class T>
 Buffer make_buffer(Context& ctx, const std::vector<T>& data) {
   Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
@@ -521,7 +533,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           gpu.dirs->bind(cb, s);
           vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
         }
-        barrier(cb);
+        gather_barrier(cb);
         if (timed) gpu.timestamps->write(cb, 9);
         if (triangles) {
           const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
@@ -530,12 +542,12 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           gpu.bin->push(cb, push);
           vkCmdDispatch(cb, g.x, g.y, 1);
         }
-        barrier(cb);
+        gather_barrier(cb);
         if (timed) gpu.timestamps->write(cb, 1);
         gpu.tile_dispatch->bind(cb, gpu.tile_set->set());
         gpu.tile_dispatch->push(cb, max_groups_x);
         vkCmdDispatch(cb, 1, 1, 1);
-        barrier(cb);
+        gather_barrier(cb);
         if (gpu.fine) {
           // The rasterizer: each bin's screen tiles counted, the counts scanned, the pairs
           // written, then one workgroup per screen tile; where the pairs overflowed, the item
@@ -544,29 +556,31 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           gpu.pairs->bind(cb, s);
           gpu.pairs->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
-          barrier(cb);
+          gather_barrier(cb);
           if (timed) gpu.timestamps->write(cb, 10);
           gpu.scan->bind(cb, s);
           gpu.scan->push(cb, fine_push);
-          vkCmdDispatch(cb, 1, 1, 1);
-          barrier(cb);
+          const uint32_t scan_groups =
+              options_.gather_scan_groups.value_or(std::min(groups(gpu.screen_tiles, shared::kGatherScanBlock), shared::kGatherScanMaxGroups));
+          vkCmdDispatch(cb, std::clamp(scan_groups, 1u, max_groups_x), 1, 1);
+          gather_barrier(cb);
           if (timed) gpu.timestamps->write(cb, 11);
           fine_push.scatter = 1u;
           gpu.pairs->bind(cb, s);
           gpu.pairs->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
-          barrier(cb);
+          gather_barrier(cb);
           if (timed) gpu.timestamps->write(cb, 12);
           gpu.fine->bind(cb, s);
           gpu.fine->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, 0);
-          barrier(cb);
+          gather_barrier(cb);
         } else if (timed) {
           for (uint32_t q : {10u, 11u, 12u}) gpu.timestamps->write(cb, q);
         }
         gpu.tile_pass->bind(cb, s);
         vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
-        barrier(cb);
+        gather_barrier(cb);
         if (timed) gpu.timestamps->write(cb, 2);
       } else {
         // Gather, raster: one draw per instance (firstInstance = its id), then the copy

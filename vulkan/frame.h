@@ -93,6 +93,9 @@ struct FrameOptions {
   // frame with more runs the item pass instead of the fine pass, with the same keys (slower;
   // download_gather_pairs tells).
   std::optional<uint64_t> gather_pair_capacity;
+  // Workgroups of the tile lists' scan (gather_scan.comp; unset: one per 4096 tiles, at most 64),
+  // each scanning a run of consecutive blocks; fewer make longer runs (tests set it).
+  std::optional<uint32_t> gather_scan_groups;
   // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
   // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
   bool compact_rays = false;

@@ -16,8 +16,8 @@
 #   bench   per scene, in one run on the same rays: the baseline binary at its defaults, this one
 #           with --mailbox off and on (its default), each beside the RT pipeline; the untuned bunny
 #           (primary rays) and atrium with the mailbox off and on
-#   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, an
-#           intermediate build, when staged) and this one at their defaults: the gather's time and
+#   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, gridrt-V1, ...:
+#           intermediate builds, when staged) and this one at their defaults: the gather's time and
 #           split, its work items and tile pairs
 #   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
 set -u
@@ -84,7 +84,9 @@ gather)
       X=$E/$s.gridscene
       [ "$s" = builtin:atrium ] && X=$s
       bins=("$E/gridrt-base")
-      [ -f "$E/gridrt-A" ] && chmod +x "$E/gridrt-A" && bins+=("$E/gridrt-A")  # an intermediate build, when staged
+      for f in "$E"/gridrt-[A-Z]*; do  # intermediate builds, when staged (gridrt-A, gridrt-V1, ...)
+        [ -f "$f" ] && chmod +x "$f" && bins+=("$f")
+      done
       for bin in "${bins[@]}" gridrt; do
         echo "== bench $s: $bin"
         timeout 90 "$bin" bench "$X" $B 2>&1 | grep -E "$sel" | cut -c1-400

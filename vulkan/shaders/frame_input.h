@@ -64,8 +64,9 @@ struct GatherRasterTriangle {
 
 // The rasterizer's tile lists (gather_pairs.comp, gather_scan.comp, gather_fine.comp): per 8x8-pixel
 // screen tile the large triangles that may cover it. This header, then `tiles` words of counts
-// (after the scan: the scatter's cursors, then each tile's end), `tiles` words of starts, then the
-// pairs' words (a triangle's index in the list of large triangles), `capacity` of them.
+// (the scatter counts them down to 0), `tiles` words of starts (a tile's list ends where the
+// next one starts, the last at `pairs`), then the pairs' words (a triangle's index in the list of
+// large triangles), `capacity` of them.
 struct GatherFineHeader {
   uint groups_x;    // VkDispatchIndirectCommand of the fine pass: one workgroup per screen tile,
   uint groups_y;    //   none when the pairs overflowed (the item pass runs instead)
@@ -92,6 +93,10 @@ struct GatherFinePush {
 // Pixels of a side of the rasterizer's bins (its work items) and tiles (its depth culling).
 SH_CONST uint kGatherBinSize = 32u;
 SH_CONST uint kGatherTileSize = 8u;
+// The scan of the tile lists' counts (gather_scan.comp): blocks of 4096 tiles, at most 64
+// workgroups (each several consecutive blocks, after summing the counts before its first)
+SH_CONST uint kGatherScanBlock = 4096u;
+SH_CONST uint kGatherScanMaxGroups = 64u;
 
 // A material as shading reads it.
 struct FrameMaterial {

@@ -31,7 +31,8 @@ void main() {
   const uint p = px.y * c.width + px.x;
   uint64_t key = on ? gather_keys64[p] : 0ul;  // off the screen: t 0, never raises the depth
   const vec4 dir = on ? pixel_dirs[p] : vec4(0.0f);
-  const uint begin = tile_words[pc.tiles + tile], end = tile_words[tile];
+  const uint begin = tile_words[pc.tiles + tile];
+  const uint end = tile + 1u < pc.tiles ? tile_words[pc.tiles + tile + 1u] : fine_header.pairs;
   for (uint i = begin; i < end; ++i) {
     const GatherRasterTriangle g = tile_tris[tile_words[2u * pc.tiles + i]];
     // Depth: the subgroup's largest t (keys only decrease: a bound of every later key); the

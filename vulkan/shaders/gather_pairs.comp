@@ -6,8 +6,9 @@
 // function is negative on all of them (raster_rect_may_hit), then per 8x8 screen tile of the bin
 // the same rejection; each tile left is a (tile, triangle) pair:
 //   count    (pc.scatter 0) the tile's count += 1
-//   scatter  (pc.scatter 1, after gather_scan.comp made the counts cursors) the triangle's list
-//            index at the tile's cursor; nothing when the pairs overflowed
+//   scatter  (pc.scatter 1, after gather_scan.comp wrote the starts) the tile's count -= 1, the
+//            triangle's list index at the tile's start + the new count (the list filled from its
+//            end); nothing when the pairs overflowed
 // The pairs' order within a tile follows the atomics; the fine pass takes a minimum over them.
 #extension GL_GOOGLE_include_directive : require
 #include "gather_visibility.glsl"
@@ -49,7 +50,7 @@ void main() {
       if (pc.scatter == 0u) {
         atomicAdd(tile_words[tile], 1u);
       } else {
-        const uint at = atomicAdd(tile_words[tile], 1u);
+        const uint at = tile_words[pc.tiles + tile] + atomicAdd(tile_words[tile], 0xFFFFFFFFu) - 1u;
         if (at < pc.capacity) tile_words[2u * pc.tiles + at] = lo;  // always, unless overflowed
       }
     }

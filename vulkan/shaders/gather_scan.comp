@@ -1,14 +1,16 @@
 #version 460
 // gather_scan.comp: the compute gather's tile lists between their count and their scatter
-// (gather_pairs.comp), one workgroup of 256: the tiles' counts scanned in order, 4096 at a time.
-// A block's counts go through shared memory (read and written in whole rows of the buffer: one
-// invocation a word, 256 consecutive words an instruction; each invocation's 16 consecutive
-// counts are summed there, the sums scanned by subgroup arithmetic, then across the subgroups).
-// Each tile's start is written, and its count becomes the scatter's cursor (the start); the total
-// is the frame's pairs. Pairs over the capacity: the fine pass gets no workgroup, the item pass
-// (gather_raster.comp) keeps its dispatch and the resolve (gather_resolve.comp) gets its
-// workgroups; else the fine pass one workgroup per tile (it resolves its pixels), the item pass
-// and the resolve none.
+// (gather_pairs.comp): each tile's start, the sum of the counts of the tiles before it, in blocks
+// of kGatherScanBlock tiles. Up to kGatherScanMaxGroups workgroups of 256, each a run of
+// consecutive blocks: it first sums every count before its run (read again by each workgroup:
+// no workgroup waits for another), then scans its blocks in order. A block's counts go through
+// shared memory (read and written in whole rows of the buffer, 256 consecutive words an
+// instruction); each invocation sums 16 consecutive counts there, the sums are scanned by
+// subgroup arithmetic, then across the subgroups. The counts stay (the scatter counts them
+// down). The workgroup with the last tile writes the frame's pairs and the dispatches: pairs over
+// the capacity, the fine pass gets no workgroup, the item pass (gather_raster.comp) keeps its
+// dispatch and the resolve (gather_resolve.comp) gets its workgroups; else the fine pass one
+// workgroup per tile (it resolves its pixels), the item pass and the resolve none.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
@@ -17,13 +19,11 @@
 layout(local_size_x = 256) in;
 layout(push_constant) uniform Push { GatherFinePush pc; };
 
-const uint kScanPerInvocation = 16u;
-const uint kScanBlock = 256u * kScanPerInvocation;
+const uint kScanPerInvocation = kGatherScanBlock / 256u;  // 16
 // The block's counts, then their starts; a word of padding every 32 (an invocation's 16
 // consecutive words fall in different banks from its neighbours')
-shared uint s_words[kScanBlock + kScanBlock / 32u];
-shared uint64_t s_subgroup_sum[256];  // per subgroup of the block, its sum (64 bits: nothing wraps)
-shared uint64_t s_block_sum;
+shared uint s_words[kGatherScanBlock + kGatherScanBlock / 32u];
+shared uint64_t s_sum[256];  // 64 bits: nothing wraps
 
 uint padded(uint i) { return i + i / 32u; }
 
@@ -38,12 +38,27 @@ uint64_t subgroup_inclusive_add64(uint64_t x) {
 
 void main() {
   const uint lid = gl_LocalInvocationID.x;
+  const uint blocks = (pc.tiles + kGatherScanBlock - 1u) / kGatherScanBlock;
+  const uint run = (blocks + gl_NumWorkGroups.x - 1u) / gl_NumWorkGroups.x;
+  const uint first = min(pc.tiles, gl_WorkGroupID.x * run * kGatherScanBlock);
+  const uint last = min(pc.tiles, first + run * kGatherScanBlock);
+  if (first == last) return;  // no block (the same for the whole workgroup)
+  // The counts before the run: per invocation, then a tree in shared memory
   uint64_t carry = 0ul;
-  for (uint base = 0u; base < pc.tiles; base += kScanBlock) {
-    // The block's counts, row by row (zero past the last tile)
+  for (uint i = lid; i < first; i += 256u) carry += tile_words[i];
+  s_sum[lid] = carry;
+  barrier();
+  for (uint d = 128u; d > 0u; d /= 2u) {
+    if (lid < d) s_sum[lid] += s_sum[lid + d];
+    barrier();
+  }
+  carry = s_sum[0];
+  barrier();  // s_sum[0] is read before the blocks rewrite it
+  for (uint base = first; base < last; base += kGatherScanBlock) {
+    // The block's counts, row by row (zero past the run)
     for (uint r = 0u; r < kScanPerInvocation; ++r) {
       const uint i = r * 256u + lid;
-      s_words[padded(i)] = base + i < pc.tiles ? tile_words[base + i] : 0u;
+      s_words[padded(i)] = base + i < last ? tile_words[base + i] : 0u;
     }
     barrier();
     // This invocation's 16 consecutive counts and their sum (below 16 * 2^32)
@@ -55,32 +70,29 @@ void main() {
     }
     // Inclusive scan of the sums: within the subgroup, then the subgroups before this one
     const uint64_t inclusive = subgroup_inclusive_add64(sum);
-    if (gl_SubgroupInvocationID == gl_SubgroupSize - 1u) s_subgroup_sum[gl_SubgroupID] = inclusive;
+    if (gl_SubgroupInvocationID == gl_SubgroupSize - 1u) s_sum[gl_SubgroupID] = inclusive;
     barrier();
     uint64_t at = carry;
-    for (uint s = 0u; s < gl_SubgroupID; ++s) at += s_subgroup_sum[s];
-    if (lid == 255u) s_block_sum = at + inclusive;
-    // The starts, in place of the counts (past the capacity they are never read: the pairs
-    // overflowed, no scatter, no fine pass)
+    for (uint s = 0u; s < gl_SubgroupID; ++s) at += s_sum[s];
+    const uint64_t block_end = at + inclusive;  // on the last invocation: the carry of the next block
+    // The starts, in place of the counts in shared memory (past the capacity they are never read:
+    // the pairs overflowed, no scatter, no fine pass)
     at += inclusive - sum;
     for (uint j = 0u; j < kScanPerInvocation; ++j) {
       s_words[padded(kScanPerInvocation * lid + j)] = uint(at);
       at += v[j];
     }
     barrier();
-    // Row by row: the start, and the scatter's cursor
+    if (lid == 255u) s_sum[0] = block_end;
     for (uint r = 0u; r < kScanPerInvocation; ++r) {
       const uint i = r * 256u + lid;
-      if (base + i < pc.tiles) {
-        const uint start = s_words[padded(i)];
-        tile_words[pc.tiles + base + i] = start;
-        tile_words[base + i] = start;
-      }
+      if (base + i < last) tile_words[pc.tiles + base + i] = s_words[padded(i)];
     }
-    carry = s_block_sum;
+    barrier();
+    carry = s_sum[0];
     barrier();  // shared memory is read before the next block rewrites it
   }
-  if (lid == 0u) {
+  if (lid == 0u && last == pc.tiles) {
     const bool overflow = carry > uint64_t(pc.capacity);
     const uvec3 groups = overflow ? uvec3(0u, 1u, 1u) : work_list_groups(pc.tiles, 1u, pc.max_groups_x);
     fine_header.groups_x = groups.x;
