@@ -85,6 +85,7 @@ gather)
       [ "$s" = builtin:atrium ] && X=$s
       bins=("$E/gridrt-base")
       for f in "$E"/gridrt-[A-Z]*; do  # intermediate builds, when staged (gridrt-A, gridrt-V1, ...)
+        case $f in *.xz) continue ;; esac  # pack.sh's compressed copy, unpacked beside it
         [ -f "$f" ] && chmod +x "$f" && bins+=("$f")
       done
       for bin in "${bins[@]}" gridrt; do
