@@ -6,7 +6,6 @@
 
 #include "gridrt/common/shared/compat.h"
 #include "gridrt/common/shared/bounce.h"
-#include "gridrt/common/shared/grid.h"
 
 SH_BEGIN
 
@@ -61,8 +60,6 @@ struct GatherRasterTriangle {
   uint box_hi;      // x1 | y1 << 16
   uint index;       // its index in the geometry buffer
   uint pad0;
-  GridTriangle tri; // its vertices and material, as the geometry buffer holds them (the fine pass
-                    // reads one record per pair, not two)
 };
 
 // The rasterizer's tile lists (gather_pairs.comp, gather_scan.comp, gather_fine.comp): per 8x8-pixel
@@ -160,7 +157,7 @@ static_assert(sizeof(gridrt::shared::FrameParams) == 112, "std430 layout of Fram
 static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
 static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");
-static_assert(sizeof(gridrt::shared::GatherRasterTriangle) == 112, "std430 layout of GatherRasterTriangle");
+static_assert(sizeof(gridrt::shared::GatherRasterTriangle) == 64, "std430 layout of GatherRasterTriangle");
 static_assert(sizeof(gridrt::shared::GatherBinPush) == 8, "layout of GatherBinPush");
 static_assert(sizeof(gridrt::shared::GatherFineHeader) == 48, "std430 layout of GatherFineHeader");
 static_assert(sizeof(gridrt::shared::GatherFinePush) == 16, "layout of GatherFinePush");

@@ -67,7 +67,6 @@ void main() {
     g.box_hi = box.z | (box.w << 16u);
     g.index = k;
     g.pad0 = 0u;
-    g.tri = tri;
     tile_tris[base.y + large_before] = g;
     return;
   }

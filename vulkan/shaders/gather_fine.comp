@@ -40,7 +40,7 @@ void main() {
     const uint depth = subgroupMax(unpackUint2x32(key).y);
     if (floatBitsToUint(g.t_lo) <= depth && on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
       uvec2 k;
-      if (gather_key_along(g.ref, g.index, g.tri, dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
+      if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
     }
   }
   // The resolve, here: the gather texel along the same direction (gather_resolve.comp then runs

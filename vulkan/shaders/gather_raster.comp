@@ -52,7 +52,7 @@ void main() {
   const uint rx1 = min(x1, bx * kGatherBinSize + kGatherBinSize - 1u), ry1 = min(y1, by * kGatherBinSize + kGatherBinSize - 1u);
   if (!raster_rect_may_hit(g.edge0, g.edge1, g.edge2, rx0, ry0, rx1, ry1)) return;
   const uint k = g.index;
-  const GridTriangle tri = g.tri;
+  const GridTriangle tri = triangles[k];
   const uint t_lo = floatBitsToUint(g.t_lo);
   const uint tiles_x = (c.width + kGatherTileSize - 1u) / kGatherTileSize;
   const uint lid = gl_LocalInvocationIndex;
