@@ -21,6 +21,11 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = kFrameBindGatherKeys) buffer GatherKeys64 { uint64_t gather_keys64[]; };
 layout(push_constant) uniform Push { GatherFinePush pc; };
 
+// A tile's list is taken in batches of one pair per invocation
+const uint kFineBatch = 64u;
+shared uint s_bound[kFineBatch];  // the batch's depth bounds (t_lo bits)
+shared uint s_order[kFineBatch];  // the batch's triangles, nearest bound first
+
 void main() {
   const CameraParams c = fp.camera;
   const uint tile = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 1u, 0u);
@@ -33,15 +38,38 @@ void main() {
   const vec4 dir = on ? pixel_dirs[p] : vec4(0.0f);
   const uint begin = tile_words[pc.tiles + tile];
   const uint end = tile + 1u < pc.tiles ? tile_words[pc.tiles + tile + 1u] : fine_header.pairs;
-  for (uint i = begin; i < end; ++i) {
-    const GatherRasterTriangle g = tile_tris[tile_words[2u * pc.tiles + i]];
-    // Depth: the subgroup's largest t (keys only decrease: a bound of every later key); the
-    // subgroup leaves the triangle out together (no early continue: the subgroup stays converged)
-    const uint depth = subgroupMax(unpackUint2x32(key).y);
-    if (floatBitsToUint(g.t_lo) <= depth && on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
-      uvec2 k;
-      if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
+  const uint lid = gl_LocalInvocationIndex;
+  for (uint base = begin; base < end; base += kFineBatch) {
+    // The batch's pairs in the order of their triangles' depth bounds (nearest first: the keys
+    // fall early and the depth test culls more); the order changes no key, only the work
+    const uint n = min(kFineBatch, end - base);
+    uint index = 0u, bound = 0u;
+    if (lid < n) {
+      index = tile_words[2u * pc.tiles + base + lid];
+      bound = floatBitsToUint(tile_tris[index].t_lo);
+      s_bound[lid] = bound;
     }
+    barrier();
+    if (lid < n) {
+      uint rank = 0u;
+      for (uint j = 0u; j < n; ++j) {
+        const uint other = s_bound[j];
+        rank += other < bound || (other == bound && j < lid) ? 1u : 0u;
+      }
+      s_order[rank] = index;
+    }
+    barrier();
+    for (uint j = 0u; j < n; ++j) {
+      const GatherRasterTriangle g = tile_tris[s_order[j]];
+      // Depth: the subgroup's largest t (keys only decrease: a bound of every later key); the
+      // subgroup leaves the triangle out together (no early continue: the subgroup stays converged)
+      const uint depth = subgroupMax(unpackUint2x32(key).y);
+      if (floatBitsToUint(g.t_lo) <= depth && on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
+        uvec2 k;
+        if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
+      }
+    }
+    barrier();  // the batch's order is read before the next batch rewrites it
   }
   // The resolve, here: the gather texel along the same direction (gather_resolve.comp then runs
   // for no pixel)
