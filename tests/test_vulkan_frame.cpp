@@ -603,7 +603,7 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
     VulkanGridTracer vk(ctx, o);
     vk.build(scene, 0.0f);
     std::vector<glm::uvec2> sizes{glm::uvec2(67, 45), glm::uvec2(128, 64)};
-    if (name == "rasterizer") sizes.emplace_back(521, 515);  // 4290 screen tiles: the scan's blocks of 4096
+    if (name == "rasterizer") sizes.emplace_back(809, 701);  // 8976 screen tiles: three of the scan's blocks
     for (const glm::uvec2 size : sizes) {
       INFO(name << " at " << size.x << "x" << size.y);
       VulkanFrame raster(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false});
@@ -625,14 +625,15 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
       pairs += fine_pairs.pairs;
       const GatherBuffer b = boxes.download_gather();
       std::vector<const VulkanFrame*> frames{&raster, &items};
-      // The scan's blocks in one workgroup's run (past one block: the carry between blocks)
-      std::optional<VulkanFrame> one_run;
-      if (size.x * size.y > 4096 * 64) {
-        one_run.emplace(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
-                                                .gather_scan_groups = 1});
-        one_run->render(0);
-        CHECK(one_run->download_gather_pairs().pairs == fine_pairs.pairs);
-        frames.push_back(&*one_run);
+      // The scan in two workgroups for three blocks: the first scans a run of two (the carry
+      // between blocks), the second sums the counts before its block
+      std::optional<VulkanFrame> two_runs;
+      if (size.x * size.y > 4096 * 64 * 2) {
+        two_runs.emplace(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
+                                                .gather_scan_groups = 2});
+        two_runs->render(0);
+        CHECK(two_runs->download_gather_pairs().pairs == fine_pairs.pairs);
+        frames.push_back(&*two_runs);
       }
       for (const VulkanFrame* f : frames) {
         const GatherBuffer a = f->download_gather();
@@ -642,7 +643,7 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
           const bool same = a.launch_ref[p] == b.launch_ref[p] && bits(a.hit[p].t) == bits(b.hit[p].t) &&
                             same_vec(a.position[p], b.position[p]) && same_vec(a.normal[p], b.normal[p]);
           if (!same && ++differ <= 3)
-            UNSCOPED_INFO((f == &items ? "item pass" : f == &raster ? "fine pass" : "fine pass, one scan run")
+            UNSCOPED_INFO((f == &items ? "item pass" : f == &raster ? "fine pass" : "fine pass, scan runs of two blocks")
                           << ", pixel " << p << ": rasterizer " << hex(a.launch_ref[p]) << " t " << a.hit[p].t
                           << ", boxes " << hex(b.launch_ref[p]) << " t " << b.hit[p].t);
         }

@@ -45,7 +45,7 @@ layout(std430, binding = kFrameBindTileList) buffer TileList {
 layout(std430, binding = kFrameBindTileDepth) buffer TileDepth { uint tile_depth[]; };
 // The rasterizer's pixel ray directions (camera_direction, once per pixel and frame; w unused)
 layout(std430, binding = kFrameBindPixelDirs) buffer PixelDirs { vec4 pixel_dirs[]; };
-// The rasterizer's tile lists (GatherFineHeader): counts (then cursors, then ends), starts, pairs
+// The rasterizer's tile lists (GatherFineHeader): counts (the scatter counts them down), starts, pairs
 layout(std430, binding = kFrameBindTileBins) buffer TileBins {
   GatherFineHeader fine_header;
   uint tile_words[];

@@ -4,13 +4,15 @@
 // dispatched indirectly (none when the pairs overflowed), one invocation per pixel, which keeps its
 // key in a register: the key the bin pass left (small triangles' atomics), then the minimum over
 // the tile's list of large triangles (gather_pairs.comp); then the pixel's gather texel from it
-// (gather_texel, as gather_resolve.comp would). Per triangle of the list:
+// (gather_texel, as gather_resolve.comp would). The list is taken in batches of 64 pairs, each
+// batch ranked by its triangles' lower t bounds, nearest first (the keys fall early and the depth
+// test below culls more). Per triangle:
 //   depth  the triangle is skipped by a whole subgroup when its lower t bound (raster_setup)
 //          exceeds the largest t of the subgroup's keys: it would have a larger t than every one
 //   pixel  the edge functions at the pixel (raster_pixel_may_hit), then the gather's ray test along
 //          the pixel's camera_direction (gather_dirs.comp); an accepted hit lowers the key
 // The skips only leave out pairs the ray test rejects or that cannot win, and the minimum does not
-// depend on the list's order: the keys end as gather_tiles.comp leaves them (docs/SPEC.md "The
+// depend on the order: the keys end as gather_tiles.comp leaves them (docs/SPEC.md "The
 // gather as a rasterizer").
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
