@@ -85,6 +85,14 @@ class ProgressTracer : public Tracer {
       progress_.advance(n);
     }
   }
+  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override {
+    constexpr size_t kChunk = 1 << 16;
+    for (size_t i = 0; i < rays.size(); i += kChunk) {
+      const size_t n = std::min(kChunk, rays.size() - i);
+      inner_.trace_any(rays.subspan(i, n), hits.subspan(i, n));
+      progress_.advance(n);
+    }
+  }
   AccelDump dump() const override { return inner_.dump(); }
 
  private:
@@ -107,6 +115,11 @@ class OneRayTracer : public Tracer {
     for (Hit& h : hits)
       h = Hit{std::numeric_limits<float>::infinity(), shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0};
     if (index_ < rays.size()) inner_.trace(rays.subspan(index_, 1), hits.subspan(index_, 1));
+  }
+  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override {
+    for (Hit& h : hits)
+      h = Hit{std::numeric_limits<float>::infinity(), shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0};
+    if (index_ < rays.size()) inner_.trace_any(rays.subspan(index_, 1), hits.subspan(index_, 1));
   }
 
  private:

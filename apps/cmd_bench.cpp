@@ -683,7 +683,7 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
     double shadow_trace_ms = 0.0;
     if (!shadow.empty()) {
       t0 = std::chrono::steady_clock::now();
-      tracer->trace(shadow, shadow_hits);
+      tracer->trace_any(shadow, shadow_hits);
       shadow_trace_ms = ms_since(t0);
 #ifdef GRIDRT_HAVE_VULKAN
       if (vk) shadow_trace_ms = times.device_stamps ? vk->timings().trace_ms : vk->timings().trace_host_ms;

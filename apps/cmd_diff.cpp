@@ -406,7 +406,7 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
     size_t used = 0, ray_mismatch = 0, hit_mismatch = 0;
   };
   auto compare = [&](const char* kind, const std::vector<Ray>& want_rays, const std::vector<Ray>& got_rays,
-                     const std::vector<Hit>& got) {
+                     const std::vector<Hit>& got, bool any_hit) {
     Count c;
     std::optional<size_t> first_ray;
     for (size_t p = 0; p < want_rays.size(); ++p) {
@@ -414,7 +414,10 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
       if (std::memcmp(&want_rays[p], &got_rays[p], sizeof(Ray)) != 0 && c.ray_mismatch++ == 0) first_ray = p;
     }
     std::vector<Hit> want(want_rays.size());
-    ref_->trace(want_rays, want);
+    if (any_hit)
+      ref_->trace_any(want_rays, want);  // shadow rays: any hit, as the frame traces them
+    else
+      ref_->trace(want_rays, want);
     const reference::HitDiff d = reference::compare_hits(want, got);
     c.hit_mismatch = d.rays - d.identical;
     if (f.empty() && (first_ray || !d.differing.empty())) {
@@ -432,9 +435,10 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   };
   Count bounce, shadow;
   if (fr.bounce())
-    bounce = compare("bounce", bounce_rays(scene_, gpu_gather, frame), fr.download_rays(), fr.download_hits());
+    bounce = compare("bounce", bounce_rays(scene_, gpu_gather, frame), fr.download_rays(), fr.download_hits(), false);
   if (fr.shadows())
-    shadow = compare("shadow", shadow_rays(scene_, gpu_gather), fr.download_shadow_rays(), fr.download_shadow_hits());
+    shadow = compare("shadow", shadow_rays(scene_, gpu_gather), fr.download_shadow_rays(), fr.download_shadow_hits(),
+                     true);
   const bool raster = fr.gather_mode() == vulkan::GatherMode::raster;
   char line[768];
   std::snprintf(line, sizeof line,

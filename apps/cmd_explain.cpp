@@ -72,6 +72,7 @@ struct Item {
   std::vector<std::string> header;
   Ray ray{};
   Traversal traversal = Traversal::paper;
+  uint32_t mode = shared::kTraceClosestHit;  // shadow rays: kTraceAnyHit, as the frame traces them
   std::optional<Hit> frame_hit;  // --gpu-frame: the frame's own hit of this ray
 };
 
@@ -274,13 +275,14 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
       Item it;
       it.ray = r;
       it.traversal = frame_t;
+      it.mode = shared::kTraceAnyHit;
       it.label = std::string(where) + ": the shadow ray toward light " + std::to_string(l);
       it.header = {it.label + " (" + (scene.lights[l].directional ? "directional" : "a point light") +
                    ", from the primary hit, as render --shadows traces it)"};
       it.header.insert(it.header.end(), frame_words.begin(), frame_words.end());
       it.header.push_back(std::string("explained by the ") + traversal_name(it.traversal) +
-                          " traversal, as render --shadows traces its shadow rays; a hit before the light (t < " +
-                          (scene.lights[l].directional ? "inf" : "1") + ") is a shadow");
+                          " traversal for any hit, as render --shadows traces its shadow rays; a hit before the "
+                          "light (t < " + (scene.lights[l].directional ? "inf" : "1") + ") is a shadow");
       items.push_back(it);
     }
     if (items.empty()) throw Error(std::string(where) + ": no light lights the surface, so no shadow rays");
@@ -391,12 +393,12 @@ void run_explain(const ExplainOptions& options) {
   for (size_t i = 0; i < items.size(); ++i) {
     const Item& it = items[i];
     reference::ReferenceGridTracer& ref = ex.reference(it.traversal);
-    const reference::ExplainRecord want = ref.explain_ray(it.ray);
+    const reference::ExplainRecord want = ref.explain_ray(it.ray, it.mode);
     std::optional<reference::ExplainRecord> got;
     std::string device;
 #ifdef GRIDRT_HAVE_VULKAN
     if (vulkan) {
-      got = ex.gpu(it.traversal).explain_ray(it.ray);
+      got = ex.gpu(it.traversal).explain_ray(it.ray, it.mode);
       device = ex.device();
     }
 #endif

@@ -68,7 +68,7 @@ void render_cpu_frame(const RenderOptions& o, const Scene& scene, Tracer& tracer
   if (shadows) {
     shadow = shadow_rays(scene, gather);
     shadow_hits.resize(shadow.size());
-    traced.trace(shadow, shadow_hits);
+    traced.trace_any(shadow, shadow_hits);  // occlusion: any hit (docs/SPEC.md "Any hit")
   }
   progress.finish();
   // Rays outside the domain (shared::ray_domain) are not traced: say how many

@@ -49,6 +49,10 @@ class Tracer {
   virtual void update(float time) = 0;
   // Closest hit (or miss) of every ray; hits.size() == rays.size().
   virtual void trace(std::span<const Ray> rays, std::span<Hit> hits) = 0;
+  // Any hit (or miss) of every ray, for occlusion (shadow rays): a hit exactly where trace()
+  // reports one, but not necessarily the closest (the grid's tracers stop at the first accepted
+  // candidate: docs/SPEC.md "Any hit"). By default the closest hit.
+  virtual void trace_any(std::span<const Ray> rays, std::span<Hit> hits) { trace(rays, hits); }
   virtual AccelDump dump() const { return {}; }
 };
 

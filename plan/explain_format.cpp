@@ -440,6 +440,8 @@ std::string event_summary(const ExplainRecord& rec, size_t i, const ExplainForma
 std::string explain_text(const ExplainRecord& rec, const ExplainFormat& fmt) {
   std::ostringstream os;
   os << grid_text(rec.params, fmt) << "\n";
+  if (rec.mode == shared::kTraceAnyHit)
+    os << "any hit: the trace stops at the first accepted candidate (occlusion; docs/SPEC.md \"Any hit\")\n";
   const size_t n = rec.events.size();
   const int width = int(std::to_string(n ? n - 1 : 0).size()) + 1;
   for (size_t i = 0; i < n; ++i) {

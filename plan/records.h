@@ -32,6 +32,7 @@ struct ExplainRecord {
   shared::GridParams params{};
   std::vector<shared::ExplainEvent> events;
   Hit hit{};
+  uint32_t mode = shared::kTraceClosestHit;  // which hit the trace reported (kTraceAnyHit: the first)
 };
 std::string to_text(const ExplainRecord& record);
 // A one-time warning on stderr when the spill list overflowed (references lost: holes possible);

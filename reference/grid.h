@@ -128,8 +128,10 @@ std::vector<uint32_t> dirty_cells(const GridData& grid);
 SpillDump spill_dump(const GridData& grid);
 
 
-// scene_trace for one ray; `explain` (may be null) receives the events.
-Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain);
+// scene_trace for one ray; `explain` (may be null) receives the events; `mode`: which hit
+// (shared::kTraceClosestHit, or kTraceAnyHit: the first accepted, docs/SPEC.md "Any hit").
+Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain,
+                uint32_t mode = shared::kTraceClosestHit);
 
 struct GridStats {
   glm::vec3 origin{0.0f};
@@ -175,9 +177,10 @@ class ReferenceGridTracer : public Tracer {
   void build(const Scene& scene, float time) override;
   void update(float time) override;
   void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override;
   AccelDump dump() const override;
 
-  ExplainRecord explain_ray(const Ray& ray) const;
+  ExplainRecord explain_ray(const Ray& ray, uint32_t mode = shared::kTraceClosestHit) const;
   GridStats stats() const;
   SpillDump spill() const { return spill_dump(grid_); }
   const GridOptions& options() const { return options_; }

@@ -28,8 +28,12 @@ struct TraceState {
   uint cells;
   uint tests;
   Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
+  uint mode;        // kTraceClosestHit or kTraceAnyHit
   ExplainRecord* ex;
 };
+
+// Any hit (kTraceAnyHit): a candidate is accepted, so the trace stops reading references.
+bool found_any(const TraceState& st) { return st.mode == kTraceAnyHit && st.has_best; }
 
 void emit(TraceState& st, uint kind, uint code, uint ref, uint step, uvec3 cell, uint slot, vec4 f0,
           vec4 f1) {
@@ -109,6 +113,7 @@ uint test_cell(const GridData& grid, TraceState& st, uvec3 cell, uint step, floa
     if (ref == kBlank) break;
     last = ref;
     test_reference(grid, st, ref, step, cell, s, t_lo, t_hi);
+    if (found_any(st)) break;
   }
   return last;
 }
@@ -129,7 +134,7 @@ void test_spilled(const GridData& grid, TraceState& st, uvec3 cell, uint step, f
   uint k = 0u;
   for (uint list = 0u; list < 2u; ++list) {
     uint i = grid.spill_heads[spill_head_index(cell_linear_index(g, cell), list == 1u)];
-    while (i != kSpillEnd && k < grid.spill_header.capacity) {
+    while (i != kSpillEnd && k < grid.spill_header.capacity && !found_any(st)) {
       const SpillEntry e = grid.spill[i];
       emit(st, kEvSpilled, 0u, e.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
       test_reference(grid, st, e.ref, step, cell, k, t_lo, t_hi);
@@ -152,6 +157,7 @@ void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint st
     const uint ref = grid.refs[j];
     emit(st, kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
     test_reference(grid, st, ref, step, cell, j - begin, t_lo, t_hi);
+    if (found_any(st)) return;
   }
   // The run's end, as the image's first blank slot
   emit(st, kEvSlot, 0u, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
@@ -166,7 +172,7 @@ void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint st
   emit(st, kEvSpillScan, min(appended, grid.spill_header.capacity), kBlank, step, cell, appended, vec4(0.0f),
        vec4(0.0f));
   uint k = 0u;
-  while (e != kSpillEnd && k < grid.spill_header.capacity) {
+  while (e != kSpillEnd && k < grid.spill_header.capacity && !found_any(st)) {
     const SpillEntry entry = grid.spill[e];
     emit(st, kEvSpilled, 0u, entry.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
     test_reference(grid, st, entry.ref, step, cell, k, t_lo, t_hi);
@@ -262,9 +268,10 @@ Hit trace_paper(const GridData& grid, TraceState& st) {
     emit(st, kEvCell, last - k, kBlank, k, cell, 0u, vec4(sample, t_mid), vec4(seg_begin, seg_end, t_lo, t_hi));
     const uint last_ref = test_cell(grid, st, cell, k, t_lo, t_hi);
     // A saturated cell's spilled references
-    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(grid, st, cell, k, t_lo, t_hi);
-    // Report the closest hit once it lies before the segment's end ("t < 1")
-    if (st.has_best && st.best_t < seg_end) return report(st, k);
+    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank && !found_any(st))
+      test_spilled(grid, st, cell, k, t_lo, t_hi);
+    // Report the closest hit once it lies before the segment's end ("t < 1"); any hit at once
+    if (st.has_best && (st.mode == kTraceAnyHit || st.best_t < seg_end)) return report(st, k);
     // Gap-fill in a saturated cell
     if ((g.flags & kGridGapFill) != 0u && last_ref != kBlank) {
       const uint status = imageLoad(grid.image, ivec3(cell_status_texel(g, cell)));
@@ -317,14 +324,15 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
       } else {
         const uint last_ref = test_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
         // A saturated cell's spilled references
-        if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(grid, st, cell, k, st.rs.t_lo, st.tmax);
+        if ((g.flags & kGridSpill) != 0u && last_ref != kBlank && !found_any(st))
+          test_spilled(grid, st, cell, k, st.rs.t_lo, st.tmax);
       }
     } else {
       emit(st, kEvSkip, d, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
     }
-    // Report the closest hit once it lies inside this cell (or box) or before
-    if (st.has_best && st.best_t <= t_exit) return report(st, k);
+    // Report the closest hit once it lies inside this cell (or box) or before; any hit at once
+    if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= t_exit)) return report(st, k);
     if (t_exit >= st.rs.t_end) return finish(st, t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
     // Step to the next cell
     if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(st, kMissLeftGrid, k);
@@ -336,7 +344,7 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
 }  // namespace
 
 // ---- Scene trace (paper 2.3) ----
-Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain) {
+Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain, uint mode) {
   const GridParams& g = grid.params;
   TraceState st{};
   st.org = ray.org;
@@ -349,10 +357,12 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain) {
   st.best_t = 0.0f;
   st.best_ref = kBlank;
   if (mailbox_enabled(g)) mailbox_clear(st.mailbox);
+  st.mode = mode;
   st.ex = explain;
   if (explain) {
     explain->ray = ray;
     explain->params = g;
+    explain->mode = mode;
   }
   emit(st, kEvRay, 0u, ray.launch_ref, 0u, uvec3(0u), 0u, vec4(ray.org, ray.tmin), vec4(ray.dir, ray.tmax));
   // Reject rays with NaN/inf values or a zero direction

@@ -38,6 +38,13 @@ void ReferenceGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) 
                   [&](uint32_t i) { hits[i] = scene_trace(grid_, rays[i], nullptr); }, 64);
 }
 
+void ReferenceGridTracer::trace_any(std::span<const Ray> rays, std::span<Hit> hits) {
+  if (hits.size() != rays.size()) throw Error("reference-grid: hits.size() != rays.size()");
+  if (!scene_) throw Error("reference-grid: trace before build");
+  run_invocations(uint32_t(rays.size()), thread_count(options_), std::nullopt,
+                  [&](uint32_t i) { hits[i] = scene_trace(grid_, rays[i], nullptr, shared::kTraceAnyHit); }, 64);
+}
+
 AccelDump ReferenceGridTracer::dump() const {
   AccelDump d;
   if ((grid_.params.flags & shared::kGridCompact) != 0u) {
@@ -54,10 +61,10 @@ AccelDump ReferenceGridTracer::dump() const {
   return d;
 }
 
-ExplainRecord ReferenceGridTracer::explain_ray(const Ray& ray) const {
+ExplainRecord ReferenceGridTracer::explain_ray(const Ray& ray, uint32_t mode) const {
   if (!scene_) throw Error("reference-grid: explain before build");
   ExplainRecord rec;
-  rec.hit = scene_trace(grid_, ray, &rec);
+  rec.hit = scene_trace(grid_, ray, &rec, mode);
   return rec;
 }
 

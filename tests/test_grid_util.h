@@ -210,4 +210,40 @@ inline std::vector<Ray> box_rays(const reference::GridData& g, uint32_t count, f
   return rays;
 }
 
+// Rays leaving random triangles of the geometry buffer (origin on the triangle, launch_ref and its
+// normal set) toward random points, half of them as segments (tmax 1, a point light), the rest
+// unbounded (a directional light); plus random rays through the box.
+inline std::vector<Ray> leaving_rays(const reference::GridData& g, uint32_t count, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f), d(-1.0f, 1.0f);
+  const glm::vec3 lo = g.params.origin, ext = g.params.upper - g.params.origin;
+  std::vector<Ray> rays;
+  for (uint32_t i = 0; i < count; ++i) {
+    const glm::vec3 target = lo + ext * glm::vec3(unit(rng), unit(rng), unit(rng));
+    if (i % 5 == 4) {
+      rays.push_back(make_ray(lo + ext * glm::vec3(unit(rng), unit(rng), unit(rng)),
+                                        glm::vec3(d(rng), d(rng), d(rng)) + glm::vec3(1e-3f)));
+      continue;
+    }
+    // A triangle of some instance, through its record in the instance table
+    const uint32_t inst = std::uniform_int_distribution<uint32_t>(0, uint32_t(g.instances.size()) - 1)(rng);
+    const shared::GridInstance& in = g.instances[inst];
+    if (in.tri_count == 0) continue;
+    const uint32_t tri = std::uniform_int_distribution<uint32_t>(0, in.tri_count - 1)(rng);
+    const shared::GridTriangle& t = g.triangles[in.tri_offset + tri];
+    float a = unit(rng), b = unit(rng);
+    if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+    const glm::vec3 o = t.v0 + a * (t.v1 - t.v0) + b * (t.v2 - t.v0);
+    glm::vec3 n = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
+    if (glm::dot(n, n) > 0.0f) n = glm::normalize(n);
+    const glm::vec3 dir = target - o;
+    if (!(glm::dot(dir, dir) > 1e-6f)) continue;
+    Ray r = make_ray(o, (i % 2) ? dir : glm::normalize(dir), 0.0f, (i % 2) ? 1.0f : INFINITY);
+    r.launch_ref = (inst << 16) | tri;
+    r.launch_normal = n;
+    rays.push_back(r);
+  }
+  return rays;
+}
+
 }  // namespace gridtest

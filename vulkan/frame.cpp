@@ -647,7 +647,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 6);
-        grid_.record_trace(cb, uint32_t(scene_.lights.size()) * w * h, w * h);
+        grid_.record_trace(cb, uint32_t(scene_.lights.size()) * w * h, w * h, shared::kTraceAnyHit);
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 7);
       } else if (timed) {

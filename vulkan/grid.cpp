@@ -575,7 +575,8 @@ void VulkanGridTracer::update(float time) {
 
 // ---- Scene trace (paper 2.3) ----
 
-void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index) {
+void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index,
+                                 uint32_t mode) {
   if (hits.size() != rays.size()) throw Error("vulkan-grid: hits.size() != rays.size()");
   if (!scene_ || !gpu_) throw Error("vulkan-grid: trace before build");
   if (rays.empty()) return;
@@ -594,18 +595,24 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
   const PassTimes t = submit_ray_chunks<shared::TracePush>(ctx, pipe, gpu.set->set(), uint32_t(rays.size()),
                                                           explain_index, vk_.explain_capacity,
                                                           explain ? &gpu.explain : nullptr, kExplainHeader,
-                                                          gpu.timestamps.get());
+                                                          gpu.timestamps.get(), mode);
   timings_.trace_host_ms = t.host_ms;
   timings_.trace_ms = t.device_ms;
   ctx.download(gpu.hits, hits.data(), hits.size_bytes());
 }
 
-void VulkanGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) { run_trace(rays, hits, shared::kNoExplain); }
+void VulkanGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
+  run_trace(rays, hits, shared::kNoExplain, shared::kTraceClosestHit);
+}
 
-plan::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays, uint32_t index) {
+void VulkanGridTracer::trace_any(std::span<const Ray> rays, std::span<Hit> hits) {
+  run_trace(rays, hits, shared::kNoExplain, shared::kTraceAnyHit);
+}
+
+plan::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays, uint32_t index, uint32_t mode) {
   if (index >= rays.size()) throw Error("vulkan-grid: explain index out of range");
   std::vector<Hit> hits(rays.size());
-  run_trace(rays, hits, index);
+  run_trace(rays, hits, index, mode);
   uint32_t count = 0;
   ctx_->download(gpu_->explain, &count, sizeof count);
   if (count > vk_.explain_capacity)
@@ -614,6 +621,7 @@ plan::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays, uin
   plan::ExplainRecord rec;
   rec.ray = rays[index];
   rec.params = params_;
+  rec.mode = mode;
   rec.events = ctx_->download<shared::ExplainEvent>(gpu_->explain, count, kExplainHeader);
   rec.hit = hits[index];
   return rec;
@@ -660,19 +668,19 @@ void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
   if (!gpu_ || !gpu_->ray_list) throw Error("vulkan-grid: record_trace_list without a bound ray list");
   const Pipeline& pipe = trace_pipeline(false, true);
   pipe.bind(cb, gpu_->set->set());
-  const shared::TracePush push{0u, 0u, shared::kNoExplain, vk_.explain_capacity};
+  const shared::TracePush push{0u, 0u, shared::kNoExplain, vk_.explain_capacity, shared::kTraceClosestHit};
   pipe.push(cb, push);
   vkCmdDispatchIndirect(cb, gpu_->ray_list, 0);
 }
 
-void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count, uint32_t first_ray) {
+void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count, uint32_t first_ray, uint32_t mode) {
   if (!gpu_) throw Error("vulkan-grid: record_trace before build");
   const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
   const Pipeline& pipe = trace_pipeline(false);
   pipe.bind(cb, gpu_->set->set());
   for (uint32_t first = 0; first < count; first += std::min(chunk, count - first)) {
     const shared::TracePush push{first_ray + first, std::min(chunk, count - first), shared::kNoExplain,
-                                 vk_.explain_capacity};
+                                 vk_.explain_capacity, mode};
     pipe.push(cb, push);
     vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
   }

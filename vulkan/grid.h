@@ -66,11 +66,15 @@ class VulkanGridTracer : public Tracer {
   void build(const Scene& scene, float time) override;
   void update(float time) override;
   void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override;
   AccelDump dump() const override;
 
-  // Traces `rays` and records the events of rays[index], as the reference's explain_ray does.
-  plan::ExplainRecord explain_ray(std::span<const Ray> rays, uint32_t index);
-  plan::ExplainRecord explain_ray(const Ray& ray) { return explain_ray(std::span<const Ray>(&ray, 1), 0); }
+  // Traces `rays` and records the events of rays[index], as the reference's explain_ray does
+  // (`mode`: which hit, shared::kTraceClosestHit or kTraceAnyHit).
+  plan::ExplainRecord explain_ray(std::span<const Ray> rays, uint32_t index, uint32_t mode = shared::kTraceClosestHit);
+  plan::ExplainRecord explain_ray(const Ray& ray, uint32_t mode = shared::kTraceClosestHit) {
+    return explain_ray(std::span<const Ray>(&ray, 1), 0, mode);
+  }
 
   // Runs of kBuildRun cells (build.glsl) the compute build and its updates handed out so far
   // (0 for the raster build).
@@ -107,8 +111,9 @@ class VulkanGridTracer : public Tracer {
   // trace() binds its own again), and optionally a work list of ray indices
   // (common/shared/worklist.h, usage INDIRECT_BUFFER too) for record_trace_list.
   void bind_ray_buffers(const Buffer& rays, const Buffer& hits, const Buffer* ray_list = nullptr);
-  // Records the trace of rays [first, first + count) of the bound buffers into `cb` (no barriers).
-  void record_trace(VkCommandBuffer cb, uint32_t count, uint32_t first = 0);
+  // Records the trace of rays [first, first + count) of the bound buffers into `cb` (no barriers);
+  // `mode`: which hit (shared::kTraceAnyHit for the frame's shadow rays).
+  void record_trace(VkCommandBuffer cb, uint32_t count, uint32_t first = 0, uint32_t mode = shared::kTraceClosestHit);
   // Records the trace of the rays the bound ray list names, dispatched indirectly on the list
   // (its dispatch step must have run; no barriers). The other rays' hits are not written.
   void record_trace_list(VkCommandBuffer cb);
@@ -138,7 +143,7 @@ class VulkanGridTracer : public Tracer {
   void upload_transforms(float time, uint32_t first, uint32_t last);
   void record_skip_field(VkCommandBuffer cb);
   void record_compact(VkCommandBuffer cb);
-  void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index);
+  void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index, uint32_t mode);
 
   std::unique_ptr<Context> owned_;
   Context* ctx_ = nullptr;

@@ -679,6 +679,18 @@ SH_INLINE bool dda_walk_next(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) d
   return dda_step(g, dir, a, w.cell);
 }
 
+// ---- Which hit a trace reports (docs/SPEC.md "Any hit") ----
+// kTraceClosestHit: the closest accepted candidate (ties: the smaller reference), the paper's.
+// kTraceAnyHit: the first candidate the traversal accepts (launch triangle, interval, alpha
+// keying and the tie rule against no earlier candidate, as for the closest), reported at once: the
+// rest of its cell is not read. A ray has an accepted candidate in one mode iff it has one in the
+// other and the walk up to it is the same, so it hits in one iff it hits in the other (gap-fill
+// included): occlusion, which is all a shadow ray asks, is the closest hit's, in fewer tests. The
+// hit's fields are those of the candidate it stopped at. Both backends take the same traversal
+// order, so they agree on it in bits.
+SH_CONST uint kTraceClosestHit = 0u;
+SH_CONST uint kTraceAnyHit = 1u;
+
 // ---- The exact traversal's mailbox (kGridMailbox; docs/SPEC.md "Mailbox") ----
 // The exact traversal tests every reference against the whole ray (t_lo, tmax) with the best hit
 // so far as the bound, so a second test of a reference, in a later cell, cannot change the hit:

@@ -57,6 +57,7 @@ struct TracePush {
   uint ray_count;         // rays of this dispatch
   uint explain_ray;       // the ray whose events are recorded (kNoExplain: none)
   uint explain_capacity;  // events the explain buffer holds
+  uint mode;              // which hit: kTraceClosestHit or kTraceAnyHit (shared/grid.h)
 };
 SH_CONST uint kNoExplain = 0xFFFFFFFFu;
 
@@ -91,7 +92,7 @@ struct ExplainHeader {
 SH_END
 
 #ifdef __cplusplus
-static_assert(sizeof(gridrt::shared::TracePush) == 16, "layout of TracePush");
+static_assert(sizeof(gridrt::shared::TracePush) == 20, "layout of TracePush");
 static_assert(sizeof(gridrt::shared::ClearPush) == 4, "layout of ClearPush");
 static_assert(sizeof(gridrt::shared::SpillOrderPush) == 4, "layout of SpillOrderPush");
 static_assert(sizeof(gridrt::shared::SkipFieldPush) == 4, "layout of SkipFieldPush");

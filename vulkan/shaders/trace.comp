@@ -55,10 +55,14 @@ struct TraceState {
   uint cells;
   uint tests;
   Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
+  uint mode;        // kTraceClosestHit or kTraceAnyHit
 };
 
 TraceState st;
 bool explaining = false;
+
+// Any hit (kTraceAnyHit): a candidate is accepted, so the trace stops reading references.
+bool found_any() { return st.mode == kTraceAnyHit && st.has_best; }
 
 void emit(uint kind, uint code, uint ref, uint step, uvec3 cell, uint slot, vec4 f0, vec4 f1) {
   if (!kExplain || !explaining) return;
@@ -137,6 +141,7 @@ uint test_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
     if (ref == kBlank) break;
     last = ref;
     test_reference(g, ref, step, cell, s, t_lo, t_hi);
+    if (found_any()) break;
   }
   return last;
 }
@@ -155,7 +160,7 @@ void test_spilled(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
   uint k = 0u;
   for (uint list = 0u; list < 2u; ++list) {
     uint i = spill_heads[spill_head_index(cell_linear_index(g, cell), list == 1u)];
-    while (i != kSpillEnd && k < spill_header.capacity) {
+    while (i != kSpillEnd && k < spill_header.capacity && !found_any()) {
       const SpillEntry e = spill_entries[i];
       emit(kEvSpilled, 0u, e.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
       test_reference(g, e.ref, step, cell, k, t_lo, t_hi);
@@ -179,6 +184,7 @@ void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_
     const uint ref = compact_refs[j];
     emit(kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
     test_reference(g, ref, step, cell, j - begin, t_lo, t_hi);
+    if (found_any()) return;
   }
   // The run's end, as the image's first blank slot
   emit(kEvSlot, 0u, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
@@ -190,7 +196,7 @@ void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_
   const uint appended = spill_header.count;
   emit(kEvSpillScan, min(appended, spill_header.capacity), kBlank, step, cell, appended, vec4(0.0f), vec4(0.0f));
   uint k = 0u;
-  while (e != kSpillEnd && k < spill_header.capacity) {
+  while (e != kSpillEnd && k < spill_header.capacity && !found_any()) {
     const SpillEntry entry = spill_entries[e];
     emit(kEvSpilled, 0u, entry.ref, step, cell, k, vec4(0.0f), vec4(0.0f));
     test_reference(g, entry.ref, step, cell, k, t_lo, t_hi);
@@ -286,9 +292,9 @@ HitRecord trace_paper(GridParams g) {
     emit(kEvCell, last - k, kBlank, k, cell, 0u, vec4(sample_point, t_mid), vec4(seg_begin, seg_end, t_lo, t_hi));
     const uint last_ref = test_cell(g, cell, k, t_lo, t_hi);
     // A saturated cell's spilled references
-    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(g, cell, k, t_lo, t_hi);
-    // Report the closest hit once it lies before the segment's end ("t < 1")
-    if (st.has_best && st.best_t < seg_end) return report(k);
+    if ((g.flags & kGridSpill) != 0u && last_ref != kBlank && !found_any()) test_spilled(g, cell, k, t_lo, t_hi);
+    // Report the closest hit once it lies before the segment's end ("t < 1"); any hit at once
+    if (st.has_best && (st.mode == kTraceAnyHit || st.best_t < seg_end)) return report(k);
     // Gap-fill in a saturated cell
     if ((g.flags & kGridGapFill) != 0u && last_ref != kBlank) {
       const uint status = imageLoad(grid_image, ivec3(cell_status_texel(g, cell))).x;
@@ -344,14 +350,15 @@ HitRecord trace_exact(GridParams g) {
       } else {
         const uint last_ref = test_cell(g, cell, k, st.rs.t_lo, st.tmax);
         // A saturated cell's spilled references
-        if ((g.flags & kGridSpill) != 0u && last_ref != kBlank) test_spilled(g, cell, k, st.rs.t_lo, st.tmax);
+        if ((g.flags & kGridSpill) != 0u && last_ref != kBlank && !found_any())
+          test_spilled(g, cell, k, st.rs.t_lo, st.tmax);
       }
     } else {
       emit(kEvSkip, d, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
     }
-    // Report the closest hit once it lies inside this cell (or box) or before
-    if (st.has_best && st.best_t <= t_exit) return report(k);
+    // Report the closest hit once it lies inside this cell (or box) or before; any hit at once
+    if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= t_exit)) return report(k);
     if (t_exit >= st.rs.t_end) return finish(t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
     // Step to the next cell
     if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(kMissLeftGrid, k);
@@ -361,7 +368,7 @@ HitRecord trace_exact(GridParams g) {
 }
 
 // ---- Scene trace (paper 2.3) ----
-HitRecord scene_trace(GridParams g, RayRecord ray) {
+HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   st.org = ray.org;
   st.dir = ray.dir;
   st.tmin = origin_tmin(ray.org, ray.dir, ray.tmin);  // the origin epsilon
@@ -377,6 +384,7 @@ HitRecord scene_trace(GridParams g, RayRecord ray) {
   st.cells = 0u;
   st.tests = 0u;
   if (mailbox_enabled(g)) mailbox_clear(st.mailbox);
+  st.mode = mode;
   emit(kEvRay, 0u, ray.launch_ref, 0u, uvec3(0u), 0u, vec4(ray.org, ray.tmin), vec4(ray.dir, ray.tmax));
   // Reject rays with NaN/inf values or a zero direction
   if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax)) {
@@ -396,11 +404,11 @@ void main() {
     const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
     if (k >= ray_list_header.size) return;
     const uint r = ray_list[k];
-    hits[r] = scene_trace(grid_params(), rays[r]);
+    hits[r] = scene_trace(grid_params(), rays[r], pc.mode);
     return;
   }
   if (gl_GlobalInvocationID.x >= pc.ray_count) return;
   const uint i = pc.ray_offset + gl_GlobalInvocationID.x;
   explaining = kExplain && i == pc.explain_ray;
-  hits[i] = scene_trace(grid_params(), rays[i]);
+  hits[i] = scene_trace(grid_params(), rays[i], pc.mode);
 }
