@@ -633,7 +633,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           barrier(cb);
           grid_.record_trace_list(cb);
         } else {
-          grid_.record_trace(cb, w * h);
+          grid_.record_trace_image(cb, w, h, 0);  // an 8x8 pixel tile a workgroup
         }
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 5);
@@ -647,7 +647,8 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 6);
-        grid_.record_trace(cb, uint32_t(scene_.lights.size()) * w * h, w * h, shared::kTraceAnyHit);
+        for (uint32_t l = 0; l < uint32_t(scene_.lights.size()); ++l)
+          grid_.record_trace_image(cb, w, h, (1 + l) * w * h, shared::kTraceAnyHit);
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 7);
       } else if (timed) {

@@ -464,13 +464,14 @@ void VulkanGridTracer::after_insert() {
   plan::warn_spill_overflow(d, name(), overflow_warned_);
 }
 
-const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list) {
+const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32_t mode) {
   Gpu& gpu = *gpu_;
-  const uint64_t key = uint64_t(list) << 33 | uint64_t(explain) << 32 | params_.flags;
+  const uint64_t key = uint64_t(mode) << 34 | uint64_t(list) << 33 | uint64_t(explain) << 32 | params_.flags;
   std::unique_ptr<Pipeline>& p = gpu.traces[key];
   if (!p) {
     SpecConstants spec = spec_for(params_, explain);
     if (list) spec.add(shared::kGridSpecTraceList, true);
+    spec.add(shared::kGridSpecTraceMode, mode);
     p = std::make_unique<Pipeline>(*ctx_, "trace.comp", gpu.set->layout(), uint32_t(sizeof(shared::TracePush)), std::move(spec));
   }
   return *p;
@@ -591,11 +592,11 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
   }
   ctx.upload(gpu.rays, rays.data(), rays.size_bytes());
   const bool explain = explain_index != shared::kNoExplain;
-  const Pipeline& pipe = trace_pipeline(explain);
+  const Pipeline& pipe = trace_pipeline(explain, false, mode);
   const PassTimes t = submit_ray_chunks<shared::TracePush>(ctx, pipe, gpu.set->set(), uint32_t(rays.size()),
                                                           explain_index, vk_.explain_capacity,
                                                           explain ? &gpu.explain : nullptr, kExplainHeader,
-                                                          gpu.timestamps.get(), mode);
+                                                          gpu.timestamps.get());
   timings_.trace_host_ms = t.host_ms;
   timings_.trace_ms = t.device_ms;
   ctx.download(gpu.hits, hits.data(), hits.size_bytes());
@@ -668,7 +669,7 @@ void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
   if (!gpu_ || !gpu_->ray_list) throw Error("vulkan-grid: record_trace_list without a bound ray list");
   const Pipeline& pipe = trace_pipeline(false, true);
   pipe.bind(cb, gpu_->set->set());
-  const shared::TracePush push{0u, 0u, shared::kNoExplain, vk_.explain_capacity, shared::kTraceClosestHit};
+  const shared::TracePush push{0u, 0u, shared::kNoExplain, vk_.explain_capacity, 0u, 0u};
   pipe.push(cb, push);
   vkCmdDispatchIndirect(cb, gpu_->ray_list, 0);
 }
@@ -676,14 +677,24 @@ void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
 void VulkanGridTracer::record_trace(VkCommandBuffer cb, uint32_t count, uint32_t first_ray, uint32_t mode) {
   if (!gpu_) throw Error("vulkan-grid: record_trace before build");
   const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
-  const Pipeline& pipe = trace_pipeline(false);
+  const Pipeline& pipe = trace_pipeline(false, false, mode);
   pipe.bind(cb, gpu_->set->set());
   for (uint32_t first = 0; first < count; first += std::min(chunk, count - first)) {
     const shared::TracePush push{first_ray + first, std::min(chunk, count - first), shared::kNoExplain,
-                                 vk_.explain_capacity, mode};
+                                 vk_.explain_capacity, 0u, 0u};
     pipe.push(cb, push);
     vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
   }
+}
+
+void VulkanGridTracer::record_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first_ray,
+                                          uint32_t mode) {
+  if (!gpu_) throw Error("vulkan-grid: record_trace_image before build");
+  const Pipeline& pipe = trace_pipeline(false, false, mode);
+  pipe.bind(cb, gpu_->set->set());
+  const shared::TracePush push{first_ray, width * height, shared::kNoExplain, vk_.explain_capacity, width, height};
+  pipe.push(cb, push);
+  vkCmdDispatch(cb, groups(width, 8), groups(height, 8), 1);
 }
 
 AccelDump VulkanGridTracer::dump() const {

@@ -114,6 +114,10 @@ class VulkanGridTracer : public Tracer {
   // Records the trace of rays [first, first + count) of the bound buffers into `cb` (no barriers);
   // `mode`: which hit (shared::kTraceAnyHit for the frame's shadow rays).
   void record_trace(VkCommandBuffer cb, uint32_t count, uint32_t first = 0, uint32_t mode = shared::kTraceClosestHit);
+  // The same for the rays of a width x height image stored row by row from ray `first`, a
+  // workgroup per 8x8 pixel tile (neighbouring pixels' rays in one subgroup; no barriers).
+  void record_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first,
+                          uint32_t mode = shared::kTraceClosestHit);
   // Records the trace of the rays the bound ray list names, dispatched indirectly on the list
   // (its dispatch step must have run; no barriers). The other rays' hits are not written.
   void record_trace_list(VkCommandBuffer cb);
@@ -139,7 +143,7 @@ class VulkanGridTracer : public Tracer {
   void record_spill_order(VkCommandBuffer cb, bool dynamic);
   // The trace pipeline for the current flags, with explain or on a ray list (made on first use:
   // gap-fill comes and goes with saturation).
-  const Pipeline& trace_pipeline(bool explain, bool list = false);
+  const Pipeline& trace_pipeline(bool explain, bool list = false, uint32_t mode = shared::kTraceClosestHit);
   void upload_transforms(float time, uint32_t first, uint32_t last);
   void record_skip_field(VkCommandBuffer cb);
   void record_compact(VkCommandBuffer cb);

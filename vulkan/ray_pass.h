@@ -36,7 +36,7 @@ struct PassTimes {
 template <class Push>
 PassTimes submit_ray_chunks(Context& ctx, const Pipeline& pipe, VkDescriptorSet set, uint32_t n,
                             uint32_t explain_index, uint32_t explain_capacity, const Buffer* explain,
-                            VkDeviceSize explain_header, Timestamps* stamps, uint32_t mode = 0) {
+                            VkDeviceSize explain_header, Timestamps* stamps) {
   const uint32_t chunk = ctx.info().limits.maxComputeWorkGroupCount[0] * 64u;
   const auto t0 = std::chrono::steady_clock::now();
   ctx.submit([&](VkCommandBuffer cb) {
@@ -47,8 +47,7 @@ PassTimes submit_ray_chunks(Context& ctx, const Pipeline& pipe, VkDescriptorSet 
     if (stamps) stamps->reset(cb), stamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     pipe.bind(cb, set);
     for (uint32_t first = 0; first < n; first += std::min(chunk, n - first)) {
-      Push push{first, std::min(chunk, n - first), explain_index, explain_capacity};
-      if constexpr (requires { push.mode; }) push.mode = mode;  // TracePush: which hit
+      const Push push{first, std::min(chunk, n - first), explain_index, explain_capacity};
       pipe.push(cb, push);
       vkCmdDispatch(cb, groups(push.ray_count, 64), 1, 1);
     }

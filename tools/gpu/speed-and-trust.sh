@@ -17,8 +17,8 @@
 #           with --mailbox off and on (its default), each beside the RT pipeline; the untuned bunny
 #           (primary rays) and atrium with the mailbox off and on
 #   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, gridrt-V1, ...:
-#           intermediate builds, when staged) and this one at their defaults: the gather's time and
-#           split, its work items and tile pairs
+#           intermediate builds, when staged) and this one at their defaults: the frame's passes,
+#           the gather's split, its work items and tile pairs, the shadow pass (PART=frame: the same)
 #   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
 set -u
 G=${G:-.gpu}
@@ -74,11 +74,11 @@ bench)
     done
   } 2>&1 | tee "$out/bench.txt"
   ;;
-gather)
+gather | frame)
   # The compute gather's screen box (common/shared/raster.h gather_box) against the baseline's:
   # per scene, the baseline binary and this one at their defaults, one after the other
   B="--backend vulkan --traversal exact --vk-build compute --frames 30 --warmup 5"
-  sel='^\| [0-9]|^gather split|^gather passes|^back to back|error'
+  sel='^\| [0-9]|^gather split|^gather passes|^shadow pass|^back to back|error'
   {
     for s in "${scenes[@]}" builtin:atrium; do
       X=$E/$s.gridscene
@@ -93,7 +93,7 @@ gather)
         timeout 90 "$bin" bench "$X" $B 2>&1 | grep -E "$sel" | cut -c1-400
       done
     done
-  } 2>&1 | tee "$out/gather.txt"
+  } 2>&1 | tee "$out/${PART}.txt"
   ;;
 portal)
   INSTANCED_ONLY=1 G=$G OUT=$out bash tools/gpu/portal-bench.sh > "$out/portal-stdout.txt" 2>&1

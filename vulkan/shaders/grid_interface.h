@@ -50,6 +50,7 @@ SH_CONST uint kGridSpecExplain = 4u;       // trace: record the explain ray's ev
 SH_CONST uint kGridSpecRepeats = 5u;       // GridParams::repeats
 SH_CONST uint kGridSpecTriangleTest = 6u;  // GridParams::triangle_test
 SH_CONST uint kGridSpecTraceList = 7u;     // trace: rays from the ray list (dispatched indirectly)
+SH_CONST uint kGridSpecTraceMode = 8u;     // trace: which hit, kTraceClosestHit or kTraceAnyHit (shared/grid.h)
 
 // Push constants of trace.comp.
 struct TracePush {
@@ -57,7 +58,10 @@ struct TracePush {
   uint ray_count;         // rays of this dispatch
   uint explain_ray;       // the ray whose events are recorded (kNoExplain: none)
   uint explain_capacity;  // events the explain buffer holds
-  uint mode;              // which hit: kTraceClosestHit or kTraceAnyHit (shared/grid.h)
+  // Rays of an image, a workgroup per 8x8 pixel tile (0: a row of 64 rays a workgroup): the
+  // dispatch's workgroup (x, y) traces the rays ray_offset + y * tiled_width + x of its tile
+  uint tiled_width;
+  uint tiled_height;
 };
 SH_CONST uint kNoExplain = 0xFFFFFFFFu;
 
@@ -92,7 +96,7 @@ struct ExplainHeader {
 SH_END
 
 #ifdef __cplusplus
-static_assert(sizeof(gridrt::shared::TracePush) == 20, "layout of TracePush");
+static_assert(sizeof(gridrt::shared::TracePush) == 24, "layout of TracePush");
 static_assert(sizeof(gridrt::shared::ClearPush) == 4, "layout of ClearPush");
 static_assert(sizeof(gridrt::shared::SpillOrderPush) == 4, "layout of SpillOrderPush");
 static_assert(sizeof(gridrt::shared::SkipFieldPush) == 4, "layout of SkipFieldPush");

@@ -35,6 +35,9 @@ layout(std430, binding = kGridBindRayList) readonly buffer RayList {
   WorkListHeader ray_list_header;
   uint ray_list[];
 };
+// Which hit the trace reports (kTraceClosestHit, or kTraceAnyHit for the frame's shadow rays): a
+// constant, so that the closest-hit pipeline carries no test of the mode.
+layout(constant_id = kGridSpecTraceMode) const uint kTraceMode = kTraceClosestHit;
 layout(push_constant) uniform Push { TracePush pc; };
 
 // The state of one ray's traversal (reference/trace.cpp, TraceState).
@@ -307,16 +310,20 @@ HitRecord trace_paper(GridParams g) {
   return finish(kMissStepLimit, g.max_segments);
 }
 
+// The skip field's header (the box count and the dynamic boxes), copied to shared memory by the
+// workgroup at its start: every visited cell reads it.
+shared uint skip_header[kSkipHeaderWords];
+
 // The skip field's distance of a cell (kGridSkipEmpty): its static distance, lowered to its
 // distance to every dynamic box (shared/grid.h, "The skip field").
 uint skip_distance(GridParams g, uvec3 cell) {
   const uint i = cell_linear_index(g, cell);
   uint d = (skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
-  const uint boxes = skip[0];
+  const uint boxes = skip_header[0];
   for (uint b = 0u; b < boxes && d > 0u; ++b) {
     const uint w = skip_box_word(b);
-    const uvec3 lo = uvec3(skip[w], skip[w + 1u], skip[w + 2u]);
-    const uvec3 hi = uvec3(skip[w + 4u], skip[w + 5u], skip[w + 6u]);
+    const uvec3 lo = uvec3(skip_header[w], skip_header[w + 1u], skip_header[w + 2u]);
+    const uvec3 hi = uvec3(skip_header[w + 4u], skip_header[w + 5u], skip_header[w + 6u]);
     d = min(d, skip_box_distance(cell, lo, hi));
   }
   return d;
@@ -400,15 +407,29 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
 }
 
 void main() {
+  if ((kFlags & kGridSkipEmpty) != 0u && kTraversal == kTraversalExact) {
+    for (uint w = gl_LocalInvocationIndex; w < kSkipHeaderWords; w += 64u) skip_header[w] = skip[w];
+    barrier();
+  }
+  if (pc.tiled_width != 0u) {
+    // An image's rays (the frame's shadow rays toward one light), an 8x8 pixel tile a workgroup:
+    // a subgroup's rays leave neighbouring pixels (8x4 of them on a 32-wide subgroup, not 32 of a
+    // row), so they tend to walk the same cells and stop together
+    const uvec2 px = gl_WorkGroupID.xy * 8u + uvec2(gl_LocalInvocationID.x & 7u, gl_LocalInvocationID.x >> 3u);
+    if (px.x >= pc.tiled_width || px.y >= pc.tiled_height) return;
+    const uint r = pc.ray_offset + px.y * pc.tiled_width + px.x;
+    hits[r] = scene_trace(grid_params(), rays[r], kTraceMode);
+    return;
+  }
   if (kTraceList) {
     const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
     if (k >= ray_list_header.size) return;
     const uint r = ray_list[k];
-    hits[r] = scene_trace(grid_params(), rays[r], pc.mode);
+    hits[r] = scene_trace(grid_params(), rays[r], kTraceMode);
     return;
   }
   if (gl_GlobalInvocationID.x >= pc.ray_count) return;
   const uint i = pc.ray_offset + gl_GlobalInvocationID.x;
   explaining = kExplain && i == pc.explain_ray;
-  hits[i] = scene_trace(grid_params(), rays[i], pc.mode);
+  hits[i] = scene_trace(grid_params(), rays[i], kTraceMode);
 }
