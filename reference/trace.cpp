@@ -60,10 +60,12 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   }
   const GridInstance inst = grid.instances[ref_instance(ref)];
   const GridTriangle tri = grid.triangles[inst.tri_offset + ref_triangle(ref)];
-  // The triangle test (Moller-Trumbore or watertight) against the elongated segment
-  TriangleTest r;
+  // The triangle test (Moller-Trumbore or watertight) against the elongated segment; without
+  // events to record, its code alone where its first rejections decide it (triangle_test_code)
+  TriangleTest r{};
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
+  uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r)
+                    : triangle_test_code(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);

@@ -125,9 +125,21 @@ SH_INLINE float sh_component(SH_IN(vec3) v, uint k) { return k == 0u ? v.x : (k 
 // moller_trumbore_t then reports t = T / |D|. Float range: products of three coordinates
 // (|org - v| * |dir|^2, |v1 - v0|^2 |dir| ...) stay finite for coordinates and directions below
 // about 1e12.
-SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
-                          SH_OUT(TriangleTest) r) {
+// The watertight test's first half: the permutation, the sheared vertices and the edge functions
+// (watertight() below; triangle_test_code() stops after it when they reject).
+struct WatertightEdges {
+  vec3 A;     // v0 - org
+  float dz;   // dir's dominant component
+  float az;   // A, B, C along the dominant axis
+  float bz;
+  float cz;
+  float U;    // edge functions: the weights of v0, v1, v2 times det
+  float V;
+  float W;
+  float det;  // U + V + W
+};
+SH_INLINE void watertight_edges(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                                SH_IN(vec3) v2, SH_OUT(WatertightEdges) e) {
   // Permutation: kz the dominant axis of the direction
   SH_PRECISE vec3 adir = abs(dir);
   uint kz = adir.x >= adir.y ? (adir.x >= adir.z ? 0u : 2u) : (adir.y >= adir.z ? 1u : 2u);
@@ -155,6 +167,45 @@ SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_I
   SH_PRECISE float W = bx * ay - by * ax;
   SH_PRECISE float uv = U + V;
   SH_PRECISE float det = uv + W;
+  e.A = A;
+  e.dz = dz;
+  e.az = az;
+  e.bz = bz;
+  e.cz = cz;
+  e.U = U;
+  e.V = V;
+  e.W = W;
+  e.det = det;
+}
+
+// Inside iff U, V, W do not have mixed signs.
+SH_INLINE bool watertight_mixed(SH_IN(WatertightEdges) e) {
+  return (e.U < 0.0f || e.V < 0.0f || e.W < 0.0f) && (e.U > 0.0f || e.V > 0.0f || e.W > 0.0f);
+}
+
+// The code of a test whose edge functions have mixed signs (watertight()'s first three cases).
+SH_INLINE uint watertight_outside_code(SH_IN(WatertightEdges) e) {
+  SH_PRECISE float sdet = e.det < 0.0f ? -1.0f : 1.0f;
+  SH_PRECISE float u = e.V * sdet;
+  SH_PRECISE float v = e.W * sdet;
+  return u < 0.0f ? kTestOutsideU : (v < 0.0f ? kTestOutsideV : kTestOutsideUV);
+}
+
+SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
+                          SH_OUT(TriangleTest) r) {
+  WatertightEdges e;
+  watertight_edges(org, dir, v0, v1, v2, e);
+  SH_PRECISE vec3 adir = abs(dir);
+  SH_PRECISE vec3 A = e.A;
+  SH_PRECISE float dz = e.dz;
+  SH_PRECISE float az = e.az;
+  SH_PRECISE float bz = e.bz;
+  SH_PRECISE float cz = e.cz;
+  SH_PRECISE float U = e.U;
+  SH_PRECISE float V = e.V;
+  SH_PRECISE float W = e.W;
+  SH_PRECISE float det = e.det;
   // Distance times det * dz, the sign of D = det * dz folded in
   SH_PRECISE float tu = U * az;
   SH_PRECISE float tv = V * bz;
@@ -203,7 +254,7 @@ SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_I
   r.hi_det = hi;
   r.best_det = best;
   // Decisions: + - * and comparisons only; inside iff U, V, W do not have mixed signs
-  bool mixed = (U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f);
+  bool mixed = watertight_mixed(e);
   if (mixed && u < 0.0f) r.code = kTestOutsideU;
   else if (mixed && v < 0.0f) r.code = kTestOutsideV;
   else if (mixed) r.code = kTestOutsideUV;
@@ -221,6 +272,39 @@ SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN
                              SH_OUT(TriangleTest) r) {
   if (which == kTriangleWatertight) return watertight(org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
   return moller_trumbore(org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
+}
+
+// triangle_test()'s code for every input, `r` filled only where the test gets past its first
+// rejections (there `r` is triangle_test()'s; elsewhere undefined): the watertight test stops
+// after its edge functions when they have mixed signs, Moller-Trumbore after its determinant and
+// u when det is 0 or u < 0. The same operations in the same order up to there, so the same code;
+// for a trace that records no events (the trace shader but for its explain ray), where most tests
+// miss and skip the plane's cross and dot products. tests/test_rounding.cpp holds it to
+// triangle_test()'s code and record on every case of its corpus.
+SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
+                                  SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
+                                  SH_OUT(TriangleTest) r) {
+  if (which == kTriangleWatertight) {
+    WatertightEdges e;
+    watertight_edges(org, dir, v0, v1, v2, e);
+    if (watertight_mixed(e)) {
+      r.code = watertight_outside_code(e);
+      return r.code;
+    }
+  } else {
+    SH_PRECISE vec3 e1 = v1 - v0;
+    SH_PRECISE vec3 e2 = v2 - v0;
+    vec3 p = sh_cross(dir, e2);
+    SH_PRECISE float det = sh_dot(e1, p);
+    SH_PRECISE vec3 s = org - v0;
+    SH_PRECISE float sgn = det < 0.0f ? -1.0f : 1.0f;
+    SH_PRECISE float u = sh_dot(s, p) * sgn;
+    if (det == 0.0f || u < 0.0f) {
+      r.code = det == 0.0f ? kTestParallel : kTestOutsideU;
+      return r.code;
+    }
+  }
+  return triangle_test(which, org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
 }
 
 // The reported distance of an accepted test: t_det * (1 / |det|), the one division.

@@ -92,10 +92,12 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   }
   const GridInstance inst = instances[ref_instance(ref)];
   const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(ref)];
-  // The triangle test (Moller-Trumbore or watertight) against the elongated segment
+  // The triangle test (Moller-Trumbore or watertight) against the elongated segment; without
+  // events to record, its code alone where its first rejections decide it (triangle_test_code)
   TriangleTest r;
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
+  uint code = kExplain ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r)
+                       : triangle_test_code(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
