@@ -29,6 +29,7 @@ struct TraceState {
   uint tests;
   Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
   uint mode;        // kTraceClosestHit or kTraceAnyHit
+  WatertightRay wray;  // the watertight test's per-ray part (triangle_test_code)
   ExplainRecord* ex;
 };
 
@@ -65,7 +66,8 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   TriangleTest r{};
   const float best = st.has_best ? st.best_t : sh_infinity();
   uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r)
-                    : triangle_test_code(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
+                    : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
+                                                  best, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -360,6 +362,7 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain, ui
   st.best_ref = kBlank;
   if (mailbox_enabled(g)) mailbox_clear(st.mailbox);
   st.mode = mode;
+  st.wray = watertight_ray(st.dir);
   st.ex = explain;
   if (explain) {
     explain->ray = ray;

@@ -92,7 +92,8 @@ TEST_CASE("triangle_test_code gives triangle_test's code on every case and its r
       const Case& c = cases[i];
       sh::TriangleTest full{}, fast{};
       const uint32_t want = sh::triangle_test(which, c.org, c.dir, c.v0, c.v1, c.v2, c.t_lo, c.t_hi, c.best, full);
-      const uint32_t got = sh::triangle_test_code(which, c.org, c.dir, c.v0, c.v1, c.v2, c.t_lo, c.t_hi, c.best, fast);
+      const uint32_t got = sh::triangle_test_code(which, c.org, c.dir, sh::watertight_ray(c.dir), c.v0, c.v1, c.v2,
+                                                     c.t_lo, c.t_hi, c.best, fast);
       INFO("case " << i);
       REQUIRE(got == want);
       REQUIRE(fast.code == want);

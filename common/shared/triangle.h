@@ -138,16 +138,38 @@ struct WatertightEdges {
   float W;
   float det;  // U + V + W
 };
-SH_INLINE void watertight_edges(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                                SH_IN(vec3) v2, SH_OUT(WatertightEdges) e) {
+// The test's part that depends on the ray alone: the permutation (kz the dominant axis of the
+// direction, kx and ky the next two cyclically) and the direction's components in it. watertight()
+// makes it for each test; a trace can make it once per ray (the same values).
+struct WatertightRay {
+  uint kx;
+  uint ky;
+  uint kz;
+  float dx;
+  float dy;
+  float dz;
+};
+SH_INLINE WatertightRay watertight_ray(SH_IN(vec3) dir) {
   // Permutation: kz the dominant axis of the direction
   SH_PRECISE vec3 adir = abs(dir);
-  uint kz = adir.x >= adir.y ? (adir.x >= adir.z ? 0u : 2u) : (adir.y >= adir.z ? 1u : 2u);
-  uint kx = kz == 2u ? 0u : kz + 1u;
-  uint ky = kx == 2u ? 0u : kx + 1u;
-  float dx = sh_component(dir, kx);
-  float dy = sh_component(dir, ky);
-  float dz = sh_component(dir, kz);
+  WatertightRay w;
+  w.kz = adir.x >= adir.y ? (adir.x >= adir.z ? 0u : 2u) : (adir.y >= adir.z ? 1u : 2u);
+  w.kx = w.kz == 2u ? 0u : w.kz + 1u;
+  w.ky = w.kx == 2u ? 0u : w.kx + 1u;
+  w.dx = sh_component(dir, w.kx);
+  w.dy = sh_component(dir, w.ky);
+  w.dz = sh_component(dir, w.kz);
+  return w;
+}
+
+SH_INLINE void watertight_edges(SH_IN(vec3) org, SH_IN(WatertightRay) w, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                                SH_IN(vec3) v2, SH_OUT(WatertightEdges) e) {
+  uint kx = w.kx;
+  uint ky = w.ky;
+  uint kz = w.kz;
+  float dx = w.dx;
+  float dy = w.dy;
+  float dz = w.dz;
   // Vertices relative to the origin, sheared (scaled by dz, no division)
   SH_PRECISE vec3 A = v0 - org;
   SH_PRECISE vec3 B = v1 - org;
@@ -191,11 +213,10 @@ SH_INLINE uint watertight_outside_code(SH_IN(WatertightEdges) e) {
   return u < 0.0f ? kTestOutsideU : (v < 0.0f ? kTestOutsideV : kTestOutsideUV);
 }
 
-SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
-                          SH_OUT(TriangleTest) r) {
-  WatertightEdges e;
-  watertight_edges(org, dir, v0, v1, v2, e);
+// The watertight test's second half, from its edge functions `e` (watertight_edges of org, dir).
+SH_INLINE uint watertight_rest(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                               SH_IN(vec3) v2, SH_IN(WatertightEdges) e, float t_lo, float t_hi, float best_t,
+                               SH_OUT(TriangleTest) r) {
   SH_PRECISE vec3 adir = abs(dir);
   SH_PRECISE vec3 A = e.A;
   SH_PRECISE float dz = e.dz;
@@ -266,6 +287,14 @@ SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_I
   return r.code;
 }
 
+SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
+                          SH_OUT(TriangleTest) r) {
+  WatertightEdges e;
+  watertight_edges(org, watertight_ray(dir), v0, v1, v2, e);
+  return watertight_rest(org, dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
+}
+
 // The triangle test GridParams::triangle_test names.
 SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
                              SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
@@ -276,21 +305,23 @@ SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN
 
 // triangle_test()'s code for every input, `r` filled only where the test gets past its first
 // rejections (there `r` is triangle_test()'s; elsewhere undefined): the watertight test stops
-// after its edge functions when they have mixed signs, Moller-Trumbore after its determinant and
-// u when det is 0 or u < 0. The same operations in the same order up to there, so the same code;
+// after its edge functions when they have mixed signs (else it goes on from them), Moller-Trumbore
+// after its determinant and u when det is 0 or u < 0. The same operations in the same order up to there, so the same code;
 // for a trace that records no events (the trace shader but for its explain ray), where most tests
 // miss and skip the plane's cross and dot products. tests/test_rounding.cpp holds it to
 // triangle_test()'s code and record on every case of its corpus.
-SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
-                                  SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
-                                  SH_OUT(TriangleTest) r) {
+// `w`: watertight_ray(dir), made once per ray by the caller (the same values as made here).
+SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(WatertightRay) w,
+                                  SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi,
+                                  float best_t, SH_OUT(TriangleTest) r) {
   if (which == kTriangleWatertight) {
     WatertightEdges e;
-    watertight_edges(org, dir, v0, v1, v2, e);
+    watertight_edges(org, w, v0, v1, v2, e);
     if (watertight_mixed(e)) {
       r.code = watertight_outside_code(e);
       return r.code;
     }
+    return watertight_rest(org, dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
   } else {
     SH_PRECISE vec3 e1 = v1 - v0;
     SH_PRECISE vec3 e2 = v2 - v0;

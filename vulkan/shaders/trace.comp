@@ -59,6 +59,7 @@ struct TraceState {
   uint tests;
   Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
   uint mode;        // kTraceClosestHit or kTraceAnyHit
+  WatertightRay wray;  // the watertight test's per-ray part (triangle_test_code)
 };
 
 TraceState st;
@@ -97,7 +98,8 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   TriangleTest r;
   const float best = st.has_best ? st.best_t : sh_infinity();
   uint code = kExplain ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r)
-                       : triangle_test_code(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r);
+                       : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
+                                               best, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -394,6 +396,7 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   st.tests = 0u;
   if (mailbox_enabled(g)) mailbox_clear(st.mailbox);
   st.mode = mode;
+  st.wray = watertight_ray(st.dir);
   emit(kEvRay, 0u, ray.launch_ref, 0u, uvec3(0u), 0u, vec4(ray.org, ray.tmin), vec4(ray.dir, ray.tmax));
   // Reject rays with NaN/inf values or a zero direction
   if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax)) {
