@@ -213,9 +213,9 @@ SH_INLINE uint watertight_outside_code(SH_IN(WatertightEdges) e) {
   return u < 0.0f ? kTestOutsideU : (v < 0.0f ? kTestOutsideV : kTestOutsideUV);
 }
 
-// The watertight test's second half, from its edge functions `e` (watertight_edges of org, dir).
-SH_INLINE uint watertight_rest(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                               SH_IN(vec3) v2, SH_IN(WatertightEdges) e, float t_lo, float t_hi, float best_t,
+// The watertight test's second half, from its edge functions `e` (watertight_edges of the ray).
+SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+                               SH_IN(WatertightEdges) e, float t_lo, float t_hi, float best_t,
                                SH_OUT(TriangleTest) r) {
   SH_PRECISE vec3 adir = abs(dir);
   SH_PRECISE vec3 A = e.A;
@@ -292,7 +292,7 @@ SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_I
                           SH_OUT(TriangleTest) r) {
   WatertightEdges e;
   watertight_edges(org, watertight_ray(dir), v0, v1, v2, e);
-  return watertight_rest(org, dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
+  return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
 }
 
 // The triangle test GridParams::triangle_test names.
@@ -321,7 +321,7 @@ SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, 
       r.code = watertight_outside_code(e);
       return r.code;
     }
-    return watertight_rest(org, dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
+    return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
   } else {
     SH_PRECISE vec3 e1 = v1 - v0;
     SH_PRECISE vec3 e2 = v2 - v0;
