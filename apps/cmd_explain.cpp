@@ -320,6 +320,7 @@ nlohmann::json item_json(const Item& it, const reference::ExplainRecord& want,
   nlohmann::json j{{"label", it.label},
                    {"header", it.header},
                    {"traversal", traversal_name(it.traversal)},
+                   {"hit", it.mode == shared::kTraceAnyHit ? "any" : "closest"},  // docs/SPEC.md "Any hit"
                    {"reference", plan::explain_json(want, fmt)}};
   if (got) {
     j["device"] = device;
