@@ -378,6 +378,69 @@ HitRecord trace_exact(GridParams g) {
   return finish(kMissStepLimit, g.max_segments);
 }
 
+// ---- Exact traversal, compact layout, without events: the same walk as one loop ----
+// trace_exact's cells and tests in the same order with the same results, written as one loop
+// whose every iteration either tests one reference (of the cell's run, then of its dynamic list)
+// or finishes the cell and enters the next (Aila and Laine's "if-if" form): a subgroup's
+// invocations whose cells hold fewer references step on while the others still test, instead of
+// waiting at the end of each cell. The explain pipeline keeps trace_exact, which mirrors the
+// reference block by block.
+uint flat_j;      // the cell's run still to test: compact_refs[flat_j .. flat_end)
+uint flat_end;
+uint flat_e;      // then its dynamic list from entry flat_e (kSpillEnd: none), flat_ke entries read
+uint flat_ke;
+float flat_t_exit;
+
+void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
+  const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell) : 0u;
+  dda_walk_exits(g, st.org, st.dir, inv_dir, d > 0u ? d - 1u : 0u, w);
+  flat_t_exit = w.t_exit;
+  st.cells += 1u;
+  flat_j = 0u;
+  flat_end = 0u;
+  flat_e = kSpillEnd;
+  flat_ke = 0u;
+  if (d != 0u) return;
+  const uint i = cell_linear_index(g, w.cell);
+  flat_j = compact_offsets[i];
+  flat_end = compact_offsets[i + 1u];
+  if (region_contains(w.cell, region_lo, region_hi))
+    flat_e = spill_heads[compact_head_index(region_index(w.cell, region_lo, region_hi))];
+}
+
+HitRecord trace_exact_flat(GridParams g) {
+  const vec3 inv_dir = dda_inverse_direction(st.dir);
+  DdaWalk w = dda_walk_begin(g, st.org, st.dir, st.rs.t_start);
+  region_lo = uvec3(spill_heads[0], spill_heads[1], spill_heads[2]);
+  region_hi = uvec3(spill_heads[4], spill_heads[5], spill_heads[6]);
+  if (g.max_segments == 0u) return finish(kMissStepLimit, g.max_segments);
+  uint k = 0u;
+  flat_enter(g, inv_dir, w);
+  for (;;) {
+    if (flat_j < flat_end) {
+      test_reference(g, compact_refs[flat_j], k, w.cell, 0u, st.rs.t_lo, st.tmax);
+      flat_j += 1u;
+      if (found_any()) flat_j = flat_end, flat_e = kSpillEnd;
+      continue;
+    }
+    if (flat_e != kSpillEnd && flat_ke < spill_header.capacity) {
+      const SpillEntry entry = spill_entries[flat_e];
+      test_reference(g, entry.ref, k, w.cell, flat_ke, st.rs.t_lo, st.tmax);
+      flat_ke += 1u;
+      flat_e = found_any() ? kSpillEnd : entry.next;
+      continue;
+    }
+    // The cell (or box) is done: report the closest hit once it lies inside it or before
+    if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= flat_t_exit)) return report(k);
+    if (flat_t_exit >= st.rs.t_end) return finish(flat_t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
+    if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(kMissLeftGrid, k);
+    k += 1u;
+    if (k >= g.max_segments) return finish(kMissStepLimit, g.max_segments);
+    flat_enter(g, inv_dir, w);
+  }
+  return finish(kMissStepLimit, g.max_segments);
+}
+
 // ---- Scene trace (paper 2.3) ----
 HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   st.org = ray.org;
@@ -408,6 +471,7 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   emit(kEvSetup, g.traversal, kBlank, 0u, uvec3(0u), meets ? 1u : 0u,
        vec4(st.rs.seg_t, st.rs.t_start, st.rs.t_end, st.rs.t_lo), vec4(st.launch_normal, 0.0f));
   if (!meets) return miss(kMissOutsideGrid, 0u, 0u);
+  if (g.traversal == kTraversalExact && !kExplain && (g.flags & kGridCompact) != 0u) return trace_exact_flat(g);
   return g.traversal == kTraversalExact ? trace_exact(g) : trace_paper(g);
 }
 
