@@ -2,7 +2,9 @@
 // trace.comp: scene trace (paper 2.3), one invocation per ray: paper segments or the exact DDA,
 // alpha keying and gap-fill, as specialization constants. This file follows reference/trace.cpp
 // block by block, with the same names and heading comments; the explain ray (push constant)
-// writes the same events as the reference's explain into the explain buffer.
+// writes the same events as the reference's explain into the explain buffer. One addition: without
+// explain, the exact traversal over the compact layout runs trace_exact_flat, trace_exact's walk as
+// one loop (the same tests in the same order).
 #extension GL_GOOGLE_include_directive : require
 #include "grid_common.glsl"
 
