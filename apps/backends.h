@@ -77,25 +77,22 @@ class ProgressTracer : public Tracer {
   std::string name() const override { return inner_.name(); }
   void build(const Scene& scene, float time) override { inner_.build(scene, time); }
   void update(float time) override { inner_.update(time); }
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
-    constexpr size_t kChunk = 1 << 16;
-    for (size_t i = 0; i < rays.size(); i += kChunk) {
-      const size_t n = std::min(kChunk, rays.size() - i);
-      inner_.trace(rays.subspan(i, n), hits.subspan(i, n));
-      progress_.advance(n);
-    }
-  }
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override { chunked(&Tracer::trace, rays, hits); }
   void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override {
-    constexpr size_t kChunk = 1 << 16;
-    for (size_t i = 0; i < rays.size(); i += kChunk) {
-      const size_t n = std::min(kChunk, rays.size() - i);
-      inner_.trace_any(rays.subspan(i, n), hits.subspan(i, n));
-      progress_.advance(n);
-    }
+    chunked(&Tracer::trace_any, rays, hits);
   }
   AccelDump dump() const override { return inner_.dump(); }
 
  private:
+  using TraceFn = void (Tracer::*)(std::span<const Ray>, std::span<Hit>);
+  void chunked(TraceFn fn, std::span<const Ray> rays, std::span<Hit> hits) {
+    constexpr size_t kChunk = 1 << 16;
+    for (size_t i = 0; i < rays.size(); i += kChunk) {
+      const size_t n = std::min(kChunk, rays.size() - i);
+      (inner_.*fn)(rays.subspan(i, n), hits.subspan(i, n));
+      progress_.advance(n);
+    }
+  }
   Tracer& inner_;
   Progress& progress_;
 };
@@ -111,18 +108,16 @@ class OneRayTracer : public Tracer {
   std::string name() const override { return inner_.name(); }
   void build(const Scene& scene, float time) override { inner_.build(scene, time); }
   void update(float time) override { inner_.update(time); }
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
-    for (Hit& h : hits)
-      h = Hit{std::numeric_limits<float>::infinity(), shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0};
-    if (index_ < rays.size()) inner_.trace(rays.subspan(index_, 1), hits.subspan(index_, 1));
-  }
-  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override {
-    for (Hit& h : hits)
-      h = Hit{std::numeric_limits<float>::infinity(), shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0};
-    if (index_ < rays.size()) inner_.trace_any(rays.subspan(index_, 1), hits.subspan(index_, 1));
-  }
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override { one(&Tracer::trace, rays, hits); }
+  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override { one(&Tracer::trace_any, rays, hits); }
 
  private:
+  using TraceFn = void (Tracer::*)(std::span<const Ray>, std::span<Hit>);
+  void one(TraceFn fn, std::span<const Ray> rays, std::span<Hit> hits) {
+    for (Hit& h : hits)
+      h = Hit{std::numeric_limits<float>::infinity(), shared::kNoInstance, 0, 0.0f, 0.0f, 0, 0, 0};
+    if (index_ < rays.size()) (inner_.*fn)(rays.subspan(index_, 1), hits.subspan(index_, 1));
+  }
   Tracer& inner_;
   size_t index_;
 };

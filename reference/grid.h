@@ -188,6 +188,8 @@ class ReferenceGridTracer : public Tracer {
   const shared::GridParams& params() const { return grid_.params; }
 
  private:
+  // trace() and trace_any(): every ray by scene_trace in `mode`, on the options' threads
+  void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t mode) const;
   GridOptions options_;
   const Scene* scene_ = nullptr;
   GridData grid_;

@@ -32,17 +32,18 @@ void ReferenceGridTracer::update(float time) {
 
 
 void ReferenceGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
-  if (hits.size() != rays.size()) throw Error("reference-grid: hits.size() != rays.size()");
-  if (!scene_) throw Error("reference-grid: trace before build");
-  run_invocations(uint32_t(rays.size()), thread_count(options_), std::nullopt,
-                  [&](uint32_t i) { hits[i] = scene_trace(grid_, rays[i], nullptr); }, 64);
+  run_trace(rays, hits, shared::kTraceClosestHit);
 }
 
 void ReferenceGridTracer::trace_any(std::span<const Ray> rays, std::span<Hit> hits) {
+  run_trace(rays, hits, shared::kTraceAnyHit);
+}
+
+void ReferenceGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t mode) const {
   if (hits.size() != rays.size()) throw Error("reference-grid: hits.size() != rays.size()");
   if (!scene_) throw Error("reference-grid: trace before build");
   run_invocations(uint32_t(rays.size()), thread_count(options_), std::nullopt,
-                  [&](uint32_t i) { hits[i] = scene_trace(grid_, rays[i], nullptr, shared::kTraceAnyHit); }, 64);
+                  [&](uint32_t i) { hits[i] = scene_trace(grid_, rays[i], nullptr, mode); }, 64);
 }
 
 AccelDump ReferenceGridTracer::dump() const {

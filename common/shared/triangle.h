@@ -62,9 +62,17 @@ SH_INLINE float closest_bound(float best_t) {
 // Order of operations (both sides): e1 = v1 - v0, e2 = v2 - v0, p = cross(dir, e2),
 // det = dot(e1, p), s = org - v0, U = dot(s, p), q = cross(s, e1), V = dot(dir, q),
 // T = dot(e2, q); U, V, T multiplied by sign(det) (exact).
-SH_INLINE uint moller_trumbore(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                               SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
-                               SH_OUT(TriangleTest) r) {
+// Its first half: the determinant and u (triangle_test_code() stops after it when they reject).
+struct MollerFirst {
+  vec3 e1;    // v1 - v0
+  vec3 e2;    // v2 - v0
+  vec3 s;     // org - v0
+  float det;  // dot(e1, cross(dir, e2))
+  float sgn;  // sign(det)
+  float u;    // dot(s, cross(dir, e2)) * sgn
+};
+SH_INLINE void moller_trumbore_first(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                                     SH_IN(vec3) v2, SH_OUT(MollerFirst) m) {
   // Determinant: the ray against the triangle's plane
   SH_PRECISE vec3 e1 = v1 - v0;
   SH_PRECISE vec3 e2 = v2 - v0;
@@ -72,10 +80,27 @@ SH_INLINE uint moller_trumbore(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
   SH_PRECISE float det = sh_dot(e1, p);
   // Scaled barycentrics and distance, the sign of det folded in
   SH_PRECISE vec3 s = org - v0;
-  vec3 q = sh_cross(s, e1);
   SH_PRECISE float sgn = det < 0.0f ? -1.0f : 1.0f;
-  SH_PRECISE float ad = det * sgn;
   SH_PRECISE float u = sh_dot(s, p) * sgn;
+  m.e1 = e1;
+  m.e2 = e2;
+  m.s = s;
+  m.det = det;
+  m.sgn = sgn;
+  m.u = u;
+}
+
+// Its second half, from its first `m` (moller_trumbore_first of the same ray and triangle).
+SH_INLINE uint moller_trumbore_rest(SH_IN(vec3) dir, SH_IN(MollerFirst) m, float t_lo, float t_hi, float best_t,
+                                    SH_OUT(TriangleTest) r) {
+  SH_PRECISE vec3 e1 = m.e1;
+  SH_PRECISE vec3 e2 = m.e2;
+  SH_PRECISE vec3 s = m.s;
+  SH_PRECISE float det = m.det;
+  SH_PRECISE float sgn = m.sgn;
+  SH_PRECISE float u = m.u;
+  vec3 q = sh_cross(s, e1);
+  SH_PRECISE float ad = det * sgn;
   SH_PRECISE float v = sh_dot(dir, q) * sgn;
   SH_PRECISE float t = sh_dot(e2, q) * sgn;
   SH_PRECISE float uv = u + v;
@@ -99,6 +124,14 @@ SH_INLINE uint moller_trumbore(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
   else if (t > best) r.code = kTestNotCloser;
   else r.code = kTestAccepted;
   return r.code;
+}
+
+SH_INLINE uint moller_trumbore(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                               SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
+                               SH_OUT(TriangleTest) r) {
+  MollerFirst m;
+  moller_trumbore_first(org, dir, v0, v1, v2, m);
+  return moller_trumbore_rest(dir, m, t_lo, t_hi, best_t, r);
 }
 
 // Component k (0 x, 1 y, 2 z) of v, without dynamic vector indexing.
@@ -305,8 +338,8 @@ SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN
 
 // triangle_test()'s code for every input, `r` filled only where the test gets past its first
 // rejections (there `r` is triangle_test()'s; elsewhere undefined): the watertight test stops
-// after its edge functions when they have mixed signs (else it goes on from them), Moller-Trumbore
-// after its determinant and u when det is 0 or u < 0. The same operations in the same order up to there, so the same code;
+// after its edge functions when they have mixed signs, Moller-Trumbore after its determinant and
+// u when det is 0 or u < 0 (else each goes on from where it stopped). The same operations in the same order up to there, so the same code;
 // for a trace that records no events (the trace shader but for its explain ray), where most tests
 // miss and skip the plane's cross and dot products. tests/test_rounding.cpp holds it to
 // triangle_test()'s code and record on every case of its corpus.
@@ -322,20 +355,14 @@ SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, 
       return r.code;
     }
     return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
-  } else {
-    SH_PRECISE vec3 e1 = v1 - v0;
-    SH_PRECISE vec3 e2 = v2 - v0;
-    vec3 p = sh_cross(dir, e2);
-    SH_PRECISE float det = sh_dot(e1, p);
-    SH_PRECISE vec3 s = org - v0;
-    SH_PRECISE float sgn = det < 0.0f ? -1.0f : 1.0f;
-    SH_PRECISE float u = sh_dot(s, p) * sgn;
-    if (det == 0.0f || u < 0.0f) {
-      r.code = det == 0.0f ? kTestParallel : kTestOutsideU;
-      return r.code;
-    }
   }
-  return triangle_test(which, org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
+  MollerFirst m;
+  moller_trumbore_first(org, dir, v0, v1, v2, m);
+  if (m.det == 0.0f || m.u < 0.0f) {
+    r.code = m.det == 0.0f ? kTestParallel : kTestOutsideU;
+    return r.code;
+  }
+  return moller_trumbore_rest(dir, m, t_lo, t_hi, best_t, r);
 }
 
 // The reported distance of an accepted test: t_det * (1 / |det|), the one division.
