@@ -92,7 +92,7 @@ struct VulkanFrame::Gpu {
   uint32_t screen_tiles = 0, pair_capacity = 0;
   Image2D color, depth;
   std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
-  std::unique_ptr<Pipeline> resolve, bounce, shadow, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch, dirs;
+  std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch, dirs;
   std::unique_ptr<Pipeline> pairs, scan, fine;  // the rasterizer's tile lists and fine pass
   std::unique_ptr<Timestamps> timestamps;
   // The raster gather
@@ -466,8 +466,8 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     return s;
   };
   gpu.resolve = std::make_unique<Pipeline>(ctx, "gather_resolve.comp", set.layout(), 0, spec());
-  gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
-  if (shadows_) gpu.shadow = std::make_unique<Pipeline>(ctx, "shadow.comp", set.layout(), 0, spec());
+  // The bounce pass of its own only for the compacted rays (else the trace makes each pixel's ray)
+  if (compact) gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
   gpu.shade = std::make_unique<Pipeline>(ctx, "shade.comp", set.layout(), 0, spec());
   const uint32_t list_push = 3 * sizeof(uint32_t);
   if (compact) {
@@ -509,6 +509,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   repeats = std::max(repeats, 1u);
   ctx.upload(gpu.params, &frame, sizeof frame, offsetof(shared::FrameParams, frame));
   if (bounce_ || shadows_) grid_.bind_ray_buffers(gpu.rays, gpu.hits, compact ? &gpu.ray_list : nullptr);
+  if (bounce_ || shadows_) grid_.bind_frame(gpu.gather, gpu.params, gpu.materials);
   const std::vector<shared::GridInstance>& instances = grid_.instances();
   const uint32_t triangles = instances.empty() ? 0u : instances.back().tri_offset + instances.back().tri_count;
   const auto t0 = std::chrono::steady_clock::now();
@@ -619,13 +620,14 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
       barrier(cb);
       if (timed) gpu.timestamps->write(cb, 3);
       if (bounce_) {
-        // Bounce rays
-        gpu.bounce->bind(cb, s);
-        vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
-        barrier(cb);
-        if (timed) gpu.timestamps->write(cb, 4);
-        // Trace through the grid: the listed rays (the list's dispatch step first), or every pixel
+        // Bounce rays, then their trace through the grid: the listed rays (the list's dispatch
+        // step first), or every pixel, its ray made by the trace (no pass of its own: the bounce
+        // time is 0)
         if (compact) {
+          gpu.bounce->bind(cb, s);
+          vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+          barrier(cb);
+          if (timed) gpu.timestamps->write(cb, 4);
           const shared::WorkListDispatchPush list_push{64u, max_groups_x, w * h};
           gpu.ray_list_dispatch->bind(cb, gpu.ray_list_set->set());
           gpu.ray_list_dispatch->push(cb, list_push);
@@ -633,7 +635,8 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           barrier(cb);
           grid_.record_trace_list(cb);
         } else {
-          grid_.record_trace_image(cb, w, h, 0);  // an 8x8 pixel tile a workgroup
+          if (timed) gpu.timestamps->write(cb, 4);
+          grid_.record_bounce_trace_image(cb, w, h);  // an 8x8 pixel tile a workgroup
         }
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 5);
@@ -643,12 +646,12 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
       }
       // Shadow rays to every light, their trace
       if (shadows_) {
-        gpu.shadow->bind(cb, s);
-        vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
-        barrier(cb);
+        // The trace makes each pixel's shadow ray from the gather itself (no pass of its own:
+        // the "rays" part of the shadow pass's time is 0)
         if (timed) gpu.timestamps->write(cb, 6);
         for (uint32_t l = 0; l < uint32_t(scene_.lights.size()); ++l)
-          grid_.record_trace_image(cb, w, h, (1 + l) * w * h, shared::kTraceAnyHit);
+          grid_.record_shadow_trace_image(cb, w, h, (1 + l) * w * h, scene_.lights[l].position,
+                                          scene_.lights[l].directional);
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 7);
       } else if (timed) {

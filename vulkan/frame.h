@@ -17,14 +17,17 @@
 //              triangles, depth test, the reference into an R32_UINT attachment copied to a buffer
 //            then gather_resolve.comp turns it into the gather buffer (position, normal, material,
 //            uv, launch reference) with the same shared math as make_gather
-//   bounce   bounce.comp: one glossy bounce ray per pixel, as bounce_rays (common/shared/bounce.h);
-//            compacted (an option): the pixels with a ray are appended to a work list, the
-//            others get their (miss) hit at once
-//   trace    the grid's trace pipeline on the device ray buffer: every pixel, or the work list
-//            (VulkanGridTracer::record_trace_list, an indirect dispatch)
-//   shadow   (a scene with lights only: kFrameShadows) shadow.comp: one shadow ray per pixel and
-//            light, as shadow_rays (common/shared/shadow.h), after the bounce rays in the ray
-//            buffer; then the grid's trace of them
+//   bounce   (compacted rays only, an option) bounce.comp: one glossy bounce ray per pixel, as
+//            bounce_rays (common/shared/bounce.h); the pixels with a ray are appended to a work
+//            list, the others get their (miss) hit at once
+//   trace    the grid's trace pipeline: every pixel, the trace making the pixel's bounce ray
+//            itself as bounce.comp would and writing it to the ray buffer
+//            (VulkanGridTracer::record_bounce_trace_image), or the work list's rays
+//            (record_trace_list, an indirect dispatch)
+//   shadow   (a scene with lights only: kFrameShadows) the grid's trace per light, which makes
+//            each pixel's shadow ray from the gather itself, as shadow_rays (common/shared/
+//            shadow.h), writes it after the bounce rays in the ray buffer and traces it for any
+//            hit (VulkanGridTracer::record_shadow_trace_image)
 //   shade    shade.comp: as shade() into RGBA8, sRGB-encoded (with shadows: by their hits)
 // Each phase is bracketed by timestamp queries. Nothing goes through the host between phases.
 //

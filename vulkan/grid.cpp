@@ -44,7 +44,7 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data, VkBufferUsageFlags 
 
 struct VulkanGridTracer::Gpu {
   Buffer params, instances, triangles, uvs, materials, texels, build_instances, positions, indices;
-  Buffer rays, hits, explain, dirty, no_ray_list, build_list, spill, spill_heads;
+  Buffer rays, hits, explain, dirty, no_ray_list, no_frame, build_list, spill, spill_heads;
   Buffer skip, skip_table;  // the skip field (kGridSkipEmpty); its table lives for the build only
   // The compact layout (kGridCompact): the offsets and references, and the build's temporaries
   // (per-cell counts, the pairs, the scattered references, the scan's blocks), 16-byte stand-ins
@@ -193,6 +193,7 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   gpu.rays = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.hits = ctx.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.no_ray_list = ctx.create_buffer(sizeof(shared::WorkListHeader), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  gpu.no_frame = ctx.create_buffer(256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.dirty = ctx.create_buffer((g.flags & shared::kGridCompact) != 0u ? VkDeviceSize(shared::kWorkListHeaderWords) * 4
                                                                      : VkDeviceSize(shared::dirty_list_words(g)) * 4,
                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
@@ -274,6 +275,8 @@ void VulkanGridTracer::create_pipelines() {
   set.bind(shared::kGridBindExplain, gpu.explain);
   set.bind(shared::kGridBindDirty, gpu.dirty);
   set.bind(shared::kGridBindRayList, gpu.no_ray_list);
+  for (uint32_t b : {shared::kGridBindGather, shared::kGridBindFrameParams, shared::kGridBindFrameMaterials})
+    set.bind(b, gpu.no_frame);
   set.bind(shared::kGridBindBuildList, gpu.build_list);
   set.bind(shared::kGridBindSpill, gpu.spill);
   set.bind(shared::kGridBindSpillHeads, gpu.spill_heads);
@@ -464,14 +467,16 @@ void VulkanGridTracer::after_insert() {
   plan::warn_spill_overflow(d, name(), overflow_warned_);
 }
 
-const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32_t mode) {
+const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32_t mode, uint32_t rays) {
   Gpu& gpu = *gpu_;
-  const uint64_t key = uint64_t(mode) << 34 | uint64_t(list) << 33 | uint64_t(explain) << 32 | params_.flags;
+  const uint64_t key = uint64_t(rays) << 40 | uint64_t(mode) << 34 | uint64_t(list) << 33 |
+                       uint64_t(explain) << 32 | params_.flags;
   std::unique_ptr<Pipeline>& p = gpu.traces[key];
   if (!p) {
     SpecConstants spec = spec_for(params_, explain);
     if (list) spec.add(shared::kGridSpecTraceList, true);
     spec.add(shared::kGridSpecTraceMode, mode);
+    if (rays != shared::kTraceRaysBuffer) spec.add(shared::kGridSpecTraceRays, rays);
     p = std::make_unique<Pipeline>(*ctx_, "trace.comp", gpu.set->layout(), uint32_t(sizeof(shared::TracePush)), std::move(spec));
   }
   return *p;
@@ -665,6 +670,13 @@ void VulkanGridTracer::bind_ray_buffers(const Buffer& rays, const Buffer& hits, 
   gpu.ray_capacity = 0;  // the next trace() makes and binds its own buffers again
 }
 
+void VulkanGridTracer::bind_frame(const Buffer& gather, const Buffer& frame_params, const Buffer& frame_materials) {
+  if (!gpu_) throw Error("vulkan-grid: bind_frame before build");
+  gpu_->set->bind(shared::kGridBindGather, gather);
+  gpu_->set->bind(shared::kGridBindFrameParams, frame_params);
+  gpu_->set->bind(shared::kGridBindFrameMaterials, frame_materials);
+}
+
 void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
   if (!gpu_ || !gpu_->ray_list) throw Error("vulkan-grid: record_trace_list without a bound ray list");
   const Pipeline& pipe = trace_pipeline(false, true);
@@ -695,6 +707,28 @@ void VulkanGridTracer::record_trace_image(VkCommandBuffer cb, uint32_t width, ui
   const shared::TracePush push{first_ray, width * height, shared::kNoExplain, vk_.explain_capacity, width, height};
   pipe.push(cb, push);
   vkCmdDispatch(cb, groups(width, 8), groups(height, 8), 1);
+}
+
+void VulkanGridTracer::record_frame_trace(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first_ray,
+                                          uint32_t rays, glm::vec3 light, bool directional) {
+  const Pipeline& pipe =
+      trace_pipeline(false, false, rays == shared::kTraceRaysShadow ? shared::kTraceAnyHit : shared::kTraceClosestHit, rays);
+  pipe.bind(cb, gpu_->set->set());
+  const shared::TracePush push{first_ray, width * height, shared::kNoExplain, vk_.explain_capacity, width, height,
+                               light.x, light.y, light.z, directional ? 1u : 0u};
+  pipe.push(cb, push);
+  vkCmdDispatch(cb, groups(width, 8), groups(height, 8), 1);
+}
+
+void VulkanGridTracer::record_bounce_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height) {
+  if (!gpu_) throw Error("vulkan-grid: record_bounce_trace_image before build");
+  record_frame_trace(cb, width, height, 0u, shared::kTraceRaysBounce, glm::vec3(0.0f), false);
+}
+
+void VulkanGridTracer::record_shadow_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height,
+                                                 uint32_t first_ray, glm::vec3 light, bool directional) {
+  if (!gpu_) throw Error("vulkan-grid: record_shadow_trace_image before build");
+  record_frame_trace(cb, width, height, first_ray, shared::kTraceRaysShadow, light, directional);
 }
 
 AccelDump VulkanGridTracer::dump() const {

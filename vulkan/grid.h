@@ -23,6 +23,7 @@
 #include "gridrt/plan/records.h"
 #include "gridrt/vulkan/context.h"
 #include "gridrt/vulkan/pipeline.h"
+#include "gridrt/vulkan/shaders/grid_interface.h"
 #include "gridrt/vulkan/shaders/build_input.h"
 
 namespace gridrt::vulkan {
@@ -118,6 +119,20 @@ class VulkanGridTracer : public Tracer {
   // workgroup per 8x8 pixel tile (neighbouring pixels' rays in one subgroup; no barriers).
   void record_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first,
                           uint32_t mode = shared::kTraceClosestHit);
+  // Binds device buffers the caller keeps alive as the frame's gather buffer (shared::GatherTexel
+  // per pixel, row by row), its parameters (shared::FrameParams) and materials
+  // (shared::FrameMaterial), which the frame's traces below make their rays from.
+  void bind_frame(const Buffer& gather, const Buffer& frame_params, const Buffer& frame_materials);
+  // The frame's bounce trace: for every pixel of the width x height image the trace makes the
+  // pixel's glossy bounce ray from the bound gather (as bounce.comp, common/shared/bounce.h; the
+  // empty ray where there is none), writes it as ray `pixel` of the bound ray buffer and traces
+  // it, a workgroup per 8x8 pixel tile (no barriers).
+  void record_bounce_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height);
+  // The frame's shadow trace towards one light: the same with the pixel's shadow ray
+  // (shared::shadow_ray towards `light`, a position, or with `directional` the direction towards
+  // it), written as ray `first` + pixel and traced for any hit.
+  void record_shadow_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first,
+                                 glm::vec3 light, bool directional);
   // Records the trace of the rays the bound ray list names, dispatched indirectly on the list
   // (its dispatch step must have run; no barriers). The other rays' hits are not written.
   void record_trace_list(VkCommandBuffer cb);
@@ -143,7 +158,10 @@ class VulkanGridTracer : public Tracer {
   void record_spill_order(VkCommandBuffer cb, bool dynamic);
   // The trace pipeline for the current flags, with explain or on a ray list (made on first use:
   // gap-fill comes and goes with saturation).
-  const Pipeline& trace_pipeline(bool explain, bool list = false, uint32_t mode = shared::kTraceClosestHit);
+  const Pipeline& trace_pipeline(bool explain, bool list = false, uint32_t mode = shared::kTraceClosestHit,
+                                 uint32_t rays = shared::kTraceRaysBuffer);
+  void record_frame_trace(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first, uint32_t rays,
+                          glm::vec3 light, bool directional);
   void upload_transforms(float time, uint32_t first, uint32_t last);
   void record_skip_field(VkCommandBuffer cb);
   void record_compact(VkCommandBuffer cb);

@@ -39,7 +39,11 @@ SH_CONST uint kGridBindCompactCounts = 22u;  // the build only: per cell its cou
 SH_CONST uint kGridBindCompactPairs = 23u;   // the build only: the pair count (4 words), (cell, ref) pairs
 SH_CONST uint kGridBindCompactScattered = 24u;  // the build only: the references as scattered
 SH_CONST uint kGridBindCompactBlocks = 25u;  // the build only: the scan's block sums, then offsets
-SH_CONST uint kGridBindingCount = 26u;
+// The frame's traces that make their rays (kGridSpecTraceRays; 256-byte stand-ins otherwise)
+SH_CONST uint kGridBindGather = 26u;          // GatherTexel[] (common/shared/bounce.h)
+SH_CONST uint kGridBindFrameParams = 27u;     // FrameParams (vulkan/shaders/frame_input.h)
+SH_CONST uint kGridBindFrameMaterials = 28u;  // FrameMaterial[]
+SH_CONST uint kGridBindingCount = 29u;
 
 // Specialization-constant ids of the grid's shaders: the GridParams fields that shape the code.
 SH_CONST uint kGridSpecCapacity = 0u;      // GridParams::capacity
@@ -51,6 +55,14 @@ SH_CONST uint kGridSpecRepeats = 5u;       // GridParams::repeats
 SH_CONST uint kGridSpecTriangleTest = 6u;  // GridParams::triangle_test
 SH_CONST uint kGridSpecTraceList = 7u;     // trace: rays from the ray list (dispatched indirectly)
 SH_CONST uint kGridSpecTraceMode = 8u;     // trace: which hit, kTraceClosestHit or kTraceAnyHit (shared/grid.h)
+SH_CONST uint kGridSpecTraceRays = 9u;     // trace: where an image's rays come from (kTraceRays*)
+
+// Where the trace's rays come from (kGridSpecTraceRays): the ray buffer, or (the frame's traces,
+// an image's rays in tiles) made by the trace from each pixel's gather texel, as the frame's passes
+// would make them, and written to the ray buffer before their trace.
+SH_CONST uint kTraceRaysBuffer = 0u;  // read from the ray buffer
+SH_CONST uint kTraceRaysBounce = 1u;  // the glossy bounce ray (common/shared/bounce.h, as bounce.comp)
+SH_CONST uint kTraceRaysShadow = 2u;  // the shadow ray towards TracePush's light (common/shared/shadow.h)
 
 // Push constants of trace.comp.
 struct TracePush {
@@ -62,6 +74,12 @@ struct TracePush {
   // dispatch's workgroup (x, y) traces the rays ray_offset + y * tiled_width + x of its tile
   uint tiled_width;
   uint tiled_height;
+  // The light of a shadow trace that makes its rays (kTraceRaysShadow, tiled only): the
+  // point light's position or the direction towards a directional light, as shadow_ray takes it
+  float light_x;
+  float light_y;
+  float light_z;
+  uint light_directional;  // 1: directional, 0: point light
 };
 SH_CONST uint kNoExplain = 0xFFFFFFFFu;
 
@@ -96,7 +114,7 @@ struct ExplainHeader {
 SH_END
 
 #ifdef __cplusplus
-static_assert(sizeof(gridrt::shared::TracePush) == 24, "layout of TracePush");
+static_assert(sizeof(gridrt::shared::TracePush) == 40, "layout of TracePush");
 static_assert(sizeof(gridrt::shared::ClearPush) == 4, "layout of ClearPush");
 static_assert(sizeof(gridrt::shared::SpillOrderPush) == 4, "layout of SpillOrderPush");
 static_assert(sizeof(gridrt::shared::SkipFieldPush) == 4, "layout of SkipFieldPush");

@@ -4,9 +4,13 @@
 // block by block, with the same names and heading comments; the explain ray (push constant)
 // writes the same events as the reference's explain into the explain buffer. One addition: without
 // explain, the exact traversal over the compact layout runs trace_exact_flat, trace_exact's walk as
-// one loop (the same tests in the same order).
+// one loop (the same tests in the same order); and the frame's shadow trace makes each pixel's
+// bounce or shadow ray itself from the gather buffer (kTraceRays).
 #extension GL_GOOGLE_include_directive : require
 #include "grid_common.glsl"
+#include "gridrt/common/shared/bounce.h"
+#include "gridrt/common/shared/shadow.h"
+#include "gridrt/vulkan/shaders/frame_input.h"
 
 layout(local_size_x = 64) in;
 layout(binding = kGridBindImage, r32ui) uniform readonly uimage3D grid_image;
@@ -40,6 +44,33 @@ layout(std430, binding = kGridBindRayList) readonly buffer RayList {
 // Which hit the trace reports (kTraceClosestHit, or kTraceAnyHit for the frame's shadow rays): a
 // constant, so that the closest-hit pipeline carries no test of the mode.
 layout(constant_id = kGridSpecTraceMode) const uint kTraceMode = kTraceClosestHit;
+// The frame's traces (specialization constant kGridSpecTraceRays; an image's rays, in tiles): each
+// pixel's bounce ray, or its shadow ray towards the push constant's light, is made here from the
+// pixel's gather texel, as bounce.comp and common/gather.cpp's bounce_rays and shadow_rays make
+// them (common/shared/bounce.h, shadow.h), written to the ray buffer (shading and `gridrt diff`
+// read it) and traced: the frame has no pass between the gather and the trace, and the rays are
+// not read back from memory.
+layout(constant_id = kGridSpecTraceRays) const uint kTraceRays = kTraceRaysBuffer;
+layout(std430, binding = kGridBindGather) readonly buffer Gather { GatherTexel gather[]; };
+layout(std430, binding = kGridBindFrameParams) readonly buffer FrameParamsBuffer { FrameParams fp; };
+layout(std430, binding = kGridBindFrameMaterials) readonly buffer FrameMaterials { FrameMaterial fmaterials[]; };
+layout(std430, binding = kGridBindRays) writeonly buffer RaysOut { RayRecord rays_out[]; };
+
+// The ray of pixel px that the frame's bounce pass makes (bounce.comp): the empty ray where the
+// pixel has no glossy surface.
+RayRecord frame_bounce_ray(uvec2 px, GatherTexel t) {
+  RayRecord ray = RayRecord(vec3(0.0f), 0.0f, vec3(0.0f, 0.0f, 1.0f), 0.0f, vec3(0.0f), kNoRef);
+  if (t.launch_ref != kNoRef && t.material < fp.material_count) {
+    const FrameMaterial m = fmaterials[t.material];
+    if (m.glossiness > 0.0f) {
+      const vec3 d = camera_direction(fp.camera, px.x, px.y);
+      const vec3 dir = bounce_direction(d, t.normal, m.glossiness, m.cos_max, pixel_random(px.x, px.y, fp.frame));
+      ray = RayRecord(t.position, 0.0f, dir, sh_infinity(), t.normal, t.launch_ref);
+    }
+  }
+  return ray;
+}
+
 layout(push_constant) uniform Push { TracePush pc; };
 
 // The state of one ray's traversal (reference/trace.cpp, TraceState).
@@ -489,6 +520,16 @@ void main() {
     const uvec2 px = gl_WorkGroupID.xy * 8u + uvec2(gl_LocalInvocationID.x & 7u, gl_LocalInvocationID.x >> 3u);
     if (px.x >= pc.tiled_width || px.y >= pc.tiled_height) return;
     const uint r = pc.ray_offset + px.y * pc.tiled_width + px.x;
+    if (kTraceRays != kTraceRaysBuffer) {
+      const GatherTexel t = gather[px.y * pc.tiled_width + px.x];
+      const RayRecord ray = kTraceRays == kTraceRaysBounce
+                                ? frame_bounce_ray(px, t)
+                                : shadow_ray(t.position, t.normal, t.launch_ref, vec3(pc.light_x, pc.light_y, pc.light_z),
+                                             pc.light_directional != 0u);
+      rays_out[r] = ray;
+      hits[r] = scene_trace(grid_params(), ray, kTraceMode);
+      return;
+    }
     hits[r] = scene_trace(grid_params(), rays[r], kTraceMode);
     return;
   }
