@@ -186,6 +186,7 @@ ContextOptions ContextOptions::from_env() {
     o.device_index = int(v);
   }
   if (const char* l = std::getenv("GRIDRT_VK_LOADER"); l && *l) o.loader_path = l;
+  o.pipeline_stats = env_flag("GRIDRT_VK_PIPELINE_STATS");
   return o;
 }
 
@@ -449,6 +450,31 @@ void Context::create_device(const ContextOptions& options) {
     ci.enabledExtensionCount = uint32_t(std::size(kRayTracingExtensions));
     ci.ppEnabledExtensionNames = kRayTracingExtensions;
   }
+  // Pipeline statistics, only when asked and present
+  std::vector<const char*> extensions(ci.ppEnabledExtensionNames, ci.ppEnabledExtensionNames + ci.enabledExtensionCount);
+  VkPhysicalDevicePipelineExecutablePropertiesFeaturesKHR pe{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PIPELINE_EXECUTABLE_PROPERTIES_FEATURES_KHR};
+  if (options.pipeline_stats) {
+    uint32_t n = 0;
+    vkEnumerateDeviceExtensionProperties(physical_, nullptr, &n, nullptr);
+    std::vector<VkExtensionProperties> exts(n);
+    vkEnumerateDeviceExtensionProperties(physical_, nullptr, &n, exts.data());
+    exts.resize(n);
+    pipeline_stats_ = std::any_of(exts.begin(), exts.end(), [](const VkExtensionProperties& e) {
+      return std::strcmp(e.extensionName, VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME) == 0;
+    });
+    if (pipeline_stats_) {
+      pe.pipelineExecutableInfo = VK_TRUE;
+      pe.pNext = features.pNext;
+      features.pNext = &pe;
+      extensions.push_back(VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
+      ci.enabledExtensionCount = uint32_t(extensions.size());
+      ci.ppEnabledExtensionNames = extensions.data();
+    } else {
+      std::fprintf(stderr, "pipeline statistics: %s lacks %s; none reported\n", info_.name.c_str(),
+                   VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
+    }
+  }
   const VkResult r = vkCreateDevice(physical_, &ci, nullptr, &device_);
   if (r != VK_SUCCESS) {
     device_ = VK_NULL_HANDLE;
@@ -462,6 +488,43 @@ void Context::create_device(const ContextOptions& options) {
   GRIDRT_VK_CHECK(vkCreateCommandPool(device_, &pci, nullptr, &pool_));
   VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
   GRIDRT_VK_CHECK(vkCreateFence(device_, &fci, nullptr, &fence_));
+}
+
+void Context::report_pipeline_stats(VkPipeline pipeline, const std::string& what) const {
+  if (!pipeline_stats_) return;
+  const auto properties = reinterpret_cast<PFN_vkGetPipelineExecutablePropertiesKHR>(
+      vkGetDeviceProcAddr(device_, "vkGetPipelineExecutablePropertiesKHR"));
+  const auto statistics = reinterpret_cast<PFN_vkGetPipelineExecutableStatisticsKHR>(
+      vkGetDeviceProcAddr(device_, "vkGetPipelineExecutableStatisticsKHR"));
+  if (!properties || !statistics) return;
+  VkPipelineInfoKHR pi{VK_STRUCTURE_TYPE_PIPELINE_INFO_KHR};
+  pi.pipeline = pipeline;
+  uint32_t n = 0;
+  if (properties(device_, &pi, &n, nullptr) != VK_SUCCESS) return;
+  std::vector<VkPipelineExecutablePropertiesKHR> execs(n, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_PROPERTIES_KHR});
+  if (properties(device_, &pi, &n, execs.data()) != VK_SUCCESS) return;
+  for (uint32_t e = 0; e < n; ++e) {
+    VkPipelineExecutableInfoKHR ei{VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_INFO_KHR};
+    ei.pipeline = pipeline;
+    ei.executableIndex = e;
+    uint32_t m = 0;
+    if (statistics(device_, &ei, &m, nullptr) != VK_SUCCESS) continue;
+    std::vector<VkPipelineExecutableStatisticKHR> stats(m, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_STATISTIC_KHR});
+    if (statistics(device_, &ei, &m, stats.data()) != VK_SUCCESS) continue;
+    std::ostringstream line;
+    line << "pipeline statistics: " << what << " [" << execs[e].name << ", subgroup " << execs[e].subgroupSize << "]";
+    for (uint32_t k = 0; k < m; ++k) {
+      line << (k ? "; " : ": ") << stats[k].name << " ";
+      switch (stats[k].format) {
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_BOOL32_KHR: line << (stats[k].value.b32 ? "true" : "false"); break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_INT64_KHR: line << stats[k].value.i64; break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_UINT64_KHR: line << stats[k].value.u64; break;
+        case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_FLOAT64_KHR: line << stats[k].value.f64; break;
+        default: line << "?";
+      }
+    }
+    std::fprintf(stderr, "%s\n", line.str().c_str());
+  }
 }
 
 void Context::on_message(VkDebugUtilsMessageSeverityFlagBitsEXT severity, const char* text) {

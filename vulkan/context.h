@@ -39,8 +39,13 @@ struct ContextOptions {
   // VK_KHR_deferred_host_operations, bufferDeviceAddress) for vulkan/rtx.h, where the device has
   // all of it; never required (the device choice does not change), never enabled unless asked.
   bool ray_tracing = false;
+  // Report every compute pipeline's statistics as the driver gives them (registers, local
+  // memory, ...: VK_KHR_pipeline_executable_properties) on stderr as it is made, where the device
+  // has the extension (env GRIDRT_VK_PIPELINE_STATS=1); a note says so where it has not.
+  bool pipeline_stats = false;
 
-  // Defaults overridden by GRIDRT_VALIDATION, GRIDRT_VK_DEVICE and GRIDRT_VK_LOADER.
+  // Defaults overridden by GRIDRT_VALIDATION, GRIDRT_VK_DEVICE, GRIDRT_VK_LOADER and
+  // GRIDRT_VK_PIPELINE_STATS.
   static ContextOptions from_env();
 };
 
@@ -134,6 +139,12 @@ class Context {
   bool validation() const { return validation_; }
   // Whether the ray tracing extensions and features are enabled (asked for and present).
   bool ray_tracing() const { return ray_tracing_; }
+  // Whether pipelines are made with their statistics captured (ContextOptions::pipeline_stats on
+  // a device with VK_KHR_pipeline_executable_properties).
+  bool pipeline_stats() const { return pipeline_stats_; }
+  // Writes `pipeline`'s statistics, as the driver reports them, to stderr as one line per
+  // executable, headed by `what` (with pipeline_stats() only).
+  void report_pipeline_stats(VkPipeline pipeline, const std::string& what) const;
 
   // Validation messages (warnings and errors) received since the last clear_messages().
   std::vector<std::string> messages() const;
@@ -193,6 +204,7 @@ class Context {
 
   bool validation_ = false;
   bool ray_tracing_ = false;
+  bool pipeline_stats_ = false;
   VkInstance instance_ = VK_NULL_HANDLE;
   VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
   PFN_vkDestroyDebugUtilsMessengerEXT destroy_messenger_ = nullptr;

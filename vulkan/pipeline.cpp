@@ -185,6 +185,14 @@ void Descriptors::bind(uint32_t binding, VkAccelerationStructureKHR structure) {
   write(binding, {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR}, "an acceleration structure", nullptr, nullptr, &as);
 }
 
+std::string SpecConstants::summary() const {
+  if (entries_.empty()) return "";
+  std::string s = " {";
+  for (size_t i = 0; i < entries_.size(); ++i)
+    s += (i ? ", " : "") + std::to_string(entries_[i].constantID) + "=" + std::to_string(data_[i]);
+  return s + "}";
+}
+
 // ---- Pipeline ----
 
 VkShaderModule create_shader_module(Context& ctx, std::string_view name) {
@@ -228,7 +236,9 @@ Pipeline::Pipeline(Context& ctx, std::string_view shader, VkDescriptorSetLayout 
     ci.stage.pName = "main";
     ci.stage.pSpecializationInfo = spec.info();
     ci.layout = layout_;
+    if (ctx.pipeline_stats()) ci.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
     GRIDRT_VK_CHECK(vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &ci, nullptr, &pipeline_));
+    ctx.report_pipeline_stats(pipeline_, std::string(shader) + spec.summary());
   } catch (...) {
     destroy();
     throw;

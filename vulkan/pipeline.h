@@ -52,6 +52,8 @@ class SpecConstants {
   SpecConstants& add(uint32_t id, float value);
   SpecConstants& add(uint32_t id, bool value);  // a VkBool32
   const VkSpecializationInfo* info();          // nullptr when empty
+  // " {id=value, ...}" (values as 32-bit words), "" when empty: names a pipeline in reports.
+  std::string summary() const;
 
  private:
   std::vector<VkSpecializationMapEntry> entries_;
