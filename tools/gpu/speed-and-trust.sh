@@ -8,7 +8,7 @@
 #                                                              ons-reborn-teapot, bunny)
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- gridrt-base /tmp/gs/*.gridscene \
 #     /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
-# There: PART=diff|bench|gather|portal bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
+# There: PART=diff|bench|gather|frame|stats|portal bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
 #   diff    gridrt diff (reference against the shaders, validation on) on the three frames: paper
 #           traversal + raster build + the GPU frame's passes, exact + compute build + the GPU
 #           frame, exact + raster build; portal diff bit for bit on the built-in level, its mip
@@ -19,6 +19,7 @@
 #   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, gridrt-V1, ...:
 #           intermediate builds, when staged) and this one at their defaults: the frame's passes,
 #           the gather's split, its work items and tile pairs, the shadow pass (PART=frame: the same)
+#   stats   the driver's statistics of every compute pipeline of one frame per scene (registers, ...)
 #   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
 set -u
 G=${G:-.gpu}
@@ -94,6 +95,17 @@ gather | frame)
       done
     done
   } 2>&1 | tee "$out/${PART}.txt"
+  ;;
+stats)
+  # The driver's statistics of every compute pipeline (GRIDRT_VK_PIPELINE_STATS=1: registers,
+  # local memory, ...), the trace's included, from one short frame of each scene
+  {
+    for s in "${scenes[@]}"; do
+      echo "== pipeline statistics $s"
+      GRIDRT_VK_PIPELINE_STATS=1 timeout 90 gridrt bench $E/$s.gridscene --backend vulkan --traversal exact \
+        --vk-build compute --frames 1 --warmup 0 2>&1 | grep -E '^pipeline statistics|error' | sort -u | cut -c1-600
+    done
+  } 2>&1 | tee "$out/stats.txt"
   ;;
 portal)
   INSTANCED_ONLY=1 G=$G OUT=$out bash tools/gpu/portal-bench.sh > "$out/portal-stdout.txt" 2>&1
