@@ -13,9 +13,8 @@
 #           traversal + raster build + the GPU frame's passes, exact + compute build + the GPU
 #           frame, exact + raster build; portal diff bit for bit on the built-in level, its mip
 #           levels and the instanced block level
-#   bench   per scene, in one run on the same rays: the baseline binary at its defaults, this one
-#           with --mailbox off and on (its default), each beside the RT pipeline; the untuned bunny
-#           (primary rays) and atrium with the mailbox off and on
+#   bench   per scene (and the untuned bunny's primary rays and the atrium), in one run on the same
+#           rays: the baseline binary and this one at their defaults, each beside the RT pipeline
 #   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, gridrt-V1, ...:
 #           intermediate builds, when staged) and this one at their defaults: the frame's passes,
 #           the gather's split, its work items and tile pairs, the shadow pass (PART=frame: the same)
@@ -58,20 +57,16 @@ bench)
   B="--backend vulkan --traversal exact --vk-build compute --rtx --frames 30 --warmup 5"
   sel='^\| (grid|rtx|[0-9])|^agree|^grid memory|warm build split|^vulkan|error'
   {
-    for s in "${scenes[@]}"; do
-      echo "== bench $s: baseline binary, defaults"
-      timeout 90 "$E/gridrt-base" bench $E/$s.gridscene $B 2>&1 | grep -E "$sel" | cut -c1-400
-      for m in off on; do
-        echo "== bench $s: this binary, --mailbox $m"
-        timeout 90 gridrt bench $E/$s.gridscene $B --mailbox $m 2>&1 | grep -E "$sel" | cut -c1-400
+    for s in "${scenes[@]}" bunny builtin:atrium; do
+      X=$E/$s.gridscene
+      R=
+      [ "$s" = builtin:atrium ] && X=$s
+      [ "$s" = bunny ] && R="--rays primary"  # no glossy material: its primary rays
+      for bin in "$E/gridrt-base" gridrt; do
+        echo "== bench $s $R: $bin, defaults, beside the RT pipeline"
+        # shellcheck disable=SC2086
+        timeout 90 "$bin" bench "$X" $B $R 2>&1 | grep -E "$sel" | cut -c1-400
       done
-    done
-    for m in off on; do
-      echo "== bench builtin:atrium: this binary, --mailbox $m"
-      timeout 90 gridrt bench builtin:atrium $B --mailbox $m 2>&1 | grep -E "$sel" | cut -c1-400
-      echo "== bench bunny (primary rays): this binary, --mailbox $m"
-      timeout 90 gridrt bench $E/bunny.gridscene --backend vulkan --traversal exact --vk-build compute --rays primary \
-        --frames 30 --warmup 5 --mailbox $m 2>&1 | grep -E "$sel" | cut -c1-400
     done
   } 2>&1 | tee "$out/bench.txt"
   ;;

@@ -418,6 +418,9 @@ HitRecord trace_exact(GridParams g) {
 // invocations whose cells hold fewer references step on while the others still test, instead of
 // waiting at the end of each cell. The explain pipeline keeps trace_exact, which mirrors the
 // reference block by block.
+// The dynamic region's bounds (the heads' first 8 words: lo, then hi), copied to shared memory by
+// the workgroup at its start, so that no invocation keeps them in registers through its walk.
+shared uint region_words[8];
 uint flat_j;      // the cell's run still to test: compact_refs[flat_j .. flat_end)
 uint flat_end;
 uint flat_e;      // then its dynamic list from entry flat_e (kSpillEnd: none), flat_ke entries read
@@ -437,30 +440,36 @@ void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
   const uint i = cell_linear_index(g, w.cell);
   flat_j = compact_offsets[i];
   flat_end = compact_offsets[i + 1u];
-  if (region_contains(w.cell, region_lo, region_hi))
-    flat_e = spill_heads[compact_head_index(region_index(w.cell, region_lo, region_hi))];
+  const uvec3 lo = uvec3(region_words[0], region_words[1], region_words[2]);
+  const uvec3 hi = uvec3(region_words[4], region_words[5], region_words[6]);
+  if (region_contains(w.cell, lo, hi)) flat_e = spill_heads[compact_head_index(region_index(w.cell, lo, hi))];
 }
 
 HitRecord trace_exact_flat(GridParams g) {
   const vec3 inv_dir = dda_inverse_direction(st.dir);
   DdaWalk w = dda_walk_begin(g, st.org, st.dir, st.rs.t_start);
-  region_lo = uvec3(spill_heads[0], spill_heads[1], spill_heads[2]);
-  region_hi = uvec3(spill_heads[4], spill_heads[5], spill_heads[6]);
   if (g.max_segments == 0u) return finish(kMissStepLimit, g.max_segments);
   uint k = 0u;
   flat_enter(g, inv_dir, w);
   for (;;) {
+    // The next reference of the cell: of its run, else of its dynamic list; one test_reference
+    // for both (one copy of the test in the code, which the invocations of either share)
+    bool more = true;
+    uint ref;
     if (flat_j < flat_end) {
-      test_reference(g, compact_refs[flat_j], k, w.cell, 0u, st.rs.t_lo, st.tmax);
+      ref = compact_refs[flat_j];
       flat_j += 1u;
-      if (found_any()) flat_j = flat_end, flat_e = kSpillEnd;
-      continue;
-    }
-    if (flat_e != kSpillEnd && flat_ke < spill_header.capacity) {
+    } else if (flat_e != kSpillEnd && flat_ke < spill_header.capacity) {
       const SpillEntry entry = spill_entries[flat_e];
-      test_reference(g, entry.ref, k, w.cell, flat_ke, st.rs.t_lo, st.tmax);
+      ref = entry.ref;
       flat_ke += 1u;
-      flat_e = found_any() ? kSpillEnd : entry.next;
+      flat_e = entry.next;
+    } else {
+      more = false;
+    }
+    if (more) {
+      test_reference(g, ref, k, w.cell, 0u, st.rs.t_lo, st.tmax);
+      if (found_any()) flat_j = flat_end, flat_e = kSpillEnd;
       continue;
     }
     // The cell (or box) is done: report the closest hit once it lies inside it or before
@@ -511,6 +520,10 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
 void main() {
   if ((kFlags & kGridSkipEmpty) != 0u && kTraversal == kTraversalExact) {
     for (uint w = gl_LocalInvocationIndex; w < kSkipHeaderWords; w += 64u) skip_header[w] = skip[w];
+    barrier();
+  }
+  if ((kFlags & kGridCompact) != 0u && kTraversal == kTraversalExact) {
+    if (gl_LocalInvocationIndex < 8u) region_words[gl_LocalInvocationIndex] = spill_heads[gl_LocalInvocationIndex];
     barrier();
   }
   if (pc.tiled_width != 0u) {
