@@ -174,7 +174,7 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   const std::vector<uint32_t>& texels = plan.tables.texels;
   gpu_ = std::make_unique<Gpu>();
   Gpu& gpu = *gpu_;
-  gpu.params = make_buffer(ctx, std::vector<GridParams>{g});
+  gpu.params = make_buffer(ctx, std::vector<GridParams>{g}, VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT);
   gpu.instances = make_buffer(ctx, instances_);
   // With ray tracing enabled the geometry buffer is also the vertex input of the acceleration
   // structures (vulkan/rtx.h): the BLASes are built over the very triangles the grid tests
@@ -258,6 +258,7 @@ void VulkanGridTracer::create_pipelines() {
   const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   std::vector<VkDescriptorType> types(shared::kGridBindingCount, sb);
   types[shared::kGridBindImage] = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+  types[shared::kGridBindParams] = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
   gpu.set = std::make_unique<Descriptors>(ctx, std::move(types));
   Descriptors& set = *gpu.set;
   set.bind(shared::kGridBindParams, gpu.params);

@@ -24,7 +24,10 @@ layout(constant_id = kGridSpecExplain) const bool kExplain = false; // trace: re
 layout(constant_id = kGridSpecRepeats) const uint kRepeats = 0u;    // GridParams::repeats
 layout(constant_id = kGridSpecTriangleTest) const uint kTriangleTest = 0u; // GridParams::triangle_test
 
-layout(std430, binding = kGridBindParams) readonly buffer ParamsBuffer { GridParams params_buffer; };
+// A uniform buffer (std140 lays GridParams out as std430 does: no arrays, each vec3 followed by a
+// scalar), so that a device may read its fields where they are used (NVIDIA: as constant-bank
+// operands) instead of keeping them in registers through a loop.
+layout(std140, binding = kGridBindParams) uniform ParamsBlock { GridParams params_buffer; };
 layout(std430, binding = kGridBindInstances) readonly buffer Instances { GridInstance instances[]; };
 layout(std430, binding = kGridBindTriangles) buffer Triangles { GridTriangle triangles[]; };
 layout(std430, binding = kGridBindUvs) readonly buffer Uvs { GridTriangleUv uvs[]; };

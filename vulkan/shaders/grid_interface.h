@@ -11,8 +11,9 @@
 
 SH_BEGIN
 
-// Bindings of the grid's descriptor set (set 0). Every one is a storage buffer but the image.
-SH_CONST uint kGridBindParams = 0u;          // GridParams
+// Bindings of the grid's descriptor set (set 0). Every one is a storage buffer but the image and
+// the parameters (a uniform buffer).
+SH_CONST uint kGridBindParams = 0u;          // GridParams (uniform buffer, std140)
 SH_CONST uint kGridBindImage = 1u;           // the 3D image of references (r32ui storage image)
 SH_CONST uint kGridBindInstances = 2u;       // GridInstance[]
 SH_CONST uint kGridBindTriangles = 3u;       // GridTriangle[] (the geometry buffer)

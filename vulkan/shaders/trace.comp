@@ -425,12 +425,10 @@ uint flat_j;      // the cell's run still to test: compact_refs[flat_j .. flat_e
 uint flat_end;
 uint flat_e;      // then its dynamic list from entry flat_e (kSpillEnd: none), flat_ke entries read
 uint flat_ke;
-float flat_t_exit;
 
 void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
   const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell) : 0u;
   dda_walk_exits(g, st.org, st.dir, inv_dir, d > 0u ? d - 1u : 0u, w);
-  flat_t_exit = w.t_exit;
   st.cells += 1u;
   flat_j = 0u;
   flat_end = 0u;
@@ -473,8 +471,8 @@ HitRecord trace_exact_flat(GridParams g) {
       continue;
     }
     // The cell (or box) is done: report the closest hit once it lies inside it or before
-    if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= flat_t_exit)) return report(k);
-    if (flat_t_exit >= st.rs.t_end) return finish(flat_t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
+    if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= w.t_exit)) return report(k);
+    if (w.t_exit >= st.rs.t_end) return finish(w.t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
     if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(kMissLeftGrid, k);
     k += 1u;
     if (k >= g.max_segments) return finish(kMissStepLimit, g.max_segments);
