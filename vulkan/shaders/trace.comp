@@ -137,13 +137,15 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
   if (code == kTestAccepted) {
-    // Barycentrics by Cramer's rule at the hit point
+    // Barycentrics by Cramer's rule at the hit point (without events to record, only where alpha
+    // keying reads them: report() makes them for the hit it reports, from the same inputs)
     t = moller_trumbore_t(r);
-    bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
+    if (kExplain) bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
     // Alpha keying: the mask texel under the interpolated uv
     if ((g.flags & kGridAlphaKeying) != 0u && (inst.flags & kInstanceAlphaKeyed) != 0u) {
       const GridMaterial mat = materials[tri.material];
       if (mat.alpha_width != 0u) {
+        if (!kExplain) bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
         const GridTriangleUv tuv = uvs[inst.tri_offset + ref_triangle(ref)];
         const vec2 uv = interpolate_uv(tuv.uv0, tuv.uv1, tuv.uv2, bc.x, bc.y);
         const uvec2 xy = alpha_texel_coords(uv, mat.alpha_width, mat.alpha_height);
@@ -167,8 +169,10 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   st.has_best = true;
   st.best_t = t;
   st.best_ref = ref;
-  st.best_u = bc.x;
-  st.best_v = bc.y;
+  if (kExplain) {  // else report() makes them
+    st.best_u = bc.x;
+    st.best_v = bc.y;
+  }
   st.best_flags = r.det < 0.0f ? kHitBackFace : 0u;
 }
 
@@ -246,6 +250,16 @@ void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_
 }
 
 HitRecord report(uint step) {
+  // Without events to record, the reported hit's barycentrics are made here (test_reference
+  // leaves them out): Cramer's rule at the same point of the same triangle, so the same values.
+  // A gap-fill hit keeps those gap_fill made at its sample point.
+  if (!kExplain && (st.best_flags & kHitGapFill) == 0u) {
+    const GridInstance inst = instances[ref_instance(st.best_ref)];
+    const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(st.best_ref)];
+    const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, st.best_t));
+    st.best_u = bc.x;
+    st.best_v = bc.y;
+  }
   HitRecord h;
   h.t = st.best_t;
   h.instance = ref_instance(st.best_ref);
