@@ -247,3 +247,67 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
   CHECK_FALSE(shared::raster_setup(c, c.eye + glm::vec3(-1, 0, -1), c.eye + glm::vec3(1, 0, -1), c.eye + glm::vec3(0, 0, -3),
                                    e0, e1, e2, t_lo));
 }
+
+// gather_frustum_box projects a triangle inside every clip plane as it is, without clipping: the
+// same box as clipping it (each clip keeps its vertices in order) on every triangle, inside the
+// frustum, across its sides and the near plane, and wholly outside.
+TEST_CASE("Gather frustum box: a triangle inside every plane gets the box its clipped polygon gives", "[unit][gather]") {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  size_t inside = 0, clipped = 0, boxed = 0;
+  for (int cam = 0; cam < 16; ++cam) {
+    Camera camera;
+    camera.eye = 3.0f * glm::vec3(u(rng), u(rng), u(rng));
+    camera.target = camera.eye + glm::vec3(u(rng), 0.3f * u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 0.01f);
+    camera.vfov_degrees = 20.0f + 100.0f * (0.5f + 0.5f * u(rng));
+    const shared::CameraParams c = camera_params(camera, cam % 2 ? 64u : 45u, cam % 2 ? 48u : 37u);
+    for (int i = 0; i < 2000; ++i) {
+      // Camera-space vertices: mostly in front, some spread wide of the frustum or behind the eye
+      const float spread = i % 3 == 0 ? 4.0f : 0.5f;
+      auto vertex = [&] {
+        const float z = std::exp2(3.0f * u(rng)) * (i % 7 == 0 ? u(rng) : 1.0f);
+        return glm::vec3(spread * z * u(rng), spread * z * u(rng), z);
+      };
+      const glm::vec3 q0 = vertex(), q1 = vertex(), q2 = vertex();
+      glm::uvec4 box(0u);
+      const bool got = shared::gather_frustum_box(c, kNear, q0, q1, q2, shared::kGatherFrustumRounding, box);
+      // The polygon path, every plane clipped
+      const float tx = c.tan_half_fov * c.aspect;
+      const float kx = tx * (1.0f + shared::sh_div(4.0f, float(c.width)));
+      const float ky = c.tan_half_fov * (1.0f + shared::sh_div(4.0f, float(c.height)));
+      shared::GatherPolygon poly = shared::gather_polygon_empty();
+      poly.v[0] = q0;
+      poly.v[1] = q1;
+      poly.v[2] = q2;
+      poly.n = 3u;
+      const glm::vec4 planes[5] = {{0.0f, 0.0f, 1.0f, -kNear}, {1.0f, 0.0f, kx, 0.0f}, {-1.0f, 0.0f, kx, 0.0f},
+                                   {0.0f, 1.0f, ky, 0.0f}, {0.0f, -1.0f, ky, 0.0f}};
+      bool all_in = true;
+      for (const glm::vec4& p : planes)
+        for (const glm::vec3& q : {q0, q1, q2}) all_in = all_in && shared::gather_plane_side(p, q) >= 0.0f;
+      inside += all_in;
+      for (const glm::vec4& p : planes)
+        if (poly.n >= 3u) poly = shared::gather_clip(poly, p);
+      clipped += !all_in;
+      glm::uvec4 box0(0u);
+      bool got0 = false;
+      if (poly.n >= 3u) {
+        const float m = std::max({shared::raster_norm1(q0), shared::raster_norm1(q1), shared::raster_norm1(q2)});
+        const float px = shared::sh_div(0.5f * float(c.width), tx), py = shared::sh_div(0.5f * float(c.height), c.tan_half_fov);
+        const float cx = 0.5f * float(c.width) - 0.5f, cy = 0.5f * float(c.height) - 0.5f;
+        glm::vec2 lo(3.0e38f), hi(-3.0e38f);
+        for (uint32_t k = 0; k < poly.n; ++k)
+          shared::gather_frustum_extend(poly.v[k], kNear, shared::kGatherFrustumRounding, m, px, py, cx, cy, lo, hi);
+        got0 = shared::gather_box_of(c, lo, hi, box0);
+      }
+      INFO("camera " << cam << ", triangle " << i);
+      REQUIRE(got == got0);
+      if (got) REQUIRE(box == box0);
+      boxed += got;
+    }
+  }
+  // Both paths taken, and most triangles give a box
+  CHECK(inside > 5000);
+  CHECK(clipped > 5000);
+  CHECK(boxed > 10000);
+}

@@ -137,6 +137,12 @@ SH_INLINE GatherPolygon gather_polygon_empty() {
   return poly;
 }
 
+// The side of `plane` a point is on: dot(plane.xyz, p) + plane.w (>= 0: kept by gather_clip).
+SH_INLINE float gather_plane_side(vec4 plane, SH_IN(vec3) p) {
+  SH_PRECISE float d = sh_dot(vec3(plane.x, plane.y, plane.z), p) + plane.w;
+  return d;
+}
+
 // Clips `poly` to the half-space dot(plane.xyz, p) + plane.w >= 0 (Sutherland-Hodgman); a 2D
 // polygon is clipped with its points as (x, y, 0) and the line as (a, b, 0, c).
 SH_INLINE GatherPolygon gather_clip(SH_IN(GatherPolygon) poly, vec4 plane) {
@@ -144,8 +150,8 @@ SH_INLINE GatherPolygon gather_clip(SH_IN(GatherPolygon) poly, vec4 plane) {
   for (uint i = 0u; i < poly.n; ++i) {
     const vec3 a = poly.v[i];
     const vec3 b = poly.v[i + 1u == poly.n ? 0u : i + 1u];
-    SH_PRECISE float da = sh_dot(vec3(plane.x, plane.y, plane.z), a) + plane.w;
-    SH_PRECISE float db = sh_dot(vec3(plane.x, plane.y, plane.z), b) + plane.w;
+    SH_PRECISE float da = gather_plane_side(plane, a);
+    SH_PRECISE float db = gather_plane_side(plane, b);
     if (da >= 0.0f && kept.n < 9u) kept.v[kept.n++] = a;
     if ((da >= 0.0f) != (db >= 0.0f) && kept.n < 9u) {
       SH_PRECISE float s = sh_div(da, da - db);
@@ -215,42 +221,70 @@ SH_INLINE vec3 gather_camera_space(SH_IN(CameraParams) c, SH_IN(vec3) p) {
 // near plane may cover the image. (A `rounding` of 0 is the box before this bound, for tests.)
 SH_CONST float kGatherFrustumRounding = 0.0000152587890625f;  // 2^-16
 
+// One vertex of the clipped polygon, projected and widened by the rounding bound, into [lo, hi]
+// (gather_frustum_box; `m`, `px`, `py`, `cx`, `cy` as made there).
+SH_INLINE void gather_frustum_extend(SH_IN(vec3) q, float near_plane, float rounding, float m, float px, float py,
+                                     float cx, float cy, SH_INOUT(vec2) lo, SH_INOUT(vec2) hi) {
+  // Projected with one reciprocal (a few ulps of the tangents, far inside the bound)
+  SH_PRECISE float rz = sh_rcp(max(q.z, near_plane));
+  SH_PRECISE float sx = q.x * rz;
+  SH_PRECISE float sy = q.y * rz;
+  const vec2 p = vec2(sx * px + cx, cy - sy * py);
+  SH_PRECISE float s = (1.0f + abs(sx)) + abs(sy);
+  SH_PRECISE float e = ((rounding * m) * rz) * s;
+  SH_PRECISE vec2 r = vec2(e * px, e * py);
+  lo = min(lo, p - r);
+  hi = max(hi, p + r);
+}
+
 SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) q0, SH_IN(vec3) q1,
                                   SH_IN(vec3) q2, float rounding, SH_OUT(uvec4) box) {
   box = uvec4(0u);
-  GatherPolygon poly = gather_polygon_empty();
-  poly.v[0] = q0;
-  poly.v[1] = q1;
-  poly.v[2] = q2;
-  poly.n = 3u;
   SH_PRECISE float m = max(raster_norm1(q0), max(raster_norm1(q1), raster_norm1(q2)));
   SH_PRECISE float tx = c.tan_half_fov * c.aspect;
   SH_PRECISE float kx = tx * (1.0f + sh_div(4.0f, float(c.width)));
   SH_PRECISE float ky = c.tan_half_fov * (1.0f + sh_div(4.0f, float(c.height)));
-  poly = gather_clip(poly, vec4(0.0f, 0.0f, 1.0f, -near_plane));
-  if (poly.n >= 3u) poly = gather_clip(poly, vec4(1.0f, 0.0f, kx, 0.0f));
-  if (poly.n >= 3u) poly = gather_clip(poly, vec4(-1.0f, 0.0f, kx, 0.0f));
-  if (poly.n >= 3u) poly = gather_clip(poly, vec4(0.0f, 1.0f, ky, 0.0f));
-  if (poly.n >= 3u) poly = gather_clip(poly, vec4(0.0f, -1.0f, ky, 0.0f));
-  if (poly.n < 3u) return false;
+  // The clip planes: near, then the four sides widened by two pixels
+  const vec4 near = vec4(0.0f, 0.0f, 1.0f, -near_plane);
+  const vec4 left = vec4(1.0f, 0.0f, kx, 0.0f);
+  const vec4 right = vec4(-1.0f, 0.0f, kx, 0.0f);
+  const vec4 bottom = vec4(0.0f, 1.0f, ky, 0.0f);
+  const vec4 top = vec4(0.0f, -1.0f, ky, 0.0f);
   // Pixels per tangent unit, and the pixel indices of the view's centre
   SH_PRECISE float px = sh_div(0.5f * float(c.width), tx);
   SH_PRECISE float py = sh_div(0.5f * float(c.height), c.tan_half_fov);
   SH_PRECISE float cx = 0.5f * float(c.width) - 0.5f;
   SH_PRECISE float cy = 0.5f * float(c.height) - 0.5f;
   vec2 lo = vec2(3.0e38f), hi = vec2(-3.0e38f);
-  for (uint i = 0u; i < poly.n; ++i) {
-    // Projected with one reciprocal (a few ulps of the tangents, far inside the bound)
-    SH_PRECISE float rz = sh_rcp(max(poly.v[i].z, near_plane));
-    SH_PRECISE float sx = poly.v[i].x * rz;
-    SH_PRECISE float sy = poly.v[i].y * rz;
-    const vec2 p = vec2(sx * px + cx, cy - sy * py);
-    SH_PRECISE float s = (1.0f + abs(sx)) + abs(sy);
-    SH_PRECISE float e = ((rounding * m) * rz) * s;
-    SH_PRECISE vec2 r = vec2(e * px, e * py);
-    lo = min(lo, p - r);
-    hi = max(hi, p + r);
+  // A triangle with every vertex on the kept side of every plane is its own clipped polygon
+  // (each clip keeps its vertices, in order): projected as it is, without the polygon (most
+  // triangles; the same operations in the same order as the loop below, so the same box)
+  bool inside = true;
+  for (uint i = 0u; i < 3u; ++i) {
+    const vec3 q = i == 0u ? q0 : (i == 1u ? q1 : q2);
+    inside = inside && gather_plane_side(near, q) >= 0.0f && gather_plane_side(left, q) >= 0.0f &&
+             gather_plane_side(right, q) >= 0.0f && gather_plane_side(bottom, q) >= 0.0f &&
+             gather_plane_side(top, q) >= 0.0f;
   }
+  if (inside) {
+    gather_frustum_extend(q0, near_plane, rounding, m, px, py, cx, cy, lo, hi);
+    gather_frustum_extend(q1, near_plane, rounding, m, px, py, cx, cy, lo, hi);
+    gather_frustum_extend(q2, near_plane, rounding, m, px, py, cx, cy, lo, hi);
+    return gather_box_of(c, lo, hi, box);
+  }
+  GatherPolygon poly = gather_polygon_empty();
+  poly.v[0] = q0;
+  poly.v[1] = q1;
+  poly.v[2] = q2;
+  poly.n = 3u;
+  poly = gather_clip(poly, near);
+  if (poly.n >= 3u) poly = gather_clip(poly, left);
+  if (poly.n >= 3u) poly = gather_clip(poly, right);
+  if (poly.n >= 3u) poly = gather_clip(poly, bottom);
+  if (poly.n >= 3u) poly = gather_clip(poly, top);
+  if (poly.n < 3u) return false;
+  for (uint i = 0u; i < poly.n; ++i)
+    gather_frustum_extend(poly.v[i], near_plane, rounding, m, px, py, cx, cy, lo, hi);
   return gather_box_of(c, lo, hi, box);
 }
 

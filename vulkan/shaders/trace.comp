@@ -435,10 +435,9 @@ HitRecord trace_exact(GridParams g) {
 // The dynamic region's bounds (the heads' first 8 words: lo, then hi), copied to shared memory by
 // the workgroup at its start, so that no invocation keeps them in registers through its walk.
 shared uint region_words[8];
-uint flat_j;      // the cell's run still to test: compact_refs[flat_j .. flat_end)
-uint flat_end;
-uint flat_e;      // then its dynamic list from entry flat_e (kSpillEnd: none), flat_ke entries read
-uint flat_ke;
+uint flat_j;      // the cell's run still to test: compact_refs[flat_j .. flat_end); past the run,
+uint flat_end;    // flat_j - flat_end counts the dynamic list's entries read
+uint flat_e;      // then its dynamic list from entry flat_e (kSpillEnd: none)
 
 void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
   const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell) : 0u;
@@ -447,7 +446,6 @@ void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
   flat_j = 0u;
   flat_end = 0u;
   flat_e = kSpillEnd;
-  flat_ke = 0u;
   if (d != 0u) return;
   const uint i = cell_linear_index(g, w.cell);
   flat_j = compact_offsets[i];
@@ -471,10 +469,10 @@ HitRecord trace_exact_flat(GridParams g) {
     if (flat_j < flat_end) {
       ref = compact_refs[flat_j];
       flat_j += 1u;
-    } else if (flat_e != kSpillEnd && flat_ke < spill_header.capacity) {
+    } else if (flat_e != kSpillEnd && flat_j - flat_end < spill_header.capacity) {
       const SpillEntry entry = spill_entries[flat_e];
       ref = entry.ref;
-      flat_ke += 1u;
+      flat_j += 1u;
       flat_e = entry.next;
     } else {
       more = false;
