@@ -54,14 +54,14 @@ diff)
   } 2>&1 | tee "$out/diff.txt"
   ;;
 bench)
-  B="--backend vulkan --traversal exact --vk-build compute --rtx --frames 30 --warmup 5"
   sel='^\| (grid|rtx|[0-9])|^agree|^grid memory|warm build split|^vulkan|error'
   {
     for s in "${scenes[@]}" bunny builtin:atrium; do
       X=$E/$s.gridscene
-      R=
+      R=--rtx
       [ "$s" = builtin:atrium ] && X=$s
-      [ "$s" = bunny ] && R="--rays primary"  # no glossy material: its primary rays
+      [ "$s" = bunny ] && R="--rays primary"  # no glossy material: its primary rays, without the RT side
+      B="--backend vulkan --traversal exact --vk-build compute --frames 30 --warmup 5"
       for bin in "$E/gridrt-base" gridrt; do
         echo "== bench $s $R: $bin, defaults, beside the RT pipeline"
         # shellcheck disable=SC2086
@@ -69,6 +69,16 @@ bench)
       done
     done
   } 2>&1 | tee "$out/bench.txt"
+  ;;
+bunny)
+  # The untuned bunny's primary rays alone (trace(), not the frame's passes), both binaries
+  {
+    for bin in "$E/gridrt-base" gridrt; do
+      echo "== bench bunny --rays primary: $bin, defaults"
+      timeout 90 "$bin" bench $E/bunny.gridscene --backend vulkan --traversal exact --vk-build compute --rays primary \
+        --frames 30 --warmup 5 2>&1 | grep -E '^\| (grid|vulkan|[0-9])|^vulkan|error' | cut -c1-400
+    done
+  } 2>&1 | tee "$out/bunny.txt"
   ;;
 gather | frame)
   # The compute gather's screen box (common/shared/raster.h gather_box) against the baseline's:
