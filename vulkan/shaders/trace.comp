@@ -2,10 +2,12 @@
 // trace.comp: scene trace (paper 2.3), one invocation per ray: paper segments or the exact DDA,
 // alpha keying and gap-fill, as specialization constants. This file follows reference/trace.cpp
 // block by block, with the same names and heading comments; the explain ray (push constant)
-// writes the same events as the reference's explain into the explain buffer. One addition: without
-// explain, the exact traversal over the compact layout runs trace_exact_flat, trace_exact's walk as
-// one loop (the same tests in the same order); and the frame's shadow trace makes each pixel's
-// bounce or shadow ray itself from the gather buffer (kTraceRays).
+// writes the same events as the reference's explain into the explain buffer. Where the shader
+// departs from it, without explain and for speed only (the same hits in bits): the exact
+// traversal over the compact layout runs trace_exact_flat, trace_exact's walk as one loop (the
+// same tests in the same order); the reported hit's barycentrics are made once in report(), not
+// at every candidate; and the frame's traces make each pixel's bounce or shadow ray themselves
+// from the gather buffer (kTraceRays).
 #extension GL_GOOGLE_include_directive : require
 #include "grid_common.glsl"
 #include "gridrt/common/shared/bounce.h"
