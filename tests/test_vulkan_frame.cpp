@@ -792,3 +792,57 @@ TEST_CASE("CLI: gridrt diff --gpu-frame finds the GPU frame's rays and hits bit-
                                               "pixels differ") != std::string::npos);
   }
 }
+
+// The shadow trace makes each light's rays itself (one trace per light, its light in the push
+// constants): with three lights, point and directional, every light's rays and hits are the
+// reference's in bits, after the bounce rays and light-major, and the lights' rays differ.
+TEST_CASE("Vulkan frame: three lights, each light's shadow rays and hits the reference's", "[vulkan][frame][shadows]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const bool exact = bit_exact_device(ctx);
+  const uint32_t w = 96, h = 64;
+  Scene scene = make_builtin("cornell");
+  REQUIRE(!scene.lights.empty());
+  const Light first = scene.lights.front();
+  scene.lights.push_back(Light{.position = glm::normalize(glm::vec3(0.3f, 1.0f, 0.6f)), .intensity = 0.5f, .directional = true});
+  Light moved = first;
+  moved.position += glm::vec3(0.25f, -0.1f, 0.2f);
+  scene.lights.push_back(moved);
+  GridOptions o;
+  o.threads = 2;
+  ReferenceGridTracer ref(o);
+  VulkanGridTracer vk(ctx, o);
+  ref.build(scene, 0.0f);
+  vk.build(scene, 0.0f);
+  VulkanFrame frame(vk, scene, FrameOptions{.width = w, .height = h});
+  frame.render(1);
+  REQUIRE(frame.shadows());
+  const GatherBuffer gpu = frame.download_gather();
+  const std::vector<Ray> cpu_shadow = shadow_rays(scene, gpu);
+  const std::vector<Ray> gpu_shadow = frame.download_shadow_rays();
+  const std::vector<Hit> gpu_hits = frame.download_shadow_hits();
+  REQUIRE(cpu_shadow.size() == 3u * w * h);
+  REQUIRE(gpu_shadow.size() == cpu_shadow.size());
+  REQUIRE(gpu_hits.size() == cpu_shadow.size());
+  std::vector<Hit> ref_hits(cpu_shadow.size());
+  ref.trace_any(cpu_shadow, ref_hits);
+  const size_t pixels = size_t(w) * h;
+  for (size_t l = 0; l < 3; ++l) {
+    INFO("light " << l);
+    size_t ray_mismatch = 0, hit_mismatch = 0, used = 0, occluded = 0, unlike_light0 = 0;
+    for (size_t p = 0; p < pixels; ++p) {
+      const size_t i = l * pixels + p;
+      used += !is_unused(cpu_shadow[i]);
+      occluded += !is_unused(cpu_shadow[i]) && !is_miss(ref_hits[i]);
+      unlike_light0 += l > 0 && !same_ray(cpu_shadow[i], cpu_shadow[p]);
+      ray_mismatch += exact ? !same_ray(cpu_shadow[i], gpu_shadow[i]) : is_unused(cpu_shadow[i]) != is_unused(gpu_shadow[i]);
+      hit_mismatch += exact ? !same_hit(ref_hits[i], gpu_hits[i]) : ref_hits[i].instance != gpu_hits[i].instance;
+    }
+    CHECK(used > pixels / 8);
+    CHECK(occluded > 0);
+    if (l > 0) CHECK(unlike_light0 > pixels / 8);
+    CHECK(ray_mismatch == 0);
+    CHECK(hit_mismatch <= (exact ? 0 : pixels / 100));
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}

@@ -649,9 +649,13 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         // The trace makes each pixel's shadow ray from the gather itself (no pass of its own:
         // the "rays" part of the shadow pass's time is 0)
         if (timed) gpu.timestamps->write(cb, 6);
-        for (uint32_t l = 0; l < uint32_t(scene_.lights.size()); ++l)
+        for (uint32_t l = 0; l < uint32_t(scene_.lights.size()); ++l) {
+          // One light's rays and hits after another's: disjoint ranges of the same bindings, which
+          // a barrier orders as the synchronization validation reads the whole binding
+          if (l > 0) barrier(cb);
           grid_.record_shadow_trace_image(cb, w, h, (1 + l) * w * h, scene_.lights[l].position,
                                           scene_.lights[l].directional);
+        }
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 7);
       } else if (timed) {
