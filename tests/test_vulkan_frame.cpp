@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 
 #include "gridrt/common/builtin/builtin.h"
 #include "gridrt/common/camera.h"
@@ -844,5 +845,44 @@ TEST_CASE("Vulkan frame: three lights, each light's shadow rays and hits the ref
     CHECK(ray_mismatch == 0);
     CHECK(hit_mismatch <= (exact ? 0 : pixels / 100));
   }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+// The frame's traces read the bound gather and write the bound ray and hit buffers: unbound or
+// too small, a clear error before anything is recorded, never an access past a buffer.
+TEST_CASE("Vulkan grid: the frame's traces refuse unbound or small frame buffers", "[vulkan][frame]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  GridOptions o;
+  o.threads = 2;
+  const Scene scene = make_builtin("cornell");
+  VulkanGridTracer vk(ctx, o);
+  vk.build(scene, 0.0f);
+  auto message = [&](const std::function<void(VkCommandBuffer)>& record) {
+    try {
+      ctx.submit(record);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  // Nothing bound: the stand-ins are refused
+  CHECK(message([&](VkCommandBuffer cb) { vk.record_bounce_trace_image(cb, 16, 8); }).find("bind_frame") !=
+        std::string::npos);
+  // A gather of 16x8 texels and rays for one 16x8 image: a larger image, or the shadow rays after
+  // the bounce rays, would run past them
+  const VkBufferUsageFlags sb = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  vulkan::Buffer gather = ctx.create_buffer(16 * 8 * sizeof(shared::GatherTexel), sb);
+  vulkan::Buffer params = ctx.create_buffer(sizeof(shared::FrameParams), sb);
+  vulkan::Buffer materials = ctx.create_buffer(64, sb);
+  vulkan::Buffer rays = ctx.create_buffer(16 * 8 * sizeof(shared::RayRecord), sb);
+  vulkan::Buffer hits = ctx.create_buffer(16 * 8 * sizeof(shared::HitRecord), sb);
+  vk.bind_frame(gather, params, materials);
+  vk.bind_ray_buffers(rays, hits);
+  CHECK(message([&](VkCommandBuffer cb) { vk.record_bounce_trace_image(cb, 16, 9); }).find("bind_frame") !=
+        std::string::npos);
+  CHECK(message([&](VkCommandBuffer cb) {
+          vk.record_shadow_trace_image(cb, 16, 8, 16 * 8, glm::vec3(0.0f, 1.0f, 0.0f), true);
+        }).find("past the bound ray") != std::string::npos);
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

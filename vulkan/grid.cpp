@@ -2,6 +2,7 @@
 // vulkan/shaders/; this file makes the tables they read (as reference/build.cpp does), records
 // the passes and reads the results back.
 #include "gridrt/vulkan/grid.h"
+#include "gridrt/vulkan/shaders/frame_input.h"
 #include "gridrt/common/util.h"
 
 #include <algorithm>
@@ -55,6 +56,9 @@ struct VulkanGridTracer::Gpu {
   uint32_t spill_capacity = 0;  // entries the spill list holds (0: spill off)
   uint32_t build_list_capacity = 0;
   VkBuffer ray_list = VK_NULL_HANDLE;  // bound by bind_ray_buffers (not owned)
+  // Bytes of the buffers bound as the rays, hits (bind_ray_buffers, or trace()'s own) and the
+  // frame's gather and parameters (bind_frame; 0: the stand-ins): the frame traces' checks
+  size_t bound_ray_bytes = 0, bound_hit_bytes = 0, bound_gather_bytes = 0, bound_frame_params_bytes = 0;
   size_t ray_capacity = 0;
   Image3D image;
   std::unique_ptr<Descriptors> set, dirty_set, build_list_set;
@@ -595,6 +599,8 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
     gpu.set->bind(shared::kGridBindHits, gpu.hits);
     gpu.set->bind(shared::kGridBindRayList, gpu.no_ray_list);
     gpu.ray_list = VK_NULL_HANDLE;
+    gpu.bound_ray_bytes = gpu.rays.size;
+    gpu.bound_hit_bytes = gpu.hits.size;
   }
   ctx.upload(gpu.rays, rays.data(), rays.size_bytes());
   const bool explain = explain_index != shared::kNoExplain;
@@ -669,6 +675,8 @@ void VulkanGridTracer::bind_ray_buffers(const Buffer& rays, const Buffer& hits, 
   gpu.set->bind(shared::kGridBindRayList, ray_list ? *ray_list : gpu.no_ray_list);
   gpu.ray_list = ray_list ? ray_list->buffer : VK_NULL_HANDLE;
   gpu.ray_capacity = 0;  // the next trace() makes and binds its own buffers again
+  gpu.bound_ray_bytes = rays.size;
+  gpu.bound_hit_bytes = hits.size;
 }
 
 void VulkanGridTracer::bind_frame(const Buffer& gather, const Buffer& frame_params, const Buffer& frame_materials) {
@@ -676,6 +684,8 @@ void VulkanGridTracer::bind_frame(const Buffer& gather, const Buffer& frame_para
   gpu_->set->bind(shared::kGridBindGather, gather);
   gpu_->set->bind(shared::kGridBindFrameParams, frame_params);
   gpu_->set->bind(shared::kGridBindFrameMaterials, frame_materials);
+  gpu_->bound_gather_bytes = gather.size;
+  gpu_->bound_frame_params_bytes = frame_params.size;
 }
 
 void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
@@ -712,6 +722,18 @@ void VulkanGridTracer::record_trace_image(VkCommandBuffer cb, uint32_t width, ui
 
 void VulkanGridTracer::record_frame_trace(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first_ray,
                                           uint32_t rays, glm::vec3 light, bool directional) {
+  // What the traces read and write must be bound and large enough: a clear error, not an access
+  // past a buffer on the device
+  const Gpu& gpu = *gpu_;
+  const uint64_t pixels = uint64_t(width) * height;
+  if (gpu.bound_gather_bytes < pixels * sizeof(shared::GatherTexel) ||
+      gpu.bound_frame_params_bytes < sizeof(shared::FrameParams))
+    throw Error("vulkan-grid: the frame's trace of a " + std::to_string(width) + "x" + std::to_string(height) +
+                " image needs bind_frame with a gather buffer of that many texels and the frame's parameters");
+  if (gpu.bound_ray_bytes < (first_ray + pixels) * sizeof(shared::RayRecord) ||
+      gpu.bound_hit_bytes < (first_ray + pixels) * sizeof(shared::HitRecord))
+    throw Error("vulkan-grid: the frame's trace writes rays and hits " + std::to_string(first_ray) + ".." +
+                std::to_string(first_ray + pixels) + ", past the bound ray or hit buffer (bind_ray_buffers)");
   const Pipeline& pipe =
       trace_pipeline(false, false, rays == shared::kTraceRaysShadow ? shared::kTraceAnyHit : shared::kTraceClosestHit, rays);
   pipe.bind(cb, gpu_->set->set());
