@@ -14,16 +14,13 @@ void main() {
   const uvec2 px = gl_GlobalInvocationID.xy;
   if (px.x >= c.width || px.y >= c.height) return;
   const uint p = px.y * c.width + px.x;
-  RayRecord ray = RayRecord(vec3(0.0f), 0.0f, vec3(0.0f, 0.0f, 1.0f), 0.0f, vec3(0.0f), kNoRef);
   const GatherTexel g = gather[p];
+  float gloss = 0.0f, cos_max = 1.0f;
   if ((kFrameFlags & kFrameBounce) != 0u && g.launch_ref != kNoRef && g.material < fp.material_count) {
-    const FrameMaterial m = fmaterials[g.material];
-    if (m.glossiness > 0.0f) {
-      const vec3 d = camera_direction(c, px.x, px.y);
-      const vec3 dir = bounce_direction(d, g.normal, m.glossiness, m.cos_max, pixel_random(px.x, px.y, fp.frame));
-      ray = RayRecord(g.position, 0.0f, dir, sh_infinity(), g.normal, g.launch_ref);
-    }
+    gloss = fmaterials[g.material].glossiness;
+    cos_max = fmaterials[g.material].cos_max;
   }
+  const RayRecord ray = frame_bounce_ray(c, fp.frame, g, gloss, cos_max, px.x, px.y);
   rays[p] = ray;
   if ((kFrameFlags & kFrameCompact) != 0u) {
     if (ray.tmax > 0.0f) {

@@ -6,6 +6,8 @@
 
 #include "gridrt/common/shared/compat.h"
 #include "gridrt/common/shared/bounce.h"
+#include "gridrt/common/shared/records.h"
+#include "gridrt/common/shared/shadow.h"
 
 SH_BEGIN
 
@@ -149,6 +151,25 @@ struct GatherBinPush {
   uint triangle_count;  // triangles of the geometry buffer
   uint instance_count;
 };
+
+// The frame's bounce ray of pixel (x, y) from its gather texel t, as common/gather.cpp's
+// bounce_rays makes it (the same functions): the glossy direction about the texel's normal, from
+// its position, leaving its launch triangle; the empty ray where the texel has no surface or its
+// material has no gloss. `gloss` and `cos_max`: the texel's material's (FrameMaterial; 0 where
+// the texel's material is outside the table). bounce.comp and the trace (trace.comp, the frame's
+// bounce trace) both make the frame's bounce rays with it.
+SH_INLINE RayRecord frame_bounce_ray(SH_IN(CameraParams) c, uint frame, SH_IN(GatherTexel) t, float gloss,
+                                     float cos_max, uint x, uint y) {
+  if (t.launch_ref == kNoRef || !(gloss > 0.0f)) return empty_shadow_ray();
+  RayRecord r;
+  r.org = t.position;
+  r.tmin = 0.0f;
+  r.dir = bounce_direction(camera_direction(c, x, y), t.normal, gloss, cos_max, pixel_random(x, y, frame));
+  r.tmax = uintBitsToFloat(0x7F800000u);  // +inf
+  r.launch_normal = t.normal;
+  r.launch_ref = t.launch_ref;
+  return r;
+}
 
 SH_END
 

@@ -58,19 +58,14 @@ layout(std430, binding = kGridBindFrameParams) readonly buffer FrameParamsBuffer
 layout(std430, binding = kGridBindFrameMaterials) readonly buffer FrameMaterials { FrameMaterial fmaterials[]; };
 layout(std430, binding = kGridBindRays) writeonly buffer RaysOut { RayRecord rays_out[]; };
 
-// The ray of pixel px that the frame's bounce pass makes (bounce.comp): the empty ray where the
-// pixel has no glossy surface.
-RayRecord frame_bounce_ray(uvec2 px, GatherTexel t) {
-  RayRecord ray = RayRecord(vec3(0.0f), 0.0f, vec3(0.0f, 0.0f, 1.0f), 0.0f, vec3(0.0f), kNoRef);
+// The frame's bounce ray of pixel px (frame_input.h's frame_bounce_ray, as bounce.comp makes it).
+RayRecord trace_bounce_ray(uvec2 px, GatherTexel t) {
+  float gloss = 0.0f, cos_max = 1.0f;
   if (t.launch_ref != kNoRef && t.material < fp.material_count) {
-    const FrameMaterial m = fmaterials[t.material];
-    if (m.glossiness > 0.0f) {
-      const vec3 d = camera_direction(fp.camera, px.x, px.y);
-      const vec3 dir = bounce_direction(d, t.normal, m.glossiness, m.cos_max, pixel_random(px.x, px.y, fp.frame));
-      ray = RayRecord(t.position, 0.0f, dir, sh_infinity(), t.normal, t.launch_ref);
-    }
+    gloss = fmaterials[t.material].glossiness;
+    cos_max = fmaterials[t.material].cos_max;
   }
-  return ray;
+  return frame_bounce_ray(fp.camera, fp.frame, t, gloss, cos_max, px.x, px.y);
 }
 
 layout(push_constant) uniform Push { TracePush pc; };
@@ -548,7 +543,7 @@ void main() {
     if (kTraceRays != kTraceRaysBuffer) {
       const GatherTexel t = gather[px.y * pc.tiled_width + px.x];
       const RayRecord ray = kTraceRays == kTraceRaysBounce
-                                ? frame_bounce_ray(px, t)
+                                ? trace_bounce_ray(px, t)
                                 : shadow_ray(t.position, t.normal, t.launch_ref, vec3(pc.light_x, pc.light_y, pc.light_z),
                                              pc.light_directional != 0u);
       rays_out[r] = ray;
