@@ -91,8 +91,8 @@ struct VulkanFrame::Gpu {
   Buffer tile_bins;  // the rasterizer's tile lists (GatherFineHeader, counts, starts, pairs)
   uint32_t screen_tiles = 0, pair_capacity = 0;
   Image2D color, depth;
-  std::unique_ptr<Descriptors> set, ray_list_set, tile_set;
-  std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, tile_dispatch, dirs;
+  std::unique_ptr<Descriptors> set, ray_list_set;
+  std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, dirs;
   std::unique_ptr<Pipeline> pairs, scan, fine;  // the rasterizer's tile lists and fine pass
   std::unique_ptr<Timestamps> timestamps;
   // The raster gather
@@ -476,11 +476,6 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     gpu.ray_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.ray_list_set->layout(), list_push);
   }
   if (compute) {
-    gpu.tile_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t, t});
-    gpu.tile_set->bind(0, gpu.tiles);
-    gpu.tile_set->bind(1, gpu.tile_bins);
-    gpu.tile_dispatch = std::make_unique<Pipeline>(ctx, "gather_tiles_dispatch.comp", gpu.tile_set->layout(),
-                                                   uint32_t(sizeof(uint32_t)));
     gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(sizeof(shared::GatherBinPush)), spec());
     if (gather_ == GatherMode::compute) gpu.dirs = std::make_unique<Pipeline>(ctx, "gather_dirs.comp", set.layout(), 0, spec());
     gpu.tile_pass = std::make_unique<Pipeline>(
@@ -524,31 +519,28 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
       const VkDescriptorSet s = gpu.set->set();
       if (gather_ != GatherMode::raster) {
         // Gather, compute: every key "nothing" (all ones), every tile's depth bound unknown (all
-        // ones), the triangles' set-up and work items, their pixels
-        vkCmdFillBuffer(cb, gpu.keys.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
-        vkCmdFillBuffer(cb, gpu.tile_depth.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
-        if (gpu.fine)  // the tile lists' counts
-          vkCmdFillBuffer(cb, gpu.tile_bins.buffer, sizeof(shared::GatherFineHeader), uint64_t(gpu.screen_tiles) * 4, 0u);
+        // ones), the tile lists' counts 0, and the pixels' ray directions, once (the rasterizer:
+        // one pass writes all of them); then the triangles' set-up and work items, their pixels
         if (gpu.dirs) {
-          // The pixels' ray directions, once
           gpu.dirs->bind(cb, s);
-          vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+          vkCmdDispatch(cb, groups(w, shared::kGatherTileSize), groups(h, shared::kGatherTileSize), 1);
+        } else {
+          vkCmdFillBuffer(cb, gpu.keys.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
+          vkCmdFillBuffer(cb, gpu.tile_depth.buffer, 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
         }
         gather_barrier(cb);
         if (timed) gpu.timestamps->write(cb, 9);
-        if (triangles) {
-          const glm::uvec3 g = shared::work_list_groups(triangles, 64u, max_groups_x);
-          const shared::GatherBinPush push{triangles, uint32_t(instances.size())};
+        {
+          // The bin pass (a workgroup even without triangles: its last workgroup writes the
+          // dispatches of the passes after it)
+          const glm::uvec3 g = shared::work_list_groups(std::max(triangles, 1u), 64u, max_groups_x);
+          const shared::GatherBinPush push{triangles, uint32_t(instances.size()), max_groups_x, 0u};
           gpu.bin->bind(cb, s);
           gpu.bin->push(cb, push);
           vkCmdDispatch(cb, g.x, g.y, 1);
         }
         gather_barrier(cb);
         if (timed) gpu.timestamps->write(cb, 1);
-        gpu.tile_dispatch->bind(cb, gpu.tile_set->set());
-        gpu.tile_dispatch->push(cb, max_groups_x);
-        vkCmdDispatch(cb, 1, 1, 1);
-        gather_barrier(cb);
         if (gpu.fine) {
           // The rasterizer: each bin's screen tiles counted, the counts scanned, the pairs
           // written, then one workgroup per screen tile; where the pairs overflowed, the item
@@ -566,22 +558,28 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           vkCmdDispatch(cb, std::clamp(scan_groups, 1u, max_groups_x), 1, 1);
           gather_barrier(cb);
           if (timed) gpu.timestamps->write(cb, 11);
+          // The scatter, and beside it the item pass (no barrier between: the scan gave the item
+          // pass workgroups only where the pairs overflowed, and then the scatter writes nothing)
           fine_push.scatter = 1u;
           gpu.pairs->bind(cb, s);
           gpu.pairs->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
+          gpu.tile_pass->bind(cb, s);
+          vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
           gather_barrier(cb);
           if (timed) gpu.timestamps->write(cb, 12);
+          // Then one workgroup per tile: its list, and the resolve of its pixels
           gpu.fine->bind(cb, s);
           gpu.fine->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, 0);
           gather_barrier(cb);
-        } else if (timed) {
-          for (uint32_t q : {10u, 11u, 12u}) gpu.timestamps->write(cb, q);
+        } else {
+          if (timed)
+            for (uint32_t q : {10u, 11u, 12u}) gpu.timestamps->write(cb, q);
+          gpu.tile_pass->bind(cb, s);
+          vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
+          gather_barrier(cb);
         }
-        gpu.tile_pass->bind(cb, s);
-        vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
-        gather_barrier(cb);
         if (timed) gpu.timestamps->write(cb, 2);
       } else {
         // Gather, raster: one draw per instance (firstInstance = its id), then the copy
@@ -610,13 +608,12 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 2);
       }
-      // Gather: position, normal, material, uv from the visible triangle (where the fine pass
-      // ran, it did this: the scan gave the resolve no workgroup)
-      gpu.resolve->bind(cb, s);
-      if (gpu.fine)
-        vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, resolve_x));
-      else
+      // Gather: position, normal, material, uv from the visible triangle (the rasterizer's fine
+      // pass did this)
+      if (!gpu.fine) {
+        gpu.resolve->bind(cb, s);
         vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+      }
       barrier(cb);
       if (timed) gpu.timestamps->write(cb, 3);
       if (bounce_) {

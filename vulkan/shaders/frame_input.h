@@ -45,7 +45,7 @@ struct GatherTileHeader {
   uint groups_z;
   uint tiles;       // items of the frame (written by the dispatch step)
   uint triangles;   // large triangles of the frame (written by the dispatch step)
-  uint pad0;
+  uint done;        // the bin pass's workgroups that finished (its last one runs the dispatch step)
   uint counter_lo;  // the append counter, 64 bits: items (low word) and triangles (high word),
   uint counter_hi;  // so one atomic gives a triangle both its list index and its first item
 };
@@ -70,18 +70,14 @@ struct GatherRasterTriangle {
 // next one starts, the last at `pairs`), then the pairs' words (a triangle's index in the list of
 // large triangles), `capacity` of them.
 struct GatherFineHeader {
-  uint groups_x;    // VkDispatchIndirectCommand of the fine pass: one workgroup per screen tile,
-  uint groups_y;    //   none when the pairs overflowed (the item pass runs instead)
+  uint groups_x;    // VkDispatchIndirectCommand of the fine pass: one workgroup per screen tile
+  uint groups_y;    //   (when the pairs overflowed, each tile's list is empty: it only resolves)
   uint groups_z;
   uint pairs;       // (tile, large triangle) pairs of the frame (written by the scan)
   uint items_x;     // VkDispatchIndirectCommand of the count and scatter passes: 64 work items
   uint items_y;     //   (32x32-pixel bins) per workgroup (written by the dispatch step)
   uint items_z;
-  uint overflow;    // 1: more pairs than the capacity; the fine pass does not run, the item pass does
-  uint resolve_x;   // VkDispatchIndirectCommand of gather_resolve.comp: none when the fine pass
-  uint resolve_y;   //   resolved every pixel, else 8x8 pixels per workgroup
-  uint resolve_z;
-  uint pad0;
+  uint overflow;    // 1: more pairs than the capacity; the item pass runs, the fine pass resolves
 };
 
 // Push constants of gather_pairs.comp and gather_scan.comp.
@@ -150,6 +146,8 @@ SH_CONST uint kFrameSpecFlags = 10u;
 struct GatherBinPush {
   uint triangle_count;  // triangles of the geometry buffer
   uint instance_count;
+  uint max_groups_x;    // the device's maxComputeWorkGroupCount[0] (the dispatch step's work lists)
+  uint pad0;
 };
 
 // The frame's bounce ray of pixel (x, y) from its gather texel t, as common/gather.cpp's
@@ -179,8 +177,8 @@ static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of Fra
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
 static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");
 static_assert(sizeof(gridrt::shared::GatherRasterTriangle) == 64, "std430 layout of GatherRasterTriangle");
-static_assert(sizeof(gridrt::shared::GatherBinPush) == 8, "layout of GatherBinPush");
-static_assert(sizeof(gridrt::shared::GatherFineHeader) == 48, "std430 layout of GatherFineHeader");
+static_assert(sizeof(gridrt::shared::GatherBinPush) == 16, "layout of GatherBinPush");
+static_assert(sizeof(gridrt::shared::GatherFineHeader) == 32, "std430 layout of GatherFineHeader");
 static_assert(sizeof(gridrt::shared::GatherFinePush) == 16, "layout of GatherFinePush");
 #endif
 

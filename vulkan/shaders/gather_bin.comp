@@ -6,6 +6,10 @@
 // of the screen its box touches (with kFrameGatherBoxes: the 8x8-pixel tiles of its box). One
 // 64-bit atomic per subgroup gives each its list index and its first item; the item pass finds an
 // item's triangle by binary search, so no invocation writes its items one by one.
+// The dispatch step, by the last workgroup to finish (a counter of finished workgroups): the
+// item pass one workgroup per item, the tile lists' count and scatter (gather_pairs.comp) 64
+// items per workgroup; the counters again at 0 for the next frame. (A pass of its own before,
+// one dependent step more.)
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_KHR_shader_subgroup_ballot : require
@@ -21,7 +25,8 @@ layout(std430, binding = kFrameBindTileList) buffer TileCounter {
 };
 layout(push_constant) uniform Push { GatherBinPush pc; };
 
-void main() {
+// The triangle of this invocation: its box, then its test here or its record in the list
+void bin_triangle() {
   const CameraParams c = fp.camera;
   const bool boxes = (kFrameFlags & kFrameGatherBoxes) != 0u;
   const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
@@ -78,4 +83,33 @@ void main() {
                              : gather_key_along(ref, k, tri, pixel_dirs[y * c.width + x].xyz, pixel_dirs[y * c.width + x].w, key);
       if (hit) atomicMin(gather_keys64[y * c.width + x], packUint2x32(key));
     }
+}
+
+shared bool s_last;  // this workgroup finished last
+
+void main() {
+  bin_triangle();
+  // Every invocation's append is done before the workgroup counts itself finished
+  memoryBarrierBuffer();
+  barrier();
+  if (gl_LocalInvocationIndex == 0u) {
+    const uint groups = gl_NumWorkGroups.x * gl_NumWorkGroups.y * gl_NumWorkGroups.z;
+    s_last = atomicAdd(tile_header.done, 1u) == groups - 1u;
+  }
+  barrier();
+  if (!s_last || gl_LocalInvocationIndex != 0u) return;
+  // The dispatch step: every workgroup's appends are in the counter (read and reset atomically)
+  memoryBarrierBuffer();
+  const uvec2 counted = unpackUint2x32(atomicExchange(tile_counter, 0ul));
+  const uvec3 groups = work_list_groups(counted.x, 1u, pc.max_groups_x);
+  tile_header.groups_x = groups.x;
+  tile_header.groups_y = groups.y;
+  tile_header.groups_z = groups.z;
+  tile_header.tiles = counted.x;
+  tile_header.triangles = counted.y;
+  tile_header.done = 0u;
+  const uvec3 items = work_list_groups(counted.x, 64u, pc.max_groups_x);
+  fine_header.items_x = items.x;
+  fine_header.items_y = items.y;
+  fine_header.items_z = items.z;
 }

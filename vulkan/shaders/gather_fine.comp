@@ -1,14 +1,16 @@
 #version 460
 // gather_fine.comp: the compute gather's fine rasterizer (gather_visibility.glsl; Laine and Karras,
 // "High-Performance Software Rasterization on GPUs"): one workgroup per 8x8-pixel screen tile,
-// dispatched indirectly (none when the pairs overflowed), one invocation per pixel, which keeps its
-// key in a register: the key the bin pass left (small triangles' atomics), then the minimum over
-// the tile's list of large triangles (gather_pairs.comp); then the pixel's gather texel from it
-// (gather_texel, as gather_resolve.comp would). The list is taken in batches of 64 pairs, each
+// dispatched indirectly, one invocation per pixel, which keeps its key in a register: the key the
+// bin pass left (small triangles' atomics), then the minimum over the tile's list of large
+// triangles (gather_pairs.comp; no list when the pairs overflowed: the item pass, gather_raster.comp,
+// left the large triangles' keys too); then the pixel's gather texel from it (gather_texel, as
+// gather_resolve.comp would). The list is taken in batches of 64 pairs, each
 // batch ranked by its triangles' lower t bounds, nearest first (the keys fall early and the depth
 // test below culls more). Per triangle:
-//   depth  the triangle is skipped by a whole subgroup when its lower t bound (raster_setup)
-//          exceeds the largest t of the subgroup's keys: it would have a larger t than every one
+//   depth  the batch's rest is skipped by a whole subgroup when the triangle's lower t bound
+//          (raster_setup) exceeds the largest t of the subgroup's keys: it would have a larger t
+//          than every one, and so would every triangle after it in the batch
 //   pixel  the edge functions at the pixel (raster_pixel_may_hit), then the gather's ray test along
 //          the pixel's camera_direction (gather_dirs.comp); an accepted hit lowers the key
 // The skips only leave out pairs the ray test rejects or that cannot win, and the minimum does not
@@ -38,8 +40,10 @@ void main() {
   const uint p = px.y * c.width + px.x;
   uint64_t key = on ? gather_keys64[p] : 0ul;  // off the screen: t 0, never raises the depth
   const vec4 dir = on ? pixel_dirs[p] : vec4(0.0f);
-  const uint begin = tile_words[pc.tiles + tile];
-  const uint end = tile + 1u < pc.tiles ? tile_words[pc.tiles + tile + 1u] : fine_header.pairs;
+  // The tile's list (none when the pairs overflowed: the item pass, before, left the keys)
+  const bool listed = fine_header.overflow == 0u;
+  const uint begin = listed ? tile_words[pc.tiles + tile] : 0u;
+  const uint end = !listed ? 0u : tile + 1u < pc.tiles ? tile_words[pc.tiles + tile + 1u] : fine_header.pairs;
   const uint lid = gl_LocalInvocationIndex;
   for (uint base = begin; base < end; base += kFineBatch) {
     // The batch's pairs in the order of their triangles' depth bounds (nearest first: the keys
@@ -63,18 +67,21 @@ void main() {
     barrier();
     for (uint j = 0u; j < n; ++j) {
       const GatherRasterTriangle g = tile_tris[s_order[j]];
-      // Depth: the subgroup's largest t (keys only decrease: a bound of every later key); the
-      // subgroup leaves the triangle out together (no early continue: the subgroup stays converged)
+      // Depth: the subgroup's largest t (keys only decrease: a bound of every later key). A
+      // triangle whose bound exceeds it wins no pixel of the subgroup, and neither does any after
+      // it in the batch (their bounds are no smaller, the depth no larger): the subgroup leaves
+      // the batch together (it stays converged)
       const uint depth = subgroupMax(unpackUint2x32(key).y);
-      if (floatBitsToUint(g.t_lo) <= depth && on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
+      if (floatBitsToUint(g.t_lo) > depth) break;
+      if (on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
         uvec2 k;
         if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
       }
     }
     barrier();  // the batch's order is read before the next batch rewrites it
   }
-  // The resolve, here: the gather texel along the same direction (gather_resolve.comp then runs
-  // for no pixel)
+  // The resolve, here: the gather texel along the same direction (gather_resolve.comp does not run
+  // with the rasterizer)
   if (on) {
     const uint ref = unpackUint2x32(key).x;
     visibility[p] = ref;
