@@ -224,9 +224,8 @@ void validate_camera(const Scene& s) {
     throw Error("scene '" + s.name + "': " + whose + " has non-finite values or a field of view outside (0, 180)");
   if (c.eye == c.target) throw Error("scene '" + s.name + "': " + whose + ": eye equals its target");
   // Every primary ray starts at the eye: beyond the ray domain's origin limit each one would be
-  // rejected (docs/SPEC.md, "Domain"), a picture of nothing. (A framed camera is beyond it only
-  // for geometry beyond it, which the grid refuses with its own message.)
-  if (s.camera && !(std::max({std::abs(c.eye.x), std::abs(c.eye.y), std::abs(c.eye.z)}) <= shared::kDomainMaxCoordinate))
+  // rejected (docs/SPEC.md, "Domain"), a picture of nothing. (frame_camera keeps its eye inside.)
+  if (!(std::max({std::abs(c.eye.x), std::abs(c.eye.y), std::abs(c.eye.z)}) <= shared::kDomainMaxCoordinate))
     throw Error("scene '" + s.name + "': " + whose + ": the eye lies beyond 2^24 from the origin, outside the ray " +
                 "domain (docs/SPEC.md, \"Domain\"): every primary ray would be rejected; move it nearer");
   const glm::vec3 forward = glm::normalize(c.target - c.eye);  // as the camera frame takes it
@@ -324,6 +323,11 @@ Camera Scene::frame_camera() const {
   const float fit = radius / std::tan(glm::radians(c.vfov_degrees) * 0.5f);
   const float dist = std::max({fit, reach * 0x1p-18f, 0x1p-50f});
   c.eye = center + glm::vec3(0.0f, 0.25f, 1.0f) * dist;
+  // And within the ray domain (docs/SPEC.md, "Domain"), where every primary ray can start: a model
+  // reaching near its edge is seen from nearer than its whole bounding sphere needs (a picture of
+  // part of it, not a picture of nothing); a model beyond it is refused by the grid.
+  const float lim = shared::kDomainMaxCoordinate;
+  c.eye = glm::clamp(c.eye, glm::vec3(-lim), glm::vec3(lim));
   return c;
 }
 

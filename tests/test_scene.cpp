@@ -2,11 +2,13 @@
 
 #include "gridrt/common/camera.h"
 #include "gridrt/common/scene.h"
+#include "gridrt/common/shared/grid.h"
 
 #include <algorithm>
 #include <cmath>
 
 using namespace gridrt;
+namespace sh = gridrt::shared;
 
 namespace {
 Mesh strip(uint32_t triangles) {
@@ -114,6 +116,31 @@ TEST_CASE("A camera whose eye lies outside the ray domain is refused when the sc
   CHECK_THROWS_WITH(s.finalize(), Catch::Contains("beyond 2^24"));
   s.camera = Camera{.eye = {1.6e7f, 0, 0}, .target = {0, 0, 0}, .up = {0, 1, 0}};  // just inside
   CHECK_NOTHROW(s.finalize());
+}
+
+TEST_CASE("The camera framed for a scene without one keeps its eye in the ray domain, and survives being made the scene's own", "[unit][scene][badinput]") {
+  // A model reaching near the domain's edge (whose whole bounding sphere would need an eye beyond
+  // it), and one beyond it (the grid refuses that one): the framed eye is inside, and the scene with
+  // it as its camera (as a model loads, and as its cache stores it) passes the same validation.
+  for (const float reach : {1e7f, 1.6e7f, 1e15f}) {
+    INFO("reach " << reach);
+    Scene s;
+    s.name = "wide";
+    Mesh m;
+    m.positions = {{-reach, 0, 0}, {reach, 0, 0}, {0, reach, 0}};
+    if (reach > sh::kDomainMaxCoordinate) m.positions = {{reach, 1, 1}, {1, 1, 1}, {0, 1, 1}};  // a fuzzer's find
+    m.triangles = {{0, 1, 2}};
+    m.materials = {0};
+    s.meshes.push_back(m);
+    s.instances.push_back(Instance{.name = "a", .mesh = 0});
+    REQUIRE_NOTHROW(s.finalize());
+    const Camera c = s.frame_camera();
+    CHECK(std::max({std::abs(c.eye.x), std::abs(c.eye.y), std::abs(c.eye.z)}) <= sh::kDomainMaxCoordinate);
+    // The primary ray through the image's centre is a valid ray, and points at the target
+    CHECK(sh::ray_valid(c.eye, glm::normalize(c.target - c.eye), 0.0f, sh::sh_infinity()));
+    s.camera = c;
+    CHECK_NOTHROW(s.finalize());
+  }
 }
 
 TEST_CASE("A small model far from the origin is framed to be seen, not a speck", "[unit][scene]") {
