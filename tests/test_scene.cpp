@@ -19,6 +19,19 @@ Mesh strip(uint32_t triangles) {
   m.materials.assign(triangles, 0u);
   return m;
 }
+
+// A scene of one triangle (a, b, c), one instance, no camera.
+Scene one_triangle(const std::string& name, glm::vec3 a, glm::vec3 b, glm::vec3 c) {
+  Scene s;
+  s.name = name;
+  Mesh m;
+  m.positions = {a, b, c};
+  m.triangles = {{0, 1, 2}};
+  m.materials = {0};
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  return s;
+}
 }  // namespace
 
 TEST_CASE("A mesh over 65,536 triangles is split into instances of at most 65,536", "[unit][scene]") {
@@ -85,14 +98,8 @@ TEST_CASE("The camera framed for a scene without one is usable at any scale and 
   for (const float scale : {1e-40f, 1e-30f, 1.0f, 1e18f})
     for (const float offset : {0.0f, 1e6f, -3e7f}) {
       INFO("scale " << scale << ", offset " << offset);
-      Scene s;
-      s.name = "speck";
-      Mesh m;
-      m.positions = {{offset, offset, offset}, {offset + scale, offset, offset}, {offset, offset + scale, offset}};
-      m.triangles = {{0, 1, 2}};
-      m.materials = {0};
-      s.meshes.push_back(m);
-      s.instances.push_back(Instance{.name = "a", .mesh = 0});
+      Scene s = one_triangle("speck", {offset, offset, offset}, {offset + scale, offset, offset},
+                             {offset, offset + scale, offset});
       const glm::vec3 e = s.bounds(0.0f).extent();
       if (std::max({e.x, e.y, e.z}) <= 0.0f) {
         CHECK_THROWS_WITH(s.finalize(), Catch::Contains("no extent"));  // the offset swallowed the size
@@ -124,15 +131,9 @@ TEST_CASE("The camera framed for a scene without one keeps its eye in the ray do
   // it as its camera (as a model loads, and as its cache stores it) passes the same validation.
   for (const float reach : {1e7f, 1.6e7f, 1e15f}) {
     INFO("reach " << reach);
-    Scene s;
-    s.name = "wide";
-    Mesh m;
-    m.positions = {{-reach, 0, 0}, {reach, 0, 0}, {0, reach, 0}};
-    if (reach > sh::kDomainMaxCoordinate) m.positions = {{reach, 1, 1}, {1, 1, 1}, {0, 1, 1}};  // a fuzzer's find
-    m.triangles = {{0, 1, 2}};
-    m.materials = {0};
-    s.meshes.push_back(m);
-    s.instances.push_back(Instance{.name = "a", .mesh = 0});
+    Scene s = reach > sh::kDomainMaxCoordinate
+                  ? one_triangle("wide", {reach, 1, 1}, {1, 1, 1}, {0, 1, 1})  // a fuzzer's find
+                  : one_triangle("wide", {-reach, 0, 0}, {reach, 0, 0}, {0, reach, 0});
     REQUIRE_NOTHROW(s.finalize());
     const Camera c = s.frame_camera();
     CHECK(std::max({std::abs(c.eye.x), std::abs(c.eye.y), std::abs(c.eye.z)}) <= sh::kDomainMaxCoordinate);
@@ -146,15 +147,8 @@ TEST_CASE("The camera framed for a scene without one keeps its eye in the ray do
 TEST_CASE("A small model far from the origin is framed to be seen, not a speck", "[unit][scene]") {
   // A triangle 0.1 across at (1e5, 2e5, -1e5): its bounding sphere must fill a fair part of the
   // framed view (it used to sit 2^-10 of the centre's reach away: one pixel in 64)
-  Scene s;
-  s.name = "far-speck";
-  Mesh m;
   const glm::vec3 o(1e5f, 2e5f, -1e5f);
-  m.positions = {o, o + glm::vec3(0.1f, 0.0f, 0.0f), o + glm::vec3(0.0f, 0.1f, 0.0f)};
-  m.triangles = {{0, 1, 2}};
-  m.materials = {0};
-  s.meshes.push_back(m);
-  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  Scene s = one_triangle("far-speck", o, o + glm::vec3(0.1f, 0.0f, 0.0f), o + glm::vec3(0.0f, 0.1f, 0.0f));
   REQUIRE_NOTHROW(s.finalize());
   const Camera c = s.frame_camera();
   REQUIRE(c.eye != c.target);
