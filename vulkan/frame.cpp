@@ -545,7 +545,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           // The rasterizer: each bin's screen tiles counted, the counts scanned, the pairs
           // written, then one workgroup per screen tile; where the pairs overflowed, the item
           // pass instead (the scan chose which of the two indirect dispatches has workgroups)
-          shared::GatherFinePush fine_push{gpu.screen_tiles, gpu.pair_capacity, max_groups_x, 0u};
+          shared::GatherFinePush fine_push{gpu.screen_tiles, gpu.pair_capacity, 0u, 0u};
           gpu.pairs->bind(cb, s);
           gpu.pairs->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
@@ -569,9 +569,10 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           gather_barrier(cb);
           if (timed) gpu.timestamps->write(cb, 12);
           // Then one workgroup per tile: its list, and the resolve of its pixels
+          const glm::uvec3 tile_groups = shared::work_list_groups(gpu.screen_tiles, 1u, max_groups_x);
           gpu.fine->bind(cb, s);
           gpu.fine->push(cb, fine_push);
-          vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, 0);
+          vkCmdDispatch(cb, tile_groups.x, tile_groups.y, tile_groups.z);
           gather_barrier(cb);
         } else {
           if (timed)

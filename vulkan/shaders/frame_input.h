@@ -70,22 +70,22 @@ struct GatherRasterTriangle {
 // next one starts, the last at `pairs`), then the pairs' words (a triangle's index in the list of
 // large triangles), `capacity` of them.
 struct GatherFineHeader {
-  uint groups_x;    // VkDispatchIndirectCommand of the fine pass: one workgroup per screen tile
-  uint groups_y;    //   (when the pairs overflowed, each tile's list is empty: it only resolves)
-  uint groups_z;
-  uint pairs;       // (tile, large triangle) pairs of the frame (written by the scan)
   uint items_x;     // VkDispatchIndirectCommand of the count and scatter passes: 64 work items
   uint items_y;     //   (32x32-pixel bins) per workgroup (written by the dispatch step)
   uint items_z;
-  uint overflow;    // 1: more pairs than the capacity; the item pass runs, the fine pass resolves
+  uint pairs;       // (tile, large triangle) pairs of the frame (written by the scan)
+  uint overflow;    // 1: more pairs than the capacity; the item pass runs, and the fine pass (one
+  uint pad0;        //   workgroup per screen tile, dispatched directly) reads no list: it only
+  uint pad1;        //   resolves
+  uint pad2;
 };
 
-// Push constants of gather_pairs.comp and gather_scan.comp.
+// Push constants of gather_pairs.comp, gather_scan.comp and gather_fine.comp.
 struct GatherFinePush {
   uint tiles;         // 8x8-pixel screen tiles
   uint capacity;      // pair words after the counts and starts
-  uint max_groups_x;  // maxComputeWorkGroupCount[0]
   uint scatter;       // gather_pairs.comp: 0 counts the pairs, 1 writes them
+  uint pad0;
 };
 
 // Pixels of a side of the rasterizer's bins (its work items) and tiles (its depth culling).

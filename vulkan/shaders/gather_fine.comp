@@ -1,7 +1,7 @@
 #version 460
 // gather_fine.comp: the compute gather's fine rasterizer (gather_visibility.glsl; Laine and Karras,
 // "High-Performance Software Rasterization on GPUs"): one workgroup per 8x8-pixel screen tile,
-// dispatched indirectly, one invocation per pixel, which keeps its key in a register: the key the
+// dispatched directly, one invocation per pixel, which keeps its key in a register: the key the
 // bin pass left (small triangles' atomics), then the minimum over the tile's list of large
 // triangles (gather_pairs.comp; no list when the pairs overflowed: the item pass, gather_raster.comp,
 // left the large triangles' keys too); then the pixel's gather texel from it (gather_texel, as

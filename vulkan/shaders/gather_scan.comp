@@ -7,10 +7,9 @@
 // shared memory (read and written in whole rows of the buffer, 256 consecutive words an
 // instruction); each invocation sums 16 consecutive counts there, the sums are scanned by
 // subgroup arithmetic, then across the subgroups. The counts stay (the scatter counts them
-// down). The workgroup with the last tile writes the frame's pairs and the dispatches: the fine
-// pass one workgroup per tile (it resolves its pixels); pairs over the capacity, the item pass
-// (gather_raster.comp) keeps its dispatch and the fine pass reads no list (it only resolves what
-// the item pass left); else the item pass gets none.
+// down). The workgroup with the last tile writes the frame's pairs and whether they overflowed:
+// pairs over the capacity, the item pass (gather_raster.comp) keeps its dispatch and the fine
+// pass reads no list (it only resolves what the item pass left); else the item pass gets none.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
@@ -94,10 +93,6 @@ void main() {
   }
   if (lid == 0u && last == pc.tiles) {
     const bool overflow = carry > uint64_t(pc.capacity);
-    const uvec3 groups = work_list_groups(pc.tiles, 1u, pc.max_groups_x);
-    fine_header.groups_x = groups.x;
-    fine_header.groups_y = groups.y;
-    fine_header.groups_z = groups.z;
     fine_header.pairs = uint(min(carry, uint64_t(0xFFFFFFFFu)));
     fine_header.overflow = overflow ? 1u : 0u;
     if (!overflow) tile_header.groups_x = 0u;
