@@ -2,7 +2,7 @@
 """tools/mutate/mutate.py: mutation testing of the shaders (docs/VULKAN.md, "Mutation testing").
 
 Copies the source tree (tracked and untracked-but-not-ignored files) to build/mutate/src, builds
-it once (the release preset, ccache), then for each mutant of tools/mutate/mutants.txt: restores
+it once (the release preset, ccache where installed), then for each mutant of tools/mutate/mutants.txt: restores
 the pristine file, applies the mutant, rebuilds (-j1 by default) and runs the Catch2 tests the
 mutant names (its `tests:` filter, the real-scene tests left out unless --scenes). A mutant is
   stillborn  its original text is not found exactly once, the build fails (a shader that does
@@ -127,8 +127,9 @@ def main():
     copy_tree(work)
     env = dict(os.environ)
     env.setdefault("GRIDRT_SCENES", os.path.join(os.path.dirname(ROOT), "shared", "data", "scenes"))
-    for k, v in (("CMAKE_CXX_COMPILER_LAUNCHER", "ccache"), ("CMAKE_C_COMPILER_LAUNCHER", "ccache")):
-        env.setdefault(k, v)
+    if shutil.which("ccache"):  # where installed (the copy builds without it too, only slower)
+        for k, v in (("CMAKE_CXX_COMPILER_LAUNCHER", "ccache"), ("CMAKE_C_COMPILER_LAUNCHER", "ccache")):
+            env.setdefault(k, v)
     build = os.path.join(work, "build", "release")
     binary = os.path.join(build, "tests", "gridrt_tests")
     rc, out = run(["cmake", "--preset", "release"], work, env=env)
