@@ -264,6 +264,9 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
     t["update"].push_back(update);
     t["clear"].push_back(moves && stamps ? g.clear_ms : 0.0);
     t["insert"].push_back(moves && stamps ? g.insert_ms : 0.0);
+    t["insert_triangles"].push_back(moves && stamps ? g.insert_triangles_ms : 0.0);
+    t["insert_runs"].push_back(moves && stamps ? g.insert_runs_ms : 0.0);
+    t["order"].push_back(moves && stamps ? g.order_ms : 0.0);
     t["gather"].push_back(stamps ? ft.gather_ms : 0.0);
     t["visibility"].push_back(stamps ? ft.visibility_ms : 0.0);
     t["copy"].push_back(stamps ? ft.copy_ms : 0.0);
@@ -474,10 +477,14 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
               gather_name, gather_tiles, pair_text.c_str(), m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
               o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_skip"], m["build_dynamic"]);
   if (frame.gather_mode() == vulkan::GatherMode::compute && stamps)
-    std::printf("gather passes: fills and pixel directions %.3f, bin %.3f, count %.3f, scan %.3f, scatter %.3f, "
-                "fine (with its resolve) %.3f ms\n",
+    std::printf("gather passes: starting pass (keys, depth bounds, list counts, pixel rays) %.3f, bin %.3f, count %.3f, "
+                "scan %.3f, scatter %.3f, fine (with its resolve) %.3f ms\n",
                 m["gather_dirs"], m["bin"] - m["gather_dirs"], m["gather_count"], m["gather_scan"], m["gather_scatter"],
                 m["gather_fine"]);
+  if (stamps && m["update"] > 0.0)
+    std::printf("update passes: clear %.3f, triangles (with the runs' dispatch) %.3f, runs of long ranges %.3f, spill "
+                "lists' order %.3f ms\n",
+                m["clear"], m["insert_triangles"], m["insert_runs"], m["order"]);
   std::printf("grid memory (%s layout): %s %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, dirty-cell "
               "list %.1f MiB, total %.1f MiB\n",
               mem.compact ? "compact" : "image", mem.compact ? "offsets and references" : "image", mem.grid, mem.spill,

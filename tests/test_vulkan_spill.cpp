@@ -108,22 +108,31 @@ TEST_CASE("Vulkan spill: dynamic references spill and move - the clear pass rese
   const Scene scene = gridtest::fan_scene(32, 16);
   GridOptions o = small_capacity(Traversal::exact, GridOptions::Spill::on);
   ReferenceGridTracer ref(o);
-  VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute});
   ref.build(scene, 0.0f);
-  vk.build(scene, 0.0f);
-  check_spill(ref.spill(), vk.spill());
-  for (float time : {1.0f, 2.0f, 3.0f, 2.0f}) {
-    INFO("t = " << time);
-    ref.update(time);
-    vk.update(time);
-    check_spill(ref.spill(), vk.spill());
-    CHECK(vk.spill_header().count == ref.data().spill_header.count);
-    CHECK(reference::compare_texels(ref.dump(), vk.dump()).differing.empty());
-    const std::vector<Ray> rays = gridtest::fan_rays(ref.data(), 1500, uint32_t(time * 10));
-    std::vector<Hit> want(rays.size()), got(rays.size());
-    ref.trace(rays, want);
-    vk.trace(rays, got);
-    CHECK(differing_hits(rays, want, got) == 0);
+  // The order pass's walks in its shared copy of the entries (the device's size, and exactly the
+  // build's dynamic entries) and in the buffer (one entry fewer than those: the copy too small)
+  const uint32_t dynamic = ref.data().spill_header.count - ref.data().spill_header.static_count;
+  REQUIRE(dynamic > 1u);
+  for (uint32_t shared_entries : {0u, dynamic, dynamic - 1u}) {
+    INFO("order pass's shared copy " << shared_entries << " entries (0: the device's), " << dynamic << " dynamic");
+    ReferenceGridTracer want_grid(o);
+    want_grid.build(scene, 0.0f);
+    VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute, .order_shared_entries = shared_entries});
+    vk.build(scene, 0.0f);
+    check_spill(want_grid.spill(), vk.spill());
+    for (float time : {1.0f, 2.0f, 3.0f, 2.0f}) {
+      INFO("t = " << time);
+      want_grid.update(time);
+      vk.update(time);
+      check_spill(want_grid.spill(), vk.spill());
+      CHECK(vk.spill_header().count == want_grid.data().spill_header.count);
+      CHECK(reference::compare_texels(want_grid.dump(), vk.dump()).differing.empty());
+      const std::vector<Ray> rays = gridtest::fan_rays(want_grid.data(), 1500, uint32_t(time * 10));
+      std::vector<Hit> want(rays.size()), got(rays.size());
+      want_grid.trace(rays, want);
+      vk.trace(rays, got);
+      CHECK(differing_hits(rays, want, got) == 0);
+    }
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

@@ -311,9 +311,16 @@ void VulkanGridTracer::create_pipelines() {
                                          spec_for(g, false));
   gpu.dirty_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.dirty_set->layout(),
                                                   uint32_t(sizeof(shared::WorkListDispatchPush)));
-  if (gpu.spill_capacity)
+  if (gpu.spill_capacity) {
+    // The order pass's shared copy of the entries: as many as the device's shared memory holds,
+    // 8 bytes each (Vulkan guarantees 16 KiB: 2048 entries), or fewer where asked
+    const uint32_t device_entries = std::max(dev.limits.maxComputeSharedMemorySize / 8u, 1u);
+    SpecConstants order_spec = spec_for(g, false);
+    order_spec.add(shared::kGridSpecOrderShared,
+                   vk_.order_shared_entries ? std::min(vk_.order_shared_entries, device_entries) : device_entries);
     gpu.order = std::make_unique<Pipeline>(ctx, "spill_order.comp", set.layout(), uint32_t(sizeof(shared::SpillOrderPush)),
-                                           spec_for(g, false));
+                                           std::move(order_spec));
+  }
   if ((g.flags & shared::kGridCompact) != 0u)
     gpu.compact = std::make_unique<Pipeline>(ctx, "compact.comp", set.layout(), uint32_t(sizeof(shared::CompactPush)),
                                              spec_for(g, false));
@@ -322,7 +329,7 @@ void VulkanGridTracer::create_pipelines() {
                                                 spec_for(g, false));
   if (dev.timestamp_valid_bits) {
     gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
-    gpu.update_timestamps = std::make_unique<Timestamps>(ctx, 3);  // begin, after the clear, end
+    gpu.update_timestamps = std::make_unique<Timestamps>(ctx, 5);  // begin, after the clear, the triangles, the runs, end
     gpu.build_timestamps = std::make_unique<Timestamps>(ctx, 5);   // begin, after init, static, skip, dynamic
   }
 }
@@ -491,33 +498,41 @@ const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32
 // firstInstance = its id) or the compute build (one invocation per triangle), then, in both, one
 // invocation per run of kBuildRun cells of the long AABB ranges those appended to the build list
 // (build.glsl: no invocation walks a long range alone, which lavapipe cuts short, docs/VULKAN.md).
-void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last) {
+void VulkanGridTracer::insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last, Timestamps* stamps,
+                                        uint32_t stamp) {
   if (first >= last) return;
   Gpu& gpu = *gpu_;
+  const uint32_t max_groups_x = ctx_->info().limits.maxComputeWorkGroupCount[0];
   if (vk_.build == BuildMode::raster) {
     gpu.raster->begin_pass(cb);
     gpu.raster->bind(cb, gpu.set->set());
     for (uint32_t i = first; i < last; ++i)
       if (instances_[i].tri_count) vkCmdDraw(cb, 3 * instances_[i].tri_count, 1, 0, i);
     gpu.raster->end_pass(cb);
+    barrier(cb);
+    const shared::WorkListDispatchPush list_push{64u, max_groups_x, gpu.build_list_capacity};
+    gpu.build_list_dispatch->bind(cb, gpu.build_list_set->set());
+    gpu.build_list_dispatch->push(cb, list_push);
+    vkCmdDispatch(cb, 1, 1, 1);
   } else {
+    // In chunks of at most maxComputeWorkGroupCount workgroups, at least one workgroup (the last
+    // workgroup of all, counted across the chunks, is the build list's dispatch step)
     const uint32_t begin = instances_[first].tri_offset;
     const uint32_t end = instances_[last - 1].tri_offset + instances_[last - 1].tri_count;
-    const uint32_t chunk = ctx_->info().limits.maxComputeWorkGroupCount[0] * 64u;
+    const uint32_t chunk = max_groups_x * 64u;
+    const uint32_t total_groups = std::max(groups(end - begin, 64), 1u);
     gpu.compute->bind(cb, gpu.set->set());
-    for (uint32_t t = begin; t < end; t += std::min(chunk, end - t)) {
-      const shared::BuildPush push{first, last, t, std::min(chunk, end - t)};
+    uint32_t t = begin;
+    do {
+      const uint32_t count = std::min(chunk, end - t);
+      const shared::BuildPush push{first, last, t, count, total_groups, max_groups_x, 0u, 0u};
       gpu.compute->push(cb, push);
-      vkCmdDispatch(cb, groups(push.tri_count, 64), 1, 1);
-    }
+      vkCmdDispatch(cb, std::max(groups(count, 64), 1u), 1, 1);
+      t += count;
+    } while (t < end);
   }
   barrier(cb);
-  const shared::WorkListDispatchPush list_push{64u, ctx_->info().limits.maxComputeWorkGroupCount[0],
-                                               gpu.build_list_capacity};
-  gpu.build_list_dispatch->bind(cb, gpu.build_list_set->set());
-  gpu.build_list_dispatch->push(cb, list_push);
-  vkCmdDispatch(cb, 1, 1, 1);
-  barrier(cb);
+  if (stamps) stamps->write(cb, stamp);
   gpu.build_cells->bind(cb, gpu.set->set());
   vkCmdDispatchIndirect(cb, gpu.build_list.buffer, 0);
 }
@@ -568,19 +583,24 @@ void VulkanGridTracer::update(float time) {
       barrier(cb);
     }
     if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 1, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
-    // Insert the dynamic instances at their new transforms, then order their spill lists
-    insert_instances(cb, static_instances_, n);
+    // Insert the dynamic instances at their new transforms (the triangles, then the runs of the
+    // long ranges), then order their spill lists
+    insert_instances(cb, static_instances_, n, gpu.update_timestamps.get(), 2);
     barrier(cb);
+    if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 3, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
     record_spill_order(cb, true);
-    if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 2, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+    if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 4, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
   timings_.update_host_ms = ms_since(t0);
   after_insert();
   if (gpu.update_timestamps) {
     const std::vector<double> ns = gpu.update_timestamps->read_ns();
-    timings_.update_ms = (ns[2] - ns[0]) * 1e-6;
+    timings_.update_ms = (ns[4] - ns[0]) * 1e-6;
     timings_.clear_ms = (ns[1] - ns[0]) * 1e-6;
-    timings_.insert_ms = (ns[2] - ns[1]) * 1e-6;
+    timings_.insert_ms = (ns[4] - ns[1]) * 1e-6;
+    timings_.insert_triangles_ms = (ns[2] - ns[1]) * 1e-6;
+    timings_.insert_runs_ms = (ns[3] - ns[2]) * 1e-6;
+    timings_.order_ms = (ns[4] - ns[3]) * 1e-6;
   }
 }
 

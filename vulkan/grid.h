@@ -40,6 +40,10 @@ struct VulkanGridOptions {
   // The build's run list (build.glsl) in runs; 0: 2^20, within maxStorageBufferRange (tests set a
   // small one to fill it exactly or to overflow it)
   uint32_t build_list_capacity = 0;
+  // The spill order pass's shared copy of the entries (spill_order.comp), in entries; 0: as many
+  // as maxComputeSharedMemorySize holds (tests set a smaller one: a pass with more entries than
+  // the copy holds walks the buffer instead)
+  uint32_t order_shared_entries = 0;
 };
 
 // Time of the last build, update and trace, milliseconds: on the device (timestamp queries
@@ -49,7 +53,10 @@ struct VulkanGridOptions {
 struct GridTimings {
   double build_ms = 0.0, update_ms = 0.0, trace_ms = 0.0;
   double build_host_ms = 0.0, update_host_ms = 0.0, trace_host_ms = 0.0;
-  double clear_ms = 0.0, insert_ms = 0.0;  // the update's two passes (device), update_ms = their sum
+  double clear_ms = 0.0, insert_ms = 0.0;  // the update's two parts (device), update_ms = their sum
+  // The insert's parts: the triangles (with the runs' dispatch), the runs of long ranges, the
+  // spill lists' order pass
+  double insert_triangles_ms = 0.0, insert_runs_ms = 0.0, order_ms = 0.0;
   // The build's passes (device): the blank image, the static instances, the dynamic ones
   double build_init_ms = 0.0, build_static_ms = 0.0, build_skip_ms = 0.0, build_dynamic_ms = 0.0;
 };
@@ -151,7 +158,9 @@ class VulkanGridTracer : public Tracer {
                         const std::vector<uint32_t>& indices);
   void create_pipelines();
   void record_build(uint32_t instance_count);
-  void insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last);
+  // `stamps`: timestamp `stamp` written between the triangles and the runs
+  void insert_instances(VkCommandBuffer cb, uint32_t first, uint32_t last, Timestamps* stamps = nullptr,
+                        uint32_t stamp = 0);
   // Reads the spill header back, sets the trace's flags from it (plan::trace_flags) and
   // warns once on an overflow.
   void after_insert();

@@ -2,8 +2,9 @@
 // indirectly over exactly the items appended (docs/SPEC.md, "Scene update"; docs/VULKAN.md). One
 // storage buffer: this header, then the items (uint), then whatever the owner keeps beside them.
 //   append     i = atomicAdd(header.appended, 1); items[i] = item
-//   dispatch   one invocation (work_list_dispatch.comp): size = appended, appended = 0, and the
-//              indirect dispatch's group counts for `size` items (dispatched += size)
+//   dispatch   one invocation (work_list_dispatch.comp, or the appending pass's last workgroup to
+//              finish, counted in `done`): size = appended, appended = 0, and the indirect
+//              dispatch's group counts for `size` items (dispatched += size)
 //   work       invocation k < size takes items[k] (work_list_index)
 // The grid's dirty cells (vulkan/grid.cpp; the reference emulates the same buffer) and the
 // frame's compacted bounce rays (vulkan/frame.cpp) use it.
@@ -21,7 +22,7 @@ struct WorkListHeader {
   uint size;       // items the pass over the list works on (written by the dispatch pass)
   uint appended;   // items appended since the last dispatch pass
   uint dispatched; // items of every dispatch pass so far (statistics)
-  uint pad0;
+  uint done;       // workgroups of the appending pass finished (where its last one dispatches; back to 0 then)
   uint pad1;
 };
 

@@ -54,7 +54,7 @@ diff)
   } 2>&1 | tee "$out/diff.txt"
   ;;
 bench)
-  sel='^\| (grid|rtx|[0-9])|^agree|^grid memory|warm build split|^vulkan|error'
+  sel='^\| (grid|rtx|[0-9])|^agree|^grid memory|warm build split|^update passes|^vulkan|error'
   {
     for s in "${scenes[@]}" bunny builtin:atrium; do
       X=$E/$s.gridscene
@@ -84,7 +84,7 @@ gather | frame)
   # The compute gather's screen box (common/shared/raster.h gather_box) against the baseline's:
   # per scene, the baseline binary and this one at their defaults, one after the other
   B="--backend vulkan --traversal exact --vk-build compute --frames 30 --warmup 5"
-  sel='^\| [0-9]|^gather split|^gather passes|^shadow pass|^back to back|error'
+  sel='^\| [0-9]|^gather split|^gather passes|^update passes|^shadow pass|^back to back|error'
   {
     for s in "${scenes[@]}" builtin:atrium; do
       X=$E/$s.gridscene

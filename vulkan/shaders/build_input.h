@@ -24,13 +24,17 @@ struct BuildPush {
   uint last_instance;
   uint tri_begin;       // compute: geometry-buffer index of invocation 0
   uint tri_count;       // compute: invocations of this dispatch
+  uint groups;          // compute: workgroups of all the pass's dispatches (its last one writes the runs' dispatch)
+  uint max_groups_x;    // compute: maxComputeWorkGroupCount[0]
+  uint pad0;
+  uint pad1;
 };
 
 SH_END
 
 #ifdef __cplusplus
 static_assert(sizeof(gridrt::shared::BuildInstance) == 64, "std430 layout of BuildInstance");
-static_assert(sizeof(gridrt::shared::BuildPush) == 16, "layout of BuildPush");
+static_assert(sizeof(gridrt::shared::BuildPush) == 32, "layout of BuildPush");
 #endif
 
 #endif

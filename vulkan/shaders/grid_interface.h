@@ -57,6 +57,7 @@ SH_CONST uint kGridSpecTriangleTest = 6u;  // GridParams::triangle_test
 SH_CONST uint kGridSpecTraceList = 7u;     // trace: rays from the ray list (dispatched indirectly)
 SH_CONST uint kGridSpecTraceMode = 8u;     // trace: which hit, kTraceClosestHit or kTraceAnyHit (shared/grid.h)
 SH_CONST uint kGridSpecTraceRays = 9u;     // trace: where an image's rays come from (kTraceRays*)
+SH_CONST uint kGridSpecOrderShared = 10u;   // spill_order.comp: entries its shared copy holds (from maxComputeSharedMemorySize)
 
 // Where the trace's rays come from (kGridSpecTraceRays): the ray buffer, or (the frame's traces,
 // an image's rays in tiles) made by the trace from each pixel's gather texel, as the frame's passes
