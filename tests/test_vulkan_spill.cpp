@@ -101,37 +101,45 @@ TEST_CASE("Vulkan spill: a fan in one cell of capacity 4 - the spill list equal 
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
-TEST_CASE("Vulkan spill: dynamic references spill and move - the clear pass resets the counter on the device",
+TEST_CASE("Vulkan spill: dynamic references spill and move - the clear pass resets the counter on the device, the "
+          "order pass walks in shared memory or in the buffer, both layouts",
           "[vulkan][diff][grid][hardcase]") {
   vulkan::Context& ctx = vk_context();
   ctx.clear_messages();
   const Scene scene = gridtest::fan_scene(32, 16);
-  GridOptions o = small_capacity(Traversal::exact, GridOptions::Spill::on);
-  ReferenceGridTracer ref(o);
-  ref.build(scene, 0.0f);
-  // The order pass's walks in its shared copy of the entries (the device's size, and exactly the
-  // build's dynamic entries) and in the buffer (one entry fewer than those: the copy too small)
-  const uint32_t dynamic = ref.data().spill_header.count - ref.data().spill_header.static_count;
-  REQUIRE(dynamic > 1u);
-  for (uint32_t shared_entries : {0u, dynamic, dynamic - 1u}) {
-    INFO("order pass's shared copy " << shared_entries << " entries (0: the device's), " << dynamic << " dynamic");
-    ReferenceGridTracer want_grid(o);
-    want_grid.build(scene, 0.0f);
-    VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute, .order_shared_entries = shared_entries});
-    vk.build(scene, 0.0f);
-    check_spill(want_grid.spill(), vk.spill());
-    for (float time : {1.0f, 2.0f, 3.0f, 2.0f}) {
-      INFO("t = " << time);
-      want_grid.update(time);
-      vk.update(time);
+  // Both layouts: the image's spill list holds static entries before the dynamic ones (the
+  // dynamic order pass starts past them), the compact layout's only dynamic ones
+  for (GridOptions::Layout layout : {GridOptions::Layout::compact, GridOptions::Layout::image}) {
+    GridOptions o = small_capacity(Traversal::exact, GridOptions::Spill::on);
+    o.layout = layout;
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    REQUIRE((layout == GridOptions::Layout::compact) == (ref.data().spill_header.static_count == 0u));
+    // The order pass's walks in its shared copy of the entries (the device's size, and exactly the
+    // build's dynamic entries) and in the buffer (one entry fewer than those: the copy too small)
+    const uint32_t dynamic = ref.data().spill_header.count - ref.data().spill_header.static_count;
+    REQUIRE(dynamic > 1u);
+    for (uint32_t shared_entries : {0u, dynamic, dynamic - 1u}) {
+      INFO((layout == GridOptions::Layout::compact ? "compact" : "image") << " layout, order pass's shared copy "
+           << shared_entries << " entries (0: the device's), " << dynamic << " dynamic");
+      ReferenceGridTracer want_grid(o);
+      want_grid.build(scene, 0.0f);
+      VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute, .order_shared_entries = shared_entries});
+      vk.build(scene, 0.0f);
       check_spill(want_grid.spill(), vk.spill());
-      CHECK(vk.spill_header().count == want_grid.data().spill_header.count);
-      CHECK(reference::compare_texels(want_grid.dump(), vk.dump()).differing.empty());
-      const std::vector<Ray> rays = gridtest::fan_rays(want_grid.data(), 1500, uint32_t(time * 10));
-      std::vector<Hit> want(rays.size()), got(rays.size());
-      want_grid.trace(rays, want);
-      vk.trace(rays, got);
-      CHECK(differing_hits(rays, want, got) == 0);
+      for (float time : {1.0f, 2.0f, 3.0f, 2.0f}) {
+        INFO("t = " << time);
+        want_grid.update(time);
+        vk.update(time);
+        check_spill(want_grid.spill(), vk.spill());
+        CHECK(vk.spill_header().count == want_grid.data().spill_header.count);
+        CHECK(reference::compare_texels(want_grid.dump(), vk.dump()).differing.empty());
+        const std::vector<Ray> rays = gridtest::fan_rays(want_grid.data(), 1500, uint32_t(time * 10));
+        std::vector<Hit> want(rays.size()), got(rays.size());
+        want_grid.trace(rays, want);
+        vk.trace(rays, got);
+        CHECK(differing_hits(rays, want, got) == 0);
+      }
     }
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
