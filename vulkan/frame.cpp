@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 
 #include "gridrt/common/camera.h"
 #include "gridrt/vulkan/pipeline.h"
@@ -372,7 +373,16 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   // Buffers
   const size_t pixels = size_t(w) * h;
   const VkBufferUsageFlags sb = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-  gpu.params = make_buffer(ctx, std::vector<shared::FrameParams>{fp});
+  {
+    // The parameters, then the camera's steps per column and per row (frame_common.glsl)
+    std::vector<float> steps(size_t(w) + h);
+    for (uint32_t x = 0; x < w; ++x) steps[x] = shared::camera_step_x(fp.camera, x);
+    for (uint32_t y = 0; y < h; ++y) steps[w + y] = shared::camera_step_y(fp.camera, y);
+    std::vector<uint8_t> bytes(sizeof fp + steps.size() * sizeof(float));
+    std::memcpy(bytes.data(), &fp, sizeof fp);
+    std::memcpy(bytes.data() + sizeof fp, steps.data(), steps.size() * sizeof(float));
+    gpu.params = make_buffer(ctx, bytes);
+  }
   gpu.materials = make_buffer(ctx, materials);
   gpu.texels = make_buffer(ctx, texels);
   gpu.lights = make_buffer(ctx, lights);

@@ -50,18 +50,26 @@ SH_INLINE vec3 sh_normalize(SH_IN(vec3) v) {
   return r;
 }
 
-// The unit direction of the ray through the centre of pixel (x, y), row 0 at the top
-// (camera_ray: sx and sy in the order it computes them).
-SH_INLINE vec3 camera_direction(SH_IN(CameraParams) c, uint x, uint y) {
-  SH_PRECISE float fx = sh_div(2.0f * (float(x) + 0.5f), float(c.width));
+// camera_direction (below): the unit direction of the ray through the centre of pixel (x, y), row 0
+// at the top (camera_ray: sx and sy in the order it computes them). Its two divisions depend on
+// the column or the row alone: camera_step_x and camera_step_y (the rasterizer's starting pass
+// reads them from a table the host made with these functions: the same bits), then
+// camera_direction_steps.
+SH_INLINE float camera_step_x(SH_IN(CameraParams) c, uint x) { return sh_div(2.0f * (float(x) + 0.5f), float(c.width)); }
+SH_INLINE float camera_step_y(SH_IN(CameraParams) c, uint y) { return sh_div(2.0f * (float(y) + 0.5f), float(c.height)); }
+
+SH_INLINE vec3 camera_direction_steps(SH_IN(CameraParams) c, float fx, float fy) {
   SH_PRECISE float sx = ((fx - 1.0f) * c.tan_half_fov) * c.aspect;
-  SH_PRECISE float fy = sh_div(2.0f * (float(y) + 0.5f), float(c.height));
   SH_PRECISE float sy = (1.0f - fy) * c.tan_half_fov;
   SH_PRECISE vec3 a = c.right * sx;
   SH_PRECISE vec3 b = c.up * sy;
   SH_PRECISE vec3 d0 = c.forward + a;
   SH_PRECISE vec3 d = d0 + b;
   return sh_normalize(d);
+}
+
+SH_INLINE vec3 camera_direction(SH_IN(CameraParams) c, uint x, uint y) {
+  return camera_direction_steps(c, camera_step_x(c, x), camera_step_y(c, y));
 }
 
 // Unit geometric normal of triangle (a, b, c), flipped to face against `dir`; w = 0 when the

@@ -16,7 +16,12 @@
 
 layout(constant_id = kFrameSpecFlags) const uint kFrameFlags = 3u;  // kFrame* bits
 
-layout(std430, binding = kFrameBindParams) readonly buffer ParamsBuffer { FrameParams fp; };
+// After the parameters, the camera's per-column and per-row steps (camera_step_x of columns
+// 0..width-1, then camera_step_y of rows 0..height-1), made by the host with the same functions
+layout(std430, binding = kFrameBindParams) readonly buffer ParamsBuffer {
+  FrameParams fp;
+  float camera_steps[];
+};
 layout(std430, binding = kFrameBindInstances) readonly buffer Instances { GridInstance instances[]; };
 layout(std430, binding = kFrameBindTriangles) readonly buffer Triangles { GridTriangle triangles[]; };
 layout(std430, binding = kFrameBindUvs) readonly buffer Uvs { GridTriangleUv uvs[]; };

@@ -26,7 +26,8 @@ void main() {
   }
   if (px.x >= c.width || px.y >= c.height) return;
   const uint p = px.y * c.width + px.x;
-  const vec3 dir = camera_direction(c, px.x, px.y);
+  // camera_direction, its column's and row's divisions read from the host's table
+  const vec3 dir = camera_direction_steps(c, camera_steps[px.x], camera_steps[c.width + px.y]);
   pixel_dirs[p] = vec4(dir, origin_tmin(c.eye, dir, 0.0f));
   gather_keys64[p] = 0xFFFFFFFFFFFFFFFFul;
 }
