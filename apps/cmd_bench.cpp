@@ -476,6 +476,9 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
               "dynamic instances %.3f ms\n",
               gather_name, gather_tiles, pair_text.c_str(), m["visibility"], m["bin"], m["tiles"], m["copy"], m["resolve"],
               o.backend_options.vk_build.c_str(), m["build_init"], m["build_static"], m["build_skip"], m["build_dynamic"]);
+  if (stamps)
+    std::printf("first build split: blank image %.3f, static instances %.3f, skip field %.3f, dynamic instances %.3f ms\n",
+                m["first_build_init"], m["first_build_static"], m["first_build_skip"], m["first_build_dynamic"]);
   if (frame.gather_mode() == vulkan::GatherMode::compute && stamps)
     std::printf("gather passes: starting pass (keys, depth bounds, list counts, pixel rays) %.3f, bin %.3f, count %.3f, "
                 "scan %.3f, scatter %.3f, fine (with its resolve) %.3f ms\n",
@@ -547,6 +550,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const double build_host = ms_since(t0);
   const bool stamps = vk->timings().build_ms > 0.0 && vk->context().info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE;
   const double build = stamps ? vk->timings().build_ms : build_host;
+  const vulkan::GridTimings first_build = vk->timings();
   vulkan::VulkanFrame frame(*vk, scene, frame_options(o, scene));
   // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
   std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
@@ -583,6 +587,10 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const double build_warm = warm_build_ms(*vk, scene, stamps, t);
   std::map<std::string, double> m;
   for (auto& [k, v] : t) m[k] = median(v);
+  m["first_build_init"] = first_build.build_init_ms;
+  m["first_build_static"] = first_build.build_static_ms;
+  m["first_build_skip"] = first_build.build_skip_ms;
+  m["first_build_dynamic"] = first_build.build_dynamic_ms;
   const double mrays = m["trace"] > 0.0 ? double(rays) / (m["trace"] * 1e3) : 0.0;
   const shared::GridParams& gp = vk->params();
   const VulkanMemory mem = vulkan_memory(o, scene, *vk, frame);

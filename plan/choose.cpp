@@ -427,6 +427,12 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   ch = GridChoice{};
   if (res && !cs_over) {
     const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o);
+    if (!c.fits && (g.flags & shared::kGridCompact) != 0u) {
+      const auto mib = [](uint64_t bytes) { return std::to_string(double(bytes) / double(1u << 20)); };
+      throw Error("grid: " + std::to_string(res->x) + "x" + std::to_string(res->y) + "x" + std::to_string(res->z) +
+                  " cells take " + mib(c.memory) + " MiB in the compact layout, over its memory budget of " +
+                  mib(compact_budget(o, scene.triangle_count())) + " MiB (--memory-budget)");
+    }
     if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity), o);
     ch.candidates.push_back(c);
     return sized_params(g, c.cells, cs, c.capacity, c.slot_axis, c.aabb_padding, o);
@@ -452,7 +458,10 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     gj.aabb_padding = padding;
     GridCandidate c = weigh(scene, time, gj, c_cs, cells_for(e, c_cs), cap_over, o, by_cost ? &counts : nullptr);
     if (c.fits && by_cost) {
-      c.work = estimate_work(sized_params(g, c.cells, c_cs, c.capacity, c.slot_axis, padding, o), counts, sample);
+      const GridParams gc = sized_params(g, c.cells, c_cs, c.capacity, c.slot_axis, padding, o);
+      const std::vector<uint32_t> boxes =
+          (gc.flags & shared::kGridSkipEmpty) != 0u ? skip_box_words(scene, time, gc) : std::vector<uint32_t>{};
+      c.work = estimate_work(gc, counts, sample, boxes);
       c.cost = work_cost(c.work, o);
     }
     return c;

@@ -92,8 +92,10 @@ struct PlanOptions {
   // percentile: the original rule, capacity = capacity_percentile of the non-empty cells' counts.
   enum class CapacityPolicy { trace_cost, no_saturation, percentile } capacity_policy = CapacityPolicy::trace_cost;
   // trace_cost: the cost of a candidate in reference tests per ray: tests + cell_visit_cost *
-  // cells visited + saturation_cost * (expected share of rays whose answer saturation changes)
-  float cell_visit_cost = 1.0f;
+  // cells visited + saturation_cost * (expected share of rays whose answer saturation changes).
+  // Unset: the traversal's own (plan::cell_visit_cost: the exact trace's fitted on the H200, the
+  // paper's as it was first set; docs/SPEC.md "Grid placement, resolution and capacity").
+  std::optional<float> cell_visit_cost;
   float saturation_cost = 1.0e5f;
   uint32_t work_sample_width = 96, work_sample_height = 54;  // the sample's gather buffer (16:9)
   uint32_t work_sample_frames = 4;     // glossy bounce rays of up to this many frames off that gather

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <optional>
 
 #include "gridrt/common/camera.h"
 #include "gridrt/common/gather.h"
@@ -187,7 +188,8 @@ WorkSample work_sample(const Scene& scene, float time, const GridParams& base, c
 }
 
 bool for_each_visit(const GridParams& g, const Ray& ray,
-                    const std::function<bool(uvec3 cell, uint k, uint last, float t_report, bool tested)>& f) {
+                    const std::function<bool(uvec3 cell, uint k, uint last, float t_report, bool tested)>& f,
+                    const std::function<uint32_t(uvec3 cell)>& skip) {
   RaySetup rs;
   if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax) || !ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs))
     return false;
@@ -196,8 +198,9 @@ bool for_each_visit(const GridParams& g, const Ray& ray,
     const vec3 inv = dda_inverse_direction(ray.dir);
     DdaWalk w = dda_walk_begin(g, ray.org, ray.dir, rs.t_start);
     for (uint k = 0u; k < g.max_segments; ++k) {
-      dda_walk_exits(g, ray.org, ray.dir, inv, 0u, w);
-      if (!f(w.cell, k, k, w.t_exit, true) || w.t_exit >= rs.t_end || !dda_walk_next(g, ray.org, ray.dir, inv, w))
+      const uint d = skip ? skip(w.cell) : 0u;
+      dda_walk_exits(g, ray.org, ray.dir, inv, d > 0u ? d - 1u : 0u, w);
+      if (!f(w.cell, k, k, w.t_exit, d == 0u) || w.t_exit >= rs.t_end || !dda_walk_next(g, ray.org, ray.dir, inv, w))
         break;
     }
     return true;
@@ -221,11 +224,66 @@ bool for_each_visit(const GridParams& g, const Ray& ray,
   return true;
 }
 
-WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const WorkSample& sample) {
+SkipDistances::SkipDistances(const GridParams& g, const TrialCounts& counts, std::span<const uint32_t> box_words)
+    : g_(g), table_(skip_table_words(g), 0u), boxes_(box_words.begin(), box_words.end()) {
+  // The summed-volume table (1-based: index 0 along an axis is "before the grid"), as the build's
+  // three passes make it, in one sweep: running sums along x, then y, then z
+  const uvec3 n = g.cells;
+  for (uint32_t z = 0; z < n.z; ++z)
+    for (uint32_t y = 0; y < n.y; ++y) {
+      uint32_t sum = 0u;
+      for (uint32_t x = 0; x < n.x; ++x) {
+        sum += counts.fixed[(size_t(z) * n.y + y) * n.x + x] > 0u ? 1u : 0u;
+        table_[skip_table_index(g, uvec3(x, y, z) + 1u)] = sum;
+      }
+    }
+  for (uint32_t axis = 1; axis < 3; ++axis)
+    for (uint32_t z = 1; z <= n.z; ++z)
+      for (uint32_t y = 1; y <= n.y; ++y)
+        for (uint32_t x = 1; x <= n.x; ++x) {
+          const uvec3 c(x, y, z);
+          uvec3 prev = c;
+          prev[axis] -= 1u;
+          if (prev[axis] > 0u) table_[skip_table_index(g, c)] += table_[skip_table_index(g, prev)];
+        }
+}
+
+uint32_t SkipDistances::operator()(uvec3 c) const {
+  const auto occupied_within = [&](uint32_t r) {
+    uint32_t count = 0u;
+    for (uint32_t j = 0; j < 8u; ++j) {
+      const uint32_t v = table_[skip_table_index(g_, skip_cube_corner(g_, c, r, j))];
+      count = skip_corner_positive(j) ? count + v : count - v;
+    }
+    return count > 0u;
+  };
+  uint32_t lo = 0u, hi = kSkipMaxDistance;
+  while (lo < hi) {
+    const uint32_t mid = (lo + hi) / 2u;
+    if (occupied_within(mid)) hi = mid;
+    else lo = mid + 1u;
+  }
+  const uint32_t boxes = boxes_.empty() ? 0u : boxes_[0];
+  for (uint32_t b = 0u; b < boxes && lo > 0u; ++b) {
+    const uint32_t w = skip_box_word(b);
+    lo = std::min(lo, skip_box_distance(c, uvec3(boxes_[w], boxes_[w + 1], boxes_[w + 2]),
+                                        uvec3(boxes_[w + 4], boxes_[w + 5], boxes_[w + 6])));
+  }
+  return lo;
+}
+
+WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const WorkSample& sample,
+                           std::span<const uint32_t> skip_boxes) {
   WorkEstimate w;
   w.rays = sample.rays.size();
   if (w.rays == 0) return w;
   const bool exact = g.traversal == kTraversalExact;
+  std::optional<SkipDistances> skip_field;
+  std::function<uint32_t(uvec3)> skip;
+  if (exact && (g.flags & kGridSkipEmpty) != 0u) {
+    skip_field.emplace(g, counts, skip_boxes);
+    skip = [&](uvec3 c) { return (*skip_field)(c); };
+  }
   const bool gap_fill = !exact && (g.flags & kGridGapFill) != 0u;
   // With the spill list a saturated cell's dropped references are tested too (test_spilled): no
   // reference is lost, and no gap-fill runs
@@ -255,7 +313,10 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
     double lost_here = -1.0;  // set where the walk ends with a loss
     for_each_visit(g, ray, [&](uvec3 cell, uint k, uint last, float t_report, bool tested) {
       const bool reach = exact ? t_hit <= t_report : t_hit < t_report;  // the hit lies before the report bound
-      if (!tested) return !(reach && missed == 0.0);
+      if (!tested) {
+        cells += exact ? 1u : 0u;  // a skip step is a visit of the exact trace; the paper's skipped repeat is none
+        return !(reach && missed == 0.0);
+      }
       const uint32_t c = counts.now(cell);
       cells += 1;
       tests += spill ? c : std::min(c, g.capacity);
@@ -297,7 +358,7 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
         }
       }
       return true;
-    });
+    }, skip);
     at_risk += risk;
     if (lost_here >= 0.0) lost += lost_here;
     else if (sh_finite(t_hit)) lost += missed;
@@ -313,8 +374,13 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
   return w;
 }
 
+float cell_visit_cost(const GridOptions& o) {
+  if (o.cell_visit_cost) return *o.cell_visit_cost;
+  return o.traversal == Traversal::exact ? kExactCellVisitCost : kPaperCellVisitCost;
+}
+
 double work_cost(const WorkEstimate& w, const GridOptions& o) {
-  return w.tests + double(o.cell_visit_cost) * w.cells + double(o.saturation_cost) * w.lost;
+  return w.tests + double(cell_visit_cost(o)) * w.cells + double(o.saturation_cost) * w.lost;
 }
 
 WorkEstimate measured_work(std::span<const Ray> rays, std::span<const Hit> hits) {

@@ -26,8 +26,12 @@ void for_each_triangle_cell(const Scene& scene, size_t instance, float time, con
 // last = k and t_report = its exit (reported once best_t <= t_report). `tested` is false for a
 // step the paper's `skip` rule skips. f returns false to stop the walk; it also stops where the
 // traversal would (past t_end, the grid, the step limit). False if the ray misses the grid.
+// `skip` (exact traversal, empty-space skipping): the skip field's distance of a cell; a cell at
+// distance d > 0 is a step over the box of radius d - 1 around it, as trace_exact takes it, with
+// `tested` false and t_report the box's exit.
 bool for_each_visit(const shared::GridParams& g, const Ray& ray,
-                    const std::function<bool(glm::uvec3 cell, uint32_t k, uint32_t last, float t_report, bool tested)>& f);
+                    const std::function<bool(glm::uvec3 cell, uint32_t k, uint32_t last, float t_report, bool tested)>& f,
+                    const std::function<uint32_t(glm::uvec3 cell)>& skip = {});
 
 // The trial counts of one candidate grid: per cell the references a build would insert (no
 // capacity). `fixed`: the instances that do not move, at the build's time, every cell; the moving
@@ -60,6 +64,23 @@ struct TrialCounts {
   }
 };
 
+// The skip field's distances of a candidate grid (shared/grid.h "The skip field"), as its build
+// would make them: a summed-volume table of the cells the trial counts of the instances that do
+// not move occupy, and the dynamic boxes (`box_words`, skip_box_words' header of the candidate); a
+// cell's distance, the smallest r whose cube around it holds an occupied cell (at most
+// kSkipMaxDistance), lowered to its distance to every box, computed where a walk asks. (The
+// counts' non-moving dynamic instances lie in their boxes, so counting them as occupied changes no
+// distance.)
+class SkipDistances {
+ public:
+  SkipDistances(const shared::GridParams& g, const TrialCounts& counts, std::span<const uint32_t> box_words);
+  uint32_t operator()(glm::uvec3 cell) const;
+
+ private:
+  shared::GridParams g_;
+  std::vector<uint32_t> table_, boxes_;
+};
+
 // The policy's ray sample (WorkSample, reference/grid.h) of `scene` at `time`.
 // `base`: the grid placement (origin, cell size, cells) the compact grid uses.
 WorkSample work_sample(const Scene& scene, float time, const shared::GridParams& base, const GridOptions& o);
@@ -78,7 +99,18 @@ WorkSample work_sample(const Scene& scene, float time, const shared::GridParams&
 // (gap_fill_left_surface) ended it first with a voxel; `skipped` is the share lost because no
 // visit was offered the triangle (the paper's samples stepped past its cells). `spilled`: the
 // dropped references of the saturated cells visited (what a spill list would add).
-WorkEstimate estimate_work(const shared::GridParams& g, const TrialCounts& counts, const WorkSample& sample);
+// With empty-space skipping (exact traversal, kGridSkipEmpty in g.flags) the walk takes the skip
+// field's steps (`skip_boxes`: skip_box_words of the candidate; SkipDistances): a step over empty
+// cells counts as one cell visited, as the trace counts it, and tests nothing.
+WorkEstimate estimate_work(const shared::GridParams& g, const TrialCounts& counts, const WorkSample& sample,
+                           std::span<const uint32_t> skip_boxes = {});
+
+// A cell visit's cost in reference tests: the option, else the traversal's. Exact traversal: a
+// visit (a tested cell or a step of the skip field over empty ones) fitted to the NVIDIA H200's
+// trace times of 22 grids of four frames (docs/SPEC.md); paper traversal: 1, as first set.
+inline constexpr float kExactCellVisitCost = 1.6f;
+inline constexpr float kPaperCellVisitCost = 1.0f;
+float cell_visit_cost(const GridOptions& o);
 
 // The candidate's cost in reference tests per ray: tests + cell_visit_cost * cells
 // + saturation_cost * lost (docs/SPEC.md).

@@ -171,6 +171,15 @@ TEST_CASE("Compact layout: the memory function equals what the build allocates, 
   ReferenceGridTracer t(tight);
   t.build(scene, 0.0f);
   CHECK(t.stats().memory.total() <= 96u * 1024u);
+  // A resolution asked for that the budget cannot hold: refused, naming the budget (not the image,
+  // which the compact layout does not have)
+  tight.resolution = glm::uvec3(64u);
+  ReferenceGridTracer over(tight);
+  CHECK_THROWS_WITH(over.build(scene, 0.0f), Catch::Contains("over its memory budget") && Catch::Contains("--memory-budget"));
+  tight.memory_budget = uint64_t(64) << 20;
+  ReferenceGridTracer within(tight);
+  within.build(scene, 0.0f);
+  CHECK(within.params().cells == glm::uvec3(64u));
 }
 
 TEST_CASE("Compact layout: the paper traversal or spill off is refused with a clear message", "[grid][compact][cli]") {

@@ -95,17 +95,24 @@ TEST_CASE("trace-cost policy: the sample's ray ends are the oracle's first hits"
 TEST_CASE("trace-cost policy: estimated cells and tests per ray are the reference trace's counters",
           "[grid][policy]") {
   // The chosen grid rebuilt, the sample traced through it: where no cell saturates, exact
-  // traversal visits exactly the cells the estimate walks and tests exactly its references. Paper
-  // traversal, or saturated cells: within 5 % (the estimate takes the hit as found in its own
-  // segment's visit or the next, and a saturated cell as keeping the launch triangle).
+  // traversal visits exactly the cells the estimate walks (with empty-space skipping, the same
+  // steps over empty cells: the skip field the estimate computes from the trial counts is the
+  // build's) and tests exactly its references. Paper traversal, or saturated cells: within 5 % (the
+  // estimate takes the hit as found in its own segment's visit or the next, and a saturated cell as
+  // keeping the launch triangle).
+  struct Mode {
+    Traversal traversal;
+    bool skip;
+  };
   for (const char* name : {"teapot", "atrium"}) {
-    for (Traversal t : {Traversal::exact, Traversal::paper}) {
-      INFO(name << (t == Traversal::exact ? " exact" : " paper"));
+    for (const Mode mode : {Mode{Traversal::exact, true}, Mode{Traversal::exact, false}, Mode{Traversal::paper, false}}) {
+      const Traversal t = mode.traversal;
+      INFO(name << (t == Traversal::exact ? " exact" : " paper") << (mode.skip ? ", skipping" : ""));
       const Scene scene = make_builtin(name);
       GridOptions o;
       o.threads = 2;
       o.traversal = t;
-      o.skip_empty = false;  // the estimate walks the plain DDA's visits (skipping only drops empty ones)
+      o.skip_empty = mode.skip;
       o.mailbox = false;     // the estimate tests every reference of every visit (the mailbox only drops re-tests)
       const GridChoice choice = choose(scene, o);
       const GridCandidate& c = choice.candidates[choice.chosen];
@@ -183,7 +190,7 @@ TEST_CASE("trace-cost policy: a teapot in a stadium gets a cheaper grid than no-
     grid.trace(rays, got);
     const WorkEstimate m = reference::measured_work(rays, got);
     Run r;
-    r.work = m.tests + double(o.cell_visit_cost) * m.cells;
+    r.work = m.tests + double(plan::cell_visit_cost(o)) * m.cells;
     r.params = grid.params();
     for (size_t i = 0; i < rays.size(); ++i)
       r.same += is_miss(got[i]) == is_miss(want[i]) &&

@@ -8,7 +8,7 @@
 #                                                              ons-reborn-teapot, bunny)
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- gridrt-base /tmp/gs/*.gridscene \
 #     /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
-# There: PART=diff|bench|gather|frame|stats|portal bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
+# There: PART=diff|bench|gather|frame|stats|portal|untuned bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
 #   diff    gridrt diff (reference against the shaders, validation on) on the three frames: paper
 #           traversal + raster build + the GPU frame's passes, exact + compute build + the GPU
 #           frame, exact + raster build; portal diff bit for bit on the built-in level, its mip
@@ -20,6 +20,8 @@
 #           the gather's split, its work items and tile pairs, the shadow pass (PART=frame: the same)
 #   stats   the driver's statistics of every compute pipeline of one frame per scene (registers, ...)
 #   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
+#   untuned the bunny's primary rays, the built-in teapot and Cornell box, both binaries in turns
+#           twice; the three frames' first build split (this binary)
 set -u
 G=${G:-.gpu}
 out=${OUT:-/tmp/gridrt-out}
@@ -54,7 +56,7 @@ diff)
   } 2>&1 | tee "$out/diff.txt"
   ;;
 bench)
-  sel='^\| (grid|rtx|[0-9])|^agree|^grid memory|warm build split|^update passes|^vulkan|error'
+  sel='^\| (grid|rtx|vulkan|[0-9])|^agree|^grid memory|warm build split|^first build split|^update passes|^vulkan|error'
   {
     for s in "${scenes[@]}" bunny builtin:atrium; do
       X=$E/$s.gridscene
@@ -79,6 +81,32 @@ bunny)
         --frames 30 --warmup 5 2>&1 | grep -E '^\| (grid|vulkan|[0-9])|^vulkan|error' | cut -c1-400
     done
   } 2>&1 | tee "$out/bunny.txt"
+  ;;
+untuned)
+  # Scenes nobody tuned for, the baseline binary and this one in turns, twice: the primary rays of
+  # the bunny, the built-in teapot and the Cornell box (no glossy material: no bounce rays, and the
+  # diffuse ones need Embree); then the three frames' first build split with this binary
+  sel='^\| (grid|vulkan|[0-9])|^vulkan|^first build split|error'
+  B="--backend vulkan --traversal exact --vk-build compute --frames 30 --warmup 5"
+  {
+    for s in bunny builtin:teapot builtin:cornell; do
+      X=$E/$s.gridscene
+      R="--rays primary"
+      case $s in builtin:*) X=$s ;; esac
+      for round in 1 2; do
+        for bin in "$E/gridrt-base" gridrt; do
+          echo "== bench $s $R (round $round): $bin, defaults"
+          # shellcheck disable=SC2086
+          timeout 90 "$bin" bench "$X" $B $R 2>&1 | grep -E "$sel" | cut -c1-300
+        done
+      done
+    done
+    for s in "${scenes[@]}"; do
+      echo "== first build split $s: gridrt"
+      timeout 90 gridrt bench $E/$s.gridscene --backend vulkan --traversal exact --vk-build compute --frames 2 \
+        --warmup 1 2>&1 | grep -E '^first build split|^\| [0-9]|error' | head -3
+    done
+  } 2>&1 | tee "$out/untuned.txt"
   ;;
 gather | frame)
   # The compute gather's screen box (common/shared/raster.h gather_box) against the baseline's:
