@@ -553,6 +553,25 @@ bool cell_box_enabled(const AlgorithmOptions& o) {
          (o.cell_test == AlgorithmOptions::CellTest::automatic && o.traversal == Traversal::exact);
 }
 
+uint32_t skip_static_distance(const GridParams& g, std::span<const uint32_t> table, glm::uvec3 c) {
+  // Occupied cells in the cube of radius r around c: inclusion-exclusion over its 8 corners
+  const auto cube_count = [&](uint32_t r) {
+    uint32_t count = 0u;
+    for (uint32_t j = 0; j < 8u; ++j) {
+      const uint32_t v = table[shared::skip_table_index(g, shared::skip_cube_corner(g, c, r, j))];
+      count = shared::skip_corner_positive(j) ? count + v : count - v;
+    }
+    return count;
+  };
+  uint32_t lo = 0u, hi = shared::kSkipMaxDistance;
+  while (lo < hi) {
+    const uint32_t mid = (lo + hi) / 2u;
+    if (cube_count(mid) > 0u) hi = mid;
+    else lo = mid + 1u;
+  }
+  return lo;
+}
+
 std::vector<uint32_t> skip_box_words(const Scene& scene, float time, const GridParams& g) {
   std::vector<uint32_t> w(shared::kSkipHeaderWords, 0u);
   std::vector<glm::uvec3> lo(shared::kSkipMaxBoxes, glm::uvec3(~0u)), hi(shared::kSkipMaxBoxes, glm::uvec3(0u));

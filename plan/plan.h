@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "gridrt/common/scene.h"
@@ -68,6 +69,13 @@ bool cell_box_enabled(const AlgorithmOptions& o);
 // dynamic instances' references at `time` (shared::skip_box_of_bounds; instance i of the dynamic
 // ones joins box i % kSkipMaxBoxes). Both backends upload these at every build and update.
 std::vector<uint32_t> skip_box_words(const Scene& scene, float time, const shared::GridParams& g);
+
+// A cell's static skip distance from the summed-volume table of the occupancy (shared/grid.h "The
+// skip field": skip_table_index's layout): the smallest r in [0, kSkipMaxDistance) whose cube of
+// radius r around c holds an occupied cell, else kSkipMaxDistance, by binary search (8 probes of
+// 8 table reads), as skip_field.comp searches. The reference's build and the trace-cost estimate
+// (plan/policy.h, SkipDistances) call it.
+uint32_t skip_static_distance(const shared::GridParams& g, std::span<const uint32_t> table, glm::uvec3 c);
 
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);

@@ -249,27 +249,15 @@ SkipDistances::SkipDistances(const GridParams& g, const TrialCounts& counts, std
 }
 
 uint32_t SkipDistances::operator()(uvec3 c) const {
-  const auto occupied_within = [&](uint32_t r) {
-    uint32_t count = 0u;
-    for (uint32_t j = 0; j < 8u; ++j) {
-      const uint32_t v = table_[skip_table_index(g_, skip_cube_corner(g_, c, r, j))];
-      count = skip_corner_positive(j) ? count + v : count - v;
-    }
-    return count > 0u;
-  };
-  uint32_t lo = 0u, hi = kSkipMaxDistance;
-  while (lo < hi) {
-    const uint32_t mid = (lo + hi) / 2u;
-    if (occupied_within(mid)) hi = mid;
-    else lo = mid + 1u;
-  }
+  // The static distance, lowered to the distance to every dynamic box (the trace's skip_distance)
+  uint32_t d = skip_static_distance(g_, table_, c);
   const uint32_t boxes = boxes_.empty() ? 0u : boxes_[0];
-  for (uint32_t b = 0u; b < boxes && lo > 0u; ++b) {
+  for (uint32_t b = 0u; b < boxes && d > 0u; ++b) {
     const uint32_t w = skip_box_word(b);
-    lo = std::min(lo, skip_box_distance(c, uvec3(boxes_[w], boxes_[w + 1], boxes_[w + 2]),
-                                        uvec3(boxes_[w + 4], boxes_[w + 5], boxes_[w + 6])));
+    d = std::min(d, skip_box_distance(c, uvec3(boxes_[w], boxes_[w + 1], boxes_[w + 2]),
+                                      uvec3(boxes_[w + 4], boxes_[w + 5], boxes_[w + 6])));
   }
-  return lo;
+  return d;
 }
 
 WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const WorkSample& sample,

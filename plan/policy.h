@@ -67,8 +67,8 @@ struct TrialCounts {
 // The skip field's distances of a candidate grid (shared/grid.h "The skip field"), as its build
 // would make them: a summed-volume table of the cells the trial counts of the instances that do
 // not move occupy, and the dynamic boxes (`box_words`, skip_box_words' header of the candidate); a
-// cell's distance, the smallest r whose cube around it holds an occupied cell (at most
-// kSkipMaxDistance), lowered to its distance to every box, computed where a walk asks. (The
+// cell's distance, skip_static_distance on that table (the build's search) lowered to its distance
+// to every box, computed where a walk asks. (The
 // counts' non-moving dynamic instances lie in their boxes, so counting them as occupied changes no
 // distance.)
 class SkipDistances {

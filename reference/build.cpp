@@ -42,16 +42,6 @@ void skip_table_pass(const GridData& grid, std::vector<uint32_t>& table, uint32_
     }
   }, 64);
 }
-
-// Occupied cells in the cube of radius r around c, from the table.
-uint32_t skip_cube_count(const GridParams& g, const std::vector<uint32_t>& table, glm::uvec3 c, uint32_t r) {
-  uint32_t count = 0u;
-  for (uint32_t j = 0; j < 8u; ++j) {
-    const uint32_t v = table[shared::skip_table_index(g, shared::skip_cube_corner(g, c, r, j))];
-    count = shared::skip_corner_positive(j) ? count + v : count - v;
-  }
-  return count;
-}
 }  // namespace
 
 void skip_field_build(GridData& grid, const GridOptions& o) {
@@ -66,13 +56,7 @@ void skip_field_build(GridData& grid, const GridOptions& o) {
     for (uint32_t q = 0; q < 4u && 4u * word + q < cells; ++q) {
       const uint32_t i = 4u * word + q;
       const glm::uvec3 c = shared::cell_of_linear_index(g, i);
-      uint32_t lo = 0u, hi = shared::kSkipMaxDistance;
-      while (lo < hi) {
-        const uint32_t mid = (lo + hi) / 2u;
-        if (skip_cube_count(g, table, c, mid) > 0u) hi = mid;
-        else lo = mid + 1u;
-      }
-      packed |= lo << shared::skip_distance_shift(i);
+      packed |= plan::skip_static_distance(g, table, c) << shared::skip_distance_shift(i);
     }
     grid.skip[shared::kSkipHeaderWords + word] = packed;
   }, 256);
