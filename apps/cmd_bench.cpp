@@ -620,6 +620,11 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
                       {"grid_total_mib", mem.total}, {"layout", mem.compact ? "compact" : "image"},
                       {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity},
                       {"spill", spill_json(spill, spill_flags)}};
+  if (stamps)
+    j["first_build_split_ms"] = {{"blank_image", m["first_build_init"]},
+                                 {"static_instances", m["first_build_static"]},
+                                 {"skip_field", m["first_build_skip"]},
+                                 {"dynamic_instances", m["first_build_dynamic"]}};
   j["gather_mode"] = gather_name;
   j["gather_tiles_frame0"] = gather_tiles;
   j["gather_pairs_frame0"] = run.gather_pairs.pairs;
