@@ -298,6 +298,7 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
     vulkan::VulkanGridOptions vk;
     vk.build = o.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
     vk.ray_tracing = o.ray_tracing;
+    vk.build_pass_timestamps = o.build_pass_timestamps;
     try {
       return std::make_unique<vulkan::VulkanGridTracer>(grid_options_for(o, scene), vk);
     } catch (const Error& e) {

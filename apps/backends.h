@@ -24,6 +24,7 @@ struct BackendOptions {
   bool fallback_cpu = false;     // no Vulkan device: use the CPU reference instead of failing
   bool all_effects = false;      // simulate every effect even where the scene does not need it
   bool ray_tracing = false;      // vulkan: a context with the device's ray tracing (bench --rtx)
+  bool build_pass_timestamps = false;  // vulkan: time the build's static and skip-field passes (bench)
   std::vector<unsigned> resolution;  // --resolution X,Y,Z
   // --max-image-dimension; unset: the Vulkan device's maxImageDimension3D where a verb runs the
   // vulkan backend (so both tracers of `diff` choose the same grid), else 4096 (lavapipe's)

@@ -553,20 +553,39 @@ bool cell_box_enabled(const AlgorithmOptions& o) {
          (o.cell_test == AlgorithmOptions::CellTest::automatic && o.traversal == Traversal::exact);
 }
 
-uint32_t skip_static_distance(const GridParams& g, std::span<const uint32_t> table, glm::uvec3 c) {
-  // Occupied cells in the cube of radius r around c: inclusion-exclusion over its 8 corners
-  const auto cube_count = [&](uint32_t r) {
-    uint32_t count = 0u;
-    for (uint32_t j = 0; j < 8u; ++j) {
-      const uint32_t v = table[shared::skip_table_index(g, shared::skip_cube_corner(g, c, r, j))];
-      count = shared::skip_corner_positive(j) ? count + v : count - v;
-    }
-    return count;
-  };
-  uint32_t lo = 0u, hi = shared::kSkipMaxDistance;
+namespace {
+// Occupied cells in the box whose corner j skip_corner(j) names: inclusion-exclusion over its 8
+// corners in the summed-volume table (exact in uint arithmetic).
+template <class Corner>
+uint32_t skip_box_count(const GridParams& g, std::span<const uint32_t> table, Corner corner) {
+  uint32_t count = 0u;
+  for (uint32_t j = 0; j < 8u; ++j) {
+    const uint32_t v = table[shared::skip_table_index(g, corner(j))];
+    count = shared::skip_corner_positive(j) ? count + v : count - v;
+  }
+  return count;
+}
+}  // namespace
+
+uint32_t skip_static_distance(const GridParams& g, std::span<const uint32_t> table, glm::uvec3 c, uint32_t lo,
+                              uint32_t hi) {
   while (lo < hi) {
     const uint32_t mid = (lo + hi) / 2u;
-    if (cube_count(mid) > 0u) hi = mid;
+    if (skip_box_count(g, table, [&](uint32_t j) { return shared::skip_cube_corner(g, c, mid, j); }) > 0u) hi = mid;
+    else lo = mid + 1u;
+  }
+  return lo;
+}
+
+uint32_t skip_static_distance(const GridParams& g, std::span<const uint32_t> table, glm::uvec3 c) {
+  return skip_static_distance(g, table, c, 0u, shared::kSkipMaxDistance);
+}
+
+uint32_t skip_brick_distance(const GridParams& g, std::span<const uint32_t> table, glm::uvec3 b) {
+  uint32_t lo = 0u, hi = shared::kSkipMaxBrickDistance;
+  while (lo < hi) {
+    const uint32_t mid = (lo + hi) / 2u;
+    if (skip_box_count(g, table, [&](uint32_t j) { return shared::skip_brick_corner(g, b, mid, j); }) > 0u) hi = mid;
     else lo = mid + 1u;
   }
   return lo;

@@ -71,11 +71,17 @@ bool cell_box_enabled(const AlgorithmOptions& o);
 std::vector<uint32_t> skip_box_words(const Scene& scene, float time, const shared::GridParams& g);
 
 // A cell's static skip distance from the summed-volume table of the occupancy (shared/grid.h "The
-// skip field": skip_table_index's layout): the smallest r in [0, kSkipMaxDistance) whose cube of
-// radius r around c holds an occupied cell, else kSkipMaxDistance, by binary search (8 probes of
-// 8 table reads), as skip_field.comp searches. The reference's build and the trace-cost estimate
-// (plan/policy.h, SkipDistances) call it.
+// skip field": skip_table_index's layout): the smallest r in [lo, hi) whose cube of radius r around
+// c holds an occupied cell, else hi, by binary search (each probe 8 table reads); the caller
+// guarantees the distance capped at kSkipMaxDistance lies in [lo, hi]. Without a window: [0,
+// kSkipMaxDistance] (8 probes), as the trace-cost estimate (plan/policy.h, SkipDistances) asks per
+// cell; the build (the reference's skip_field_build, skip_field.comp) searches the window of the
+// cell's brick (skip_cell_window: 3 probes).
+uint32_t skip_static_distance(const shared::GridParams& g, std::span<const uint32_t> table, glm::uvec3 c,
+                              uint32_t lo, uint32_t hi);
 uint32_t skip_static_distance(const shared::GridParams& g, std::span<const uint32_t> table, glm::uvec3 c);
+// Brick b's distance B(b) (shared/grid.h, kSkipBrick): binary search over [0, kSkipMaxBrickDistance].
+uint32_t skip_brick_distance(const shared::GridParams& g, std::span<const uint32_t> table, glm::uvec3 b);
 
 // Grid placement and size chosen from the scene (docs/SPEC.md, "Resolution and capacity").
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options);

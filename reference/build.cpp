@@ -48,15 +48,23 @@ void skip_field_build(GridData& grid, const GridOptions& o) {
   const GridParams& g = grid.params;
   std::vector<uint32_t> table(shared::skip_table_words(g), 0u);
   for (uint32_t pass = 0; pass < 3; ++pass) skip_table_pass(grid, table, pass, o);
+  // The bricks' distances, one invocation per brick: the smallest R whose grown box holds an
+  // occupied cell, by binary search over [0, kSkipMaxBrickDistance]
+  std::vector<uint32_t> bricks(shared::skip_brick_count(g));
+  run_invocations(uint32_t(bricks.size()), thread_count(o), std::nullopt, [&](uint32_t b) {
+    bricks[b] = plan::skip_brick_distance(g, table, shared::skip_brick_of_index(g, b));
+  }, 256);
   // The distances, one invocation per word (4 cells): the smallest r whose cube holds an occupied
-  // cell, by binary search over [0, kSkipMaxDistance]
+  // cell, by binary search over the window its brick's distance leaves (skip_cell_window)
   const uint32_t cells = shared::grid_cell_count(g);
   run_invocations((cells + 3u) / 4u, thread_count(o), std::nullopt, [&](uint32_t word) {
     uint32_t packed = 0u;
     for (uint32_t q = 0; q < 4u && 4u * word + q < cells; ++q) {
       const uint32_t i = 4u * word + q;
       const glm::uvec3 c = shared::cell_of_linear_index(g, i);
-      packed |= plan::skip_static_distance(g, table, c) << shared::skip_distance_shift(i);
+      uint32_t lo = 0u, hi = 0u;
+      shared::skip_cell_window(bricks[shared::skip_brick_index(g, c)], lo, hi);
+      packed |= plan::skip_static_distance(g, table, c, lo, hi) << shared::skip_distance_shift(i);
     }
     grid.skip[shared::kSkipHeaderWords + word] = packed;
   }, 256);

@@ -96,11 +96,15 @@ uint32_t static_distance(const reference::GridData& grid, uint32_t i) {
 }  // namespace
 
 TEST_CASE("The skip field's distances are the Chebyshev distances to the nearest reference", "[grid][skip]") {
-  for (uint32_t seed : {3u, 8u}) {
+  // Grids whose sides are multiples of the search's brick (kSkipBrick) and grids whose last bricks
+  // are partial
+  for (uint32_t seed : {3u, 8u, 9u}) {
     INFO("seed " << seed);
     const Scene scene = gridtest::random_scene(seed == 3u ? 40 : 300, 0.5f, 10.0f, seed, 20);
     REQUIRE(scene.static_instance_count() > 0);
-    ReferenceGridTracer ref(skip_options(true));
+    GridOptions o = skip_options(true);
+    if (seed == 9u) o.resolution = glm::uvec3(41, 35, 47);
+    ReferenceGridTracer ref(o);
     ref.build(scene, 0.0f);
     const reference::GridData& grid = ref.data();
     REQUIRE((grid.params.flags & sh::kGridSkipEmpty) != 0u);
@@ -129,6 +133,27 @@ TEST_CASE("The skip field's distances are the Chebyshev distances to the nearest
         REQUIRE(d == 0u);
       }
     }
+  }
+}
+
+TEST_CASE("The skip field's distances past the cap and across partial bricks", "[grid][skip]") {
+  const Scene scene = gridtest::far_apart_scene();
+  for (const glm::uvec3 res : {glm::uvec3(601, 3, 2), glm::uvec3(530, 5, 7), glm::uvec3(258, 1, 1)}) {
+    INFO("resolution " << gridtest::hx(res));
+    GridOptions o = skip_options(true);
+    o.resolution = res;
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    const reference::GridData& grid = ref.data();
+    REQUIRE(grid.params.cells == res);
+    const std::vector<uint32_t> want = bfs_distances(grid);
+    size_t capped = 0;
+    for (uint32_t i = 0; i < sh::grid_cell_count(grid.params); ++i) {
+      INFO("cell " << i);
+      REQUIRE(static_distance(grid, i) == want[i]);
+      capped += want[i] == sh::kSkipMaxDistance;
+    }
+    if (res.x > 600) CHECK(capped > 0);  // the middle cells lie 300 cells from either triangle
   }
 }
 

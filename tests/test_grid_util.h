@@ -66,6 +66,23 @@ inline Scene random_scene(uint32_t n, float size, float extent, uint32_t seed, u
   return s;
 }
 
+// Two small triangles at opposite corners of a long box [0, 10] x [0, 0.1] x [0, 0.1]: on a grid
+// of hundreds of cells along x the middle cells lie farther than kSkipMaxDistance from both.
+inline Scene far_apart_scene() {
+  Scene s;
+  s.name = "far apart";
+  Mesh m;
+  m.name = "two";
+  m.positions = {{0.0f, 0.0f, 0.0f}, {0.01f, 0.0f, 0.0f}, {0.0f, 0.01f, 0.01f},
+                 {10.0f, 0.1f, 0.1f}, {9.99f, 0.1f, 0.1f}, {10.0f, 0.09f, 0.09f}};
+  m.triangles = {{0, 1, 2}, {3, 4, 5}};
+  m.materials.assign(2, 0u);
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "static", .mesh = 0});
+  s.finalize();
+  return s;
+}
+
 struct RefHit {
   bool hit = false;
   double t = 0.0, u = 0.0, v = 0.0;

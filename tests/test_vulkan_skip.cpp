@@ -3,6 +3,7 @@
 // animated updates, on lavapipe with the validation layer on.
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <cstring>
 #include <random>
 
@@ -69,6 +70,62 @@ TEST_CASE("Vulkan skip field and skipping trace identical in bits to the referen
       }
       CHECK(found > rays.size() / 20);
     }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+TEST_CASE("Vulkan skip field past the cap and across partial bricks identical to the reference's",
+          "[vulkan][diff][grid][skip]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = gridtest::far_apart_scene();
+  for (const glm::uvec3 res : {glm::uvec3(601, 3, 2), glm::uvec3(258, 5, 7)}) {
+    INFO("resolution " << gridtest::hx(res));
+    GridOptions o;
+    o.threads = 2;
+    o.traversal = reference::Traversal::exact;
+    o.resolution = res;
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute});
+    vk.build(scene, 0.0f);
+    REQUIRE(vk.params().cells == res);
+    const std::vector<uint32_t> got = vk.download_skip();
+    REQUIRE(got.size() == ref.data().skip.size());
+    size_t capped = 0;
+    for (size_t i = 0; i < got.size(); ++i) {
+      INFO("word " << i);
+      REQUIRE(got[i] == ref.data().skip[i]);
+      capped += i >= sh::kSkipHeaderWords && (got[i] & 0xFFu) == sh::kSkipMaxDistance;
+    }
+    if (res.x > 600) CHECK(capped > 0);
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+TEST_CASE("Vulkan build with pass timestamps: every query written, no validation message", "[vulkan][grid][skip]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = gridtest::random_scene(200, 0.6f, 10.0f, 12, 40);
+  // The compact layout with the skip field, and the image layout without it: each writes every
+  // query of the pass pool (a query left unwritten would leave the read waiting)
+  for (const bool compact : {true, false}) {
+    INFO((compact ? "compact layout, skip field" : "image layout, no skip field"));
+    GridOptions o;
+    o.threads = 2;
+    o.traversal = reference::Traversal::exact;
+    o.layout = compact ? GridOptions::Layout::compact : GridOptions::Layout::image;
+    o.skip_empty = compact;
+    VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute, .build_pass_timestamps = true});
+    vk.build(scene, 0.0f);
+    REQUIRE(((vk.params().flags & sh::kGridSkipEmpty) != 0u) == compact);
+    const vulkan::GridTimings& t = vk.timings();
+    for (double ms : t.build_static_passes_ms) CHECK((std::isfinite(ms) && ms >= 0.0));
+    for (double ms : t.build_skip_passes_ms) CHECK((std::isfinite(ms) && ms >= 0.0));
+    // The same grid as a build without them
+    VulkanGridTracer plain(ctx, o, {.build = BuildMode::compute});
+    plain.build(scene, 0.0f);
+    CHECK(plain.download_skip() == vk.download_skip());
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

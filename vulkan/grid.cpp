@@ -24,6 +24,7 @@ namespace {
 // The bindings, specialization constants and push constants: vulkan/shaders/grid_interface.h.
 constexpr uint32_t kStorageBuffersPerStage = shared::kGridBindingCount - 1;
 constexpr VkDeviceSize kExplainHeader = sizeof(shared::ExplainHeader);  // count + padding before the events
+constexpr uint32_t kBuildPassStamps = 13;  // Gpu::build_pass_timestamps
 
 SpecConstants spec_for(const GridParams& g, bool explain) {
   SpecConstants s;
@@ -66,6 +67,9 @@ struct VulkanGridTracer::Gpu {
   std::unique_ptr<Pipeline> skip_field;
   std::map<uint64_t, std::unique_ptr<Pipeline>> traces;  // by (ray list, explain, flags): trace_pipeline
   std::unique_ptr<Timestamps> timestamps, update_timestamps, build_timestamps;
+  // With VulkanGridOptions::build_pass_timestamps: after the insert pass and the spill order, after
+  // each of the compact layout's five passes, after the skip field's fill and each of its five
+  std::unique_ptr<Timestamps> build_pass_timestamps;
 };
 
 namespace {
@@ -249,7 +253,7 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   // the skip_field passes), and the summed-volume table those use during the build
   const bool skip_on = (g.flags & shared::kGridSkipEmpty) != 0u;
   gpu.skip = ctx.create_buffer(skip_on ? VkDeviceSize(shared::skip_words(g)) * 4 : 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-  gpu.skip_table = ctx.create_buffer(skip_on ? VkDeviceSize(shared::skip_table_words(g)) * 4 : 16,
+  gpu.skip_table = ctx.create_buffer(skip_on ? VkDeviceSize(shared::skip_scratch_words(g)) * 4 : 16,
                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT);
 }
 
@@ -330,7 +334,8 @@ void VulkanGridTracer::create_pipelines() {
   if (dev.timestamp_valid_bits) {
     gpu.timestamps = std::make_unique<Timestamps>(ctx, 2);
     gpu.update_timestamps = std::make_unique<Timestamps>(ctx, 5);  // begin, after the clear, the triangles, the runs, end
-    gpu.build_timestamps = std::make_unique<Timestamps>(ctx, 5);   // begin, after init, static, skip, dynamic
+    gpu.build_timestamps = std::make_unique<Timestamps>(ctx, 5);  // begin, after init, static, skip, dynamic
+    if (vk_.build_pass_timestamps) gpu.build_pass_timestamps = std::make_unique<Timestamps>(ctx, kBuildPassStamps);
   }
 }
 
@@ -349,7 +354,9 @@ void VulkanGridTracer::record_build(uint32_t instance_count) {
                 ": use fewer cells or a smaller capacity, or --backend cpu");
   const auto t0 = std::chrono::steady_clock::now();
   Timestamps* stamps = gpu.build_timestamps.get();
+  Timestamps* passes = stamps ? gpu.build_pass_timestamps.get() : nullptr;
   ctx.submit([&](VkCommandBuffer cb) {
+    if (passes) passes->reset(cb);
     if (stamps) stamps->reset(cb), stamps->write(cb, 0, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT);
     vkCmdFillBuffer(cb, gpu.dirty.buffer, 0, VK_WHOLE_SIZE, 0u);  // the dirty-cell list empty
     vkCmdFillBuffer(cb, gpu.build_list.buffer, 0, sizeof(shared::WorkListHeader), 0u);
@@ -370,6 +377,7 @@ void VulkanGridTracer::record_build(uint32_t instance_count) {
     if (stamps) stamps->write(cb, 1);
     insert_instances(cb, 0, static_instances_);
     barrier(cb);
+    if (passes) passes->write(cb, 0);
     // The static references' spill count (what the update's clear pass resets the counter to),
     // then their spill lists in order
     const VkBufferCopy count_to_static{offsetof(shared::SpillHeader, count), offsetof(shared::SpillHeader, static_count),
@@ -377,9 +385,10 @@ void VulkanGridTracer::record_build(uint32_t instance_count) {
     vkCmdCopyBuffer(cb, gpu.spill.buffer, gpu.spill.buffer, 1, &count_to_static);
     barrier(cb);
     record_spill_order(cb, false);
-    record_compact(cb);
+    if (passes) passes->write(cb, 1);
+    record_compact(cb, passes);
     if (stamps) stamps->write(cb, 2);
-    record_skip_field(cb);
+    record_skip_field(cb, passes);
     if (stamps) stamps->write(cb, 3);
     insert_instances(cb, static_instances_, instance_count);
     barrier(cb);
@@ -416,6 +425,13 @@ void VulkanGridTracer::record_build(uint32_t instance_count) {
     timings_.build_static_ms = (ns[2] - ns[1]) * 1e-6;
     timings_.build_skip_ms = (ns[3] - ns[2]) * 1e-6;
     timings_.build_dynamic_ms = (ns[4] - ns[3]) * 1e-6;
+    if (passes) {
+      // passes: [0] after the insert pass, [1] after the spill order, [2, 7) the compact layout's,
+      // [7] the skip field's fill, [8, 13) its passes
+      const std::vector<double> p = passes->read_ns();
+      for (uint32_t k = 0; k < 7; ++k) timings_.build_static_passes_ms[k] = (p[k] - (k == 0 ? ns[1] : p[k - 1])) * 1e-6;
+      for (uint32_t k = 0; k < 6; ++k) timings_.build_skip_passes_ms[k] = (p[7 + k] - (k == 0 ? ns[2] : p[6 + k])) * 1e-6;
+    }
   }
 }
 
@@ -433,9 +449,13 @@ void VulkanGridTracer::record_spill_order(VkCommandBuffer cb, bool dynamic) {
 
 // The compact layout's passes after the static count (compact.comp): block sums, the blocks' scan,
 // offsets and cursors, scatter, order; barriers between. Nothing without the compact layout.
-void VulkanGridTracer::record_compact(VkCommandBuffer cb) {
+void VulkanGridTracer::record_compact(VkCommandBuffer cb, Timestamps* stamps) {
   Gpu& gpu = *gpu_;
-  if (!gpu.compact) return;
+  if (!gpu.compact) {
+    if (stamps)
+      for (uint32_t k = 2; k < 7; ++k) stamps->write(cb, k);  // every query written (read_ns waits for each)
+    return;
+  }
   // Workgroups of kCompactScanLanes: a lane per cell (passes 0 and 2), one workgroup (pass 1), a
   // lane per pair (passes 3 and 4); within maxComputeWorkGroupCount (checked by create_resources)
   const uint32_t cells = shared::grid_cell_count(params_);
@@ -446,26 +466,37 @@ void VulkanGridTracer::record_compact(VkCommandBuffer cb) {
     gpu.compact->push(cb, shared::CompactPush{pass});
     vkCmdDispatch(cb, groups(items[pass], shared::kCompactScanLanes), 1, 1);
     barrier(cb);
+    if (stamps) stamps->write(cb, 2 + pass);
   }
 }
 
 // The skip field's passes (skip_field.comp) over the static references: the table zeroed, its
-// three line passes, the distances; barriers between. Nothing without kGridSkipEmpty.
-void VulkanGridTracer::record_skip_field(VkCommandBuffer cb) {
+// three line passes (along z, y, x), the bricks' distances, the cells'; barriers between. Nothing without kGridSkipEmpty.
+void VulkanGridTracer::record_skip_field(VkCommandBuffer cb, Timestamps* stamps) {
   Gpu& gpu = *gpu_;
-  if (!gpu.skip_field) return;
+  if (!gpu.skip_field) {
+    if (stamps)
+      for (uint32_t k = 7; k < 13; ++k) stamps->write(cb, k);  // every query written (read_ns waits for each)
+    return;
+  }
   const GridParams& g = params_;
   const uint32_t max_x = ctx_->info().limits.maxComputeWorkGroupCount[0];
   vkCmdFillBuffer(cb, gpu.skip_table.buffer, 0, VK_WHOLE_SIZE, 0u);
   barrier(cb);
+  if (stamps) stamps->write(cb, 7);
   gpu.skip_field->bind(cb, gpu.set->set());
   const glm::uvec3 n = g.cells;
-  const uint32_t items[4] = {n.y * n.z, n.x * n.z, n.x * n.y, shared::grid_cell_count(g)};  // lines, lines, lines, cells
-  for (uint32_t pass = 0; pass < 4; ++pass) {
+  // The table's passes along z, y, x: a workgroup of 64 lanes per 16 lines along z and y, per line
+  // along x (skip_field.comp's skip_lines); then a lane per brick, per cell
+  const auto lanes = [](uint32_t lines, uint32_t per_group) { return (lines + per_group - 1u) / per_group * 64u; };
+  const uint32_t items[5] = {lanes(n.x * n.y, 16u), lanes(n.x * n.z, 16u), lanes(n.y * n.z, 1u),
+                             shared::skip_brick_count(g), shared::grid_cell_count(g)};
+  for (uint32_t pass = 0; pass < 5; ++pass) {
     gpu.skip_field->push(cb, shared::SkipFieldPush{pass});
     const glm::uvec3 grid = shared::work_list_groups(items[pass], 64u, max_x);
     vkCmdDispatch(cb, grid.x, grid.y, 1);
     barrier(cb);
+    if (stamps) stamps->write(cb, 8 + pass);
   }
 }
 

@@ -12,6 +12,7 @@
 // tracers build the same grid from the same GridOptions.
 #pragma once
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <span>
@@ -44,6 +45,10 @@ struct VulkanGridOptions {
   // as maxComputeSharedMemorySize holds (tests set a smaller one: a pass with more entries than
   // the copy holds walks the buffer instead)
   uint32_t order_shared_entries = 0;
+  // Timestamps between the build's static passes and the skip field's (GridTimings'
+  // build_static_passes_ms, build_skip_passes_ms; gridrt bench): 13 more queries in the build,
+  // about 0.01 ms on the H100 (docs/BENCHMARKS.md), so off unless asked for
+  bool build_pass_timestamps = false;
 };
 
 // Time of the last build, update and trace, milliseconds: on the device (timestamp queries
@@ -59,6 +64,13 @@ struct GridTimings {
   double insert_triangles_ms = 0.0, insert_runs_ms = 0.0, order_ms = 0.0;
   // The build's passes (device): the blank image, the static instances, the dynamic ones
   double build_init_ms = 0.0, build_static_ms = 0.0, build_skip_ms = 0.0, build_dynamic_ms = 0.0;
+  // The skip field's part (device, with build_pass_timestamps): its table's fill, the table along
+  // z, y, x, the bricks, the cells
+  std::array<double, 6> build_skip_passes_ms{};
+  // The static instances' part (device, with build_pass_timestamps): the insert pass, the spill
+  // order, the compact layout's group sums, group scan, offsets, scatter, order (0 without the
+  // compact layout)
+  std::array<double, 7> build_static_passes_ms{};
 };
 
 class VulkanGridTracer : public Tracer {
@@ -172,8 +184,8 @@ class VulkanGridTracer : public Tracer {
   void record_frame_trace(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first, uint32_t rays,
                           glm::vec3 light, bool directional);
   void upload_transforms(float time, uint32_t first, uint32_t last);
-  void record_skip_field(VkCommandBuffer cb);
-  void record_compact(VkCommandBuffer cb);
+  void record_skip_field(VkCommandBuffer cb, Timestamps* stamps = nullptr);
+  void record_compact(VkCommandBuffer cb, Timestamps* stamps = nullptr);
   void run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index, uint32_t mode);
 
   std::unique_ptr<Context> owned_;

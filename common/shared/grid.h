@@ -786,10 +786,14 @@ SH_INLINE uint skip_box_distance(SH_IN(uvec3) c, SH_IN(uvec3) lo, SH_IN(uvec3) h
 // (exact in uint arithmetic: the count lies in [0, cells]).
 // Corner j (bits: x, y, z) of the cube of radius r around c, in the table's 1-based coordinates
 // (0 along an axis stands for "before the grid", whose sum is 0).
+// Corner j of the box of cells [lo, hi] (inside the grid).
+SH_INLINE uvec3 skip_box_corner(SH_IN(uvec3) lo, SH_IN(uvec3) hi, uint j) {
+  return uvec3((j & 1u) != 0u ? hi.x + 1u : lo.x, (j & 2u) != 0u ? hi.y + 1u : lo.y, (j & 4u) != 0u ? hi.z + 1u : lo.z);
+}
 SH_INLINE uvec3 skip_cube_corner(SH_IN(GridParams) g, SH_IN(uvec3) c, uint r, uint j) {
   uvec3 lo = uvec3(c.x - min(r, c.x), c.y - min(r, c.y), c.z - min(r, c.z));
   uvec3 hi = min(c + uvec3(r), g.cells - uvec3(1u));
-  return uvec3((j & 1u) != 0u ? hi.x + 1u : lo.x, (j & 2u) != 0u ? hi.y + 1u : lo.y, (j & 4u) != 0u ? hi.z + 1u : lo.z);
+  return skip_box_corner(lo, hi, j);
 }
 // The sign of corner j in the inclusion-exclusion: + where an even number of axes take the low side.
 SH_INLINE bool skip_corner_positive(uint j) {
@@ -804,10 +808,57 @@ SH_INLINE uint skip_table_words(SH_IN(GridParams) g) {
   return (g.cells.x + 1u) * (g.cells.y + 1u) * (g.cells.z + 1u);
 }
 
+// The search's bricks: kSkipBrick^3 cells (brick b holds cells kSkipBrick b + [0, kSkipBrick), the
+// last along an axis clipped to the grid). A brick's distance B(b): the smallest R in
+// [0, kSkipMaxBrickDistance) whose box of cells kSkipBrick (b - R) .. kSkipBrick (b + R + 1) - 1
+// (clipped) holds an occupied cell, else kSkipMaxBrickDistance. It brackets the distance of each
+// cell c of the brick: c lies within kSkipBrick - 1 of every cell of the brick along each axis, so
+// kSkipBrick B - (kSkipBrick - 1) <= Ds(c) <= kSkipBrick B + kSkipBrick - 1 (skip_cell_window: a
+// window of 2 kSkipBrick - 1 values, 3 probes of a binary search instead of 8).
+SH_CONST uint kSkipBrick = 4u;
+// The search's cap: the smallest R whose window reaches kSkipMaxDistance (kSkipBrick R + kSkipBrick
+// - 1 >= kSkipMaxDistance). A brick with no occupied cell within R - 1 bricks gets R: its cells'
+// distances are at least kSkipBrick R - (kSkipBrick - 1), and the window holds every capped value
+// from there.
+SH_CONST uint kSkipMaxBrickDistance = 63u;  // kSkipMaxDistance over kSkipBrick, rounded down (asserted below)
+SH_INLINE uvec3 skip_bricks(SH_IN(GridParams) g) { return (g.cells + uvec3(3u)) / 4u; }  // kSkipBrick = 4
+SH_INLINE uint skip_brick_count(SH_IN(GridParams) g) {
+  uvec3 b = skip_bricks(g);
+  return b.x * b.y * b.z;
+}
+SH_INLINE uvec3 skip_brick_of_index(SH_IN(GridParams) g, uint i) {
+  uvec3 b = skip_bricks(g);
+  return uvec3(i % b.x, sh_udiv(i, b.x) % b.y, sh_udiv(i, b.x * b.y));
+}
+SH_INLINE uint skip_brick_index(SH_IN(GridParams) g, SH_IN(uvec3) c) {
+  uvec3 b = skip_bricks(g);
+  uvec3 k = c / 4u;  // kSkipBrick
+  return (k.z * b.y + k.y) * b.x + k.x;
+}
+// Corner j of the box of brick b's cells grown by R bricks, clipped to the grid.
+SH_INLINE uvec3 skip_brick_corner(SH_IN(GridParams) g, SH_IN(uvec3) b, uint R, uint j) {
+  uvec3 first = b * kSkipBrick;
+  uint r = R * kSkipBrick;
+  uvec3 lo = uvec3(first.x - min(r, first.x), first.y - min(r, first.y), first.z - min(r, first.z));
+  uvec3 hi = min(first + uvec3(kSkipBrick - 1u + r), g.cells - uvec3(1u));
+  return skip_box_corner(lo, hi, j);
+}
+// The window [lo, hi] of capped distances a cell of a brick at distance B can have.
+SH_INLINE void skip_cell_window(uint B, SH_OUT(uint) lo, SH_OUT(uint) hi) {
+  lo = min(max(kSkipBrick * B, kSkipBrick - 1u) - (kSkipBrick - 1u), kSkipMaxDistance);
+  hi = min(kSkipBrick * B + kSkipBrick - 1u, kSkipMaxDistance);
+}
+// The build's scratch: the summed-volume table, then one word per brick (its distance).
+SH_INLINE uint skip_scratch_words(SH_IN(GridParams) g) { return skip_table_words(g) + skip_brick_count(g); }
+
 SH_END
 
 #ifdef __cplusplus
 static_assert(sizeof(gridrt::shared::GridParams) == 96, "std430 layout of GridParams");
+static_assert(gridrt::shared::kSkipBrick == 4u, "skip_bricks and skip_brick_index divide by 4");
+static_assert(gridrt::shared::kSkipMaxBrickDistance * gridrt::shared::kSkipBrick <= gridrt::shared::kSkipMaxDistance &&
+                  (gridrt::shared::kSkipMaxBrickDistance + 1u) * gridrt::shared::kSkipBrick > gridrt::shared::kSkipMaxDistance,
+              "kSkipMaxBrickDistance is kSkipMaxDistance over kSkipBrick, rounded down");
 static_assert(sizeof(gridrt::shared::GridInstance) == 16, "std430 layout of GridInstance");
 static_assert(sizeof(gridrt::shared::GridTriangle) == 48, "std430 layout of GridTriangle");
 static_assert(sizeof(gridrt::shared::GridTriangleUv) == 24, "std430 layout of GridTriangleUv");

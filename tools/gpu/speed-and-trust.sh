@@ -8,7 +8,7 @@
 #                                                              ons-reborn-teapot, bunny)
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- gridrt-base /tmp/gs/*.gridscene \
 #     /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
-# There: PART=diff|bench|gather|frame|stats|portal|untuned bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
+# There: PART=diff|bench|build|gather|frame|stats|portal|untuned bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
 #   diff    gridrt diff (reference against the shaders, validation on) on the three frames: paper
 #           traversal + raster build + the GPU frame's passes, exact + compute build + the GPU
 #           frame, exact + raster build; portal diff bit for bit on the built-in level, its mip
@@ -18,6 +18,8 @@
 #   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, gridrt-V1, ...:
 #           intermediate builds, when staged) and this one at their defaults: the frame's passes,
 #           the gather's split, its work items and tile pairs, the shadow pass (PART=frame: the same)
+#   build   the first static build (device timestamps), every staged binary in turns, 3 rounds; then
+#           this binary's every pass (--build-passes)
 #   stats   the driver's statistics of every compute pipeline of one frame per scene (registers, ...)
 #   portal  tools/gpu/portal-bench.sh with INSTANCED_ONLY=1
 #   untuned the bunny's primary rays, the built-in teapot and Cornell box, both binaries in turns
@@ -107,6 +109,36 @@ untuned)
         --warmup 1 2>&1 | grep -E '^first build split|^\| [0-9]|error' | head -3
     done
   } 2>&1 | tee "$out/untuned.txt"
+  ;;
+build)
+  # The first static build (device timestamps), the baseline binary, any intermediate builds
+  # (gridrt-A, ...) and this one in turns, three rounds: short runs (3 frames); then this one with
+  # every pass of the static build and the skip field timed (--build-passes)
+  sel='^first build split|^\| grid|error'
+  B="--backend vulkan --traversal exact --vk-build compute --frames 3 --warmup 1"
+  bins=("$E/gridrt-base")
+  for f in "$E"/gridrt-[A-Z]*; do
+    case $f in *.xz) continue ;; esac
+    [ -f "$f" ] && chmod +x "$f" && bins+=("$f")
+  done
+  {
+    for round in 1 2 3; do
+      for s in "${scenes[@]}" builtin:atrium; do
+        X=$E/$s.gridscene
+        [ "$s" = builtin:atrium ] && X=$s
+        for bin in "${bins[@]}" gridrt; do
+          echo "== build $s (round $round): $bin"
+          timeout 90 "$bin" bench "$X" $B 2>&1 | grep -E "$sel" | cut -c1-400
+        done
+      done
+    done
+    for s in "${scenes[@]}" builtin:atrium; do
+      X=$E/$s.gridscene
+      [ "$s" = builtin:atrium ] && X=$s
+      echo "== build passes $s: gridrt --build-passes"
+      timeout 90 gridrt bench "$X" $B --build-passes 2>&1 | grep -E "$sel" | cut -c1-400
+    done
+  } 2>&1 | tee "$out/build.txt"
   ;;
 gather | frame)
   # The compute gather's screen box (common/shared/raster.h gather_box) against the baseline's:

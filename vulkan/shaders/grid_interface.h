@@ -102,7 +102,7 @@ struct CompactPush {
 
 // Push constants of skip_field.comp.
 struct SkipFieldPush {
-  uint pass;  // 0-2: the summed-volume table along x, y, z; 3: the distances
+  uint pass;  // 0-2: the summed-volume table along z, y, x; 3: the bricks' distances; 4: the cells'
 };
 
 // The explain buffer: this header, then the events.

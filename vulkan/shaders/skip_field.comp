@@ -2,14 +2,24 @@
 // skip_field.comp: the skip field's static distances (kGridSkipEmpty; docs/SPEC.md "Empty-space
 // skipping"), after the static references are in. Four passes, one pipeline, the pass a push
 // constant (reference/build.cpp, skip_field_build and skip_table_pass, block by block):
-//   0-2: the summed-volume table of the occupancy (slot 0 not blank): pass 0 one invocation per x
-//        line, writing its running count; passes 1 and 2 add along y and z. Each line is read
-//        kSkipLineBatch values at a time before they are written: the batch's loads are in flight
+//   0-2: the summed-volume table of the occupancy (slot 0 not blank): pass 0 the running count
+//        along each z line, passes 1 and 2 add along y and x (the reference: x, y, z, one
+//        invocation per line; the sums are exact, so the order of the axes changes no value). A
+//        workgroup takes skip_lines(pass) lines, each cut into 64 / skip_lines segments, a lane per
+//        segment: the lane sums its segment, the segments' sums meet in shared memory, and the
+//        lane walks its segment again writing the running sums from the sum of the segments
+//        before it. Along z and y, 16 lines of adjacent x (their loads coalesce), 4 segments each;
+//        along x, one line of 64 segments (adjacent lanes, adjacent runs of cells). The occupancy
+//        pass runs along z: its two offsets a cell are read by lanes of adjacent x. Loads are
+//        issued kSkipLineBatch at a time before they are used, so that a batch is in flight
 //        together (a load after a store to the same buffer is not moved above it).
-//   3:   one invocation per cell (adjacent lanes, adjacent cells: the table's corners coalesce):
-//        its distance, the smallest r whose cube holds an occupied cell, by binary search over
-//        [0, kSkipMaxDistance]; the four cells of a word meet in shared memory, the word's first
-//        lane writes it (the reference: one invocation per word).
+//   3:   one invocation per brick (kSkipBrick^3 cells): its distance, the smallest R whose grown
+//        box holds an occupied cell, by binary search over [0, kSkipMaxBrickDistance], written
+//        after the table (skip_scratch_words).
+//   4:   one invocation per cell (adjacent lanes, adjacent cells: the table's corners coalesce):
+//        its distance, the smallest r whose cube holds an occupied cell, by binary search over the
+//        window its brick's distance leaves (skip_cell_window); the four cells of a word meet in
+//        shared memory, the word's first lane writes it (the reference: one invocation per word).
 #extension GL_GOOGLE_include_directive : require
 #include "grid_common.glsl"
 
@@ -21,7 +31,12 @@ layout(std430, binding = kGridBindSkipTable) buffer SkipTable { uint table[]; };
 layout(push_constant) uniform Push { SkipFieldPush pc; };
 
 const uint kSkipLineBatch = 8u;
-shared uint words[64u / 4u];  // pass 3: the workgroup's cells' distances, 4 to a word
+shared uint words[64u / 4u];  // pass 4: the workgroup's cells' distances, 4 to a word
+shared uint segment_sums[64];  // passes 0-2: each lane's segment sum
+
+// Lines a workgroup of passes 0-2 takes (record_skip_field on the host): 16 along z and y (4
+// segments each), 1 along x (64 segments).
+uint skip_lines(uint pass) { return pass == 2u ? 1u : 16u; }
 
 // Occupied cells in the cube of radius r around c, from the table.
 uint skip_cube_count(GridParams g, uvec3 c, uint r) {
@@ -33,9 +48,19 @@ uint skip_cube_count(GridParams g, uvec3 c, uint r) {
   return count;
 }
 
-// Cell k of line (a, b) of table pass `pass` (along x, y, z).
+// Occupied cells in the box of brick b grown by R bricks, from the table.
+uint skip_brick_count(GridParams g, uvec3 b, uint R) {
+  uint count = 0u;
+  for (uint j = 0u; j < 8u; ++j) {
+    const uint v = table[skip_table_index(g, skip_brick_corner(g, b, R, j))];
+    count = skip_corner_positive(j) ? count + v : count - v;
+  }
+  return count;
+}
+
+// Cell k of line (a, b) of table pass `pass` (along z, y, x).
 uvec3 line_cell(uint pass, uint a, uint b, uint k) {
-  return pass == 0u ? uvec3(k, a, b) : (pass == 1u ? uvec3(a, k, b) : uvec3(a, b, k));
+  return pass == 0u ? uvec3(a, b, k) : (pass == 1u ? uvec3(a, k, b) : uvec3(k, a, b));
 }
 
 // The table's word of cell c (1-based: index 0 along an axis is "before the grid").
@@ -57,23 +82,59 @@ void main() {
   const uint item = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
   const uvec3 n = g.cells;
   if (pc.pass < 3u) {
-    // The summed-volume table's passes
-    const uvec3 lines = pc.pass == 0u ? uvec3(n.y, n.z, n.x) : (pc.pass == 1u ? uvec3(n.x, n.z, n.y) : uvec3(n.x, n.y, n.z));
-    if (item >= lines.x * lines.y) return;
-    const uint a = item % lines.x;
-    const uint b = item / lines.x;
+    // The summed-volume table's passes (every lane reaches the barrier)
+    const uvec3 lines = pc.pass == 0u ? uvec3(n.x, n.y, n.z) : (pc.pass == 1u ? uvec3(n.x, n.z, n.y) : uvec3(n.y, n.z, n.x));
+    const uint per_group = skip_lines(pc.pass);
+    const uint segments = 64u / per_group;
+    const uint l = gl_LocalInvocationID.x;
+    const uint line = (item / 64u) * per_group + l % per_group;
+    const uint segment = l / per_group;
+    const bool on = line < lines.x * lines.y;
+    const uint a = line % lines.x;
+    const uint b = line / lines.x;
+    const uint seg_len = (lines.z + segments - 1u) / segments;
+    const uint k_begin = on ? min(segment * seg_len, lines.z) : 0u;
+    const uint k_end = on ? min(k_begin + seg_len, lines.z) : 0u;
+    // The segment's sum
     uint sum = 0u;
-    for (uint k0 = 0u; k0 < lines.z; k0 += kSkipLineBatch) {
+    for (uint k0 = k_begin; k0 < k_end; k0 += kSkipLineBatch) {
       uint v[kSkipLineBatch];
       for (uint q = 0u; q < kSkipLineBatch; ++q) {
-        const uvec3 c = line_cell(pc.pass, a, b, min(k0 + q, lines.z - 1u));  // past the end: unused
+        const uvec3 c = line_cell(pc.pass, a, b, min(k0 + q, k_end - 1u));  // past the end: unused
         v[q] = pc.pass == 0u ? occupancy(g, c) : table[line_table_index(g, c)];
       }
-      for (uint q = 0u; q < kSkipLineBatch && k0 + q < lines.z; ++q) {
-        sum += v[q];
-        table[line_table_index(g, line_cell(pc.pass, a, b, k0 + q))] = sum;
+      for (uint q = 0u; q < kSkipLineBatch && k0 + q < k_end; ++q) sum += v[q];
+    }
+    segment_sums[l] = sum;
+    barrier();
+    // The running sums from the line's segments before this one
+    uint run = 0u;
+    for (uint j = 0u; j < segment; ++j) run += segment_sums[j * per_group + l % per_group];
+    for (uint k0 = k_begin; k0 < k_end; k0 += kSkipLineBatch) {
+      uint v[kSkipLineBatch];
+      for (uint q = 0u; q < kSkipLineBatch; ++q) {
+        const uvec3 c = line_cell(pc.pass, a, b, min(k0 + q, k_end - 1u));
+        v[q] = pc.pass == 0u ? occupancy(g, c) : table[line_table_index(g, c)];
+      }
+      for (uint q = 0u; q < kSkipLineBatch && k0 + q < k_end; ++q) {
+        run += v[q];
+        table[line_table_index(g, line_cell(pc.pass, a, b, k0 + q))] = run;
       }
     }
+    return;
+  }
+  if (pc.pass == 3u) {
+    // The bricks' distances
+    if (item >= skip_brick_count(g)) return;
+    const uvec3 b = skip_brick_of_index(g, item);
+    uint lo = 0u;
+    uint hi = kSkipMaxBrickDistance;
+    while (lo < hi) {
+      const uint mid = (lo + hi) / 2u;
+      if (skip_brick_count(g, b, mid) > 0u) hi = mid;
+      else lo = mid + 1u;
+    }
+    table[skip_table_words(g) + item] = lo;
     return;
   }
   // The distances, one invocation per cell (every lane reaches the barriers)
@@ -84,8 +145,9 @@ void main() {
   if (item < cells) {
     const uint i = item;
     const uvec3 c = cell_of_linear_index(g, i);
-    uint lo = 0u;
-    uint hi = kSkipMaxDistance;
+    uint lo;
+    uint hi;
+    skip_cell_window(table[skip_table_words(g) + skip_brick_index(g, c)], lo, hi);
     while (lo < hi) {
       const uint mid = (lo + hi) / 2u;
       if (skip_cube_count(g, c, mid) > 0u) hi = mid;
