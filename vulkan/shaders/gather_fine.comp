@@ -18,6 +18,7 @@
 // gather as a rasterizer").
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_ballot : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #include "gather_visibility.glsl"
 
@@ -45,6 +46,10 @@ void main() {
   const uint begin = listed ? tile_words[pc.tiles + tile] : 0u;
   const uint end = !listed ? 0u : tile + 1u < pc.tiles ? tile_words[pc.tiles + tile + 1u] : fine_header.pairs;
   const uint lid = gl_LocalInvocationIndex;
+  // The subgroup's largest t (keys only decrease: a bound of every later key), taken again only
+  // after a triangle that lowered some lane's key: the same value as taking it before every
+  // triangle, without the reduction where nothing changed
+  uint depth = subgroupMax(unpackUint2x32(key).y);
   for (uint base = begin; base < end; base += kFineBatch) {
     // The batch's pairs in the order of their triangles' depth bounds (nearest first: the keys
     // fall early and the depth test culls more); the order changes no key, only the work
@@ -67,16 +72,19 @@ void main() {
     barrier();
     for (uint j = 0u; j < n; ++j) {
       const GatherRasterTriangle g = tile_tris[s_order[j]];
-      // Depth: the subgroup's largest t (keys only decrease: a bound of every later key). A
-      // triangle whose bound exceeds it wins no pixel of the subgroup, and neither does any after
-      // it in the batch (their bounds are no smaller, the depth no larger): the subgroup leaves
-      // the batch together (it stays converged)
-      const uint depth = subgroupMax(unpackUint2x32(key).y);
+      // Depth: a triangle whose bound exceeds the subgroup's largest t wins no pixel of the
+      // subgroup, and neither does any after it in the batch (their bounds are no smaller, the
+      // depth no larger): the subgroup leaves the batch together (it stays converged)
       if (floatBitsToUint(g.t_lo) > depth) break;
+      bool lowered = false;
       if (on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
         uvec2 k;
-        if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k)) key = min(key, packUint2x32(k));
+        if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k) && packUint2x32(k) < key) {
+          key = packUint2x32(k);
+          lowered = true;
+        }
       }
+      if (subgroupBallot(lowered) != uvec4(0u)) depth = subgroupMax(unpackUint2x32(key).y);
     }
     barrier();  // the batch's order is read before the next batch rewrites it
   }
