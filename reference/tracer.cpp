@@ -49,10 +49,12 @@ void ReferenceGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hi
 AccelDump ReferenceGridTracer::dump() const {
   AccelDump d;
   if ((grid_.params.flags & shared::kGridCompact) != 0u) {
-    // The compact layout: the offsets (cells + 1), then the references, as one row
+    // The compact layout: the offsets (cells + 1), then the references (as many as the last offset
+    // says: the array's one-word stand-in of a grid without any is left out), as one row
     d.kind = "grid-compact";
     d.texels = grid_.offsets;
-    d.texels.insert(d.texels.end(), grid_.refs.begin(), grid_.refs.end());
+    d.texels.insert(d.texels.end(), grid_.refs.begin(),
+                    grid_.refs.begin() + std::min<size_t>(grid_.refs.size(), d.texels.back()));
     d.extent = glm::uvec3(uint32_t(d.texels.size()), 1u, 1u);
     return d;
   }

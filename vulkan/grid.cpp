@@ -222,7 +222,9 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
     throw Error("a compact grid of " + std::to_string(cells) + " cells and " + std::to_string(refs) +
                 " references needs more workgroups than maxComputeWorkGroupCount on " + dev.name +
                 ": use --layout image or fewer cells");
-  gpu.compact_pair_capacity = compact ? uint32_t(refs) : 0u;
+  // The plan's count exactly (the build checks its own against it; 0 where every triangle has zero
+  // area), the buffers at least one reference long
+  gpu.compact_pair_capacity = compact ? uint32_t(plan.static_references) : 0u;
   gpu.offsets = ctx.create_buffer(compact ? (cells + 1) * 4 : 16, sbu);
   gpu.refs = ctx.create_buffer(compact ? refs * 4 : 16, sbu);
   gpu.compact_counts = ctx.create_buffer(compact ? cells * 4 : 16, sbu);
@@ -809,11 +811,12 @@ AccelDump VulkanGridTracer::dump() const {
   if (!gpu_) return {};
   AccelDump d;
   if ((params_.flags & shared::kGridCompact) != 0u) {
-    // The compact layout: the offsets (cells + 1), then the references, as one row
+    // The compact layout: the offsets (cells + 1), then the references (as many as the last offset
+    // says: the buffer's one-word stand-in of a grid without any is left out), as one row
     d.kind = "grid-compact";
     d.texels = ctx_->download<uint32_t>(gpu_->offsets, gpu_->offsets.size / 4);
     const std::vector<uint32_t> refs = ctx_->download<uint32_t>(gpu_->refs, gpu_->refs.size / 4);
-    d.texels.insert(d.texels.end(), refs.begin(), refs.end());
+    d.texels.insert(d.texels.end(), refs.begin(), refs.begin() + std::min<size_t>(refs.size(), d.texels.back()));
     d.extent = glm::uvec3(uint32_t(d.texels.size()), 1u, 1u);
     return d;
   }
