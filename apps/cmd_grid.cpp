@@ -69,8 +69,9 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
   if (!choice.sample.rays.empty())
     std::printf("\ntrace-cost sample: %zu %s rays\n", choice.sample.rays.size(),
                 choice.sample.bounce ? "glossy bounce" : "camera");
-  std::printf("\nchoose_grid: %.0f ms, %zu candidates (image limit %u, policy %s)\n", choose_ms,
-              choice.candidates.size(), go.max_image_dimension,
+  std::printf("\nchoose_grid: %.0f ms, %zu candidates (image limit %u, work bound %llu AABB range cells, policy %s)\n",
+              choose_ms, choice.candidates.size(), go.max_image_dimension,
+              (unsigned long long)plan::range_cells_budget(scene.triangle_count()),
               go.capacity_policy == reference::GridOptions::CapacityPolicy::trace_cost      ? "trace-cost"
               : go.capacity_policy == reference::GridOptions::CapacityPolicy::no_saturation ? "no-saturation"
                                                                                             : "percentile");
@@ -90,17 +91,18 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
     std::printf("measured on %zu rays of a %ux%u gather buffer, %u thread(s), trace median of %u\n", rays.size(),
                 o.width, o.height, reference::thread_count(go), o.repeat);
   }
-  std::printf("| | cells | cell size | AABB padding | capacity | largest count | saturated cells | dropped refs | MiB | est. cells/ray "
+  std::printf("| | cells | cell size | AABB padding | capacity | largest count | saturated cells | dropped refs | MiB | range cells/tri | est. cells/ray "
               "| est. tests/ray | est. at risk %% | est. skipped %% | est. lost %% | est. cost |%s\n",
               o.measure ? " cells/ray | tests/ray | gap-fill % | agree % | trace ms |" : "");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|%s\n", o.measure ? "---|---|---|---|---|" : "");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|%s\n", o.measure ? "---|---|---|---|---|" : "");
   for (size_t i = 0; i < choice.candidates.size(); ++i) {
     const reference::GridCandidate& c = choice.candidates[i];
-    std::printf("| %s | %ux%ux%u | %g | %g | %u | %u | %llu | %llu | %.1f | %.1f | %.1f | %.2f | %.3f | %.3f | %.0f |",
+    std::printf("| %s | %ux%ux%u | %g | %g | %u | %u | %llu | %llu | %.1f | %.1f | %.1f | %.1f | %.2f | %.3f | %.3f | %.0f |",
                 i == choice.chosen ? "**chosen**" : "", c.cells.x, c.cells.y, c.cells.z, double(c.cell_size),
                 double(c.aabb_padding),
                 c.capacity, c.max_count, (unsigned long long)c.saturated_cells, (unsigned long long)c.dropped,
-                double(c.memory ? c.memory : c.texels * 4) / 1048576.0, c.work.cells, c.work.tests, 100.0 * c.work.at_risk, 100.0 * c.work.skipped, 100.0 * c.work.lost, c.cost);
+                double(c.memory ? c.memory : c.texels * 4) / 1048576.0,
+                double(c.range_cells) / double(std::max<uint64_t>(scene.triangle_count(), 1)), c.work.cells, c.work.tests, 100.0 * c.work.at_risk, 100.0 * c.work.skipped, 100.0 * c.work.lost, c.cost);
     if (o.measure) {
       reference::GridOptions gc = go;
       gc.cell_size = c.cell_size;

@@ -103,6 +103,30 @@ uint64_t compact_budget(const PlanOptions& o, uint64_t scene_triangles) {
   return std::max(kCompactMinBudget, kCompactBytesPerTriangle * scene_triangles);
 }
 
+uint64_t range_cells_budget(uint64_t scene_triangles) {
+  return std::max(kRangeCellsFloor, kRangeCellsPerTriangle * scene_triangles);
+}
+
+uint64_t range_cells(const Scene& scene, float time, const GridParams& g) {
+  uint64_t sum = 0;
+  for (const Instance& inst : scene.instances) {
+    const Mesh& mesh = scene.meshes[inst.mesh];
+    const shared::Affine m = shared::to_affine(inst.transform_at(time));
+    for (const glm::uvec3& tri : mesh.triangles) {
+      const glm::vec3 v0 = shared::transform_point(m, mesh.positions[tri.x]);
+      const glm::vec3 v1 = shared::transform_point(m, mesh.positions[tri.y]);
+      const glm::vec3 v2 = shared::transform_point(m, mesh.positions[tri.z]);
+      const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
+      if (shared::sh_dot(n, n) == 0.0f) continue;
+      glm::uvec3 lo, hi;
+      shared::triangle_cell_range(g, v0, v1, v2, lo, hi);
+      const glm::uvec3 k = hi - lo + 1u;
+      sum += uint64_t(k.x) * k.y * k.z;
+    }
+  }
+  return sum;
+}
+
 GridMemory grid_memory(const GridParams& g, uint64_t static_refs, uint32_t spill_capacity, uint64_t region_cells) {
   GridMemory m;
   const uint64_t cells = uint64_t(g.cells.x) * g.cells.y * g.cells.z;
@@ -228,8 +252,10 @@ uint32_t capacity_allowed(glm::uvec3 cells, uint32_t axis, const GridOptions& o)
 
 // Weigh one resolution: count, then the capacity that drops nothing if the limits allow it.
 // `counts_out` (may be null) receives the trial's counts.
+// `range_bounded`: an automatic resolution, held to the work bound (range_cells_budget).
 GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm::uvec3 cells,
-                    std::optional<uint32_t> cap_over, const GridOptions& o, TrialCounts* counts_out = nullptr) {
+                    std::optional<uint32_t> cap_over, const GridOptions& o, bool range_bounded,
+                    TrialCounts* counts_out = nullptr) {
   GridCandidate c;
   c.cell_size = cs;
   c.aabb_padding = g.aabb_padding;
@@ -242,6 +268,12 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
   if (!c.fits) return c;
   set_cell_size(g, cs, o);
   g.cells = cells;
+  // The work bound: a grid whose AABB ranges alone exceed it is not counted (nor built)
+  c.range_cells = range_cells(scene, time, g);
+  if (range_bounded && c.range_cells > range_cells_budget(scene.triangle_count())) {
+    c.fits = false;
+    return c;
+  }
   TrialCounts counts = trial_counts(scene, time, g, o.capacity_time_samples);
   counts.for_each_largest([&](uint32_t n) { c.max_count = std::max(c.max_count, n); });
   if (compact) {
@@ -387,6 +419,12 @@ GridParams choose_by_percentile(const Scene& scene, float time, const GridOption
   for (int attempt = 0;; ++attempt) {
     set_cell_size(g, cs, o);
     g.cells = (res && !cs_over) ? *res : cells_for(e, cs);
+    // The work bound (an automatic resolution): coarser cells until the AABB ranges fit it
+    if (!res && !cs_over && attempt <= 60 &&
+        range_cells(scene, time, g) > range_cells_budget(scene.triangle_count())) {
+      cs = float(double(cs) * 1.25);
+      continue;
+    }
     std::vector<uint32_t> nonempty;
     trial_counts(scene, time, g, o.capacity_time_samples).for_each_largest([&](uint32_t c) {
       if (c) nonempty.push_back(c);
@@ -426,7 +464,7 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   GridChoice& ch = choice ? *choice : local;
   ch = GridChoice{};
   if (res && !cs_over) {
-    const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o);
+    const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o, false);
     if (!c.fits && (g.flags & shared::kGridCompact) != 0u) {
       const auto mib = [](uint64_t bytes) { return std::to_string(double(bytes) / double(1u << 20)); };
       throw Error("grid: " + std::to_string(res->x) + "x" + std::to_string(res->y) + "x" + std::to_string(res->z) +
@@ -451,12 +489,23 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   if (by_cost && !o.aabb_padding && o.traversal == Traversal::paper && o.paper_padding != g.aabb_padding)
     paddings.push_back(o.paper_padding);
   WorkSample& sample = ch.sample;
-  if (by_cost) sample = work_sample(scene, time, sized_params(g, cells_for(e, cs), cs, 0u, 0u, g.aabb_padding, o), o);
+  if (by_cost) {
+    // The sample's hits do not depend on the grid (the exact traversal, no capacity): the density
+    // target's cells, coarser while their AABB ranges exceed the work bound
+    const uint64_t bound = range_cells_budget(scene.triangle_count());
+    float sample_cs = cs;
+    GridParams gs = sized_params(g, cells_for(e, sample_cs), sample_cs, 0u, 0u, g.aabb_padding, o);
+    for (int k = 0; k < 80 && range_cells(scene, time, gs) > bound; ++k) {
+      sample_cs = float(double(sample_cs) * std::exp2(0.25));
+      gs = sized_params(g, cells_for(e, sample_cs), sample_cs, 0u, 0u, g.aabb_padding, o);
+    }
+    sample = work_sample(scene, time, gs, o);
+  }
   const auto weigh_j = [&](int j, float padding, GridParams& gj) {
     const float c_cs = float(double(cs) * std::exp2(double(j) / 4.0));
     TrialCounts counts;
     gj.aabb_padding = padding;
-    GridCandidate c = weigh(scene, time, gj, c_cs, cells_for(e, c_cs), cap_over, o, by_cost ? &counts : nullptr);
+    GridCandidate c = weigh(scene, time, gj, c_cs, cells_for(e, c_cs), cap_over, o, !cs_over, by_cost ? &counts : nullptr);
     if (c.fits && by_cost) {
       const GridParams gc = sized_params(g, c.cells, c_cs, c.capacity, c.slot_axis, padding, o);
       const std::vector<uint32_t> boxes =

@@ -32,6 +32,17 @@ void compact_check(const AlgorithmOptions& o);
 // triangle, and the least.
 inline constexpr uint64_t kCompactBytesPerTriangle = 320;
 inline constexpr uint64_t kCompactMinBudget = uint64_t(4) << 20;
+// The automatic resolution's work bound: a candidate grid is weighed only when the cells of its
+// triangles' AABB ranges, summed (what its trial count and its build test), stay within
+// kRangeCellsPerTriangle per scene triangle, at least kRangeCellsFloor. Triangles that overlap
+// one another, or that are large beside the density target's cells, would otherwise make the
+// finer candidates' trials and builds quadratic (docs/SPEC.md "The work bound").
+inline constexpr uint64_t kRangeCellsPerTriangle = 256;
+inline constexpr uint64_t kRangeCellsFloor = uint64_t(1) << 22;
+uint64_t range_cells_budget(uint64_t scene_triangles);
+// The cells of every triangle's AABB range on grid `g` (triangle_cell_range), summed over the
+// scene's instances at `time`; zero-area triangles (never inserted) count none. O(triangles).
+uint64_t range_cells(const Scene& scene, float time, const shared::GridParams& g);
 uint64_t compact_budget(const PlanOptions& o, uint64_t scene_triangles);
 
 // Everything the grid keeps on the device (both backends allocate exactly this; bytes): the image
@@ -126,6 +137,7 @@ struct GridCandidate {
   uint64_t saturated_cells = 0;  // cells with count > capacity
   uint64_t texels = 0;
   uint64_t memory = 0;           // compact layout: grid_memory's total (the budget's measure)
+  uint64_t range_cells = 0;      // the triangles' AABB range cells, summed (range_cells)
   bool fits = false;             // within max_image_dimension and max_texels (compact: the memory budget)
   WorkEstimate work;             // trace_cost policy: the estimated work on its ray sample
   double cost = 0.0;             // trace_cost policy: work_cost(work)

@@ -239,3 +239,53 @@ TEST_CASE("grid: a flat triangle far from the origin gets a grid and is hit", "[
     CHECK(h.t == 10.0f);
   }
 }
+
+TEST_CASE("grid: triangles that overlap one another keep the automatic grid within the work bound",
+          "[grid][policy][hardcase]") {
+  // 6000 triangles of random vertices in a thin slab: each spans a good part of the scene, so the
+  // density target's cells (cells per triangle) put every triangle in a large share of them
+  Scene s;
+  s.name = "overlapping";
+  Mesh m;
+  m.name = "soup";
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (uint32_t i = 0; i < 6000; ++i) {
+    for (int k = 0; k < 3; ++k) m.positions.push_back({u(rng), u(rng), 0.01f * u(rng)});
+    m.triangles.push_back({3 * i, 3 * i + 1, 3 * i + 2});
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "", .mesh = 0});
+  s.finalize();
+  const uint64_t bound = plan::range_cells_budget(s.triangle_count());
+  // The density target's cells would exceed it many times over
+  {
+    GridOptions o;
+    const uint32_t n = uint32_t(std::sqrt(double(o.density) * double(s.triangle_count())));
+    o.resolution = glm::uvec3(n, n, 1u);
+    o.layout = GridOptions::Layout::image;
+    o.capacity = 16u;
+    const sh::GridParams g = reference::choose_grid(s, 0.0f, o);
+    CHECK(plan::range_cells(s, 0.0f, g) > 2 * bound);
+  }
+  using Policy = GridOptions::CapacityPolicy;
+  for (auto [t, policy] : {std::pair{Traversal::exact, Policy::trace_cost}, std::pair{Traversal::paper, Policy::trace_cost},
+                           std::pair{Traversal::exact, Policy::no_saturation}, std::pair{Traversal::paper, Policy::percentile}}) {
+    INFO((t == Traversal::exact ? "exact" : "paper") << ", policy " << int(policy));
+    GridOptions o;
+    o.traversal = t;
+    o.capacity_policy = policy;
+    o.threads = 2;
+    GridChoice choice;
+    const sh::GridParams g = reference::choose_grid(s, 0.0f, o, &choice);
+    CHECK(plan::range_cells(s, 0.0f, g) <= bound);
+    for (const GridCandidate& c : choice.candidates) CHECK(c.range_cells <= bound);
+    // The trial's references are a subset of the ranges' cells
+    uint64_t refs = 0;
+    for (size_t i = 0; i < s.instances.size(); ++i)
+      plan::for_each_triangle_cell(s, i, 0.0f, g, [&](uint32_t, size_t) { ++refs; });
+    CHECK(refs > 0u);
+    CHECK(refs <= plan::range_cells(s, 0.0f, g));
+  }
+}
