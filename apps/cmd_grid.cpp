@@ -69,9 +69,10 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
   if (!choice.sample.rays.empty())
     std::printf("\ntrace-cost sample: %zu %s rays\n", choice.sample.rays.size(),
                 choice.sample.bounce ? "glossy bounce" : "camera");
-  std::printf("\nchoose_grid: %.0f ms, %zu candidates (image limit %u, work bound %llu AABB range cells, policy %s)\n",
+  std::printf("\nchoose_grid: %.0f ms, %zu candidates (image limit %u, work bound %llu AABB range cells: %u finer "
+              "grids over it left out, policy %s)\n",
               choose_ms, choice.candidates.size(), go.max_image_dimension,
-              (unsigned long long)plan::range_cells_budget(scene.triangle_count()),
+              (unsigned long long)plan::range_cells_budget(scene.triangle_count()), choice.over_bound,
               go.capacity_policy == reference::GridOptions::CapacityPolicy::trace_cost      ? "trace-cost"
               : go.capacity_policy == reference::GridOptions::CapacityPolicy::no_saturation ? "no-saturation"
                                                                                             : "percentile");

@@ -272,6 +272,7 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
   c.range_cells = range_cells(scene, time, g);
   if (range_bounded && c.range_cells > range_cells_budget(scene.triangle_count())) {
     c.fits = false;
+    c.over_bound = true;
     return c;
   }
   TrialCounts counts = trial_counts(scene, time, g, o.capacity_time_samples);
@@ -523,8 +524,10 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
       GridParams gk = g;
       all[k] = weigh_j(finest + int(k % per_pad), paddings[k / per_pad], gk);
     }, 1);
-    for (const GridCandidate& c : all)
+    for (const GridCandidate& c : all) {
       if (c.fits) ch.candidates.push_back(c);
+      ch.over_bound += c.over_bound ? 1u : 0u;
+    }
   } else {
     std::vector<int> order{0};
     for (int d = 1; d <= std::max(-finest, coarsest); ++d) {
@@ -533,6 +536,7 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     }
     for (int j : order) {
       const GridCandidate c = weigh_j(j, g.aabb_padding, g);
+      ch.over_bound += c.over_bound ? 1u : 0u;
       if (!c.fits) continue;
       ch.candidates.push_back(c);
       if (c.dropped == 0) {

@@ -138,6 +138,7 @@ struct GridCandidate {
   uint64_t texels = 0;
   uint64_t memory = 0;           // compact layout: grid_memory's total (the budget's measure)
   uint64_t range_cells = 0;      // the triangles' AABB range cells, summed (range_cells)
+  bool over_bound = false;       // range_cells over the work bound: not counted, not a candidate
   bool fits = false;             // within max_image_dimension and max_texels (compact: the memory budget)
   WorkEstimate work;             // trace_cost policy: the estimated work on its ray sample
   double cost = 0.0;             // trace_cost policy: work_cost(work)
@@ -147,7 +148,8 @@ struct GridCandidate {
 struct GridChoice {
   std::vector<GridCandidate> candidates;
   size_t chosen = 0;
-  WorkSample sample;  // trace_cost: the rays the estimates were made on
+  WorkSample sample;        // trace_cost: the rays the estimates were made on
+  uint32_t over_bound = 0;  // candidates left out by the work bound (range_cells_budget)
 };
 shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice);
 // The spill list's capacity for grid `g` (chosen by choose_grid with `choice`): 0 with spill off;

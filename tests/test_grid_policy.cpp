@@ -281,6 +281,7 @@ TEST_CASE("grid: triangles that overlap one another keep the automatic grid with
     const sh::GridParams g = reference::choose_grid(s, 0.0f, o, &choice);
     CHECK(plan::range_cells(s, 0.0f, g) <= bound);
     for (const GridCandidate& c : choice.candidates) CHECK(c.range_cells <= bound);
+    if (policy != Policy::percentile) CHECK(choice.over_bound > 0u);  // the density target's among them
     // The trial's references are a subset of the ranges' cells
     uint64_t refs = 0;
     for (size_t i = 0; i < s.instances.size(); ++i)
