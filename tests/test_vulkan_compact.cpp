@@ -278,3 +278,55 @@ TEST_CASE("Vulkan compact layout: a scene whose every triangle has zero area hol
   CHECK(differ == 0u);
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
+
+TEST_CASE("Vulkan exact trace: rays through thousands of copies of one triangle agree with the reference, or are "
+          "refused on llvmpipe past its loop limit",
+          "[vulkan][diff][grid][compact][hardcase]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const bool llvmpipe = ctx.info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE;
+  for (uint32_t copies : {1000u, 5000u}) {
+    INFO(copies << " copies");
+    Mesh m;
+    m.name = "stack";
+    m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    for (uint32_t i = 0; i < copies; ++i) m.triangles.push_back({0, 1, 2});
+    m.materials.assign(m.triangles.size(), 0u);
+    Scene s;
+    s.meshes.push_back(m);
+    s.instances.push_back(Instance{.name = "stack", .mesh = 0});
+    s.finalize();
+    GridOptions o;
+    o.traversal = Traversal::exact;
+    o.layout = GridOptions::Layout::compact;
+    o.resolution = glm::uvec3(4, 4, 1);
+    o.threads = 2;
+    ReferenceGridTracer cpu(o);
+    VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute});
+    cpu.build(s, 0.0f);
+    vk.build(s, 0.0f);
+    // Down through the triangle (a hit: the smallest reference of the ties) and beside it (a miss)
+    std::vector<Ray> rays;
+    for (float x : {0.1f, 0.3f, 0.9f})
+      for (float y : {0.05f, 0.4f, 0.8f}) {
+        Ray r{};
+        r.org = glm::vec3(x, y, 1.0f);
+        r.dir = glm::vec3(0.0f, 0.0f, -1.0f);
+        r.tmax = std::numeric_limits<float>::infinity();
+        r.launch_ref = sh::kNoRef;
+        rays.push_back(r);
+      }
+    std::vector<Hit> w(rays.size()), g(rays.size());
+    cpu.trace(rays, w);
+    uint32_t most = 0;
+    for (const Hit& h : w) most = std::max(most, h.tests);
+    CHECK(most >= copies);
+    if (llvmpipe && most >= vulkan::kLlvmpipeTestLimit) {
+      CHECK_THROWS_WITH(vk.trace(rays, g), Catch::Contains("llvmpipe"));
+      continue;
+    }
+    vk.trace(rays, g);
+    for (size_t i = 0; i < rays.size(); ++i) CHECK(std::memcmp(&w[i], &g[i], sizeof(Hit)) == 0);
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}

@@ -698,6 +698,11 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;
     timings_.total_ms = (ns[8] - ns[0]) * 1e-6;
   }
+  // llvmpipe's loop limit (vulkan/grid.h): the frame's traces' records checked there
+  if (ctx.info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE) {
+    if (bounce_) check_loop_limit(ctx, grid_.params(), download_hits(), "the frame's bounce rays");
+    if (shadows_) check_loop_limit(ctx, grid_.params(), download_shadow_hits(), "the frame's shadow rays");
+  }
 }
 
 GatherBuffer VulkanFrame::download_gather() const {

@@ -639,6 +639,19 @@ void VulkanGridTracer::update(float time) {
 
 // ---- Scene trace (paper 2.3) ----
 
+void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what) {
+  if (ctx.info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE) return;
+  if (g.traversal != shared::kTraversalExact || (g.flags & shared::kGridCompact) == 0u) return;
+  uint32_t most = 0;
+  for (const Hit& h : hits) most = std::max(most, h.tests);
+  if (most < kLlvmpipeTestLimit) return;
+  throw Error("vulkan-grid: " + std::string(what) + ": a ray tested " + std::to_string(most) +
+              " references; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, "
+              "which cuts this trace near 4,680 tests (refused from " + std::to_string(kLlvmpipeTestLimit) +
+              "): its hits cannot be trusted (the cells hold too many overlapping triangles: run on a GPU, or "
+              "with --backend cpu)");
+}
+
 void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index,
                                  uint32_t mode) {
   if (hits.size() != rays.size()) throw Error("vulkan-grid: hits.size() != rays.size()");
@@ -665,6 +678,7 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
   timings_.trace_host_ms = t.host_ms;
   timings_.trace_ms = t.device_ms;
   ctx.download(gpu.hits, hits.data(), hits.size_bytes());
+  if (!explain) check_loop_limit(ctx, params_, hits, "trace");
 }
 
 void VulkanGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
