@@ -109,21 +109,11 @@ uint64_t range_cells_budget(uint64_t scene_triangles) {
 
 uint64_t range_cells(const Scene& scene, float time, const GridParams& g) {
   uint64_t sum = 0;
-  for (const Instance& inst : scene.instances) {
-    const Mesh& mesh = scene.meshes[inst.mesh];
-    const shared::Affine m = shared::to_affine(inst.transform_at(time));
-    for (const glm::uvec3& tri : mesh.triangles) {
-      const glm::vec3 v0 = shared::transform_point(m, mesh.positions[tri.x]);
-      const glm::vec3 v1 = shared::transform_point(m, mesh.positions[tri.y]);
-      const glm::vec3 v2 = shared::transform_point(m, mesh.positions[tri.z]);
-      const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
-      if (shared::sh_dot(n, n) == 0.0f) continue;
-      glm::uvec3 lo, hi;
-      shared::triangle_cell_range(g, v0, v1, v2, lo, hi);
-      const glm::uvec3 k = hi - lo + 1u;
+  for (size_t i = 0; i < scene.instances.size(); ++i)
+    for_each_placed_triangle(scene, i, time, g, [&](const PlacedTriangle& p) {
+      const glm::uvec3 k = p.hi - p.lo + 1u;
       sum += uint64_t(k.x) * k.y * k.z;
-    }
-  }
+    });
   return sum;
 }
 

@@ -16,27 +16,35 @@ namespace gridrt::plan {
 
 using namespace gridrt::shared;
 
-void for_each_triangle_cell(const Scene& scene, size_t instance, float time, const GridParams& g,
-                            const std::function<void(uint32_t, size_t)>& f) {
+void for_each_placed_triangle(const Scene& scene, size_t instance, float time, const GridParams& g,
+                              const std::function<void(const PlacedTriangle&)>& f) {
   const Instance& inst = scene.instances[instance];
   const Mesh& mesh = scene.meshes[inst.mesh];
   const Affine m = to_affine(inst.transform_at(time));
+  PlacedTriangle p;
   for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
     const glm::uvec3 tri = mesh.triangles[t];
-    const vec3 v0 = transform_point(m, mesh.positions[tri.x]);
-    const vec3 v1 = transform_point(m, mesh.positions[tri.y]);
-    const vec3 v2 = transform_point(m, mesh.positions[tri.z]);
-    const vec3 n = triangle_normal(v0, v1, v2);
-    const float nn = sh_dot(n, n);
-    if (nn == 0.0f) continue;
-    uvec3 lo, hi;
-    triangle_cell_range(g, v0, v1, v2, lo, hi);
-    for (uint32_t z = lo.z; z <= hi.z; ++z)
-      for (uint32_t y = lo.y; y <= hi.y; ++y)
-        for (uint32_t x = lo.x; x <= hi.x; ++x)
-          if (triangle_overlaps_cell(g, v0, v1, v2, n, nn, {x, y, z}))
-            f(t, (size_t(z) * g.cells.y + y) * g.cells.x + x);
+    p.index = t;
+    p.v0 = transform_point(m, mesh.positions[tri.x]);
+    p.v1 = transform_point(m, mesh.positions[tri.y]);
+    p.v2 = transform_point(m, mesh.positions[tri.z]);
+    p.n = triangle_normal(p.v0, p.v1, p.v2);
+    if (sh_dot(p.n, p.n) == 0.0f) continue;
+    triangle_cell_range(g, p.v0, p.v1, p.v2, p.lo, p.hi);
+    f(p);
   }
+}
+
+void for_each_triangle_cell(const Scene& scene, size_t instance, float time, const GridParams& g,
+                            const std::function<void(uint32_t, size_t)>& f) {
+  for_each_placed_triangle(scene, instance, time, g, [&](const PlacedTriangle& p) {
+    const float nn = sh_dot(p.n, p.n);
+    for (uint32_t z = p.lo.z; z <= p.hi.z; ++z)
+      for (uint32_t y = p.lo.y; y <= p.hi.y; ++y)
+        for (uint32_t x = p.lo.x; x <= p.hi.x; ++x)
+          if (triangle_overlaps_cell(g, p.v0, p.v1, p.v2, p.n, nn, {x, y, z}))
+            f(p.index, (size_t(z) * g.cells.y + y) * g.cells.x + x);
+  });
 }
 
 namespace {

@@ -13,6 +13,18 @@
 
 namespace gridrt::plan {
 
+// A triangle of an instance as the build sees it at some time: its world vertices, its
+// unnormalized normal (triangle_normal) and its AABB cell range (triangle_cell_range).
+struct PlacedTriangle {
+  uint32_t index = 0;  // within its mesh
+  glm::vec3 v0{}, v1{}, v2{}, n{};
+  glm::uvec3 lo{}, hi{};
+};
+// Calls f for every triangle of instance `instance` at `time` with a non-zero area (the build
+// inserts no other).
+void for_each_placed_triangle(const Scene& scene, size_t instance, float time, const shared::GridParams& g,
+                              const std::function<void(const PlacedTriangle&)>& f);
+
 // Calls f(triangle, cell index) for every cell the build would insert that triangle of instance
 // `instance` into at `time` (its AABB cell range, the plane vs enlarged-sphere test; no capacity).
 // Cell index: (z * cells.y + y) * cells.x + x.
