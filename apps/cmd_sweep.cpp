@@ -506,7 +506,7 @@ void run_sweep(const SweepOptions& o) {
   {
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);
-    if (!std::filesystem::is_directory(o.out))
+    if (!is_folder(o.out))
       throw Error("sweep: cannot use '" + o.out + "' as the output folder: " +
                   (ec ? ec.message() : std::string("it exists and is not a folder")));
   }

@@ -51,8 +51,8 @@ void check_output_path(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path p(path);
   const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
-  if (!fs::is_directory(dir)) throw Error("cannot write '" + path + "': folder '" + dir.string() + "' does not exist");
-  if (fs::is_directory(p)) throw Error("cannot write '" + path + "': it is a folder");
+  if (!is_folder(dir.string())) throw Error("cannot write '" + path + "': folder '" + dir.string() + "' does not exist");
+  if (is_folder(p.string())) throw Error("cannot write '" + path + "': it is a folder");
 }
 
 namespace {

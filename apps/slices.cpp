@@ -11,6 +11,7 @@
 #include "apps/commands.h"
 #include "apps/slices.h"
 #include "gridrt/common/plot.h"
+#include "gridrt/common/safe_io.h"
 
 namespace gridrt::app {
 
@@ -107,7 +108,7 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
                   char axis, const reference::ExplainRecord* ray, const std::string& ray_name) {
   if (!plot::available())
     throw Error("--slices needs OpenImageIO and the DejaVu fonts (Debian: libopenimageio-dev, fonts-dejavu-core)");
-  if (!std::filesystem::is_directory(dir)) throw Error("--slices: folder '" + dir + "' does not exist");
+  if (!is_folder(dir)) throw Error("--slices: folder '" + dir + "' does not exist");
   const reference::GridData& grid = ref.data();
   const sh::GridParams& g = grid.params;
   const SliceLayout l(g, axis, ray != nullptr);

@@ -173,7 +173,7 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
   auto in = OIIO::ImageInput::open(path, &config);
   if (!in) {
     std::string why = OIIO::geterror();
-    if (!fs::exists(path)) why = "no such file";
+    if (const std::string missing = why_missing(path); !missing.empty()) why = missing;
     throw Error("cannot load texture '" + path + "': " + why);
   }
   const OIIO::ImageSpec& spec = in->spec();
@@ -214,7 +214,7 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
 #else
   (void)alpha;
   (void)alpha_channel;
-  if (!fs::exists(path)) throw Error("cannot load texture '" + path + "': no such file");
+  if (const std::string why = why_missing(path); !why.empty()) throw Error("cannot load texture '" + path + "': " + why);
   throw Error("cannot load texture '" + path +
               "': this build has no OpenImageIO (GRIDRT_WITH_OIIO off); load the scene from a "
               ".gridscene cache written by a full build instead");

@@ -57,6 +57,19 @@ int open_input(const std::string& path, const std::string& what, uint64_t& size)
 
 }  // namespace
 
+std::string why_missing(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (fs::exists(st)) return "";
+  if (!ec || ec == std::errc::no_such_file_or_directory) return "no such file";
+  return ec.message();
+}
+
+bool is_folder(const std::string& path) {
+  std::error_code ec;
+  return fs::is_directory(path, ec);
+}
+
 uint64_t check_input_file(const std::string& path, const std::string& what) {
   uint64_t size = 0;
   ::close(open_input(path, what, size));

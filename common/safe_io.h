@@ -37,6 +37,15 @@ InputLimits& input_limits();
 // missing, not a regular file (directory, FIFO, device), larger than max_file_bytes or unreadable.
 std::string read_input_file(const std::string& path, const std::string& what);
 
+// Looking a path up without throwing: "" when something exists at `path`, else why not ("no
+// such file", or the system's reason: "File name too long", "Permission denied", ...).
+// std::filesystem::exists throws on a name the system cannot look up; files named inside input
+// (a scene's meshes, an OBJ's material libraries) go through this instead.
+std::string why_missing(const std::string& path);
+
+// Whether `path` is a folder; false (never a throw) when it cannot be looked up.
+bool is_folder(const std::string& path);
+
 // The same checks without reading: for files a library opens itself (images through
 // OpenImageIO). Returns the file's size.
 uint64_t check_input_file(const std::string& path, const std::string& what);

@@ -143,10 +143,12 @@ class SceneFileReader {
     }
     fs::path fp(out);
     if (fp.is_relative()) fp = dir_ / fp;
-    if (std::error_code ec; fs::is_directory(fp, ec)) fail(where, "'" + fp.string() + "' is a directory, not a file");
-    if (!fs::exists(fp))
+    if (is_folder(fp.string())) fail(where, "'" + fp.string() + "' is a directory, not a file");
+    if (const std::string why = why_missing(fp.string()); why == "no such file")
       fail(where, "file '" + fp.string() + "' not found" +
                       (real ? std::string(" (the real scenes folder is $GRIDRT_SCENES, else ") + GRIDRT_DEFAULT_SCENES + ")" : ""));
+    else if (!why.empty())
+      fail(where, "file '" + fp.string() + "': " + why);
     return fp.string();
   }
 
@@ -545,7 +547,7 @@ std::string real_scenes_dir() {
 Scene load_scene_file(const std::string& path) { return SceneFileReader(path).read(); }
 
 Scene load_model_scene(const std::string& path) {
-  if (!fs::exists(path)) throw Error("cannot open model '" + path + "': no such file");
+  if (const std::string why = why_missing(path); !why.empty()) throw Error("cannot open model '" + path + "': " + why);
   Scene scene;
   scene.name = fs::path(path).filename().string();
   TextureCache textures;

@@ -223,7 +223,10 @@ tinyobj::ObjReader parse_obj(const std::string& path) {
   std::set<std::string> mtl_seen;
   for (const auto& [name, line] : scan.mtllibs) {
     const fs::path mtl = dir / name;
-    if (!fs::exists(mtl)) fail_at(path, line, "material library '" + mtl.string() + "' not found");
+    if (const std::string why = why_missing(mtl.string()); why == "no such file")
+      fail_at(path, line, "material library '" + mtl.string() + "' not found");
+    else if (!why.empty())
+      fail_at(path, line, "material library '" + mtl.string() + "': " + why);
     if (!mtl_seen.insert(mtl.lexically_normal().string()).second) continue;
     mtl_text += scan_mtl(mtl.string());
     mtl_text += "\n";
