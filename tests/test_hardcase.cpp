@@ -323,6 +323,45 @@ TEST_CASE("hardcase: a scene far from the origin (coordinates 1e5 and more) keep
   }
 }
 
+TEST_CASE("hardcase: every hit's barycentrics lie in its triangle, for millimetre triangles seen from 15,000 away too",
+          "[hardcase][vulkan]") {
+  // Far from the triangles, org + t*dir carries more rounding than a triangle is wide: the
+  // accepted test decided on rounded edge functions, and Cramer's weights of that point were
+  // anything (190.7 and -125.2 measured). The reported u, v are clamped into the triangle.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  std::vector<std::array<glm::vec3, 3>> tiny;
+  for (int i = 0; i < 300; ++i) {
+    const glm::vec3 c(unit(rng) * 1e-3f, unit(rng) * 1e-3f, unit(rng) * 1e-3f);
+    tiny.push_back({c, c + glm::vec3(unit(rng), unit(rng), unit(rng)) * 1e-5f,
+                    c + glm::vec3(unit(rng), unit(rng), unit(rng)) * 1e-5f});
+  }
+  const Scene scene = scene_of({mesh_of(tiny, "tiny")});
+  std::vector<Ray> rays;
+  for (int i = 0; i < 3000; ++i) {
+    const auto& t = tiny[size_t(i) % tiny.size()];
+    const glm::vec3 aim = (t[0] + t[1] + t[2]) / 3.0f;
+    const float dist = i < 1000 ? 1.0f : i < 2000 ? 100.0f : 15000.0f;
+    const glm::vec3 from = aim + glm::normalize(glm::vec3(unit(rng), unit(rng), unit(rng))) * dist;
+    rays.push_back(ray(from, aim - from));
+  }
+  for (const Mode& m : kModes) {
+    INFO(m.name);
+    const std::vector<Hit> h = trace(scene, options_for(m), rays);
+    size_t far_hits = 0;  // 100 and 15,000 away: the cases the clamp is for
+    for (size_t i = 0; i < rays.size(); ++i) {
+      if (is_miss(h[i])) continue;
+      far_hits += i >= 1000 ? 1 : 0;
+      INFO(describe(rays[i], h[i]));
+      CHECK(h[i].u >= 0.0f);
+      CHECK(h[i].u <= 1.0f);
+      CHECK(h[i].v >= 0.0f);
+      CHECK(h[i].v <= 1.0f - h[i].u);
+    }
+    CHECK(far_hits > 200);
+  }
+}
+
 TEST_CASE("hardcase: rays starting on a surface do not hit it again (launch triangle excluded)", "[hardcase][vulkan]") {
   std::vector<std::array<glm::vec3, 3>> floor;
   quad(floor, {0.5f, 1, 0.5f}, {0.5f, 1, 7.5f}, {7.5f, 1, 7.5f}, {7.5f, 1, 0.5f});

@@ -377,7 +377,20 @@ SH_INLINE float moller_trumbore_t(SH_IN(TriangleTest) r) {
 // e0 = v1 - v0, e1 = v2 - v0, e2 = p - v0 and the dot products dij,
 // denom = d00 d11 - d01 d01, w1 = (d11 d20 - d01 d21) / denom, w2 = (d00 d21 - d01 d20) / denom,
 // the division done once as a reciprocal. A point off the plane gets the weights of its
-// projection. denom == 0 (degenerate) gives (0, 0).
+// projection. denom == 0 (degenerate) gives (0, 0). The weights are then clamped into the
+// triangle (clamp_barycentrics): a hit point far from the ray's origin carries more rounding than
+// a small triangle is wide, and its unclamped weights were anything (190.7 and -125.2 measured).
+SH_INLINE vec2 clamp_barycentrics(float w1, float w2) {
+  // Comparisons only (a NaN weight becomes 0), the same bits on every device:
+  // u = min(max(w1, 0), 1), v = min(max(w2, 0), 1 - u).
+  SH_PRECISE float u = w1 > 0.0f ? w1 : 0.0f;
+  u = u < 1.0f ? u : 1.0f;
+  SH_PRECISE float v = w2 > 0.0f ? w2 : 0.0f;
+  SH_PRECISE float room = 1.0f - u;
+  v = v < room ? v : room;
+  return vec2(u, v);
+}
+
 SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, SH_IN(vec3) p) {
   SH_PRECISE vec3 e0 = v1 - v0;
   SH_PRECISE vec3 e1 = v2 - v0;
@@ -392,7 +405,7 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
   SH_PRECISE float inv = sh_rcp(denom);
   SH_PRECISE float w1 = (d11 * d20 - d01 * d21) * inv;
   SH_PRECISE float w2 = (d00 * d21 - d01 * d20) * inv;
-  return vec2(w1, w2);
+  return clamp_barycentrics(w1, w2);
 }
 
 // The alpha of an RGBA8 texel packed as r | g << 8 | b << 16 | a << 24.
