@@ -51,6 +51,16 @@ void run_verify(const VerifyCliOptions& o) {
     vo.translated = vo.translated && std::find(o.families.begin(), o.families.end(), "translated") != o.families.end();
   }
   const Scene scene = load_scene_or_default(o.scene);
+  // The translated run by default only where the moved scene is still a scene; asked for by name,
+  // verify_scene refuses it with the reason.
+  const bool translated_asked = std::find(o.families.begin(), o.families.end(), "translated") != o.families.end();
+  if (vo.translated && !translated_asked) {
+    if (const std::string problem = verify::translated_problem(scene, vo.offset); !problem.empty()) {
+      std::printf("verify: the translated run is skipped: moved by (%g, %g, %g), %s\n", vo.offset.x, vo.offset.y,
+                  vo.offset.z, problem.c_str());
+      vo.translated = false;
+    }
+  }
   BackendOptions bo = o.backend_options;
   resolve_image_limit(bo, o.backend == "vulkan");
   const reference::GridOptions go = grid_options_for(bo, scene);

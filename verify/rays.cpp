@@ -215,6 +215,16 @@ Scene translated(const Scene& scene, glm::vec3 offset) {
   return s;
 }
 
+std::string translated_problem(const Scene& scene, glm::vec3 offset) {
+  Scene s = translated(scene, offset);
+  try {
+    s.finalize();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
 Scene without_alpha(const Scene& scene) {
   Scene s = scene;
   for (Material& m : s.materials) m.alpha_texture = -1;
