@@ -72,7 +72,7 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
   if (code == kTestAccepted) {
-    // Barycentrics by Cramer's rule at the hit point
+    // Barycentrics by Cramer's rule at the hit point, clamped into the triangle
     t = moller_trumbore_t(r);
     bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
     // Alpha keying: the mask texel under the interpolated uv
