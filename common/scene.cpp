@@ -228,6 +228,11 @@ void validate_camera(const Scene& s) {
   if (!(std::max({std::abs(c.eye.x), std::abs(c.eye.y), std::abs(c.eye.z)}) <= shared::kDomainMaxCoordinate))
     throw Error("scene '" + s.name + "': " + whose + ": the eye lies beyond 2^24 from the origin, outside the ray " +
                 "domain (docs/SPEC.md, \"Domain\"): every primary ray would be rejected; move it nearer");
+  if (!(glm::length(c.target - c.eye) > 0.0f))
+    throw Error("scene '" + s.name + "': " + whose + ": eye and target are too close to give a view direction (their " +
+                "distance underflows single precision)");
+  if (!(glm::length(c.up) > 0.0f))
+    throw Error("scene '" + s.name + "': " + whose + ": up is zero or too short (its length underflows single precision)");
   const glm::vec3 forward = glm::normalize(c.target - c.eye);  // as the camera frame takes it
   if (!(glm::length(glm::cross(forward, c.up)) > 1e-6f * glm::length(c.up)))
     throw Error("scene '" + s.name + "': " + whose + ": up is zero or parallel to the view direction");
