@@ -285,6 +285,14 @@ tinygltf::Model parse_model(const std::string& path) {
     while (!err.empty() && err.back() == '\n') err.pop_back();
     throw Error("cannot load glTF '" + path + "': " + (err.empty() ? std::string("TinyGLTF failed") : err));
   }
+  // A file may require extensions; one this loader does not implement would be read as if it
+  // were plain glTF (meshopt's compressed buffer views as raw vertices, Draco's geometry missing,
+  // texture transforms ignored): refused, as the glTF spec asks. Quantized attributes (integer
+  // and normalized component types) are read as such.
+  for (const std::string& ext : model.extensionsRequired)
+    if (ext != "KHR_mesh_quantization")
+      throw Error("cannot load glTF '" + path + "': it requires the extension " + ext +
+                  ", which gridrt does not implement (supported: KHR_mesh_quantization)");
   if (!warn.empty()) {
     std::istringstream ws(warn);
     for (std::string w; std::getline(ws, w);)
