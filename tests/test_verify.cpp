@@ -293,6 +293,35 @@ TEST_CASE("gridrt verify: a table, JSON, and exit 3 where the exact traversal cr
   fs::remove(json);
 }
 
+TEST_CASE("gridrt verify: a model too small for the translated run's offset skips that run, or names why when asked",
+          "[verify][cli]") {
+  // A few triangles 2e-3 across: at (1e5, -5e4, 7.5e4) a float's step is 0.0078, every vertex and
+  // the framed camera round to one point. Before, the whole command failed with "camera: eye and
+  // target coincide".
+  const fs::path obj = fs::temp_directory_path() / "gridrt_verify_tiny.obj";
+  {
+    std::ofstream f(obj);
+    f << "v -0.001 -0.001 0\nv 0.001 -0.001 0\nv 0 0.001 0.0005\nv 0.001 0.001 -0.001\nf 1 2 3\nf 2 4 3\n";
+  }
+  const Scene scene = load_scene(obj.string());
+  CHECK(translated_problem(scene, glm::vec3(1.0e5f, -5.0e4f, 7.5e4f)) != "");
+  CHECK(translated_problem(scene, glm::vec3(1.0f, 2.0f, 3.0f)) == "");
+  CHECK(translated_problem(make_builtin("cornell"), glm::vec3(1.0e5f, -5.0e4f, 7.5e4f)) == "");
+  const test::Run skipped = test::run_tool("verify " + obj.string() + " --traversal exact -n 50 --threads 2");
+  INFO(skipped.output);
+  CHECK(skipped.exit_code == 0);
+  CHECK(skipped.output.find("the translated run is skipped") != std::string::npos);
+  CHECK(skipped.output.find("\ntranslated ") == std::string::npos);  // no table row
+  CHECK(skipped.output.find("\ncamera ") != std::string::npos);      // the other families ran
+  const test::Run asked = test::run_tool("verify " + obj.string() + " --traversal exact -n 50 --threads 2 "
+                                         "--families camera,translated");
+  INFO(asked.output);
+  CHECK(asked.exit_code == 1);
+  CHECK(asked.output.find("the translated run") != std::string::npos);
+  CHECK(asked.output.find("eye and target coincide") == std::string::npos);
+  fs::remove(obj);
+}
+
 TEST_CASE("gridrt render --backend embree: a camera beyond Embree's limits is refused with a message, not an abort",
           "[verify][cli]") {
   // Its eye lies beyond the ray domain's 2^24 (and Embree's ~1.8e18): the scene is refused at load

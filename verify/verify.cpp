@@ -163,12 +163,13 @@ std::vector<FamilyResult> run_all(const Scene& scene, const reference::GridOptio
 std::vector<FamilyResult> verify_scene(const Scene& scene_in, const reference::GridOptions& grid_options,
                                        const TracerFactory& make, const VerifyOptions& o) {
   const Scene scene = without_alpha(scene_in);
-  std::vector<FamilyResult> out = run_all(scene, grid_options, make, o, o.families);
-  if (o.translated) {
+  if (o.translated)  // before any family runs, not after minutes of them
     if (const std::string problem = translated_problem(scene, o.offset); !problem.empty())
       throw Error("verify: the translated run: moved by (" + std::to_string(o.offset.x) + ", " +
                   std::to_string(o.offset.y) + ", " + std::to_string(o.offset.z) + "), " + problem +
                   " (the scene is too small for a float's step there: a smaller --offset, or --no-translated)");
+  std::vector<FamilyResult> out = run_all(scene, grid_options, make, o, o.families);
+  if (o.translated) {
     const Scene moved = translated(scene, o.offset);
     std::vector<Family> fams;
     for (Family f : {Family::camera, Family::random, Family::surface, Family::edge, Family::vertex})
