@@ -168,8 +168,10 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
          "The grid's memory in MiB: the image layout's largest image (default 1024), the compact layout's whole "
          "grid (default 320 bytes per scene triangle, at least 4)")
       ->check(CLI::Range(0.001, 1.0e6))->group(kExpert);
-  cmd->add_option("--max-capacity", g.max_capacity, "Largest automatic capacity")
-      ->check(CLI::Range(1u, 65535u))->group(kExpert);
+  cmd->add_option("--max-capacity", g.max_capacity,
+                  "Largest automatic capacity (at least 4, the automatic capacity's least; --capacity N fixes any "
+                  "number of slots)")
+      ->check(CLI::Range(4u, 65535u))->group(kExpert);
   add_enum(cmd, "--slot-axis", g.slot_axis,
            {{"auto", GO::SlotAxis::automatic}, {"x", GO::SlotAxis::x}, {"y", GO::SlotAxis::y}, {"z", GO::SlotAxis::z}},
            "Scene axis laid along the image's x, the slots' axis (auto: the axis with the fewest cells)")

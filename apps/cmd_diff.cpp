@@ -638,11 +638,12 @@ void add_diff_command(CLI::App& app) {
   add_backend_options(cmd, o->backend_options);
   cmd->add_option("--frames", o->frames, "Animated frames to compare (the first is a build, then updates)")
       ->check(CLI::Range(1u, 10000u));
-  cmd->add_option("--fps", o->fps, "Frames per second")->check(CLI::PositiveNumber);
+  cmd->add_option("--fps", o->fps, "Frames per second")->check(CLI::Range(1.0e-3f, 1.0e6f));
   cmd->add_option("--ulps", o->ulps_t,
                   "Allow t of otherwise identical hits to differ by this many ulps (drivers whose division is "
                   "not correctly rounded; default 0: bit for bit)");
-  cmd->add_option("--uv-tolerance", o->abs_uv, "Allow u and v of otherwise identical hits to differ by this much");
+  cmd->add_option("--uv-tolerance", o->abs_uv, "Allow u and v of otherwise identical hits to differ by this much")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--gpu-frame", o->gpu_frame,
                 "Also run the GPU frame's own passes (gather, bounce, trace) and compare its bounce rays "
                 "and hits, bit for bit, with the reference's from the same gather");

@@ -291,12 +291,22 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
 }
 
 // --ray and --ray-file: each ray explained by the grid's traversal of the options.
-std::vector<Item> ray_items(const ExplainOptions& o, Explainer& ex) {
+std::vector<Item> ray_items(const ExplainOptions& o, const Scene& scene, Explainer& ex) {
   std::vector<Item> items;
   std::vector<Ray> rays;
   for (const std::string& r : o.rays) rays.push_back(plan::parse_ray(r));
   if (!o.ray_file.empty())
     for (const Ray& r : plan::read_ray_file(o.ray_file)) rays.push_back(r);
+  // A launch reference names a triangle of the scene (instance << 16 | triangle)
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const uint32_t ref = rays[i].launch_ref;
+    if (ref == shared::kNoRef) continue;
+    const uint32_t inst = ref >> 16, tri = ref & 0xFFFFu;
+    if (inst >= scene.instances.size() || tri >= scene.meshes[scene.instances[inst].mesh].triangle_count())
+      throw Error("ray " + std::to_string(i) + ": launch_ref " + std::to_string(inst) + ":" + std::to_string(tri) +
+                  " names no triangle of the scene (" + std::to_string(scene.instances.size()) +
+                  " instances; none for no surface)");
+  }
   const Traversal t = ex.options().traversal;
   for (size_t i = 0; i < rays.size(); ++i) {
     Item it;
@@ -385,7 +395,7 @@ void run_explain(const ExplainOptions& options) {
   const plan::ExplainFormat fmt{o.brief, &names};
 
   // The rays
-  const std::vector<Item> items = !o.pixel.empty() ? pixel_items(o, scene, ex) : ray_items(o, ex);
+  const std::vector<Item> items = !o.pixel.empty() ? pixel_items(o, scene, ex) : ray_items(o, scene, ex);
 
   // Each ray through the reference, and the shader
   nlohmann::json json_rays = nlohmann::json::array();
@@ -475,6 +485,11 @@ void add_explain_command(CLI::App& app) {
       throw CLI::ValidationError("explain", "give --pixel X,Y, --ray or --ray-file");
     if (o->pixel.empty() && (o->kind != "auto" || o->primary || o->gpu_frame || o->light))
       throw CLI::ValidationError("explain", "--kind, --primary, --light and --gpu-frame go with --pixel");
+    if (o->light && o->kind != "shadow")
+      throw CLI::ValidationError("explain", "--light picks the shadow ray of one light: it goes with --kind shadow");
+    if (!o->obj.empty() && std::filesystem::path(o->obj).extension() == ".mtl")
+      throw CLI::ValidationError("explain", "--export " + o->obj + ": the OBJ's materials go beside it as NAME.mtl; "
+                                            "name the OBJ NAME.obj");
     if (o->gpu_frame && o->backend != "vulkan")
       throw CLI::ValidationError("explain", "--gpu-frame needs --backend vulkan (the GPU frame runs on the device)");
     o->traversal_given = cmd->count("--traversal") > 0;

@@ -91,8 +91,9 @@ void render_cpu_frame(const RenderOptions& o, const Scene& scene, Tracer& tracer
 void run_render(const RenderOptions& options) {
   RenderOptions o = options;
   check_frame_size(o.width, o.height);
-  if (!(std::abs(o.time) <= 1.0e6f)) throw Error("--time must be a finite number of seconds within +-1e6");
-  if (!(o.fps >= 1.0e-3f && o.fps <= 1.0e6f)) throw Error("--fps must lie in [0.001, 1e6]");
+  if (!(std::abs(o.time) <= 1.0e6f))
+    throw CLI::ValidationError("--time", "must be a finite number of seconds within +-1e6");
+  if (!(o.fps >= 1.0e-3f && o.fps <= 1.0e6f)) throw CLI::ValidationError("--fps", "must lie in [0.001, 1e6]");
   if (o.view != "shaded") {
     if (o.frames > 1) throw Error("--view " + o.view + " makes one picture: leave out --frames");
     ViewOptions v;
@@ -188,7 +189,7 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--time,-t", o->time, "Scene time in seconds (animation)");
   cmd->add_option("--frames", o->frames, "Frames to render, --fps apart, written as NAME_0000.EXT ...")
       ->check(CLI::Range(1u, 100000u));
-  cmd->add_option("--fps", o->fps, "Frames per second of --frames")->check(CLI::PositiveNumber);
+  cmd->add_option("--fps", o->fps, "Frames per second of --frames")->check(CLI::Range(1.0e-3f, 1.0e6f));
   add_shadows_option(cmd, o->shadows);
   cmd->add_flag("--no-bounce", o->no_bounce, "Primary rays only, no glossy bounce");
   cmd->add_option("-o,--output", o->output, "Image file: .png, .jpg, .exr, .hdr, .tif (OpenImageIO), .ppm, .pfm");

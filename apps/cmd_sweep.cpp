@@ -7,7 +7,9 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cctype>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -81,27 +83,31 @@ struct Config {
   }
 };
 
+std::string gnum(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+// A knob's value: a decimal number in [lo, hi] (read in double precision: 1e-40, below a float's
+// normal range, is a number in [0, 16], stored as the float it rounds to). A bad value is a bad
+// command line (exit 2).
 float parse_float(const std::string& knob, const std::string& v, float lo, float hi) {
-  size_t used = 0;
-  float f = 0.0f;
-  try {
-    f = std::stof(v, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != v.size() || !(f >= lo && f <= hi))
-    throw Error("--" + knob + ": '" + v + "' is not a number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-  return f;
+  char* end = nullptr;
+  const double f = std::strtod(v.c_str(), &end);  // an underflow is 0 or subnormal, an overflow +-HUGE_VAL
+  if (v.empty() || std::isspace(static_cast<unsigned char>(v[0])) || *end != '\0' || !(f >= lo && f <= hi))
+    throw CLI::ValidationError("--" + knob, "'" + v + "' is not a number in [" + gnum(lo) + ", " + gnum(hi) + "]");
+  return float(f);
 }
 
 void check_member(const std::string& knob, const std::vector<std::string>& values,
                   const std::vector<std::string>& allowed) {
-  if (values.empty()) throw Error("--" + knob + ": the list is empty");
+  if (values.empty()) throw CLI::ValidationError("--" + knob, "the list is empty");
   for (const std::string& v : values)
     if (std::find(allowed.begin(), allowed.end(), v) == allowed.end()) {
       std::string known;
       for (const std::string& a : allowed) known += (known.empty() ? "" : ", ") + a;
-      throw Error("--" + knob + ": unknown value '" + v + "' (known: " + known + ")");
+      throw CLI::ValidationError("--" + knob, "unknown value '" + v + "' (known: " + known + ")");
     }
 }
 
@@ -115,10 +121,12 @@ std::vector<Config> configurations(const SweepOptions& o) {
   check_member("self-hit", o.launch, {"exclude", "keep"});
   check_member("revisit", o.repeats, {"merge", "skip", "retest"});
   for (const auto* list : {&o.capacity, &o.enlargement, &o.elongation, &o.padding, &o.max_dim})
-    if (list->empty()) throw Error("sweep: a knob's list is empty");
+    if (list->empty()) throw CLI::ValidationError("sweep", "a knob's list is empty");
   for (const std::string& c : o.capacity)
-    if (c != "auto" && c != "trace-cost" && c != "no-saturation" && c != "percentile")
-      parse_float("capacity", c, 1.0f, 65535.0f);
+    if (c != "auto" && c != "trace-cost" && c != "no-saturation" && c != "percentile" &&
+        (c.empty() || c.find_first_not_of("0123456789") != std::string::npos || !(std::strtod(c.c_str(), nullptr) >= 1.0 && std::strtod(c.c_str(), nullptr) <= 1024.0)))
+      throw CLI::ValidationError("--capacity", "'" + c + "' is neither a number of slots in [1, 1024] nor auto, "
+                                               "trace-cost, no-saturation or percentile (as for the other verbs)");
   std::vector<Config> out;
   for (const std::string& tr : o.traversal)
     for (const std::string& tt : o.triangle_test)

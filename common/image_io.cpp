@@ -51,6 +51,23 @@ std::string netpbm_bytes(uint32_t width, uint32_t height, bool pfm, const std::v
 }
 
 #ifdef GRIDRT_WITH_OIIO
+// The written file decodes to the image's size: a writer that swallowed a failed write, or one
+// that writes an incomplete file without a word (OpenImageIO's JPEG 2000 writer on images of
+// fewer than about 64 x 48 pixels: a 77-byte header, or nothing), is caught before the file
+// replaces anything.
+void check_reads_back(const std::string& path, const std::string& tmp, uint32_t width, uint32_t height, int channels) {
+  auto in = OIIO::ImageInput::open(tmp);
+  std::vector<float> check(size_t(width) * height * size_t(channels));
+  if (!in || in->spec().width != int(width) || in->spec().height != int(height) ||
+      !in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, check.data())) {
+    if (in) (void)in->geterror();  // consumed: the message names the temporary file
+    (void)OIIO::geterror();
+    throw Error("cannot write image '" + path + "': the file OpenImageIO's encoder wrote does not decode to " +
+                std::to_string(width) + " x " + std::to_string(height) +
+                " pixels (a failed write, or this format's writer failing on this image: try another format)");
+  }
+}
+
 // Encodes into memory where the format's writer takes an I/O proxy (PNG, JPEG, EXR, HDR, TIFF,
 // ...): then no disk error can happen inside the library (OpenImageIO's PNG writer does not
 // report failed writes, and libjpeg's exits the process), and the bytes go out through
@@ -69,19 +86,15 @@ void write_oiio(const std::string& path, uint32_t width, uint32_t height, int ch
       throw Error("cannot write image '" + path + "': " + out->geterror());
     out.reset();
     write_file_atomically(path, "image",
-                          std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
+                          std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()),
+                          [&](const std::string& tmp) { check_reads_back(path, tmp, width, height, channels); });
     return;
   }
   write_file_atomically(path, "image", [&](const std::string& tmp) {
     if (!out->open(tmp, spec) || !out->write_image(type, data) || !out->close())
       throw Error("cannot write image '" + path + "': " + out->geterror());
     out.reset();
-    // Read it back: a writer that swallowed a failed write leaves a file that does not decode.
-    auto in = OIIO::ImageInput::open(tmp);
-    std::vector<float> check(size_t(width) * height * size_t(channels));
-    if (!in || in->spec().width != int(width) || in->spec().height != int(height) ||
-        !in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, check.data()))
-      throw Error("cannot write image '" + path + "': the written file does not read back (disk full?)");
+    check_reads_back(path, tmp, width, height, channels);
   });
 }
 #endif

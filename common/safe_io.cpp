@@ -1,6 +1,7 @@
 #include "gridrt/common/safe_io.h"
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
@@ -157,28 +158,101 @@ fs::path temp_sibling(const fs::path& path) {
   return dir / ("." + path.filename().string() + ".tmp" + std::to_string(::getpid()) + path.extension().string());
 }
 
+// A temporary file in the system's temporary folder with `path`'s extension: for an output that
+// is streamed (below), whose own folder (/dev) is no place for it.
+fs::path temp_elsewhere(const fs::path& path) {
+  std::error_code ec;
+  fs::path dir = fs::temp_directory_path(ec);
+  if (ec) dir = "/tmp";
+  return dir / ("gridrt-" + std::to_string(::getpid()) + "-out" + path.extension().string());
+}
+
 [[noreturn]] void fail_write(const std::string& path, const std::string& what, const fs::path& tmp, int err,
                              const std::string& step) {
   ::unlink(tmp.c_str());  // errno of the failure was saved in `err` before this
   throw Error("cannot write " + what + " '" + path + "': " + step + ": " + std::strerror(err));
 }
 
-// fsync + close of the descriptor; then rename tmp over path.
-void finish(const std::string& path, const std::string& what, const fs::path& tmp, int fd) {
+// Where an output goes. A regular file or a new name is replaced atomically (a temporary file
+// beside it, renamed over it); a symbolic link is followed (its target is replaced, the link
+// kept); a FIFO or a character device (/dev/stdout, /dev/null, a pipe) is streamed to, as the
+// bytes of a complete file (the rename would put a regular file in its place, under /dev as
+// root); anything else (a folder, a block device, a socket) is refused, named.
+struct OutputTarget {
+  fs::path path;
+  bool stream = false;
+};
+
+OutputTarget resolve_output(const std::string& path, const std::string& what) {
+  const std::string head = "cannot write " + what + " '" + path + "': ";
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {  // what the path leads to, links followed
+    if (S_ISFIFO(st.st_mode) || S_ISCHR(st.st_mode)) return {path, true};  // opened through the links
+    if (S_ISREG(st.st_mode)) {
+      struct stat lst {};
+      if (::lstat(path.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) return {path, false};
+      char* real = ::realpath(path.c_str(), nullptr);  // the file the links lead to is replaced
+      if (!real) throw Error(head + std::strerror(errno));
+      const fs::path target = real;
+      std::free(real);
+      return {target, false};
+    }
+    const char* kind = S_ISDIR(st.st_mode)    ? "a folder"
+                       : S_ISBLK(st.st_mode)  ? "a block device"
+                       : S_ISSOCK(st.st_mode) ? "a socket"
+                                              : "not a regular file";
+    throw Error(head + "it is " + kind + " (outputs are regular files, FIFOs or character devices)");
+  }
+  if (errno != ENOENT) throw Error(head + std::strerror(errno));
+  // Nothing there: a new file, or a dangling link whose target is created (as a shell's `>` does)
+  fs::path p = path;
+  for (int links = 0;; ++links) {
+    struct stat lst {};
+    if (::lstat(p.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) return {p, false};
+    if (links >= 40) throw Error(head + "more than 40 symbolic links to follow");
+    std::error_code ec;
+    const fs::path target = fs::read_symlink(p, ec);
+    if (ec) throw Error(head + "cannot read the symbolic link '" + p.string() + "': " + ec.message());
+    p = target.is_absolute() ? target : p.parent_path() / target;
+  }
+}
+
+// fsync + close of the descriptor; `verify(tmp)` where given; then rename tmp over path.
+void finish(const std::string& path, const std::string& what, const fs::path& target, const fs::path& tmp, int fd,
+            const std::function<void(const std::string& tmp)>& verify) {
   if (::fsync(fd) != 0) {
     const int e = errno;
     ::close(fd);
     fail_write(path, what, tmp, e, "fsync of the temporary file failed");
   }
   if (::close(fd) != 0) fail_write(path, what, tmp, errno, "close of the temporary file failed");
-  if (::rename(tmp.c_str(), path.c_str()) != 0)
+  if (verify) {
+    try {
+      verify(tmp.string());
+    } catch (...) {
+      ::unlink(tmp.c_str());
+      throw;
+    }
+  }
+  if (::rename(tmp.c_str(), target.c_str()) != 0)
     fail_write(path, what, tmp, errno, "rename of the temporary file failed");
 }
 
-}  // namespace
+// Every byte to `fd`, checked; the errno of a failure, else 0.
+int write_all(int fd, std::string_view bytes) {
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return n < 0 ? errno : EIO;
+    done += size_t(n);
+  }
+  return 0;
+}
 
-void write_file_atomically(const std::string& path, const std::string& what, std::string_view bytes) {
-  const fs::path tmp = temp_sibling(path);
+// The bytes to `tmp` (created new), synced, verified and renamed over `target`.
+void write_replacing(const std::string& path, const std::string& what, const fs::path& target, const fs::path& tmp,
+                     std::string_view bytes, const std::function<void(const std::string& tmp)>& verify) {
   ::unlink(tmp.c_str());  // a leftover of an earlier process with the same id
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0) {
@@ -186,23 +260,65 @@ void write_file_atomically(const std::string& path, const std::string& what, std
     throw Error("cannot write " + what + " '" + path + "': cannot create the temporary file '" + tmp.string() +
                 "': " + std::strerror(e));
   }
-  size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int e = n < 0 ? errno : EIO;
-      ::close(fd);
-      fail_write(path, what, tmp, e, "write failed");
-    }
-    done += size_t(n);
+  if (const int e = write_all(fd, bytes); e != 0) {
+    ::close(fd);
+    fail_write(path, what, tmp, e, "write failed");
   }
-  finish(path, what, tmp, fd);
+  finish(path, what, target, tmp, fd, verify);
+}
+
+// A FIFO or character device: the complete bytes, written in order, every write checked.
+void write_stream(const std::string& path, const std::string& what, const fs::path& target, std::string_view bytes) {
+  const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) {
+    const int e = errno;
+    throw Error("cannot write " + what + " '" + path + "': " + std::strerror(e));
+  }
+  int e = write_all(fd, bytes);
+  if (::close(fd) != 0 && e == 0) e = errno;
+  if (e != 0) throw Error("cannot write " + what + " '" + path + "': write failed: " + std::strerror(e));
+}
+
+// The bytes of a temporary file written by a library, which is then removed.
+std::string slurp_and_remove(const std::string& path, const std::string& what, const fs::path& tmp) {
+  std::string bytes;
+  const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) fail_write(path, what, tmp, errno, "cannot reopen the temporary file");
+  char buf[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const int e = errno;
+      ::close(fd);
+      fail_write(path, what, tmp, e, "cannot read the temporary file back");
+    }
+    if (n == 0) break;
+    bytes.append(buf, size_t(n));
+  }
+  ::close(fd);
+  ::unlink(tmp.c_str());
+  return bytes;
+}
+
+}  // namespace
+
+void write_file_atomically(const std::string& path, const std::string& what, std::string_view bytes,
+                           const std::function<void(const std::string& tmp)>& verify) {
+  const OutputTarget t = resolve_output(path, what);
+  if (!t.stream) return write_replacing(path, what, t.path, temp_sibling(t.path), bytes, verify);
+  if (verify) {  // checked on a file of its own before a byte goes out
+    const fs::path tmp = temp_elsewhere(t.path);
+    write_replacing(path, what, tmp, tmp, bytes, verify);
+    ::unlink(tmp.c_str());
+  }
+  write_stream(path, what, t.path, bytes);
 }
 
 void write_file_atomically(const std::string& path, const std::string& what,
                            const std::function<void(const std::string& tmp)>& write) {
-  const fs::path tmp = temp_sibling(path);
+  const OutputTarget t = resolve_output(path, what);
+  const fs::path tmp = t.stream ? temp_elsewhere(t.path) : temp_sibling(t.path);
   ::unlink(tmp.c_str());
   try {
     write(tmp.string());
@@ -210,9 +326,10 @@ void write_file_atomically(const std::string& path, const std::string& what,
     ::unlink(tmp.c_str());
     throw;
   }
+  if (t.stream) return write_stream(path, what, t.path, slurp_and_remove(path, what, tmp));
   const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) fail_write(path, what, tmp, errno, "cannot reopen the temporary file");
-  finish(path, what, tmp, fd);
+  finish(path, what, t.path, tmp, fd, nullptr);
 }
 
 }  // namespace gridrt

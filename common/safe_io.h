@@ -9,6 +9,9 @@
 // write, fsyncs and closes it, and renames it over the target only when all of that succeeded;
 // on failure the temporary file is removed and the Error names the target and the system's
 // reason (errno is kept across the clean-up). An existing file is replaced only by a complete one.
+// A symbolic link is followed (its target replaced, the link kept); a FIFO or a character device
+// (/dev/stdout, a pipe) is written to in place, the complete bytes, every write checked (/dev/full
+// fails with the system's reason); a folder, block device or socket is refused, named.
 #pragma once
 
 #include <cstdint>
@@ -62,8 +65,11 @@ std::string normalize_text(std::string text);
 uint64_t checked_mul(uint64_t a, uint64_t b, const std::string& what);
 
 // Write `bytes` to `path` atomically (see above). `what` names the kind of file in messages
-// ("image", "scene cache", "CSV table").
-void write_file_atomically(const std::string& path, const std::string& what, std::string_view bytes);
+// ("image", "scene cache", "CSV table"). `verify(tmp)`, where given, checks the written
+// temporary file before it replaces anything (it throws to refuse it; a streamed output is
+// verified on a temporary file of its own before a byte goes out).
+void write_file_atomically(const std::string& path, const std::string& what, std::string_view bytes,
+                           const std::function<void(const std::string& tmp)>& verify = nullptr);
 
 // For writers that insist on a file name: `write(tmp)` writes the temporary file (and throws on
 // failure); then it is synced and renamed as above. A writer that does not report errors must

@@ -2,6 +2,7 @@
 // and the trace's flags.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "gridrt/common/invocations.h"
 #include "gridrt/common/parallel.h"
@@ -12,6 +13,15 @@
 namespace gridrt::plan {
 
 using shared::GridParams;
+
+namespace {
+// A number for a message: %g (1e-30 is not "0.000000")
+std::string gnum(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+}  // namespace
 
 unsigned thread_count(const EmulationOptions& options) { return thread_count_or_hardware(options.threads); }
 
@@ -258,6 +268,16 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
   if (!c.fits) return c;
   set_cell_size(g, cs, o);
   g.cells = cells;
+  // The compact layout's budget: a grid whose cells alone (offsets, skip field) exceed it is not
+  // counted either: the count's own arrays are as large (a 1000^3 resolution: 5 GB before the
+  // budget said no)
+  if (compact) {
+    c.memory = grid_memory(g, 0, 0, 0).total();
+    if (c.memory > compact_budget(o, scene.triangle_count())) {
+      c.fits = false;
+      return c;
+    }
+  }
   // The work bound: a grid whose AABB ranges alone exceed it is not counted (nor built)
   c.range_cells = range_cells(scene, time, g);
   if (range_bounded && c.range_cells > range_cells_budget(scene.triangle_count())) {
@@ -275,11 +295,9 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
     for (uint32_t n : counts.fixed) fixed += n;
     for (uint32_t n : counts.moving_max) moving += n;
     const uint64_t spill = moving + moving / 4 + 64;
-    uint64_t triangles = 0;
-    for (const Instance& inst : scene.instances) triangles += scene.meshes[inst.mesh].triangle_count();
     c.memory = grid_memory(g, fixed, uint32_t(std::min<uint64_t>(spill, 1u << 28)),
                            dynamic_region(scene, time, g).cells()).total();
-    c.fits = c.memory <= compact_budget(o, triangles);
+    c.fits = c.memory <= compact_budget(o, scene.triangle_count());
     if (counts_out) *counts_out = std::move(counts);
     return c;
   }
@@ -347,12 +365,12 @@ float target_cell_size(const Scene& scene, const GridOptions& o, const Bounds& b
   const float reach = std::max({std::abs(b.lo.x), std::abs(b.lo.y), std::abs(b.lo.z), std::abs(b.hi.x),
                                 std::abs(b.hi.y), std::abs(b.hi.z)});
   if (!(reach <= shared::kDomainMaxCoordinate))
-    throw Error("grid: the scene reaches " + std::to_string(reach) + " from the origin; the domain ends at 2^24 = " +
-                std::to_string(shared::kDomainMaxCoordinate) + " (move it nearer the origin or scale it down)");
+    throw Error("grid: the scene reaches " + gnum(reach) + " from the origin; the domain ends at 2^24 = " +
+                gnum(shared::kDomainMaxCoordinate) + " (move it nearer the origin or scale it down)");
   const float min_cs = min_cell_size(reach);
   if (cs < min_cs && (o.cell_size || o.resolution))
-    throw Error("grid: cells of " + std::to_string(cs) + " are narrower than " + std::to_string(kMinCellUlps) +
-                " ulps of the scene's coordinates (" + std::to_string(min_cs) + " at " + std::to_string(reach) +
+    throw Error("grid: cells of " + gnum(cs) + " are narrower than " + gnum(kMinCellUlps) +
+                " ulps of the scene's coordinates (" + gnum(min_cs) + " at " + gnum(reach) +
                 " from the origin); choose coarser cells or move the scene nearer the origin");
   if (!o.cell_size && !o.resolution) cs = std::max(cs, 4.0f * min_cs);
   return cs;
@@ -457,9 +475,14 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   if (res && !cs_over) {
     const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o, false);
     if (!c.fits && (g.flags & shared::kGridCompact) != 0u) {
-      const auto mib = [](uint64_t bytes) { return std::to_string(double(bytes) / double(1u << 20)); };
+      const auto mib = [](uint64_t bytes) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%.1f", double(bytes) / double(1u << 20));
+        return std::string(b);
+      };
       throw Error("grid: " + std::to_string(res->x) + "x" + std::to_string(res->y) + "x" + std::to_string(res->z) +
-                  " cells take " + mib(c.memory) + " MiB in the compact layout, over its memory budget of " +
+                  " cells take " + (c.range_cells == 0 ? "at least " : "") + mib(c.memory) +
+                  " MiB in the compact layout, over its memory budget of " +
                   mib(compact_budget(o, scene.triangle_count())) + " MiB (--memory-budget)");
     }
     if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity), o);

@@ -12,6 +12,7 @@
 #include <limits>
 #include <sstream>
 
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/shared/triangle.h"
 
 namespace gridrt::plan {
@@ -576,6 +577,15 @@ nlohmann::json explain_json(const ExplainRecord& rec, const ExplainFormat& fmt) 
   return out;
 }
 
+namespace {
+// `s` in quotes for a message, its first 64 characters only where it is longer (a ray file's
+// line can be megabytes)
+std::string quoted(const std::string& s) {
+  if (s.size() <= 64) return "'" + s + "'";
+  return "'" + s.substr(0, 64) + "...' (" + std::to_string(s.size()) + " characters)";
+}
+}  // namespace
+
 Ray parse_ray(const std::string& text) {
   std::vector<std::string> parts;
   std::string part;
@@ -587,14 +597,14 @@ Ray parse_ray(const std::string& text) {
   if (!text.empty() && text.back() == ',') parts.push_back("");
   if (parts.size() != 6 && parts.size() != 8 && parts.size() != 9)
     throw Error("a ray is ox,oy,oz,dx,dy,dz[,tmin,tmax[,launch_ref]] (" + std::to_string(parts.size()) +
-                " values in '" + text + "')");
+                " values in " + quoted(text) + ")");
   auto number = [&](size_t i) {
     const std::string& s = parts[i];
     char* end = nullptr;
     errno = 0;
     const float f = std::strtof(s.c_str(), &end);  // decimal, C99 hex (0x1.8p+1), inf, nan
     if (s.empty() || *end != '\0' || (errno == ERANGE && std::isinf(f)))
-      throw Error("value " + std::to_string(i + 1) + " of the ray, '" + s + "', is not a float");
+      throw Error("value " + std::to_string(i + 1) + " of the ray, " + quoted(s) + ", is not a float");
     return f;
   };
   Ray r;
@@ -615,12 +625,12 @@ Ray parse_ray(const std::string& text) {
       const bool ok = !a.empty() && *end == '\0';
       const unsigned long tri = std::strtoul(b.c_str(), &end, 10);
       if (!ok || b.empty() || *end != '\0' || inst > 0xFFFEu || tri > 0xFFFFu)
-        throw Error("launch_ref '" + s + "' is not INSTANCE:TRIANGLE");
+        throw Error("launch_ref " + quoted(s) + " is not INSTANCE:TRIANGLE");
       r.launch_ref = uint32_t(inst << 16 | tri);
     } else {
       const unsigned long long v = std::strtoull(s.c_str(), &end, 0);
       if (s.empty() || *end != '\0' || v > 0xFFFFFFFFull)
-        throw Error("launch_ref '" + s + "' is not a reference (a number, 0x hex, INSTANCE:TRIANGLE or none)");
+        throw Error("launch_ref " + quoted(s) + " is not a reference (a number, 0x hex, INSTANCE:TRIANGLE or none)");
       r.launch_ref = uint32_t(v);
     }
   }
@@ -628,8 +638,9 @@ Ray parse_ray(const std::string& text) {
 }
 
 std::vector<Ray> read_ray_file(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw Error("cannot read ray file '" + path + "'");
+  // Read as every input is (a regular file within --max-input-mib: not /dev/zero, a FIFO or a
+  // folder), with the text formats' one line-break rule
+  std::istringstream f(normalize_text(read_input_file(path, "ray file")));
   std::vector<Ray> rays;
   std::string line;
   for (size_t n = 1; std::getline(f, line); ++n) {

@@ -289,9 +289,9 @@ tinygltf::Model parse_model(const std::string& path) {
   // were plain glTF (meshopt's compressed buffer views as raw vertices, Draco's geometry missing,
   // texture transforms ignored): refused, as the glTF spec asks. Quantized attributes (integer
   // and normalized component types) are read as such.
-  for (const std::string& ext : model.extensionsRequired)
-    if (ext != "KHR_mesh_quantization")
-      throw Error("cannot load glTF '" + path + "': it requires the extension " + ext +
+  for (const std::string& required : model.extensionsRequired)
+    if (required != "KHR_mesh_quantization")
+      throw Error("cannot load glTF '" + path + "': it requires the extension " + required +
                   ", which gridrt does not implement (supported: KHR_mesh_quantization)");
   if (!warn.empty()) {
     std::istringstream ws(warn);
