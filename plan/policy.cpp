@@ -38,11 +38,10 @@ void for_each_placed_triangle(const Scene& scene, size_t instance, float time, c
 void for_each_triangle_cell(const Scene& scene, size_t instance, float time, const GridParams& g,
                             const std::function<void(uint32_t, size_t)>& f) {
   for_each_placed_triangle(scene, instance, time, g, [&](const PlacedTriangle& p) {
-    const float nn = sh_dot(p.n, p.n);
     for (uint32_t z = p.lo.z; z <= p.hi.z; ++z)
       for (uint32_t y = p.lo.y; y <= p.hi.y; ++y)
         for (uint32_t x = p.lo.x; x <= p.hi.x; ++x)
-          if (triangle_overlaps_cell(g, p.v0, p.v1, p.v2, p.n, nn, {x, y, z}))
+          if (triangle_overlaps_cell(g, p.v0, p.v1, p.v2, p.n, {x, y, z}))
             f(p.index, (size_t(z) * g.cells.y + y) * g.cells.x + x);
   });
 }
@@ -317,7 +316,7 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
       cells += 1;
       tests += spill ? c : std::min(c, g.capacity);
       if (c > 0u && all(greaterThanEqual(cell, llo)) && all(lessThanEqual(cell, lhi)) &&
-          triangle_overlaps_cell(g, l_tri[0], l_tri[1], l_tri[2], ln, lnn, cell))
+          triangle_overlaps_cell(g, l_tri[0], l_tri[1], l_tri[2], ln, cell))
         tests -= 1;
       const bool saturated = c > g.capacity;
       if (saturated) {
@@ -328,7 +327,7 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
       const float t_lo = exact ? rs.t_lo : max(rs.t_lo, segment_elongated_begin(g, rs, k));
       const float t_hi = exact ? ray.tmax : min(ray.tmax, segment_elongated_end(g, rs, last));
       const bool covers = all(greaterThanEqual(cell, lo)) && all(lessThanEqual(cell, hi)) && t_lo < t_hit &&
-                          t_hit < t_hi && triangle_overlaps_cell(g, w_tri[0], w_tri[1], w_tri[2], n, nn, cell);
+                          t_hit < t_hi && triangle_overlaps_cell(g, w_tri[0], w_tri[1], w_tri[2], n, cell);
       if (covers) {
         offered = true;
         missed *= saturated && !spill ? double(c - g.capacity) / double(c) : 0.0;

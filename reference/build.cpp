@@ -394,7 +394,7 @@ void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t i
     for (uint32_t y = lo.y; y <= hi.y; ++y)
       for (uint32_t x = lo.x; x <= hi.x; ++x) {
         const glm::uvec3 cell(x, y, z);
-        if (!shared::triangle_overlaps_cell(g, v0, v1, v2, n, nn, cell)) continue;
+        if (!shared::triangle_overlaps_cell(g, v0, v1, v2, n, cell)) continue;
         if ((g.flags & shared::kGridCompact) != 0u) {
           // Compact: a static reference is counted (and its pair kept) for the offsets; a dynamic
           // one goes to its cell's dynamic spill list

@@ -76,7 +76,7 @@ std::vector<std::vector<uint32_t>> cell_candidates(const GridData& grid) {
       for (uint32_t z = lo.z; z <= hi.z; ++z)
         for (uint32_t y = lo.y; y <= hi.y; ++y)
           for (uint32_t x = lo.x; x <= hi.x; ++x)
-            if (sh::triangle_overlaps_cell(g, t.v0, t.v1, t.v2, n, nn, {x, y, z}))
+            if (sh::triangle_overlaps_cell(g, t.v0, t.v1, t.v2, n, {x, y, z}))
               out[(size_t(z) * g.cells.y + y) * g.cells.x + x].push_back(sh::ref_pack(i, k));
     }
   return out;
@@ -218,7 +218,7 @@ Difference classify_difference(const GridData& grid, const Ray& ray, const Hit& 
   sh::triangle_cell_range(g, tri.v0, tri.v1, tri.v2, lo, hi);
   const auto offered = [&](glm::uvec3 c) {
     return nn != 0.0f && glm::all(glm::greaterThanEqual(c, lo)) && glm::all(glm::lessThanEqual(c, hi)) &&
-           sh::triangle_overlaps_cell(g, tri.v0, tri.v1, tri.v2, n, nn, c);
+           sh::triangle_overlaps_cell(g, tri.v0, tri.v1, tri.v2, n, c);
   };
   const auto stored = [&](glm::uvec3 c) {
     for (uint32_t v : cell_references(grid, c))

@@ -39,7 +39,7 @@ std::vector<std::vector<uint32_t>> candidates(const Scene& scene, const sh::Grid
       for (uint32_t z = lo.z; z <= hi.z; ++z)
         for (uint32_t y = lo.y; y <= hi.y; ++y)
           for (uint32_t x = lo.x; x <= hi.x; ++x)
-            if (sh::triangle_overlaps_cell(g, v0, v1, v2, n, sh::sh_dot(n, n), {x, y, z}))
+            if (sh::triangle_overlaps_cell(g, v0, v1, v2, n, {x, y, z}))
               out[cell_index(g, {x, y, z})].push_back(sh::ref_pack(i, t));
     }
   }

@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include <array>
+#include <cmath>
 #include <limits>
 #include <random>
 #include <vector>
@@ -82,6 +83,47 @@ TEST_CASE("A triangle's cell range pads its AABB so that a face-touching triangl
   CHECK(hi == glm::uvec3(2, 1, 3));
 }
 
+TEST_CASE("The cell test's decisions do not depend on the model's scale (models 1e-5 to 1e-7 across)", "[unit][grid]") {
+  // The same triangles and grid, scaled by 2^-20, 2^-24 and 2^-26 (exact): every decision the
+  // same. In world units the test's products fall into denormals there (s*s below 1e-38), where
+  // a device may flush them (lavapipe's geometry shaders: the raster build differed from the
+  // reference on a model 1e-6 across) and where even the CPU's gradual underflow rounds them
+  // coarsely; in the cell test's unit they stay normal.
+  const sh::GridParams g = unit_grid({8, 8, 8}, 4, 0.75f, glm::vec3(-3.0f));
+  for (const int e : {-20, -24, -26}) {
+    INFO("scale 2^" << e);
+    const float k = std::ldexp(1.0f, e);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> p(-3.0f, 3.0f), small(-0.05f, 0.05f);
+    const sh::GridParams gk = unit_grid({8, 8, 8}, 4, 0.75f * k, glm::vec3(-3.0f * k));
+    REQUIRE(gk.sphere_r2 == g.sphere_r2 * k * k);
+    REQUIRE(sh::cell_test_scale(gk) == sh::cell_test_scale(g) / k);
+    uint64_t decided = 0, world_units_differ = 0;
+    for (int i = 0; i < 2000; ++i) {
+      // Large triangles and small ones (a tenth of a cell)
+      const glm::vec3 v0(p(rng), p(rng), p(rng));
+      const glm::vec3 v1 = i % 2 ? glm::vec3(p(rng), p(rng), p(rng)) : v0 + glm::vec3(small(rng), small(rng), small(rng));
+      const glm::vec3 v2 = i % 2 ? glm::vec3(p(rng), p(rng), p(rng)) : v0 + glm::vec3(small(rng), small(rng), small(rng));
+      const glm::vec3 n = sh::triangle_normal(v0, v1, v2), nk = sh::triangle_normal(v0 * k, v1 * k, v2 * k);
+      glm::uvec3 lo, hi;
+      sh::triangle_cell_range(g, v0, v1, v2, lo, hi);
+      for (uint32_t z = lo.z; z <= hi.z; ++z)
+        for (uint32_t y = lo.y; y <= hi.y; ++y)
+          for (uint32_t x = lo.x; x <= hi.x; ++x) {
+            const glm::uvec3 c(x, y, z);
+            const bool want = sh::triangle_overlaps_cell(g, v0, v1, v2, n, c);
+            REQUIRE(sh::triangle_overlaps_cell(gk, v0 * k, v1 * k, v2 * k, nk, c) == want);
+            ++decided;
+            // The world-unit evaluation at the small scale (the test before its unit)
+            const float s = sh::sh_dot(nk, sh::cell_center(gk, c) - v0 * k);
+            world_units_differ += (s * s <= gk.sphere_r2 * sh::sh_dot(nk, nk)) != want;
+          }
+    }
+    CHECK(decided > 5000);
+    if (e == -26) CHECK(world_units_differ > 0);  // the hazard is real at this scale
+  }
+}
+
 TEST_CASE("Plane vs enlarged sphere agrees with a double-precision distance check", "[unit][grid]") {
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> p(-3.0f, 3.0f);
@@ -94,7 +136,7 @@ TEST_CASE("Plane vs enlarged sphere agrees with a double-precision distance chec
     const glm::uvec3 cell(rng() % 8, rng() % 8, rng() % 8);
     const glm::vec3 c = sh::cell_center(g, cell);
     const glm::vec3 n = sh::triangle_normal(v0, v1, v2);
-    const bool got = sh::plane_intersects_enlarged_sphere(v0, n, sh::sh_dot(n, n), c, g.sphere_r2);
+    const bool got = sh::plane_intersects_enlarged_sphere(v0, n, c, g.sphere_r2, sh::cell_test_scale(g));
     const glm::dvec3 nd = glm::cross(glm::dvec3(v1) - glm::dvec3(v0), glm::dvec3(v2) - glm::dvec3(v0));
     const double dist = std::abs(glm::dot(glm::normalize(nd), glm::dvec3(c) - glm::dvec3(v0)));
     const bool want = dist <= r;
@@ -206,15 +248,14 @@ TEST_CASE("The cell test: the sphere test alone without kGridCellBox, a subset o
   for (int i = 0; i < 2000; ++i) {
     const glm::vec3 v0(p(rng), p(rng), p(rng)), v1(p(rng), p(rng), p(rng)), v2(p(rng), p(rng), p(rng));
     const glm::vec3 n = sh::triangle_normal(v0, v1, v2);
-    const float nn = sh::sh_dot(n, n);
     glm::uvec3 lo, hi;
     sh::triangle_cell_range(g, v0, v1, v2, lo, hi);
     for (uint32_t z = lo.z; z <= hi.z; ++z)
       for (uint32_t y = lo.y; y <= hi.y; ++y)
         for (uint32_t x = lo.x; x <= hi.x; ++x) {
-          const bool s = sh::triangle_overlaps_cell(g, v0, v1, v2, n, nn, {x, y, z});
-          const bool b = sh::triangle_overlaps_cell(box, v0, v1, v2, n, nn, {x, y, z});
-          CHECK(s == sh::plane_intersects_enlarged_sphere(v0, n, nn, sh::cell_center(g, {x, y, z}), g.sphere_r2));
+          const bool s = sh::triangle_overlaps_cell(g, v0, v1, v2, n, {x, y, z});
+          const bool b = sh::triangle_overlaps_cell(box, v0, v1, v2, n, {x, y, z});
+          CHECK(s == sh::plane_intersects_enlarged_sphere(v0, n, sh::cell_center(g, {x, y, z}), g.sphere_r2, sh::cell_test_scale(g)));
           CHECK(b == (s && sh::triangle_box_overlap(box, v0, v1, v2, {x, y, z})));
           sphere_cells += s;
           box_cells += b;

@@ -288,16 +288,31 @@ SH_INLINE vec3 triangle_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
   return sh_cross(e1, e2);
 }
 
+// The cell test's unit: the power of two S with S * cell_size in [1, 2) (from the bits of
+// cell_size, a normal float). Scaling by S is exact, so a test evaluated in units of S^-1 (about a
+// cell) takes the decisions it takes in world units wherever those stay in the normal range, and
+// keeps them where world units would not: a model 1e-6 across squares products of about 1e-21
+// into denormals (1e-42), which a device may flush to zero (lavapipe's geometry shaders do; its
+// compute shaders do not), so that the raster and compute builds differed.
+SH_INLINE float cell_test_scale(SH_IN(GridParams) g) {
+  uint e = (floatBitsToUint(g.cell_size) >> 23u) & 0xFFu;
+  return uintBitsToFloat((254u - e) << 23u);
+}
+
 // Plane vs enlarged cell bounding sphere, without sqrt or division: the plane through v0 with
-// normal n (nn = dot(n, n)) passes within sqrt(r2) of `center` iff s*s <= r2 * nn with
-// s = dot(n, center - v0). Finite while edges and grid extent stay below 2^21 world units
-// (docs/SPEC.md); an overflow of both sides to +inf accepts (conservative).
-SH_INLINE bool plane_intersects_enlarged_sphere(SH_IN(vec3) v0, SH_IN(vec3) n, float nn,
-                                                SH_IN(vec3) center, float r2) {
-  SH_PRECISE vec3 d = center - v0;
-  SH_PRECISE float s = sh_dot(n, d);
+// normal n passes within sqrt(r2) of `center` iff s*s <= r2 * nn with s = dot(n, center - v0) and
+// nn = dot(n, n), evaluated in the cell test's unit (`scale` = cell_test_scale: n scaled by
+// scale^2, center - v0 by scale, r2 by scale^2, each exactly). Finite while edges and the grid's
+// extent stay below 2^20 cells; an overflow of both sides to +inf accepts (conservative).
+SH_INLINE bool plane_intersects_enlarged_sphere(SH_IN(vec3) v0, SH_IN(vec3) n, SH_IN(vec3) center, float r2,
+                                                float scale) {
+  SH_PRECISE vec3 d = (center - v0) * scale;
+  SH_PRECISE vec3 m = (n * scale) * scale;
+  SH_PRECISE float s = sh_dot(m, d);
+  SH_PRECISE float mm = sh_dot(m, m);
   SH_PRECISE float lhs = s * s;
-  SH_PRECISE float rhs = r2 * nn;
+  SH_PRECISE float r2s = (r2 * scale) * scale;
+  SH_PRECISE float rhs = r2s * mm;
   return lhs <= rhs;
 }
 
@@ -374,11 +389,11 @@ SH_INLINE bool triangle_box_overlap(SH_IN(GridParams) g, SH_IN(vec3) v0, SH_IN(v
 
 // ---- Build: the cell test, written once (build.cpp, build.glsl, plan/, the verify referee) ----
 // Whether a cell of the triangle's range (triangle_cell_range) takes its reference: its plane
-// passes through the cell's enlarged bounding sphere (paper 2.1; n its normal, nn = dot(n, n) > 0)
+// passes through the cell's enlarged bounding sphere (paper 2.1; n its normal, dot(n, n) > 0)
 // and, with kGridCellBox, no separating axis parts it from the padded cell box.
 SH_INLINE bool triangle_overlaps_cell(SH_IN(GridParams) g, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
-                                      SH_IN(vec3) n, float nn, SH_IN(uvec3) cell) {
-  if (!plane_intersects_enlarged_sphere(v0, n, nn, cell_center(g, cell), g.sphere_r2)) return false;
+                                      SH_IN(vec3) n, SH_IN(uvec3) cell) {
+  if (!plane_intersects_enlarged_sphere(v0, n, cell_center(g, cell), g.sphere_r2, cell_test_scale(g))) return false;
   return (g.flags & kGridCellBox) == 0u || triangle_box_overlap(g, v0, v1, v2, cell);
 }
 

@@ -20,8 +20,8 @@ void main() {
   uvec3 lo; uvec3 hi;
   triangle_cell_range(g, vec3(0), vec3(1), vec3(2), lo, hi);
   vec3 n = triangle_normal(vec3(0), vec3(1,0,0), vec3(0,1,0));
-  bool a = plane_intersects_enlarged_sphere(vec3(0), n, sh_dot(n,n), cell_center(g, lo), g.sphere_r2) &&
-           triangle_overlaps_cell(g, vec3(0), vec3(1,0,0), vec3(0,1,0), n, sh_dot(n,n), lo);
+  bool a = plane_intersects_enlarged_sphere(vec3(0), n, cell_center(g, lo), g.sphere_r2, cell_test_scale(g)) &&
+           triangle_overlaps_cell(g, vec3(0), vec3(1,0,0), vec3(0,1,0), n, lo);
   RaySetup rs;
   bool m = ray_setup(g, vec3(0), vec3(1), 0.0f, 1.0f, rs);
   TriangleTest r;

@@ -165,12 +165,12 @@ layout(std430, binding = kGridBindBuildList) buffer BuildList {
 
 // Insert the reference into the cells [first, last) of the range lo..hi (x fastest) that the cell
 // test keeps (triangle_overlaps_cell).
-void insert_range_cells(GridParams g, uint ref, vec3 v0, vec3 v1, vec3 v2, vec3 n, float nn, uvec3 lo, uvec3 hi,
+void insert_range_cells(GridParams g, uint ref, vec3 v0, vec3 v1, vec3 v2, vec3 n, uvec3 lo, uvec3 hi,
                         uint first, uint last) {
   const uvec3 size = hi - lo + 1u;
   for (uint i = first; i < last; ++i) {
     const uvec3 cell = lo + uvec3(i % size.x, (i / size.x) % size.y, i / (size.x * size.y));
-    if (!triangle_overlaps_cell(g, v0, v1, v2, n, nn, cell)) continue;
+    if (!triangle_overlaps_cell(g, v0, v1, v2, n, cell)) continue;
     if ((g.flags & kGridCompact) != 0u) {
       // Compact: a static reference is counted (and its pair kept) for the offsets; a dynamic one
       // goes to its cell's dynamic spill list
@@ -229,7 +229,7 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
     if (listed == runs) return;
     walked = listed * kBuildRun;
   }
-  insert_range_cells(g, ref, v0, v1, v2, n, nn, lo, hi, walked, count);
+  insert_range_cells(g, ref, v0, v1, v2, n, lo, hi, walked, count);
 }
 
 #endif

@@ -18,11 +18,10 @@ void main() {
   const uint run = build_items[2u * item + 1u];
   const GridTriangle tri = triangles[instances[ref_instance(ref)].tri_offset + ref_triangle(ref)];
   const vec3 n = triangle_normal(tri.v0, tri.v1, tri.v2);
-  const float nn = sh_dot(n, n);
   uvec3 lo;
   uvec3 hi;
   triangle_cell_range(g, tri.v0, tri.v1, tri.v2, lo, hi);
   const uvec3 size = hi - lo + 1u;
   const uint count = size.x * size.y * size.z;
-  insert_range_cells(g, ref, tri.v0, tri.v1, tri.v2, n, nn, lo, hi, run * kBuildRun, min(count, (run + 1u) * kBuildRun));
+  insert_range_cells(g, ref, tri.v0, tri.v1, tri.v2, n, lo, hi, run * kBuildRun, min(count, (run + 1u) * kBuildRun));
 }
