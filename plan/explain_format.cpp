@@ -71,6 +71,14 @@ std::string rejection_reason(const ExplainRecord& rec) {
   return "outside the ray domain (docs/SPEC.md, \"Domain\")";
 }
 
+// Whether the record's ray was rejected (outside the domain): its miss then says so, not why a
+// traced ray missed.
+bool rejected(const ExplainRecord& rec) {
+  for (const ExplainEvent& e : rec.events)
+    if (e.kind == kEvRejected) return true;
+  return false;
+}
+
 const char* miss_reason(uint32_t code) {
   switch (code) {
     case kMissOutsideGrid: return "the ray does not meet the grid box within [tmin, tmax]";
@@ -267,6 +275,12 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
       line();
       os << "  launch normal " << vec(glm::vec3(e.f1), fmt) << (e.slot ? "" : "; the ray misses the grid box");
       line();
+      if (e.f1.w > 0.0f) {
+        // docs/SPEC.md "Far origins"
+        os << "  far origin: moved along the ray by t " << num(e.f1.w, fmt)
+           << " to just before the grid box; the t above and below are the moved ray's, the hit's t adds it back";
+        line();
+      }
       break;
     case kEvCell:
       if (exact) {
@@ -360,7 +374,7 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
       line();
       break;
     case kEvMiss:
-      os << "MISS: " << miss_reason(e.code);
+      os << "MISS: " << (rejected(rec) ? "the ray was rejected (above), never traced" : miss_reason(e.code));
       line();
       break;
     default:
@@ -432,7 +446,9 @@ std::string event_summary(const ExplainRecord& rec, size_t i, const ExplainForma
       os << "HIT at step " << e.step << ": " << ref(e.ref) << ", t " << num(e.f0.x, fmt)
          << ((e.code & kHitGapFill) ? ", GAP-FILL" : "") << ((e.code & kHitBackFace) ? ", back face" : "");
       break;
-    case kEvMiss: os << "MISS: " << miss_reason(e.code); break;
+    case kEvMiss:
+      os << "MISS: " << (rejected(rec) ? "the ray was rejected, never traced" : miss_reason(e.code));
+      break;
     default: os << "? event kind " << e.kind;
   }
   return os.str();

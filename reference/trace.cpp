@@ -19,6 +19,7 @@ struct TraceState {
   vec3 launch_normal;
   uint launch_ref;
   RaySetup rs;
+  float t_base;  // a far origin's move along the ray (far_origin_base), else 0
   bool has_best;
   float best_t;
   uint best_ref;
@@ -187,7 +188,7 @@ void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint st
 
 Hit report(TraceState& st, uint step) {
   Hit h{};
-  h.t = st.best_t;
+  h.t = st.best_t + st.t_base;
   h.instance = ref_instance(st.best_ref);
   h.triangle = ref_triangle(st.best_ref);
   h.u = st.best_u;
@@ -375,10 +376,17 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain, ui
     emit(st, kEvRejected, 0u, kBlank, 0u, uvec3(0u), 0u, vec4(0.0f), vec4(0.0f));
     return miss(st, kMissOutsideGrid, 0u, kHitRejected);
   }
+  // A far origin: moved along the ray to just before the grid box (docs/SPEC.md "Far origins")
+  st.t_base = far_origin_base(g, st.org, st.dir, st.tmin, st.tmax);
+  if (st.t_base > 0.0f) {
+    st.org = ray.org + ray.dir * st.t_base;
+    st.tmin = max(st.tmin - st.t_base, 0.0f);
+    st.tmax = st.tmax - st.t_base;
+  }
   // Per-ray setup: segment length, the grid box
   const bool meets = ray_setup(g, st.org, st.dir, st.tmin, st.tmax, st.rs);
   emit(st, kEvSetup, g.traversal, kBlank, 0u, uvec3(0u), meets ? 1u : 0u,
-       vec4(st.rs.seg_t, st.rs.t_start, st.rs.t_end, st.rs.t_lo), vec4(st.launch_normal, 0.0f));
+       vec4(st.rs.seg_t, st.rs.t_start, st.rs.t_end, st.rs.t_lo), vec4(st.launch_normal, st.t_base));
   if (!meets) return miss(st, kMissOutsideGrid, 0u, 0u);
   Hit h = g.traversal == kTraversalExact ? trace_exact(grid, st) : trace_paper(grid, st);
   if (explain) explain->hit = h;

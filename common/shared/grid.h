@@ -507,6 +507,30 @@ SH_INLINE bool ray_setup(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, 
   return hit && rs.t_start <= rs.t_end && tmin < tmax;
 }
 
+// ---- Far origins (docs/SPEC.md "Far origins") ----
+// The DDA's cell boundaries and the triangle tests both start from `x - org`, which rounds to the
+// origin's ulps: where 64 ulps of the origin's largest coordinate exceed a cell (a camera 5e5 away
+// from a model of cells 0.02 wide), the cells the DDA walks and the ray the tests see part by more
+// than a cell, and a ray could pass a closed surface between the two. Such a ray is traced from
+// its origin moved along it to just before the grid box: org + t_base dir, t_base the box entry
+// less 2^-20 of it (more than the entry's and the move's rounding), computed once, the rest of the
+// trace in the moved ray's parameter, and the hit's t reported as t_base + t. The moved origin
+// lies off the ray by the rounding of t_base dir (about half an ulp of the origin's coordinates):
+// the answer is the exact one of a ray whose origin moved within that, as the triangle tests'
+// `v - org` already allowed; the walk and the tests now agree on which ray it is.
+SH_CONST float kFarOriginRatio = 7.62939453125e-06f;      // 2^-17: 64 ulps of a coordinate
+SH_CONST float kFarOriginBack = 0.99999904632568359375f;  // 1 - 2^-20
+// 0 where the ray's origin is not far or the ray misses the grid box; else t_base.
+SH_INLINE float far_origin_base(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, float tmin, float tmax) {
+  SH_PRECISE vec3 ao = abs(org);
+  SH_PRECISE float reach = max(max(ao.x, ao.y), ao.z) * kFarOriginRatio;
+  if (!(reach > g.cell_size)) return 0.0f;
+  RaySetup rs;
+  if (!ray_setup(g, org, dir, tmin, tmax, rs)) return 0.0f;
+  SH_PRECISE float tb = rs.t_start * kFarOriginBack;
+  return tb;
+}
+
 // ---- Paper traversal: segment k covers [t_start + k L, t_start + (k+1) L], L = seg_t ----
 SH_INLINE float segment_t(SH_IN(RaySetup) rs, float k) {
   SH_PRECISE float kl = k * rs.seg_t;

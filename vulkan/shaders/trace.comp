@@ -79,6 +79,7 @@ struct TraceState {
   vec3 launch_normal;
   uint launch_ref;
   RaySetup rs;
+  float t_base;  // a far origin's move along the ray (far_origin_base), else 0
   bool has_best;
   float best_t;
   uint best_ref;
@@ -258,7 +259,8 @@ HitRecord report(uint step) {
     st.best_v = bc.y;
   }
   HitRecord h;
-  h.t = st.best_t;
+  precise float t = st.best_t + st.t_base;
+  h.t = t;
   h.instance = ref_instance(st.best_ref);
   h.triangle = ref_triangle(st.best_ref);
   h.u = st.best_u;
@@ -515,10 +517,20 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
     emit(kEvRejected, 0u, kBlank, 0u, uvec3(0u), 0u, vec4(0.0f), vec4(0.0f));
     return miss(kMissOutsideGrid, 0u, kHitRejected);
   }
+  // A far origin: moved along the ray to just before the grid box (docs/SPEC.md "Far origins")
+  st.t_base = far_origin_base(g, st.org, st.dir, st.tmin, st.tmax);
+  if (st.t_base > 0.0f) {
+    precise vec3 moved = ray.org + ray.dir * st.t_base;
+    st.org = moved;
+    precise float tmin_moved = st.tmin - st.t_base;
+    st.tmin = max(tmin_moved, 0.0f);
+    precise float tmax_moved = st.tmax - st.t_base;
+    st.tmax = tmax_moved;
+  }
   // Per-ray setup: segment length, the grid box
   const bool meets = ray_setup(g, st.org, st.dir, st.tmin, st.tmax, st.rs);
   emit(kEvSetup, g.traversal, kBlank, 0u, uvec3(0u), meets ? 1u : 0u,
-       vec4(st.rs.seg_t, st.rs.t_start, st.rs.t_end, st.rs.t_lo), vec4(st.launch_normal, 0.0f));
+       vec4(st.rs.seg_t, st.rs.t_start, st.rs.t_end, st.rs.t_lo), vec4(st.launch_normal, st.t_base));
   if (!meets) return miss(kMissOutsideGrid, 0u, 0u);
   if (g.traversal == kTraversalExact && !kExplain && (g.flags & kGridCompact) != 0u) return trace_exact_flat(g);
   return g.traversal == kTraversalExact ? trace_exact(g) : trace_paper(g);
