@@ -167,10 +167,17 @@ std::string explain_obj(const ExplainRecord& rec, const GridData& grid, const st
     return ++vertices;
   };
   auto group = [&](const char* name) { os << "g " << name << "\nusemtl " << name << "\n"; };
-  // The ray as a line from its origin to the hit (or the grid's exit)
-  group("ray");
-  const size_t a = v(g.org), b = v(at(g, g.t_end));
-  os << "l " << a << " " << b << "\n";
+  // The ray as a line from its origin to the hit (or the grid's exit); a ray that is not finite
+  // (rejected: a NaN or infinite origin or direction) has no line (OBJ readers refuse nan)
+  const glm::vec3 end = at(g, g.t_end);
+  const auto finite = [](glm::vec3 p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); };
+  if (finite(g.org) && finite(end)) {
+    group("ray");
+    const size_t a = v(g.org), b = v(end);
+    os << "l " << a << " " << b << "\n";
+  } else {
+    os << "# the ray has no finite segment to draw (rejected, or it leaves to infinity)\n";
+  }
   // The visited cells as boxes, one group per kind
   for (const char* kind : {"cells_empty", "cells_with_references", "cells_saturated"}) {
     bool opened = false;

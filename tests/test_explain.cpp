@@ -311,6 +311,7 @@ TEST_CASE("Explain: the command line - any ray, ray files, kinds, brief, JSON, p
   CHECK(fs::exists(scratch("ray_0.mtl")));
   CHECK_THAT(slurp(scratch("ray_1.svg")), Catch::Contains("</svg>"));
   CHECK_THAT(slurp(scratch("ray_2.svg")), !Catch::Contains("nan") && Catch::Contains("</svg>"));  // no NaN drawn
+  CHECK_THAT(slurp(scratch("ray_2.obj")), !Catch::Contains("v nan") && !Catch::Contains("g ray"));  // nor exported
   CHECK_THAT(slurp(html), Catch::Contains("const DATA = {"));
   // Bad input: clear message, the right exit code
   const test::Run bad = run_tool("explain builtin:cornell --ray 1,2,3");
