@@ -168,6 +168,12 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
          "The grid's memory in MiB: the image layout's largest image (default 1024), the compact layout's whole "
          "grid (default 320 bytes per scene triangle, at least 4)")
       ->check(CLI::Range(0.001, 1.0e6))->group(kExpert);
+  add_enum(cmd, "--offsets", g.offsets,
+           {{"auto", GO::Offsets::automatic}, {"dense", GO::Offsets::dense}, {"sparse", GO::Offsets::sparse}},
+           "compact layout: one offset per cell (dense), offsets of the occupied cells only under an occupancy "
+           "mask per 32 cells (sparse: a quarter of the bytes, one load more per occupied cell), or auto (dense "
+           "where it fits the memory budget; sparse for a finer grid only where its estimate is 5 % cheaper)")
+      ->group(kExpert);
   cmd->add_option("--max-capacity", g.max_capacity,
                   "Largest automatic capacity (at least 4, the automatic capacity's least; --capacity N fixes any "
                   "number of slots)")

@@ -127,7 +127,8 @@ uint64_t range_cells(const Scene& scene, float time, const GridParams& g) {
   return sum;
 }
 
-GridMemory grid_memory(const GridParams& g, uint64_t static_refs, uint32_t spill_capacity, uint64_t region_cells) {
+GridMemory grid_memory(const GridParams& g, uint64_t static_refs, uint64_t static_cells, uint32_t spill_capacity,
+                       uint64_t region_cells) {
   GridMemory m;
   const uint64_t cells = uint64_t(g.cells.x) * g.cells.y * g.cells.z;
   const bool spill = (g.flags & shared::kGridSpill) != 0u;
@@ -135,7 +136,9 @@ GridMemory grid_memory(const GridParams& g, uint64_t static_refs, uint32_t spill
   m.skip = (g.flags & shared::kGridSkipEmpty) != 0u ? uint64_t(shared::skip_words(g)) * 4 : 0;
   if ((g.flags & shared::kGridCompact) != 0u) {
     m.image = 4;  // a one-texel stand-in keeps the image binding valid
-    m.offsets = (cells + 1) * 4;
+    m.offsets = (g.flags & shared::kGridSparseOffsets) != 0u
+                    ? (2 * ((cells + 31) / 32) + static_cells + 1) * 4  // shared::compact_offsets_words
+                    : (cells + 1) * 4;
     m.refs = std::max<uint64_t>(static_refs, 1) * 4;
     m.heads = (shared::kCompactHeadsHeader + 2 * region_cells) * 4;
     m.dirty = shared::kWorkListHeaderWords * 4;  // a stand-in (an empty list's header): no dirty-cell list
@@ -268,11 +271,18 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
   if (!c.fits) return c;
   set_cell_size(g, cs, o);
   g.cells = cells;
-  // The compact layout's budget: a grid whose cells alone (offsets, skip field) exceed it is not
-  // counted either: the count's own arrays are as large (a 1000^3 resolution: 5 GB before the
-  // budget said no)
+  // The compact layout's budget: a grid whose cells alone (the offsets' index, skip field) exceed
+  // it is not counted either (a 1000^3 resolution: 5 GB before the budget said no)
+  // (sparse offsets where allowed: the least any layout of these cells takes)
+  const bool sparse_allowed = o.offsets != GridOptions::Offsets::dense;
+  const bool dense_allowed = o.offsets != GridOptions::Offsets::sparse;
+  const auto with_offsets = [&](bool sparse) {
+    GridParams t = g;
+    t.flags = sparse ? (t.flags | shared::kGridSparseOffsets) : (t.flags & ~shared::kGridSparseOffsets);
+    return t;
+  };
   if (compact) {
-    c.memory = grid_memory(g, 0, 0, 0).total();
+    c.memory = grid_memory(with_offsets(sparse_allowed), 0, 0, 0, 0).total();
     if (c.memory > compact_budget(o, scene.triangle_count())) {
       c.fits = false;
       return c;
@@ -291,13 +301,21 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
     // No slots: nothing is dropped (capacity = the largest count, so that the estimate tests every
     // reference); fits within the memory budget, counted by grid_memory
     c.capacity = std::max(c.max_count, 1u);
-    uint64_t fixed = 0, moving = 0;
-    for (uint32_t n : counts.fixed) fixed += n;
+    uint64_t fixed = 0, moving = 0, occupied = 0;
+    for (uint32_t n : counts.fixed) fixed += n, occupied += n != 0u;
     for (uint32_t n : counts.moving_max) moving += n;
     const uint64_t spill = moving + moving / 4 + 64;
-    c.memory = grid_memory(g, fixed, uint32_t(std::min<uint64_t>(spill, 1u << 28)),
-                           dynamic_region(scene, time, g).cells()).total();
-    c.fits = c.memory <= compact_budget(o, scene.triangle_count());
+    const uint32_t spill_entries = uint32_t(std::min<uint64_t>(spill, 1u << 28));
+    const uint64_t region = dynamic_region(scene, time, g).cells();
+    const uint64_t budget = compact_budget(o, scene.triangle_count());
+    // Dense offsets where they fit (no index to read), else sparse
+    c.sparse_offsets = !dense_allowed;
+    c.memory = grid_memory(with_offsets(c.sparse_offsets), fixed, occupied, spill_entries, region).total();
+    if (c.memory > budget && !c.sparse_offsets && sparse_allowed) {
+      c.sparse_offsets = true;
+      c.memory = grid_memory(with_offsets(true), fixed, occupied, spill_entries, region).total();
+    }
+    c.fits = c.memory <= budget;
     if (counts_out) *counts_out = std::move(counts);
     return c;
   }
@@ -405,6 +423,12 @@ Error too_big(glm::uvec3 cells, uint32_t cap, const GridOptions& o) {
                std::to_string(o.max_image_dimension) + ", max texels " + std::to_string(o.max_texels) + ")");
 }
 
+// `p` with the candidate's offsets (kGridSparseOffsets: the compact layout's index of occupied cells).
+GridParams with_sparse_offsets(GridParams p, const GridCandidate& c) {
+  if (c.sparse_offsets) p.flags |= shared::kGridSparseOffsets;
+  return p;
+}
+
 // `base` with `cells` of edge `cell_size`, capacity `cap`, slots along `axis`, AABB padding `padding`.
 GridParams sized_params(const GridParams& base, glm::uvec3 cells, float cell_size, uint32_t cap, uint32_t axis,
                         float padding, const GridOptions& o) {
@@ -487,7 +511,7 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     }
     if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity), o);
     ch.candidates.push_back(c);
-    return sized_params(g, c.cells, cs, c.capacity, c.slot_axis, c.aabb_padding, o);
+    return with_sparse_offsets(sized_params(g, c.cells, cs, c.capacity, c.slot_axis, c.aabb_padding, o), c);
   }
   // Candidate cell sizes cs * 2^(j/4) around the density target. With a cell-size override only
   // j = 0; with a capacity override the density target unless it does not fit.
@@ -570,9 +594,18 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     if (by_cost ? ch.candidates[i].cost < ch.candidates[best].cost
                 : ch.candidates[i].dropped < ch.candidates[best].dropped)
       best = i;
+  // Sparse offsets cost a dependent load per occupied cell visited and build more cells, which the
+  // estimate does not see: a grid that fits only with them is taken only if its estimate beats the
+  // best grid with dense offsets by kSparseOffsetsMargin (docs/SPEC.md "Compact layout")
+  if (by_cost && ch.candidates[best].sparse_offsets && o.offsets == GridOptions::Offsets::automatic) {
+    std::optional<size_t> dense;
+    for (size_t i = 0; i < ch.candidates.size(); ++i)
+      if (!ch.candidates[i].sparse_offsets && (!dense || ch.candidates[i].cost < ch.candidates[*dense].cost)) dense = i;
+    if (dense && ch.candidates[best].cost > kSparseOffsetsMargin * ch.candidates[*dense].cost) best = *dense;
+  }
   ch.chosen = best;
   const GridCandidate& c = ch.candidates[best];
-  return sized_params(g, c.cells, c.cell_size, c.capacity, c.slot_axis, c.aabb_padding, o);
+  return with_sparse_offsets(sized_params(g, c.cells, c.cell_size, c.capacity, c.slot_axis, c.aabb_padding, o), c);
 }
 
 }  // namespace
@@ -725,10 +758,17 @@ GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options) {
   GridPlan plan;
   compact_check(options);
   plan.params = choose_grid(scene, time, options, &plan.choice);
+  if (options.offsets != GridOptions::Offsets::automatic && (plan.params.flags & shared::kGridCompact) == 0u)
+    throw Error("grid: --offsets is the compact layout's (the image layout has no offsets): the compact layout "
+                "needs the exact traversal and the spill list, and no --capacity");
   plan.spill_capacity = choose_spill_capacity(scene, time, options, plan.params, plan.choice);
   if ((plan.params.flags & shared::kGridCompact) != 0u) {
+    std::vector<bool> occupied(size_t(shared::grid_cell_count(plan.params)), false);
     for (size_t i = 0; i < scene.static_instance_count(); ++i)
-      for_each_triangle_cell(scene, i, time, plan.params, [&](uint32_t, size_t) { ++plan.static_references; });
+      for_each_triangle_cell(scene, i, time, plan.params, [&](uint32_t, size_t c) {
+        ++plan.static_references;
+        if (!occupied[c]) occupied[c] = true, ++plan.static_cells;
+      });
     plan.region = dynamic_region(scene, time, plan.params);
   }
   plan.tables = pack_tables(scene);

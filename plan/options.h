@@ -66,9 +66,9 @@ struct AlgorithmOptions {
   enum class Spill { automatic, on, off } spill = Spill::automatic;
   // The grid's layout (docs/SPEC.md "Compact layout"): image, the paper's fixed-capacity 3D image
   // (slots per cell, status texels); compact, the static references in one array ordered per cell
-  // (a cells + 1 offsets array) and the dynamic ones only in the spill list (exact traversal with
-  // the spill list only); automatic: compact for the exact traversal (with the spill list, and
-  // no capacity asked for), image for the paper's.
+  // (indexed by an occupancy mask per 32 cells and a start per occupied cell) and the dynamic ones
+  // only in the spill list (exact traversal with the spill list only); automatic: compact for the
+  // exact traversal (with the spill list, and no capacity asked for), image for the paper's.
   enum class Layout { automatic, compact, image } layout = Layout::automatic;
   // paper: consecutive samples in one cell: merge (one visit, the union of their segments),
   // skip (the literal reading of visited-cell tracking), retest (a second visit)
@@ -111,6 +111,12 @@ struct PlanOptions {
   // kCompactBytesPerTriangle per scene triangle, at least kCompactMinBudget. --memory-budget sets it
   // (and max_texels for the image layout).
   std::optional<uint64_t> memory_budget;
+  // The compact layout's offsets (docs/SPEC.md "Compact layout"): dense, one per cell; sparse, the
+  // occupied cells' only (an occupancy mask per 32 cells: a quarter of the bytes, one dependent
+  // load more per occupied cell); automatic: dense where it fits the memory budget, sparse for a
+  // grid that fits only so, chosen only if its estimate beats the best dense grid's by
+  // kSparseOffsetsMargin.
+  enum class Offsets { automatic, dense, sparse } offsets = Offsets::automatic;
   uint32_t capacity_time_samples = 16;    // dynamic instances counted at this many times of their motion
   // The spill list's entries; default: the references choose_grid's trial would drop, with margin
   // (choose_spill_capacity).

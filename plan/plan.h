@@ -32,6 +32,11 @@ void compact_check(const AlgorithmOptions& o);
 // triangle, and the least.
 inline constexpr uint64_t kCompactBytesPerTriangle = 320;
 inline constexpr uint64_t kCompactMinBudget = uint64_t(4) << 20;
+// PlanOptions::Offsets::automatic takes a grid that fits the budget only with sparse offsets when
+// its estimated cost is at most this share of the best dense grid's: on the H200 the index's load
+// cost 1.8-2.8 % of the trace on the same cells and the finer grids' static build 0.45-0.66 ms more
+// (docs/BENCHMARKS.md "Offsets of the occupied cells only").
+inline constexpr double kSparseOffsetsMargin = 0.95;
 // The automatic resolution's work bound: a candidate grid is weighed only when the cells of its
 // triangles' AABB ranges, summed (what its trial count and its build test), stay within
 // kRangeCellsPerTriangle per scene triangle, at least kRangeCellsFloor. Triangles that overlap
@@ -53,8 +58,9 @@ struct GridMemory {
   uint64_t image = 0, offsets = 0, refs = 0, spill = 0, heads = 0, skip = 0, dirty = 0;
   uint64_t total() const { return image + offsets + refs + spill + heads + skip + dirty; }
 };
-// `static_refs`: the compact layout's references; `region_cells`: its dynamic region's cells.
-GridMemory grid_memory(const shared::GridParams& g, uint64_t static_refs, uint32_t spill_capacity,
+// `static_refs`: the compact layout's references, `static_cells` the cells holding one;
+// `region_cells`: its dynamic region's cells.
+GridMemory grid_memory(const shared::GridParams& g, uint64_t static_refs, uint64_t static_cells, uint32_t spill_capacity,
                        uint64_t region_cells);
 
 // The compact layout's dynamic region: the box of cells every dynamic instance's references can
@@ -137,6 +143,7 @@ struct GridCandidate {
   uint64_t saturated_cells = 0;  // cells with count > capacity
   uint64_t texels = 0;
   uint64_t memory = 0;           // compact layout: grid_memory's total (the budget's measure)
+  bool sparse_offsets = false;   // compact layout: the offsets of the occupied cells only (kGridSparseOffsets)
   uint64_t range_cells = 0;      // the triangles' AABB range cells, summed (range_cells)
   bool over_bound = false;       // range_cells over the work bound: not counted, not a candidate
   bool fits = false;             // within max_image_dimension and max_texels (compact: the memory budget)
@@ -188,8 +195,9 @@ struct GridPlan {
   shared::GridParams params{};
   uint32_t spill_capacity = 0;
   // The compact layout: the static references the build will store (counted as the build's count
-  // pass does) and the dynamic region
+  // pass does), the cells that hold one (the index of occupied cells' runs) and the dynamic region
   uint64_t static_references = 0;
+  uint64_t static_cells = 0;
   CellBox region;
   GridChoice choice;
   GridTables tables;

@@ -1,6 +1,7 @@
 // build.cpp: choosing the grid, scene build (paper 2.1) and scene update (paper 2.2).
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <thread>
 
@@ -120,49 +121,102 @@ void compact_count(GridData& grid, glm::uvec3 cell, uint32_t ref) {
   }
 }
 
-// The offsets pass: the exclusive scan of the counts in three steps: per block of kCompactBlock
-// cells its sum; the blocks' exclusive scan (kCompactScanLanes shares of the blocks, each share's
-// sum, the shares' sums scanned, then each share's blocks' offsets); per block the cells' offsets,
-// which also become the scatter's cursors (offsets[cells] = the total). Integer sums: the same
-// bits in any order (compact.comp groups the work otherwise: docs/SPEC.md "Compact layout").
+// The offsets pass: the exclusive scan of the counts (the scatter's cursors), which are the dense
+// offsets (cells + 1 words: offsets[i], offsets[cells] the total); with kGridSparseOffsets, the
+// index of the occupied cells' runs instead (shared/grid.h: per word of 32 cells its base and
+// occupancy mask, then per occupied cell its run's start, then the total). Both scans in three steps, on pairs (references,
+// occupied cells): per block of kCompactBlock cells its sums; the blocks' exclusive scan
+// (kCompactScanLanes shares of the blocks, each share's sums, the shares' sums scanned, then each
+// share's blocks'); per block its cells (a block is whole words: kCompactBlock is a multiple of
+// 32). Integer sums: the same bits in any order (compact.comp groups the work otherwise:
+// docs/SPEC.md "Compact layout").
 void compact_offsets(GridData& grid, const GridOptions& o) {
   const uint32_t cells = shared::grid_cell_count(grid.params);
   const uint32_t blocks = (cells + shared::kCompactBlock - 1u) / shared::kCompactBlock;
-  std::vector<uint32_t> block(blocks, 0u);
+  static_assert(shared::kCompactBlock % 32u == 0u, "a block of the offsets pass is whole words");
+  std::vector<glm::uvec2> block(blocks, glm::uvec2(0u));  // (references, occupied cells)
   run_invocations(blocks, thread_count(o), std::nullopt, [&](uint32_t b) {
-    uint32_t sum = 0u;
+    glm::uvec2 sum(0u);
     for (uint32_t i = b * shared::kCompactBlock; i < std::min(cells, (b + 1u) * shared::kCompactBlock); ++i)
-      sum += grid.compact_counts[i];
+      sum += glm::uvec2(grid.compact_counts[i], grid.compact_counts[i] != 0u ? 1u : 0u);
     block[b] = sum;
   }, 64);
   const uint32_t per_lane = (blocks + shared::kCompactScanLanes - 1u) / shared::kCompactScanLanes;
-  std::vector<uint32_t> lane_sum(shared::kCompactScanLanes, 0u);
+  std::vector<glm::uvec2> lane_sum(shared::kCompactScanLanes, glm::uvec2(0u));
   for (uint32_t l = 0; l < shared::kCompactScanLanes; ++l)
     for (uint32_t b = l * per_lane; b < std::min(blocks, (l + 1u) * per_lane); ++b) lane_sum[l] += block[b];
-  uint32_t running = 0u;
+  glm::uvec2 running(0u);
   for (uint32_t l = 0; l < shared::kCompactScanLanes; ++l) {
-    const uint32_t s = lane_sum[l];
+    const glm::uvec2 s = lane_sum[l];
     lane_sum[l] = running;
     running += s;
   }
   for (uint32_t l = 0; l < shared::kCompactScanLanes; ++l) {
-    uint32_t r = lane_sum[l];
+    glm::uvec2 r = lane_sum[l];
     for (uint32_t b = l * per_lane; b < std::min(blocks, (l + 1u) * per_lane); ++b) {
-      const uint32_t s = block[b];
+      const glm::uvec2 s = block[b];
       block[b] = r;
       r += s;
     }
   }
+  const bool sparse = (grid.params.flags & shared::kGridSparseOffsets) != 0u;
+  const uint32_t runs = shared::compact_runs_base(cells);
+  const size_t words = grid.offsets.size();
   run_invocations(blocks, thread_count(o), std::nullopt, [&](uint32_t b) {
-    uint32_t r = block[b];
-    for (uint32_t i = b * shared::kCompactBlock; i < std::min(cells, (b + 1u) * shared::kCompactBlock); ++i) {
-      const uint32_t n = grid.compact_counts[i];
-      grid.offsets[i] = r;
-      grid.compact_counts[i] = r;  // the scatter's cursor
-      r += n;
+    glm::uvec2 r = block[b];
+    const uint32_t block_end = std::min(cells, (b + 1u) * shared::kCompactBlock);
+    if (!sparse) {
+      for (uint32_t i = b * shared::kCompactBlock; i < block_end; ++i) {
+        const uint32_t n = grid.compact_counts[i];
+        grid.offsets[i] = r.x;
+        grid.compact_counts[i] = r.x;  // the scatter's cursor
+        r.x += n;
+      }
+      if (block_end == cells) grid.offsets[cells] = r.x;
+      return;
     }
-    if (std::min(cells, (b + 1u) * shared::kCompactBlock) == cells) grid.offsets[cells] = r;
+    for (uint32_t i = b * shared::kCompactBlock; i < block_end; ++i) {
+      const uint32_t n = grid.compact_counts[i];
+      if (i % 32u == 0u) {
+        grid.offsets[shared::compact_base_index(i)] = r.y;
+        grid.offsets[shared::compact_mask_index(i)] = 0u;
+      }
+      grid.compact_counts[i] = r.x;  // the scatter's cursor
+      if (n != 0u) {
+        grid.offsets[shared::compact_mask_index(i)] |= 1u << (i % 32u);
+        if (runs + size_t(r.y) < words) grid.offsets[runs + r.y] = r.x;
+      }
+      r += glm::uvec2(n, n != 0u ? 1u : 0u);
+    }
+    // The last cell's block writes the total after the last occupied cell's start
+    if (block_end == cells && runs + size_t(r.y) < words) grid.offsets[runs + r.y] = r.x;
   }, 64);
+}
+
+bool compact_run(const GridData& grid, uint32_t i, uint32_t& begin, uint32_t& end) {
+  const uint32_t cells = shared::grid_cell_count(grid.params);
+  if ((grid.params.flags & shared::kGridSparseOffsets) == 0u) {
+    begin = grid.offsets[i];
+    end = grid.offsets[i + 1];
+    return end > begin;
+  }
+  const uint32_t mask = grid.offsets[shared::compact_mask_index(i)];
+  begin = end = 0u;
+  if (!shared::compact_occupied(mask, i)) return false;
+  const uint32_t k = shared::compact_run_index(cells, grid.offsets[shared::compact_base_index(i)], mask, i);
+  begin = grid.offsets[k];
+  end = grid.offsets[k + 1];
+  return true;
+}
+
+uint32_t compact_occupied_cells(const GridData& grid) {
+  const uint32_t cells = shared::grid_cell_count(grid.params);
+  if ((grid.params.flags & shared::kGridSparseOffsets) == 0u) {
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < cells; ++i) n += grid.offsets[i + 1] > grid.offsets[i];
+    return n;
+  }
+  return uint32_t(grid.offsets.size()) - shared::compact_runs_base(shared::grid_cell_count(grid.params)) - 1u;
 }
 
 // The scatter pass, one invocation per pair: the reference into its cell's run at the cell's
@@ -183,7 +237,8 @@ void compact_order(GridData& grid, const GridOptions& o) {
   const uint32_t pairs = std::min<uint32_t>(grid.compact_pair_count, uint32_t(grid.compact_pairs.size() / 2));
   run_invocations(pairs, thread_count(o), std::nullopt, [&](uint32_t k) {
     const uint32_t c = grid.compact_pairs[2 * size_t(k)], ref = grid.compact_pairs[2 * size_t(k) + 1];
-    const uint32_t begin = grid.offsets[c], end = grid.offsets[c + 1];
+    uint32_t begin, end;
+    compact_run(grid, c, begin, end);
     uint32_t rank = 0u;
     for (uint32_t j = begin; j < end; ++j) rank += grid.compact_scattered[j] < ref ? 1u : 0u;
     grid.refs[begin + rank] = ref;
@@ -201,8 +256,8 @@ void clear_dynamic_spill(GridData& grid) {
 bool cell_occupied(const GridData& grid, glm::uvec3 cell) {
   const GridParams& g = grid.params;
   if ((g.flags & shared::kGridCompact) != 0u) {
-    const uint32_t i = shared::cell_linear_index(g, cell);
-    return grid.offsets[i + 1] > grid.offsets[i];
+    uint32_t begin, end;
+    return compact_run(grid, shared::cell_linear_index(g, cell), begin, end) && end > begin;
   }
   return imageLoad(grid.image, glm::ivec3(shared::cell_slot_texel(g, cell, 0u))) != kBlank;
 }
@@ -211,8 +266,9 @@ std::vector<uint32_t> cell_references(const GridData& grid, glm::uvec3 cell) {
   const GridParams& g = grid.params;
   std::vector<uint32_t> out;
   if ((g.flags & shared::kGridCompact) != 0u) {
-    const uint32_t i = shared::cell_linear_index(g, cell);
-    out.assign(grid.refs.begin() + grid.offsets[i], grid.refs.begin() + grid.offsets[i + 1]);
+    uint32_t begin, end;
+    if (compact_run(grid, shared::cell_linear_index(g, cell), begin, end))
+      out.assign(grid.refs.begin() + begin, grid.refs.begin() + end);
     return out;
   }
   for (uint32_t s = 0; s < g.capacity; ++s) {
@@ -461,7 +517,10 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
     grid.dirty = WordBuffer(shared::kWorkListHeaderWords, 0u);
     grid.spill_heads = plan::compact_heads(plan.region);
     const size_t refs = std::max<uint64_t>(plan.static_references, 1);
-    grid.offsets.assign(size_t(shared::grid_cell_count(g)) + 1, 0u);
+    grid.offsets.assign((g.flags & shared::kGridSparseOffsets) != 0u
+                            ? shared::compact_offsets_words(shared::grid_cell_count(g), uint32_t(plan.static_cells))
+                            : size_t(shared::grid_cell_count(g)) + 1,
+                        0u);
     grid.refs.assign(refs, kBlank);
     grid.compact_counts.assign(shared::grid_cell_count(g), 0u);
     grid.compact_pairs.assign(2 * refs, 0u);
@@ -486,6 +545,14 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
       throw Error("compact build: " + std::to_string(grid.compact_pair_count) + " static references, the plan counted " +
                   std::to_string(plan.static_references));
     compact_offsets(grid, o);
+    if ((g.flags & shared::kGridSparseOffsets) != 0u) {
+      // The last word's base and mask: the occupied cells the index holds, the plan's count
+      const uint32_t runs = shared::compact_runs_base(shared::grid_cell_count(g));
+      const uint32_t occupied = grid.offsets[runs - 2u] + uint32_t(std::popcount(grid.offsets[runs - 1u]));
+      if (occupied != plan.static_cells)
+        throw Error("compact build: " + std::to_string(occupied) + " occupied cells, the plan counted " +
+                    std::to_string(plan.static_cells));
+    }
     compact_scatter(grid, o);
     compact_order(grid, o);
     grid.compact_counts = {};

@@ -74,8 +74,10 @@ struct GridData {
   // The skip field (kGridSkipEmpty; shared::skip_words words): the dynamic boxes, then the static
   // distances (shared/grid.h, "The skip field"); empty without kGridSkipEmpty
   std::vector<uint32_t> skip;
-  // The compact layout (kGridCompact; docs/SPEC.md "Compact layout"): cell i's static references
-  // are refs[offsets[i] .. offsets[i + 1]) in ascending order; `spill_heads` is then the region's
+  // The compact layout (kGridCompact; docs/SPEC.md "Compact layout"): `offsets` indexes the
+  // occupied cells' runs (shared/grid.h: per word of 32 cells its base and occupancy mask, then per
+  // occupied cell its run's start, then the total; compact_run), each run's static references in
+  // `refs` in ascending order; `spill_heads` is then the region's
   // header and two heads per region cell (shared::compact_head_index); the image a one-texel
   // stand-in. The build's temporaries (the count pass's per-cell counts, later the scatter's
   // cursors, and its (cell, ref) pairs) are emptied after the build.
@@ -108,6 +110,10 @@ void compact_count(GridData& grid, glm::uvec3 cell, uint32_t ref);
 void compact_offsets(GridData& grid, const GridOptions& options);
 void compact_scatter(GridData& grid, const GridOptions& options);
 void compact_order(GridData& grid, const GridOptions& options);
+// Cell i's run of static references, refs[begin .. end), through the index of occupied cells
+// (false, and an empty run, for a cell that holds none); and how many cells hold one.
+bool compact_run(const GridData& grid, uint32_t i, uint32_t& begin, uint32_t& end);
+uint32_t compact_occupied_cells(const GridData& grid);
 void clear_dynamic_spill(GridData& grid);
 // Whether a cell holds a static reference (slot 0 not blank, or a non-empty run).
 bool cell_occupied(const GridData& grid, glm::uvec3 cell);
@@ -141,6 +147,7 @@ struct GridStats {
   glm::uvec3 image_extent{0};
   uint64_t image_bytes = 0, geometry_bytes = 0;   // the image; triangles + uvs + tables + masks
   bool compact = false;                           // the compact layout (image_extent: its stand-in)
+  bool sparse_offsets = false;                   // its offsets of the occupied cells only (kGridSparseOffsets)
   uint64_t region_cells = 0;                      // compact: the dynamic region's cells
   plan::GridMemory memory;                        // everything the grid keeps
   uint64_t cell_count = 0, empty_cells = 0;

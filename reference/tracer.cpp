@@ -49,7 +49,7 @@ void ReferenceGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hi
 AccelDump ReferenceGridTracer::dump() const {
   AccelDump d;
   if ((grid_.params.flags & shared::kGridCompact) != 0u) {
-    // The compact layout: the offsets (cells + 1), then the references (as many as the last offset
+    // The compact layout: the offsets (the index of occupied cells' runs), then the references (as many as the last offset
     // says: the array's one-word stand-in of a grid without any is left out), as one row
     d.kind = "grid-compact";
     d.texels = grid_.offsets;
@@ -88,6 +88,7 @@ GridStats grid_stats(const GridData& grid) {
   s.image_extent = grid.image.extent;
   s.image_bytes = uint64_t(grid.image.size()) * 4;
   s.compact = (g.flags & shared::kGridCompact) != 0u;
+  s.sparse_offsets = (g.flags & shared::kGridSparseOffsets) != 0u;
   if (s.compact && grid.spill_heads.size() >= shared::kCompactHeadsHeader)
     s.region_cells = (grid.spill_heads.size() - shared::kCompactHeadsHeader) / 2;
   s.memory = grid_allocated(grid);
@@ -167,7 +168,8 @@ std::string to_text(const GridStats& s) {
      << (s.compact ? "), compact layout (largest cell count " : "), capacity ") << s.capacity << (s.compact ? ")" : "")
      << "\n";
   if (s.compact)
-    os << "layout: compact: offsets " << s.memory.offsets << " bytes, references " << s.memory.refs
+    os << "layout: compact: " << (s.sparse_offsets ? "sparse offsets (occupied cells only) " : "dense offsets ")
+       << s.memory.offsets << " bytes, references " << s.memory.refs
        << " bytes, dynamic region " << s.region_cells << " cells (heads " << s.memory.heads
        << " bytes); geometry and tables " << s.geometry_bytes << " bytes\n";
   else

@@ -6,9 +6,11 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cstring>
 #include <random>
 
+#include "gridrt/common/builtin/builtin.h"
 #include "gridrt/reference/compare.h"
 #include "tests/run_tool.h"
 #include "tests/test_grid_util.h"
@@ -40,8 +42,29 @@ void check_compact_invariants(const reference::GridData& grid) {
   const sh::GridParams& g = grid.params;
   REQUIRE((g.flags & sh::kGridCompact) != 0u);
   const size_t cells = sh::grid_cell_count(g);
-  REQUIRE(grid.offsets.size() == cells + 1);
-  CHECK(grid.offsets.front() == 0u);
+  if ((g.flags & sh::kGridSparseOffsets) == 0u) {
+    // Dense offsets: one per cell, ascending from 0, then the total
+    REQUIRE(grid.offsets.size() == cells + 1);
+    CHECK(grid.offsets.front() == 0u);
+    for (size_t c = 0; c < cells; ++c) REQUIRE(grid.offsets[c] <= grid.offsets[c + 1]);
+  } else {
+    // The index of occupied cells: per word of 32 cells its base (the occupied cells before it) and
+    // mask, then one start per occupied cell (ascending from 0, each run non-empty), then the total
+    const uint32_t runs = sh::compact_runs_base(uint32_t(cells));
+    REQUIRE(grid.offsets.size() > runs);
+    const size_t occupied = grid.offsets.size() - runs - 1;
+    uint32_t before = 0;
+    for (uint32_t w = 0; w < sh::compact_word_count(uint32_t(cells)); ++w) {
+      CHECK(grid.offsets[2 * w] == before);
+      const uint32_t mask = grid.offsets[2 * w + 1];
+      if (32 * size_t(w + 1) > cells) CHECK((uint64_t(mask) >> (cells - 32 * w)) == 0u);  // no bit past the last cell
+      before += uint32_t(std::popcount(mask));
+    }
+    CHECK(before == occupied);
+    CHECK(grid.offsets[runs] == 0u);
+    for (size_t k = 0; k < occupied; ++k) CHECK(grid.offsets[runs + k] < grid.offsets[runs + k + 1]);
+    CHECK(reference::compact_occupied_cells(grid) == occupied);
+  }
   CHECK(grid.offsets.back() <= grid.refs.size());  // refs: the plan's count (at least one word)
   const std::vector<std::vector<uint32_t>> cand = reference::cell_candidates(grid);
   size_t bad_order = 0, bad_set = 0, bad_dynamic = 0;
@@ -55,8 +78,12 @@ void check_compact_invariants(const reference::GridData& grid) {
     dynamic[l.head / 4] = l.refs;
   }
   for (size_t c = 0; c < cells; ++c) {
-    REQUIRE(grid.offsets[c] <= grid.offsets[c + 1]);
-    const std::vector<uint32_t> run(grid.refs.begin() + grid.offsets[c], grid.refs.begin() + grid.offsets[c + 1]);
+    uint32_t begin = 0, end = 0;
+    const bool has_run = reference::compact_run(grid, uint32_t(c), begin, end);
+    REQUIRE(begin <= end);
+    REQUIRE(end <= grid.refs.size());
+    const std::vector<uint32_t> run(grid.refs.begin() + begin, grid.refs.begin() + end);
+    if (has_run != !run.empty()) ++bad_set;
     if (!std::is_sorted(run.begin(), run.end()) || std::adjacent_find(run.begin(), run.end()) != run.end()) ++bad_order;
     std::vector<uint32_t> want_static, want_dynamic;
     for (uint32_t r : cand[c]) (r < g.comparison_offset ? want_static : want_dynamic).push_back(r);
@@ -76,12 +103,16 @@ TEST_CASE("Compact layout: the arrays hold every (triangle, cell) pair the cell 
           "ascending - the dynamic references in their cells' spill lists, through updates",
           "[grid][compact]") {
   const Scene scene = gridtest::random_scene(600, 0.6f, 8.0f, 11, 120);
-  for (bool skip : {true, false}) {
+  for (int variant = 0; variant < 3; ++variant) {
+    const bool skip = variant != 1;
+    INFO((skip ? "skip field on, " : "skip field off, ") << (variant == 2 ? "sparse offsets" : "dense offsets"));
     GridOptions o = compact_options(GridOptions::Layout::automatic);  // auto: compact for the exact traversal
     o.skip_empty = skip;
+    o.offsets = variant == 2 ? GridOptions::Offsets::sparse : GridOptions::Offsets::dense;
     o.shuffle_seed = 5;
     ReferenceGridTracer t(o);
     t.build(scene, 0.0f);
+    REQUIRE(((t.params().flags & sh::kGridSparseOffsets) != 0u) == (variant == 2));
     check_compact_invariants(t.data());
     CHECK(t.data().spill_header.static_count == 0u);
     CHECK(t.data().spill_header.count > 0u);
@@ -97,9 +128,10 @@ TEST_CASE("Compact layout: the same hit as the image layout for every ray, in bi
           "update frames",
           "[grid][compact]") {
   for (uint32_t seed : {3u, 8u}) {
-    INFO("seed " << seed);
+    INFO("seed " << seed << (seed == 8u ? ", sparse offsets" : ", dense offsets"));
     const Scene scene = gridtest::random_scene(500, 0.7f, 8.0f, seed, 90);
     GridOptions oc = compact_options(GridOptions::Layout::compact), oi = compact_options(GridOptions::Layout::image);
+    oc.offsets = seed == 8u ? GridOptions::Offsets::sparse : GridOptions::Offsets::dense;
     // The same cells for both (the image layout's capacity small: saturated cells spill)
     oc.resolution = oi.resolution = glm::uvec3(14, 12, 13);
     oi.capacity = 6;
@@ -146,11 +178,17 @@ TEST_CASE("Compact layout: the memory function equals what the build allocates, 
           "the budget",
           "[grid][compact][unit]") {
   const Scene scene = gridtest::random_scene(700, 0.5f, 8.0f, 2, 80);
-  for (GridOptions::Layout layout : {GridOptions::Layout::compact, GridOptions::Layout::image}) {
-    ReferenceGridTracer t(compact_options(layout));
+  for (int variant = 0; variant < 3; ++variant) {
+    const GridOptions::Layout layout = variant == 2 ? GridOptions::Layout::image : GridOptions::Layout::compact;
+    GridOptions o = compact_options(layout);
+    if (layout == GridOptions::Layout::compact)
+      o.offsets = variant == 1 ? GridOptions::Offsets::sparse : GridOptions::Offsets::dense;
+    INFO("variant " << variant);
+    ReferenceGridTracer t(o);
     t.build(scene, 0.0f);
-    const plan::GridPlan p = plan::plan_grid(scene, 0.0f, compact_options(layout));
-    const plan::GridMemory want = plan::grid_memory(t.params(), p.static_references, p.spill_capacity, p.region.cells());
+    const plan::GridPlan p = plan::plan_grid(scene, 0.0f, o);
+    const plan::GridMemory want =
+        plan::grid_memory(t.params(), p.static_references, p.static_cells, p.spill_capacity, p.region.cells());
     const plan::GridMemory got = reference::grid_allocated(t.data());
     CHECK(want.image == got.image);
     CHECK(want.offsets == got.offsets);
@@ -182,6 +220,57 @@ TEST_CASE("Compact layout: the memory function equals what the build allocates, 
   CHECK(within.params().cells == glm::uvec3(64u));
 }
 
+// The automatic offsets: dense where they fit the budget; a grid that fits only with sparse
+// offsets is chosen only if its estimate beats the best dense grid's by kSparseOffsetsMargin.
+// Checked on the candidates the policy weighed, over budgets from generous to tight.
+TEST_CASE("Compact layout: automatic offsets - dense where they fit, sparse only for a grid whose estimate is "
+          "kSparseOffsetsMargin cheaper",
+          "[grid][compact][unit]") {
+  // The built-in atrium (a room of open floors, columns and a moving sphere: most cells of a fine
+  // grid empty) weighed under budgets from coarse to generous
+  const Scene scene = make_builtin("atrium");
+  uint32_t sparse_chosen = 0, dense_chosen = 0;
+  for (uint64_t kib : {256u, 1024u, 1280u, 1536u, 1792u, 65536u}) {
+    INFO("budget " << kib << " KiB");
+    GridOptions o = compact_options(GridOptions::Layout::compact);
+    o.memory_budget = kib * 1024;
+    plan::GridPlan p;
+    try {
+      p = plan::plan_grid(scene, 0.0f, o);
+    } catch (const Error&) {
+      continue;  // nothing fits the tightest budgets
+    }
+    const plan::GridChoice& ch = p.choice;
+    REQUIRE(!ch.candidates.empty());
+    const plan::GridCandidate& c = ch.candidates[ch.chosen];
+    CHECK(((p.params.flags & sh::kGridSparseOffsets) != 0u) == c.sparse_offsets);
+    CHECK(c.memory <= kib * 1024);
+    double best_dense = 1e300, best_any = 1e300;
+    for (const plan::GridCandidate& k : ch.candidates) {
+      CHECK(k.memory <= kib * 1024);
+      best_any = std::min(best_any, k.cost);
+      if (!k.sparse_offsets) best_dense = std::min(best_dense, k.cost);
+    }
+    if (c.sparse_offsets) {
+      ++sparse_chosen;
+      CHECK(c.cost == best_any);
+      CHECK(c.cost <= plan::kSparseOffsetsMargin * best_dense);
+    } else {
+      ++dense_chosen;
+      CHECK(c.cost == best_dense);
+      CHECK(best_any >= plan::kSparseOffsetsMargin * best_dense);
+    }
+    // The plan sizes what the build allocates, either way
+    ReferenceGridTracer t(o);
+    t.build(scene, 0.0f);
+    CHECK(t.params().flags == p.params.flags);
+    CHECK(reference::grid_allocated(t.data()).total() <= kib * 1024);
+    check_compact_invariants(t.data());
+  }
+  CHECK(dense_chosen > 0u);
+  CHECK(sparse_chosen > 0u);  // (1.5 MiB: 48x28x71 with sparse offsets, docs/SPEC.md)
+}
+
 TEST_CASE("Compact layout: the paper traversal or spill off is refused with a clear message", "[grid][compact][cli]") {
   GridOptions o;
   o.layout = GridOptions::Layout::compact;
@@ -195,4 +284,13 @@ TEST_CASE("Compact layout: the paper traversal or spill off is refused with a cl
   const auto r = gridrt::test::run_tool("stats builtin:teapot --layout compact --traversal paper");
   CHECK(r.exit_code == 1);
   CHECK_THAT(r.output, Catch::Contains("compact layout is for the exact traversal"));
+  // The offsets' form asked for: refused where the grid is an image, named on the compact layout
+  const auto image = gridrt::test::run_tool("stats builtin:teapot --offsets sparse --traversal paper");
+  CHECK(image.exit_code == 1);
+  CHECK_THAT(image.output, Catch::Contains("--offsets is the compact layout's"));
+  const auto sparse = gridrt::test::run_tool("stats builtin:teapot --offsets sparse --traversal exact");
+  CHECK(sparse.exit_code == 0);
+  CHECK_THAT(sparse.output, Catch::Contains("sparse offsets (occupied cells only)"));
+  const auto bad = gridrt::test::run_tool("stats builtin:teapot --offsets some");
+  CHECK(bad.exit_code == 2);
 }

@@ -181,14 +181,21 @@ TEST_CASE("Vulkan compact layout: two blocks a scan lane, block boundaries, a cr
   REQUIRE((d.params.flags & sh::kGridCompact) != 0u);
   CHECK((blocks + sh::kCompactScanLanes - 1) / sh::kCompactScanLanes == 2u);
   CHECK(cells % sh::kCompactBlock != 0u);
-  CHECK(d.offsets[(blocks - 1) * sh::kCompactBlock] == d.offsets[cells]);  // the last block empty
-  CHECK(d.offsets[cells] == d.refs.size());
+  const auto run_length = [&](uint32_t c) {
+    uint32_t begin = 0, end = 0;
+    reference::compact_run(d, c, begin, end);
+    return end - begin;
+  };
+  uint32_t last_block = 0;  // references in the last block: none
+  for (uint32_t c = (blocks - 1) * sh::kCompactBlock; c < cells; ++c) last_block += run_length(c);
+  CHECK(last_block == 0u);
+  CHECK(cells % 32u != 0u);  // the index's last word is partial
+  CHECK(d.offsets.back() == d.refs.size());
   uint32_t boundary_cells = 0;  // blocks whose last cell holds references
-  for (uint32_t b = 0; b + 1 < blocks; ++b)
-    boundary_cells += d.offsets[(b + 1) * sh::kCompactBlock] > d.offsets[(b + 1) * sh::kCompactBlock - 1];
+  for (uint32_t b = 0; b + 1 < blocks; ++b) boundary_cells += run_length((b + 1) * sh::kCompactBlock - 1) > 0u;
   CHECK(boundary_cells > 10u);
   const uint32_t crowded = sh::cell_linear_index(d.params, glm::uvec3(20, 20, 20));
-  CHECK(d.offsets[crowded + 1] - d.offsets[crowded] == 24u);
+  CHECK(run_length(crowded) == 24u);
   const glm::uvec3 rlo(d.spill_heads[0], d.spill_heads[1], d.spill_heads[2]);
   const glm::uvec3 rhi(d.spill_heads[4], d.spill_heads[5], d.spill_heads[6]);
   CHECK(rhi.y != rhi.z);
@@ -197,14 +204,20 @@ TEST_CASE("Vulkan compact layout: two blocks a scan lane, block boundaries, a cr
   for (const sh::SpillEntry& e : ref.spill().entries)
     CHECK(e.cell == sh::cell_linear_index(d.params, glm::uvec3(10, 25, 30)));
 
-  for (BuildMode mode : {BuildMode::compute, BuildMode::raster}) {
+  // Dense offsets with both builds; sparse offsets (the index of occupied cells, its last word
+  // partial: 265,680 cells) with the compute build
+  for (int variant = 0; variant < 3; ++variant) {
+    const BuildMode mode = variant == 1 ? BuildMode::raster : BuildMode::compute;
     if (mode == BuildMode::raster && (!ctx.info().geometry_shader || !ctx.info().vertex_pipeline_stores_and_atomics))
       continue;
-    INFO((mode == BuildMode::compute ? "compute build" : "raster build"));
-    ReferenceGridTracer cpu(o);
-    VulkanGridTracer vk(ctx, o, {.build = mode});
+    INFO((mode == BuildMode::compute ? "compute build" : "raster build") << (variant == 2 ? ", sparse offsets" : ", dense offsets"));
+    GridOptions ov = o;
+    ov.offsets = variant == 2 ? GridOptions::Offsets::sparse : GridOptions::Offsets::dense;
+    ReferenceGridTracer cpu(ov);
+    VulkanGridTracer vk(ctx, ov, {.build = mode});
     cpu.build(s, 0.0f);
     vk.build(s, 0.0f);
+    REQUIRE(((vk.params().flags & sh::kGridSparseOffsets) != 0u) == (variant == 2));
     for (float time : {0.0f, 1.0f}) {
       INFO("t = " << time);
       if (time > 0.0f) cpu.update(time), vk.update(time);

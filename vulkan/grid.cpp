@@ -225,12 +225,15 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   // The plan's count exactly (the build checks its own against it; 0 where every triangle has zero
   // area), the buffers at least one reference long
   gpu.compact_pair_capacity = compact ? uint32_t(plan.static_references) : 0u;
-  gpu.offsets = ctx.create_buffer(compact ? (cells + 1) * 4 : 16, sbu);
+  const bool sparse = (g.flags & shared::kGridSparseOffsets) != 0u;
+  const uint64_t offsets_words =
+      sparse ? uint64_t(shared::compact_offsets_words(uint32_t(cells), uint32_t(plan.static_cells))) : cells + 1;
+  gpu.offsets = ctx.create_buffer(compact ? offsets_words * 4 : 16, sbu);
   gpu.refs = ctx.create_buffer(compact ? refs * 4 : 16, sbu);
   gpu.compact_counts = ctx.create_buffer(compact ? cells * 4 : 16, sbu);
   gpu.compact_pairs = ctx.create_buffer(compact ? 16 + refs * 8 : 16, sbu);
   gpu.compact_scattered = ctx.create_buffer(compact ? refs * 8 : 16, sbu);  // the references, then their cells
-  gpu.compact_blocks = ctx.create_buffer(compact ? uint64_t(groups(uint32_t(cells), shared::kCompactScanLanes)) * 4 : 16, sbu);
+  gpu.compact_blocks = ctx.create_buffer(compact ? uint64_t(groups(uint32_t(cells), shared::kCompactScanLanes)) * 8 : 16, sbu);  // (references, occupied cells) per group
   // The spill list: the header (count 0), the entries, four heads per cell (docs/SPEC.md)
   gpu.spill = ctx.create_buffer(sizeof(shared::SpillHeader) + VkDeviceSize(std::max(spill_capacity, 1u)) *
                                                                   sizeof(shared::SpillEntry),
@@ -825,7 +828,7 @@ AccelDump VulkanGridTracer::dump() const {
   if (!gpu_) return {};
   AccelDump d;
   if ((params_.flags & shared::kGridCompact) != 0u) {
-    // The compact layout: the offsets (cells + 1), then the references (as many as the last offset
+    // The compact layout: the offsets (the index of occupied cells' runs), then the references (as many as the last offset
     // says: the buffer's one-word stand-in of a grid without any is left out), as one row
     d.kind = "grid-compact";
     d.texels = ctx_->download<uint32_t>(gpu_->offsets, gpu_->offsets.size / 4);

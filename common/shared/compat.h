@@ -23,7 +23,7 @@
      using glm::vec2; using glm::vec3; using glm::vec4; using glm::ivec3; using glm::uvec3; \
      using glm::uvec4; using glm::ivec2; using glm::uvec2; using uint = std::uint32_t; \
      using glm::min; using glm::max; using glm::clamp; using glm::floor; using glm::ceil; using glm::abs; \
-     using glm::sqrt; using glm::floatBitsToUint; using glm::uintBitsToFloat;
+     using glm::sqrt; using glm::floatBitsToUint; using glm::uintBitsToFloat; using glm::bitCount;
 #  define SH_END } }
 #  define SH_IN(T) const T&
 #  define SH_OUT(T) T&

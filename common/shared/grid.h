@@ -44,6 +44,9 @@ SH_CONST uint kGridCompact = 64u;          // the compact layout (docs/SPEC.md "
                                            // references in one array ordered per cell (offsets, refs),
                                            // dynamic ones only in the spill list's dynamic lists, whose
                                            // heads exist for the dynamic region's cells alone; no image
+SH_CONST uint kGridSparseOffsets = 1024u;  // the compact layout's offsets index the occupied cells only (an
+                                           // occupancy mask per 32 cells, a start per occupied cell), where one
+                                           // offset per cell would not fit the memory budget (docs/SPEC.md)
 SH_CONST uint kGridMailbox = 128u;         // exact traversal: a reference tested earlier on the ray (one of
                                            // the last kMailboxSize tested) is not tested again; the paper
                                            // traversal and first-empty insertion ignore it (docs/SPEC.md "Mailbox")
@@ -205,8 +208,16 @@ SH_INLINE uint spill_arrival_index(uint cell, bool dynamic) { return 4u * cell +
 // The compact layout (kGridCompact; docs/SPEC.md "Compact layout"). The spill heads buffer holds
 // a header of kCompactHeadsHeader words, the dynamic region's box of cells (lo.xyz, pad, hi.xyz,
 // pad: every cell a dynamic reference can reach over the animation), then per region cell (x
-// fastest) two words: the ordered head of its dynamic list and its last arrival. The offsets buffer
-// holds cells + 1 words: cell i's static references are refs[offsets[i] .. offsets[i + 1]).
+// fastest) two words: the ordered head of its dynamic list and its last arrival.
+//
+// The offsets buffer, without kGridSparseOffsets: cells + 1 words, cell i's static references are
+// refs[offsets[i] .. offsets[i + 1]). With it, it indexes the runs of the occupied cells only (a
+// cell is occupied when it holds a static reference; 95-97 % of a fine grid's cells hold none). Per word of 32 cells (cells
+// 32 w .. 32 w + 31 in cell_linear_index order) two words: its base, the occupied cells before it,
+// and its occupancy mask (bit b: cell 32 w + b is occupied). Then, from compact_runs_base, per
+// occupied cell in cell order the start of its run, and last the total: the k-th occupied cell's
+// static references are refs[offsets[runs + k] .. offsets[runs + k + 1]). So a cell costs a
+// quarter of a byte plus 4 bytes if occupied, where one offset per cell cost 4.
 SH_CONST uint kCompactHeadsHeader = 8u;
 SH_CONST uint kCompactBlock = 256u;      // the offsets pass: cells per block of the scan
 SH_CONST uint kCompactScanLanes = 1024u; // the offsets pass: lanes of the blocks' scan (one workgroup)
@@ -222,6 +233,18 @@ SH_INLINE uint region_cell_count(SH_IN(uvec3) lo, SH_IN(uvec3) hi) {
   uvec3 n = hi - lo + uvec3(1u);
   return n.x * n.y * n.z;
 }
+SH_INLINE uint compact_word_count(uint cells) { return (cells + 31u) / 32u; }
+SH_INLINE uint compact_runs_base(uint cells) { return 2u * compact_word_count(cells); }
+SH_INLINE uint compact_base_index(uint i) { return 2u * (i / 32u); }      // cell i's word's base
+SH_INLINE uint compact_mask_index(uint i) { return 2u * (i / 32u) + 1u; }  // and its mask
+SH_INLINE bool compact_occupied(uint mask, uint i) { return ((mask >> (i % 32u)) & 1u) != 0u; }
+// Where the run of occupied cell i starts in the offsets buffer (its end is the next word): the
+// word's base plus the occupied cells before i in its word.
+SH_INLINE uint compact_run_index(uint cells, uint base, uint mask, uint i) {
+  return compact_runs_base(cells) + base + uint(bitCount(mask & ((1u << (i % 32u)) - 1u)));
+}
+// The offsets buffer's words: the index, the occupied cells' starts and the total.
+SH_INLINE uint compact_offsets_words(uint cells, uint occupied) { return compact_runs_base(cells) + occupied + 1u; }
 SH_INLINE uint compact_head_index(uint region_cell) { return kCompactHeadsHeader + 2u * region_cell; }
 SH_INLINE uint compact_arrival_index(uint region_cell) { return kCompactHeadsHeader + 2u * region_cell + 1u; }
 

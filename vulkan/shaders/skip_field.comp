@@ -72,8 +72,10 @@ uint line_table_index(GridParams g, uvec3 c) {
 // Pass 0's value of cell c: 1 if it is occupied.
 uint occupancy(GridParams g, uvec3 c) {
   const uint ci = cell_linear_index(g, c);
-  const bool occupied = (g.flags & kGridCompact) != 0u ? compact_offsets[ci + 1u] > compact_offsets[ci]
-                                                       : imageLoad(grid_image, ivec3(cell_slot_texel(g, c, 0u))).x != kBlank;
+  const bool occupied = (g.flags & kGridCompact) == 0u
+                            ? imageLoad(grid_image, ivec3(cell_slot_texel(g, c, 0u))).x != kBlank
+                        : (g.flags & kGridSparseOffsets) != 0u ? compact_occupied(compact_offsets[compact_mask_index(ci)], ci)
+                                                               : compact_offsets[ci + 1u] > compact_offsets[ci];
   return occupied ? 1u : 0u;
 }
 

@@ -28,6 +28,9 @@ layout(std430, binding = kGridBindSpillHeads) readonly buffer SpillHeads { uint 
 layout(std430, binding = kGridBindSkip) readonly buffer Skip { uint skip[]; };
 // The compact layout (kGridCompact): per cell its run of static references.
 layout(std430, binding = kGridBindOffsets) readonly buffer Offsets { uint compact_offsets[]; };
+// The same buffer as words of its index: a cell's word's base and occupancy mask in one load
+layout(std430, binding = kGridBindOffsets) readonly buffer OffsetWords { uvec2 compact_words[]; };
+uvec2 compact_word(uint i) { return compact_words[i / 32u]; }
 layout(std430, binding = kGridBindRefs) readonly buffer Refs { uint compact_refs[]; };
 layout(std430, binding = kGridBindExplain) buffer Explain {
   uint explain_count;  // events written (may exceed the capacity: then the tail is lost)
@@ -212,16 +215,29 @@ void test_spilled(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
   }
 }
 
-// The compact layout (kGridCompact): a cell's static references are its run refs[offsets[i] ..
-// offsets[i + 1]) (one event per reference, its index in the run as the slot), in ascending order;
+// The compact layout (kGridCompact): a cell's static references are its run in refs,
+// refs[offsets[i] .. offsets[i + 1]), or with kGridSparseOffsets found through the index of
+// occupied cells (its word's occupancy mask: none if its bit is clear; else the word's base plus
+// the occupied cells before it in the word is its place among the runs' starts) (one event per reference, its index in the run as the slot), in ascending order;
 // then, for a cell of the dynamic region, its dynamic spill list (the region's head: its status is
 // kStatusDynamic where the list is not empty). Cells outside the region read no head.
 uvec3 region_lo;
 uvec3 region_hi;
 void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
   const uint i = cell_linear_index(g, cell);
-  const uint begin = compact_offsets[i];
-  const uint end = compact_offsets[i + 1u];
+  uint begin = 0u;
+  uint end = 0u;
+  if ((g.flags & kGridSparseOffsets) == 0u) {
+    begin = compact_offsets[i];
+    end = compact_offsets[i + 1u];
+  } else {
+    const uvec2 word = compact_word(i);
+    if (compact_occupied(word.y, i)) {
+      const uint k = compact_run_index(grid_cell_count(g), word.x, word.y, i);
+      begin = compact_offsets[k];
+      end = compact_offsets[k + 1u];
+    }
+  }
   for (uint j = begin; j < end; ++j) {
     const uint ref = compact_refs[j];
     emit(kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
@@ -439,6 +455,12 @@ uint flat_end;    // flat_j - flat_end counts the dynamic list's entries read
 uint flat_e;      // then its dynamic list from entry flat_e (kSpillEnd: none)
 
 void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
+  // Sparse offsets: the cell's word of the index is loaded beside its skip distance, not after it
+  // (an occupied cell's chain of dependent loads, skip distance and word, run bounds, references,
+  // is then as long as with dense offsets; an empty cell's word is loaded for nothing)
+  const uint i = cell_linear_index(g, w.cell);
+  const bool sparse = (g.flags & kGridSparseOffsets) != 0u;
+  const uvec2 word = sparse ? compact_word(i) : uvec2(0u);
   const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell) : 0u;
   dda_walk_exits(g, st.org, st.dir, inv_dir, d > 0u ? d - 1u : 0u, w);
   st.cells += 1u;
@@ -446,9 +468,14 @@ void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
   flat_end = 0u;
   flat_e = kSpillEnd;
   if (d != 0u) return;
-  const uint i = cell_linear_index(g, w.cell);
-  flat_j = compact_offsets[i];
-  flat_end = compact_offsets[i + 1u];
+  if (!sparse) {
+    flat_j = compact_offsets[i];
+    flat_end = compact_offsets[i + 1u];
+  } else if (compact_occupied(word.y, i)) {
+    const uint k = compact_run_index(grid_cell_count(g), word.x, word.y, i);
+    flat_j = compact_offsets[k];
+    flat_end = compact_offsets[k + 1u];
+  }
   const uvec3 lo = uvec3(region_words[0], region_words[1], region_words[2]);
   const uvec3 hi = uvec3(region_words[4], region_words[5], region_words[6]);
   if (region_contains(w.cell, lo, hi)) flat_e = spill_heads[compact_head_index(region_index(w.cell, lo, hi))];
