@@ -149,10 +149,9 @@ void test_spilled(const GridData& grid, TraceState& st, uvec3 cell, uint step, f
   }
 }
 
-// The compact layout (kGridCompact): a cell's static references are its run in refs,
-// refs[offsets[i] .. offsets[i + 1]), or with kGridSparseOffsets found through the index of
-// occupied cells (its word's occupancy mask: none if its bit is clear; else the word's base plus
-// the occupied cells before it in the word is its place among the runs' starts) (one event per reference, its index in the run as the slot), in ascending order;
+// The compact layout (kGridCompact): a cell's static references are its run in refs (compact_run:
+// dense offsets, or the index of occupied cells with kGridSparseOffsets), one event per reference,
+// its index in the run as the slot, in ascending order;
 // then, for a cell of the dynamic region, its dynamic spill list (the region's head: its status is
 // kStatusDynamic where the list is not empty). Cells outside the region read no head.
 void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint step, float t_lo, float t_hi) {
@@ -160,17 +159,7 @@ void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint st
   const uint i = cell_linear_index(g, cell);
   uint begin = 0u;
   uint end = 0u;
-  if ((g.flags & kGridSparseOffsets) == 0u) {
-    begin = grid.offsets[i];
-    end = grid.offsets[i + 1u];
-  } else {
-    const uint mask = grid.offsets[compact_mask_index(i)];
-    if (compact_occupied(mask, i)) {
-      const uint k = compact_run_index(grid_cell_count(g), grid.offsets[compact_base_index(i)], mask, i);
-      begin = grid.offsets[k];
-      end = grid.offsets[k + 1u];
-    }
-  }
+  compact_run(grid, i, begin, end);
   for (uint j = begin; j < end; ++j) {
     const uint ref = grid.refs[j];
     emit(st, kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
