@@ -204,6 +204,7 @@ bool compact_run(const GridData& grid, uint32_t i, uint32_t& begin, uint32_t& en
   begin = end = 0u;
   if (!shared::compact_occupied(mask, i)) return false;
   const uint32_t k = shared::compact_run_index(cells, grid.offsets[shared::compact_base_index(i)], mask, i);
+  if (size_t(k) + 1 >= grid.offsets.size()) return false;  // past the index (as compact.comp: a wrong count fails the build)
   begin = grid.offsets[k];
   end = grid.offsets[k + 1];
   return true;
@@ -239,9 +240,10 @@ void compact_order(GridData& grid, const GridOptions& o) {
     const uint32_t c = grid.compact_pairs[2 * size_t(k)], ref = grid.compact_pairs[2 * size_t(k) + 1];
     uint32_t begin, end;
     compact_run(grid, c, begin, end);
+    end = std::min<uint32_t>(end, uint32_t(grid.compact_scattered.size()));  // as compact.comp: never past the arrays
     uint32_t rank = 0u;
     for (uint32_t j = begin; j < end; ++j) rank += grid.compact_scattered[j] < ref ? 1u : 0u;
-    grid.refs[begin + rank] = ref;
+    if (size_t(begin) + rank < grid.refs.size()) grid.refs[begin + rank] = ref;
   }, 64);
 }
 
