@@ -120,6 +120,11 @@ int main(int argc, char** argv) {
   app.add_option("--max-texture-pixels", limits.max_texture_pixels,
                  "Largest texture in pixels, checked from the image's header before decoding (default 67108864)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
+  app.add_option_function<double>(
+         "--max-host-mib", [&limits](double mib) { limits.max_host_bytes = uint64_t(mib * 1024.0 * 1024.0); },
+         "Most host memory a grid's plan and CPU build may take, in MiB (default: what the machine has free), "
+         "checked before they allocate")
+      ->check(CLI::Range(1.0, 1.0e9))->group("Limits");
   app.add_option("--max-triangles", limits.max_triangles, "Most triangles in a scene, over all instances (default 33554432)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
   app.add_option("--max-pixels", app::frame_limits().max_pixels,

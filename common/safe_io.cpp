@@ -3,9 +3,13 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <algorithm>
 #include <filesystem>
+#include <optional>
+#include <cstdio>
 
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -15,6 +19,55 @@ namespace fs = std::filesystem;
 InputLimits& input_limits() {
   static InputLimits limits;
   return limits;
+}
+
+namespace {
+
+// The first number of the file at `path` (times `scale`), or nullopt where it cannot be read or
+// holds none ("max" in a cgroup's memory.max).
+std::optional<uint64_t> read_number(const char* path, const char* key, uint64_t scale) {
+  std::FILE* f = std::fopen(path, "r");
+  if (!f) return std::nullopt;
+  char line[256];
+  std::optional<uint64_t> value;
+  while (std::fgets(line, sizeof line, f)) {
+    const char* p = line;
+    if (key) {
+      if (std::strncmp(line, key, std::strlen(key)) != 0) continue;
+      p += std::strlen(key);
+    }
+    char* end = nullptr;
+    errno = 0;
+    const unsigned long long v = std::strtoull(p, &end, 10);
+    if (end != p && errno == 0) value = uint64_t(v) * scale;
+    break;
+  }
+  std::fclose(f);
+  return value;
+}
+
+}  // namespace
+
+uint64_t host_memory_available() {
+  uint64_t room = UINT64_MAX;
+  if (const auto a = read_number("/proc/meminfo", "MemAvailable:", 1024)) room = std::min(room, *a);
+  const auto max = read_number("/sys/fs/cgroup/memory.max", nullptr, 1);
+  const auto current = read_number("/sys/fs/cgroup/memory.current", nullptr, 1);
+  if (max && current) room = std::min(room, *max > *current ? *max - *current : 0);
+  for (const int resource : {RLIMIT_AS, RLIMIT_DATA}) {
+    rlimit r{};
+    if (getrlimit(resource, &r) == 0 && r.rlim_cur != RLIM_INFINITY) room = std::min(room, uint64_t(r.rlim_cur));
+  }
+  if (input_limits().max_host_bytes != 0) room = std::min(room, input_limits().max_host_bytes);
+  return room;
+}
+
+void require_host_memory(uint64_t bytes, const std::string& what, const std::string& advice) {
+  const uint64_t room = host_memory_available();
+  if (bytes <= room) return;
+  const auto mib = [](uint64_t b) { return std::to_string((b + (1u << 20) - 1) >> 20); };
+  throw Error(what + " need about " + mib(bytes) + " MiB of host memory, more than the " + mib(room) +
+              " MiB available (" + advice + "; --max-host-mib)");
 }
 
 namespace {

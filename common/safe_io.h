@@ -33,8 +33,21 @@ struct InputLimits {
   uint32_t max_face_vertices = 1024;                // one OBJ polygon (triangulated as a fan)
   uint32_t max_json_depth = 256;                    // nesting of arrays and objects (JSON, glTF)
   uint32_t max_node_depth = 1000;                   // glTF node hierarchy
+  uint64_t max_host_bytes = 0;  // the grid build's host memory (--max-host-mib); 0: what the machine has free
 };
 InputLimits& input_limits();
+
+// The host memory this process may still take, in bytes: the least of the machine's available
+// memory (/proc/meminfo's MemAvailable), its cgroup's room (memory.max less memory.current), the
+// address-space and data limits (ulimit -v, -d), and --max-host-mib where it is set. UINT64_MAX
+// where none of them can be read.
+uint64_t host_memory_available();
+
+// Error, before anything is allocated, when `bytes` exceed host_memory_available(): "<what> need
+// about X MiB of host memory, more than the Y MiB available (<advice>; --max-host-mib)". For
+// sizes an option asks for (a resolution, a memory budget), so that an impossible request fails at
+// once with its reason, not after minutes of swapping or as an anonymous allocation failure.
+void require_host_memory(uint64_t bytes, const std::string& what, const std::string& advice);
 
 // The bytes of the regular file at `path`. Error ("cannot open <what> '<path>': ...") when it is
 // missing, not a regular file (directory, FIFO, device), larger than max_file_bytes or unreadable.

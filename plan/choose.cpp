@@ -6,6 +6,7 @@
 
 #include "gridrt/common/invocations.h"
 #include "gridrt/common/parallel.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/shared/transform.h"
 #include "gridrt/plan/plan.h"
 #include "gridrt/plan/policy.h"
@@ -151,6 +152,18 @@ GridMemory grid_memory(const GridParams& g, uint64_t static_refs, uint64_t stati
   return m;
 }
 
+uint64_t host_build_memory(const GridParams& g, uint64_t static_refs, uint64_t static_cells, uint32_t spill_capacity,
+                           uint64_t region_cells) {
+  const uint64_t cells = uint64_t(g.cells.x) * g.cells.y * g.cells.z;
+  const bool compact = (g.flags & shared::kGridCompact) != 0u;
+  uint64_t bytes = grid_memory(g, static_refs, static_cells, spill_capacity, region_cells).total();
+  bytes += 4 * cells;                                            // the trial's counts
+  if (compact) bytes += 4 * cells + 12 * std::max<uint64_t>(static_refs, 1);  // counts, pairs, scattered
+  if ((g.flags & shared::kGridSkipEmpty) != 0u)
+    bytes += 4 * (uint64_t(g.cells.x + 1) * (g.cells.y + 1) * (g.cells.z + 1) + (cells + 63) / 64);
+  return bytes;
+}
+
 namespace {
 
 // The trial that chooses the capacity: per cell the references a build would insert (no
@@ -286,6 +299,25 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
     if (c.memory > compact_budget(o, scene.triangle_count())) {
       c.fits = false;
       return c;
+    }
+  }
+  // The host memory the trial and the build take for these cells alone (the least layout, the
+  // least capacity): a request beyond the machine fails here, before the trial counts a cell.
+  // An automatic candidate is not counted (a coarser one is); an explicit resolution is an error.
+  {
+    GridParams least = compact ? with_offsets(sparse_allowed) : g;
+    least.capacity = lowest;
+    least.flags = (least.flags & ~shared::kGridSlotAxisMask) | (c.slot_axis << shared::kGridSlotAxisShift);
+    const uint64_t bytes = host_build_memory(least, 0, 0, 0, 0);
+    if (bytes > host_memory_available()) {
+      if (range_bounded) {
+        c.fits = false;
+        return c;
+      }
+      require_host_memory(bytes,
+                          "grid: " + std::to_string(cells.x) + "x" + std::to_string(cells.y) + "x" +
+                              std::to_string(cells.z) + " cells",
+                          "lower --resolution or raise --cell-size");
     }
   }
   // The work bound: a grid whose AABB ranges alone exceed it is not counted (nor built)

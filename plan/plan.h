@@ -63,6 +63,13 @@ struct GridMemory {
 GridMemory grid_memory(const shared::GridParams& g, uint64_t static_refs, uint64_t static_cells, uint32_t spill_capacity,
                        uint64_t region_cells);
 
+// The host memory a plan of `g` and the reference's build of it take at their peak: what the grid
+// keeps (grid_memory) and the temporaries beside it: the trial's counts (a word a cell), the
+// compact passes' counts (a word a cell), pairs and scattered references (three words a
+// reference), the skip field's corner table and bricks. The image layout's image at `g.capacity`.
+uint64_t host_build_memory(const shared::GridParams& g, uint64_t static_refs, uint64_t static_cells,
+                           uint32_t spill_capacity, uint64_t region_cells);
+
 // The compact layout's dynamic region: the box of cells every dynamic instance's references can
 // reach over the whole animation (its swept bounds, as animation_bounds, one cell of margin, the
 // AABB padding), clamped to the grid; empty (lo > hi) without dynamic instances.

@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "gridrt/common/invocations.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/shared/transform.h"
 #include "gridrt/reference/grid.h"
 #include "gridrt/plan/policy.h"
@@ -498,10 +499,19 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
   grid.params = plan.params;
   grid.requested_flags = grid.params.flags;
   const GridParams& g = grid.params;
+  // Everything below at once, before any of it is allocated
+  require_host_memory(plan::host_build_memory(g, plan.static_references, plan.static_cells, plan.spill_capacity,
+                                              plan.region.cells()),
+                      "reference build: " + std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" +
+                          std::to_string(g.cells.z) + " cells",
+                      "lower --resolution or --memory-budget");
   // The spill list: empty, room for the references the trial would drop
   grid.spill_header = shared::SpillHeader{0u, plan.spill_capacity, 0u, 0u};
   grid.spill.assign(grid.spill_header.capacity, shared::SpillEntry{0u, kBlank, shared::kSpillEnd, shared::kSpillEnd});
-  if (g.flags & shared::kGridSpill) grid.spill_heads.assign(4 * size_t(g.cells.x) * g.cells.y * g.cells.z, shared::kSpillEnd);
+  // (the image layout's heads, four per cell; the compact layout's, only its region's, below)
+  const bool compact = (g.flags & shared::kGridCompact) != 0u;
+  if ((g.flags & shared::kGridSpill) != 0u && !compact)
+    grid.spill_heads.assign(4 * size_t(g.cells.x) * g.cells.y * g.cells.z, shared::kSpillEnd);
   // Tables: instances, materials and their alpha masks, the geometry buffer
   grid.static_instances = plan.tables.static_instances;
   grid.static_triangles = plan.tables.static_triangles;
@@ -511,7 +521,6 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
   grid.materials = std::move(plan.tables.materials);
   grid.texels = std::move(plan.tables.texels);
   // The image, every texel blank; status texels 0; the dirty-cell list empty
-  const bool compact = (g.flags & shared::kGridCompact) != 0u;
   if (compact) {
     // Compact: a one-texel image and an empty dirty list's header as stand-ins; the region's heads, empty;
     // the counts zero, room for the plan's count of static references

@@ -234,6 +234,31 @@ TEST_CASE("An explicit resolution over the memory budget is refused before its c
   CHECK_THAT(r.output, Contains("take at least") && Contains("--memory-budget"));
 }
 
+TEST_CASE("A grid the host cannot hold is refused at once, with its size and the limit named", "[badinput][cli]") {
+  // A budget large enough for anything: what stops 10^9 cells is the host's memory (here a 3 GB
+  // address-space limit), before the trial counts a cell; the same build within --max-host-mib
+  // is refused by the reference build's own check, which sees the plan's counts
+  const fs::path d = scratch("host-memory");
+  const auto r = run_tool("--version >/dev/null; (ulimit -v 3000000; exec " + std::string(GRIDRT_TOOL) +
+                          " render builtin:cornell --memory-budget 100000 --resolution 1000,1000,1000 --width 8 "
+                          "--height 8 -o " + (d / "x.png").string() + ")");
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("1000x1000x1000 cells need about") && Contains("MiB of host memory") &&
+                           Contains("--max-host-mib"));
+  CHECK_FALSE(fs::exists(d / "x.png"));
+  for (const char* traversal : {"exact", "paper"}) {
+    const auto s = run_tool(std::string("--max-host-mib 16 stats builtin:atrium --traversal ") + traversal +
+                            " --memory-budget 100000 --resolution 160,160,160");
+    INFO(traversal << ": " << s.output);
+    CHECK(s.exit_code == 1);
+    CHECK_THAT(s.output, Contains("160x160x160 cells need about") && Contains("more than the 16 MiB available"));
+  }
+  // The same grid within the limit is built
+  const auto ok = run_tool("--max-host-mib 2000 stats builtin:atrium --traversal exact --memory-budget 100000 "
+                           "--resolution 160,160,160");
+  CHECK(ok.exit_code == 0);
+}
+
 TEST_CASE("Every output format on a full disk: exit 1, the old file intact, no temporary left", "[badinput][cli]") {
   const fs::path d = scratch("full-disk");
   for (const std::string ext : {"png", "jpg", "exr", "hdr", "tif", "ppm", "pfm"}) {
