@@ -141,6 +141,79 @@ TEST_CASE("glTF and GLB: node hierarchy, flipped v, MASK material", "[unit][load
   }
 }
 
+namespace {
+
+// A glTF file of one mesh over the unit square's corners (0,0) (1,0) (0,1) (1,1) at z = 0: one
+// primitive per (mode, indices) pair, unsigned-short indices, the buffer inline as base64.
+std::string gltf_with_primitives(const std::vector<std::pair<int, std::vector<uint16_t>>>& prims) {
+  std::string bin;
+  const float pos[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+  bin.append(reinterpret_cast<const char*>(pos), sizeof pos);
+  std::string views = "{\"buffer\":0,\"byteOffset\":0,\"byteLength\":48}";
+  std::string accessors = "{\"bufferView\":0,\"componentType\":5126,\"count\":4,\"type\":\"VEC3\"}";
+  std::string primitives;
+  for (size_t k = 0; k < prims.size(); ++k) {
+    const size_t offset = bin.size();
+    bin.append(reinterpret_cast<const char*>(prims[k].second.data()), prims[k].second.size() * 2);
+    while (bin.size() % 4) bin.push_back('\0');
+    views += ",{\"buffer\":0,\"byteOffset\":" + std::to_string(offset) +
+             ",\"byteLength\":" + std::to_string(prims[k].second.size() * 2) + "}";
+    accessors += ",{\"bufferView\":" + std::to_string(k + 1) + ",\"componentType\":5123,\"count\":" +
+                 std::to_string(prims[k].second.size()) + ",\"type\":\"SCALAR\"}";
+    primitives += std::string(k ? "," : "") + "{\"attributes\":{\"POSITION\":0},\"indices\":" + std::to_string(k + 1) +
+                  ",\"mode\":" + std::to_string(prims[k].first) + "}";
+  }
+  static const char* b64 = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string enc;
+  for (size_t i = 0; i < bin.size(); i += 3) {
+    uint32_t v = uint32_t(uint8_t(bin[i])) << 16;
+    if (i + 1 < bin.size()) v |= uint32_t(uint8_t(bin[i + 1])) << 8;
+    if (i + 2 < bin.size()) v |= uint32_t(uint8_t(bin[i + 2]));
+    enc += b64[(v >> 18) & 63];
+    enc += b64[(v >> 12) & 63];
+    enc += i + 1 < bin.size() ? b64[(v >> 6) & 63] : '=';
+    enc += i + 2 < bin.size() ? b64[v & 63] : '=';
+  }
+  return "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+         "\"meshes\":[{\"primitives\":[" + primitives + "]}],\"accessors\":[" + accessors + "],\"bufferViews\":[" +
+         views + "],\"buffers\":[{\"byteLength\":" + std::to_string(bin.size()) +
+         ",\"uri\":\"data:application/octet-stream;base64," + enc + "\"}]}";
+}
+
+std::string write_text(const fs::path& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+  return path.string();
+}
+
+}  // namespace
+
+TEST_CASE("glTF triangle strips and fans: every triangle, one winding; points and lines left out", "[unit][loaders]") {
+  const fs::path d = temp_dir();
+  // The square as a strip (0 1 2 3) and as a fan (0 1 3 2), each two triangles facing +z; a line
+  // primitive beside them adds nothing
+  const std::string path =
+      write_text(d / "topology.gltf", gltf_with_primitives({{5, {0, 1, 2, 3}}, {6, {0, 1, 3, 2}}, {1, {0, 3}}}));
+  Scene s;
+  TextureCache cache;
+  load_gltf(path, s, cache);
+  REQUIRE(s.meshes.size() == 1);
+  const Mesh& m = s.meshes[0];
+  REQUIRE(m.triangle_count() == 4);
+  double area = 0.0;
+  for (const glm::uvec3& t : m.triangles) {
+    const glm::vec3 n = glm::cross(m.positions[t.y] - m.positions[t.x], m.positions[t.z] - m.positions[t.x]);
+    CHECK(n.z > 0.0f);  // the first triangle's winding kept by every later one
+    area += 0.5 * double(glm::length(n));
+  }
+  CHECK(area == Approx(2.0));  // each form covers the square once
+  // A mode outside glTF's seven, and a strip too short for a triangle: errors naming the primitive
+  Scene bad;
+  CHECK_THROWS_WITH(load_gltf(write_text(d / "mode7.gltf", gltf_with_primitives({{7, {0, 1, 2}}})), bad, cache),
+                    Catch::Contains("primitive 0: mode 7 is not a glTF primitive mode"));
+  CHECK_THROWS_WITH(load_gltf(write_text(d / "short.gltf", gltf_with_primitives({{5, {0, 1}}})), bad, cache),
+                    Catch::Contains("a triangle strip of 2 vertices (at least 3)"));
+}
+
 TEST_CASE("Image output: PPM and PFM by hand, PNG and EXR through OpenImageIO, read back", "[unit][image]") {
   const fs::path dir = temp_dir();
   const std::vector<glm::vec3> px = {{0, 0, 0}, {1, 0.5f, 0.25f}, {0.2f, 2.0f, -1.0f}, {0.0031308f, 0.5f, 1.0f}};

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <cstdio>
 #include <functional>
 #include <iostream>
 #include <sstream>
@@ -366,8 +367,17 @@ void add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
     for (size_t pi = 0; pi < gmesh.primitives.size(); ++pi) {
       const tinygltf::Primitive& prim = gmesh.primitives[pi];
       const std::string where = "mesh '" + mesh.name + "' primitive " + std::to_string(pi);
-      if (prim.mode != -1 && prim.mode != TINYGLTF_MODE_TRIANGLES)
-        c.fail(where + ": mode " + std::to_string(prim.mode) + " is not supported (only triangles, mode 4)");
+      const int mode = prim.mode == -1 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+      if (mode == TINYGLTF_MODE_POINTS || mode == TINYGLTF_MODE_LINE || mode == TINYGLTF_MODE_LINE_LOOP ||
+          mode == TINYGLTF_MODE_LINE_STRIP) {
+        // Points and lines have no surface a ray can meet: left out, said once per primitive
+        std::fprintf(stderr, "gltf: '%s': %s: mode %d (%s) has no surface to trace: left out\n", c.path.c_str(),
+                     where.c_str(), mode, mode == TINYGLTF_MODE_POINTS ? "points" : "lines");
+        continue;
+      }
+      if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
+        c.fail(where + ": mode " + std::to_string(prim.mode) +
+               " is not a glTF primitive mode (0-6; triangles 4, strip 5 and fan 6 are traced)");
       auto pos_it = prim.attributes.find("POSITION");
       if (pos_it == prim.attributes.end()) c.fail(where + ": no POSITION attribute");
       const auto positions = read_vectors<3>(c, pos_it->second, "POSITION");
@@ -391,7 +401,11 @@ void add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
         indices.resize(positions.size());
         for (uint32_t i = 0; i < indices.size(); ++i) indices[i] = i;
       }
-      if (indices.size() % 3 != 0) c.fail(where + ": " + std::to_string(indices.size()) + " indices is not a multiple of 3");
+      if (mode == TINYGLTF_MODE_TRIANGLES && indices.size() % 3 != 0)
+        c.fail(where + ": " + std::to_string(indices.size()) + " indices is not a multiple of 3");
+      if (mode != TINYGLTF_MODE_TRIANGLES && indices.size() < 3)
+        c.fail(where + ": a triangle " + (mode == TINYGLTF_MODE_TRIANGLE_STRIP ? "strip" : "fan") + " of " +
+               std::to_string(indices.size()) + " vertices (at least 3)");
       for (uint32_t i : indices)
         if (i >= positions.size())
           c.fail(where + ": index " + std::to_string(i) + " out of range (" + std::to_string(positions.size()) + " vertices)");
@@ -414,9 +428,21 @@ void add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
         // glTF puts v = 0 at the first row of the image; alpha.h puts it at the last: flip.
         mesh.uvs.push_back(prim_uvs.empty() ? glm::vec2(0.0f) : glm::vec2(prim_uvs[v].x, 1.0f - prim_uvs[v].y));
       }
-      for (size_t t = 0; t < indices.size(); t += 3) {
-        mesh.triangles.emplace_back(first + indices[t], first + indices[t + 1], first + indices[t + 2]);
+      // Triangle i of a strip is (v_i, v_i+1, v_i+2) with every odd one's last two swapped, so that
+      // all keep the first one's winding; of a fan (v_i+1, v_i+2, v_0) (the glTF 2.0 specification,
+      // "Primitive topology")
+      const auto add = [&](uint32_t a, uint32_t b, uint32_t d) {
+        mesh.triangles.emplace_back(first + a, first + b, first + d);
         mesh.materials.push_back(material);
+      };
+      if (mode == TINYGLTF_MODE_TRIANGLES) {
+        for (size_t t = 0; t < indices.size(); t += 3) add(indices[t], indices[t + 1], indices[t + 2]);
+      } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+        for (size_t i = 0; i + 2 < indices.size(); ++i)
+          if (i % 2 == 0) add(indices[i], indices[i + 1], indices[i + 2]);
+          else add(indices[i], indices[i + 2], indices[i + 1]);
+      } else {
+        for (size_t i = 0; i + 2 < indices.size(); ++i) add(indices[i + 1], indices[i + 2], indices[0]);
       }
     }
     if (all_normals) mesh.normals = std::move(normals);
