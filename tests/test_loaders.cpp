@@ -187,7 +187,7 @@ std::string write_text(const fs::path& path, const std::string& text) {
 
 }  // namespace
 
-TEST_CASE("glTF triangle strips and fans: every triangle, one winding; points and lines left out", "[unit][loaders]") {
+TEST_CASE("glTF triangle strips and fans: every triangle, one winding - points and lines left out", "[unit][loaders]") {
   const fs::path d = temp_dir();
   // The square as a strip (0 1 2 3) and as a fan (0 1 3 2), each two triangles facing +z; a line
   // primitive beside them adds nothing

@@ -356,7 +356,9 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
 
 // Meshes: triangle primitives merged, one Mesh per glTF mesh. A primitive without a material gets
 // one "default" material, added on first use.
-void add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
+// Returns the primitives left out (points and lines), "" if none: "mode 1", "modes 0, 1".
+std::string add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
+  std::vector<int> left_out;
   int64_t default_material = -1;
   for (size_t mi = 0; mi < c.model.meshes.size(); ++mi) {
     const tinygltf::Mesh& gmesh = c.model.meshes[mi];
@@ -373,6 +375,7 @@ void add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
         // Points and lines have no surface a ray can meet: left out, said once per primitive
         std::fprintf(stderr, "gltf: '%s': %s: mode %d (%s) has no surface to trace: left out\n", c.path.c_str(),
                      where.c_str(), mode, mode == TINYGLTF_MODE_POINTS ? "points" : "lines");
+        if (std::find(left_out.begin(), left_out.end(), mode) == left_out.end()) left_out.push_back(mode);
         continue;
       }
       if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
@@ -449,6 +452,10 @@ void add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
     if (!any_uv) mesh.uvs.clear();
     scene.meshes.push_back(std::move(mesh));
   }
+  std::sort(left_out.begin(), left_out.end());
+  std::string modes;
+  for (int m : left_out) modes += (modes.empty() ? "" : ", ") + std::to_string(m);
+  return modes.empty() ? "" : (left_out.size() == 1 ? "mode " : "modes ") + modes;
 }
 
 // Nodes: one instance per node with a mesh, at its world matrix (every mesh once, untransformed,
@@ -504,11 +511,13 @@ std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCa
   const uint32_t material_base = uint32_t(scene.materials.size());
   add_materials(c, scene, textures);
   const uint32_t mesh_base = uint32_t(scene.meshes.size());
-  add_meshes(c, scene, material_base);
+  const std::string left_out = add_meshes(c, scene, material_base);
   const std::vector<Instance> instances = node_instances(c, scene, mesh_base);
   uint64_t triangles = 0;
   for (const Instance& inst : instances) triangles += scene.meshes[inst.mesh].triangle_count();
-  if (triangles == 0) throw Error("glTF '" + path + "' has no triangles: an empty model");
+  if (triangles == 0)
+    throw Error("glTF '" + path + "' has no triangles: an empty model" +
+                (left_out.empty() ? std::string() : " (its primitives of " + left_out + " are points or lines, left out)"));
   return instances;
 }
 
