@@ -52,6 +52,7 @@ const char* test_reason(uint32_t code) {
     case kTestAlphaKeyed: return "rejected: alpha-keyed out by the mask";
     case kTestTieLost: return "rejected: t not smaller than the best hit's (ties keep the smaller reference)";
     case kTestMailboxed: return "skipped: tested earlier on this ray (mailbox), the result cannot change";
+    case kTestOriginPlane: return "rejected: the triangle's plane passes within 8 ulps of the origin (the surface rule)";
     default: return "?";
   }
 }
@@ -145,7 +146,7 @@ std::string event_code_name(uint32_t kind, uint32_t code) {
     case kEvTest: {
       static const char* names[] = {"accepted", "parallel", "outside-u",  "outside-v",   "outside-uv", "behind",
                                     "beyond",   "not-closer", "self-hit", "alpha-keyed", "tie-lost",
-                                    "mailboxed"};
+                                    "mailboxed", "origin-plane"};
       return code < std::size(names) ? names[code] : "?";
     }
     case kEvAlpha: return code ? "kept" : "cut";
@@ -318,7 +319,7 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
            << num(e.f1.y, fmt) << ", best*|det| " << num(e.f1.z, fmt);
         line();
       }
-      if (e.code == kTestAccepted || e.code == kTestAlphaKeyed || e.code == kTestTieLost) {
+      if (e.code == kTestAccepted || e.code == kTestAlphaKeyed || e.code == kTestTieLost || e.code == kTestOriginPlane) {
         os << "      t = t*|det| / |det| = " << num(e.f1.w, fmt);
         line();
       }
@@ -420,7 +421,7 @@ std::string event_summary(const ExplainRecord& rec, size_t i, const ExplainForma
       break;
     case kEvTest:
       os << "    test " << ref(e.ref) << ": " << event_code_name(e.kind, e.code);
-      if (e.code == kTestAccepted || e.code == kTestAlphaKeyed || e.code == kTestTieLost)
+      if (e.code == kTestAccepted || e.code == kTestAlphaKeyed || e.code == kTestTieLost || e.code == kTestOriginPlane)
         os << ", t " << num(e.f1.w, fmt);
       break;
     case kEvAlpha:

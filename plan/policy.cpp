@@ -125,7 +125,8 @@ class SampleCaster : public Tracer {
         const uint32_t i = ref_instance(ref), t = ref_triangle(ref);
         const std::array<vec3, 3>& v = tris_[offset_[i] + t];
         TriangleTest r;
-        if (triangle_test(g_.triangle_test, ray.org, ray.dir, v[0], v[1], v[2], rs.t_lo, ray.tmax, best, r) !=
+        const float stol = ray.launch_ref != kNoRef ? surface_rule_tol(ray.org) : -1.0f;  // the surface rule
+        if (triangle_test(g_.triangle_test, ray.org, ray.dir, v[0], v[1], v[2], rs.t_lo, ray.tmax, best, stol, r) !=
             kTestAccepted)
           continue;
         const float th = moller_trumbore_t(r);

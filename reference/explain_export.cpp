@@ -98,7 +98,8 @@ ExplainGeometry explain_geometry(const ExplainRecord& rec, const GridData& grid)
         break;
       case kEvTest: {
         if (e.code == kTestMailboxed) break;  // tested earlier on the ray: its first result stands
-        if (e.code == kTestAccepted || e.code == kTestAlphaKeyed || e.code == kTestTieLost) g.event_t[i] = e.f1.w;
+        if (e.code == kTestAccepted || e.code == kTestAlphaKeyed || e.code == kTestTieLost || e.code == kTestOriginPlane)
+          g.event_t[i] = e.f1.w;
         auto it = tri_index.find(e.ref);
         if (it == tri_index.end()) {
           const uint32_t inst = ref_instance(e.ref), tri = ref_triangle(e.ref);

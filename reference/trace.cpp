@@ -62,22 +62,29 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   }
   const GridInstance inst = grid.instances[ref_instance(ref)];
   const GridTriangle tri = grid.triangles[inst.tri_offset + ref_triangle(ref)];
+  // The surface rule's tolerance (a ray launched from a surface), else none
+  const float stol = st.launch_ref != kNoRef ? surface_rule_tol(st.org) : -1.0f;
   // The triangle test (Moller-Trumbore or watertight) against the elongated segment; without
   // events to record, its code alone where its first rejections decide it (triangle_test_code)
   TriangleTest r{};
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, r)
+  uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, stol, r)
                     : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
-                                                  best, r);
+                                                  best, stol, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
-  if (code == kTestAccepted) {
+  if (code == kTestAccepted || (st.ex != nullptr && code == kTestOriginPlane)) {  // the refused one's t: for its event
     // Barycentrics by Cramer's rule at the hit point, clamped into the triangle
     t = moller_trumbore_t(r);
     bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
+    // The surface rule: a ray launched from a surface hits no face whose plane passes through its
+    // origin (within 8 ulps); the watertight test decided it above, from its own plane values
+    if (code == kTestAccepted && g.triangle_test != kTriangleWatertight && st.launch_ref != kNoRef &&
+        origin_on_plane(st.org, tri.v0, tri.v1, tri.v2))
+      code = kTestOriginPlane;
     // Alpha keying: the mask texel under the interpolated uv
-    if ((g.flags & kGridAlphaKeying) != 0u && (inst.flags & kInstanceAlphaKeyed) != 0u) {
+    if (code == kTestAccepted && (g.flags & kGridAlphaKeying) != 0u && (inst.flags & kInstanceAlphaKeyed) != 0u) {
       const GridMaterial mat = grid.materials[tri.material];
       if (mat.alpha_width != 0u) {
         const GridTriangleUv tuv = grid.uvs[inst.tri_offset + ref_triangle(ref)];

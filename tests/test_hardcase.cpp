@@ -473,7 +473,7 @@ TEST_CASE("hardcase: on coplanar overlapping faces the closest hit is the smalle
         for (uint32_t k = 0; k < tris.size(); ++k) {
           sh::TriangleTest tt;
           if (sh::triangle_test(m.test == TT::watertight ? sh::kTriangleWatertight : sh::kTriangleMoller, r.org, r.dir,
-                                tris[k][0], tris[k][1], tris[k][2], t_lo, r.tmax, INFINITY, tt) != sh::kTestAccepted)
+                                tris[k][0], tris[k][1], tris[k][2], t_lo, r.tmax, INFINITY, -1.0f, tt) != sh::kTestAccepted)
             continue;
           const float t = sh::moller_trumbore_t(tt);
           if (t < best) {

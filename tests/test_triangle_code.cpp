@@ -85,18 +85,27 @@ std::vector<Case> corpus() {
 TEST_CASE("triangle_test_code gives triangle_test's code on every case and its record where it does not stop early",
           "[unit][triangle]") {
   const std::vector<Case> cases = corpus();
-  for (uint32_t which : {sh::kTriangleMoller, sh::kTriangleWatertight}) {
-    INFO((which == sh::kTriangleWatertight ? "watertight" : "Moller-Trumbore"));
-    size_t early = 0, accepted = 0;
+  for (uint32_t which : {sh::kTriangleMoller, sh::kTriangleWatertight})
+  for (const bool launched : {false, true}) {
+    INFO((which == sh::kTriangleWatertight ? "watertight" : "Moller-Trumbore") << (launched ? ", surface rule" : ""));
+    size_t early = 0, accepted = 0, refused = 0;
     for (size_t i = 0; i < cases.size(); ++i) {
       const Case& c = cases[i];
+      // A ray launched from a surface: the surface rule's tolerance (the watertight test decides it)
+      const float stol = launched ? sh::surface_rule_tol(c.org) : -1.0f;
       sh::TriangleTest full{}, fast{};
-      const uint32_t want = sh::triangle_test(which, c.org, c.dir, c.v0, c.v1, c.v2, c.t_lo, c.t_hi, c.best, full);
+      const uint32_t want = sh::triangle_test(which, c.org, c.dir, c.v0, c.v1, c.v2, c.t_lo, c.t_hi, c.best, stol, full);
       const uint32_t got = sh::triangle_test_code(which, c.org, c.dir, sh::watertight_ray(c.dir), c.v0, c.v1, c.v2,
-                                                     c.t_lo, c.t_hi, c.best, fast);
+                                                     c.t_lo, c.t_hi, c.best, stol, fast);
       INFO("case " << i);
       REQUIRE(got == want);
       REQUIRE(fast.code == want);
+      // The watertight test's rule from its own plane values is origin_on_plane's decision (what
+      // the Moller-Trumbore trace, the Embree oracle and the referee ask)
+      if (which == sh::kTriangleWatertight && launched && (want == sh::kTestAccepted || want == sh::kTestOriginPlane))
+        REQUIRE((want == sh::kTestOriginPlane) == sh::origin_on_plane(c.org, c.v0, c.v1, c.v2));
+      if (which != sh::kTriangleWatertight || !launched) REQUIRE(want != sh::kTestOriginPlane);
+      refused += want == sh::kTestOriginPlane;
       // Where it stops early: only on its first rejections
       const bool stops = which == sh::kTriangleWatertight
                              ? (want == sh::kTestOutsideU || want == sh::kTestOutsideV || want == sh::kTestOutsideUV)
@@ -112,5 +121,7 @@ TEST_CASE("triangle_test_code gives triangle_test's code on every case and its r
     // The corpus exercises both halves
     CHECK(early > cases.size() / 10);
     CHECK(accepted > cases.size() / 20);
+    // Origins in the triangle's plane: the rule refuses some, only where it applies
+    if (which == sh::kTriangleWatertight && launched) CHECK(refused > 0);
   }
 }

@@ -714,3 +714,82 @@ TEST_CASE("Vulkan grid: watertight test and slot axes identical in bits to the r
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
+
+// The surface rule (shared::origin_on_plane) in the trace shader: rays launched from the shared
+// edges of a fan of slivers, most leaving nearly in the neighbour's plane. The triangle test alone
+// accepts that neighbour (through the origin) at a t just past the origin epsilon on some of them;
+// both backends refuse it, bit for bit, and report the same hits.
+TEST_CASE("Vulkan grid: the surface rule on rays launched from a fan of slivers, bit for bit", "[vulkan][diff][grid]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  constexpr int kSlivers = 1000;
+  Scene scene;
+  Mesh mesh;
+  mesh.name = "cone";
+  mesh.positions.push_back(glm::vec3(0, 0, 1));
+  for (int k = 0; k < kSlivers; ++k) {
+    const double a = 2.0 * 3.14159265358979323846 * k / kSlivers;
+    mesh.positions.push_back(glm::vec3(float(std::cos(a)), float(std::sin(a)), 0.0f));
+  }
+  for (int k = 0; k < kSlivers; ++k) {
+    mesh.triangles.emplace_back(0u, uint32_t(k + 1), uint32_t((k + 1) % kSlivers + 1));
+    mesh.materials.push_back(0u);
+  }
+  scene.materials.push_back(Material{.name = "grey"});
+  scene.meshes.push_back(mesh);
+  scene.instances.push_back(Instance{.name = "cone", .mesh = 0});
+  scene.finalize();
+  GridOptions o;
+  o.traversal = reference::Traversal::exact;
+  o.threads = 2;
+  ReferenceGridTracer ref(o);
+  ref.build(scene, 0.0f);
+  VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute});
+  vk.build(scene, 0.0f);
+  // From the midpoint of sliver k's edge shared with sliver k + 1, into the half-space in front of
+  // sliver k: along the neighbour's plane tilted out by 1e-3 to 1e-6 of a radian, and at random
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Ray> rays;
+  size_t neighbour_accepted = 0;
+  for (int k = 0; k < kSlivers; k += 7) {
+    const glm::vec3 apex = mesh.positions[0], b1 = mesh.positions[size_t(k + 1)],
+                    b2 = mesh.positions[size_t((k + 1) % kSlivers + 1)], b3 = mesh.positions[size_t((k + 2) % kSlivers + 1)];
+    const glm::vec3 org = 0.5f * (apex + b2);
+    const glm::vec3 n_launch = glm::normalize(glm::cross(b2 - apex, b1 - apex));  // outward
+    const glm::vec3 along = glm::normalize(b3 - org);                            // in the neighbour
+    for (float tilt : {1e-3f, 1e-4f, 1e-5f, 1e-6f}) {
+      Ray r{};
+      r.org = org;
+      r.dir = glm::normalize(along + tilt * n_launch);
+      r.tmin = 0.0f;
+      r.tmax = std::numeric_limits<float>::infinity();
+      r.launch_normal = n_launch;
+      r.launch_ref = sh::ref_pack(0, uint32_t(k));
+      rays.push_back(r);
+      // The triangle test alone on the neighbour (k + 1), at the trace's interval
+      sh::TriangleTest t{};
+      if (sh::triangle_test(sh::kTriangleWatertight, r.org, r.dir, apex, b2, b3, sh::origin_tmin(r.org, r.dir, 0.0f),
+                            r.tmax, std::numeric_limits<float>::infinity(), -1.0f, t) == sh::kTestAccepted)
+        neighbour_accepted += 1;
+    }
+    for (int j = 0; j < 4; ++j) {
+      Ray r = rays.back();
+      r.dir = glm::vec3(u(rng), u(rng), u(rng));
+      if (glm::dot(r.dir, n_launch) < 0.0f) r.dir = -r.dir;
+      rays.push_back(r);
+    }
+  }
+  std::vector<Hit> want(rays.size()), got(rays.size());
+  ref.trace(rays, want);
+  vk.trace(rays, got);
+  check_hits(ctx, rays, want, got);
+  INFO(neighbour_accepted << " rays whose triangle test alone accepts the neighbour through the origin");
+  CHECK(neighbour_accepted > 0);
+  // No ray reports the sliver through its origin
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const uint32_t neighbour = (sh::ref_triangle(rays[i].launch_ref) + 1u) % kSlivers;
+    if (!is_miss(want[i])) CHECK_FALSE((want[i].triangle == neighbour && want[i].t < 1e-4f));
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}

@@ -38,15 +38,28 @@ struct GeometryData {
 struct Context {
   RTCIntersectContext rtc;
   uint32_t launch_ref;
+  glm::vec3 org;                                     // the ray's origin (the surface rule)
+  const Scene* scene;                                // for the hit triangle's vertices
+  const std::vector<std::vector<glm::vec3>>* world;  // per instance, world-space vertices
 };
 
-// Self-hit exclusion: drop the hit on exactly the triangle the ray leaves.
+// The tracers' rules for a ray launched from a surface, on a hit Embree found: the launch
+// triangle is not hit (self-hit), nor a face whose plane passes within 8 ulps of the origin
+// (shared::origin_on_plane, the surface rule, on the same world-space vertices in the same order
+// as the grid's triangle records).
 void self_filter(const RTCFilterFunctionNArguments* args) {
   const Context* ctx = reinterpret_cast<const Context*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
-    const uint32_t ref = (RTCHitN_geomID(args->hit, args->N, i) << 16) | RTCHitN_primID(args->hit, args->N, i);
-    if (ref == ctx->launch_ref) args->valid[i] = 0;
+    const uint32_t geom = RTCHitN_geomID(args->hit, args->N, i), prim = RTCHitN_primID(args->hit, args->N, i);
+    const uint32_t ref = (geom << 16) | prim;
+    if (ref == ctx->launch_ref) {
+      args->valid[i] = 0;
+      continue;
+    }
+    const glm::uvec3 t = ctx->scene->meshes[ctx->scene->instances[geom].mesh].triangles[prim];
+    const std::vector<glm::vec3>& w = (*ctx->world)[geom];
+    if (shared::origin_on_plane(ctx->org, w[t[0]], w[t[1]], w[t[2]])) args->valid[i] = 0;
   }
 }
 
@@ -167,6 +180,9 @@ struct EmbreeTracer::Impl {
     Context ctx;
     rtcInitIntersectContext(&ctx.rtc);
     ctx.launch_ref = ray.launch_ref;
+    ctx.org = ray.org;
+    ctx.scene = scene;
+    ctx.world = &world;
     if (ray.launch_ref != shared::kNoRef) ctx.rtc.filter = self_filter;
     rtcIntersect1(rtc_scene, &ctx.rtc, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;

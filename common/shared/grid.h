@@ -476,6 +476,65 @@ SH_INLINE float origin_tmin(SH_IN(vec3) org, SH_IN(vec3) dir, float tmin) {
   return max(tmin, eps);
 }
 
+// The normal (v1 - v0) x (v2 - v0) of the watertight test's plane equation, made as the cross
+// product of the triangle's two shortest edges, taken cyclically (e0 = v1 - v0, e1 = v2 - v1,
+// e2 = v0 - v2; e0 x e1 = e1 x e2 = e2 x e0 exactly). A cross product's error is u / sin of the
+// angle between its factors; the angle between the two shortest edges is the triangle's largest, at
+// least 60 degrees, where the two edges from a sliver's apex meet at its smallest: on a fan of 300
+// slivers (apex angle 1.2 degrees) the apex's pair put t up to 405 ulps from the exact t on rays
+// of condition number below 100, the shortest pair 27 (Embree 25; docs/ACCURACY.md, "t against
+// the exact t").
+// Ties go to the first of e0, e1, e2 as the longest.
+SH_INLINE vec3 plane_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  SH_PRECISE vec3 e0 = v1 - v0;
+  SH_PRECISE vec3 e1 = v2 - v1;
+  SH_PRECISE vec3 e2 = v0 - v2;
+  SH_PRECISE float l0 = sh_dot(e0, e0);
+  SH_PRECISE float l1 = sh_dot(e1, e1);
+  SH_PRECISE float l2 = sh_dot(e2, e2);
+  vec3 a = e0;
+  vec3 b = e1;
+  if (l0 >= l1 && l0 >= l2) {
+    a = e1;
+    b = e2;
+  } else if (l1 >= l2) {
+    a = e2;
+    b = e0;
+  }
+  return sh_cross(a, b);
+}
+
+// The surface rule (docs/SPEC.md, "Origin epsilon"): the epsilon above is a distance along the
+// ray, and a face the ray grazes is met at a t that grows as 1 / cos: a ray launched from a
+// sliver's edge, leaving nearly in its neighbour's plane, met that neighbour (through the origin)
+// at 1.5 to 3.2 times the epsilon on cones of 64 to 1000 slivers. So for a ray launched from a
+// surface, a candidate is also refused when the face's plane passes within tol = kOriginEpsilon *
+// (largest |org| component), 8 ulps of that coordinate, of the origin: |n . (org - v0)| <= tol
+// |n|_1 (the 1-norm: a distance between tol and sqrt(3) tol, no square root), n = plane_normal
+// (the two shortest edges' cross product: on a sliver the apex's two edges are nearly parallel
+// and their cross product too rounded to tell). A ray from a point of a plane meets the plane
+// only at t = 0 or lies in it, so no hit is lost but one within that plane's rounding. Every
+// product stays finite in the 2^24 domain; a zero-area face (n = 0) is refused, as det == 0
+// already does.
+// The watertight test makes the same decision from its own plane values (watertight_rest's
+// `surface_tol`): no products of its own in the exact traversal's loop.
+SH_INLINE float surface_rule_tol(SH_IN(vec3) org) {
+  SH_PRECISE vec3 ao = abs(org);
+  SH_PRECISE float tol = max(max(ao.x, ao.y), ao.z) * kOriginEpsilon;
+  return tol;
+}
+SH_INLINE bool origin_on_plane(SH_IN(vec3) org, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  SH_PRECISE float tol = surface_rule_tol(org);
+  vec3 n = plane_normal(v0, v1, v2);
+  SH_PRECISE vec3 an = abs(n);
+  SH_PRECISE float nsum = an.x + an.y;
+  SH_PRECISE float n1 = nsum + an.z;
+  SH_PRECISE vec3 s = org - v0;
+  SH_PRECISE float dist = abs(sh_dot(n, s));
+  SH_PRECISE float bound = tol * n1;
+  return dist <= bound;
+}
+
 SH_INLINE vec3 point_at(SH_IN(vec3) org, SH_IN(vec3) dir, float t) {
   SH_PRECISE vec3 td = dir * t;
   SH_PRECISE vec3 p = org + td;

@@ -30,6 +30,8 @@ SH_CONST uint kTestAlphaKeyed = 9u;  // accepted geometrically, cut away by the 
 SH_CONST uint kTestTieLost = 10u;    // reported t not smaller than the best (ties: smaller ref)
 SH_CONST uint kTestMailboxed = 11u;  // exact traversal, kGridMailbox: tested earlier on this ray (in the
                                      // mailbox), not tested again: the result cannot change
+SH_CONST uint kTestOriginPlane = 12u;  // accepted geometrically, refused by the surface rule: the face's
+                                       // plane passes within 8 ulps of the origin (origin_on_plane)
 
 // The values a test decides on: everything scaled by |det|, so that no division is needed.
 struct TriangleTest {
@@ -247,9 +249,13 @@ SH_INLINE uint watertight_outside_code(SH_IN(WatertightEdges) e) {
 }
 
 // The watertight test's second half, from its edge functions `e` (watertight_edges of the ray).
+// `surface_tol`: the surface rule's tolerance for a ray launched from a surface
+// (surface_rule_tol(org)), negative for any other ray: an accepted candidate whose plane passes
+// within it of the origin is refused (kTestOriginPlane), origin_on_plane's decision made from the
+// test's own plane values (the same normal, |n . A| = |n . (org - v0)| in the same bits).
 SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
                                SH_IN(WatertightEdges) e, float t_lo, float t_hi, float best_t,
-                               SH_OUT(TriangleTest) r) {
+                               float surface_tol, SH_OUT(TriangleTest) r) {
   SH_PRECISE vec3 adir = abs(dir);
   SH_PRECISE vec3 A = e.A;
   SH_PRECISE float dz = e.dz;
@@ -273,9 +279,7 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
   // against the exact t"); T / D, a weighted mean of the vertices' depths whose weights cancel on
   // slivers and near edges, is kept where |n.dir| < 2^-12 |n|_1 |dir|_1 (it stays within the
   // triangle's depth range there, where the plane's fraction may not).
-  SH_PRECISE vec3 e1 = v1 - v0;
-  SH_PRECISE vec3 e2 = v2 - v0;
-  vec3 nrm = sh_cross(e1, e2);
+  vec3 nrm = plane_normal(v0, v1, v2);
   SH_PRECISE float pden = sh_dot(nrm, dir);
   SH_PRECISE vec3 anrm = abs(nrm);
   SH_PRECISE float nsum = anrm.x + anrm.y;
@@ -285,8 +289,11 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
   SH_PRECISE float nd = n1 * d1;
   SH_PRECISE float apden = abs(pden);
   SH_PRECISE float scaled_den = apden * 4096.0f;
+  SH_PRECISE float pnum = sh_dot(nrm, A);
+  SH_PRECISE float pdist = abs(pnum);
+  SH_PRECISE float pbound = surface_tol * n1;
+  bool on_plane = surface_tol >= 0.0f && pdist <= pbound;
   if (scaled_den >= nd && pden != 0.0f) {
-    SH_PRECISE float pnum = sh_dot(nrm, A);
     D = -pden;
     T = -pnum;
   }
@@ -316,23 +323,26 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
   else if (t <= lo) r.code = kTestBehind;
   else if (t >= hi) r.code = kTestBeyond;
   else if (t > best) r.code = kTestNotCloser;
+  else if (on_plane) r.code = kTestOriginPlane;
   else r.code = kTestAccepted;
   return r.code;
 }
 
 SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
+                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t, float surface_tol,
                           SH_OUT(TriangleTest) r) {
   WatertightEdges e;
   watertight_edges(org, watertight_ray(dir), v0, v1, v2, e);
-  return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
+  return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
 }
 
-// The triangle test GridParams::triangle_test names.
+// The triangle test GridParams::triangle_test names. `surface_tol`: the watertight test's surface
+// rule (watertight_rest; negative: none); Moller-Trumbore ignores it (its caller asks
+// origin_on_plane).
 SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
                              SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
-                             SH_OUT(TriangleTest) r) {
-  if (which == kTriangleWatertight) return watertight(org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
+                             float surface_tol, SH_OUT(TriangleTest) r) {
+  if (which == kTriangleWatertight) return watertight(org, dir, v0, v1, v2, t_lo, t_hi, best_t, surface_tol, r);
   return moller_trumbore(org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
 }
 
@@ -346,7 +356,7 @@ SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN
 // `w`: watertight_ray(dir), made once per ray by the caller (the same values as made here).
 SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(WatertightRay) w,
                                   SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi,
-                                  float best_t, SH_OUT(TriangleTest) r) {
+                                  float best_t, float surface_tol, SH_OUT(TriangleTest) r) {
   if (which == kTriangleWatertight) {
     WatertightEdges e;
     watertight_edges(org, w, v0, v1, v2, e);
@@ -354,7 +364,7 @@ SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, 
       r.code = watertight_outside_code(e);
       return r.code;
     }
-    return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, r);
+    return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
   }
   MollerFirst m;
   moller_trumbore_first(org, dir, v0, v1, v2, m);

@@ -8,11 +8,13 @@
 #                                                              ons-reborn-teapot, bunny)
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- gridrt-base /tmp/gs/*.gridscene \
 #     /usr/lib/x86_64-linux-gnu/libVkLayer_khronos_validation.so /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
-# There: PART=diff|bench|build|gather|frame|stats|portal|untuned bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
+# There: PART=diff|bench|variants|build|gather|frame|stats|portal|untuned bash tools/gpu/speed-and-trust.sh (G=.gpu by default); logs in $OUT.
 #   diff    gridrt diff (reference against the shaders, validation on) on the three frames: paper
 #           traversal + raster build + the GPU frame's passes, exact + compute build + the GPU
 #           frame, exact + raster build; portal diff bit for bit on the built-in level, its mip
 #           levels and the instanced block level
+#   variants every staged binary in turns (gridrt-base, gridrt-A, ..., this one) on the three
+#           frames and the atrium beside the RT pipeline; the trace pipelines' driver statistics
 #   bench   per scene (and the untuned bunny's primary rays and the atrium), in one run on the same
 #           rays: the baseline binary and this one at their defaults, each beside the RT pipeline
 #   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, gridrt-V1, ...:
@@ -160,6 +162,35 @@ gather | frame)
       done
     done
   } 2>&1 | tee "$out/${PART}.txt"
+  ;;
+variants)
+  # Every staged binary (gridrt-base, the intermediate builds gridrt-A, gridrt-B, ..., this one)
+  # in turns on the three frames and the atrium at their defaults beside the RT pipeline, then the
+  # driver's statistics of each one's pipelines on Sibenik (registers of the trace)
+  sel='^\| (grid|rtx)|^agreement|error'
+  B="--backend vulkan --traversal exact --vk-build compute --frames 30 --warmup 5 --rtx"
+  bins=("$E/gridrt-base")
+  for f in "$E"/gridrt-[A-Z]*; do
+    case $f in *.xz) continue ;; esac
+    [ -f "$f" ] && chmod +x "$f" && bins+=("$f")
+  done
+  bins+=(gridrt)
+  {
+    for s in "${scenes[@]}" builtin:atrium; do
+      X=$E/$s.gridscene
+      [ "$s" = builtin:atrium ] && X=$s
+      for bin in "${bins[@]}"; do
+        echo "== variants $s: $bin"
+        # shellcheck disable=SC2086
+        timeout 90 "$bin" bench "$X" $B 2>&1 | grep -E "$sel" | cut -c1-400
+      done
+    done
+    for bin in "${bins[@]}"; do
+      echo "== pipeline statistics sibenik-teapots: $bin"
+      GRIDRT_VK_PIPELINE_STATS=1 timeout 90 "$bin" bench $E/sibenik-teapots.gridscene --backend vulkan --traversal exact \
+        --vk-build compute --frames 1 --warmup 0 2>&1 | grep -E '^pipeline statistics.*trace|error' | sort -u | cut -c1-300
+    done
+  } 2>&1 | tee "$out/variants.txt"
   ;;
 stats)
   # The driver's statistics of every compute pipeline (GRIDRT_VK_PIPELINE_STATS=1: registers,
