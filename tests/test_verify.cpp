@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <tuple>
 
 #include "gridrt/common/builtin/builtin.h"
 #include "gridrt/common/embree/embree_tracer.h"
@@ -186,6 +187,28 @@ Scene untuned_mesh(const std::string& name) {
         obj << "f " << v(i, j) << ' ' << v(i + 1, j + 1) << ' ' << v(i + 1, j) << '\n';
       }
     for (int j = 0; j < m; ++j) obj << "f " << last << ' ' << v(n - 1, j) << ' ' << v(n - 1, j + 1) << '\n';
+  } else if (name.rfind("cone", 0) == 0) {
+    // "coneN": N slivers round one apex (a fan, as cones, cylinder caps and fan-triangulated
+    // polygons are), unit height and base radius
+    const int n = std::stoi(name.substr(4));
+    obj << "v 0 0 1\n";
+    for (int k = 0; k < n; ++k) obj << "v " << std::cos(2.0 * M_PI * k / n) << ' ' << std::sin(2.0 * M_PI * k / n) << " 0\n";
+    for (int k = 0; k < n; ++k) obj << "f 1 " << k + 2 << ' ' << (k + 1) % n + 2 << '\n';
+  } else if (name == "tjunction") {
+    // 16 x 16 squares in z = 0, each three triangles round a vertex at the middle of its lower
+    // edge: that vertex lies on the upper edge of the square below, one triangle's edge there
+    // (a T-junction: the surface is closed, but by different edges on either side)
+    const int n = 16;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        const double x = double(i) / n, y = double(j) / n, h = 1.0 / n;
+        for (const glm::dvec2 q : {glm::dvec2(x, y), glm::dvec2(x + h, y), glm::dvec2(x + h, y + h), glm::dvec2(x, y + h),
+                                   glm::dvec2(x + h / 2, y)})
+          obj << "v " << q.x << ' ' << q.y << " 0\n";
+        const int b = 5 * (i * n + j) + 1;
+        obj << "f " << b << ' ' << b + 4 << ' ' << b + 3 << "\nf " << b + 4 << ' ' << b + 2 << ' ' << b + 3 << "\nf "
+            << b + 4 << ' ' << b + 1 << ' ' << b + 2 << '\n';
+      }
   } else if (name == "needle") {
     for (double x : {0.0, 1.0e4})
       for (double y : {0.0, 1.0e-3})
@@ -218,7 +241,8 @@ TEST_CASE("Exact traversal at its defaults on meshes nobody tuned for: no crack,
           "[verify][grid]") {
   // The needle's silhouette edges are where a ray only touches the surface: a ray aimed exactly at
   // one may miss (no triangle test promises the touch), which the referee must not call a crack
-  for (const char* name : {"sphere", "needle", "soup"}) {
+  // cone300's slivers: t within the bound only with the plane's normal from their shortest edges
+  for (const char* name : {"sphere", "needle", "soup", "tjunction", "cone300"}) {
     reference::GridOptions go;
     go.traversal = reference::Traversal::exact;
     for (const FamilyResult& r : run(untuned_mesh(name), go, 150, std::string(name) == "needle")) {
@@ -227,6 +251,57 @@ TEST_CASE("Exact traversal at its defaults on meshes nobody tuned for: no crack,
       CHECK(r.count(Verdict::grid_wrong) == 0);
       CHECK(r.max_ulps <= kTBoundUlps);
       CHECK(r.nan_t == 0);
+    }
+  }
+}
+
+TEST_CASE("The surface rule: an origin on a sliver's shared edge lies on its neighbour's plane, a point off it does not",
+          "[verify][unit]") {
+  // Two slivers of a cone of 1000 round the apex: their shared edge runs from the apex to the base
+  const double a0 = 0.0, a1 = 2.0 * M_PI / 1000.0, a2 = 4.0 * M_PI / 1000.0;
+  const glm::vec3 apex(0, 0, 1), b0(float(std::cos(a0)), float(std::sin(a0)), 0), b1(float(std::cos(a1)), float(std::sin(a1)), 0),
+      b2(float(std::cos(a2)), float(std::sin(a2)), 0);
+  const glm::vec3 mid = 0.5f * (apex + b1);  // on the shared edge, rounded
+  CHECK(sh::origin_on_plane(mid, apex, b0, b1));
+  CHECK(sh::origin_on_plane(mid, apex, b1, b2));  // the neighbour: its apex's two edges' normal is too rounded to
+                                                  // say so, its two shortest edges' is not
+  // The neighbour's plane is the launch plane turned by 2 pi / 1000 round the shared edge: the
+  // launch sliver's centroid is about 1e-3 off it, far beyond 8 ulps of its coordinates
+  const glm::vec3 inside = (apex + b0 + b1) / 3.0f;
+  CHECK_FALSE(sh::origin_on_plane(inside, apex, b1, b2));
+  // A face whose plane holds the origin is refused wherever it lies in the plane (a ray from a
+  // point of the plane meets it only at t = 0); one a millionth of the origin's size off, kept
+  CHECK(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 0.0f), glm::vec3(10, 10, 0), glm::vec3(11, 10, 0), glm::vec3(10, 11, 0)));
+  CHECK_FALSE(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 2e-6f), glm::vec3(10, 10, 0), glm::vec3(11, 10, 0), glm::vec3(10, 11, 0)));
+  // A zero-area face is refused (det == 0 refuses it anyway); the origin itself at 0: exactly on
+  CHECK(sh::origin_on_plane(glm::vec3(1, 2, 3), glm::vec3(0), glm::vec3(1, 1, 1), glm::vec3(2, 2, 2)));
+  CHECK(sh::origin_on_plane(glm::vec3(0.0f), glm::vec3(-1, -1, 0), glm::vec3(1, -1, 0), glm::vec3(0, 1, 0)));
+  CHECK_FALSE(sh::origin_on_plane(glm::vec3(0.0f), glm::vec3(-1, -1, 1e-30f), glm::vec3(1, -1, 1e-30f), glm::vec3(0, 1, 1e-30f)));
+}
+
+TEST_CASE("Rays launched from fans of slivers: no wrong answer (the surface rule), where the origin epsilon alone "
+          "gave 4 / 3 / 7 / 14 of 300",
+          "[verify][grid]") {
+  // A ray from a sliver's edge midpoint, leaving nearly in its neighbour's plane, met that
+  // neighbour (through the origin) at 1.5 to 3.2 origin epsilons; the exact answer is a sliver
+  // further on, or nothing
+  for (const char* name : {"cone64", "cone128", "cone300", "cone1000"}) {
+    reference::GridOptions go;
+    go.traversal = reference::Traversal::exact;
+    go.threads = 2;
+    VerifyOptions vo;
+    vo.family.rays = 300;
+    vo.families = {Family::surface};
+    vo.translated = false;
+    vo.threads = 2;
+    const auto make = [go](const Scene&) -> std::unique_ptr<Tracer> {
+      return std::make_unique<reference::ReferenceGridTracer>(go);
+    };
+    for (const FamilyResult& r : verify_scene(untuned_mesh(name), go, make, vo)) {
+      INFO(name << " " << r.name << ":\n" << to_table({r}));
+      CHECK(r.rays == 300);
+      CHECK(r.count(Verdict::grid_wrong) == 0);
+      CHECK(r.count(Verdict::crack) == 0);
     }
   }
 }
@@ -395,5 +470,49 @@ TEST_CASE("Exact referee: an answer right for the ray as traced (v - org in floa
     wrong.triangle = sh::ref_triangle(topo.ref[k]);
     CHECK_FALSE(referee.exact_for_moved_origin(r, wrong));
     break;
+  }
+}
+
+TEST_CASE("Exact referee: a miss within rounding of a T-junction's open edge is unresolved, one at a shared edge "
+          "is not", "[verify][unit]") {
+  const Scene scene = untuned_mesh("tjunction");
+  reference::GridOptions go;
+  go.traversal = reference::Traversal::exact;
+  go.threads = 2;
+  reference::ReferenceGridTracer grid(go);
+  grid.build(scene, 0.0f);
+  EmbreeTracer embree(2);
+  embree.build(scene, 0.0f);
+  const Topology topo = make_topology(grid.data());
+  const Referee referee(grid.data(), topo, embree);
+  // Rays straight down from z = 1 (t = 1 at the plane); the square (2, 2) spans [0.125, 0.1875]^2
+  const auto down = [](double x, double y) { return ray(glm::vec3(float(x), float(y), 1.0f), glm::vec3(0, 0, -1)); };
+  const double h = 1.0 / 16;
+  // Its T-vertex (0.15625, 0.125), just above it (1e-9: within 16 ulps of 1), on the open edge
+  // (0.125, 0.125)-(0.15625, 0.125) a little way along, and on the square below's upper edge: open edges
+  CHECK(referee.near_open_edge(down(2.5 * h, 2 * h), 1.0));
+  CHECK(referee.near_open_edge(down(2.5 * h, 2 * h + 1e-9), 1.0));
+  CHECK(referee.near_open_edge(down(2.2 * h, 2 * h), 1.0));
+  // The edge from the T-vertex to the square's upper left corner, shared by two triangles: not open
+  const double s = 0.4;  // a point along it, away from both ends
+  CHECK_FALSE(referee.near_open_edge(down(2.5 * h + s * (2 * h - 2.5 * h), 2 * h + s * h), 1.0));
+  // A square's inside, far from every edge, and its left edge (x = 0.125: the same two positions
+  // as the right edge of the square beside it, a shared edge)
+  CHECK_FALSE(referee.near_open_edge(down(2.9 * h, 2.5 * h), 1.0));
+  CHECK_FALSE(referee.near_open_edge(down(2 * h, 2.5 * h), 1.0));
+  // The verdict: a miss straight through the T-vertex is unresolved, a miss through the inside is
+  // wrong
+  for (const auto& [x, y, verdict] : {std::tuple{2.5 * h, 2 * h + 1e-9, Verdict::unresolved},
+                                      std::tuple{2.9 * h, 2.5 * h, Verdict::grid_wrong}}) {
+    const std::vector<Ray> rs{down(x, y)};
+    std::vector<Hit> got(1), want(1);
+    grid.trace(rs, got);
+    embree.trace(rs, want);
+    REQUIRE(!is_miss(got[0]));
+    Hit miss = got[0];
+    miss.instance = sh::kNoInstance;
+    const Judgement j = referee.judge(rs[0], miss, want[0], {});
+    INFO(x << " " << y << ": " << to_string(j.verdict) << " (" << j.why << ")");
+    CHECK(j.verdict == verdict);
   }
 }

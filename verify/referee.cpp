@@ -148,6 +148,10 @@ ExactTest Referee::test(const Ray& ray, uint32_t ref) const {
   if (i == SIZE_MAX) return {};
   if (ref == ray.launch_ref) return {};  // the launch triangle is never hit (both tracers' rule)
   const auto& t = topo_.tri[i];
+  // The surface rule (both tracers', in their float arithmetic: a rule on the inputs, as the
+  // origin epsilon is): a ray launched from a surface hits no face whose plane passes within 8
+  // ulps of its origin
+  if (ray.launch_ref != sh::kNoRef && sh::origin_on_plane(ray.org, t[0], t[1], t[2])) return {};
   return exact_test(ray, t[0], t[1], t[2]);
 }
 
@@ -182,6 +186,32 @@ std::vector<size_t> Referee::near_line(const Ray& ray, double reach) const {
     if (hit && t0 <= t1) out.push_back(k);
   }
   return out;
+}
+
+bool Referee::near_open_edge(const Ray& ray, double t) const {
+  const glm::dvec3 o(ray.org), p = o + glm::dvec3(ray.dir) * t;
+  const double delta = kNearUlps * 0x1p-24 * std::max(max_abs(o), max_abs(p));
+  const auto uses = [&](uint32_t a, uint32_t b) {
+    size_t n = 0;
+    for (size_t k : topo_.by_vertex_index[a]) {
+      const auto& c = topo_.corner[k];
+      n += (c[0] == b || c[1] == b || c[2] == b) ? 1 : 0;
+    }
+    return n;
+  };
+  for (size_t k : near_line(ray, 2.0 * delta)) {
+    const auto& tri = topo_.tri[k];
+    if (point_triangle_distance(p, tri[0], tri[1], tri[2]) > delta) continue;
+    for (int e = 0; e < 3; ++e) {
+      const uint32_t a = topo_.corner[k][e], b = topo_.corner[k][(e + 1) % 3];
+      if (a == b || uses(a, b) != 1) continue;
+      const glm::dvec3 va(tri[e]), ab = glm::dvec3(tri[(e + 1) % 3]) - va;
+      const double len2 = glm::dot(ab, ab);
+      const double s = len2 > 0.0 ? std::clamp(glm::dot(p - va, ab) / len2, 0.0, 1.0) : 0.0;
+      if (glm::length(p - (va + ab * s)) <= delta) return true;
+    }
+  }
+  return false;
 }
 
 bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got) const {
@@ -220,6 +250,13 @@ bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got) const {
     const auto& t = topo_.tri[near[i]];
     facing[i] = glm::dot(glm::cross(glm::dvec3(t[1]) - glm::dvec3(t[0]), glm::dvec3(t[2]) - glm::dvec3(t[0])), dn) < 0.0 ? -1 : 1;
   }
+  // The surface rule's refusals (the tracers' float decision on the ray as given)
+  std::vector<char> refused(near.size(), 0);
+  if (ray.launch_ref != sh::kNoRef)
+    for (size_t i = 0; i < near.size(); ++i) {
+      const auto& t = topo_.tri[near[i]];
+      refused[i] = sh::origin_on_plane(ray.org, t[0], t[1], t[2]) ? 1 : 0;
+    }
   // The triangles by 2D bin, for the per-offset tests
   constexpr int kBins = 16;
   std::vector<std::vector<size_t>> bins(kBins * kBins);
@@ -255,6 +292,7 @@ bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got) const {
       if (!may_contain(i, q)) continue;
       const ExactTest x = exact_test_from(org, ray.dir, t_lo, ray.tmax, traced[i][0], traced[i][1], traced[i][2]);
       if (!x.hit || topo_.ref[near[i]] == ray.launch_ref) continue;
+      if (refused[i]) continue;  // the surface rule, decided on the ray as given
       if (i == gi) g = x;
       if (!best.hit || compare_t(x, best) < 0) best = x, best_i = i;
     }
@@ -437,7 +475,11 @@ Judgement Referee::judge(const Ray& ray, const Hit& got, const Hit& want, const 
     // test can promise the touch: such a ray is unresolved, not a crack
     const bool moved = exact_for_moved_origin(ray, got);
     const bool at_edge = best.hit && best.boundary && farther;
-    if (at_edge && !moved) {
+    if (!moved && is_miss(got) && best.hit && near_open_edge(ray, best.t)) {
+      j.verdict = Verdict::unresolved;
+      j.why = "a miss within rounding of an open edge (a T-junction's or a border's): each triangle's edge there "
+              "is its own, rounded apart from the other side's in any float test";
+    } else if (at_edge && !moved) {
       j.verdict = Verdict::crack;
       j.why = is_miss(got) ? "passes through an edge or vertex and hits nothing"
                            : "passes through an edge or vertex and reports a farther triangle";

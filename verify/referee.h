@@ -95,6 +95,12 @@ class Referee {
   // (not a rigid move) can fold the outline over the ray. A miss only by a moved ray that misses
   // every triangle.
   bool exact_for_moved_origin(const Ray& ray, const Hit& got) const;
+  // Whether the point at t along the ray lies within kNearUlps ulps (of the largest coordinate of
+  // the origin and the point) of an open edge: an edge of exactly one triangle, a T-junction's
+  // (a vertex on another triangle's edge) or the surface's border. The surface's two sides there
+  // are different edges, rounded apart in every float test (each vertex v - org, then the
+  // shear), so a ray through that seam may miss both: a miss there is unresolved, not wrong.
+  bool near_open_edge(const Ray& ray, double t) const;
   // The indices (into the topology) of every triangle that passes within `reach` of the ray's line,
   // not wholly behind its origin: a superset of those the ray or a ray moved by `reach` can hit.
   std::vector<size_t> near_line(const Ray& ray, double reach) const;
