@@ -9,6 +9,7 @@
 #include <limits>
 #include <sstream>
 #include <tuple>
+#include <utility>
 
 #include "gridrt/common/builtin/builtin.h"
 #include "gridrt/common/embree/embree_tracer.h"
@@ -235,6 +236,26 @@ Scene untuned_mesh(const std::string& name) {
   std::ofstream(path) << obj.str();
   return load_scene(path.string());
 }
+
+// A scene's exact-traversal grid, Embree and the referee over them (the referee's unit tests)
+struct Rig {
+  explicit Rig(Scene s) : scene(std::move(s)), grid(options()), embree(2) {
+    grid.build(scene, 0.0f);
+    embree.build(scene, 0.0f);
+    topo = make_topology(grid.data());
+  }
+  static reference::GridOptions options() {
+    reference::GridOptions go;
+    go.traversal = reference::Traversal::exact;
+    go.threads = 2;
+    return go;
+  }
+  Scene scene;  // kept: Embree's filter reads it while it traces
+  reference::ReferenceGridTracer grid;
+  EmbreeTracer embree;
+  Topology topo;
+  Referee referee{grid.data(), topo, embree};
+};
 }  // namespace
 
 TEST_CASE("Exact traversal at its defaults on meshes nobody tuned for: no crack, no wrong answer, every family",
@@ -421,16 +442,10 @@ TEST_CASE("gridrt render --backend embree: a camera beyond Embree's limits is re
 
 TEST_CASE("Exact referee: an answer right for the ray as traced (v - org in float, moved within its rounding) is "
           "unresolved, a wrong one is not", "[verify][unit]") {
-  const Scene scene = make_builtin("cornell");
-  reference::GridOptions go;
-  go.traversal = reference::Traversal::exact;
-  go.threads = 2;
-  reference::ReferenceGridTracer grid(go);
-  grid.build(scene, 0.0f);
-  EmbreeTracer embree(2);
-  embree.build(scene, 0.0f);
-  const Topology topo = make_topology(grid.data());
-  const Referee referee(grid.data(), topo, embree);
+  Rig rig(make_builtin("cornell"));
+  reference::ReferenceGridTracer& grid = rig.grid;
+  const Topology& topo = rig.topo;
+  const Referee& referee = rig.referee;
   // A ray from 3e5 away through the centroid of triangle 0, and through a point 1e-4 beyond its
   // edge v1-v2 (the origin's rounding there is 16 ulps of 3e5, about 0.3 units)
   const auto& t = topo.tri[0];
@@ -475,16 +490,10 @@ TEST_CASE("Exact referee: an answer right for the ray as traced (v - org in floa
 
 TEST_CASE("Exact referee: a miss within rounding of a T-junction's open edge is unresolved, one at a shared edge "
           "is not", "[verify][unit]") {
-  const Scene scene = untuned_mesh("tjunction");
-  reference::GridOptions go;
-  go.traversal = reference::Traversal::exact;
-  go.threads = 2;
-  reference::ReferenceGridTracer grid(go);
-  grid.build(scene, 0.0f);
-  EmbreeTracer embree(2);
-  embree.build(scene, 0.0f);
-  const Topology topo = make_topology(grid.data());
-  const Referee referee(grid.data(), topo, embree);
+  Rig rig(untuned_mesh("tjunction"));
+  reference::ReferenceGridTracer& grid = rig.grid;
+  const Referee& referee = rig.referee;
+  EmbreeTracer& embree = rig.embree;
   // Rays straight down from z = 1 (t = 1 at the plane); the square (2, 2) spans [0.125, 0.1875]^2
   const auto down = [](double x, double y) { return ray(glm::vec3(float(x), float(y), 1.0f), glm::vec3(0, 0, -1)); };
   const double h = 1.0 / 16;
