@@ -256,11 +256,27 @@ SkipDistances::SkipDistances(const GridParams& g, const TrialCounts& counts, std
         }
 }
 
-uint32_t SkipDistances::operator()(uvec3 c) const {
-  // The static distance, lowered to the distance to every dynamic box (the trace's skip_distance)
-  uint32_t d = skip_static_distance(g_, table_, c);
+uint32_t SkipDistances::box_mask(const Ray& ray, const RaySetup& rs) const {
+  // The dynamic boxes the ray's walk can reach (the trace's skip_box_mask)
+  const vec3 inv = dda_inverse_direction(ray.dir);
+  const uvec3 k0 = dda_walk_begin(g_, ray.org, ray.dir, rs.t_start).cell;
+  uint32_t mask = 0u;
   const uint32_t boxes = boxes_.empty() ? 0u : boxes_[0];
-  for (uint32_t b = 0u; b < boxes && d > 0u; ++b) {
+  for (uint32_t b = 0u; b < boxes; ++b) {
+    const uint32_t w = skip_box_word(b);
+    if (skip_box_reached(g_, ray.org, ray.dir, inv, k0, rs.t_end, uvec3(boxes_[w], boxes_[w + 1], boxes_[w + 2]),
+                         uvec3(boxes_[w + 4], boxes_[w + 5], boxes_[w + 6])))
+      mask |= 1u << b;
+  }
+  return mask;
+}
+
+uint32_t SkipDistances::operator()(uvec3 c, uint32_t mask) const {
+  // The static distance, lowered to the distance to every dynamic box the walk can reach (the
+  // trace's skip_distance)
+  uint32_t d = skip_static_distance(g_, table_, c);
+  for (uint32_t b = 0u; (mask >> b) != 0u && d > 0u; ++b) {
+    if (((mask >> b) & 1u) == 0u) continue;
     const uint32_t w = skip_box_word(b);
     d = std::min(d, skip_box_distance(c, uvec3(boxes_[w], boxes_[w + 1], boxes_[w + 2]),
                                       uvec3(boxes_[w + 4], boxes_[w + 5], boxes_[w + 6])));
@@ -276,9 +292,10 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
   const bool exact = g.traversal == kTraversalExact;
   std::optional<SkipDistances> skip_field;
   std::function<uint32_t(uvec3)> skip;
+  uint32_t box_mask = 0u;  // the ray's (SkipDistances::box_mask)
   if (exact && (g.flags & kGridSkipEmpty) != 0u) {
     skip_field.emplace(g, counts, skip_boxes);
-    skip = [&](uvec3 c) { return (*skip_field)(c); };
+    skip = [&](uvec3 c) { return (*skip_field)(c, box_mask); };
   }
   const bool gap_fill = !exact && (g.flags & kGridGapFill) != 0u;
   // With the spill list a saturated cell's dropped references are tested too (test_spilled): no
@@ -290,7 +307,8 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
     const Ray& ray = sample.rays[i];
     const float t_hit = sample.t_end[i];
     RaySetup rs;
-    ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs);
+    const bool meets = ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs);
+    if (skip_field && meets) box_mask = skip_field->box_mask(ray, rs);
     // The hit triangle W: the cells the build offers it (its padded range, the cell test)
     const std::array<vec3, 3>& w_tri = sample.hit[i];
     const vec3 n = triangle_normal(w_tri[0], w_tri[1], w_tri[2]);

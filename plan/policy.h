@@ -86,7 +86,11 @@ struct TrialCounts {
 class SkipDistances {
  public:
   SkipDistances(const shared::GridParams& g, const TrialCounts& counts, std::span<const uint32_t> box_words);
-  uint32_t operator()(glm::uvec3 cell) const;
+  // The dynamic boxes the walk of `ray` (its setup `rs`) can reach, bit b for box b
+  // (shared::skip_box_reached; the trace's skip_box_mask).
+  uint32_t box_mask(const Ray& ray, const shared::RaySetup& rs) const;
+  // A cell's distance: its static distance lowered to its distance to every box of `mask`.
+  uint32_t operator()(glm::uvec3 cell, uint32_t mask) const;
 
  private:
   shared::GridParams g_;

@@ -31,6 +31,8 @@ struct TraceState {
   Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
   uint mode;        // kTraceClosestHit or kTraceAnyHit
   WatertightRay wray;  // the watertight test's per-ray part (triangle_test_code)
+  float surface_tol;   // the surface rule's tolerance (a ray launched from a surface), else -1
+  uint box_mask;       // the dynamic boxes the walk can reach (skip_box_reached), bit b for box b
   ExplainRecord* ex;
 };
 
@@ -62,15 +64,13 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   }
   const GridInstance inst = grid.instances[ref_instance(ref)];
   const GridTriangle tri = grid.triangles[inst.tri_offset + ref_triangle(ref)];
-  // The surface rule's tolerance (a ray launched from a surface), else none
-  const float stol = st.launch_ref != kNoRef ? surface_rule_tol(st.org) : -1.0f;
   // The triangle test (Moller-Trumbore or watertight) against the elongated segment; without
   // events to record, its code alone where its first rejections decide it (triangle_test_code)
   TriangleTest r{};
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, stol, r)
+  uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, r)
                     : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
-                                                  best, stol, r);
+                                                  best, st.surface_tol, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -298,13 +298,27 @@ Hit trace_paper(const GridData& grid, TraceState& st) {
   return finish(st, kMissStepLimit, g.max_segments);
 }
 
+// The dynamic boxes the ray's walk can reach (shared/grid.h, "The ray's dynamic boxes"): bit b for
+// box b. `k0`: the walk's first cell.
+uint skip_box_mask(const GridData& grid, const TraceState& st, vec3 inv_dir, uvec3 k0) {
+  uint mask = 0u;
+  const uint boxes = grid.skip[0];
+  for (uint b = 0u; b < boxes; ++b) {
+    const uint w = skip_box_word(b);
+    const uvec3 lo = uvec3(grid.skip[w], grid.skip[w + 1u], grid.skip[w + 2u]);
+    const uvec3 hi = uvec3(grid.skip[w + 4u], grid.skip[w + 5u], grid.skip[w + 6u]);
+    if (skip_box_reached(grid.params, st.org, st.dir, inv_dir, k0, st.rs.t_end, lo, hi)) mask |= 1u << b;
+  }
+  return mask;
+}
+
 // The skip field's distance of a cell (kGridSkipEmpty): its static distance, lowered to its
-// distance to every dynamic box (shared/grid.h, "The skip field").
-uint skip_distance(const GridData& grid, uvec3 cell) {
+// distance to every dynamic box the walk can reach (shared/grid.h, "The skip field").
+uint skip_distance(const GridData& grid, const TraceState& st, uvec3 cell) {
   const uint i = cell_linear_index(grid.params, cell);
   uint d = (grid.skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
-  const uint boxes = grid.skip[0];
-  for (uint b = 0u; b < boxes && d > 0u; ++b) {
+  for (uint b = 0u; (st.box_mask >> b) != 0u && d > 0u; ++b) {
+    if (((st.box_mask >> b) & 1u) == 0u) continue;
     const uint w = skip_box_word(b);
     const uvec3 lo = uvec3(grid.skip[w], grid.skip[w + 1u], grid.skip[w + 2u]);
     const uvec3 hi = uvec3(grid.skip[w + 4u], grid.skip[w + 5u], grid.skip[w + 6u]);
@@ -320,10 +334,12 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
   const vec3 inv_dir = dda_inverse_direction(st.dir);
   DdaWalk w = dda_walk_begin(g, st.org, st.dir, st.rs.t_start);
   float t_entry = st.rs.t_start;
+  // The dynamic boxes the walk can reach: the others lower no distance on it
+  st.box_mask = (g.flags & kGridSkipEmpty) != 0u ? skip_box_mask(grid, st, inv_dir, w.cell) : 0u;
   for (uint k = 0u; k < g.max_segments; ++k) {
     // Empty-space skipping: an empty cell's distance d to the nearest reference; the walk passes
     // the box of radius d - 1 around it at once (docs/SPEC.md "Empty-space skipping")
-    const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(grid, w.cell) : 0u;
+    const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(grid, st, w.cell) : 0u;
     dda_walk_exits(g, st.org, st.dir, inv_dir, d > 0u ? d - 1u : 0u, w);
     const float t_exit = w.t_exit;
     const uvec3 cell = w.cell;
@@ -392,6 +408,9 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain, ui
     st.tmin = max(st.tmin - st.t_base, 0.0f);
     st.tmax = st.tmax - st.t_base;
   }
+  // The surface rule's tolerance (a ray launched from a surface), else none: from the origin the
+  // trace tests from (moved, for a far origin)
+  st.surface_tol = st.launch_ref != kNoRef ? surface_rule_tol(st.org) : -1.0f;
   // Per-ray setup: segment length, the grid box
   const bool meets = ray_setup(g, st.org, st.dir, st.tmin, st.tmax, st.rs);
   emit(st, kEvSetup, g.traversal, kBlank, 0u, uvec3(0u), meets ? 1u : 0u,

@@ -208,3 +208,57 @@ TEST_CASE("Skipping: every hit record equals the plain DDA's but `cells`, never 
     }
   }
 }
+
+// The ray's dynamic boxes (shared/grid.h, "The ray's dynamic boxes"): a box that the plain DDA walk
+// of a ray visits a cell of is always "reached" (else a skip could pass a dynamic reference), on
+// every ray of the skip batch (axis-parallel, lattice-diagonal, from inside and outside) against
+// random boxes, boxes on the grid's faces and single cells; and the test is tight enough to pay: a
+// box the walk never visits is mostly not reached.
+TEST_CASE("Skipping: a dynamic box on a ray's plain walk is always reached, most others are not", "[grid][skip]") {
+  ReferenceGridTracer plain(skip_options(false));
+  plain.build(make_builtin("atrium"), 0.0f);
+  const sh::GridParams& g = plain.params();
+  std::mt19937 rng(7);
+  std::vector<std::pair<glm::uvec3, glm::uvec3>> boxes;
+  for (uint32_t b = 0; b < 48; ++b) {
+    glm::uvec3 lo, hi;
+    for (int a = 0; a < 3; ++a) {
+      std::uniform_int_distribution<uint32_t> c(0, g.cells[a] - 1);
+      uint32_t x = c(rng), y = c(rng);
+      if (b % 4 == 1) y = x;                                  // one cell thick
+      if (b % 4 == 2) x = 0, y = std::min(y, g.cells[a] / 4);  // on the lower face
+      if (b % 4 == 3) y = g.cells[a] - 1;                      // on the upper face
+      lo[a] = std::min(x, y);
+      hi[a] = std::max(x, y);
+    }
+    boxes.push_back({lo, hi});
+  }
+  uint64_t visited = 0, unvisited = 0, unvisited_unreached = 0;
+  for (const Ray& ray : skip_rays(g, 99)) {
+    sh::RaySetup rs;
+    if (!sh::ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs)) continue;
+    const glm::vec3 inv = sh::dda_inverse_direction(ray.dir);
+    sh::DdaWalk w = sh::dda_walk_begin(g, ray.org, ray.dir, rs.t_start);
+    const glm::uvec3 k0 = w.cell;
+    std::vector<glm::uvec3> cells;
+    for (uint32_t k = 0; k < g.max_segments; ++k) {
+      sh::dda_walk_exits(g, ray.org, ray.dir, inv, 0u, w);
+      cells.push_back(w.cell);
+      if (w.t_exit >= rs.t_end || !sh::dda_walk_next(g, ray.org, ray.dir, inv, w)) break;
+    }
+    for (const auto& [lo, hi] : boxes) {
+      bool on_walk = false;
+      for (const glm::uvec3& c : cells) on_walk = on_walk || sh::skip_box_distance(c, lo, hi) == 0u;
+      const bool reached = sh::skip_box_reached(g, ray.org, ray.dir, inv, k0, rs.t_end, lo, hi);
+      INFO("ray " << gridtest::hx(ray) << " box " << lo.x << "," << lo.y << "," << lo.z << " .. " << hi.x << ","
+                  << hi.y << "," << hi.z);
+      if (on_walk) REQUIRE(reached);
+      visited += on_walk;
+      unvisited += !on_walk;
+      unvisited_unreached += !on_walk && !reached;
+    }
+  }
+  INFO(visited << " visited, " << unvisited << " unvisited, of them unreached " << unvisited_unreached);
+  CHECK(visited > 5000);
+  CHECK(double(unvisited_unreached) >= 0.9 * double(unvisited));
+}

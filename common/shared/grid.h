@@ -901,6 +901,47 @@ SH_INLINE uint skip_box_distance(SH_IN(uvec3) c, SH_IN(uvec3) lo, SH_IN(uvec3) h
   return max(max(dx, dy), dz);
 }
 
+// ---- The ray's dynamic boxes (kGridSkipEmpty; docs/SPEC.md "Empty-space skipping") ----
+// A dynamic box lowers the distances only on the walks that can reach it. Once per ray, each box
+// is asked whether the plain DDA walk of the ray (skipping off; the skipping walk visits a
+// subsequence of its cells and passes the rest) can visit a cell of the box, in the walk's own
+// arithmetic (dda_axis_exit, the same crossings). Along an axis with d > 0 the walk's index only
+// grows from k0 (its first cell's, dda_walk_begin): it enters an index k > k0 at the crossing
+// E(k - 1) and leaves it at E(k), E nondecreasing in k, and the walk's parameters (each cell's
+// entry, the exit before it) never fall. So a visited cell whose index lies in [lo, hi] has its
+// entry parameter at or after E(lo - 1) (no bound where k0 >= lo) and its exit at or before E(hi);
+// and none does once k0 > hi. The same mirrored for d < 0; an axis with d == 0 keeps k0. A visited
+// cell of the box, other than the first, puts its entry parameter inside every axis's interval
+// and below t_end (the walk stops once an exit reaches t_end); the first cell, inside the box, has
+// no lower bound on any axis. So where the intervals and (-inf, t_end] share no point, no cell of
+// the box is on the walk, nor any of its dynamic references, and the box need not lower the
+// distances of the cells the walk visits. A NaN crossing bounds nothing (the answer errs only
+// towards "reached").
+SH_INLINE bool skip_box_axis_reach(float origin, float cell_size, float o, float d, float inv, uint k0, uint lo,
+                                   uint hi, SH_INOUT(float) t_lo, SH_INOUT(float) t_hi) {
+  if (d == 0.0f) return k0 >= lo && k0 <= hi;
+  if (d > 0.0f ? k0 > hi : k0 < lo) return false;
+  // Entering the range (from below for d > 0: the crossing out of lo - 1; from above: out of hi + 1)
+  if (d > 0.0f ? k0 < lo : k0 > hi) {
+    float e = dda_axis_exit(origin, cell_size, o, d, inv, d > 0.0f ? lo - 1u : hi + 1u);
+    if (e > t_lo) t_lo = e;
+  }
+  // Leaving it (the crossing out of hi for d > 0, out of lo for d < 0)
+  float x = dda_axis_exit(origin, cell_size, o, d, inv, d > 0.0f ? hi : lo);
+  if (x < t_hi) t_hi = x;
+  return true;
+}
+
+SH_INLINE bool skip_box_reached(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) inv_dir,
+                                SH_IN(uvec3) k0, float t_end, SH_IN(uvec3) lo, SH_IN(uvec3) hi) {
+  float t_lo = -sh_infinity();
+  float t_hi = t_end;
+  bool x = skip_box_axis_reach(g.origin.x, g.cell_size, org.x, dir.x, inv_dir.x, k0.x, lo.x, hi.x, t_lo, t_hi);
+  bool y = skip_box_axis_reach(g.origin.y, g.cell_size, org.y, dir.y, inv_dir.y, k0.y, lo.y, hi.y, t_lo, t_hi);
+  bool z = skip_box_axis_reach(g.origin.z, g.cell_size, org.z, dir.z, inv_dir.z, k0.z, lo.z, hi.z, t_lo, t_hi);
+  return x && y && z && !(t_lo > t_hi);
+}
+
 // The static distance by its definition, from a summed-volume table of the static occupancy:
 // `sums` are the table's values at the 8 corners of the cube of radius r around c (clipped to the
 // grid), skip_cube_corner names them. Count of occupied cells in the cube: inclusion-exclusion

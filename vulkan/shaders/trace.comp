@@ -94,6 +94,8 @@ struct TraceState {
   Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
   uint mode;        // kTraceClosestHit or kTraceAnyHit
   WatertightRay wray;  // the watertight test's per-ray part (triangle_test_code)
+  float surface_tol;   // the surface rule's tolerance (a ray launched from a surface), else -1
+  uint box_mask;       // the dynamic boxes the walk can reach (skip_box_reached), bit b for box b
 };
 
 TraceState st;
@@ -127,15 +129,13 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   }
   const GridInstance inst = instances[ref_instance(ref)];
   const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(ref)];
-  // The surface rule's tolerance (a ray launched from a surface), else none
-  const float stol = st.launch_ref != kNoRef ? surface_rule_tol(st.org) : -1.0f;
   // The triangle test (Moller-Trumbore or watertight) against the elongated segment; without
   // events to record, its code alone where its first rejections decide it (triangle_test_code)
   TriangleTest r;
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = kExplain ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, stol, r)
+  uint code = kExplain ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, r)
                        : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
-                                               best, stol, r);
+                                               best, st.surface_tol, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -387,13 +387,27 @@ HitRecord trace_paper(GridParams g) {
 // workgroup at its start: every visited cell reads it.
 shared uint skip_header[kSkipHeaderWords];
 
+// The dynamic boxes the ray's walk can reach (shared/grid.h, "The ray's dynamic boxes"): bit b for
+// box b. `k0`: the walk's first cell.
+uint skip_box_mask(GridParams g, vec3 inv_dir, uvec3 k0) {
+  uint mask = 0u;
+  const uint boxes = skip_header[0];
+  for (uint b = 0u; b < boxes; ++b) {
+    const uint w = skip_box_word(b);
+    const uvec3 lo = uvec3(skip_header[w], skip_header[w + 1u], skip_header[w + 2u]);
+    const uvec3 hi = uvec3(skip_header[w + 4u], skip_header[w + 5u], skip_header[w + 6u]);
+    if (skip_box_reached(g, st.org, st.dir, inv_dir, k0, st.rs.t_end, lo, hi)) mask |= 1u << b;
+  }
+  return mask;
+}
+
 // The skip field's distance of a cell (kGridSkipEmpty): its static distance, lowered to its
-// distance to every dynamic box (shared/grid.h, "The skip field").
+// distance to every dynamic box the walk can reach (shared/grid.h, "The skip field").
 uint skip_distance(GridParams g, uvec3 cell) {
   const uint i = cell_linear_index(g, cell);
   uint d = (skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
-  const uint boxes = skip_header[0];
-  for (uint b = 0u; b < boxes && d > 0u; ++b) {
+  for (uint b = 0u; (st.box_mask >> b) != 0u && d > 0u; ++b) {
+    if (((st.box_mask >> b) & 1u) == 0u) continue;
     const uint w = skip_box_word(b);
     const uvec3 lo = uvec3(skip_header[w], skip_header[w + 1u], skip_header[w + 2u]);
     const uvec3 hi = uvec3(skip_header[w + 4u], skip_header[w + 5u], skip_header[w + 6u]);
@@ -408,6 +422,8 @@ HitRecord trace_exact(GridParams g) {
   const vec3 inv_dir = dda_inverse_direction(st.dir);
   DdaWalk w = dda_walk_begin(g, st.org, st.dir, st.rs.t_start);
   float t_entry = st.rs.t_start;
+  // The dynamic boxes the walk can reach: the others lower no distance on it
+  st.box_mask = (g.flags & kGridSkipEmpty) != 0u ? skip_box_mask(g, inv_dir, w.cell) : 0u;
   if ((g.flags & kGridCompact) != 0u) {
     region_lo = uvec3(spill_heads[0], spill_heads[1], spill_heads[2]);
     region_hi = uvec3(spill_heads[4], spill_heads[5], spill_heads[6]);
@@ -491,6 +507,7 @@ void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
 HitRecord trace_exact_flat(GridParams g) {
   const vec3 inv_dir = dda_inverse_direction(st.dir);
   DdaWalk w = dda_walk_begin(g, st.org, st.dir, st.rs.t_start);
+  st.box_mask = (g.flags & kGridSkipEmpty) != 0u ? skip_box_mask(g, inv_dir, w.cell) : 0u;
   if (g.max_segments == 0u) return finish(kMissStepLimit, g.max_segments);
   uint k = 0u;
   flat_enter(g, inv_dir, w);
@@ -561,6 +578,9 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
     precise float tmax_moved = st.tmax - st.t_base;
     st.tmax = tmax_moved;
   }
+  // The surface rule's tolerance (a ray launched from a surface), else none: from the origin the
+  // trace tests from (moved, for a far origin)
+  st.surface_tol = st.launch_ref != kNoRef ? surface_rule_tol(st.org) : -1.0f;
   // Per-ray setup: segment length, the grid box
   const bool meets = ray_setup(g, st.org, st.dir, st.tmin, st.tmax, st.rs);
   emit(kEvSetup, g.traversal, kBlank, 0u, uvec3(0u), meets ? 1u : 0u,
