@@ -152,7 +152,7 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
            "paper traversal: consecutive samples in one cell: merge (one visit over their segments, the default), "
            "skip (the literal reading of visited-cell tracking) or retest (a second visit)")
       ->group(kExpert);
-  cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units")->check(CLI::PositiveNumber)->group(kExpert);
+  cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units (at most 2^26: one cell then holds any scene)")->check(CLI::PositiveNumber)->group(kExpert);
   cmd->add_option("--density", g.density, "Target cells per triangle for the automatic resolution")
       ->check(CLI::Range(1.0e-3f, 1.0e3f))->group(kExpert);
   cmd->add_option("--max-image-dimension", o.max_image_dimension,
@@ -188,7 +188,9 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
            "sphere), box (that and the separating-axis triangle/box test: fewer references) or auto (box for the "
            "exact traversal, sphere for the paper's)")
       ->group(kExpert);
-  cmd->add_option("--enlargement", g.sphere_enlargement, "Cell bounding-sphere radius multiplier (build)")
+  cmd->add_option("--enlargement", g.sphere_enlargement,
+                  "Cell bounding-sphere radius multiplier (build; below 1 the plane test drops triangles at cells' "
+                  "corners: the paper traversal's knob, refused by the exact traversal)")
       ->check(CLI::Range(0.0f, 16.0f))->group(kExpert);
   cmd->add_option("--aabb-padding", g.aabb_padding,
                   "Cell units added on each side of a triangle's AABB (build; default 0.001, and for the paper "

@@ -218,7 +218,17 @@ void validate_geometry(const Scene& s) {
 // camera that renders it must be usable.
 void validate_camera(const Scene& s) {
   const Camera c = s.frame_camera();
-  const char* whose = s.camera ? "camera" : "the camera framed around the geometry";
+  // A framed camera fails for geometry far past the ray domain (its eye is kept inside): say so
+  std::string whose = s.camera ? "camera" : "the camera framed around the geometry";
+  if (!s.camera) {
+    const Bounds b = s.bounds(0.0f);
+    const float reach = std::max({std::abs(b.lo.x), std::abs(b.lo.y), std::abs(b.lo.z), std::abs(b.hi.x),
+                                  std::abs(b.hi.y), std::abs(b.hi.z)});
+    if (!(reach <= shared::kDomainMaxCoordinate))
+      whose = "the geometry reaches " + std::to_string(reach) + " from the origin, beyond the ray domain's 2^24 " +
+              "(docs/SPEC.md, \"Domain\"; move it nearer the origin or give the scene a camera), and the camera " +
+              "framed around it";
+  }
   if (!finite(c.eye) || !finite(c.target) || !finite(c.up) ||
       !(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
     throw Error("scene '" + s.name + "': " + whose + " has non-finite values or a field of view outside (0, 180)");

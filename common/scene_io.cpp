@@ -50,6 +50,17 @@ class SceneFileReader {
     const std::string text = read_text(path_, "scene file");
     json root;
     check_json_depth(text, path_, input_limits().max_json_depth);
+    // Line and column (1-based) of byte `at`
+    const auto where = [&](size_t at) {
+      size_t line = 1, column = 1;
+      for (size_t i = 0; i < at; ++i) {
+        if (text[i] == '\n') { ++line; column = 1; } else { ++column; }
+      }
+      return path_ + ":" + std::to_string(line) + ":" + std::to_string(column);
+    };
+    // JSON text holds no NUL byte (the parser would stop there and take what follows for nothing)
+    if (const size_t nul = text.find('\0'); nul != std::string::npos)
+      throw Error(where(nul) + ": JSON syntax error: a NUL byte (a JSON text has none)");
     try {
       root = json::parse(text);
     } catch (const json::out_of_range& e) {
@@ -58,11 +69,7 @@ class SceneFileReader {
     } catch (const json::parse_error& e) {
       // nlohmann gives the byte position (1-based, just past the offending character).
       const size_t at = std::min(e.byte > 0 ? e.byte - 1 : 0, text.size());
-      size_t line = 1, column = 1;
-      for (size_t i = 0; i < at; ++i) {
-        if (text[i] == '\n') { ++line; column = 1; } else { ++column; }
-      }
-      throw Error(path_ + ":" + std::to_string(line) + ":" + std::to_string(column) + ": JSON syntax error: " + e.what());
+      throw Error(where(at) + ": JSON syntax error: " + e.what());
     }
     expect_object(root, "the top level");
     check_keys(root, "", {"name", "description", "meshes", "materials", "instances", "camera", "lights", "grid", "background"});

@@ -417,6 +417,9 @@ float target_cell_size(const Scene& scene, const GridOptions& o, const Bounds& b
   if (!(reach <= shared::kDomainMaxCoordinate))
     throw Error("grid: the scene reaches " + gnum(reach) + " from the origin; the domain ends at 2^24 = " +
                 gnum(shared::kDomainMaxCoordinate) + " (move it nearer the origin or scale it down)");
+  if (cs > kMaxCellSize)
+    throw Error("grid: cells of " + gnum(cs) + " are wider than the domain allows (at most 2^26 = " +
+                gnum(kMaxCellSize) + ", four times its reach: one such cell holds any scene)");
   const float min_cs = min_cell_size(reach);
   if (cs < min_cs && (o.cell_size || o.resolution))
     throw Error("grid: cells of " + gnum(cs) + " are narrower than " + gnum(kMinCellUlps) +
@@ -516,6 +519,19 @@ GridParams choose_by_percentile(const Scene& scene, float time, const GridOption
   }
 }
 
+// A compact-layout candidate over the memory budget, as an error naming the budget's option.
+Error over_budget(const GridCandidate& c, const GridOptions& o, const Scene& scene) {
+  const auto mib = [](uint64_t bytes) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.1f", double(bytes) / double(1u << 20));
+    return std::string(b);
+  };
+  return Error("grid: " + std::to_string(c.cells.x) + "x" + std::to_string(c.cells.y) + "x" + std::to_string(c.cells.z) +
+               " cells take " + (c.range_cells == 0 ? "at least " : "") + mib(c.memory) +
+               " MiB in the compact layout, over its memory budget of " +
+               mib(compact_budget(o, scene.triangle_count())) + " MiB (--memory-budget)");
+}
+
 // The candidate search of the no_saturation and trace_cost policies (and the one candidate of a
 // resolution, cell-size or capacity override).
 GridParams choose_by_candidates(const Scene& scene, float time, const GridOptions& o, GridParams g, glm::vec3 e,
@@ -530,17 +546,7 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   ch = GridChoice{};
   if (res && !cs_over) {
     const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o, false);
-    if (!c.fits && (g.flags & shared::kGridCompact) != 0u) {
-      const auto mib = [](uint64_t bytes) {
-        char b[32];
-        std::snprintf(b, sizeof b, "%.1f", double(bytes) / double(1u << 20));
-        return std::string(b);
-      };
-      throw Error("grid: " + std::to_string(res->x) + "x" + std::to_string(res->y) + "x" + std::to_string(res->z) +
-                  " cells take " + (c.range_cells == 0 ? "at least " : "") + mib(c.memory) +
-                  " MiB in the compact layout, over its memory budget of " +
-                  mib(compact_budget(o, scene.triangle_count())) + " MiB (--memory-budget)");
-    }
+    if (!c.fits && (g.flags & shared::kGridCompact) != 0u) throw over_budget(c, o, scene);
     if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity), o);
     ch.candidates.push_back(c);
     return with_sparse_offsets(sized_params(g, c.cells, cs, c.capacity, c.slot_axis, c.aabb_padding, o), c);
@@ -586,6 +592,7 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     return c;
   };
   bool done = false;
+  std::optional<GridCandidate> unfit;  // the first candidate weighed that did not fit
   if (by_cost) {
     const size_t per_pad = size_t(coarsest - finest + 1);
     std::vector<GridCandidate> all(per_pad * paddings.size());
@@ -606,6 +613,7 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     for (int j : order) {
       const GridCandidate c = weigh_j(j, g.aabb_padding, g);
       ch.over_bound += c.over_bound ? 1u : 0u;
+      if (!c.fits && !unfit) unfit = c;
       if (!c.fits) continue;
       ch.candidates.push_back(c);
       if (c.dropped == 0) {
@@ -620,6 +628,9 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     const GridCandidate c = weigh_j(j, paddings[0], g);
     if (c.fits) ch.candidates.push_back(c);
   }
+  // A cell-size override that does not fit: the compact layout's budget, or the image's limits
+  if (ch.candidates.empty() && cs_over && unfit && !unfit->over_bound && (g.flags & shared::kGridCompact) != 0u)
+    throw over_budget(*unfit, o, scene);
   if (ch.candidates.empty()) throw too_big(cells_for(e, cs), cap_over.value_or(o.min_capacity), o);
   size_t best = 0;
   for (size_t i = 1; i < ch.candidates.size(); ++i)
@@ -644,6 +655,12 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
 
 GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice) {
   const GridOptions o = settle_overrides(options, scene);
+  // The exact traversal's promise (every triangle in every cell it overlaps) needs the plane test's
+  // sphere to hold the whole cell: an enlargement below 1 drops triangles that cross a corner
+  if (o.traversal == Traversal::exact && !(o.sphere_enlargement >= 1.0f))
+    throw Error("grid: an enlargement of " + gnum(o.sphere_enlargement) +
+                " lets the plane test drop triangles that cross a cell's corners; the exact traversal needs at "
+                "least 1 (the cell's own bounding sphere); below 1 is the paper traversal's knob");
   const Bounds b = grid_box(scene, time);
   const glm::vec3 e = b.extent();
   // Resolution: density cells per triangle, cubic cells, or the overrides

@@ -5,6 +5,7 @@
 // takes the group it reads.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <optional>
 
@@ -151,6 +152,9 @@ unsigned thread_count(const EmulationOptions& options);
 // CPU and GPU gathers then agree in bits (docs/SPEC.md, "Triangle test").
 inline GridOptions gather_options(GridOptions o) {
   o.traversal = Traversal::exact;
+  // Exact primary visibility: the plane test's sphere holds the whole cell (an enlargement below 1
+  // is the paper traversal's knob, for its segments, not for the gather)
+  o.sphere_enlargement = std::max(o.sphere_enlargement, 1.0f);
   if (o.triangle_test == AlgorithmOptions::TriangleTest::automatic) o.triangle_test = AlgorithmOptions::TriangleTest::moller;
   return o;
 }

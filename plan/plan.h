@@ -20,6 +20,10 @@ bool spill_enabled(const AlgorithmOptions& o);
 // largest coordinate magnitude `reach` of the grid box.
 inline constexpr float kMinCellUlps = 64.0f;
 inline float min_cell_size(float reach) { return reach * (kMinCellUlps * 0x1p-23f); }
+// The widest cell (docs/SPEC.md, "Domain"): 2^26, four times the domain's reach, so one cell holds
+// any scene the domain admits. Wider ones say nothing more, and their derived constants (the
+// enlarged sphere's squared radius, (16 * 2^26 * sqrt(3) / 2)^2 ~ 8.6e17 at most) stay finite.
+inline constexpr float kMaxCellSize = 0x1p26f;
 
 
 // Whether `o` takes the compact layout (kGridCompact: compact, or automatic with the exact

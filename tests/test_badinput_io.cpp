@@ -125,3 +125,26 @@ TEST_CASE("A corrupt or truncated .gridscene is an error, never a crash", "[badi
   CHECK_THROWS_WITH(load_scene(write("trailing.gridscene", bytes + "x")), Contains("after the end marker"));
   fs::remove_all(dir);
 }
+
+// Inputs an outside sweep found accepted or misreported (tests/corpus has the files too, for the
+// replay's clean-error check): each refused with a message that names the real problem.
+TEST_CASE("glTF: a missing default scene, a rotation that is no unit quaternion, a model past the domain", "[badinput]") {
+  const std::string corpus = std::string(GRIDRT_DATA_DIR) + "/../tests/corpus/";
+  CHECK_THROWS_WITH(load_scene(corpus + "gltf/bad_scene_out_of_range.gltf"),
+                    Contains("\"scene\": 7 does not exist") && Contains("1 scene(s)"));
+  CHECK_THROWS_WITH(load_scene(corpus + "gltf/bad_rotation_not_unit.gltf"),
+                    Contains("node 0") && Contains("not a unit quaternion") && Contains("length 10"));
+  CHECK_THROWS_WITH(load_scene(corpus + "gltf/bad_translation_1e38.gltf"), Contains("beyond the ray domain's 2^24"));
+  // Within 1e-3 of unit length: normalized, so the model keeps its size (a quarter turn about z)
+  const Scene nearly = load_scene(corpus + "gltf/ok_rotation_nearly_unit.gltf");
+  const Bounds b = nearly.bounds(0.0f);
+  CHECK(b.lo.x == Approx(-1.0f).margin(1e-4));
+  CHECK(b.hi.y == Approx(1.0f).margin(1e-4));
+  CHECK(b.extent().x == Approx(1.0f).margin(1e-4));
+}
+
+TEST_CASE("A JSON scene file with a NUL byte is refused where the byte is", "[badinput]") {
+  const std::string corpus = std::string(GRIDRT_DATA_DIR) + "/../tests/corpus/";
+  CHECK_THROWS_WITH(load_scene(corpus + "json/bad_nul_then_garbage.json"),
+                    Contains("bad_nul_then_garbage.json:1:") && Contains("NUL byte"));
+}

@@ -290,3 +290,39 @@ TEST_CASE("grid: triangles that overlap one another keep the automatic grid with
     CHECK(refs <= plan::range_cells(s, 0.0f, g));
   }
 }
+
+// Grid options an outside sweep found to give a blank picture with exit 0, or a wrong reason: each
+// refused with one that names the real problem (the paper traversal keeps its knob).
+TEST_CASE("grid: cells wider than the domain, an exact traversal below the cell's sphere, a cell size over the budget",
+          "[grid][policy][badinput]") {
+  const Scene scene = make_builtin("cornell");
+  reference::GridOptions go;
+  go.threads = 2;
+  go.traversal = reference::Traversal::exact;
+  go.cell_size = 2e19f;  // its enlarged sphere's squared radius overflowed: nothing was inserted
+  CHECK_THROWS_WITH(reference::choose_grid(scene, 0.0f, go), Catch::Contains("wider than the domain allows"));
+  go.cell_size = plan::kMaxCellSize;  // the widest: one cell, every triangle in it, hit
+  {
+    reference::ReferenceGridTracer t(go);
+    t.build(scene, 0.0f);
+    CHECK(t.params().cells == glm::uvec3(1u));
+    const Camera cam = scene.frame_camera();
+    const std::vector<Ray> rays{make_ray(cam.eye, cam.target - cam.eye)};
+    std::vector<Hit> hits(1);
+    t.trace(rays, hits);
+    CHECK(!is_miss(hits[0]));
+  }
+  go.cell_size.reset();
+  go.sphere_enlargement = 0.5f;  // drops triangles at cells' corners: refused by the exact traversal
+  CHECK_THROWS_WITH(reference::choose_grid(scene, 0.0f, go), Catch::Contains("needs at") && Catch::Contains("least 1"));
+  CHECK(plan::gather_options(go).sphere_enlargement == 1.0f);  // the paper's gather stays exact
+  go.traversal = reference::Traversal::paper;  // the paper's knob
+  CHECK_NOTHROW(reference::choose_grid(scene, 0.0f, go));
+  // A cell-size override over the compact layout's budget names the budget, not the image's limits
+  go.traversal = reference::Traversal::exact;
+  go.sphere_enlargement = 1.25f;
+  go.cell_size = 0.02f;
+  go.memory_budget = uint64_t(1) << 20;
+  CHECK_THROWS_WITH(reference::choose_grid(scene, 0.0f, go),
+                    Catch::Contains("over its memory budget") && Catch::Contains("--memory-budget"));
+}

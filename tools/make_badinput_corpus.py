@@ -147,6 +147,12 @@ def gltf_cases():
         d["materials"] = [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]
         d["meshes"][0]["primitives"][0]["material"] = 0
     w("bad_png_1e6.gltf", gltf_doc(extra=huge_image))
+    # "scene" naming a scene the file does not have; a rotation far from a unit quaternion (one
+    # within 1e-3 is an exporter's rounding: normalized); a model translated past the domain
+    w("bad_scene_out_of_range.gltf", gltf_doc(extra=lambda d: d.update(scene=7)))
+    w("bad_rotation_not_unit.gltf", gltf_doc(extra=lambda d: d["nodes"][0].update(rotation=[0, 0, 10, 0])))
+    w("ok_rotation_nearly_unit.gltf", gltf_doc(extra=lambda d: d["nodes"][0].update(rotation=[0, 0, 0.7074, 0.7074])))
+    w("bad_translation_1e38.gltf", gltf_doc(extra=lambda d: d["nodes"][0].update(translation=[1e38, 0, 0])))
     out("gltf", "bad_integer_400_digits.gltf", json.dumps(gltf_doc())[:-1] + ', "extras": ' + "9" * 400 + "}")
     # GLB: the same document with the buffer in the BIN chunk.
     d = gltf_doc()
@@ -176,6 +182,7 @@ def json_cases():
     w("ok_scene.json", lambda d: None)
     out("json", "ok_bom.json", "\ufeff" + json.dumps(SCENE))
     out("json", "bad_30000_deep.json", "[" * 30000 + "]" * 30000)
+    out("json", "bad_nul_then_garbage.json", json.dumps(SCENE) + "\0garbage")
     out("json", "bad_integer_400_digits.json", '{"name": ' + "9" * 400 + "}")
     w("bad_zero_light_direction.json", lambda d: d.update(lights=[{"direction": [0, 0, 0]}]))
     w("bad_negative_intensity.json", lambda d: d.update(lights=[{"position": [0, 5, 0], "intensity": -1}]))

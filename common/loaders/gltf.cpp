@@ -172,7 +172,10 @@ Texture image_texture(const Ctx& c, int image_index) {
   return tex;
 }
 
-glm::mat4 local_matrix(const tinygltf::Node& n) {
+// A node's local transform: its matrix, else T * R * S. The rotation must be a unit quaternion
+// (glTF 2.0, node.rotation): one within 1e-3 of unit length (an exporter's rounding) is normalized,
+// any other refused (as is a non-finite one), where glm would scale the model by its squared length.
+glm::mat4 local_matrix(const Ctx& c, int ni, const tinygltf::Node& n) {
   if (n.matrix.size() == 16) {
     glm::mat4 m;
     for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = float(n.matrix[size_t(i)]);
@@ -181,8 +184,16 @@ glm::mat4 local_matrix(const tinygltf::Node& n) {
   glm::mat4 m(1.0f);
   if (n.translation.size() == 3)
     m = glm::translate(m, glm::vec3(float(n.translation[0]), float(n.translation[1]), float(n.translation[2])));
-  if (n.rotation.size() == 4)
-    m *= glm::mat4_cast(glm::quat(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]), float(n.rotation[2])));
+  if (n.rotation.size() == 4) {
+    const glm::dvec4 q(n.rotation[0], n.rotation[1], n.rotation[2], n.rotation[3]);
+    const double len = glm::length(q);
+    if (!(std::abs(len - 1.0) <= 1e-3))
+      c.fail("node " + std::to_string(ni) + ": rotation (" + std::to_string(q.x) + ", " + std::to_string(q.y) + ", " +
+             std::to_string(q.z) + ", " + std::to_string(q.w) + ") is not a unit quaternion (length " +
+             std::to_string(len) + ")");
+    const glm::dvec4 u = q / len;
+    m *= glm::mat4_cast(glm::quat(float(u.w), float(u.x), float(u.y), float(u.z)));
+  }
   if (n.scale.size() == 3) m = glm::scale(m, glm::vec3(float(n.scale[0]), float(n.scale[1]), float(n.scale[2])));
   return m;
 }
@@ -471,7 +482,7 @@ std::vector<Instance> node_instances(const Ctx& c, const Scene& scene, uint32_t 
     if (depth_of[size_t(ni)] >= 0) c.fail("node " + std::to_string(ni) + " is reached twice (a cycle or a shared child)");
     depth_of[size_t(ni)] = depth;
     const tinygltf::Node& node = c.model.nodes[size_t(ni)];
-    const glm::mat4 world = parent * local_matrix(node);
+    const glm::mat4 world = parent * local_matrix(c, ni, node);
     if (node.mesh >= 0) {
       if (size_t(node.mesh) >= c.model.meshes.size()) c.fail("node " + std::to_string(ni) + ": mesh " + std::to_string(node.mesh) + " does not exist");
       Instance inst;
@@ -483,8 +494,12 @@ std::vector<Instance> node_instances(const Ctx& c, const Scene& scene, uint32_t 
     for (int child : node.children) visit(child, world, depth + 1);
   };
   std::vector<int> roots;
+  // "scene" names the one to show (none: the first); one that does not exist is an error
+  if (c.model.defaultScene >= 0 && size_t(c.model.defaultScene) >= c.model.scenes.size())
+    c.fail("\"scene\": " + std::to_string(c.model.defaultScene) + " does not exist (the file has " +
+           std::to_string(c.model.scenes.size()) + " scene(s))");
   if (!c.model.scenes.empty()) {
-    const int s = c.model.defaultScene >= 0 && size_t(c.model.defaultScene) < c.model.scenes.size() ? c.model.defaultScene : 0;
+    const int s = c.model.defaultScene >= 0 ? c.model.defaultScene : 0;
     roots = c.model.scenes[size_t(s)].nodes;
   } else {
     std::vector<bool> is_child(c.model.nodes.size(), false);
