@@ -1,6 +1,7 @@
 // policy.cpp: the ray sample and the work estimates of the trace-cost capacity policy (policy.h).
 #include "gridrt/plan/policy.h"
 
+#include <bit>
 #include <algorithm>
 #include <array>
 #include <optional>
@@ -275,9 +276,8 @@ uint32_t SkipDistances::operator()(uvec3 c, uint32_t mask) const {
   // The static distance, lowered to the distance to every dynamic box the walk can reach (the
   // trace's skip_distance)
   uint32_t d = skip_static_distance(g_, table_, c);
-  for (uint32_t b = 0u; (mask >> b) != 0u && d > 0u; ++b) {
-    if (((mask >> b) & 1u) == 0u) continue;
-    const uint32_t w = skip_box_word(b);
+  for (uint32_t m = mask; m != 0u && d > 0u; m &= m - 1u) {
+    const uint32_t w = skip_box_word(uint32_t(std::countr_zero(m)));
     d = std::min(d, skip_box_distance(c, uvec3(boxes_[w], boxes_[w + 1], boxes_[w + 2]),
                                       uvec3(boxes_[w + 4], boxes_[w + 5], boxes_[w + 6])));
   }

@@ -1,5 +1,6 @@
 // trace.cpp: scene trace (paper 2.3): one ray, paper segments or the exact DDA. The Vulkan trace
 // shader follows this file block by block, with the same names and heading comments.
+#include <bit>
 #include <limits>
 
 #include "gridrt/reference/grid.h"
@@ -317,8 +318,10 @@ uint skip_box_mask(const GridData& grid, const TraceState& st, vec3 inv_dir, uve
 uint skip_distance(const GridData& grid, const TraceState& st, uvec3 cell) {
   const uint i = cell_linear_index(grid.params, cell);
   uint d = (grid.skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
-  for (uint b = 0u; (st.box_mask >> b) != 0u && d > 0u; ++b) {
-    if (((st.box_mask >> b) & 1u) == 0u) continue;
+  uint m = st.box_mask;  // its set bits, lowest first (the shader's findLSB)
+  while (m != 0u && d > 0u) {
+    const uint b = uint(std::countr_zero(m));
+    m &= m - 1u;
     const uint w = skip_box_word(b);
     const uvec3 lo = uvec3(grid.skip[w], grid.skip[w + 1u], grid.skip[w + 2u]);
     const uvec3 hi = uvec3(grid.skip[w + 4u], grid.skip[w + 5u], grid.skip[w + 6u]);

@@ -406,8 +406,10 @@ uint skip_box_mask(GridParams g, vec3 inv_dir, uvec3 k0) {
 uint skip_distance(GridParams g, uvec3 cell) {
   const uint i = cell_linear_index(g, cell);
   uint d = (skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
-  for (uint b = 0u; (st.box_mask >> b) != 0u && d > 0u; ++b) {
-    if (((st.box_mask >> b) & 1u) == 0u) continue;
+  uint m = st.box_mask;
+  while (m != 0u && d > 0u) {
+    const uint b = uint(findLSB(m));
+    m &= m - 1u;
     const uint w = skip_box_word(b);
     const uvec3 lo = uvec3(skip_header[w], skip_header[w + 1u], skip_header[w + 2u]);
     const uvec3 hi = uvec3(skip_header[w + 4u], skip_header[w + 5u], skip_header[w + 6u]);
