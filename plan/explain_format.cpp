@@ -140,6 +140,19 @@ const char* event_kind_name(uint32_t kind) {
   }
 }
 
+namespace {
+// A skip step's dynamic boxes (its slot: the boxes the walk can reach, skip_box_reached), as text.
+std::string boxes_reached(uint32_t mask) {
+  if (mask == 0u) return "";
+  std::string list;
+  uint32_t n = 0;
+  for (uint32_t b = 0; b < 32u; ++b)
+    if ((mask >> b) & 1u) list += (n++ ? ", " : "") + std::to_string(b);
+  return " (the distance counts the dynamic " + std::string(n > 1 ? "boxes " : "box ") + list +
+         ", which the walk can reach)";
+}
+}  // namespace
+
 std::string event_code_name(uint32_t kind, uint32_t code) {
   switch (kind) {
     case kEvSetup: return code == kTraversalExact ? "exact" : "paper";
@@ -217,8 +230,9 @@ std::vector<EventField> event_fields(uint32_t kind, bool exact) {
     case kEvSpilled:
       return make({"kind", "", "ref", "step", "cell", "index among the spilled", "", "", "", "", "", "", "", ""});
     case kEvSkip:
-      return make({"kind", "distance to the nearest reference (cells)", "", "step", "cell", "", "", "", "", "",
-                   "t entry", "t exit of the box", "", ""});
+      return make({"kind", "distance to the nearest reference (cells)", "", "step", "cell",
+                   "dynamic boxes the walk can reach (bit b: box b)", "", "", "", "", "t entry", "t exit of the box",
+                   "", ""});
     default:
       return make({"kind", "code", "ref", "step", "cell", "slot", "f0.x", "f0.y", "f0.z", "f0.w", "f1.x", "f1.y",
                    "f1.z", "f1.w"});
@@ -356,7 +370,7 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
     case kEvSkip:
       os << "step " << e.step << ": cell " << cellstr(e.cell) << " is empty, its nearest reference " << e.code
          << " cells away: the box of " << (2 * e.code - 1) << " cells a side around it passed at once, t in ["
-         << num(e.f1.x, fmt) << ", " << num(e.f1.y, fmt) << "]";
+         << num(e.f1.x, fmt) << ", " << num(e.f1.y, fmt) << "]" << boxes_reached(e.slot);
       line();
       break;
     case kEvGapFill:

@@ -40,8 +40,9 @@ SH_CONST uint kEvSpilled = 15u;   // a spilled reference of the cell, in ascendi
                                   // references; its kEvTest follows
 SH_CONST uint kEvSkip = 16u;      // exact, kGridSkipEmpty: an empty cell, its box of empty cells
                                   // passed at once: cell, code = the cell's distance d (the box
-                                  // spans d - 1 cells each way), f0 = (entry point xyz, t entry),
-                                  // f1 = (t entry, t exit of the box, t_lo, t_hi)
+                                  // spans d - 1 cells each way), slot = the dynamic boxes the
+                                  // walk can reach (bit b: box b; skip_box_reached), f0 = (entry
+                                  // point xyz, t entry), f1 = (t entry, t exit of the box, t_lo, t_hi)
 
 // kEvGapFill codes
 SH_CONST uint kGapApplied = 0u;      // saturated, no hit reported in the cell, left the surface

@@ -452,7 +452,7 @@ HitRecord trace_exact(GridParams g) {
           test_spilled(g, cell, k, st.rs.t_lo, st.tmax);
       }
     } else {
-      emit(kEvSkip, d, kBlank, k, cell, 0u, vec4(point_at(st.org, st.dir, t_entry), t_entry),
+      emit(kEvSkip, d, kBlank, k, cell, st.box_mask, vec4(point_at(st.org, st.dir, t_entry), t_entry),
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
     }
     // Report the closest hit once it lies inside this cell (or box) or before; any hit at once
