@@ -6,12 +6,12 @@ Names say what the replay driver (tests/fuzz/replay.cpp) expects:
   ok_*   must load,
   other  (fuzzer finds, random corruption): a clean Error or a load, never a crash.
 Run from the repository root: python3 tools/make_badinput_corpus.py
+(it writes its cases over their files and keeps the corpus's other files, made by hand).
 """
 import base64
 import json
 import os
 import random
-import shutil
 import struct
 import zlib
 
@@ -307,8 +307,8 @@ def map_cases():
 
 
 if __name__ == "__main__":
-    for kind in ["obj", "gltf", "json", "gridscene", "map"]:
-        shutil.rmtree(os.path.join(ROOT, kind), ignore_errors=True)
+    # Each case's file is written over; the corpus's other files (cases made by hand: the
+    # bad_requires_*.gltf from a real model, the block maps) are kept, not removed
     obj_cases()
     gltf_cases()
     json_cases()
