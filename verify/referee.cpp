@@ -214,7 +214,7 @@ bool Referee::near_open_edge(const Ray& ray, double t) const {
   return false;
 }
 
-bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got) const {
+bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got, uint32_t exact) const {
   // The ray as traced: both triangle tests start from v - org rounded to float per vertex (the
   // watertight test for all three vertices; the same rounding of a shared vertex in every
   // triangle, so the surface stays closed). In that frame the origin is 0; the tests' later
@@ -225,7 +225,14 @@ bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got) const {
   if (got.flags & sh::kHitGapFill) return false;
   const glm::dvec3 o(ray.org), dd(ray.dir);
   const double reach_pt = miss || !std::isfinite(got.t) ? 0.0 : max_abs(o + dd * double(got.t));
-  const double delta = kNearUlps * 0x1p-24 * std::max(max_abs(o), reach_pt);
+  // The vertices as traced of got's triangle and the exact closest's: their rounding scale
+  double reach_tri = 0.0;
+  for (const uint32_t r : {miss ? sh::kNoRef : ref_of(got), exact}) {
+    const size_t k = r == sh::kNoRef ? SIZE_MAX : topo_.index_of(r);
+    if (k == SIZE_MAX) continue;
+    for (int c = 0; c < 3; ++c) reach_tri = std::max(reach_tri, max_abs(glm::dvec3(topo_.tri[k][c] - ray.org)));
+  }
+  const double delta = kNearUlps * 0x1p-24 * std::max({max_abs(o), reach_pt, reach_tri});
   const std::vector<size_t> near = near_line(ray, 2.0 * delta);
   const size_t got_index = miss ? SIZE_MAX : topo_.index_of(ref_of(got));
   if (!miss && got_index == SIZE_MAX) return false;
@@ -473,7 +480,7 @@ Judgement Referee::judge(const Ray& ray, const Hit& got, const Hit& want, const 
     // touches an outline there (a silhouette edge or vertex, the surface on one side of the ray),
     // a ray moved within the inputs' rounding gets the tracer's answer, and no rule of a triangle
     // test can promise the touch: such a ray is unresolved, not a crack
-    const bool moved = exact_for_moved_origin(ray, got);
+    const bool moved = exact_for_moved_origin(ray, got, best.hit ? best_ref : sh::kNoRef);
     const bool at_edge = best.hit && best.boundary && farther;
     if (!moved && is_miss(got) && best.hit && near_open_edge(ray, best.t)) {
       j.verdict = Verdict::unresolved;

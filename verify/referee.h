@@ -85,8 +85,7 @@ class Referee {
   // Whether `got` is the exact answer of the ray as traced (the unresolved verdict): the exact
   // closest hit (or a tie with it), or a miss, among every triangle near the ray, in the scene as
   // seen from the origin in float (each vertex v - org rounded to float), for the ray itself or the
-  // ray moved perpendicular to its direction by at most kNearUlps ulps of the largest coordinate of
-  // its origin and hit point. The moved rays tried: a polar grid of the disc of that radius, and
+  // ray moved perpendicular to its direction by at most a radius (below). The moved rays tried: a polar grid of the disc of that radius, and
   // just inside and just outside every edge of the triangles near the ray (where the answer
   // changes), so a region of the disc whose answer is `got` is found unless it is narrower than
   // 1e-4 of the radius. A hit is also accepted where the ray passes within that radius of both
@@ -94,7 +93,12 @@ class Referee {
   // between a face turned towards the ray and one turned away): there the rounding of each vertex
   // (not a rigid move) can fold the outline over the ray. A miss only by a moved ray that misses
   // every triangle.
-  bool exact_for_moved_origin(const Ray& ray, const Hit& got) const;
+  // The radius: kNearUlps ulps of the largest coordinate of the origin, the hit point and the
+  // vertices as traced (v - org) of got's triangle and of `exact` (the exact closest hit's
+  // triangle; kNoRef: none), whose rounding the tests' decisions carry: a needle's face whose
+  // vertices lie a thousand times farther from the origin than its hit point is rounded at their
+  // scale, not the origin's.
+  bool exact_for_moved_origin(const Ray& ray, const Hit& got, uint32_t exact) const;
   // Whether the point at t along the ray lies within kNearUlps ulps (of the largest coordinate of
   // the origin and the point) of an open edge: an edge of exactly one triangle, a T-junction's
   // (a vertex on another triangle's edge) or the surface's border. The surface's two sides there

@@ -508,9 +508,13 @@ SH_INLINE vec3 plane_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
 // ray, and a face the ray grazes is met at a t that grows as 1 / cos: a ray launched from a
 // sliver's edge, leaving nearly in its neighbour's plane, met that neighbour (through the origin)
 // at 1.5 to 3.2 times the epsilon on cones of 64 to 1000 slivers. So for a ray launched from a
-// surface, a candidate is also refused when the face's plane passes within tol = kOriginEpsilon *
-// (largest |org| component), 8 ulps of that coordinate, of the origin: |n . (org - v0)| <= tol
-// |n|_1 (the 1-norm: a distance between tol and sqrt(3) tol, no square root), n = plane_normal
+// surface, a candidate is also refused when the face's plane passes within tol of the origin:
+// |n . (org - v0)| <= tol |n|_1 (the 1-norm: a distance between tol and sqrt(3) tol, no square
+// root), tol = kOriginEpsilon * max(largest |org| component, largest |org - v0| component): 8
+// ulps of the origin's coordinates (where the launch point was rounded) or of org - v0's, whichever
+// is larger (the plane value's own rounding, n's few ulps times |org - v0|, scales with the
+// latter: a long needle's face launched from near the world's origin, its v0 a thousand times
+// farther away, passed its own launch point by more than 8 ulps of the origin), n = plane_normal
 // (the two shortest edges' cross product: on a sliver the apex's two edges are nearly parallel
 // and their cross product too rounded to tell). A ray from a point of a plane meets the plane
 // only at t = 0 or lies in it, so no hit is lost but one within that plane's rounding. Every
@@ -523,13 +527,20 @@ SH_INLINE float surface_rule_tol(SH_IN(vec3) org) {
   SH_PRECISE float tol = max(max(ao.x, ao.y), ao.z) * kOriginEpsilon;
   return tol;
 }
+// The tolerance for one face: the origin's (surface_rule_tol) or 8 ulps of the largest component
+// of `a` = org - v0 (or v0 - org: the same magnitudes), whichever is larger.
+SH_INLINE float surface_rule_face_tol(float origin_tol, SH_IN(vec3) a) {
+  SH_PRECISE vec3 aa = abs(a);
+  SH_PRECISE float face = max(max(aa.x, aa.y), aa.z) * kOriginEpsilon;
+  return max(origin_tol, face);
+}
 SH_INLINE bool origin_on_plane(SH_IN(vec3) org, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
-  SH_PRECISE float tol = surface_rule_tol(org);
   vec3 n = plane_normal(v0, v1, v2);
   SH_PRECISE vec3 an = abs(n);
   SH_PRECISE float nsum = an.x + an.y;
   SH_PRECISE float n1 = nsum + an.z;
   SH_PRECISE vec3 s = org - v0;
+  SH_PRECISE float tol = surface_rule_face_tol(surface_rule_tol(org), s);
   SH_PRECISE float dist = abs(sh_dot(n, s));
   SH_PRECISE float bound = tol * n1;
   return dist <= bound;

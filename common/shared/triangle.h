@@ -251,8 +251,9 @@ SH_INLINE uint watertight_outside_code(SH_IN(WatertightEdges) e) {
 // The watertight test's second half, from its edge functions `e` (watertight_edges of the ray).
 // `surface_tol`: the surface rule's tolerance for a ray launched from a surface
 // (surface_rule_tol(org)), negative for any other ray: an accepted candidate whose plane passes
-// within it of the origin is refused (kTestOriginPlane), origin_on_plane's decision made from the
-// test's own plane values (the same normal, |n . A| = |n . (org - v0)| in the same bits).
+// within the face's tolerance (surface_rule_face_tol of it and A) of the origin is refused
+// (kTestOriginPlane), origin_on_plane's decision made from the test's own plane values (the same
+// normal, |n . A| = |n . (org - v0)| and max |A_i| in the same bits).
 SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
                                SH_IN(WatertightEdges) e, float t_lo, float t_hi, float best_t,
                                float surface_tol, SH_OUT(TriangleTest) r) {
@@ -291,7 +292,7 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
   SH_PRECISE float scaled_den = apden * 4096.0f;
   SH_PRECISE float pnum = sh_dot(nrm, A);
   SH_PRECISE float pdist = abs(pnum);
-  SH_PRECISE float pbound = surface_tol * n1;
+  SH_PRECISE float pbound = surface_rule_face_tol(surface_tol, A) * n1;
   bool on_plane = surface_tol >= 0.0f && pdist <= pbound;
   if (scaled_den >= nd && pden != 0.0f) {
     D = -pden;
