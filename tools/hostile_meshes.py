@@ -16,6 +16,9 @@
   faraway    2,000 triangles 5 cm wide about 3.7e6 from the origin
   slivers    a strip of 800 triangles 1 unit long and 1/400 wide
   cone300    300 slivers round one apex (a cone: apex angle 1.2 degrees)
+  prisms     300 closed triangular prisms 1e-3 wide and about 3.2 long, crossing at the origin
+             (their faces' vertices a thousand times farther from a launch point near the
+             origin than the point's own coordinates)
 """
 import math
 import os
@@ -126,3 +129,27 @@ N = 300
 V = [(0, 0, 1)] + [(math.cos(2 * math.pi * k / N), math.sin(2 * math.pi * k / N), 0) for k in range(N)]
 F = [(0, k + 1, (k + 1) % N + 1) for k in range(N)]
 write("cone300", V, F)
+# 12 closed triangular prisms 1e-3 wide, about 3.2 long, through the origin in random directions
+V = []; F = []
+for i in range(300):
+    while True:
+        d = [R.uniform(-1, 1) for _ in range(3)]
+        n = math.sqrt(sum(c * c for c in d))
+        if 0.2 < n <= 1: break
+    d = [c / n for c in d]
+    a = [1.0, 0.0, 0.0] if abs(d[0]) < 0.6 else [0.0, 1.0, 0.0]
+    u = [d[1]*a[2]-d[2]*a[1], d[2]*a[0]-d[0]*a[2], d[0]*a[1]-d[1]*a[0]]
+    un = math.sqrt(sum(c * c for c in u)); u = [c / un for c in u]
+    w = [d[1]*u[2]-d[2]*u[1], d[2]*u[0]-d[0]*u[2], d[0]*u[1]-d[1]*u[0]]
+    c0 = [R.uniform(-0.02, 0.02) for _ in range(3)]
+    r = 0.5e-3 / math.cos(math.pi / 6)
+    b = len(V)
+    for end in (-1.6, 1.6):
+        for k in range(3):
+            ang = 2 * math.pi * k / 3
+            V.append(tuple(c0[j] + end * d[j] + r * (math.cos(ang) * u[j] + math.sin(ang) * w[j]) for j in range(3)))
+    F += [(b, b+2, b+1), (b+3, b+4, b+5)]
+    for k in range(3):
+        k1 = (k + 1) % 3
+        F += [(b+k, b+k1, b+3+k1), (b+k, b+3+k1, b+3+k)]
+write("prisms", V, F)
