@@ -14,7 +14,7 @@ E=$G/extra
 export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
 {
   nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
-  for m in soup needles scalemix uvsphere coplanar lattice flat tjunction faraway slivers cone300; do
+  for m in soup needles scalemix uvsphere coplanar lattice flat tjunction faraway slivers cone300 prisms; do
     for tr in exact paper; do
       echo "== diff $m $tr --gpu-frame 480x270, 2 frames"
       timeout 120 gridrt diff "$E/$m.obj" --traversal $tr --gpu-frame --width 480 --height 270 --frames 2 2>&1 |
