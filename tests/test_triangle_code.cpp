@@ -125,3 +125,66 @@ TEST_CASE("triangle_test_code gives triangle_test's code on every case and its r
     if (which == sh::kTriangleWatertight && launched) CHECK(refused > 0);
   }
 }
+
+TEST_CASE("The watertight test's inside decision is exact for its sheared coordinates: small triangles seen from "
+          "far away, edge functions that round to zero",
+          "[unit][watertight]") {
+  // An outside sweep's find: a triangle 0.08 wide, a ray from 4e4 away passing 4e4 from it; the
+  // edge functions' products (about 1e9) rounded to the same floats, U = W = 0 counted as inside,
+  // and the ray hit it. The signs must be those of the exact edge functions of the same float
+  // sheared coordinates (the shader's), computed here in double (each product of two floats is
+  // exact in double, so the difference's sign is)
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  auto rv = [&](float s) { return vec3(u(rng), u(rng), u(rng)) * s; };
+  int zeros = 0, refined = 0, inside = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const float size = std::ldexp(1.0f, -int(rng() % 12));            // 1 .. 2^-11
+    const float far = std::ldexp(1.0f, 8 + int(rng() % 10));           // 2^8 .. 2^17 away
+    const vec3 c = rv(4.0f);
+    const vec3 v0 = c + rv(size), v1 = c + rv(size), v2 = c + rv(size);
+    const vec3 org = c + rv(far);
+    // Aimed at the triangle, or off it by up to a few hundred of its sizes, or by up to its
+    // distance (where products of the sheared coordinates dwarf the triangle's edge functions)
+    const float miss = i % 2 ? size * float(1 << (rng() % 10)) : far * std::ldexp(1.0f, -int(rng() % 8));
+    const vec3 dir = glm::normalize((c + rv(miss)) - org);
+    const sh::WatertightRay w = sh::watertight_ray(dir);
+    const auto comp = [](vec3 v, uint32_t k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); };
+    const auto shear = [&](vec3 v, float& x, float& y) {
+      const vec3 a = v - org;  // float, as the test
+      const float z = comp(a, w.kz);
+      const float ax = comp(a, w.kx) * w.dz, bx = w.dx * z, ay = comp(a, w.ky) * w.dz, by = w.dy * z;
+      x = ax - bx;
+      y = ay - by;
+    };
+    float ax, ay, bx, by, cx, cy;
+    shear(v0, ax, ay);
+    shear(v1, bx, by);
+    shear(v2, cx, cy);
+    const auto sign = [](double v) { return (v > 0.0) - (v < 0.0); };
+    const int su = sign(double(cx) * by - double(cy) * bx);
+    const int sv = sign(double(ax) * cy - double(ay) * cx);
+    const int sw = sign(double(bx) * ay - double(by) * ax);
+    const bool exact_inside = !((su < 0 || sv < 0 || sw < 0) && (su > 0 || sv > 0 || sw > 0));
+    sh::WatertightEdges e;
+    sh::watertight_edges(org, w, v0, v1, v2, e);
+    INFO("case " << i);
+    REQUIRE(sign(e.U) == su);
+    REQUIRE(sign(e.V) == sv);
+    REQUIRE(sign(e.W) == sw);
+    const float u0 = cx * by - cy * bx, v0f = ax * cy - ay * cx, w0 = bx * ay - by * ax;
+    zeros += (u0 == 0.0f) + (v0f == 0.0f) + (w0 == 0.0f);
+    refined += (u0 == 0.0f && su != 0) + (v0f == 0.0f && sv != 0) + (w0 == 0.0f && sw != 0);
+    sh::TriangleTest r;
+    const uint32_t code = sh::watertight(org, dir, v0, v1, v2, 0.0f, std::numeric_limits<float>::infinity(),
+                                         std::numeric_limits<float>::infinity(), -1.0f, r);
+    const bool outside = code == sh::kTestOutsideU || code == sh::kTestOutsideV || code == sh::kTestOutsideUV;
+    REQUIRE(outside == !exact_inside);
+    inside += exact_inside;
+  }
+  WARN(zeros << " edge functions rounded to zero, " << refined << " of them not zero exactly; " << inside
+             << " rays inside");
+  // The cases the refinement exists for occur, and both answers do
+  CHECK(refined > 100);
+  CHECK(inside > 1000);
+}

@@ -229,6 +229,12 @@ Scene untuned_mesh(const std::string& name) {
                           "-0.9907513856887817 0.8401075601577759 -0.9507321715354919"})
       obj << "v " << v << '\n';
     for (const char* f : {"1 3 2", "4 5 6", "1 2 5", "1 5 4", "2 3 6", "2 6 5", "3 1 4", "3 4 6"}) obj << "f " << f << '\n';
+  } else if (name == "smallbesidehuge") {
+    // A triangle 0.08 wide near the origin beside one with corners at +-2e5 (an outside sweep's
+    // find): the cells are about 4e5 wide, so every ray tests the small triangle from afar
+    obj << "v -0.154912174 0.292154968 0.0909840837\nv -0.162222207 0.281493962 0.0952775478\n"
+           "v -0.0952777714 0.281493992 0.162222117\nf 1 2 3\n"
+           "v -200000 -200000 -200000\nv 200000 -200000 -200000\nv 200000 200000 200000\nf 4 5 6\n";
   } else {
     uint64_t s = 7;
     const auto rnd = [&s](double lo, double hi) {
@@ -280,6 +286,19 @@ TEST_CASE("A needle prism across the origin: no wrong answer for rays launched f
   reference::GridOptions go;
   go.traversal = reference::Traversal::exact;
   for (const FamilyResult& r : run(untuned_mesh("needleprism"), go, 1000, false)) {
+    INFO(r.name << ":\n" << to_table({r}));
+    CHECK(r.count(Verdict::crack) == 0);
+    CHECK(r.count(Verdict::grid_wrong) == 0);
+    CHECK(r.nan_t == 0);
+  }
+}
+
+TEST_CASE("A small triangle beside a huge one: no ray far from the small one hits it", "[verify][grid]") {
+  // Its edge functions' products (1e9) rounded to the same floats for rays 4e4 away: counted as
+  // inside, 10 wrong answers of 2000 rays per family; zeros are now taken again exactly
+  reference::GridOptions go;
+  go.traversal = reference::Traversal::exact;
+  for (const FamilyResult& r : run(untuned_mesh("smallbesidehuge"), go, 1000, false)) {
     INFO(r.name << ":\n" << to_table({r}));
     CHECK(r.count(Verdict::crack) == 0);
     CHECK(r.count(Verdict::grid_wrong) == 0);

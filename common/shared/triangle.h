@@ -149,8 +149,10 @@ SH_INLINE float sh_component(SH_IN(vec3) v, uint k) { return k == 0u ? v.x : (k 
 // coordinates depend only on the vertex and the ray, and an edge shared by two triangles gives
 // both the same products in the opposite order, so its edge function is exactly negated: a ray
 // through a shared edge or vertex is inside at least one of the triangles (no hole). Zero edge
-// functions count as inside (the paper's double-precision re-test of zeros is not done: GLSL
-// has no portable double); both triangles of a shared edge then accept and the tie rule picks
+// functions count as inside; an edge function that rounds to zero is computed again exactly
+// (the paper re-tests zeros in double precision; GLSL has no portable double, so here in float
+// with Dekker's exact products: edge_function_refined), so a zero left is a true zero of the
+// sheared coordinates; both triangles of a shared edge then accept and the tie rule picks
 // one. det = U + V + W. The distance: with n = (v1 - v0) x (v2 - v0), T = -n.A and
 // D = -n.dir (t = n.A / n.dir, the plane equation) where |n.dir| * 2^12 >= |n|_1 |dir|_1 (the
 // ray not grazing the plane), else T = U A[kz] + V B[kz] + W C[kz] = t * det * dz and
@@ -197,6 +199,45 @@ SH_INLINE WatertightRay watertight_ray(SH_IN(vec3) dir) {
   return w;
 }
 
+// Veltkamp's split: the high half (12 significant bits) of a; a - hi is the low half, exactly.
+SH_INLINE float sh_split_high(float a) {
+  SH_PRECISE float c = 4097.0f * a;
+  SH_PRECISE float d = c - a;
+  SH_PRECISE float hi = c - d;
+  return hi;
+}
+
+// Dekker's product: the rounding error of p = fl(a * b), a * b - p, exactly (round to nearest,
+// no overflow, the error a normal float: |a * b| above about 2^-100).
+SH_INLINE float sh_product_error(float a, float b, float p) {
+  SH_PRECISE float ah = sh_split_high(a);
+  SH_PRECISE float al = a - ah;
+  SH_PRECISE float bh = sh_split_high(b);
+  SH_PRECISE float bl = b - bh;
+  SH_PRECISE float e0 = ah * bh - p;
+  SH_PRECISE float e1 = e0 + ah * bl;
+  SH_PRECISE float e2 = e1 + al * bh;
+  SH_PRECISE float e = e2 + al * bl;
+  return e;
+}
+
+// An edge function e = fl(fl(x y) - fl(z w)) taken again where it rounded to zero. Rounding is
+// monotone, so a non-zero e has the exact sign of x y - z w; a zero one only says that the two
+// rounded products are equal (two floats differ by zero only when equal), and then x y - z w is
+// exactly the difference of their rounding errors, rounded once here: its sign is exact, and it
+// is exactly negated for the same products in the other order (a shared edge). Without it, two
+// products of coordinates far larger than the triangle round to the same float (1e4 from the
+// origin, a triangle 0.1 wide), U = W = 0 counted as inside, and a ray 4e4 from a triangle hit it.
+SH_INLINE float edge_function_refined(float e, float x, float y, float z, float w) {
+  if (e != 0.0f) return e;
+  SH_PRECISE float p = x * y;
+  SH_PRECISE float q = z * w;
+  SH_PRECISE float ep = sh_product_error(x, y, p);
+  SH_PRECISE float eq = sh_product_error(z, w, q);
+  SH_PRECISE float d = ep - eq;
+  return d;
+}
+
 SH_INLINE void watertight_edges(SH_IN(vec3) org, SH_IN(WatertightRay) w, SH_IN(vec3) v0, SH_IN(vec3) v1,
                                 SH_IN(vec3) v2, SH_OUT(WatertightEdges) e) {
   uint kx = w.kx;
@@ -219,9 +260,13 @@ SH_INLINE void watertight_edges(SH_IN(vec3) org, SH_IN(WatertightRay) w, SH_IN(v
   SH_PRECISE float cx = sh_component(C, kx) * dz - dx * cz;
   SH_PRECISE float cy = sh_component(C, ky) * dz - dy * cz;
   // Edge functions (the weights of v0, v1, v2 times det)
-  SH_PRECISE float U = cx * by - cy * bx;
-  SH_PRECISE float V = ax * cy - ay * cx;
-  SH_PRECISE float W = bx * ay - by * ax;
+  SH_PRECISE float U0 = cx * by - cy * bx;
+  SH_PRECISE float V0 = ax * cy - ay * cx;
+  SH_PRECISE float W0 = bx * ay - by * ax;
+  // Zeros taken again exactly: the signs are then exact for the sheared coordinates
+  SH_PRECISE float U = edge_function_refined(U0, cx, by, cy, bx);
+  SH_PRECISE float V = edge_function_refined(V0, ax, cy, ay, cx);
+  SH_PRECISE float W = edge_function_refined(W0, bx, ay, by, ax);
   SH_PRECISE float uv = U + V;
   SH_PRECISE float det = uv + W;
   e.A = A;
