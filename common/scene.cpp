@@ -270,10 +270,30 @@ void validate_lights_and_grid(const Scene& s) {
     throw Error("scene '" + s.name + "': grid cell size must be a positive finite number");
 }
 
+// A direction (a directional light's, a rotation's axis) of any finite length: scaled by a power of
+// two (exact: the same direction, in the same bits but for the exponent) so that its largest
+// component lies in [1, 2) where it lies outside [2^-20, 2^20]. Normalizing it later then neither
+// overflows (a length of 1e20 made dot(v, v) infinite: the light's direction became zero and it
+// lit nothing) nor underflows (1e-25 was refused as a zero direction). Zero stays zero.
+glm::vec3 direction_in_range(glm::vec3 v) {
+  const float m = std::max(std::max(std::abs(v.x), std::abs(v.y)), std::abs(v.z));
+  if (!(m > 0.0f) || !std::isfinite(m) || (m >= 0x1p-20f && m <= 0x1p20f)) return v;
+  int e = 0;
+  std::frexp(m, &e);  // m = f 2^e, f in [0.5, 1)
+  return glm::vec3(std::ldexp(v.x, 1 - e), std::ldexp(v.y, 1 - e), std::ldexp(v.z, 1 - e));
+}
+
+void directions_in_range(Scene& s) {
+  for (Light& l : s.lights)
+    if (l.directional) l.position = direction_in_range(l.position);
+  for (Instance& inst : s.instances) inst.motion.axis = direction_in_range(inst.motion.axis);
+}
+
 }  // namespace
 
 void Scene::finalize() {
   if (materials.empty()) materials.push_back(Material{.name = "default"});
+  directions_in_range(*this);
   validate_meshes(*this);
   validate_textures_materials_instances(*this);
   split_large_meshes(*this);

@@ -504,3 +504,28 @@ TEST_CASE("Scene files and the dispatcher reach the built-in scenes", "[unit][sc
   CHECK(b.triangle_count() > 0);
   REQUIRE_THROWS_WITH(load_scene("builtin:nosuch"), Catch::Contains("nosuch"));
 }
+
+TEST_CASE("glTF MASK without a texture: the factor's alpha alone keeps or cuts the material", "[unit][loaders]") {
+  // An outside sweep's find: a MASK material with baseColorFactor alpha 0.2 (cutoff 0.5) and no
+  // texture rendered opaque; by glTF 2.0 its alpha is the factor's, so every fragment is cut
+  const fs::path d = temp_dir();
+  for (const float a : {0.2f, 0.5f, 0.8f}) {
+    std::string text = gltf_with_primitives({{4, {0, 1, 2}}});
+    const std::string mode = "\"mode\":4}";
+    text.replace(text.find(mode), mode.size(), "\"mode\":4,\"material\":0}");
+    text.insert(text.size() - 1, ",\"materials\":[{\"alphaMode\":\"MASK\",\"alphaCutoff\":0.5,"
+                                 "\"pbrMetallicRoughness\":{\"baseColorFactor\":[1,1,1," + std::to_string(a) + "]}}]");
+    Scene s;
+    TextureCache cache;
+    load_gltf(write_text(d / "mask_factor.gltf", text), s, cache);
+    INFO("factor alpha " << a);
+    REQUIRE(s.materials.size() == 1);
+    const Material& m = s.materials[0];
+    CHECK(m.diffuse_texture == -1);
+    CHECK(m.alpha_keyed() == (a < 0.5f));  // glTF: cut where alpha < cutoff
+    if (m.alpha_keyed()) {
+      const Texture& t = s.textures[size_t(m.alpha_texture)];
+      CHECK((t.width == 1 && t.height == 1 && t.texel(0, 0).a == 0));
+    }
+  }
+}

@@ -167,3 +167,48 @@ TEST_CASE("A scene's camera whose up is parallel to its view is refused when the
   s.camera = Camera{.eye = {0, 5, 0}, .target = {0, 0, 0}, .up = {0, 1, 0}};
   CHECK_THROWS_WITH(s.finalize(), Catch::Contains("parallel"));
 }
+
+#include "gridrt/common/shared/shadow.h"
+
+// An outside sweep's finds: a point light 2e6 away made shadow rays every trace rejects (the
+// direction beyond 2^20), so it cast no shadow; a directional light's direction of length 1e20
+// overflowed dot(v, v) and lit nothing, one of 1e-25 was refused as zero. The light's segment is
+// now scaled by a power of two into the traces' range (the same segment), and a direction of any
+// finite length is brought into range by the scene.
+TEST_CASE("Lights at any distance: shadow rays within the traces' domain on the light's segment, directions of any length",
+          "[unit][scene][shadows]") {
+  namespace sh = gridrt::shared;
+  const glm::vec3 p(0.25f, 0.0f, -0.5f), n(0.0f, 1.0f, 0.0f);
+  for (float d : {1e-12f, 1e-7f, 1e-3f, 1.0f, 1e5f, 2e6f, 3e7f, 1e20f, 3e38f})
+    for (const glm::vec3 towards : {glm::vec3(0, 1, 0), glm::vec3(0.3f, 0.9f, -0.2f), glm::vec3(-1e-3f, 1, 1e-3f)}) {
+      const glm::vec3 light = p + towards * d;
+      const sh::RayRecord r = sh::shadow_ray(p, n, 7u, light, false);
+      INFO("distance " << d << " towards " << towards.x << "," << towards.y << "," << towards.z);
+      if (!(glm::dot(light - p, light - p) > 0.0f)) {  // the light at the point (underflow): no ray
+        CHECK(r.tmax == 0.0f);
+        continue;
+      }
+      REQUIRE(sh::ray_domain(r.org, r.dir, r.tmin, r.tmax) == sh::kDomainOk);
+      // The segment's end is the light: r.dir * r.tmax is light - p, exactly (a power of two apart)
+      const glm::vec3 end = r.dir * r.tmax;
+      CHECK(end == light - p);
+      // In range already: the ray of before, unchanged
+      const float m = std::max(std::max(std::abs(end.x), std::abs(end.y)), std::abs(end.z));
+      if (m >= 0x1p-20f && m <= 0x1p20f) CHECK((r.dir == light - p && r.tmax == 1.0f));
+    }
+  // Directional lights: a direction of any finite length lights as the unit one, a zero one is refused
+  for (float len : {1e-30f, 1e-25f, 1e-6f, 1.0f, 1e6f, 1e20f, 3e38f}) {
+    Scene s = one_triangle("dir", {0, 0, 0}, {1, 0, 0}, {0, 0, 1});
+    s.lights.push_back(Light{.position = glm::vec3(0.0f, 0.6f, 0.8f) * len, .directional = true});
+    s.finalize();
+    INFO("length " << len);
+    const glm::vec3 u = glm::normalize(s.lights[0].position);
+    CHECK(std::abs(u.y - 0.6f) < 1e-6f);
+    CHECK(std::abs(u.z - 0.8f) < 1e-6f);
+    const sh::RayRecord r = sh::shadow_ray({0.2f, 0.0f, 0.2f}, {0, 1, 0}, 1u, s.lights[0].position, true);
+    CHECK(sh::ray_domain(r.org, r.dir, r.tmin, r.tmax) == sh::kDomainOk);
+  }
+  Scene z = one_triangle("zero", {0, 0, 0}, {1, 0, 0}, {0, 0, 1});
+  z.lights.push_back(Light{.position = glm::vec3(0.0f), .directional = true});
+  CHECK_THROWS_WITH(z.finalize(), Catch::Contains("zero direction"));
+}

@@ -361,6 +361,18 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
         }
       }
     }
+    // MASK without a texture: the factor's alpha alone decides (glTF 2.0: alpha = the factor's),
+    // the whole material kept or cut. Cut: a 1x1 mask of alpha 0 (every uv reads it)
+    if (pbr.baseColorTexture.index < 0 && gm.alphaMode == "MASK" && factor_alpha < float(gm.alphaCutoff)) {
+      mat.alpha_texture = textures.get_or_add(scene, path + "#cut", [&] {
+        Texture t;
+        t.path = path + "#cut";
+        t.width = t.height = 1;
+        t.rgba = {255, 255, 255, 0};
+        t.has_alpha = true;
+        return t;
+      });
+    }
     scene.materials.push_back(std::move(mat));
   }
 }

@@ -4,7 +4,8 @@
 //  - one ray per gather texel and light, from the gather position (no offset: the trace never
 //    accepts the launch triangle, kGridExcludeLaunchRef), launch normal and reference the texel's
 //  - towards a point light: dir = light - position (unnormalized), t in (0, 1): the segment to the
-//    light; towards a directional light: dir = the unit direction to it, t in (0, +inf)
+//    light (scaled by a power of two where it leaves the traces' range [2^-20, 2^20], t in (0, 2^e)
+//    then); towards a directional light: dir = the unit direction to it, t in (0, +inf)
 //  - the empty ray (tmin = tmax = 0: every trace answers a miss, and shading leaves the light
 //    out) where the texel has no surface, the light is at the texel, or the light is behind the
 //    surface (dot(normal, dir) <= 0)
@@ -52,6 +53,17 @@ SH_INLINE RayRecord shadow_ray(SH_IN(vec3) p, SH_IN(vec3) n, uint ref, SH_IN(vec
   r.tmin = 0.0f;
   r.dir = to_light;
   r.tmax = 1.0f;
+  // A light farther than 2^20 (or nearer than 2^-20) along every axis: the direction scaled by a
+  // power of two 2^-e into the traces' range, t in (0, 2^e): the same segment, exactly (a light 2e6
+  // away gave a ray every trace rejects, so no shadow)
+  SH_PRECISE vec3 ad = abs(to_light);
+  SH_PRECISE float m = max(max(ad.x, ad.y), ad.z);
+  if (!directional && (m > 1048576.0f || m < 9.5367431640625e-07f)) {
+    const uint e = min((floatBitsToUint(m) >> 23u) & 0xFFu, 253u);  // m's biased exponent
+    SH_PRECISE float down = uintBitsToFloat((254u - e) << 23u);       // 2^(127 - e)
+    r.dir = to_light * down;
+    r.tmax = uintBitsToFloat(e << 23u);                               // 2^(e - 127)
+  }
   if (directional) {
     r.dir = sh_normalize(to_light);
     r.tmax = uintBitsToFloat(0x7F800000u);  // +inf
