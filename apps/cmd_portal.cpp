@@ -510,7 +510,20 @@ void add_portal_command(CLI::App& app) {
     add_choice(cmd, "--view", o->view, {"shaded", "divs", "dda"},
                     "What the picture shows: shaded (the render), or per pixel with a colour bar: divs (divs the "
                     "portal traversal visits per camera ray) or dda (voxels an exact voxel DDA steps through)");
-    cmd->callback([o] { o->view == "shaded" ? run_portal_render(*o) : run_portal_view(*o); });
+    cmd->callback([o] {
+      // The per-pixel work views build the plain world at full resolution: options they would
+      // ignore are refused (they were ignored, and the checks below skipped)
+      if (o->view != "shaded" && (o->mip_levels > 1 || o->mip_distance != 0.0f || o->mip_compare || o->flatten ||
+                                  o->flat_compare || o->separate_loops))
+        throw CLI::ValidationError("--view " + o->view,
+                                   "shows the plain world's per-pixel work: leave out --mip-levels, --mip-distance, "
+                                   "--mip-compare, --flatten, --flat-compare and --separate-loops");
+      if (o->flat_compare && o->flatten)
+        throw CLI::ValidationError("--flat-compare", "renders both the instanced and the flattened world: leave out --flatten");
+      if (o->mip_compare && o->mip_levels < 2)
+        throw CLI::ValidationError("--mip-compare", "needs --mip-levels 2 or more");
+      o->view == "shaded" ? run_portal_render(*o) : run_portal_view(*o);
+    });
   }
   {
     auto spec = std::make_shared<std::string>();

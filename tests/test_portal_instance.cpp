@@ -250,6 +250,19 @@ TEST_CASE("CLI: portal verbs on instanced worlds - --flatten, --flat-compare, ex
   const auto gen = run_tool("portal bench gen-blocks:9x9 --repeat 1");
   CHECK(gen.exit_code == 1);
   CHECK_THAT(gen.output, Catch::Contains("expected gen-blocks:"));
+  // A second 'scale' line: a box valid at the first scale wrote past the block at the second (heap
+  // corruption, an abort); now refused where it stands (an outside sweep's find)
+  std::ofstream(bad) << "scale 16\nblock big\nbox 0 0 0 16 16 16 1\nend\ntile B big\nscale 2\nsize 3 3 1\nmap\nBBB\nBEB\nBBB\n";
+  const auto twice = run_tool("portal render " + bad + " --width 8 --height 4 -o " + out);
+  CHECK(twice.exit_code == 1);
+  CHECK_THAT(twice.output, Catch::Contains(":6: 'scale' given twice"));
+  // The per-pixel work views ignored the mip, flatten and compare options: refused, as a command line
+  const auto view = run_tool("portal render builtin:blocks --view divs --flat-compare --width 8 --height 4 -o " + out);
+  CHECK(view.exit_code == 2);
+  CHECK_THAT(view.output, Catch::Contains("leave out --mip-levels"));
+  const auto mip = run_tool("portal render builtin:level --mip-compare --width 8 --height 4 -o " + out);
+  CHECK(mip.exit_code == 2);
+  CHECK_THAT(mip.output, Catch::Contains("needs --mip-levels 2 or more"));
 }
 
 #include "gridrt/common/scene_io.h"

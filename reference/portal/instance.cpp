@@ -97,6 +97,12 @@ BBBBBBBBBBBBBBBBBBBBBBBBBBBB
   throw Error("block map " + name + (line ? ":" + std::to_string(line) : std::string()) + ": " + what);
 }
 
+// A line's end: nothing but blanks after what it holds (trailing junk was ignored)
+void expect_line_end(std::istringstream& ls, const std::string& name, size_t lineno, const std::string& what) {
+  std::string extra;
+  if (ls >> extra) fail(name, lineno, "unexpected '" + extra.substr(0, 32) + "' after " + what);
+}
+
 bool reserved(char c) { return c == '.' || c == 'E' || c == 'L' || c == ' '; }
 
 }  // namespace
@@ -202,6 +208,7 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
         for (long long& x : v)
           if (!(ls >> x)) fail(name, lineno, "expected 'box X0 Y0 Z0 X1 Y1 Z1 MATERIAL'");
         if (!(ls >> c) || c.size() != 1) fail(name, lineno, "expected 'box X0 Y0 Z0 X1 Y1 Z1 MATERIAL'");
+        expect_line_end(ls, name, lineno, "'box X0 Y0 Z0 X1 Y1 Z1 MATERIAL'");
         if (!have_scale) fail(name, lineno, "'box' before 'scale'");
         for (int a = 0; a < 3; ++a)
           if (v[a] < 0 || v[a + 3] > (long long)iw.scale || v[a] >= v[a + 3])
@@ -216,12 +223,16 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
     if (key == "scale") {
       long long s = 0;
       if (!(ls >> s)) fail(name, lineno, "expected 'scale N'");
+      expect_line_end(ls, name, lineno, "'scale N'");
+      // Once: a block's boxes are checked against the scale in force where they are read
+      if (have_scale) fail(name, lineno, "'scale' given twice");
       if (s != 2 && s != 4 && s != 8 && s != 16) fail(name, lineno, "scale must be 2, 4, 8 or 16 fine voxels per tile");
       iw.scale = uint32_t(s);
       have_scale = true;
     } else if (key == "size") {
       long long a = -1, b = -1, c = -1;
       if (!(ls >> a >> b >> c)) fail(name, lineno, "expected 'size WIDTH DEPTH HEIGHT' (tiles)");
+      expect_line_end(ls, name, lineno, "'size WIDTH DEPTH HEIGHT'");
       if (a <= 0 || b <= 0 || c <= 0) fail(name, lineno, "size must be positive (empty world)");
       if (a > kMaxWorldAxis || b > kMaxWorldAxis || c + 2 > kMaxWorldAxis)
         fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) +
@@ -242,6 +253,7 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
         fail(name, lineno, "material colour must be finite and not negative");
       if (ls >> opt) fail(name, lineno, "glass is not supported in block maps");
       if (reserved(c[0])) fail(name, lineno, "'" + c + "' is reserved");
+      if (tiles.count(c[0])) fail(name, lineno, "'" + c + "' is a tile's character");
       WallMaterial m{mname, glm::vec3(r, g, b), false, 1.5f, glm::vec3(1.0f)};
       const size_t at = chars.find(c[0]);
       if (at != std::string::npos) w.materials[at] = m;
@@ -262,6 +274,7 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
     } else if (key == "tile") {
       std::string c, bname;
       if (!(ls >> c >> bname) || c.size() != 1) fail(name, lineno, "expected 'tile CHAR BLOCK'");
+      expect_line_end(ls, name, lineno, "'tile CHAR BLOCK'");
       if (reserved(c[0])) fail(name, lineno, "'" + c + "' is reserved");
       if (chars.find(c[0]) != std::string::npos) fail(name, lineno, "'" + c + "' is a material's character");
       if (tiles.count(c[0])) fail(name, lineno, "tile '" + c + "' defined twice");

@@ -119,9 +119,17 @@ struct TileMapText {
 };
 
 // 'size WIDTH DEPTH HEIGHT', within the div format and the volume limit
+// A line's end: nothing but blanks after what it holds ('size 3 3 1x' or '... 1 1 1 junk' were read
+// up to the junk and the rest ignored)
+void expect_line_end(std::istringstream& ls, const std::string& name, size_t lineno, const std::string& what) {
+  std::string extra;
+  if (ls >> extra) fail(name, lineno, "unexpected '" + extra.substr(0, 32) + "' after " + what);
+}
+
 void parse_size(std::istringstream& ls, const std::string& name, size_t lineno, TileMapText& t) {
   long long a = -1, b = -1, c = -1;
   if (!(ls >> a >> b >> c)) fail(name, lineno, "expected 'size WIDTH DEPTH HEIGHT'");
+  expect_line_end(ls, name, lineno, "'size WIDTH DEPTH HEIGHT'");
   if (a <= 0 || b <= 0 || c <= 0) fail(name, lineno, "size must be positive (empty world)");
   if (a > kMaxWorldAxis || b > kMaxWorldAxis || c + 2 > kMaxWorldAxis)
     fail(name, lineno, "size " + std::to_string(a) + " x " + std::to_string(b) + " x " + std::to_string(c) +
@@ -152,6 +160,7 @@ void parse_material(std::istringstream& ls, const std::string& name, size_t line
       fail(name, lineno, "expected 'glass IOR' (a positive finite number) after the colour");
     m.glass = true;
     m.filter = m.color;
+    expect_line_end(ls, name, lineno, "'glass IOR'");
   }
   const size_t at = chars.find(c[0]);
   if (at != std::string::npos) {
