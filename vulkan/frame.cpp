@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "gridrt/common/camera.h"
@@ -341,6 +342,24 @@ FrameMaterials pack_materials(const Scene& scene, bool alpha_keying, uint64_t ma
 
 }  // namespace
 
+// The GPU's gathers test each pixel's primary ray from the eye (gather_visibility.glsl,
+// gather.frag); the CPU's gather, the exact traversal, moves a far origin to just before the grid
+// box first (docs/SPEC.md "Far origins"), where 64 ulps of the eye's largest coordinate exceed a
+// cell. There the two would not agree (from the eye, Moller-Trumbore's `v - eye` rounds by more than
+// a cell: phantom hits on small triangles), so such an eye is refused, not rendered wrong.
+static void check_gather_eye(const glm::vec3& eye, const shared::GridParams& g) {
+  const float reach = std::max(std::max(std::abs(eye.x), std::abs(eye.y)), std::abs(eye.z)) * shared::kFarOriginRatio;
+  if (!(reach > g.cell_size)) return;
+  char msg[640];
+  std::snprintf(msg, sizeof msg,
+                "vulkan frame: the eye (%g, %g, %g) is far for this grid: 64 ulps of its coordinates (%g) exceed "
+                "a cell (%g). The CPU's gather moves such a primary ray's origin to the grid before testing "
+                "(docs/SPEC.md \"Far origins\"); the GPU's gather tests from the eye and would differ from it. "
+                "Move the camera closer, take cells of at least %g (--cell-size), or use --backend cpu",
+                double(eye.x), double(eye.y), double(eye.z), double(reach), double(g.cell_size), double(reach));
+  throw Error(msg);
+}
+
 VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOptions options)
     : grid_(grid), scene_(scene), options_(options) {
   Context& ctx = grid.context();
@@ -360,6 +379,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
 
   // Parameters: the camera of the CPU's primary rays
   gpu.camera = camera_params(scene.frame_camera(), w, h);
+  check_gather_eye(gpu.camera.eye, grid.params());
   const shared::FrameParams fp = frame_params(scene, gpu.camera, options_);
   const FrameMaterials fmat = pack_materials(scene, (grid.params().flags & shared::kGridAlphaKeying) != 0u,
                                              ctx.info().limits.maxStorageBufferRange);
