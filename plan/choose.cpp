@@ -67,7 +67,16 @@ Bounds instance_animation_bounds(const Scene& scene, const Instance& inst, float
 
 Bounds animation_bounds(const Scene& scene, float time) {
   Bounds b;
-  for (const Instance& inst : scene.instances) b.grow(instance_animation_bounds(scene, inst, time));
+  for (const Instance& inst : scene.instances) {
+    const Bounds ib = instance_animation_bounds(scene, inst, time);
+    // A sweep past float range (a pivot 3e38 away: the rotation's sphere overflowed, and the grid
+    // blamed its cell size): named here, with the instance
+    const auto finite = [](const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
+    const bool nan = glm::any(glm::isnan(ib.lo)) || glm::any(glm::isnan(ib.hi));
+    if (nan || (!ib.empty() && !(finite(ib.lo) && finite(ib.hi))))
+      throw Error("instance '" + inst.name + "': its bounds over the animation (pivot, rotation, path) are not finite");
+    b.grow(ib);
+  }
   return b;
 }
 

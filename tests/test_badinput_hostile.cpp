@@ -298,3 +298,17 @@ TEST_CASE("sweep's CSV, Markdown and PNG on a full disk: exit 1, no empty files"
   CHECK_THAT(r.output, Contains("File too large"));
   CHECK(others(d, "").empty());
 }
+
+TEST_CASE("A rotating instance whose sweep passes float range is named, not blamed on the cell size", "[badinput][cli]") {
+  // An outside sweep's find: a pivot 3e38 away made the rotation's swept sphere infinite, and the
+  // grid reported "cell size must be positive and finite"
+  const fs::path d = scratch("pivot");
+  std::ofstream(d / "pivot.json") << R"({"meshes":{"pot":{"builtin":"teapot","level":1}},)"
+                                  << R"("instances":[{"mesh":"pot"},{"name":"spin","mesh":"pot",)"
+                                  << R"("motion":{"rotate":{"axis":[0,1,0],"pivot":[3e38,0,0],"speed":1}}}],)"
+                                  << R"("camera":{"eye":[0,8,18],"target":[0,0,0]}})";
+  const auto r = run_tool("render " + (d / "pivot.json").string() + " --width 16 --height 9 -o " + (d / "x.ppm").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("instance 'spin'") && Contains("not finite"));
+}
