@@ -122,6 +122,11 @@ void add_grid_options(CLI::App* cmd, BackendOptions& o) {
            "exact traversal: pass boxes of empty cells at once by a per-cell distance to the nearest reference "
            "(on, the default) or visit every cell (off)")
       ->group(kGrid);
+  add_enum(cmd, "--skip-covered", g.skip_covered, {{"on", true}, {"off", false}},
+           "exact traversal, compact layout, with --skip-empty on: do not read a cell's references where every one "
+           "lies in the cell the walk came from, tested there (on, the default: the hits are the same, fewer "
+           "tests) or test every cell's references (off)")
+      ->group(kGrid);
   add_enum(cmd, "--mailbox", g.mailbox, {{"on", true}, {"off", false}},
            "exact traversal: do not test again a reference among the last 8 tested on the ray (on: the hits are "
            "the same, fewer tests, but slower on the GPU measured) or test every reference of every cell (off, the "

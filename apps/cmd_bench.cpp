@@ -793,7 +793,12 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
 
 void run_bench(const BenchOptions& options) {
   check_frame_size(options.width, options.height);
+  if (!options.json.empty()) check_output_path(options.json);  // before the benchmark, not after it
   BenchOptions o = options;
+  // Frame f's scene time is (f + 1) / fps: the last one within the scene time's limit (1e6 s)
+  if (!(double(o.frames) + double(o.warmup) <= 1.0e6 * double(o.fps)))
+    throw CLI::ValidationError("--frames", std::to_string(o.frames + o.warmup) + " frames at --fps " +
+                                               std::to_string(o.fps) + " pass 1e6 s, the scene time's limit");
   if (o.rtx) {
 #ifndef GRIDRT_HAVE_VULKAN
     throw Error("--rtx: this build has no Vulkan backend");
@@ -913,7 +918,7 @@ void add_bench_command(CLI::App& app) {
                   "Vulkan: also time each frame recorded this many times in one submission, the last timed (GPU kept "
                   "busy); 1: off")
       ->check(CLI::Range(1u, 64u));
-  cmd->add_option("--fps", o->fps, "Scene time step per frame is 1/fps")->check(CLI::PositiveNumber);
+  cmd->add_option("--fps", o->fps, "Scene time step per frame is 1/fps")->check(CLI::Range(1.0e-3f, 1.0e6f));
   cmd->add_option("--rays", o->rays,
                   "The traced rays: auto (the frame's glossy bounce rays, else diffuse bounces), glossy, primary, "
                   "diffuse, or a verify family (random, surface, edge, ...); a kind other than glossy is one fixed set "

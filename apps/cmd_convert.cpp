@@ -1,5 +1,6 @@
 // gridrt convert: any scene the tool reads -> the binary cache (.gridscene), textures decoded.
 // The cache loads without OpenImageIO: it is how real scenes travel to the GPU machine.
+#include <cctype>
 #include <cstdio>
 
 #include "apps/commands.h"
@@ -15,7 +16,9 @@ void add_convert_command(CLI::App& app) {
   cmd->add_option("-o,--output", *output, "The .gridscene file to write")->required();
   cmd->callback([scene, output] {
     check_output_path(*output);
-    if (!output->ends_with(".gridscene")) throw Error("convert writes .gridscene files, not '" + *output + "'");
+    std::string lower = *output;
+    for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (!lower.ends_with(".gridscene")) throw Error("convert writes .gridscene files, not '" + *output + "'");
     const Scene s = load_scene_or_default(*scene);
     save_scene_binary(s, *output);
     std::fprintf(stderr, "wrote %s: %llu triangles, %zu instances, %zu textures\n", output->c_str(),

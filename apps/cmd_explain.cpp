@@ -4,6 +4,7 @@
 //               pixel; --gpu-frame: the GPU frame's own), or --ray / --ray-file (any ray)
 //   how         full (every float in decimal and hex) or --brief on stdout; --json FILE
 //   pictures    --export ray.obj, --svg ray.svg, --html page.html (the step-by-step viewer)
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
@@ -379,6 +380,11 @@ void write_pictures(const ExplainOptions& o, size_t i, size_t count, const refer
   }
 }
 
+// The most events --json and --html keep over all rays (each is a JSON object of a few KiB, or a
+// row of the viewer), so that many rays, or rays through crowded cells, fail named instead of
+// exhausting memory.
+constexpr size_t kMaxKeptEvents = 200000;
+
 void run_explain(const ExplainOptions& options) {
   check_frame_size(options.width, options.height);
   ExplainOptions o = options;
@@ -401,6 +407,7 @@ void run_explain(const ExplainOptions& options) {
   nlohmann::json json_rays = nlohmann::json::array();
   std::vector<std::string> written;  // said on stderr after stdout's text, which they would split
   nlohmann::json views = nlohmann::json::array();
+  size_t kept = 0;  // events kept for --json and --html (a few KiB each there)
   for (size_t i = 0; i < items.size(); ++i) {
     const Item& it = items[i];
     reference::ReferenceGridTracer& ref = ex.reference(it.traversal);
@@ -413,6 +420,13 @@ void run_explain(const ExplainOptions& options) {
       device = ex.device();
     }
 #endif
+    if (!o.json.empty() || !o.html.empty()) {
+      kept += want.events.size() + (got ? got->events.size() : 0);
+      if (kept > kMaxKeptEvents)
+        throw Error("explain: the " + std::to_string(i + 1) + " ray(s) so far leave " + std::to_string(kept) +
+                    " events, more than --json and --html keep (" + std::to_string(kMaxKeptEvents) +
+                    "; each takes a few KiB there): explain fewer rays at a time, or leave those outputs out");
+    }
     if (!o.json.empty()) json_rays.push_back(item_json(it, want, got, device, fmt));
     print_item(it, i, items.size(), want, got, device, fmt);
     write_pictures(o, i, items.size(), want, ref.data(), fmt, written);
@@ -450,7 +464,7 @@ void add_explain_command(CLI::App& app) {
       "own record beside it with --backend vulkan; as text or --brief, and --json, OBJ, SVG or an HTML viewer");
   add_scene_argument(cmd, o->scene);
   add_image_size(cmd, o->width, o->height, "of the frame whose pixel is explained");
-  cmd->add_option("--time,-t", o->time, "Scene time in seconds");
+  cmd->add_option("--time,-t", o->time, "Scene time in seconds")->check(CLI::Range(-1.0e6f, 1.0e6f));
   cmd->add_option("--frame", o->frame, "The frame number that seeds the glossy bounce's per-pixel random numbers");
   auto* pixel = cmd->add_option("--pixel,-p", o->pixel, "The pixel X,Y whose ray is explained")->delimiter(',')->expected(2);
   add_choice(cmd, "--kind", o->kind, {"auto", "primary", "bounce", "shadow"},
@@ -487,9 +501,26 @@ void add_explain_command(CLI::App& app) {
       throw CLI::ValidationError("explain", "--kind, --primary, --light and --gpu-frame go with --pixel");
     if (o->light && o->kind != "shadow")
       throw CLI::ValidationError("explain", "--light picks the shadow ray of one light: it goes with --kind shadow");
-    if (!o->obj.empty() && std::filesystem::path(o->obj).extension() == ".mtl")
+    const auto lower_extension = [](const std::string& path) {
+      std::string e = std::filesystem::path(path).extension().string();
+      for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+      return e;
+    };
+    if (!o->obj.empty() && lower_extension(o->obj) == ".mtl")
       throw CLI::ValidationError("explain", "--export " + o->obj + ": the OBJ's materials go beside it as NAME.mtl; "
                                             "name the OBJ NAME.obj");
+    // Each output its own file (the OBJ's .mtl beside it counts as one): one would replace another
+    std::vector<std::pair<std::string, std::string>> outputs;
+    for (const auto& [name, path] : {std::pair{"--export", o->obj}, std::pair{"--svg", o->svg},
+                                     std::pair{"--html", o->html}, std::pair{"--json", o->json}})
+      if (!path.empty()) outputs.emplace_back(name, path);
+    if (!o->obj.empty())
+      outputs.emplace_back("--export's materials", std::filesystem::path(o->obj).replace_extension(".mtl").string());
+    for (size_t a = 0; a < outputs.size(); ++a)
+      for (size_t b = a + 1; b < outputs.size(); ++b)
+        if (std::filesystem::path(outputs[a].second).lexically_normal() == std::filesystem::path(outputs[b].second).lexically_normal())
+          throw CLI::ValidationError("explain", outputs[a].first + " and " + outputs[b].first + " both name " +
+                                                    outputs[b].second + ": give each output its own file");
     if (o->gpu_frame && o->backend != "vulkan")
       throw CLI::ValidationError("explain", "--gpu-frame needs --backend vulkan (the GPU frame runs on the device)");
     o->traversal_given = cmd->count("--traversal") > 0;

@@ -88,14 +88,30 @@ void render_cpu_frame(const RenderOptions& o, const Scene& scene, Tracer& tracer
                frame, time, seconds_since(t0), path.c_str());
 }
 
-void run_render(const RenderOptions& options) {
+void run_render(const RenderOptions& options, bool scale_given, bool rays_given) {
   RenderOptions o = options;
   check_frame_size(o.width, o.height);
   if (!(std::abs(o.time) <= 1.0e6f))
     throw CLI::ValidationError("--time", "must be a finite number of seconds within +-1e6");
   if (!(o.fps >= 1.0e-3f && o.fps <= 1.0e6f)) throw CLI::ValidationError("--fps", "must lie in [0.001, 1e6]");
+  // The last frame's time too (frame k at --time + k / --fps)
+  if (o.frames > 1 && !(std::abs(double(o.time) + double(o.frames - 1) / double(o.fps)) <= 1.0e6))
+    throw CLI::ValidationError("--frames", std::to_string(o.frames) + " frames at --fps " + std::to_string(o.fps) +
+                                               " from --time " + std::to_string(o.time) +
+                                               " pass 1e6 s, the scene time's limit");
+  if (o.view == "shaded" && scale_given)
+    throw CLI::ValidationError("--scale", "sizes a --view figure: add --view, or leave --scale out");
+  if (o.view == "shaded" && rays_given)
+    throw CLI::ValidationError("--rays", "picks a --view figure's rays: add --view, or leave --rays out");
   if (o.view != "shaded") {
-    if (o.frames > 1) throw Error("--view " + o.view + " makes one picture: leave out --frames");
+    if (o.frames > 1) throw CLI::ValidationError("--view", o.view + " makes one picture: leave out --frames");
+    // The figure is --scale times the image along each side: its pixels count against --max-pixels
+    // too (about 40 bytes each)
+    const uint64_t figure = uint64_t(o.width) * o.height * uint64_t(o.scale) * uint64_t(o.scale);
+    if (figure > frame_limits().max_pixels)
+      throw Error("--view with --scale " + std::to_string(o.scale) + ": a figure of " + std::to_string(figure) +
+                  " pixels exceeds the limit of " + std::to_string(frame_limits().max_pixels) +
+                  " pixels (--max-pixels): lower --scale, --width or --height");
     ViewOptions v;
     v.view = o.view;
     v.scene = o.scene;
@@ -186,7 +202,7 @@ void add_render_command(CLI::App& app) {
                   "Tracer: " + backend_list() + ", or portal-cpu, portal-vulkan (voxel worlds: a .map, builtin:level, a scene voxelized) "
                   "(default: the first)");
   add_image_size(cmd, o->width, o->height, "in pixels");
-  cmd->add_option("--time,-t", o->time, "Scene time in seconds (animation)");
+  cmd->add_option("--time,-t", o->time, "Scene time in seconds (animation)")->check(CLI::Range(-1.0e6f, 1.0e6f));
   cmd->add_option("--frames", o->frames, "Frames to render, --fps apart, written as NAME_0000.EXT ...")
       ->check(CLI::Range(1u, 100000u));
   cmd->add_option("--fps", o->fps, "Frames per second of --frames")->check(CLI::Range(1.0e-3f, 1.0e6f));
@@ -198,12 +214,13 @@ void add_render_command(CLI::App& app) {
                   "(visited), tests (references tested), saturation (saturated cells visited), gap-fill (a gap-fill "
                   "voxel answered), spill (a spilled reference answered), diff (CPU reference vs Vulkan shader; "
                   "needs --backend vulkan)")->group("Views");
-  add_choice(cmd, "--rays", o->rays, {"bounce", "primary"},
+  auto* rays_opt = add_choice(cmd, "--rays", o->rays, {"bounce", "primary"},
                   "--view: which ray of each pixel: bounce (its glossy bounce, as the frame traces it; the camera "
                   "rays where the scene has no glossy material) or primary (the camera ray, through the grid)")->group("Views");
-  cmd->add_option("--scale", o->scale, "--view: figure pixels per image pixel")->check(CLI::Range(1, 16))->group("Views");
+  auto* scale_opt =
+      cmd->add_option("--scale", o->scale, "--view: figure pixels per image pixel")->check(CLI::Range(1, 16))->group("Views");
   add_backend_options(cmd, o->backend_options);
-  cmd->callback([o] { run_render(*o); });
+  cmd->callback([o, scale_opt, rays_opt] { run_render(*o, scale_opt->count() > 0, rays_opt->count() > 0); });
 }
 
 }  // namespace gridrt::app

@@ -68,6 +68,7 @@ struct Config {
   float enlargement = 1.25f, elongation = 0.5f;
   std::optional<float> padding;  // none: automatic
   uint32_t max_dim = 4096;
+  bool operator==(const Config&) const = default;
   std::string padding_text() const {
     if (!padding) return "auto";
     std::ostringstream s;
@@ -111,8 +112,11 @@ void check_member(const std::string& knob, const std::vector<std::string>& value
     }
 }
 
+// The most configurations one sweep runs (the product of its knob lists' lengths).
+constexpr uint64_t kMaxSweepConfigurations = 10000;
+
 // Every configuration of the grid of knobs; exact traversal ignores elongation and gap-fill, so
-// it takes only their first values (no duplicate rows).
+// it takes only their first values (no duplicate rows); a value given twice in a list counts once.
 std::vector<Config> configurations(const SweepOptions& o) {
   check_member("traversal", o.traversal, {"paper", "exact"});
   check_member("triangle-test", o.triangle_test, {"moller", "watertight"});
@@ -127,6 +131,17 @@ std::vector<Config> configurations(const SweepOptions& o) {
         (c.empty() || c.find_first_not_of("0123456789") != std::string::npos || !(std::strtod(c.c_str(), nullptr) >= 1.0 && std::strtod(c.c_str(), nullptr) <= 1024.0)))
       throw CLI::ValidationError("--capacity", "'" + c + "' is neither a number of slots in [1, 1024] nor auto, "
                                                "trace-cost, no-saturation or percentile (as for the other verbs)");
+  // The product of the lists' lengths, bounded before anything is made (each configuration builds
+  // a grid and traces the rays: a sweep of millions would only exhaust memory and time)
+  uint64_t product = 1;
+  for (const size_t n : {o.traversal.size(), o.triangle_test.size(), o.capacity.size(), o.enlargement.size(),
+                         o.padding.size(), o.elongation.size(), o.repeats.size(), o.gap_fill.size(), o.spill.size(),
+                         o.launch.size(), o.max_dim.size()})
+    product = std::min<uint64_t>(product * uint64_t(n), uint64_t(1) << 40);
+  if (product > kMaxSweepConfigurations)
+    throw CLI::ValidationError("sweep", "the knob lists make " + std::to_string(product) +
+                                            " configurations; at most " + std::to_string(kMaxSweepConfigurations) +
+                                            " a sweep (each builds a grid and traces every ray): shorten the lists");
   std::vector<Config> out;
   for (const std::string& tr : o.traversal)
     for (const std::string& tt : o.triangle_test)
@@ -155,7 +170,7 @@ std::vector<Config> configurations(const SweepOptions& o) {
                   c.spill = sp;
                   c.launch = la;
                   c.max_dim = uint32_t(parse_float("max-image-dimension", md, 2.0f, 65536.0f));
-                  out.push_back(c);
+                  if (std::find(out.begin(), out.end(), c) == out.end()) out.push_back(c);
                 }
   if (out.empty())
     throw CLI::ValidationError("--enlargement", "every configuration asks the exact traversal for an enlargement "
@@ -526,6 +541,7 @@ void run_sweep(const SweepOptions& o) {
   }
   std::printf("sweep: %zu configurations x %zu backend(s) per scene, %ux%u gather buffer, trace medians of %u\n",
               configs.size(), o.backends.size(), o.width, o.height, o.repeat);
+  std::map<std::string, int> stems_used;
   for (const std::string& spec : o.scenes) {
     const Scene scene = load_scene_or_default(spec);
     EmbreeTracer embree(0);
@@ -553,7 +569,9 @@ void run_sweep(const SweepOptions& o) {
         progress.advance();
       }
     progress.finish();
-    const std::string stem = file_stem(spec);
+    // Two scenes of one name (a/quad.obj, b/quad.obj) write apart: the second as quad-2
+    std::string stem = file_stem(spec);
+    if (const int n = ++stems_used[stem]; n > 1) stem += "-" + std::to_string(n);
     std::ostringstream header;
     header << "Scene `" << scene.name << "`: " << scene.triangle_count() << " triangles, " << rays.size()
            << " " << kind << " rays of a " << o.width << "x" << o.height << " gather buffer (frame 0, t = 0); Embree "

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -110,8 +111,17 @@ int main(int argc, char** argv) {
 #ifdef GRIDRT_HAVE_VERIFY
   app::add_verify_command(app);
 #endif
-  // Resource limits (safe_io.h, commands.h), before or after the verb.
+  // Resource limits (safe_io.h, commands.h), before or after the verb: every verb (and the
+  // portal's verbs) passes the options it does not know up to the app (a subcommand copies its
+  // parent's fallthrough when it is made, so it is set on each made above).
   app.fallthrough();
+  const std::function<void(CLI::App*)> fall_through = [&](CLI::App* cmd) {
+    for (CLI::App* sub : cmd->get_subcommands([](CLI::App*) { return true; })) {
+      sub->fallthrough();
+      fall_through(sub);
+    }
+  };
+  fall_through(&app);
   InputLimits& limits = input_limits();
   app.add_option_function<double>(
          "--max-input-mib", [&limits](double mib) { limits.max_file_bytes = uint64_t(mib * 1024.0 * 1024.0); },

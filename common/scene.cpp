@@ -30,7 +30,13 @@ glm::mat4 Motion::at(float time) const {
   }
   if (angular_speed != 0.0f) {
     m = glm::translate(m, pivot);
-    m = glm::rotate(m, angular_speed * time, glm::normalize(axis));
+    // The angle; where the float product passes float range (or leaves it without a digit of the
+    // turn), the same angle reduced modulo a turn in double precision, so that no time makes the
+    // rotation NaN (the instance would vanish from the frame)
+    float angle = angular_speed * time;
+    if (!(std::abs(angle) <= 1.0e6f))
+      angle = float(std::fmod(double(angular_speed) * double(time), 2.0 * std::numbers::pi));
+    m = glm::rotate(m, angle, glm::normalize(axis));
     m = glm::translate(m, -pivot);
   }
   return m;
@@ -238,6 +244,11 @@ void validate_camera(const Scene& s) {
   if (!(std::max({std::abs(c.eye.x), std::abs(c.eye.y), std::abs(c.eye.z)}) <= shared::kDomainMaxCoordinate))
     throw Error("scene '" + s.name + "': " + whose + ": the eye lies beyond 2^24 from the origin, outside the ray " +
                 "domain (docs/SPEC.md, \"Domain\"): every primary ray would be rejected; move it nearer");
+  if (!std::isfinite(glm::length(c.target - c.eye)))
+    throw Error("scene '" + s.name + "': " + whose + ": eye and target are too far apart (their distance overflows " +
+                "single precision)");
+  if (!std::isfinite(glm::length(c.up)))
+    throw Error("scene '" + s.name + "': " + whose + ": up is too long (its length overflows single precision)");
   if (!(glm::length(c.target - c.eye) > 0.0f))
     throw Error("scene '" + s.name + "': " + whose + ": eye and target are too close to give a view direction (their " +
                 "distance underflows single precision)");

@@ -454,7 +454,8 @@ GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
             (o.alpha_keying ? shared::kGridAlphaKeying : 0u) |
             (spill_enabled(o) ? shared::kGridSpill : (o.gap_fill ? shared::kGridGapFill : 0u)) |
             (skip_enabled(o) ? shared::kGridSkipEmpty : 0u) | (cell_box_enabled(o) ? shared::kGridCellBox : 0u) |
-            (compact_enabled(o) ? shared::kGridCompact : 0u) | (mailbox_enabled(o) ? shared::kGridMailbox : 0u);
+            (compact_enabled(o) ? shared::kGridCompact : 0u) | (mailbox_enabled(o) ? shared::kGridMailbox : 0u) |
+            (covered_enabled(o) ? shared::kGridSkipCovered : 0u);
   g.repeats = o.repeats == GridOptions::Repeats::skip     ? shared::kRepeatSkip
               : o.repeats == GridOptions::Repeats::retest ? shared::kRepeatRetest
                                                           : shared::kRepeatMerge;
@@ -632,14 +633,22 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     }
   }
   // Nothing fits yet (tiny image limits): coarser cells until something does
+  std::optional<GridCandidate> coarsest_unfit;  // the last of those that did not fit either
   for (int j = coarsest + 1; !done && ch.candidates.empty() && j < coarsest + 80; ++j) {
     if (cs_over) break;
     const GridCandidate c = weigh_j(j, paddings[0], g);
     if (c.fits) ch.candidates.push_back(c);
+    else coarsest_unfit = c;
   }
   // A cell-size override that does not fit: the compact layout's budget, or the image's limits
   if (ch.candidates.empty() && cs_over && unfit && !unfit->over_bound && (g.flags & shared::kGridCompact) != 0u)
     throw over_budget(*unfit, o, scene);
+  // The compact layout has no image: where even the coarsest grid tried is over the memory budget,
+  // the budget is what to name (not the image's limits)
+  if (ch.candidates.empty() && (g.flags & shared::kGridCompact) != 0u) {
+    const std::optional<GridCandidate>& c = coarsest_unfit ? coarsest_unfit : unfit;
+    if (c && !c->over_bound) throw over_budget(*c, o, scene);
+  }
   if (ch.candidates.empty()) throw too_big(cells_for(e, cs), cap_over.value_or(o.min_capacity), o);
   size_t best = 0;
   for (size_t i = 1; i < ch.candidates.size(); ++i)
@@ -664,6 +673,10 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
 
 GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice) {
   const GridOptions o = settle_overrides(options, scene);
+  // A capacity asked for above the largest allowed: named (the image's limits are not the cause)
+  if (o.capacity && *o.capacity > o.max_capacity)
+    throw Error("grid: a capacity of " + std::to_string(*o.capacity) + " slots is above --max-capacity " +
+                std::to_string(o.max_capacity) + (options.capacity ? "" : " (the capacity is the scene file's)"));
   // The exact traversal's promise (every triangle in every cell it overlaps) needs the plane test's
   // sphere to hold the whole cell: an enlargement below 1 drops triangles that cross a corner
   if (o.traversal == Traversal::exact && !(o.sphere_enlargement >= 1.0f))
@@ -676,11 +689,28 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
   const float cs = target_cell_size(scene, o, b);
   GridParams g = algorithm_params(o, scene);
   // A capacity asked for (option or scene) has a meaning in the image alone: auto takes the image
-  if (o.capacity && o.layout == AlgorithmOptions::Layout::automatic) g.flags &= ~shared::kGridCompact;
+  if (o.capacity && o.layout == AlgorithmOptions::Layout::automatic)
+    g.flags &= ~(shared::kGridCompact | shared::kGridSkipCovered);
   g.origin = b.lo;
-  if (o.capacity_policy == GridOptions::CapacityPolicy::percentile && !o.capacity)
-    return choose_by_percentile(scene, time, o, g, e, cs);
-  return choose_by_candidates(scene, time, o, g, e, cs, choice);
+  // Covered cells' bits take one more byte per cell: the grid is chosen without them, and they are
+  // kept where the chosen grid with them still fits the compact layout's memory budget (they must
+  // not push the choice to a coarser grid, which costs more than they save: docs/BENCHMARKS.md
+  // "Covered cells")
+  const bool covered = (g.flags & shared::kGridSkipCovered) != 0u;
+  g.flags &= ~shared::kGridSkipCovered;
+  GridChoice local;
+  GridChoice& ch = choice ? *choice : local;
+  GridParams p = o.capacity_policy == GridOptions::CapacityPolicy::percentile && !o.capacity
+                     ? choose_by_percentile(scene, time, o, g, e, cs)
+                     : choose_by_candidates(scene, time, o, g, e, cs, &ch);
+  if (covered && (p.flags & shared::kGridCompact) != 0u) {
+    GridParams q = p;
+    q.flags |= shared::kGridSkipCovered;
+    const uint64_t extra = uint64_t(shared::skip_words(q) - shared::skip_words(p)) * 4u;
+    const uint64_t memory = ch.chosen < ch.candidates.size() ? ch.candidates[ch.chosen].memory : 0u;
+    if (memory + extra <= compact_budget(o, scene.triangle_count())) p = q;
+  }
+  return p;
 }
 
 // ---- The spill list's capacity, and which effects the trace runs ----
@@ -704,6 +734,9 @@ bool skip_enabled(const AlgorithmOptions& o) { return o.skip_empty && o.traversa
 bool mailbox_enabled(const AlgorithmOptions& o) {
   return o.mailbox && o.traversal == Traversal::exact && o.insertion == Insertion::sorted;
 }
+
+// The cover bits live after the skip field's distances and describe the compact layout's runs.
+bool covered_enabled(const AlgorithmOptions& o) { return o.skip_covered && skip_enabled(o) && compact_enabled(o); }
 
 bool cell_box_enabled(const AlgorithmOptions& o) {
   return o.cell_test == AlgorithmOptions::CellTest::box ||
@@ -820,6 +853,18 @@ GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options) {
     throw Error("grid: --offsets is the compact layout's (the image layout has no offsets): the compact layout "
                 "needs the exact traversal and the spill list, and no --capacity");
   plan.spill_capacity = choose_spill_capacity(scene, time, options, plan.params, plan.choice);
+  // The compact layout's budget holds the whole grid: a spill list asked for alone over it is refused
+  if ((plan.params.flags & shared::kGridCompact) != 0u && options.spill_capacity) {
+    const uint64_t bytes = sizeof(shared::SpillHeader) + uint64_t(std::max(plan.spill_capacity, 1u)) * sizeof(shared::SpillEntry);
+    const uint64_t budget = compact_budget(options, scene.triangle_count());
+    if (bytes > budget) {
+      char text[160];
+      std::snprintf(text, sizeof text, "takes %.1f MiB, over the compact layout's memory budget of %.1f MiB",
+                    double(bytes) / double(1u << 20), double(budget) / double(1u << 20));
+      throw Error("grid: --spill-capacity " + std::to_string(plan.spill_capacity) + " " + text +
+                  " for the whole grid (--memory-budget)");
+    }
+  }
   if ((plan.params.flags & shared::kGridCompact) != 0u) {
     std::vector<bool> occupied(size_t(shared::grid_cell_count(plan.params)), false);
     for (size_t i = 0; i < scene.static_instance_count(); ++i)

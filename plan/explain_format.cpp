@@ -41,7 +41,9 @@ std::string u32(uint32_t v) { return std::to_string(v); }
 const char* test_reason(uint32_t code) {
   switch (code) {
     case kTestAccepted: return "ACCEPTED: inside the triangle, within the segment, closest so far";
-    case kTestParallel: return "rejected: det == 0, the ray is parallel to the triangle's plane";
+    case kTestParallel:
+      return "rejected: det == 0, the triangle seen along the ray has no area (the ray parallel to its plane, or its "
+             "sheared vertices on one line)";
     case kTestOutsideU: return "rejected: u*|det| < 0, outside edge v0-v2";
     case kTestOutsideV: return "rejected: v*|det| < 0, outside edge v0-v1";
     case kTestOutsideUV: return "rejected: (u+v)*|det| > |det|, outside edge v1-v2";
@@ -136,11 +138,19 @@ const char* event_kind_name(uint32_t kind) {
     case kEvSpillScan: return "spill-scan";
     case kEvSpilled: return "spilled";
     case kEvSkip: return "skip";
+    case kEvCovered: return "covered";
     default: return "unknown";
   }
 }
 
 namespace {
+// A cover face (kEvCovered's code: bit 2 axis + side of the cover bits) as text: "-x" is the
+// neighbour at index - 1 along x.
+std::string face_name(uint32_t f) {
+  if (f >= 6u) return "no";
+  return std::string(f % 2u == 0u ? "-" : "+") + char('x' + f / 2u);
+}
+
 // A skip step's dynamic boxes (its slot: the boxes the walk can reach, skip_box_reached), as text.
 std::string boxes_reached(uint32_t mask) {
   if (mask == 0u) return "";
@@ -233,6 +243,9 @@ std::vector<EventField> event_fields(uint32_t kind, bool exact) {
       return make({"kind", "distance to the nearest reference (cells)", "", "step", "cell",
                    "dynamic boxes the walk can reach (bit b: box b)", "", "", "", "", "t entry", "t exit of the box",
                    "", ""});
+    case kEvCovered:
+      return make({"kind", "face entered through (bit 2 axis + side)", "", "step", "cell",
+                   "references in the run, not read", "", "", "", "", "", "", "", ""});
     default:
       return make({"kind", "code", "ref", "step", "cell", "slot", "f0.x", "f0.y", "f0.z", "f0.w", "f1.x", "f1.y",
                    "f1.z", "f1.w"});
@@ -257,6 +270,7 @@ std::string grid_text(const GridParams& g, const ExplainFormat& fmt) {
      << (exact ? "exact (3D DDA)" : "paper (cell-sized segments)") << ", insertion "
      << (g.insertion == kInsertSorted ? "sorted" : "first-empty") << ((g.flags & kGridSpill) ? ", spill list on" : "")
      << ((g.flags & kGridSkipEmpty) ? ", empty-space skipping on" : "")
+     << ((g.flags & kGridSkipCovered) ? ", covered cells skipped" : "")
      << (mailbox_enabled(g) ? ", mailbox on" : "")
      << ((g.flags & kGridGapFill) ? ", gap-fill on" : "");
   return os.str();
@@ -373,6 +387,11 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
          << num(e.f1.x, fmt) << ", " << num(e.f1.y, fmt) << "]" << boxes_reached(e.slot);
       line();
       break;
+    case kEvCovered:
+      os << "  covered: the cell's " << e.slot << " static reference(s) all lie in the cell the walk came from "
+         << "(entered through its " << face_name(e.code) << " face), tested there: not read again";
+      line();
+      break;
     case kEvGapFill:
       os << "  gap-fill: the cell is saturated and no hit was reported; left the launch surface? "
          << num(e.f0.x, fmt) << " >= " << num(e.f0.y, fmt) << ": "
@@ -452,6 +471,9 @@ std::string event_summary(const ExplainRecord& rec, size_t i, const ExplainForma
     case kEvSkip:
       os << "step " << e.step << ": cell " << cellstr(e.cell) << " empty, box of " << (2 * e.code - 1)
          << " cells a side passed, t [" << num(e.f1.x, fmt) << ", " << num(e.f1.y, fmt) << "]";
+      break;
+    case kEvCovered:
+      os << "  covered from the " << face_name(e.code) << " face: " << e.slot << " reference(s) not read again";
       break;
     case kEvGapFill:
       os << "  gap-fill: " << event_code_name(e.kind, e.code)
@@ -551,6 +573,7 @@ nlohmann::json explain_json(const ExplainRecord& rec, const ExplainFormat& fmt) 
                  {"insertion", g.insertion == kInsertSorted ? "sorted" : "first-empty"},
                  {"spill", (g.flags & kGridSpill) != 0u},
                  {"skip_empty", (g.flags & kGridSkipEmpty) != 0u},
+                 {"skip_covered", (g.flags & kGridSkipCovered) != 0u},
                  {"mailbox", mailbox_enabled(g)},
                  {"gap_fill", (g.flags & kGridGapFill) != 0u},
                  {"alpha_keying", (g.flags & kGridAlphaKeying) != 0u},
@@ -652,15 +675,18 @@ Ray parse_ray(const std::string& text) {
     const size_t colon = s.find(':');
     if (colon != std::string::npos) {
       const std::string a = s.substr(0, colon), b = s.substr(colon + 1);
+      // Digits only: strtoul would take a sign (and wrap a negative number) or leading blanks
+      const auto digits = [](const std::string& t) { return !t.empty() && t.find_first_not_of("0123456789") == std::string::npos; };
       const unsigned long inst = std::strtoul(a.c_str(), &end, 10);
-      const bool ok = !a.empty() && *end == '\0';
+      const bool ok = digits(a) && *end == '\0';
       const unsigned long tri = std::strtoul(b.c_str(), &end, 10);
-      if (!ok || b.empty() || *end != '\0' || inst > 0xFFFEu || tri > 0xFFFFu)
+      if (!ok || !digits(b) || *end != '\0' || inst > 0xFFFEu || tri > 0xFFFFu)
         throw Error("launch_ref " + quoted(s) + " is not INSTANCE:TRIANGLE");
       r.launch_ref = uint32_t(inst << 16 | tri);
     } else {
       const unsigned long long v = std::strtoull(s.c_str(), &end, 0);
-      if (s.empty() || *end != '\0' || v > 0xFFFFFFFFull)
+      const bool unsigned_text = !s.empty() && s.find_first_of("+- \t") == std::string::npos;
+      if (!unsigned_text || *end != '\0' || v > 0xFFFFFFFFull)
         throw Error("launch_ref " + quoted(s) + " is not a reference (a number, 0x hex, INSTANCE:TRIANGLE or none)");
       r.launch_ref = uint32_t(v);
     }
@@ -668,16 +694,29 @@ Ray parse_ray(const std::string& text) {
   return r;
 }
 
+// The most rays a ray file holds.
+constexpr size_t kMaxRayFileRays = 1000000;
+
 std::vector<Ray> read_ray_file(const std::string& path) {
   // Read as every input is (a regular file within --max-input-mib: not /dev/zero, a FIFO or a
   // folder), with the text formats' one line-break rule
-  std::istringstream f(normalize_text(read_input_file(path, "ray file")));
+  const std::string text = normalize_text(read_input_file(path, "ray file"));
+  // A NUL byte would end a number early where it is parsed (strtof stops at it): refused, named
+  if (const size_t nul = text.find('\0'); nul != std::string::npos)
+    throw Error(path + ": line " + std::to_string(1 + std::count(text.begin(), text.begin() + long(nul), '\n')) +
+                ": a NUL byte (a ray file is text)");
+  std::istringstream f(text);
   std::vector<Ray> rays;
   std::string line;
   for (size_t n = 1; std::getline(f, line); ++n) {
     const size_t hash = line.find('#');
     if (hash != std::string::npos) line.resize(hash);
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    // explain is for the rays one reads: a bound, so that a huge file fails named (each ray kept
+    // takes about 0.6 KiB before any is traced); verify and bench take many rays
+    if (rays.size() == kMaxRayFileRays)
+      throw Error(path + ":" + std::to_string(n) + ": more than " + std::to_string(kMaxRayFileRays) +
+                  " rays in a ray file (explain is for the rays one reads; split the file)");
     try {
       rays.push_back(parse_ray(line));
     } catch (const Error& e) {

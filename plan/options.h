@@ -55,6 +55,11 @@ struct AlgorithmOptions {
   // register's compares and moves cost more than the re-tests, whose triangles are still cached;
   // docs/BENCHMARKS.md "The mailbox").
   bool mailbox = false;
+  // Covered cells (docs/SPEC.md "Covered cells"): the exact traversal does not read the static run
+  // of a cell entered through a face whose cover bit says every reference of the run lies in the
+  // neighbour's run across it (tested there: the hit cannot change; only the test count drops).
+  // Needs the compact layout and the skip field (the cover bits follow its distances).
+  bool skip_covered = true;
   // The build's cell test (docs/SPEC.md "Cell test"): sphere, the paper's (the triangle's plane
   // through the cell's enlarged bounding sphere, within its AABB's cell range); box, that and the
   // separating-axis test against the padded cell box (kGridCellBox: fewer references); automatic:

@@ -90,6 +90,8 @@ std::vector<uint32_t> compact_heads(const CellBox& region);
 bool skip_enabled(const AlgorithmOptions& o);
 // Whether `o` turns the mailbox on (kGridMailbox: the exact traversal with mailbox and sorted insertion).
 bool mailbox_enabled(const AlgorithmOptions& o);
+// Whether `o` turns covered cells on (kGridSkipCovered: the skip field and the compact layout, with skip_covered).
+bool covered_enabled(const AlgorithmOptions& o);
 // Whether `o` takes the separating-axis cell test (kGridCellBox: box, or automatic with the exact traversal).
 bool cell_box_enabled(const AlgorithmOptions& o);
 

@@ -29,8 +29,8 @@ void for_each_placed_triangle(const Scene& scene, size_t instance, float time, c
     p.v0 = transform_point(m, mesh.positions[tri.x]);
     p.v1 = transform_point(m, mesh.positions[tri.y]);
     p.v2 = transform_point(m, mesh.positions[tri.z]);
+    if (triangle_zero_area(p.v0, p.v1, p.v2)) continue;
     p.n = triangle_normal(p.v0, p.v1, p.v2);
-    if (sh_dot(p.n, p.n) == 0.0f) continue;
     triangle_cell_range(g, p.v0, p.v1, p.v2, p.lo, p.hi);
     f(p);
   }
@@ -312,15 +312,13 @@ WorkEstimate estimate_work(const GridParams& g, const TrialCounts& counts, const
     // The hit triangle W: the cells the build offers it (its padded range, the cell test)
     const std::array<vec3, 3>& w_tri = sample.hit[i];
     const vec3 n = triangle_normal(w_tri[0], w_tri[1], w_tri[2]);
-    const float nn = sh_dot(n, n);
     uvec3 lo = uvec3(1u), hi = uvec3(0u);
-    if (sh_finite(t_hit) && nn != 0.0f) triangle_cell_range(g, w_tri[0], w_tri[1], w_tri[2], lo, hi);
+    if (sh_finite(t_hit) && !triangle_zero_area(w_tri[0], w_tri[1], w_tri[2])) triangle_cell_range(g, w_tri[0], w_tri[1], w_tri[2], lo, hi);
     // The launch triangle: the trace skips it uncounted where a visited cell holds it
     const std::array<vec3, 3>& l_tri = sample.launch[i];
     const vec3 ln = triangle_normal(l_tri[0], l_tri[1], l_tri[2]);
-    const float lnn = sh_dot(ln, ln);
     uvec3 llo = uvec3(1u), lhi = uvec3(0u);
-    if ((g.flags & kGridExcludeLaunchRef) != 0u && lnn != 0.0f)
+    if ((g.flags & kGridExcludeLaunchRef) != 0u && !triangle_zero_area(l_tri[0], l_tri[1], l_tri[2]))
       triangle_cell_range(g, l_tri[0], l_tri[1], l_tri[2], llo, lhi);
     bool risk = false, voxel = false, offered = false, past = false;
     double missed = 1.0;  // the probability that no visit so far kept W with a window covering t_hit

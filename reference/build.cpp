@@ -44,6 +44,34 @@ void skip_table_pass(const GridData& grid, std::vector<uint32_t>& table, uint32_
     }
   }, 64);
 }
+// Whether the sorted run refs[b0, b1) lies in the sorted run refs[a0, a1) (one merge walk).
+bool run_within(const std::vector<uint32_t>& refs, uint32_t b0, uint32_t b1, uint32_t a0, uint32_t a1) {
+  if (b1 - b0 > a1 - a0) return false;
+  uint32_t j = a0;
+  for (uint32_t k = b0; k < b1; ++k) {
+    while (j < a1 && refs[j] < refs[k]) ++j;
+    if (j == a1 || refs[j] != refs[k]) return false;
+    ++j;
+  }
+  return true;
+}
+
+// A cell's cover bits (kGridSkipCovered; shared/grid.h "Covered cells"): bit f set iff its static
+// run is not empty and lies in the run of its neighbour across face f.
+uint32_t skip_cover_bits(const GridData& grid, glm::uvec3 c) {
+  const GridParams& g = grid.params;
+  uint32_t b0 = 0u, b1 = 0u;
+  if (!compact_run(grid, shared::cell_linear_index(g, c), b0, b1) || b1 == b0) return 0u;
+  uint32_t bits = 0u;
+  for (uint32_t f = 0u; f < 6u; ++f) {
+    glm::uvec3 n;
+    uint32_t a0 = 0u, a1 = 0u;
+    if (shared::skip_face_neighbour(g, c, f, n) && compact_run(grid, shared::cell_linear_index(g, n), a0, a1) &&
+        run_within(grid.refs, b0, b1, a0, a1))
+      bits |= 1u << f;
+  }
+  return bits;
+}
 }  // namespace
 
 void skip_field_build(GridData& grid, const GridOptions& o) {
@@ -59,16 +87,20 @@ void skip_field_build(GridData& grid, const GridOptions& o) {
   // The distances, one invocation per word (4 cells): the smallest r whose cube holds an occupied
   // cell, by binary search over the window its brick's distance leaves (skip_cell_window)
   const uint32_t cells = shared::grid_cell_count(g);
+  const bool covered = (g.flags & shared::kGridSkipCovered) != 0u;
   run_invocations((cells + 3u) / 4u, thread_count(o), std::nullopt, [&](uint32_t word) {
-    uint32_t packed = 0u;
+    uint32_t packed = 0u, cover = 0u;
     for (uint32_t q = 0; q < 4u && 4u * word + q < cells; ++q) {
       const uint32_t i = 4u * word + q;
       const glm::uvec3 c = shared::cell_of_linear_index(g, i);
       uint32_t lo = 0u, hi = 0u;
       shared::skip_cell_window(bricks[shared::skip_brick_index(g, c)], lo, hi);
       packed |= plan::skip_static_distance(g, table, c, lo, hi) << shared::skip_distance_shift(i);
+      // The cell's cover bits beside its distance (kGridSkipCovered)
+      if (covered) cover |= skip_cover_bits(grid, c) << shared::skip_distance_shift(i);
     }
     grid.skip[shared::kSkipHeaderWords + word] = packed;
+    if (covered) grid.skip[shared::skip_cover_word(g, 4u * word)] = cover;
   }, 256);
 }
 
@@ -442,9 +474,8 @@ void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t i
   out.v1 = v1;
   out.v2 = v2;
   // Skip zero-area triangles: no ray can hit them
+  if (shared::triangle_zero_area(v0, v1, v2)) return;
   const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
-  const float nn = shared::sh_dot(n, n);
-  if (nn == 0.0f) return;
   // Cells of the AABB range that the cell test keeps
   glm::uvec3 lo, hi;
   shared::triangle_cell_range(g, v0, v1, v2, lo, hi);

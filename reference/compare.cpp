@@ -68,9 +68,8 @@ std::vector<std::vector<uint32_t>> cell_candidates(const GridData& grid) {
   for (uint32_t i = 0; i < grid.instances.size(); ++i)
     for (uint32_t k = 0; k < grid.instances[i].tri_count; ++k) {
       const sh::GridTriangle& t = grid.triangles[grid.instances[i].tri_offset + k];
+      if (sh::triangle_zero_area(t.v0, t.v1, t.v2)) continue;
       const glm::vec3 n = sh::triangle_normal(t.v0, t.v1, t.v2);
-      const float nn = sh::sh_dot(n, n);
-      if (nn == 0.0f) continue;
       glm::uvec3 lo, hi;
       sh::triangle_cell_range(g, t.v0, t.v1, t.v2, lo, hi);
       for (uint32_t z = lo.z; z <= hi.z; ++z)
@@ -213,11 +212,11 @@ Difference classify_difference(const GridData& grid, const Ray& ray, const Hit& 
   const uint32_t w_ref = sh::ref_pack(want.instance, want.triangle);
   const sh::GridTriangle& tri = grid.triangles[grid.instances[want.instance].tri_offset + want.triangle];
   const glm::vec3 n = sh::triangle_normal(tri.v0, tri.v1, tri.v2);
-  const float nn = sh::sh_dot(n, n);
+  const bool area = !sh::triangle_zero_area(tri.v0, tri.v1, tri.v2);
   glm::uvec3 lo, hi;
   sh::triangle_cell_range(g, tri.v0, tri.v1, tri.v2, lo, hi);
   const auto offered = [&](glm::uvec3 c) {
-    return nn != 0.0f && glm::all(glm::greaterThanEqual(c, lo)) && glm::all(glm::lessThanEqual(c, hi)) &&
+    return area && glm::all(glm::greaterThanEqual(c, lo)) && glm::all(glm::lessThanEqual(c, hi)) &&
            sh::triangle_overlaps_cell(g, tri.v0, tri.v1, tri.v2, n, c);
   };
   const auto stored = [&](glm::uvec3 c) {

@@ -162,20 +162,30 @@ void test_spilled(const GridData& grid, TraceState& st, uvec3 cell, uint step, f
 // its index in the run as the slot, in ascending order;
 // then, for a cell of the dynamic region, its dynamic spill list (the region's head: its status is
 // kStatusDynamic where the list is not empty). Cells outside the region read no head.
-void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint step, float t_lo, float t_hi) {
+// With kGridSkipCovered, a cell entered through a face whose cover bit is set (`face`: the face
+// the walk entered through, kCoverNoFace for its first cell) reads no reference of its run: each
+// was tested in the neighbour the walk came from (kEvCovered instead of the run's slots).
+void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint step, float t_lo, float t_hi,
+                       uint face) {
   const GridParams& g = grid.params;
   const uint i = cell_linear_index(g, cell);
   uint begin = 0u;
   uint end = 0u;
   compact_run(grid, i, begin, end);
-  for (uint j = begin; j < end; ++j) {
-    const uint ref = grid.refs[j];
-    emit(st, kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
-    test_reference(grid, st, ref, step, cell, j - begin, t_lo, t_hi);
-    if (found_any(st)) return;
+  const bool covered = (g.flags & kGridSkipCovered) != 0u &&
+                       ((grid.skip[skip_cover_word(g, i)] >> (skip_distance_shift(i) + face)) & 1u) != 0u;
+  if (covered) {
+    emit(st, kEvCovered, face, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
+  } else {
+    for (uint j = begin; j < end; ++j) {
+      const uint ref = grid.refs[j];
+      emit(st, kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
+      test_reference(grid, st, ref, step, cell, j - begin, t_lo, t_hi);
+      if (found_any(st)) return;
+    }
+    // The run's end, as the image's first blank slot
+    emit(st, kEvSlot, 0u, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
   }
-  // The run's end, as the image's first blank slot
-  emit(st, kEvSlot, 0u, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
   const uvec3 lo = uvec3(grid.spill_heads[0], grid.spill_heads[1], grid.spill_heads[2]);
   const uvec3 hi = uvec3(grid.spill_heads[4], grid.spill_heads[5], grid.spill_heads[6]);
   if (!region_contains(cell, lo, hi)) return;
@@ -339,6 +349,8 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
   float t_entry = st.rs.t_start;
   // The dynamic boxes the walk can reach: the others lower no distance on it
   st.box_mask = (g.flags & kGridSkipEmpty) != 0u ? skip_box_mask(grid, st, inv_dir, w.cell) : 0u;
+  // The face the walk entered the cell through (kGridSkipCovered; the first cell: none)
+  uint face = kCoverNoFace;
   for (uint k = 0u; k < g.max_segments; ++k) {
     // Empty-space skipping: an empty cell's distance d to the nearest reference; the walk passes
     // the box of radius d - 1 around it at once (docs/SPEC.md "Empty-space skipping")
@@ -353,7 +365,7 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
       if ((g.flags & kGridCompact) != 0u) {
         // The compact layout: the cell's run, then its dynamic list
-        test_compact_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
+        test_compact_cell(grid, st, cell, k, st.rs.t_lo, st.tmax, face);
       } else {
         const uint last_ref = test_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
         // A saturated cell's spilled references
@@ -367,7 +379,9 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
     // Report the closest hit once it lies inside this cell (or box) or before; any hit at once
     if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= t_exit)) return report(st, k);
     if (t_exit >= st.rs.t_end) return finish(st, t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
-    // Step to the next cell
+    // Step to the next cell: the face it is entered through is the step's (after a box of empty
+    // cells too: the neighbour across it is then one of the box's, whose run is empty)
+    face = skip_entry_face(st.dir, dda_step_axis(w.exits));
     if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(st, kMissLeftGrid, k);
     t_entry = t_exit;
   }

@@ -140,8 +140,7 @@ GridStats grid_stats(const GridData& grid) {
   uint64_t sum = 0, counted = 0, range_sum = 0;
   for (size_t i = 0; i < grid.triangles.size(); ++i) {
     const shared::GridTriangle& t = grid.triangles[i];
-    const glm::vec3 n = shared::triangle_normal(t.v0, t.v1, t.v2);
-    if (shared::sh_dot(n, n) == 0.0f) {
+    if (shared::triangle_zero_area(t.v0, t.v1, t.v2)) {
       ++s.degenerate_triangles;
       continue;
     }

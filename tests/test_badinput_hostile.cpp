@@ -312,3 +312,81 @@ TEST_CASE("A rotating instance whose sweep passes float range is named, not blam
   CHECK(r.exit_code == 1);
   CHECK_THAT(r.output, Contains("instance 'spin'") && Contains("not finite"));
 }
+
+TEST_CASE("Outside sweep: options, limits and outputs refused or named where they were not", "[badinput][cli]") {
+  const fs::path d = scratch("options");
+  // The limit options after the verb, as the help says (they were "not expected" there)
+  {
+    const auto r = run_tool("render builtin:cornell --width 16 --height 16 --max-pixels 100 -o " + (d / "a.ppm").string());
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("--max-pixels"));
+  }
+  {
+    const auto r = run_tool("portal render builtin:level --width 16 --height 16 --max-pixels 100 -o " + (d / "p.ppm").string());
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("--max-pixels"));
+  }
+  // A --view figure --scale times the image counts against --max-pixels
+  {
+    const auto r = run_tool("render builtin:cornell --view cells --width 64 --height 64 --scale 16 --max-pixels 100000 -o " +
+                            (d / "v.png").string());
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("--scale 16") && Contains("--max-pixels"));
+  }
+  // --scale without --view says so
+  CHECK(run_tool("render builtin:cornell --width 8 --height 8 --scale 2 -o " + (d / "s.ppm").string()).exit_code == 2);
+  // Scene times past 1e6 s in every verb, and frames whose times pass it
+  CHECK(run_tool("stats builtin:atrium -t 1e38").exit_code == 2);
+  CHECK(run_tool("explain builtin:atrium -t 2e6 --ray 0,1,0,1,0,0").exit_code == 2);
+  CHECK(run_tool("bench builtin:atrium --backend cpu --fps 1e-30 --frames 1 --warmup 0").exit_code == 2);
+  CHECK(run_tool("render builtin:atrium --time 999999 --frames 3 --fps 0.001 --width 8 --height 8 -o " +
+                 (d / "f.ppm").string()).exit_code == 2);
+  // A capacity above --max-capacity names it (it said "exceed the image limits")
+  {
+    const auto r = run_tool("stats builtin:cornell --capacity 8 --max-capacity 7");
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("--max-capacity 7"));
+  }
+  // The compact layout's budget: named where nothing fits it, and a spill list alone over it refused
+  {
+    const auto r = run_tool("stats builtin:cornell --traversal exact --memory-budget 0.001");
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("--memory-budget"));
+    CHECK_THAT(r.output, !Contains("image limits"));
+  }
+  {
+    const auto r = run_tool("stats builtin:cornell --traversal exact --spill-capacity 268435456");
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("--spill-capacity") && Contains("--memory-budget"));
+  }
+  // explain: two outputs naming one file, the OBJ's materials among them
+  CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --json " + (d / "x").string() + " --svg " +
+                 (d / "x").string()).exit_code == 2);
+  CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --export " + (d / "b.obj").string() + " --json " +
+                 (d / "b.mtl").string()).exit_code == 2);
+  CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --export " + (d / "c.MTL").string()).exit_code == 2);
+}
+
+TEST_CASE("Outside sweep: ray files with a NUL byte or a signed launch reference are refused", "[badinput][cli]") {
+  const fs::path d = scratch("rayfile");
+  {
+    std::ofstream f(d / "nul.txt", std::ios::binary);
+    f << "2.78,2.74,2.79,0,0,-1,0,0.5";
+    f.put('\0');
+    f << "99\n";
+  }
+  const auto r = run_tool("explain builtin:cornell --brief --ray-file " + (d / "nul.txt").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("NUL"));
+  std::ofstream(d / "neg.txt") << "2.78,2.74,2.79,0,0,-1,0,100,-18446744073709551615\n";
+  CHECK(run_tool("explain builtin:cornell --brief --ray-file " + (d / "neg.txt").string()).exit_code == 1);
+  std::ofstream(d / "plus.txt") << "2.78,2.74,2.79,0,0,-1,0,100,+0:+1\n";
+  CHECK(run_tool("explain builtin:cornell --brief --ray-file " + (d / "plus.txt").string()).exit_code == 1);
+}

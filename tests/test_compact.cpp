@@ -28,6 +28,7 @@ GridOptions compact_options(GridOptions::Layout layout) {
   o.traversal = Traversal::exact;
   o.layout = layout;
   o.threads = 2;
+  o.skip_covered = false;  // the layouts alone, test for test (covered cells: test_grid_covered.cpp)
   return o;
 }
 

@@ -33,7 +33,7 @@ std::vector<std::vector<uint32_t>> candidates(const Scene& scene, const sh::Grid
       const glm::vec3 v1 = sh::transform_point(m, mesh.positions[idx.y]);
       const glm::vec3 v2 = sh::transform_point(m, mesh.positions[idx.z]);
       const glm::vec3 n = sh::triangle_normal(v0, v1, v2);
-      if (sh::sh_dot(n, n) == 0.0f) continue;
+      if (sh::triangle_zero_area(v0, v1, v2)) continue;
       glm::uvec3 lo, hi;
       sh::triangle_cell_range(g, v0, v1, v2, lo, hi);
       for (uint32_t z = lo.z; z <= hi.z; ++z)

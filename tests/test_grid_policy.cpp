@@ -113,7 +113,8 @@ TEST_CASE("trace-cost policy: estimated cells and tests per ray are the referenc
       o.threads = 2;
       o.traversal = t;
       o.skip_empty = mode.skip;
-      o.mailbox = false;     // the estimate tests every reference of every visit (the mailbox only drops re-tests)
+      o.mailbox = false;     // the estimate tests every reference of every visit (the mailbox only drops re-tests,
+      o.skip_covered = false;  // covered cells whole runs of them)
       const GridChoice choice = choose(scene, o);
       const GridCandidate& c = choice.candidates[choice.chosen];
       ReferenceGridTracer grid(at_candidate(o, c));
@@ -142,6 +143,18 @@ TEST_CASE("trace-cost policy: estimated cells and tests per ray are the referenc
         WARN(name << ": measured with the mailbox " << f.cells << " cells, " << f.tests << " tests per ray");
         CHECK(f.cells == m.cells);
         CHECK(f.tests <= m.tests);
+        // With covered cells skipped (the default, where the skip field is on): the same cells, at
+        // most the estimated tests
+        o.mailbox = false;
+        o.skip_covered = true;
+        ReferenceGridTracer covered(at_candidate(o, c));
+        covered.build(scene, 0.0f);
+        std::vector<Hit> skipped(hits.size());
+        covered.trace(choice.sample.rays, skipped);
+        const WorkEstimate v = reference::measured_work(choice.sample.rays, skipped);
+        WARN(name << ": measured with covered cells skipped " << v.cells << " cells, " << v.tests << " tests per ray");
+        CHECK(v.cells == m.cells);
+        CHECK(v.tests <= m.tests);
       }
     }
   }

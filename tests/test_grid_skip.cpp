@@ -26,6 +26,7 @@ GridOptions skip_options(bool skip) {
   o.threads = 2;
   o.traversal = reference::Traversal::exact;
   o.skip_empty = skip;
+  o.skip_covered = false;  // skipping alone (covered cells: test_grid_covered.cpp)
   o.resolution = glm::uvec3(40, 36, 44);  // fine cells: room to skip (the automatic grid has few)
   return o;
 }

@@ -14,6 +14,7 @@
 
 #include <catch2/catch.hpp>
 
+#include "gridrt/common/shared/bounce.h"
 #include "gridrt/reference/compare.h"
 #include "tests/test_grid_util.h"
 #ifdef GRIDRT_WITH_VULKAN
@@ -808,4 +809,38 @@ TEST_CASE("hardcase: paper gap-fill: a first sample exactly at t_lo is outside t
   const std::vector<Hit> h = trace(scene, o, rays);
   expect_hit(rays[0], h[0], 0, h[0].triangle, 3.9f);
   CHECK(h[0].triangle / 2 == 5u);  // the +z wall
+}
+
+TEST_CASE("hardcase: triangles 4e-12 across (dot(n, n) underflows) are inserted, hit and given a normal",
+          "[hardcase][vulkan]") {
+  // An outside sweep's find: the build took a triangle whose dot(n, n) underflows to zero for
+  // zero-area and never inserted it (a blank picture of a model scaled by 1e-11, wrong answers)
+  std::vector<std::array<glm::vec3, 3>> tiny;
+  for (int i = 0; i < 4; ++i) {
+    const glm::vec3 a(8e-12f * float(i), 0.0f, 0.0f);
+    tiny.push_back({a, a + glm::vec3(4e-12f, 0, 0), a + glm::vec3(0, 4e-12f, 0)});
+  }
+  tiny.push_back({glm::vec3(0.0f), glm::vec3(1e-12f, 0.0f, 0.0f), glm::vec3(2e-12f, 0.0f, 0.0f)});  // collinear: no area
+  const Scene scene = scene_of({mesh_of(tiny, "tiny")});
+  for (const auto& t : tiny) {
+    const glm::vec3 n = sh::triangle_normal(t[0], t[1], t[2]);
+    CHECK(sh::sh_dot(n, n) < 1e-40f);  // what the zero-area test used to read as zero
+  }
+  CHECK_FALSE(sh::triangle_zero_area(tiny[0][0], tiny[0][1], tiny[0][2]));
+  CHECK(sh::triangle_zero_area(tiny[4][0], tiny[4][1], tiny[4][2]));
+  const glm::vec4 g = sh::gather_normal(tiny[0][0], tiny[0][1], tiny[0][2], glm::vec3(0, 0, -1));
+  CHECK(g.w == 1.0f);
+  CHECK(g.z == 1.0f);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 4; ++i) rays.push_back(ray({8e-12f * float(i) + 1e-12f, 1e-12f, 1e-9f}, {0, 0, -1}));
+  rays.push_back(ray({6e-12f, 1e-12f, 1e-9f}, {0, 0, -1}));  // between two of them: a miss
+  for (const Mode& m : {kExactMoller, kExactWatertight}) {
+    INFO(m.name);
+    const std::vector<Hit> h = trace(scene, options_for(m), rays);
+    for (int i = 0; i < 4; ++i) {
+      expect_hit(rays[size_t(i)], h[size_t(i)], 0, uint32_t(i), 1e-9f);
+      CHECK(std::abs(h[size_t(i)].t - 1e-9f) <= 1e-15f);
+    }
+    CHECK(is_miss(h[4]));
+  }
 }

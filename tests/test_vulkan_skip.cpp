@@ -24,19 +24,26 @@ TEST_CASE("Vulkan skip field and skipping trace identical in bits to the referen
   ctx.clear_messages();
   const Scene scene = gridtest::random_scene(200, 0.6f, 10.0f, 12, 40);
   // The compact layout (the exact traversal's default) and the image layout: the skip field reads
-  // a cell's occupancy from its offsets or from its first slot
-  for (const GridOptions::Layout layout : {GridOptions::Layout::compact, GridOptions::Layout::image}) {
-    INFO((layout == GridOptions::Layout::compact ? "compact layout" : "image layout"));
+  // a cell's occupancy from its offsets or from its first slot; the compact layout's cover bits
+  // (docs/SPEC.md "Covered cells") with dense and, on a finer grid, sparse offsets
+  using Layout = GridOptions::Layout;
+  using Offsets = GridOptions::Offsets;
+  for (const auto& [layout, offsets] : {std::pair{Layout::compact, Offsets::automatic}, std::pair{Layout::image, Offsets::automatic},
+                                        std::pair{Layout::compact, Offsets::sparse}}) {
+    INFO((layout == Layout::compact ? "compact layout" : "image layout") << (offsets == Offsets::sparse ? ", sparse offsets" : ""));
     GridOptions o;
     o.threads = 2;
     o.traversal = reference::Traversal::exact;
     o.layout = layout;
+    o.offsets = offsets;
+    if (offsets == Offsets::sparse) o.resolution = glm::uvec3(40, 36, 44);
     ReferenceGridTracer ref(o);
     ref.build(scene, 0.0f);
     VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute});
     vk.build(scene, 0.0f);
     REQUIRE((vk.params().flags & sh::kGridSkipEmpty) != 0u);
-    REQUIRE(((vk.params().flags & sh::kGridCompact) != 0u) == (layout == GridOptions::Layout::compact));
+    REQUIRE(((vk.params().flags & sh::kGridCompact) != 0u) == (layout == Layout::compact));
+    REQUIRE(((vk.params().flags & sh::kGridSkipCovered) != 0u) == (layout == Layout::compact));
     std::mt19937 rng(5);
     std::uniform_real_distribution<float> p(-1.0f, 11.0f), d(-1.0f, 1.0f);
     for (float time : {0.0f, 0.8f, 1.9f}) {

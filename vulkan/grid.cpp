@@ -644,13 +644,16 @@ void VulkanGridTracer::update(float time) {
 
 void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what) {
   if (ctx.info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE) return;
-  if (g.traversal != shared::kTraversalExact || (g.flags & shared::kGridCompact) == 0u) return;
+  if (g.traversal != shared::kTraversalExact) return;
+  const uint32_t limit = (g.flags & shared::kGridCompact) == 0u ? kLlvmpipeImageTestLimit
+                         : (g.flags & shared::kGridMailbox) != 0u ? kLlvmpipeMailboxTestLimit
+                                                                  : kLlvmpipeTestLimit;
   uint32_t most = 0;
   for (const Hit& h : hits) most = std::max(most, h.tests);
-  if (most < kLlvmpipeTestLimit) return;
+  if (most < limit) return;
   throw Error("vulkan-grid: " + std::string(what) + ": a ray tested " + std::to_string(most) +
               " references; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, "
-              "which cuts this trace near 4,680 tests (refused from " + std::to_string(kLlvmpipeTestLimit) +
+              "which cuts this trace short (refused from " + std::to_string(limit) +
               "): its hits cannot be trusted (the cells hold too many overlapping triangles: run on a GPU, or "
               "with --backend cpu)");
 }

@@ -76,10 +76,15 @@ struct GridTimings {
 // llvmpipe, Mesa's CPU driver, ends every loop of a shader invocation once its loops have run
 // 65,535 iterations in all (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), and says nothing: the exact
 // traversal's one-loop trace (trace.comp trace_exact_flat, the compact layout) is cut near 4,680
-// reference tests and the ray's record is wrong (measured: N copies of one triangle, N >= 3,000).
-// check_loop_limit refuses, on llvmpipe and for that trace, records of kLlvmpipeTestLimit tests or
-// more (`what`: the rays, for the message); elsewhere it does nothing (docs/VULKAN.md).
+// reference tests and the ray's record is wrong (measured: N copies of one triangle, N >= 3,000);
+// with the mailbox (its loops count too) near 2,980; the image layout's trace near 64,500.
+// check_loop_limit refuses, on llvmpipe and for the exact traversal, records of kLlvmpipeTestLimit
+// tests or more (kLlvmpipeMailboxTestLimit with the mailbox, kLlvmpipeImageTestLimit on the image
+// layout; a cut record shows the tests it made before the cut, above those) (`what`: the rays, for
+// the message); elsewhere it does nothing (docs/VULKAN.md).
 inline constexpr uint32_t kLlvmpipeTestLimit = 4096;
+inline constexpr uint32_t kLlvmpipeMailboxTestLimit = 2048;
+inline constexpr uint32_t kLlvmpipeImageTestLimit = 32768;
 void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what);
 
 class VulkanGridTracer : public Tracer {

@@ -73,11 +73,18 @@ SH_INLINE vec3 camera_direction(SH_IN(CameraParams) c, uint x, uint y) {
 }
 
 // Unit geometric normal of triangle (a, b, c), flipped to face against `dir`; w = 0 when the
-// triangle has no area (then the pixel has no surface).
+// triangle has no area (then the pixel has no surface). The cross product is normalized in units
+// that bring its largest component into [1, 2) (sh_unit_scale: the same bits wherever dot(n, n)
+// stays in the normal range), so that a triangle whose dot(n, n) would underflow (edges about
+// 4e-12) or overflow (about 1e10) still has its normal.
 SH_INLINE vec4 gather_normal(SH_IN(vec3) a, SH_IN(vec3) b, SH_IN(vec3) c, SH_IN(vec3) dir) {
   SH_PRECISE vec3 e1 = b - a;
   SH_PRECISE vec3 e2 = c - a;
-  vec3 n = sh_cross(e1, e2);
+  vec3 n0 = sh_cross(e1, e2);
+  vec3 an = abs(n0);
+  float m = max(max(an.x, an.y), an.z);
+  if (!(m > 0.0f && m <= 3.40282347e38f)) return vec4(0.0f);
+  SH_PRECISE vec3 n = n0 * sh_unit_scale(m);
   SH_PRECISE float dd = sh_dot(n, n);
   SH_PRECISE float len = sh_sqrt(dd);
   if (!(len > 0.0f)) return vec4(0.0f);

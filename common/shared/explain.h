@@ -43,6 +43,10 @@ SH_CONST uint kEvSkip = 16u;      // exact, kGridSkipEmpty: an empty cell, its b
                                   // spans d - 1 cells each way), slot = the dynamic boxes the
                                   // walk can reach (bit b: box b; skip_box_reached), f0 = (entry
                                   // point xyz, t entry), f1 = (t entry, t exit of the box, t_lo, t_hi)
+SH_CONST uint kEvCovered = 17u;   // exact, kGridSkipCovered: the cell's static run is not read, every
+                                  // reference of it lies in the run of the neighbour the walk entered
+                                  // it from, tested there: cell, code = the face entered through
+                                  // (bit 2 axis + side of the cover bits), slot = the run's length
 
 // kEvGapFill codes
 SH_CONST uint kGapApplied = 0u;      // saturated, no hit reported in the cell, left the surface

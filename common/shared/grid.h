@@ -47,6 +47,9 @@ SH_CONST uint kGridCompact = 64u;          // the compact layout (docs/SPEC.md "
 SH_CONST uint kGridSparseOffsets = 1024u;  // the compact layout's offsets index the occupied cells only (an
                                            // occupancy mask per 32 cells, a start per occupied cell), where one
                                            // offset per cell would not fit the memory budget (docs/SPEC.md)
+SH_CONST uint kGridSkipCovered = 2048u;   // exact traversal, compact layout, skip field: a cell whose static run
+                                           // lies in the run of the neighbour the walk entered it from is not
+                                           // tested again (the cover bits; docs/SPEC.md "Covered cells")
 SH_CONST uint kGridMailbox = 128u;         // exact traversal: a reference tested earlier on the ray (one of
                                            // the last kMailboxSize tested) is not tested again; the paper
                                            // traversal and first-empty insertion ignore it (docs/SPEC.md "Mailbox")
@@ -303,12 +306,34 @@ SH_INLINE void triangle_cell_range(SH_IN(GridParams) g, SH_IN(vec3) v0, SH_IN(ve
   hi = cell_of_local(g, fmax);
 }
 
-// Unnormalized plane normal n = cross(v1 - v0, v2 - v0). dot(n, n) == 0 marks a zero-area
-// triangle: it is never inserted (no ray can hit it).
+// Unnormalized plane normal n = cross(v1 - v0, v2 - v0).
 SH_INLINE vec3 triangle_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
   SH_PRECISE vec3 e1 = v1 - v0;
   SH_PRECISE vec3 e2 = v2 - v0;
   return sh_cross(e1, e2);
+}
+
+// A zero-area triangle, never inserted (no ray can hit it): the cross product of its edges is
+// exactly zero, taken with the edges scaled by the power of two S that brings their largest
+// component into [1, 2) (exact: the same products scaled by S^2, so zero exactly where the
+// world-space cross product is, wherever that one stays in the normal range). In world units a
+// triangle with edges 4e-12 long has dot(n, n) about 1e-46, which underflows to zero: testing that
+// dropped triangles that rays hit; and n itself underflows (or is flushed, on devices that flush
+// denormals) for edges below about 1e-19, where S keeps them.
+SH_INLINE bool triangle_zero_area(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  SH_PRECISE vec3 e1 = v1 - v0;
+  SH_PRECISE vec3 e2 = v2 - v0;
+  vec3 a = max(abs(e1), abs(e2));
+  float m = max(max(a.x, a.y), a.z);
+  // m == 0: both edges are zero; m not finite: no finite scale (such a triangle is out of domain
+  // and refused by the loaders; it has area here, as before)
+  if (m == 0.0f) return true;
+  if (!(m <= 3.40282347e38f)) return false;
+  float s = sh_unit_scale(m);
+  SH_PRECISE vec3 f1 = e1 * s;
+  SH_PRECISE vec3 f2 = e2 * s;
+  SH_PRECISE vec3 n = sh_cross(f1, f2);
+  return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
 }
 
 // The cell test's unit: the power of two S with S * cell_size in [1, 2) (from the bits of
@@ -887,10 +912,47 @@ SH_CONST uint kSkipMaxDistance = 255u;
 SH_CONST uint kSkipMaxBoxes = 8u;
 SH_CONST uint kSkipBoxWords = 8u;
 SH_CONST uint kSkipHeaderWords = 4u + kSkipMaxBoxes * kSkipBoxWords;
-SH_INLINE uint skip_words(SH_IN(GridParams) g) { return kSkipHeaderWords + (grid_cell_count(g) + 3u) / 4u; }
+// With kGridSkipCovered the cover bits follow the distances, 8 bits per cell in the same packing
+// (skip_cover_word; "Covered cells" below).
+SH_INLINE uint skip_words(SH_IN(GridParams) g) {
+  uint region = (grid_cell_count(g) + 3u) / 4u;
+  return kSkipHeaderWords + ((g.flags & kGridSkipCovered) != 0u ? 2u * region : region);
+}
 SH_INLINE uint skip_distance_word(uint i) { return kSkipHeaderWords + i / 4u; }
 SH_INLINE uint skip_distance_shift(uint i) { return 8u * (i % 4u); }
 SH_INLINE uint skip_box_word(uint b) { return 4u + b * kSkipBoxWords; }
+
+// ---- Covered cells (kGridSkipCovered; docs/SPEC.md "Covered cells") ----
+// Per cell, 6 cover bits: bit 2 a + s (axis a; s = 0 the neighbour at index - 1 along a, s = 1 at
+// index + 1) is set iff the cell's static run is not empty and every reference of it is in that
+// neighbour's static run. The exact traversal tests every reference against the whole ray with
+// the best hit so far as the bound, so on entering a cell through a face whose bit is set, the
+// cell's static references were all tested in the cell it came from (or, that one covered too,
+// earlier): their results cannot change, and the walk skips them (the dynamic list is still
+// tested). Stored after the distances, 8 bits per cell, 4 cells per word.
+SH_CONST uint kCoverNoFace = 6u;  // the walk's first cell: entered through no face (bit 6 is never set)
+SH_INLINE uint skip_cover_word(SH_IN(GridParams) g, uint i) {
+  return kSkipHeaderWords + (grid_cell_count(g) + 3u) / 4u + i / 4u;
+}
+// The face a single DDA step along axis a enters the next cell through: the direction's sign along
+// a says which neighbour the walk came from.
+SH_INLINE uint skip_entry_face(SH_IN(vec3) dir, uint a) {
+  float d = a == 0u ? dir.x : (a == 1u ? dir.y : dir.z);
+  return 2u * a + (d > 0.0f ? 0u : 1u);
+}
+// The neighbour of cell c across face f, and whether it lies in the grid.
+SH_INLINE bool skip_face_neighbour(SH_IN(GridParams) g, SH_IN(uvec3) c, uint f, SH_OUT(uvec3) n) {
+  uint a = f / 2u;
+  uint k = a == 0u ? c.x : (a == 1u ? c.y : c.z);
+  uint size = a == 0u ? g.cells.x : (a == 1u ? g.cells.y : g.cells.z);
+  bool inside = (f % 2u) == 0u ? k > 0u : k + 1u < size;
+  uint m = (f % 2u) == 0u ? k - 1u : k + 1u;
+  n = c;
+  if (a == 0u) n.x = m;
+  else if (a == 1u) n.y = m;
+  else n.z = m;
+  return inside;
+}
 
 // A dynamic instance's box: the cells of the padded local bounds [fmin, fmax] of its world-space
 // vertices (componentwise min and max of grid_local over every vertex). Each of its triangles'

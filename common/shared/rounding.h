@@ -204,6 +204,16 @@ SH_INLINE float sh_sqrt(float a) {
   return sh_sqrt_correct(a, s0);
 }
 
+// The power of two S that brings m (> 0, finite) into [1, 2) (a denormal m: 2^126, which brings
+// it at least to its own exponent's range). Scaling by S is exact wherever it neither overflows nor
+// underflows, and commutes with every rounding: products, sums, sqrt and / of scaled values are
+// the unscaled ones scaled, so a computation done in scaled units keeps its decisions and, after
+// the scale cancels, its bits, while its squares stay in the normal range.
+SH_INLINE float sh_unit_scale(float m) {
+  uint e = (floatBitsToUint(m) >> 23u) & 0xFFu;
+  return uintBitsToFloat((254u - max(e, 1u)) << 23u);
+}
+
 SH_END
 
 #endif

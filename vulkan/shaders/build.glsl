@@ -194,9 +194,8 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
   triangles[k].v1 = v1;
   triangles[k].v2 = v2;
   // Skip zero-area triangles: no ray can hit them
+  if (triangle_zero_area(v0, v1, v2)) return;
   const vec3 n = triangle_normal(v0, v1, v2);
-  const float nn = sh_dot(n, n);
-  if (nn == 0.0f) return;
   // Cells of the AABB range that the cell test keeps
   uvec3 lo;
   uvec3 hi;

@@ -40,8 +40,7 @@ void bin_triangle() {
     ref = ref_pack(instance, k - instances[instance].tri_offset);
     tri = triangles[k];
     // Zero-area triangles are never hit (the grid does not insert them)
-    const vec3 n = triangle_normal(tri.v0, tri.v1, tri.v2);
-    if (sh_dot(n, n) != 0.0f && gather_box(c, fp.near_plane, tri.v0, tri.v1, tri.v2, box)) {
+    if (!triangle_zero_area(tri.v0, tri.v1, tri.v2) && gather_box(c, fp.near_plane, tri.v0, tri.v1, tri.v2, box)) {
       here = (box.z - box.x + 1u) * (box.w - box.y + 1u) <= 16u;
       if (!here) {
         if (boxes)

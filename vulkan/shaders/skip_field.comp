@@ -20,18 +20,22 @@
 //        its distance, the smallest r whose cube holds an occupied cell, by binary search over the
 //        window its brick's distance leaves (skip_cell_window); the four cells of a word meet in
 //        shared memory, the word's first lane writes it (the reference: one invocation per word).
+//        With kGridSkipCovered, an occupied cell's cover bits too (skip_cover_bits), written the
+//        same way after the distances.
 #extension GL_GOOGLE_include_directive : require
 #include "grid_common.glsl"
 
 layout(local_size_x = 64) in;
 layout(binding = kGridBindImage, r32ui) uniform readonly uimage3D grid_image;
 layout(std430, binding = kGridBindOffsets) readonly buffer Offsets { uint compact_offsets[]; };
+layout(std430, binding = kGridBindRefs) readonly buffer Refs { uint compact_refs[]; };
 layout(std430, binding = kGridBindSkip) buffer Skip { uint skip[]; };
 layout(std430, binding = kGridBindSkipTable) buffer SkipTable { uint table[]; };
 layout(push_constant) uniform Push { SkipFieldPush pc; };
 
 const uint kSkipLineBatch = 8u;
 shared uint words[64u / 4u];  // pass 4: the workgroup's cells' distances, 4 to a word
+shared uint cover_words[64u / 4u];  // and their cover bits (kGridSkipCovered)
 shared uint segment_sums[64];  // passes 0-2: each lane's segment sum
 
 // Lines a workgroup of passes 0-2 takes (record_skip_field on the host): 16 along z and y (4
@@ -77,6 +81,45 @@ uint occupancy(GridParams g, uvec3 c) {
                         : (g.flags & kGridSparseOffsets) != 0u ? compact_occupied(compact_offsets[compact_mask_index(ci)], ci)
                                                                : compact_offsets[ci + 1u] > compact_offsets[ci];
   return occupied ? 1u : 0u;
+}
+
+// A cell's run in the ordered references (the reference's compact_run): [begin, end), empty for a
+// cell that holds none.
+uvec2 cover_run(GridParams g, uint cells, uint i) {
+  if ((g.flags & kGridSparseOffsets) == 0u) return uvec2(compact_offsets[i], compact_offsets[i + 1u]);
+  const uint mask = compact_offsets[compact_mask_index(i)];
+  if (!compact_occupied(mask, i)) return uvec2(0u);
+  const uint k = compact_run_index(cells, compact_offsets[compact_base_index(i)], mask, i);
+  if (k + 1u >= uint(compact_offsets.length())) return uvec2(0u);  // past the index (as compact_run)
+  return uvec2(compact_offsets[k], compact_offsets[k + 1u]);
+}
+
+// Whether the sorted run b lies in the sorted run a (one merge walk; the reference's run_within).
+bool run_within(uvec2 b, uvec2 a) {
+  if (b.y - b.x > a.y - a.x) return false;
+  uint j = a.x;
+  for (uint k = b.x; k < b.y; ++k) {
+    const uint r = compact_refs[k];
+    while (j < a.y && compact_refs[j] < r) ++j;
+    if (j == a.y || compact_refs[j] != r) return false;
+    ++j;
+  }
+  return true;
+}
+
+// A cell's cover bits (shared/grid.h "Covered cells"): bit f set iff its static run is not empty
+// and lies in the run of its neighbour across face f (the reference's skip_cover_bits).
+uint skip_cover_bits(GridParams g, uint cells, uvec3 c) {
+  const uvec2 b = cover_run(g, cells, cell_linear_index(g, c));
+  if (b.y == b.x) return 0u;
+  uint bits = 0u;
+  for (uint f = 0u; f < 6u; ++f) {
+    uvec3 n;
+    if (!skip_face_neighbour(g, c, f, n)) continue;
+    const uvec2 a = cover_run(g, cells, cell_linear_index(g, n));
+    if (a.y > a.x && run_within(b, a)) bits |= 1u << f;
+  }
+  return bits;
 }
 
 void main() {
@@ -142,7 +185,7 @@ void main() {
   // The distances, one invocation per cell (every lane reaches the barriers)
   const uint cells = grid_cell_count(g);
   const uint l = gl_LocalInvocationID.x;
-  if (l < 64u / 4u) words[l] = 0u;
+  if (l < 64u / 4u) words[l] = 0u, cover_words[l] = 0u;
   barrier();
   if (item < cells) {
     const uint i = item;
@@ -156,7 +199,12 @@ void main() {
       else lo = mid + 1u;
     }
     atomicOr(words[l / 4u], lo << skip_distance_shift(i));
+    if ((g.flags & kGridSkipCovered) != 0u && lo == 0u)
+      atomicOr(cover_words[l / 4u], skip_cover_bits(g, cells, c) << skip_distance_shift(i));
   }
   barrier();
-  if (item < cells && item % 4u == 0u) skip[kSkipHeaderWords + item / 4u] = words[l / 4u];
+  if (item < cells && item % 4u == 0u) {
+    skip[kSkipHeaderWords + item / 4u] = words[l / 4u];
+    if ((g.flags & kGridSkipCovered) != 0u) skip[skip_cover_word(g, item)] = cover_words[l / 4u];
+  }
 }

@@ -24,7 +24,8 @@ layout(std430, binding = kGridBindSpill) readonly buffer Spill {
   SpillEntry spill_entries[];
 };
 layout(std430, binding = kGridBindSpillHeads) readonly buffer SpillHeads { uint spill_heads[]; };
-// The skip field (kGridSkipEmpty; common/shared/grid.h): the dynamic boxes, then the distances.
+// The skip field (kGridSkipEmpty; common/shared/grid.h): the dynamic boxes, then the distances,
+// then (kGridSkipCovered) the cover bits.
 layout(std430, binding = kGridBindSkip) readonly buffer Skip { uint skip[]; };
 // The compact layout (kGridCompact): per cell its run of static references.
 layout(std430, binding = kGridBindOffsets) readonly buffer Offsets { uint compact_offsets[]; };
@@ -230,7 +231,13 @@ void test_spilled(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
 // kStatusDynamic where the list is not empty). Cells outside the region read no head.
 uvec3 region_lo;
 uvec3 region_hi;
-void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
+// With kGridSkipCovered, a cell entered through a face whose cover bit is set (`face`; kCoverNoFace
+// for the walk's first cell) reads no reference of its run: each was tested in the neighbour the
+// walk came from (kEvCovered instead of the run's slots).
+bool cell_covered(GridParams g, uint i, uint face) {
+  return (g.flags & kGridSkipCovered) != 0u && ((skip[skip_cover_word(g, i)] >> (skip_distance_shift(i) + face)) & 1u) != 0u;
+}
+void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi, uint face) {
   const uint i = cell_linear_index(g, cell);
   uint begin = 0u;
   uint end = 0u;
@@ -245,14 +252,18 @@ void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_
       end = compact_offsets[k + 1u];
     }
   }
-  for (uint j = begin; j < end; ++j) {
-    const uint ref = compact_refs[j];
-    emit(kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
-    test_reference(g, ref, step, cell, j - begin, t_lo, t_hi);
-    if (found_any()) return;
+  if (cell_covered(g, i, face)) {
+    emit(kEvCovered, face, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
+  } else {
+    for (uint j = begin; j < end; ++j) {
+      const uint ref = compact_refs[j];
+      emit(kEvSlot, 0u, ref, step, cell, j - begin, vec4(0.0f), vec4(0.0f));
+      test_reference(g, ref, step, cell, j - begin, t_lo, t_hi);
+      if (found_any()) return;
+    }
+    // The run's end, as the image's first blank slot
+    emit(kEvSlot, 0u, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
   }
-  // The run's end, as the image's first blank slot
-  emit(kEvSlot, 0u, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
   if (!region_contains(cell, region_lo, region_hi)) return;
   uint e = spill_heads[compact_head_index(region_index(cell, region_lo, region_hi))];
   const uint status = e != kSpillEnd ? kStatusDynamic : 0u;
@@ -430,6 +441,8 @@ HitRecord trace_exact(GridParams g) {
     region_lo = uvec3(spill_heads[0], spill_heads[1], spill_heads[2]);
     region_hi = uvec3(spill_heads[4], spill_heads[5], spill_heads[6]);
   }
+  // The face the walk entered the cell through (kGridSkipCovered; the first cell: none)
+  uint face = kCoverNoFace;
   for (uint k = 0u; k < g.max_segments; ++k) {
     // Empty-space skipping: an empty cell's distance d to the nearest reference; the walk passes
     // the box of radius d - 1 around it at once (docs/SPEC.md "Empty-space skipping")
@@ -444,7 +457,7 @@ HitRecord trace_exact(GridParams g) {
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
       if ((g.flags & kGridCompact) != 0u) {
         // The compact layout: the cell's run, then its dynamic list
-        test_compact_cell(g, cell, k, st.rs.t_lo, st.tmax);
+        test_compact_cell(g, cell, k, st.rs.t_lo, st.tmax, face);
       } else {
         const uint last_ref = test_cell(g, cell, k, st.rs.t_lo, st.tmax);
         // A saturated cell's spilled references
@@ -458,7 +471,8 @@ HitRecord trace_exact(GridParams g) {
     // Report the closest hit once it lies inside this cell (or box) or before; any hit at once
     if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= t_exit)) return report(k);
     if (t_exit >= st.rs.t_end) return finish(t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
-    // Step to the next cell
+    // Step to the next cell, entered through the step's face
+    face = skip_entry_face(st.dir, dda_step_axis(w.exits));
     if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(kMissLeftGrid, k);
     t_entry = t_exit;
   }
@@ -479,7 +493,7 @@ uint flat_j;      // the cell's run still to test: compact_refs[flat_j .. flat_e
 uint flat_end;    // flat_j - flat_end counts the dynamic list's entries read
 uint flat_e;      // then its dynamic list from entry flat_e (kSpillEnd: none)
 
-void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
+void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w, uint face) {
   // Sparse offsets: the cell's word of the index is loaded beside its skip distance, not after it
   // (an occupied cell's chain of dependent loads, skip distance and word, run bounds, references,
   // is then as long as with dense offsets; an empty cell's word is loaded for nothing)
@@ -493,6 +507,9 @@ void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
   flat_end = 0u;
   flat_e = kSpillEnd;
   if (d != 0u) return;
+  // A covered cell (kGridSkipCovered): its run was tested in the cell the walk came from (its bits
+  // loaded beside the run's bounds, not before them)
+  const bool covered = cell_covered(g, i, face);
   if (!sparse) {
     flat_j = compact_offsets[i];
     flat_end = compact_offsets[i + 1u];
@@ -501,6 +518,7 @@ void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w) {
     flat_j = compact_offsets[k];
     flat_end = compact_offsets[k + 1u];
   }
+  if (covered) flat_j = flat_end;
   const uvec3 lo = uvec3(region_words[0], region_words[1], region_words[2]);
   const uvec3 hi = uvec3(region_words[4], region_words[5], region_words[6]);
   if (region_contains(w.cell, lo, hi)) flat_e = spill_heads[compact_head_index(region_index(w.cell, lo, hi))];
@@ -512,7 +530,7 @@ HitRecord trace_exact_flat(GridParams g) {
   st.box_mask = (g.flags & kGridSkipEmpty) != 0u ? skip_box_mask(g, inv_dir, w.cell) : 0u;
   if (g.max_segments == 0u) return finish(kMissStepLimit, g.max_segments);
   uint k = 0u;
-  flat_enter(g, inv_dir, w);
+  flat_enter(g, inv_dir, w, kCoverNoFace);
   for (;;) {
     // The next reference of the cell: of its run, else of its dynamic list; one test_reference
     // for both (one copy of the test in the code, which the invocations of either share)
@@ -537,10 +555,11 @@ HitRecord trace_exact_flat(GridParams g) {
     // The cell (or box) is done: report the closest hit once it lies inside it or before
     if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= w.t_exit)) return report(k);
     if (w.t_exit >= st.rs.t_end) return finish(w.t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
+    const uint face = skip_entry_face(st.dir, dda_step_axis(w.exits));
     if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(kMissLeftGrid, k);
     k += 1u;
     if (k >= g.max_segments) return finish(kMissStepLimit, g.max_segments);
-    flat_enter(g, inv_dir, w);
+    flat_enter(g, inv_dir, w, face);
   }
   return finish(kMissStepLimit, g.max_segments);
 }

@@ -1,0 +1,175 @@
+// test_grid_covered.cpp: covered cells in the exact traversal (docs/SPEC.md "Covered cells"):
+//  - a cell's cover bits say exactly which face neighbours' static runs hold every reference of its
+//    own (non-empty) run, against the cells' reference lists compared as sets, with dense and
+//    sparse offsets;
+//  - with covered cells skipped, every hit record (closest and any hit) equals the one with every
+//    cell's run tested in every field but `tests`, and no ray takes more tests, on every ray of a
+//    batch (random, axis-parallel and lattice-diagonal rays, finite and infinite tmax), through
+//    animated updates; and the skipped runs are reported in the ray's events.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <random>
+
+#include "gridrt/common/builtin/builtin.h"
+#include "tests/test_grid_util.h"
+
+using namespace gridrt;
+using reference::GridOptions;
+using reference::ReferenceGridTracer;
+namespace sh = gridrt::shared;
+
+namespace {
+
+GridOptions covered_options(bool covered, glm::uvec3 res) {
+  GridOptions o;
+  o.threads = 2;
+  o.traversal = reference::Traversal::exact;
+  o.skip_covered = covered;
+  o.resolution = res;
+  return o;
+}
+
+// Rays over the grid's box: random ones from inside and outside, axis-parallel ones, and rays
+// from lattice points along lattice diagonals (ties between the axes' crossings).
+std::vector<Ray> covered_rays(const sh::GridParams& g, uint32_t seed) {
+  std::vector<Ray> rays;
+  std::mt19937 rng(seed);
+  const glm::vec3 lo = g.origin, ext = g.upper - g.origin;
+  std::uniform_real_distribution<float> u(-0.2f, 1.2f), d(-1.0f, 1.0f);
+  for (uint32_t i = 0; i < 3000; ++i) {
+    glm::vec3 dir(d(rng), d(rng), d(rng));
+    if (i % 7 == 0) dir[i % 3] = 0.0f;
+    if (i % 11 == 0) dir = glm::vec3(0.0f), dir[(i / 11) % 3] = d(rng) < 0.0f ? -1.0f : 1.0f;
+    if (glm::dot(dir, dir) < 1e-6f) dir = {0.0f, 0.0f, 1.0f};
+    const glm::vec3 o = lo + ext * glm::vec3(u(rng), u(rng), u(rng));
+    rays.push_back(gridtest::make_ray(o, dir, 0.0f, (i % 3) ? INFINITY : 0.3f * glm::length(ext)));
+  }
+  std::uniform_int_distribution<uint32_t> cx(0, g.cells.x), cy(0, g.cells.y), cz(0, g.cells.z), s(0, 7);
+  for (uint32_t i = 0; i < 1000; ++i) {
+    const glm::vec3 o = g.origin + g.cell_size * glm::vec3(float(cx(rng)), float(cy(rng)), float(cz(rng)));
+    const uint32_t k = s(rng);
+    const glm::vec3 dir((k & 1) ? -1.0f : 1.0f, (k & 2) ? -1.0f : 1.0f, (k & 4) ? -2.0f : (i % 2 ? 1.0f : 0.0f));
+    rays.push_back(gridtest::make_ray(o, dir));
+  }
+  return rays;
+}
+
+uint32_t cover_bits(const reference::GridData& grid, uint32_t i) {
+  return (grid.skip[sh::skip_cover_word(grid.params, i)] >> sh::skip_distance_shift(i)) & 0xFFu;
+}
+
+}  // namespace
+
+TEST_CASE("Covered cells: the cover bits are the face neighbours whose runs hold the cell's", "[grid][covered]") {
+  using Offsets = GridOptions::Offsets;
+  for (const auto& [name, res, offsets] :
+       {std::tuple{"random", glm::uvec3(40, 36, 44), Offsets::dense}, std::tuple{"random", glm::uvec3(23, 19, 31), Offsets::sparse},
+        std::tuple{"atrium", glm::uvec3(48, 20, 30), Offsets::sparse}, std::tuple{"cornell", glm::uvec3(9, 9, 9), Offsets::dense}}) {
+    INFO(name << " " << gridtest::hx(res));
+    const std::string n = name;
+    const Scene scene = n == "random" ? gridtest::random_scene(300, 0.6f, 10.0f, 5, 20) : make_builtin(n);
+    GridOptions o = covered_options(true, res);
+    o.offsets = offsets;
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    const reference::GridData& grid = ref.data();
+    const sh::GridParams& g = grid.params;
+    REQUIRE((g.flags & sh::kGridSkipCovered) != 0u);
+    REQUIRE((g.flags & sh::kGridCompact) != 0u);
+    REQUIRE(((g.flags & sh::kGridSparseOffsets) != 0u) == (offsets == Offsets::sparse));
+    REQUIRE(grid.skip.size() == sh::skip_words(g));
+    size_t set = 0, occupied = 0;
+    for (uint32_t i = 0; i < sh::grid_cell_count(g); ++i) {
+      const glm::ivec3 c(sh::cell_of_linear_index(g, i));
+      std::vector<uint32_t> own = reference::cell_references(grid, glm::uvec3(c));
+      std::sort(own.begin(), own.end());
+      occupied += !own.empty();
+      uint32_t want = 0u;
+      for (uint32_t f = 0; f < 6u; ++f) {
+        glm::ivec3 m = c;
+        m[f / 2] += f % 2 ? 1 : -1;
+        if (own.empty() || glm::any(glm::lessThan(m, glm::ivec3(0))) ||
+            glm::any(glm::greaterThanEqual(m, glm::ivec3(g.cells))))
+          continue;
+        std::vector<uint32_t> other = reference::cell_references(grid, glm::uvec3(m));
+        std::sort(other.begin(), other.end());
+        if (std::includes(other.begin(), other.end(), own.begin(), own.end())) want |= 1u << f;
+      }
+      INFO("cell " << i << " (" << c.x << ", " << c.y << ", " << c.z << ") with " << own.size() << " references");
+      REQUIRE(cover_bits(grid, i) == want);
+      set += want != 0u;
+    }
+    WARN(name << ": " << set << " of " << occupied << " occupied cells covered from some face");
+    CHECK(set > 0);
+  }
+}
+
+TEST_CASE("Covered cells: every hit record equals the one testing every run but `tests`, never more tests",
+          "[grid][covered]") {
+  for (const char* name : {"random", "atrium"}) {
+    INFO(name);
+    const bool random = std::string(name) == "random";
+    const Scene scene = random ? gridtest::random_scene(200, 0.6f, 10.0f, 21, 40) : make_builtin(name);
+    const glm::uvec3 res(40, 36, 44);
+    ReferenceGridTracer all(covered_options(false, res)), covered(covered_options(true, res));
+    all.build(scene, 0.0f);
+    covered.build(scene, 0.0f);
+    REQUIRE(all.params().cells == covered.params().cells);
+    REQUIRE((all.params().flags & sh::kGridSkipCovered) == 0u);
+    REQUIRE((covered.params().flags & sh::kGridSkipCovered) != 0u);
+    for (float time : {0.0f, 0.7f, 2.2f}) {
+      INFO("time " << time);
+      if (time > 0.0f) {
+        all.update(time);
+        covered.update(time);
+      }
+      const std::vector<Ray> rays = covered_rays(all.params(), 60 + uint32_t(time * 10));
+      for (const bool any : {false, true}) {
+        INFO((any ? "any hit" : "closest hit"));
+        std::vector<Hit> want(rays.size()), got(rays.size());
+        if (any) {
+          all.trace_any(rays, want);
+          covered.trace_any(rays, got);
+        } else {
+          all.trace(rays, want);
+          covered.trace(rays, got);
+        }
+        uint64_t tests_all = 0, tests_covered = 0, hits = 0;
+        for (size_t i = 0; i < rays.size(); ++i) {
+          INFO("ray " << i << " " << gridtest::hx(rays[i]) << "\nall     " << gridtest::hx(want[i]) << "\ncovered "
+                      << gridtest::hx(got[i]));
+          Hit a = want[i], b = got[i];
+          REQUIRE(b.tests <= a.tests);
+          tests_all += a.tests;
+          tests_covered += b.tests;
+          hits += !is_miss(a);
+          a.tests = b.tests = 0;
+          REQUIRE(std::memcmp(&a, &b, sizeof a) == 0);
+        }
+        WARN(name << " time " << time << (any ? " any hit" : " closest") << ": tests per ray "
+                  << double(tests_all) / rays.size() << " all, " << double(tests_covered) / rays.size()
+                  << " covered skipped; " << hits << " hits of " << rays.size());
+        CHECK(hits > rays.size() / 50);
+        CHECK(tests_covered < tests_all);
+      }
+    }
+    // The events: a covered cell reads none of its run, and says so
+    size_t covered_events = 0;
+    for (const Ray& r : covered_rays(covered.params(), 7)) {
+      const reference::ExplainRecord rec = covered.explain_ray(r);
+      for (size_t k = 0; k < rec.events.size(); ++k) {
+        if (rec.events[k].kind != sh::kEvCovered) continue;
+        ++covered_events;
+        REQUIRE(k > 0);
+        REQUIRE(rec.events[k - 1].kind == sh::kEvCell);
+        REQUIRE(rec.events[k].code < 6u);
+        REQUIRE(rec.events[k].slot > 0u);
+        if (k + 1 < rec.events.size()) REQUIRE(rec.events[k + 1].kind != sh::kEvSlot);
+        if (covered_events > 2000) break;
+      }
+    }
+    CHECK(covered_events > 0);
+  }
+}
