@@ -145,3 +145,30 @@ TEST_CASE("CLI: gridrt diff - validation messages exit 4, bad input 1, bad comma
   CHECK(run_tool("diff builtin:cornell --validation loud").exit_code == 2);
   fs::remove_all(d);
 }
+
+TEST_CASE("CLI: gridrt diff - first-empty insertion on the compact layout, and --shadows for the GPU frame",
+          "[vulkan][diff][cli]") {
+  // An outside sweep's finds: with first-empty insertion the compact layout's arrays were read as
+  // the image's texels (a crash on the teapot, false differences on one triangle); and a scene of
+  // more than 8 lights could not run --gpu-frame, whose advice named a --shadows diff lacked
+  const Run first_empty =
+      run_tool("diff builtin:teapot --width 8 --height 8 --frames 1 --traversal exact --insertion first-empty --threads 2");
+  INFO(first_empty.output);
+  CHECK(first_empty.exit_code == 0);
+  CHECK_THAT(first_empty.output, Catch::Contains("AGREE"));
+  const fs::path d = temp_dir();
+  std::ofstream s(d / "lights.json");
+  s << R"({"meshes":{"pot":{"builtin":"teapot","level":2}},"instances":[{"mesh":"pot"}],"lights":[)";
+  for (int i = 0; i < 9; ++i) s << (i ? "," : "") << R"({"position":[)" << i - 4 << R"(,6,3],"intensity":10})";
+  s << "]}";
+  s.close();
+  const std::string args = "diff " + (d / "lights.json").string() + " --width 8 --height 8 --frames 1 --gpu-frame --threads 2";
+  const Run many = run_tool(args);
+  INFO(many.output);
+  CHECK(many.exit_code == 1);
+  CHECK_THAT(many.output, Catch::Contains("--shadows off"));
+  const Run off = run_tool(args + " --shadows off");
+  INFO(off.output);
+  CHECK(off.exit_code == 0);
+  CHECK_THAT(off.output, Catch::Contains("AGREE"));
+}
