@@ -718,10 +718,30 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;
     timings_.total_ms = (ns[8] - ns[0]) * 1e-6;
   }
-  // llvmpipe's loop limit (vulkan/grid.h): the frame's traces' records checked there
+  // llvmpipe's loop limit (vulkan/grid.h): the frame's traces' records checked there; and the
+  // gather's fine pass, whose workgroup walks its screen tile's list of triangles (a tile listing
+  // about 64,000 was cut short, pixels left without their triangle: refused from
+  // kLlvmpipeTilePairLimit, read from the lists' starts)
   if (ctx.info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE) {
     if (bounce_) check_loop_limit(ctx, grid_.params(), download_hits(), "the frame's bounce rays");
     if (shadows_) check_loop_limit(ctx, grid_.params(), download_shadow_hits(), "the frame's shadow rays");
+    if (gpu_->fine) {
+      const size_t header = sizeof(shared::GatherFineHeader) / 4, tiles = gpu_->screen_tiles;
+      const std::vector<uint32_t> words = ctx.download<uint32_t>(gpu_->tile_bins, header + 2 * tiles);
+      const auto h = ctx.download<shared::GatherFineHeader>(gpu_->tile_bins, 1)[0];
+      uint32_t most = 0;
+      for (size_t t = 0; h.overflow == 0u && t < tiles; ++t) {
+        const uint32_t begin = words[header + tiles + t];
+        const uint32_t end = t + 1 < tiles ? words[header + tiles + t + 1] : h.pairs;
+        most = std::max(most, end >= begin ? end - begin : 0u);
+      }
+      if (most >= kLlvmpipeTilePairLimit)
+        throw Error("vulkan-frame: a screen tile lists " + std::to_string(most) +
+                    " triangles; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in "
+                    "all, which cuts the gather's fine pass short (refused from " +
+                    std::to_string(kLlvmpipeTilePairLimit) +
+                    "): its gather cannot be trusted (run on a GPU, or with --backend cpu)");
+    }
   }
 }
 

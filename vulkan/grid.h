@@ -85,6 +85,9 @@ struct GridTimings {
 inline constexpr uint32_t kLlvmpipeTestLimit = 4096;
 inline constexpr uint32_t kLlvmpipeMailboxTestLimit = 2048;
 inline constexpr uint32_t kLlvmpipeImageTestLimit = 32768;
+// The frame's gather: a screen tile's list of triangles, walked by its fine pass's workgroup (a
+// tile of about 64,000 was cut short); VulkanFrame::render refuses from this many on llvmpipe.
+inline constexpr uint32_t kLlvmpipeTilePairLimit = 16384;
 void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what);
 
 class VulkanGridTracer : public Tracer {
