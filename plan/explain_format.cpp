@@ -438,6 +438,8 @@ std::string event_summary(const ExplainRecord& rec, size_t i, const ExplainForma
            << " to " << num(e.f0.z, fmt) << "; hits need t > " << num(e.f0.w, fmt);
       else
         os << "setup: the ray misses the grid box";
+      // A far origin: the t above are from the moved origin (docs/SPEC.md "Far origins")
+      if (e.f1.w > 0.0f) os << " (far origin: moved along the ray by t " << num(e.f1.w, fmt) << ", t from there)";
       break;
     case kEvCell:
       if (exact)
