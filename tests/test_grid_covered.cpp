@@ -31,30 +31,6 @@ GridOptions covered_options(bool covered, glm::uvec3 res) {
   return o;
 }
 
-// Rays over the grid's box: random ones from inside and outside, axis-parallel ones, and rays
-// from lattice points along lattice diagonals (ties between the axes' crossings).
-std::vector<Ray> covered_rays(const sh::GridParams& g, uint32_t seed) {
-  std::vector<Ray> rays;
-  std::mt19937 rng(seed);
-  const glm::vec3 lo = g.origin, ext = g.upper - g.origin;
-  std::uniform_real_distribution<float> u(-0.2f, 1.2f), d(-1.0f, 1.0f);
-  for (uint32_t i = 0; i < 3000; ++i) {
-    glm::vec3 dir(d(rng), d(rng), d(rng));
-    if (i % 7 == 0) dir[i % 3] = 0.0f;
-    if (i % 11 == 0) dir = glm::vec3(0.0f), dir[(i / 11) % 3] = d(rng) < 0.0f ? -1.0f : 1.0f;
-    if (glm::dot(dir, dir) < 1e-6f) dir = {0.0f, 0.0f, 1.0f};
-    const glm::vec3 o = lo + ext * glm::vec3(u(rng), u(rng), u(rng));
-    rays.push_back(gridtest::make_ray(o, dir, 0.0f, (i % 3) ? INFINITY : 0.3f * glm::length(ext)));
-  }
-  std::uniform_int_distribution<uint32_t> cx(0, g.cells.x), cy(0, g.cells.y), cz(0, g.cells.z), s(0, 7);
-  for (uint32_t i = 0; i < 1000; ++i) {
-    const glm::vec3 o = g.origin + g.cell_size * glm::vec3(float(cx(rng)), float(cy(rng)), float(cz(rng)));
-    const uint32_t k = s(rng);
-    const glm::vec3 dir((k & 1) ? -1.0f : 1.0f, (k & 2) ? -1.0f : 1.0f, (k & 4) ? -2.0f : (i % 2 ? 1.0f : 0.0f));
-    rays.push_back(gridtest::make_ray(o, dir));
-  }
-  return rays;
-}
 
 uint32_t cover_bits(const reference::GridData& grid, uint32_t i) {
   return (grid.skip[sh::skip_cover_word(grid.params, i)] >> sh::skip_distance_shift(i)) & 0xFFu;
@@ -125,7 +101,7 @@ TEST_CASE("Covered cells: every hit record equals the one testing every run but 
         all.update(time);
         covered.update(time);
       }
-      const std::vector<Ray> rays = covered_rays(all.params(), 60 + uint32_t(time * 10));
+      const std::vector<Ray> rays = gridtest::walk_rays(all.params(), 60 + uint32_t(time * 10));
       for (const bool any : {false, true}) {
         INFO((any ? "any hit" : "closest hit"));
         std::vector<Hit> want(rays.size()), got(rays.size());
@@ -157,7 +133,7 @@ TEST_CASE("Covered cells: every hit record equals the one testing every run but 
     }
     // The events: a covered cell reads none of its run, and says so
     size_t covered_events = 0;
-    for (const Ray& r : covered_rays(covered.params(), 7)) {
+    for (const Ray& r : gridtest::walk_rays(covered.params(), 7)) {
       const reference::ExplainRecord rec = covered.explain_ray(r);
       for (size_t k = 0; k < rec.events.size(); ++k) {
         if (rec.events[k].kind != sh::kEvCovered) continue;

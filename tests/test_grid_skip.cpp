@@ -31,30 +31,6 @@ GridOptions skip_options(bool skip) {
   return o;
 }
 
-// Rays over the grid's box: random ones from inside and outside, axis-parallel ones, and rays
-// from lattice points along lattice diagonals (ties between the axes' crossings).
-std::vector<Ray> skip_rays(const sh::GridParams& g, uint32_t seed) {
-  std::vector<Ray> rays;
-  std::mt19937 rng(seed);
-  const glm::vec3 lo = g.origin, hi = g.upper, ext = hi - lo;
-  std::uniform_real_distribution<float> u(-0.2f, 1.2f), d(-1.0f, 1.0f);
-  for (uint32_t i = 0; i < 3000; ++i) {
-    glm::vec3 dir(d(rng), d(rng), d(rng));
-    if (i % 7 == 0) dir[i % 3] = 0.0f;
-    if (i % 11 == 0) dir = glm::vec3(0.0f), dir[(i / 11) % 3] = d(rng) < 0.0f ? -1.0f : 1.0f;
-    if (glm::dot(dir, dir) < 1e-6f) dir = {0.0f, 0.0f, 1.0f};
-    const glm::vec3 o = lo + ext * glm::vec3(u(rng), u(rng), u(rng));
-    rays.push_back(gridtest::make_ray(o, dir, 0.0f, (i % 3) ? INFINITY : 0.3f * glm::length(ext)));
-  }
-  std::uniform_int_distribution<uint32_t> cx(0, g.cells.x), cy(0, g.cells.y), cz(0, g.cells.z), s(0, 7);
-  for (uint32_t i = 0; i < 1000; ++i) {
-    const glm::vec3 o = g.origin + g.cell_size * glm::vec3(float(cx(rng)), float(cy(rng)), float(cz(rng)));
-    const uint32_t k = s(rng);
-    const glm::vec3 dir((k & 1) ? -1.0f : 1.0f, (k & 2) ? -1.0f : 1.0f, (k & 4) ? -2.0f : (i % 2 ? 1.0f : 0.0f));
-    rays.push_back(gridtest::make_ray(o, dir));
-  }
-  return rays;
-}
 
 // The static distances by breadth-first search over 26 neighbours from the cells holding a static
 // reference (slot 0 below the comparison offset: the static references come first): within a box a
@@ -174,7 +150,7 @@ TEST_CASE("Skipping: every hit record equals the plain DDA's but `cells`, never 
         plain.update(time);
         skip.update(time);
       }
-      const std::vector<Ray> rays = skip_rays(plain.params(), 40 + uint32_t(time * 10));
+      const std::vector<Ray> rays = gridtest::walk_rays(plain.params(), 40 + uint32_t(time * 10));
       std::vector<Hit> want(rays.size()), got(rays.size());
       plain.trace(rays, want);
       skip.trace(rays, got);
@@ -235,7 +211,7 @@ TEST_CASE("Skipping: a dynamic box on a ray's plain walk is always reached, most
     boxes.push_back({lo, hi});
   }
   uint64_t visited = 0, unvisited = 0, unvisited_unreached = 0;
-  for (const Ray& ray : skip_rays(g, 99)) {
+  for (const Ray& ray : gridtest::walk_rays(g, 99)) {
     sh::RaySetup rs;
     if (!sh::ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs)) continue;
     const glm::vec3 inv = sh::dda_inverse_direction(ray.dir);

@@ -185,6 +185,32 @@ inline Ray make_ray(glm::vec3 o, glm::vec3 d, float tmin = 0.0f, float tmax = IN
   return r;
 }
 
+// Rays over the grid's box: random ones from inside and outside (a third with a finite tmax),
+// axis-parallel ones, and rays from lattice points along lattice diagonals (ties between the
+// axes' crossings). The skipping and covered-cell tests walk them.
+inline std::vector<Ray> walk_rays(const shared::GridParams& g, uint32_t seed) {
+  std::vector<Ray> rays;
+  std::mt19937 rng(seed);
+  const glm::vec3 lo = g.origin, ext = g.upper - g.origin;
+  std::uniform_real_distribution<float> u(-0.2f, 1.2f), d(-1.0f, 1.0f);
+  for (uint32_t i = 0; i < 3000; ++i) {
+    glm::vec3 dir(d(rng), d(rng), d(rng));
+    if (i % 7 == 0) dir[i % 3] = 0.0f;
+    if (i % 11 == 0) dir = glm::vec3(0.0f), dir[(i / 11) % 3] = d(rng) < 0.0f ? -1.0f : 1.0f;
+    if (glm::dot(dir, dir) < 1e-6f) dir = {0.0f, 0.0f, 1.0f};
+    const glm::vec3 o = lo + ext * glm::vec3(u(rng), u(rng), u(rng));
+    rays.push_back(make_ray(o, dir, 0.0f, (i % 3) ? INFINITY : 0.3f * glm::length(ext)));
+  }
+  std::uniform_int_distribution<uint32_t> cx(0, g.cells.x), cy(0, g.cells.y), cz(0, g.cells.z), s(0, 7);
+  for (uint32_t i = 0; i < 1000; ++i) {
+    const glm::vec3 o = g.origin + g.cell_size * glm::vec3(float(cx(rng)), float(cy(rng)), float(cz(rng)));
+    const uint32_t k = s(rng);
+    const glm::vec3 dir((k & 1) ? -1.0f : 1.0f, (k & 2) ? -1.0f : 1.0f, (k & 4) ? -2.0f : (i % 2 ? 1.0f : 0.0f));
+    rays.push_back(make_ray(o, dir));
+  }
+  return rays;
+}
+
 inline std::vector<Ray> fan_rays(const reference::GridData& g, uint32_t count, uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> pos(0.3f, 7.7f), unit(0.0f, 1.0f);
