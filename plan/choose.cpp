@@ -692,24 +692,14 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
   if (o.capacity && o.layout == AlgorithmOptions::Layout::automatic)
     g.flags &= ~(shared::kGridCompact | shared::kGridSkipCovered);
   g.origin = b.lo;
-  // Covered cells' bits take one more byte per cell: the grid is chosen without them, and they are
-  // kept where the chosen grid with them still fits the compact layout's memory budget (they must
-  // not push the choice to a coarser grid, which costs more than they save: docs/BENCHMARKS.md
-  // "Covered cells")
-  const bool covered = (g.flags & shared::kGridSkipCovered) != 0u;
-  g.flags &= ~shared::kGridSkipCovered;
+  // Covered cells' bits live in the skip field's bytes of occupied cells (shared/grid.h, skip_byte):
+  // they cost no memory, and come with the compact layout wherever it is chosen
   GridChoice local;
   GridChoice& ch = choice ? *choice : local;
   GridParams p = o.capacity_policy == GridOptions::CapacityPolicy::percentile && !o.capacity
                      ? choose_by_percentile(scene, time, o, g, e, cs)
                      : choose_by_candidates(scene, time, o, g, e, cs, &ch);
-  if (covered && (p.flags & shared::kGridCompact) != 0u) {
-    GridParams q = p;
-    q.flags |= shared::kGridSkipCovered;
-    const uint64_t extra = uint64_t(shared::skip_words(q) - shared::skip_words(p)) * 4u;
-    const uint64_t memory = ch.chosen < ch.candidates.size() ? ch.candidates[ch.chosen].memory : 0u;
-    if (memory + extra <= compact_budget(o, scene.triangle_count())) p = q;
-  }
+  if ((p.flags & shared::kGridCompact) == 0u) p.flags &= ~shared::kGridSkipCovered;
   return p;
 }
 
@@ -835,8 +825,17 @@ uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions
       if (n > g.capacity) dropped += n - g.capacity;
     });
   }
-  const uint64_t cap = dropped + dropped / 4 + 64;
-  return uint32_t(std::min<uint64_t>(cap, uint64_t(1) << 28));
+  return spill_capacity_for(dropped);
+}
+
+uint32_t spill_capacity_for(uint64_t dropped) {
+  return uint32_t(std::min<uint64_t>(dropped + dropped / 4 + 64, uint64_t(1) << 28));
+}
+
+uint32_t spill_growth(const shared::SpillHeader& header, const GridOptions& options, uint32_t flags) {
+  if ((flags & shared::kGridSpill) == 0u || options.spill_capacity || header.count <= header.capacity) return 0u;
+  const uint32_t grown = spill_capacity_for(header.count);
+  return grown > header.capacity ? grown : 0u;
 }
 
 uint32_t trace_flags(uint32_t requested, const AlgorithmOptions& o, uint32_t spill_count) {

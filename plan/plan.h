@@ -176,6 +176,14 @@ shared::GridParams choose_grid(const Scene& scene, float time, const GridOptions
 // else the option, or the references the trial would drop (the chosen candidate's `dropped`, or a
 // count on `g` where choose_grid weighed no candidate) plus a quarter and 64 (the trial samples
 // moving instances at 16 times: a bound it is not).
+// The capacity for `dropped` spilled references: a quarter and 64 more, at most 2^28 entries.
+uint32_t spill_capacity_for(uint64_t dropped);
+// The capacity an update grows the list to when the forecast fell short (spill_header.count >
+// capacity after inserting the dynamic instances at a time the trial did not sample): the count
+// with spill_capacity_for's margin; 0 where it holds (`header.count <= capacity`), where the
+// capacity was asked for (GridOptions::spill_capacity: kept, the overflow reported), or where the
+// list cannot grow (2^28 entries). Both backends then insert the update again, so they agree.
+uint32_t spill_growth(const shared::SpillHeader& header, const GridOptions& options, uint32_t flags);
 uint32_t choose_spill_capacity(const Scene& scene, float time, const GridOptions& options, const shared::GridParams& g,
                                const GridChoice& choice);
 // The flags the trace runs with: `requested` (GridParams::flags as chosen) without gap-fill while no

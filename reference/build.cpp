@@ -84,23 +84,23 @@ void skip_field_build(GridData& grid, const GridOptions& o) {
   run_invocations(uint32_t(bricks.size()), thread_count(o), std::nullopt, [&](uint32_t b) {
     bricks[b] = plan::skip_brick_distance(g, table, shared::skip_brick_of_index(g, b));
   }, 256);
-  // The distances, one invocation per word (4 cells): the smallest r whose cube holds an occupied
-  // cell, by binary search over the window its brick's distance leaves (skip_cell_window)
+  // The cells' bytes, one invocation per word (4 cells): the distance, the smallest r whose cube
+  // holds an occupied cell, by binary search over the window its brick's distance leaves
+  // (skip_cell_window); an occupied cell's cover bits in its byte (kGridSkipCovered)
   const uint32_t cells = shared::grid_cell_count(g);
   const bool covered = (g.flags & shared::kGridSkipCovered) != 0u;
   run_invocations((cells + 3u) / 4u, thread_count(o), std::nullopt, [&](uint32_t word) {
-    uint32_t packed = 0u, cover = 0u;
+    uint32_t packed = 0u;
     for (uint32_t q = 0; q < 4u && 4u * word + q < cells; ++q) {
       const uint32_t i = 4u * word + q;
       const glm::uvec3 c = shared::cell_of_linear_index(g, i);
       uint32_t lo = 0u, hi = 0u;
       shared::skip_cell_window(bricks[shared::skip_brick_index(g, c)], lo, hi);
-      packed |= plan::skip_static_distance(g, table, c, lo, hi) << shared::skip_distance_shift(i);
-      // The cell's cover bits beside its distance (kGridSkipCovered)
-      if (covered) cover |= skip_cover_bits(grid, c) << shared::skip_distance_shift(i);
+      const uint32_t d = plan::skip_static_distance(g, table, c, lo, hi);
+      const uint32_t cover = covered && d == 0u ? skip_cover_bits(grid, c) : 0u;
+      packed |= shared::skip_byte(d, cover) << shared::skip_distance_shift(i);
     }
     grid.skip[shared::kSkipHeaderWords + word] = packed;
-    if (covered) grid.skip[shared::skip_cover_word(g, 4u * word)] = cover;
   }, 256);
 }
 
@@ -669,6 +669,15 @@ std::vector<uint32_t> dirty_cells(const GridData& grid) {
   std::vector<uint32_t> out(n);
   for (uint32_t k = 0; k < n; ++k) out[k] = grid.dirty.load(shared::kWorkListHeaderWords + k);
   return out;
+}
+
+void spill_grow(GridData& grid, uint32_t capacity) {
+  if (capacity <= grid.spill_header.capacity) throw Error("reference build: the spill list grows, never shrinks");
+  require_host_memory(uint64_t(capacity - grid.spill_header.capacity) * sizeof(shared::SpillEntry),
+                      "reference update: a spill list of " + std::to_string(capacity) + " entries",
+                      "set --spill-capacity");
+  grid.spill.resize(capacity, shared::SpillEntry{0u, kBlank, shared::kSpillEnd, shared::kSpillEnd});
+  grid.spill_header.capacity = capacity;
 }
 
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& o) {

@@ -96,6 +96,9 @@ void skip_field_build(GridData& grid, const GridOptions& o);
 // Phases (paper names)
 void scene_build(GridData& grid, const Scene& scene, float time, const GridOptions& options);
 void scene_update(GridData& grid, const Scene& scene, float time, const GridOptions& options);
+// The spill list grown to `capacity` entries (more than it holds), its stored entries kept: an
+// update inserts again after it (ReferenceGridTracer::update, plan::spill_growth).
+void spill_grow(GridData& grid, uint32_t capacity);
 void clear_dynamic_references(GridData& grid, const GridOptions& options);
 void insert_first_empty(GridData& grid, glm::uvec3 cell, uint32_t ref);
 void insert_sorted(GridData& grid, glm::uvec3 cell, uint32_t ref);

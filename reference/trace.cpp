@@ -162,18 +162,16 @@ void test_spilled(const GridData& grid, TraceState& st, uvec3 cell, uint step, f
 // its index in the run as the slot, in ascending order;
 // then, for a cell of the dynamic region, its dynamic spill list (the region's head: its status is
 // kStatusDynamic where the list is not empty). Cells outside the region read no head.
-// With kGridSkipCovered, a cell entered through a face whose cover bit is set (`face`: the face
-// the walk entered through, kCoverNoFace for its first cell) reads no reference of its run: each
-// was tested in the neighbour the walk came from (kEvCovered instead of the run's slots).
+// With kGridSkipCovered, a cell entered through a face whose cover bit is set (`covered`; `face`
+// the face the walk entered through, kCoverNoFace for its first cell) reads no reference of its
+// run: each was tested in the neighbour the walk came from (kEvCovered instead of the run's slots).
 void test_compact_cell(const GridData& grid, TraceState& st, uvec3 cell, uint step, float t_lo, float t_hi,
-                       uint face) {
+                       uint face, bool covered) {
   const GridParams& g = grid.params;
   const uint i = cell_linear_index(g, cell);
   uint begin = 0u;
   uint end = 0u;
   compact_run(grid, i, begin, end);
-  const bool covered = (g.flags & kGridSkipCovered) != 0u &&
-                       ((grid.skip[skip_cover_word(g, i)] >> (skip_distance_shift(i) + face)) & 1u) != 0u;
   if (covered) {
     emit(st, kEvCovered, face, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
   } else {
@@ -324,10 +322,13 @@ uint skip_box_mask(const GridData& grid, const TraceState& st, vec3 inv_dir, uve
 }
 
 // The skip field's distance of a cell (kGridSkipEmpty): its static distance, lowered to its
-// distance to every dynamic box the walk can reach (shared/grid.h, "The skip field").
-uint skip_distance(const GridData& grid, const TraceState& st, uvec3 cell) {
+// distance to every dynamic box the walk can reach (shared/grid.h, "The skip field"); `cover` its
+// cover bits (kGridSkipCovered), from the same byte.
+uint skip_distance(const GridData& grid, const TraceState& st, uvec3 cell, uint& cover) {
   const uint i = cell_linear_index(grid.params, cell);
-  uint d = (grid.skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
+  const uint byte = (grid.skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
+  cover = skip_byte_cover(byte);
+  uint d = skip_byte_distance(byte);
   uint m = st.box_mask;  // its set bits, lowest first (the shader's findLSB)
   while (m != 0u && d > 0u) {
     const uint b = uint(std::countr_zero(m));
@@ -354,7 +355,8 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
   for (uint k = 0u; k < g.max_segments; ++k) {
     // Empty-space skipping: an empty cell's distance d to the nearest reference; the walk passes
     // the box of radius d - 1 around it at once (docs/SPEC.md "Empty-space skipping")
-    const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(grid, st, w.cell) : 0u;
+    uint cover = 0u;
+    const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(grid, st, w.cell, cover) : 0u;
     dda_walk_exits(g, st.org, st.dir, inv_dir, d > 0u ? d - 1u : 0u, w);
     const float t_exit = w.t_exit;
     const uvec3 cell = w.cell;
@@ -365,7 +367,7 @@ Hit trace_exact(const GridData& grid, TraceState& st) {
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
       if ((g.flags & kGridCompact) != 0u) {
         // The compact layout: the cell's run, then its dynamic list
-        test_compact_cell(grid, st, cell, k, st.rs.t_lo, st.tmax, face);
+        test_compact_cell(grid, st, cell, k, st.rs.t_lo, st.tmax, face, ((cover >> face) & 1u) != 0u);
       } else {
         const uint last_ref = test_cell(grid, st, cell, k, st.rs.t_lo, st.tmax);
         // A saturated cell's spilled references

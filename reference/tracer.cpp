@@ -26,6 +26,11 @@ void ReferenceGridTracer::update(float time) {
   if (!scene_) throw Error("reference-grid: update before build");
   const auto t0 = std::chrono::steady_clock::now();
   scene_update(grid_, *scene_, time, options_);
+  // The spill list's forecast fell short at this time: grow it and insert again (plan::spill_growth)
+  if (const uint32_t grown = plan::spill_growth(grid_.spill_header, options_, grid_.requested_flags)) {
+    spill_grow(grid_, grown);
+    scene_update(grid_, *scene_, time, options_);
+  }
   update_ms_ = ms_since(t0);
   warn_spill_overflow(spill_dump(grid_), name(), overflow_warned_);
 }

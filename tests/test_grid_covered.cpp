@@ -32,8 +32,11 @@ GridOptions covered_options(bool covered, glm::uvec3 res) {
 }
 
 
+// A cell's cover bits, from its skip byte (an occupied cell's: its distance is 0).
 uint32_t cover_bits(const reference::GridData& grid, uint32_t i) {
-  return (grid.skip[sh::skip_cover_word(grid.params, i)] >> sh::skip_distance_shift(i)) & 0xFFu;
+  const uint32_t b = (grid.skip[sh::skip_distance_word(i)] >> sh::skip_distance_shift(i)) & 0xFFu;
+  if (b >= sh::kSkipCoverTag) REQUIRE(sh::skip_byte_distance(b) == 0u);
+  return sh::skip_byte_cover(b);
 }
 
 }  // namespace

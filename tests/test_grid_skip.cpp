@@ -67,7 +67,7 @@ std::vector<uint32_t> bfs_distances(const reference::GridData& grid) {
 }
 
 uint32_t static_distance(const reference::GridData& grid, uint32_t i) {
-  return (grid.skip[sh::skip_distance_word(i)] >> sh::skip_distance_shift(i)) & 0xFFu;
+  return sh::skip_byte_distance((grid.skip[sh::skip_distance_word(i)] >> sh::skip_distance_shift(i)) & 0xFFu);
 }
 
 }  // namespace

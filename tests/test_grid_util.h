@@ -9,6 +9,8 @@
 #include <sstream>
 #include <string>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "gridrt/common/scene.h"
 #include "gridrt/common/tracer.h"
 #include "gridrt/reference/grid.h"
@@ -166,6 +168,73 @@ inline Scene fan_scene(uint32_t n, uint32_t moving = 0) {
     d.motion.path_period = 4.0f;
     s.instances.push_back(d);
   }
+  s.finalize();
+  return s;
+}
+
+// A wall of 8 x 4 unit quads (64 triangles) in the plane z = 0, turning once a second about a
+// skew axis through (0, 0, 0.125), and a small box on a path of period 16 s: the spill list's
+// forecast samples the motions at 16 times over the longest period, t = 0, 1, ..., 15, and finds
+// the wall at the same angle every time, where it crosses the fewest cells; half a turn later it
+// crosses about 1.4 times as many (an outside tester's scene). Dynamic instances only, cell 0.25.
+// `split`: each unit quad cut into split x split quads.
+inline Scene turning_wall_scene(uint32_t split = 1) {
+  Scene s;
+  s.name = "turning wall";
+  Mesh wall;
+  wall.name = "wall";
+  const uint32_t nx = 8 * split, ny = 4 * split;
+  for (uint32_t y = 0; y <= ny; ++y)
+    for (uint32_t x = 0; x <= nx; ++x) wall.positions.push_back({float(x) / float(split) - 4.0f, float(y) / float(split), 0.0f});
+  for (uint32_t y = 0; y < ny; ++y)
+    for (uint32_t x = 0; x < nx; ++x) {
+      const uint32_t a = y * (nx + 1) + x;
+      wall.triangles.push_back({a, a + 1, a + nx + 2});
+      wall.triangles.push_back({a, a + nx + 2, a + nx + 1});
+    }
+  wall.materials.assign(wall.triangles.size(), 0u);
+  s.meshes.push_back(std::move(wall));
+  s.meshes.push_back(box_mesh(glm::vec3(-1.0f), glm::vec3(1.0f), "box"));
+  Instance w{.name = "wall", .mesh = 0, .dynamic = true};
+  w.transform = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, -2.0f, 0.125f));
+  w.motion.axis = glm::normalize(glm::vec3(0.57735f, 0.57735f, 1.57735f));
+  w.motion.pivot = glm::vec3(0.0f, 0.0f, 0.125f);
+  w.motion.angular_speed = 6.2831853f;
+  s.instances.push_back(w);
+  Instance b{.name = "slow", .mesh = 1, .dynamic = true};
+  b.transform = glm::translate(glm::mat4(1.0f), glm::vec3(3.0f, 0.0f, 3.0f)) * glm::scale(glm::mat4(1.0f), glm::vec3(0.2f));
+  b.motion.path_points = {glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, -0.5f)};
+  b.motion.path_period = 16.0f;
+  s.instances.push_back(b);
+  s.finalize();
+  return s;
+}
+
+// The image layout's case of the same: a static slab of 6 large parallel quads in the cell layer
+// z in [0, 0.25) (every cell of it saturated at capacity 4: the list's static entries), and a
+// wall of 8 x 4 unit quads parallel to it on a path from z = 1.125 (empty cells, a few references
+// each: nothing spills) into the slab's layer at t = 1 (every reference spills), period 2 s.
+inline Scene wall_into_slab_scene() {
+  Scene s = turning_wall_scene();
+  s.name = "wall into slab";
+  Mesh slab;
+  slab.name = "slab";
+  for (uint32_t k = 0; k < 6; ++k) {
+    const float z = 0.03f + 0.03f * float(k);
+    const uint32_t b = uint32_t(slab.positions.size());
+    for (int q = 0; q < 4; ++q) slab.positions.push_back({(q & 1) ? 4.37f : -4.41f, (q & 2) ? 2.43f : -2.39f, z});
+    slab.triangles.push_back({b, b + 1, b + 3});
+    slab.triangles.push_back({b, b + 3, b + 2});
+  }
+  slab.materials.assign(slab.triangles.size(), 0u);
+  s.meshes.push_back(std::move(slab));
+  s.instances.clear();
+  s.instances.push_back(Instance{.name = "slab", .mesh = 2});
+  Instance w{.name = "wall", .mesh = 0, .dynamic = true};
+  w.transform = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, -2.0f, 0.125f));
+  w.motion.path_points = {glm::vec3(0.0f, 0.0f, 1.0f), glm::vec3(0.0f)};
+  w.motion.path_period = 2.0f;
+  s.instances.push_back(w);
   s.finalize();
   return s;
 }

@@ -145,6 +145,51 @@ TEST_CASE("Vulkan spill: dynamic references spill and move - the clear pass rese
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
+TEST_CASE("Vulkan spill: an update past the forecast grows the list like the reference's - the same header, entries "
+          "and hits in bits",
+          "[vulkan][diff][grid][hardcase]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  
+  for (GridOptions::Layout layout : {GridOptions::Layout::compact, GridOptions::Layout::image}) {
+    INFO((layout == GridOptions::Layout::compact ? "compact" : "image") << " layout");
+    // The compact layout spills every dynamic reference: the turning wall outgrows the forecast.
+    // The image layout spills only from full cells (the slab's, four slots a cell), its static
+    // entries first (a grown list keeps them): the wall moving into the slab outgrows it.
+    const Scene scene = layout == GridOptions::Layout::compact ? gridtest::turning_wall_scene() : gridtest::wall_into_slab_scene();
+    const float peak = layout == GridOptions::Layout::compact ? 0.5f : 1.0f;  // the most references spilled
+    GridOptions o;
+    o.traversal = Traversal::exact;
+    o.layout = layout;
+    o.cell_size = 0.25f;
+    o.threads = 2;
+    // (the forecast sampling t = 0 alone: its 16 samples over the period would include t = 1)
+    if (layout == GridOptions::Layout::image) o.capacity = 4, o.capacity_time_samples = 1;
+    ReferenceGridTracer ref(o);
+    ref.build(scene, 0.0f);
+    VulkanGridTracer vk(ctx, o, {.build = BuildMode::compute});
+    vk.build(scene, 0.0f);
+    const uint32_t forecast = ref.data().spill_header.capacity;
+    REQUIRE(vk.spill_header().capacity == forecast);
+    for (float time : {peak, 0.25f, 1.5f, peak}) {
+      INFO("t = " << time);
+      ref.update(time);
+      vk.update(time);
+      CHECK(ref.data().spill_header.capacity > forecast);
+      CHECK(vk.spill_header().capacity == ref.data().spill_header.capacity);
+      CHECK(vk.spill_header().count == ref.data().spill_header.count);
+      CHECK(vk.spill().overflow() == 0u);
+      check_spill(ref.spill(), vk.spill());
+      const std::vector<Ray> rays = gridtest::walk_rays(ref.data().params, uint32_t(5 + time * 8));
+      std::vector<Hit> want(rays.size()), got(rays.size());
+      ref.trace(rays, want);
+      vk.trace(rays, got);
+      CHECK(differing_hits(rays, want, got) == 0);
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
 TEST_CASE("Vulkan spill: first-empty - a saturated cell's slots and spilled entries are exactly its candidates",
           "[vulkan][diff][grid]") {
   vulkan::Context& ctx = vk_context();

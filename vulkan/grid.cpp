@@ -505,14 +505,14 @@ void VulkanGridTracer::record_skip_field(VkCommandBuffer cb, Timestamps* stamps)
   }
 }
 
-void VulkanGridTracer::after_insert() {
+void VulkanGridTracer::after_insert(bool warn) {
   ctx_->download(gpu_->spill, &spill_header_, sizeof spill_header_);
   // Gap-fill only while some cell is saturated (the trace pipeline follows the flags)
   params_.flags = plan::trace_flags(requested_flags_, options_, spill_header_.count);
   plan::SpillDump d;
   d.on = (params_.flags & shared::kGridSpill) != 0u;
   d.header = spill_header_;
-  plan::warn_spill_overflow(d, name(), overflow_warned_);
+  if (warn) plan::warn_spill_overflow(d, name(), overflow_warned_);
 }
 
 const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32_t mode, uint32_t rays) {
@@ -585,8 +585,44 @@ void VulkanGridTracer::upload_transforms(float time, uint32_t first, uint32_t la
 
 void VulkanGridTracer::update(float time) {
   if (!scene_ || !gpu_) throw Error("vulkan-grid: update before build");
+  if (static_instances_ == uint32_t(scene_->instances.size())) return;
+  update_insert(time);
+  // The spill list's forecast fell short at this time: grow it and insert again (plan::spill_growth)
+  if (const uint32_t grown = plan::spill_growth(spill_header_, options_, requested_flags_)) {
+    grow_spill(grown);
+    update_insert(time);
+  }
+  plan::SpillDump d;
+  d.on = (params_.flags & shared::kGridSpill) != 0u;
+  d.header = spill_header_;
+  plan::warn_spill_overflow(d, name(), overflow_warned_);
+}
+
+void VulkanGridTracer::grow_spill(uint32_t capacity) {
+  Context& ctx = *ctx_;
+  Gpu& gpu = *gpu_;
+  if (uint64_t(capacity) > uint64_t(ctx.info().limits.maxComputeWorkGroupCount[0]) * 64u)
+    throw Error("a spill list of " + std::to_string(capacity) + " entries needs more workgroups than "
+                "maxComputeWorkGroupCount on " + ctx.info().name + ": set a smaller --spill-capacity");
+  Buffer grown = ctx.create_buffer(sizeof(shared::SpillHeader) + VkDeviceSize(capacity) * sizeof(shared::SpillEntry),
+                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  // The header and the static entries (the first static_count: the dynamic ones are inserted again)
+  const VkDeviceSize kept = sizeof(shared::SpillHeader) +
+                            VkDeviceSize(std::min(spill_header_.static_count, spill_header_.capacity)) *
+                                sizeof(shared::SpillEntry);
+  ctx.submit([&](VkCommandBuffer cb) {
+    const VkBufferCopy copy{0, 0, kept};
+    vkCmdCopyBuffer(cb, gpu.spill.buffer, grown.buffer, 1, &copy);
+  });
+  spill_header_.capacity = capacity;
+  ctx.upload(grown, &spill_header_.capacity, sizeof(uint32_t), offsetof(shared::SpillHeader, capacity));
+  gpu.spill = std::move(grown);
+  gpu.spill_capacity = capacity;
+  gpu.set->bind(shared::kGridBindSpill, gpu.spill);
+}
+
+void VulkanGridTracer::update_insert(float time) {
   const uint32_t n = uint32_t(scene_->instances.size());
-  if (static_instances_ == n) return;
   Gpu& gpu = *gpu_;
   upload_transforms(time, static_instances_, n);
   const GridParams& g = params_;
@@ -628,7 +664,7 @@ void VulkanGridTracer::update(float time) {
     if (gpu.update_timestamps) gpu.update_timestamps->write(cb, 4, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   });
   timings_.update_host_ms = ms_since(t0);
-  after_insert();
+  after_insert(false);
   if (gpu.update_timestamps) {
     const std::vector<double> ns = gpu.update_timestamps->read_ns();
     timings_.update_ms = (ns[4] - ns[0]) * 1e-6;

@@ -192,7 +192,12 @@ class VulkanGridTracer : public Tracer {
                         uint32_t stamp = 0);
   // Reads the spill header back, sets the trace's flags from it (plan::trace_flags) and
   // warns once on an overflow.
-  void after_insert();
+  void after_insert(bool warn = true);
+  // update's work after its early return: the dynamic references cleared and inserted at `time`.
+  void update_insert(float time);
+  // The spill list grown to `capacity` entries, its header and static entries copied over and the
+  // set bound to it (plan::spill_growth: the update then inserts again).
+  void grow_spill(uint32_t capacity);
   void record_spill_order(VkCommandBuffer cb, bool dynamic);
   // The trace pipeline for the current flags, with explain or on a ray list (made on first use:
   // gap-fill comes and goes with saturation).

@@ -906,20 +906,24 @@ SH_INLINE uint segment_visit_last(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(ve
 // union of its triangles' cell ranges, uploaded by each build and update; a cell's distance is the
 // smaller of its static distance and its distance to every box.
 // Buffer layout (words): the box count, 3 words of padding, kSkipMaxBoxes boxes of 8 words (lo.xyz,
-// pad, hi.xyz, pad), then the static distances, 4 cells per word (8 bits each, cell i in bits
-// 8 (i % 4) of word i / 4).
-SH_CONST uint kSkipMaxDistance = 255u;
+// pad, hi.xyz, pad), then one byte per cell, 4 cells per word (cell i in bits 8 (i % 4) of word
+// i / 4). A cell's byte (skip_byte): an empty cell's distance D in [1, kSkipMaxDistance]; an
+// occupied cell's is 0, or with kGridSkipCovered and a cover bit set kSkipCoverTag | its cover bits
+// ("Covered cells" below): the distance of an occupied cell is 0, so its byte is free to carry
+// them, and the walk reads both in one load.
+SH_CONST uint kSkipMaxDistance = 191u;
+SH_CONST uint kSkipCoverTag = 192u;  // bits 6 and 7 set: an occupied cell's byte with cover bits
 SH_CONST uint kSkipMaxBoxes = 8u;
 SH_CONST uint kSkipBoxWords = 8u;
 SH_CONST uint kSkipHeaderWords = 4u + kSkipMaxBoxes * kSkipBoxWords;
-// With kGridSkipCovered the cover bits follow the distances, 8 bits per cell in the same packing
-// (skip_cover_word; "Covered cells" below).
-SH_INLINE uint skip_words(SH_IN(GridParams) g) {
-  uint region = (grid_cell_count(g) + 3u) / 4u;
-  return kSkipHeaderWords + ((g.flags & kGridSkipCovered) != 0u ? 2u * region : region);
-}
+SH_INLINE uint skip_words(SH_IN(GridParams) g) { return kSkipHeaderWords + (grid_cell_count(g) + 3u) / 4u; }
 SH_INLINE uint skip_distance_word(uint i) { return kSkipHeaderWords + i / 4u; }
 SH_INLINE uint skip_distance_shift(uint i) { return 8u * (i % 4u); }
+// A cell's byte from its static distance and cover bits (non-zero only where the distance is 0),
+// and back.
+SH_INLINE uint skip_byte(uint distance, uint cover) { return cover != 0u ? kSkipCoverTag | cover : distance; }
+SH_INLINE uint skip_byte_distance(uint b) { return b >= kSkipCoverTag ? 0u : b; }
+SH_INLINE uint skip_byte_cover(uint b) { return b >= kSkipCoverTag ? b & 63u : 0u; }
 SH_INLINE uint skip_box_word(uint b) { return 4u + b * kSkipBoxWords; }
 
 // ---- Covered cells (kGridSkipCovered; docs/SPEC.md "Covered cells") ----
@@ -929,11 +933,8 @@ SH_INLINE uint skip_box_word(uint b) { return 4u + b * kSkipBoxWords; }
 // the best hit so far as the bound, so on entering a cell through a face whose bit is set, the
 // cell's static references were all tested in the cell it came from (or, that one covered too,
 // earlier): their results cannot change, and the walk skips them (the dynamic list is still
-// tested). Stored after the distances, 8 bits per cell, 4 cells per word.
+// tested). Stored in the cell's skip byte (skip_byte), read with its distance.
 SH_CONST uint kCoverNoFace = 6u;  // the walk's first cell: entered through no face (bit 6 is never set)
-SH_INLINE uint skip_cover_word(SH_IN(GridParams) g, uint i) {
-  return kSkipHeaderWords + (grid_cell_count(g) + 3u) / 4u + i / 4u;
-}
 // The face a single DDA step along axis a enters the next cell through: the direction's sign along
 // a says which neighbour the walk came from.
 SH_INLINE uint skip_entry_face(SH_IN(vec3) dir, uint a) {
@@ -1055,7 +1056,7 @@ SH_CONST uint kSkipBrick = 4u;
 // - 1 >= kSkipMaxDistance). A brick with no occupied cell within R - 1 bricks gets R: its cells'
 // distances are at least kSkipBrick R - (kSkipBrick - 1), and the window holds every capped value
 // from there.
-SH_CONST uint kSkipMaxBrickDistance = 63u;  // kSkipMaxDistance over kSkipBrick, rounded down (asserted below)
+SH_CONST uint kSkipMaxBrickDistance = 47u;  // kSkipMaxDistance over kSkipBrick, rounded down (asserted below)
 SH_INLINE uvec3 skip_bricks(SH_IN(GridParams) g) { return (g.cells + uvec3(3u)) / 4u; }  // kSkipBrick = 4
 SH_INLINE uint skip_brick_count(SH_IN(GridParams) g) {
   uvec3 b = skip_bricks(g);
@@ -1091,6 +1092,8 @@ SH_END
 #ifdef __cplusplus
 static_assert(sizeof(gridrt::shared::GridParams) == 96, "std430 layout of GridParams");
 static_assert(gridrt::shared::kSkipBrick == 4u, "skip_bricks and skip_brick_index divide by 4");
+static_assert(gridrt::shared::kSkipMaxDistance < gridrt::shared::kSkipCoverTag && gridrt::shared::kCoverNoFace == 6u,
+              "a distance's byte never reads as cover bits; the 6 cover bits fit below kSkipCoverTag's bits");
 static_assert(gridrt::shared::kSkipMaxBrickDistance * gridrt::shared::kSkipBrick <= gridrt::shared::kSkipMaxDistance &&
                   (gridrt::shared::kSkipMaxBrickDistance + 1u) * gridrt::shared::kSkipBrick > gridrt::shared::kSkipMaxDistance,
               "kSkipMaxBrickDistance is kSkipMaxDistance over kSkipBrick, rounded down");

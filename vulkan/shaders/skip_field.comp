@@ -20,8 +20,8 @@
 //        its distance, the smallest r whose cube holds an occupied cell, by binary search over the
 //        window its brick's distance leaves (skip_cell_window); the four cells of a word meet in
 //        shared memory, the word's first lane writes it (the reference: one invocation per word).
-//        With kGridSkipCovered, an occupied cell's cover bits too (skip_cover_bits), written the
-//        same way after the distances.
+//        With kGridSkipCovered, an occupied cell's cover bits (skip_cover_bits) go in its byte
+//        instead of the distance 0 (skip_byte).
 #extension GL_GOOGLE_include_directive : require
 #include "grid_common.glsl"
 
@@ -34,8 +34,7 @@ layout(std430, binding = kGridBindSkipTable) buffer SkipTable { uint table[]; };
 layout(push_constant) uniform Push { SkipFieldPush pc; };
 
 const uint kSkipLineBatch = 8u;
-shared uint words[64u / 4u];  // pass 4: the workgroup's cells' distances, 4 to a word
-shared uint cover_words[64u / 4u];  // and their cover bits (kGridSkipCovered)
+shared uint words[64u / 4u];  // pass 4: the workgroup's cells' bytes, 4 to a word
 shared uint segment_sums[64];  // passes 0-2: each lane's segment sum
 
 // Lines a workgroup of passes 0-2 takes (record_skip_field on the host): 16 along z and y (4
@@ -185,7 +184,7 @@ void main() {
   // The distances, one invocation per cell (every lane reaches the barriers)
   const uint cells = grid_cell_count(g);
   const uint l = gl_LocalInvocationID.x;
-  if (l < 64u / 4u) words[l] = 0u, cover_words[l] = 0u;
+  if (l < 64u / 4u) words[l] = 0u;
   barrier();
   if (item < cells) {
     const uint i = item;
@@ -198,13 +197,9 @@ void main() {
       if (skip_cube_count(g, c, mid) > 0u) hi = mid;
       else lo = mid + 1u;
     }
-    atomicOr(words[l / 4u], lo << skip_distance_shift(i));
-    if ((g.flags & kGridSkipCovered) != 0u && lo == 0u)
-      atomicOr(cover_words[l / 4u], skip_cover_bits(g, cells, c) << skip_distance_shift(i));
+    const uint cover = (g.flags & kGridSkipCovered) != 0u && lo == 0u ? skip_cover_bits(g, cells, c) : 0u;
+    atomicOr(words[l / 4u], skip_byte(lo, cover) << skip_distance_shift(i));
   }
   barrier();
-  if (item < cells && item % 4u == 0u) {
-    skip[kSkipHeaderWords + item / 4u] = words[l / 4u];
-    if ((g.flags & kGridSkipCovered) != 0u) skip[skip_cover_word(g, item)] = cover_words[l / 4u];
-  }
+  if (item < cells && item % 4u == 0u) skip[kSkipHeaderWords + item / 4u] = words[l / 4u];
 }

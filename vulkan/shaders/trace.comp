@@ -24,8 +24,8 @@ layout(std430, binding = kGridBindSpill) readonly buffer Spill {
   SpillEntry spill_entries[];
 };
 layout(std430, binding = kGridBindSpillHeads) readonly buffer SpillHeads { uint spill_heads[]; };
-// The skip field (kGridSkipEmpty; common/shared/grid.h): the dynamic boxes, then the distances,
-// then (kGridSkipCovered) the cover bits.
+// The skip field (kGridSkipEmpty; common/shared/grid.h): the dynamic boxes, then a byte per cell,
+// its distance or (kGridSkipCovered) its cover bits.
 layout(std430, binding = kGridBindSkip) readonly buffer Skip { uint skip[]; };
 // The compact layout (kGridCompact): per cell its run of static references.
 layout(std430, binding = kGridBindOffsets) readonly buffer Offsets { uint compact_offsets[]; };
@@ -231,13 +231,10 @@ void test_spilled(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi) {
 // kStatusDynamic where the list is not empty). Cells outside the region read no head.
 uvec3 region_lo;
 uvec3 region_hi;
-// With kGridSkipCovered, a cell entered through a face whose cover bit is set (`face`; kCoverNoFace
-// for the walk's first cell) reads no reference of its run: each was tested in the neighbour the
-// walk came from (kEvCovered instead of the run's slots).
-bool cell_covered(GridParams g, uint i, uint face) {
-  return (g.flags & kGridSkipCovered) != 0u && ((skip[skip_cover_word(g, i)] >> (skip_distance_shift(i) + face)) & 1u) != 0u;
-}
-void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi, uint face) {
+// With kGridSkipCovered, a cell entered through a face whose cover bit is set (`covered`; `face`
+// the face the walk entered through, kCoverNoFace for its first cell) reads no reference of its
+// run: each was tested in the neighbour the walk came from (kEvCovered instead of the run's slots).
+void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_hi, uint face, bool covered) {
   const uint i = cell_linear_index(g, cell);
   uint begin = 0u;
   uint end = 0u;
@@ -252,7 +249,7 @@ void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_
       end = compact_offsets[k + 1u];
     }
   }
-  if (cell_covered(g, i, face)) {
+  if (covered) {
     emit(kEvCovered, face, kBlank, step, cell, end - begin, vec4(0.0f), vec4(0.0f));
   } else {
     for (uint j = begin; j < end; ++j) {
@@ -413,10 +410,13 @@ uint skip_box_mask(GridParams g, vec3 inv_dir, uvec3 k0) {
 }
 
 // The skip field's distance of a cell (kGridSkipEmpty): its static distance, lowered to its
-// distance to every dynamic box the walk can reach (shared/grid.h, "The skip field").
-uint skip_distance(GridParams g, uvec3 cell) {
+// distance to every dynamic box the walk can reach (shared/grid.h, "The skip field"); `cover` its
+// cover bits (kGridSkipCovered), from the same byte.
+uint skip_distance(GridParams g, uvec3 cell, out uint cover) {
   const uint i = cell_linear_index(g, cell);
-  uint d = (skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
+  const uint cell_byte = (skip[skip_distance_word(i)] >> skip_distance_shift(i)) & 0xFFu;
+  cover = skip_byte_cover(cell_byte);
+  uint d = skip_byte_distance(cell_byte);
   uint m = st.box_mask;
   while (m != 0u && d > 0u) {
     const uint b = uint(findLSB(m));
@@ -446,7 +446,8 @@ HitRecord trace_exact(GridParams g) {
   for (uint k = 0u; k < g.max_segments; ++k) {
     // Empty-space skipping: an empty cell's distance d to the nearest reference; the walk passes
     // the box of radius d - 1 around it at once (docs/SPEC.md "Empty-space skipping")
-    const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell) : 0u;
+    uint cover = 0u;
+    const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell, cover) : 0u;
     dda_walk_exits(g, st.org, st.dir, inv_dir, d > 0u ? d - 1u : 0u, w);
     const float t_exit = w.t_exit;
     const uvec3 cell = w.cell;
@@ -457,7 +458,7 @@ HitRecord trace_exact(GridParams g) {
            vec4(t_entry, t_exit, st.rs.t_lo, st.tmax));
       if ((g.flags & kGridCompact) != 0u) {
         // The compact layout: the cell's run, then its dynamic list
-        test_compact_cell(g, cell, k, st.rs.t_lo, st.tmax, face);
+        test_compact_cell(g, cell, k, st.rs.t_lo, st.tmax, face, ((cover >> face) & 1u) != 0u);
       } else {
         const uint last_ref = test_cell(g, cell, k, st.rs.t_lo, st.tmax);
         // A saturated cell's spilled references
@@ -500,25 +501,26 @@ void flat_enter(GridParams g, vec3 inv_dir, inout DdaWalk w, uint face) {
   const uint i = cell_linear_index(g, w.cell);
   const bool sparse = (g.flags & kGridSparseOffsets) != 0u;
   const uvec2 word = sparse ? compact_word(i) : uvec2(0u);
-  const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell) : 0u;
+  uint cover = 0u;
+  const uint d = (g.flags & kGridSkipEmpty) != 0u ? skip_distance(g, w.cell, cover) : 0u;
   dda_walk_exits(g, st.org, st.dir, inv_dir, d > 0u ? d - 1u : 0u, w);
   st.cells += 1u;
   flat_j = 0u;
   flat_end = 0u;
   flat_e = kSpillEnd;
   if (d != 0u) return;
-  // A covered cell (kGridSkipCovered): its run was tested in the cell the walk came from (its bits
-  // loaded beside the run's bounds, not before them)
-  const bool covered = cell_covered(g, i, face);
-  if (!sparse) {
-    flat_j = compact_offsets[i];
-    flat_end = compact_offsets[i + 1u];
-  } else if (compact_occupied(word.y, i)) {
-    const uint k = compact_run_index(grid_cell_count(g), word.x, word.y, i);
-    flat_j = compact_offsets[k];
-    flat_end = compact_offsets[k + 1u];
+  // A covered cell (kGridSkipCovered, its bits in the byte of its distance): its run was tested in
+  // the cell the walk came from, and its bounds are not loaded
+  if (((cover >> face) & 1u) == 0u) {
+    if (!sparse) {
+      flat_j = compact_offsets[i];
+      flat_end = compact_offsets[i + 1u];
+    } else if (compact_occupied(word.y, i)) {
+      const uint k = compact_run_index(grid_cell_count(g), word.x, word.y, i);
+      flat_j = compact_offsets[k];
+      flat_end = compact_offsets[k + 1u];
+    }
   }
-  if (covered) flat_j = flat_end;
   const uvec3 lo = uvec3(region_words[0], region_words[1], region_words[2]);
   const uvec3 hi = uvec3(region_words[4], region_words[5], region_words[6]);
   if (region_contains(w.cell, lo, hi)) flat_e = spill_heads[compact_head_index(region_index(w.cell, lo, hi))];
