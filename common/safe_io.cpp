@@ -54,11 +54,19 @@ uint64_t host_memory_available() {
   const auto max = read_number("/sys/fs/cgroup/memory.max", nullptr, 1);
   const auto current = read_number("/sys/fs/cgroup/memory.current", nullptr, 1);
   if (max && current) room = std::min(room, *max > *current ? *max - *current : 0);
+  // The limits on this process count what it already holds (the machine's and the cgroup's
+  // figures above already leave it out): the address space against ulimit -v, the data segment
+  // against ulimit -d, the resident set against --max-host-mib (the peak /usr/bin/time reports)
+  const auto left = [](uint64_t limit, std::optional<uint64_t> held) { return held && *held < limit ? limit - *held : held ? 0 : limit; };
+  const auto vm_size = read_number("/proc/self/status", "VmSize:", 1024);
+  const auto vm_data = read_number("/proc/self/status", "VmData:", 1024);
+  const auto vm_rss = read_number("/proc/self/status", "VmRSS:", 1024);
   for (const int resource : {RLIMIT_AS, RLIMIT_DATA}) {
     rlimit r{};
-    if (getrlimit(resource, &r) == 0 && r.rlim_cur != RLIM_INFINITY) room = std::min(room, uint64_t(r.rlim_cur));
+    if (getrlimit(resource, &r) == 0 && r.rlim_cur != RLIM_INFINITY)
+      room = std::min(room, left(uint64_t(r.rlim_cur), resource == RLIMIT_AS ? vm_size : vm_data));
   }
-  if (input_limits().max_host_bytes != 0) room = std::min(room, input_limits().max_host_bytes);
+  if (input_limits().max_host_bytes != 0) room = std::min(room, left(input_limits().max_host_bytes, vm_rss));
   return room;
 }
 
@@ -66,8 +74,10 @@ void require_host_memory(uint64_t bytes, const std::string& what, const std::str
   const uint64_t room = host_memory_available();
   if (bytes <= room) return;
   const auto mib = [](uint64_t b) { return std::to_string((b + (1u << 20) - 1) >> 20); };
+  const auto rss = read_number("/proc/self/status", "VmRSS:", 1024);
   throw Error(what + " need about " + mib(bytes) + " MiB of host memory, more than the " + mib(room) +
-              " MiB available (" + advice + "; --max-host-mib)");
+              " MiB available" + (rss ? " (this process holds " + mib(*rss) + " MiB already)" : "") + " (" + advice +
+              "; --max-host-mib)");
 }
 
 namespace {

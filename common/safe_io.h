@@ -39,8 +39,9 @@ InputLimits& input_limits();
 
 // The host memory this process may still take, in bytes: the least of the machine's available
 // memory (/proc/meminfo's MemAvailable), its cgroup's room (memory.max less memory.current), the
-// address-space and data limits (ulimit -v, -d), and --max-host-mib where it is set. UINT64_MAX
-// where none of them can be read.
+// address-space and data limits (ulimit -v, -d) less this process's address space and data
+// segment, and --max-host-mib where it is set less its resident set (/proc/self/status: what it
+// already holds, earlier grids of the same verb included). UINT64_MAX where none can be read.
 uint64_t host_memory_available();
 
 // Error, before anything is allocated, when `bytes` exceed host_memory_available(): "<what> need

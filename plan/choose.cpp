@@ -165,12 +165,21 @@ uint64_t host_build_memory(const GridParams& g, uint64_t static_refs, uint64_t s
                            uint64_t region_cells) {
   const uint64_t cells = uint64_t(g.cells.x) * g.cells.y * g.cells.z;
   const bool compact = (g.flags & shared::kGridCompact) != 0u;
-  uint64_t bytes = grid_memory(g, static_refs, static_cells, spill_capacity, region_cells).total();
-  bytes += 4 * cells;                                            // the trial's counts
-  if (compact) bytes += 4 * cells + 12 * std::max<uint64_t>(static_refs, 1);  // counts, pairs, scattered
-  if ((g.flags & shared::kGridSkipEmpty) != 0u)
-    bytes += 4 * (uint64_t(g.cells.x + 1) * (g.cells.y + 1) * (g.cells.z + 1) + (cells + 63) / 64);
-  return bytes;
+  // What the grid keeps, and the largest of the temporaries, which live one after the other: the
+  // plan's trial counts (a word a cell, before the grid is made), the compact passes' counts, pairs
+  // and scattered references (freed once the runs are ordered), the skip field's summed-volume
+  // table and bricks' distances (freed after its passes); an eighth more for the allocator's slack
+  // (checked against peak resident sets, exact and paper, both layouts: docs/ROBUSTNESS.md)
+  const uint64_t grid = grid_memory(g, static_refs, static_cells, spill_capacity, region_cells).total();
+  uint64_t temporary = 4 * cells;
+  if (compact) temporary = std::max(temporary, 4 * cells + 12 * std::max<uint64_t>(static_refs, 1));
+  if ((g.flags & shared::kGridSkipEmpty) != 0u) {
+    const uint64_t table = uint64_t(g.cells.x + 1) * (g.cells.y + 1) * (g.cells.z + 1);
+    const uint64_t bricks = uint64_t((g.cells.x + 3) / 4) * ((g.cells.y + 3) / 4) * ((g.cells.z + 3) / 4);
+    temporary = std::max(temporary, 4 * (table + bricks));
+  }
+  const uint64_t bytes = grid + temporary;
+  return bytes + bytes / 8;
 }
 
 namespace {

@@ -433,12 +433,24 @@ void insert_sorted(GridData& grid, glm::uvec3 cell, uint32_t ref) {
 }
 
 SpillDump spill_dump(const GridData& grid) {
+  // The copy of the entries and the heads (four words a cell): checked before it is made
+  require_host_memory(16 * uint64_t(shared::grid_cell_count(grid.params)) +
+                          uint64_t(std::min(grid.spill_header.count, grid.spill_header.capacity)) * sizeof(shared::SpillEntry),
+                      "a copy of the spill list", "use a coarser grid");
   SpillDump d;
   d.on = (grid.params.flags & shared::kGridSpill) != 0u;
   d.header = grid.spill_header;
   d.entries.assign(grid.spill.begin(), grid.spill.begin() + ptrdiff_t(d.stored()));
-  d.heads = (grid.params.flags & shared::kGridCompact) != 0u ? plan::expand_compact_heads(grid.spill_heads, grid.params.cells)
-                                                              : grid.spill_heads;
+  // (one copy of the heads: a conditional of a prvalue and a const lvalue would make a second)
+  if ((grid.params.flags & shared::kGridCompact) != 0u) d.heads = plan::expand_compact_heads(grid.spill_heads, grid.params.cells);
+  else d.heads = grid.spill_heads;
+  return d;
+}
+
+SpillDump spill_counts(const GridData& grid) {
+  SpillDump d;
+  d.on = (grid.params.flags & shared::kGridSpill) != 0u;
+  d.header = grid.spill_header;
   return d;
 }
 
@@ -597,9 +609,10 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
     }
     compact_scatter(grid, o);
     compact_order(grid, o);
-    grid.compact_counts = {};
-    grid.compact_pairs = {};
-    grid.compact_scattered = {};
+    // Freed, not just emptied (`= {}` keeps a vector's capacity): 4 bytes a cell and 12 a reference
+    std::vector<uint32_t>().swap(grid.compact_counts);
+    std::vector<uint32_t>().swap(grid.compact_pairs);
+    std::vector<uint32_t>().swap(grid.compact_scattered);
   }
   // The skip field from the static references; the dynamic boxes at `time`
   if ((g.flags & shared::kGridSkipEmpty) != 0u) {

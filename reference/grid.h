@@ -135,6 +135,9 @@ void append_dirty_cell(WordBuffer& dirty, const shared::GridParams& g, glm::uvec
 std::vector<uint32_t> dirty_cells(const GridData& grid);
 
 SpillDump spill_dump(const GridData& grid);
+// The spill list's header alone (no entries, no heads: a dump's 32 bytes a cell are not made), for
+// the overflow warning and the statistics.
+SpillDump spill_counts(const GridData& grid);
 
 
 // scene_trace for one ray; `explain` (may be null) receives the events; `mode`: which hit

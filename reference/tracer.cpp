@@ -7,6 +7,7 @@
 #include "gridrt/reference/grid.h"
 #include "gridrt/common/util.h"
 #include "gridrt/common/invocations.h"
+#include "gridrt/common/safe_io.h"
 
 namespace gridrt::reference {
 
@@ -19,7 +20,7 @@ void ReferenceGridTracer::build(const Scene& scene, float time) {
   scene_build(grid_, scene, time, options_);
   build_ms_ = ms_since(t0);
   overflow_warned_ = false;
-  warn_spill_overflow(spill_dump(grid_), name(), overflow_warned_);
+  warn_spill_overflow(spill_counts(grid_), name(), overflow_warned_);
 }
 
 void ReferenceGridTracer::update(float time) {
@@ -32,7 +33,7 @@ void ReferenceGridTracer::update(float time) {
     scene_update(grid_, *scene_, time, options_);
   }
   update_ms_ = ms_since(t0);
-  warn_spill_overflow(spill_dump(grid_), name(), overflow_warned_);
+  warn_spill_overflow(spill_counts(grid_), name(), overflow_warned_);
 }
 
 
@@ -53,7 +54,11 @@ void ReferenceGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hi
 
 AccelDump ReferenceGridTracer::dump() const {
   AccelDump d;
-  if ((grid_.params.flags & shared::kGridCompact) != 0u) {
+  // A copy of the grid's arrays (diff, bench, sweep): checked before it is made
+  const bool compact = (grid_.params.flags & shared::kGridCompact) != 0u;
+  require_host_memory(4 * (compact ? uint64_t(grid_.offsets.size()) + grid_.refs.size() : uint64_t(grid_.image.size())),
+                      "a copy of the grid's " + std::string(compact ? "arrays" : "image"), "use a coarser grid");
+  if (compact) {
     // The compact layout: the offsets (the index of occupied cells' runs), then the references (as many as the last offset
     // says: the array's one-word stand-in of a grid without any is left out), as one row
     d.kind = "grid-compact";
@@ -134,7 +139,7 @@ GridStats grid_stats(const GridData& grid) {
         if (status & shared::kStatusStatic) ++s.saturated_static;
         if (status & shared::kStatusDynamic) ++s.saturated_dynamic;
       }
-  const SpillDump spill = spill_dump(grid);
+  const SpillDump spill = spill_counts(grid);
   s.spill_on = (g.flags & shared::kGridSpill) != 0u;
   s.spill_appended = spill.header.count;
   s.spill_static = spill.header.static_count;
