@@ -352,6 +352,19 @@ Bounds Scene::bounds(float time) const {
   return b;
 }
 
+void Scene::require_extent(float time, const std::string& who) const {
+  if (triangle_count() == 0) return;
+  const glm::vec3 e = bounds(time).extent();
+  const float side = std::max({e.x, e.y, e.z});
+  if (side > 0.0f && side < shared::kDomainMinExtent) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", double(side));
+    throw Error(who + ": scene '" + name + "' spans only " + buf +
+                " (its box's largest side): below 2^-40 = 9.1e-13 the triangle tests' products of three "
+                "coordinates leave float's normal range and hits are lost (docs/SPEC.md, \"Domain\"); scale it up");
+  }
+}
+
 Camera Scene::frame_camera() const {
   if (camera) return *camera;
   const Bounds b = bounds(0.0f);

@@ -146,6 +146,9 @@ struct Scene {
   bool has_glossy() const;
   uint64_t triangle_count() const;   // over all instances
   Bounds bounds(float time = 0.0f) const;  // world bounds of all instances at `time`
+  // Error where the scene's box at `time` has a largest side above 0 and below the domain's least
+  // extent (shared::kDomainMinExtent, docs/SPEC.md "Domain"): `who` names the tracer.
+  void require_extent(float time, const std::string& who) const;
   Camera frame_camera() const;       // camera, or one that frames the bounds
 };
 

@@ -692,6 +692,7 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
     throw Error("grid: an enlargement of " + gnum(o.sphere_enlargement) +
                 " lets the plane test drop triangles that cross a cell's corners; the exact traversal needs at "
                 "least 1 (the cell's own bounding sphere); below 1 is the paper traversal's knob");
+  scene.require_extent(time, "grid");
   const Bounds b = grid_box(scene, time);
   const glm::vec3 e = b.extent();
   // Resolution: density cells per triangle, cubic cells, or the overrides

@@ -260,6 +260,29 @@ TEST_CASE("A grid the host cannot hold is refused at once, with its size and the
   CHECK(ok.exit_code == 0);
 }
 
+TEST_CASE("A scene below the domain's least extent (2^-40) is refused by every tracer, not rendered blank",
+          "[badinput][cli]") {
+  // An outside tester's find: a model scaled by 1e-15 rendered the background alone with exit 0 (the
+  // triangle test's T, a product of three coordinates, underflowed), on the grid and on Embree
+  const fs::path d = scratch("tiny-extent");
+  std::ofstream(d / "tiny.obj") << "v 0 0 0\nv 1e-15 0 0\nv 0 1e-15 0\nf 1 2 3\n";
+  std::ofstream(d / "small.obj") << "v 0 0 0\nv 1e-11 0 0\nv 0 1e-11 0\nf 1 2 3\n";
+  for (const char* backend : {"cpu", "embree"}) {
+    INFO(backend);
+    const fs::path out = d / (std::string(backend) + ".png");
+    const auto r = run_tool(std::string("render ") + (d / "tiny.obj").string() + " --backend " + backend +
+                            " --width 16 --height 16 -o " + out.string());
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("spans only 1e-15") && Contains("2^-40"));
+    CHECK_FALSE(fs::exists(out));
+  }
+  // Above it, a triangle 1e-11 across is traced: a ray through it hits
+  const auto ok = run_tool("explain " + (d / "small.obj").string() + " --ray 2e-12,2e-12,1e-11,0,0,-1 --brief");
+  INFO(ok.output);
+  CHECK(ok.exit_code == 0);
+  CHECK_THAT(ok.output, Contains("HIT"));
+}
+
 TEST_CASE("The host memory estimate bounds the build's peak: under an address-space limit, refused or built, never out "
           "of memory halfway",
           "[badinput][cli]") {

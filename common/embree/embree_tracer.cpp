@@ -215,6 +215,7 @@ EmbreeTracer::~EmbreeTracer() {
 }
 
 void EmbreeTracer::build(const Scene& scene, float time) {
+  scene.require_extent(time, "embree");
   Impl& d = *impl_;
   d.release();
   d.scene = &scene;

@@ -458,6 +458,11 @@ SH_INLINE float sh_infinity() { return uintBitsToFloat(0x7F800000u); }
 // form stays finite (watertight: |v - org| <= 2^25 and the largest |dir| component <= 2^20 give
 // |T| < 2^121) and an accepted hit has T > 0 (tmin >= 0), so no test yields a NaN t.
 SH_CONST float kDomainMaxCoordinate = 16777216.0f;     // 2^24: |org| and scene vertex components
+// 2^-40: the least largest side of a scene's box. Below it the watertight test's T, a product of
+// three coordinate differences (|T| ~ extent^3 for rays of unit length from within the scene's
+// reach), falls out of float's normal range: t loses its bits, then every test rejects (a scene of
+// 1e-15 rendered blank with exit 0; at 1e-13 t was off by 2,000 ulps, at 1e-12 by 2).
+SH_CONST float kDomainMinExtent = 9.094947017729282e-13f;
 SH_CONST float kDomainMinDirection = 9.5367431640625e-07f;  // 2^-20: the largest |dir| component,
 SH_CONST float kDomainMaxDirection = 1048576.0f;       // 2^20:  at least / at most
 SH_CONST uint kDomainOk = 0u;
