@@ -165,6 +165,8 @@ std::vector<Config> configurations(const SweepOptions& o) {
                   // Below 1 the plane test drops triangles at cells' corners: the paper's knob; the
                   // exact traversal refuses it (plan::choose_grid), so the sweep leaves it out there
                   if (tr == "exact" && c.enlargement < 1.0f) continue;
+                  // So is an AABB padding of 0 (a triangle on a cell face left out of the cell across it)
+                  if (tr == "exact" && c.padding && !(*c.padding > 0.0f)) continue;
                   c.elongation = parse_float("elongation", o.elongation[ei], 0.0f, 16.0f);
                   c.gap_fill = o.gap_fill[gi];
                   c.spill = sp;

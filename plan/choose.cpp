@@ -692,6 +692,12 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
     throw Error("grid: an enlargement of " + gnum(o.sphere_enlargement) +
                 " lets the plane test drop triangles that cross a cell's corners; the exact traversal needs at "
                 "least 1 (the cell's own bounding sphere); below 1 is the paper traversal's knob");
+  // And AABB padding above 0: without it a triangle whose edge lies on a cell face is left out of
+  // the cell across it, where a ray crossing that edge is walked (an outside tester's miss)
+  if (o.traversal == Traversal::exact && o.aabb_padding && !(*o.aabb_padding > 0.0f))
+    throw Error("grid: an AABB padding of " + gnum(*o.aabb_padding) +
+                " leaves a triangle whose edge lies on a cell face out of the cell across it; the exact traversal "
+                "needs a padding above 0 (default " + gnum(kAabbPadding) + "); 0 is the paper traversal's knob");
   scene.require_extent(time, "grid");
   const Bounds b = grid_box(scene, time);
   const glm::vec3 e = b.extent();

@@ -160,6 +160,8 @@ inline GridOptions gather_options(GridOptions o) {
   // Exact primary visibility: the plane test's sphere holds the whole cell (an enlargement below 1
   // is the paper traversal's knob, for its segments, not for the gather)
   o.sphere_enlargement = std::max(o.sphere_enlargement, 1.0f);
+  // and AABB padding above 0 (0 is the paper traversal's knob too): the default where it is not
+  if (o.aabb_padding && !(*o.aabb_padding > 0.0f)) o.aabb_padding.reset();
   if (o.triangle_test == AlgorithmOptions::TriangleTest::automatic) o.triangle_test = AlgorithmOptions::TriangleTest::moller;
   return o;
 }

@@ -331,6 +331,15 @@ TEST_CASE("grid: cells wider than the domain, an exact traversal below the cell'
   CHECK(plan::gather_options(go).sphere_enlargement == 1.0f);  // the paper's gather stays exact
   go.traversal = reference::Traversal::paper;  // the paper's knob
   CHECK_NOTHROW(reference::choose_grid(scene, 0.0f, go));
+  // An AABB padding of 0 leaves a triangle on a cell face out of the cell across it: refused by
+  // the exact traversal, the paper's knob, and the paper's gather takes the default
+  go.sphere_enlargement = 1.25f;
+  go.aabb_padding = 0.0f;
+  CHECK_NOTHROW(reference::choose_grid(scene, 0.0f, go));
+  CHECK_FALSE(plan::gather_options(go).aabb_padding.has_value());
+  go.traversal = reference::Traversal::exact;
+  CHECK_THROWS_WITH(reference::choose_grid(scene, 0.0f, go), Catch::Contains("AABB padding of 0") && Catch::Contains("above 0"));
+  go.aabb_padding.reset();
   // A cell-size override over the compact layout's budget names the budget, not the image's limits
   go.traversal = reference::Traversal::exact;
   go.sphere_enlargement = 1.25f;
