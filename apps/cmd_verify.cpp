@@ -53,17 +53,17 @@ void run_verify(const VerifyCliOptions& o) {
   const Scene scene = load_scene_or_default(o.scene);
   // The translated run by default only where the moved scene is still a scene; asked for by name,
   // verify_scene refuses it with the reason.
+  BackendOptions bo = o.backend_options;
+  resolve_image_limit(bo, o.backend == "vulkan");
+  const reference::GridOptions go = grid_options_for(bo, scene);
   const bool translated_asked = std::find(o.families.begin(), o.families.end(), "translated") != o.families.end();
   if (vo.translated && !translated_asked) {
-    if (const std::string problem = verify::translated_problem(scene, vo.offset); !problem.empty()) {
+    if (const std::string problem = verify::translated_problem(scene, vo.offset, &go); !problem.empty()) {
       std::printf("verify: the translated run is skipped: moved by (%g, %g, %g), %s\n", vo.offset.x, vo.offset.y,
                   vo.offset.z, problem.c_str());
       vo.translated = false;
     }
   }
-  BackendOptions bo = o.backend_options;
-  resolve_image_limit(bo, o.backend == "vulkan");
-  const reference::GridOptions go = grid_options_for(bo, scene);
   const bool exact = go.traversal == reference::Traversal::exact;
   std::printf("verify: %s, %s backend, %s traversal, %s triangle test; %zu rays per family, seed %llu\n",
               scene.name.c_str(), o.backend.c_str(), exact ? "exact" : "paper",

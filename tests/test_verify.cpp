@@ -474,6 +474,25 @@ TEST_CASE("gridrt verify: a model too small for the translated run's offset skip
   fs::remove(obj);
 }
 
+TEST_CASE("gridrt verify: cells too fine for the translated run's coordinates skip that run, with the reason",
+          "[verify][cli]") {
+  // An outside tester's find: a unit triangle with --cell-size 0.05 exited 1 with "cells of 0.05 are
+  // narrower than 64 ulps ... at 100002 from the origin", a reach the scene never has (the
+  // translated run's), and no family's results
+  const fs::path obj = fs::temp_directory_path() / "gridrt_verify_fine_cells.obj";
+  std::ofstream(obj) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  reference::GridOptions go;
+  go.cell_size = 0.05f;
+  CHECK_THAT(translated_problem(load_scene(obj.string()), glm::vec3(1.0e5f, -5.0e4f, 7.5e4f), &go),
+             Catch::Contains("narrower than"));
+  const test::Run r = test::run_tool("verify " + obj.string() + " --traversal exact -n 20 --threads 2 --cell-size 0.05");
+  INFO(r.output);
+  CHECK(r.exit_code == 0);
+  CHECK_THAT(r.output, Catch::Contains("the translated run is skipped") && Catch::Contains("narrower than"));
+  CHECK_THAT(r.output, Catch::Contains("\ncamera ") && Catch::Contains("verify: OK"));
+  fs::remove(obj);
+}
+
 TEST_CASE("gridrt render --backend embree: a camera beyond Embree's limits is refused with a message, not an abort",
           "[verify][cli]") {
   // Its eye lies beyond the ray domain's 2^24 (and Embree's ~1.8e18): the scene is refused at load

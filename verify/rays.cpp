@@ -215,10 +215,11 @@ Scene translated(const Scene& scene, glm::vec3 offset) {
   return s;
 }
 
-std::string translated_problem(const Scene& scene, glm::vec3 offset) {
+std::string translated_problem(const Scene& scene, glm::vec3 offset, const reference::GridOptions* grid) {
   Scene s = translated(scene, offset);
   try {
     s.finalize();
+    if (grid) reference::choose_grid(s, 0.0f, *grid);
   } catch (const Error& e) {
     return e.what();
   }

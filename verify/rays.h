@@ -82,7 +82,9 @@ Scene translated(const Scene& scene, glm::vec3 offset);
 // Why the scene moved by `offset` is not a scene (its camera's eye and target, or its bounds,
 // rounded to one point: a model far smaller than a float's step at the offset), or "" when it is
 // one: the moved copy through Scene::finalize, the checks every loaded scene passes.
-std::string translated_problem(const Scene& scene, glm::vec3 offset);
+// `grid`: where given, the grid the moved scene would take is chosen too (an explicit cell size
+// can be too fine for a float's step out there).
+std::string translated_problem(const Scene& scene, glm::vec3 offset, const reference::GridOptions* grid = nullptr);
 
 // A copy of `scene` without alpha masks (the referee judges geometry only).
 Scene without_alpha(const Scene& scene);

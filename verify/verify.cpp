@@ -164,7 +164,7 @@ std::vector<FamilyResult> verify_scene(const Scene& scene_in, const reference::G
                                        const TracerFactory& make, const VerifyOptions& o) {
   const Scene scene = without_alpha(scene_in);
   if (o.translated)  // before any family runs, not after minutes of them
-    if (const std::string problem = translated_problem(scene, o.offset); !problem.empty())
+    if (const std::string problem = translated_problem(scene, o.offset, &grid_options); !problem.empty())
       throw Error("verify: the translated run: moved by (" + std::to_string(o.offset.x) + ", " +
                   std::to_string(o.offset.y) + ", " + std::to_string(o.offset.z) + "), " + problem +
                   " (the scene is too small for a float's step there: a smaller --offset, or --no-translated)");
