@@ -682,8 +682,12 @@ Ray parse_ray(const std::string& text) {
       const unsigned long inst = std::strtoul(a.c_str(), &end, 10);
       const bool ok = digits(a) && *end == '\0';
       const unsigned long tri = std::strtoul(b.c_str(), &end, 10);
-      if (!ok || !digits(b) || *end != '\0' || inst > 0xFFFEu || tri > 0xFFFFu)
+      if (!ok || !digits(b) || *end != '\0')
         throw Error("launch_ref " + quoted(s) + " is not INSTANCE:TRIANGLE");
+      // A reference word holds a 16-bit triangle index and an instance below 0xFFFF (no instance)
+      if (inst > 0xFFFEu || tri > 0xFFFFu)
+        throw Error("launch_ref " + quoted(s) + " is out of range: a reference holds an instance of at most 65534 "
+                    "and a triangle of at most 65535");
       r.launch_ref = uint32_t(inst << 16 | tri);
     } else {
       const unsigned long long v = std::strtoull(s.c_str(), &end, 0);

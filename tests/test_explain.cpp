@@ -82,6 +82,10 @@ TEST_CASE("Explain: rays as text - decimal, C99 hex, defaults, launch references
   for (const char* bad : {"1,2,3", "1,2,3,4,5,x", "1,2,3,4,5,6,7", "1,2,3,4,5,6,0,1,2:", "1,2,3,4,5,6,0,1,0x1ffffffff",
                           "1,2,3,4,5,6,", "1e99,0,0,1,0,0"})
     CHECK_THROWS_AS(plan::parse_ray(bad), Error);
+  // A well-formed INSTANCE:TRIANGLE out of a reference's range says so (it said "not INSTANCE:TRIANGLE")
+  CHECK_THROWS_WITH(plan::parse_ray("0,0,0,1,0,0,0,10,0:65536"), Catch::Contains("out of range"));
+  CHECK_THROWS_WITH(plan::parse_ray("0,0,0,1,0,0,0,10,65535:0"), Catch::Contains("out of range"));
+  CHECK_THROWS_WITH(plan::parse_ray("0,0,0,1,0,0,0,10,a:0"), Catch::Contains("is not INSTANCE:TRIANGLE"));
   // A file: comments, blank lines, and an error with its line
   const fs::path f = scratch("rays.txt");
   std::ofstream(f) << "# two rays\n\n0,0,0, 1,0,0  # along x\n0x1p+0,0,0,0,1,0,0,5\n";
