@@ -105,12 +105,25 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
                 double(c.memory ? c.memory : c.texels * 4) / 1048576.0,
                 double(c.range_cells) / double(std::max<uint64_t>(scene.triangle_count(), 1)), c.work.cells, c.work.tests, 100.0 * c.work.at_risk, 100.0 * c.work.skipped, 100.0 * c.work.lost, c.cost);
     if (o.measure) {
+      // The candidate as choose_grid would build it: the compact layout (its offsets, no fixed
+      // capacity: a capacity asked for means the image layout), or the image with its capacity
       reference::GridOptions gc = go;
       gc.cell_size = c.cell_size;
-      gc.capacity = c.capacity;
       gc.aabb_padding = c.aabb_padding;
+      if ((chosen.flags & sh::kGridCompact) != 0u) {
+        gc.layout = reference::GridOptions::Layout::compact;
+        gc.offsets = c.sparse_offsets ? reference::GridOptions::Offsets::sparse : reference::GridOptions::Offsets::dense;
+      } else {
+        gc.capacity = c.capacity;
+      }
       reference::ReferenceGridTracer t(gc);
-      t.build(scene, o.time);
+      try {
+        t.build(scene, o.time);
+      } catch (const Error& e) {
+        // A candidate that cannot be built (over the budget, the limits) is said so in its row
+        std::printf(" not built: %s | | | | |\n", e.what());
+        continue;
+      }
       std::vector<Hit> hits(rays.size());
       std::vector<double> ms;
       for (uint32_t k = 0; k < std::max(1u, o.repeat); ++k) {

@@ -1,11 +1,13 @@
 // The gridrt tool end to end: exit codes, messages, and no image left behind on bad input.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <string>
 
 #include "tests/run_tool.h"
@@ -315,4 +317,31 @@ TEST_CASE("CLI: bench --rays times a chosen kind of rays on a scene without glos
   CHECK(bad.exit_code == 1);
   CHECK(bad.output.find("unknown kind") != std::string::npos);
   fs::remove(json);
+}
+
+TEST_CASE("CLI: stats --candidates --measure builds each candidate as chosen (the compact layout) and measures every row",
+          "[cli][policy]") {
+  // An outside tester's find: each candidate was rebuilt with its capacity fixed, which turned the
+  // compact layout off: the atrium's image exceeded its limits and the table stopped halfway, exit 1
+  const Run r = run_tool("stats builtin:atrium --traversal exact --candidates --measure --width 32 --height 18 --threads 2");
+  INFO(r.output);
+  REQUIRE(r.exit_code == 0);
+  size_t candidates = 0;
+  {
+    const size_t at = r.output.find(" candidates (");
+    REQUIRE(at != std::string::npos);
+    const size_t start = r.output.rfind(", ", at);
+    candidates = std::stoul(r.output.substr(start + 2, at - start - 2));
+  }
+  REQUIRE(candidates > 1);
+  size_t measured = 0, chosen = 0;
+  std::istringstream lines(r.output);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("| ", 0) != 0 || line.find('x') == std::string::npos || line.find("cells") != std::string::npos) continue;
+    CHECK(line.find("not built") == std::string::npos);
+    measured += std::count(line.begin(), line.end(), '|') == 22;
+    chosen += line.find("**chosen**") != std::string::npos;
+  }
+  CHECK(measured == candidates);
+  CHECK(chosen == 1);
 }
