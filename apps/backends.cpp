@@ -1,5 +1,6 @@
 #include "apps/backends.h"
 
+#include <cmath>
 #include <cstdio>
 #include <map>
 
@@ -282,6 +283,23 @@ uint32_t vulkan_max_image_dimension() {
 #else
   return 0;
 #endif
+}
+
+float frame_time(float start, uint32_t k, float fps) { return float(double(start) + double(k) / double(fps)); }
+
+void require_distinct_frame_times(float start, uint32_t first, uint32_t count, float fps, const std::string& option) {
+  for (uint32_t k = first; k + 1 < first + count; ++k) {
+    const float a = frame_time(start, k, fps), b = frame_time(start, k + 1, fps);
+    if (!(b > a)) {
+      char buf[256];
+      std::snprintf(buf, sizeof buf,
+                    "frames %u and %u both fall on t = %.9g s: at --fps %g a frame is %.3g s apart, below a float's step "
+                    "there (%.3g s); lower --time or --fps",
+                    k, k + 1, double(a), double(fps), 1.0 / double(fps),
+                    double(std::nextafter(std::abs(a), INFINITY) - std::abs(a)));
+      throw CLI::ValidationError(option, buf);
+    }
+  }
 }
 
 void resolve_image_limit(BackendOptions& o, bool uses_vulkan) {

@@ -38,6 +38,13 @@ uint32_t vulkan_max_image_dimension();
 // `uses_vulkan`; prints what it chose.
 void resolve_image_limit(BackendOptions& options, bool uses_vulkan);
 
+// Frame k's scene time, start + k / fps, in double and rounded once.
+float frame_time(float start, uint32_t k, float fps);
+// CLI::ValidationError (on `option`) where two consecutive frame times of frames first ..
+// first + count - 1 round to one float: far from 0 a float's step grows (1/16 s near 1e6 s) and
+// the frames would repeat without a word.
+void require_distinct_frame_times(float start, uint32_t first, uint32_t count, float fps, const std::string& option);
+
 // The capacity rule a --capacity value names (auto = trace-cost), or none for a number.
 std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(const std::string& name);
 

@@ -205,7 +205,7 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
   uint32_t& counted = run.counted;
   uint32_t& gather_tiles = run.gather_tiles;
   for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
-    const float time = float(f + 1) / o.fps;
+    const float time = frame_time(0.0f, f + 1, o.fps);
     const auto t0 = std::chrono::steady_clock::now();
     if (moves) vk->update(time);
     const double update_host = moves ? ms_since(t0) : 0.0;
@@ -706,7 +706,7 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
   std::vector<Hit> hits, shadow_hits(shadow.size());
   std::vector<double> shadow_ms;
   for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
-    const float time = float(f + 1) / o.fps;
+    const float time = frame_time(0.0f, f + 1, o.fps);
     const std::vector<Ray> rays = frame_rays ? bounce_rays(scene, gather, f) : given;
     hits.resize(rays.size());
     t0 = std::chrono::steady_clock::now();
@@ -799,6 +799,7 @@ void run_bench(const BenchOptions& options) {
   if (!(double(o.frames) + double(o.warmup) <= 1.0e6 * double(o.fps)))
     throw CLI::ValidationError("--frames", std::to_string(o.frames + o.warmup) + " frames at --fps " +
                                                std::to_string(o.fps) + " pass 1e6 s, the scene time's limit");
+  require_distinct_frame_times(0.0f, 1, o.warmup + o.frames, o.fps, "--fps");
   if (o.rtx) {
 #ifndef GRIDRT_HAVE_VULKAN
     throw Error("--rtx: this build has no Vulkan backend");

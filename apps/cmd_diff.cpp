@@ -548,6 +548,7 @@ int DiffRun::run() {
     throw CLI::ValidationError("--frames", std::to_string(o_.frames) + " frames at --fps " + std::to_string(o_.fps) +
                                                " from --time " + std::to_string(o_.time) +
                                                " pass 1e6 s, the scene time's limit");
+  require_distinct_frame_times(o_.time, 0, o_.frames, o_.fps, "--fps");
   DiffOptions o = o_;
   resolve_image_limit(o.backend_options, true);
   scene_ = load_scene_or_default(o.scene);
@@ -570,7 +571,7 @@ int DiffRun::run() {
               ctx_->info().name.c_str(),
               o.backend_options.vk_build.c_str(), o.validation.c_str());
   for (uint32_t frame = 0; frame < o.frames; ++frame) {
-    const float time = o.time + float(frame) / o.fps;
+    const float time = frame_time(o.time, frame, o.fps);
     if (frame == 0) {
       ref_->build(scene_, time);
       gpu_->build(scene_, time);

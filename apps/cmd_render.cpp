@@ -99,6 +99,7 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given)
     throw CLI::ValidationError("--frames", std::to_string(o.frames) + " frames at --fps " + std::to_string(o.fps) +
                                                " from --time " + std::to_string(o.time) +
                                                " pass 1e6 s, the scene time's limit");
+  require_distinct_frame_times(o.time, 0, o.frames, o.fps, "--fps");
   if (o.view == "shaded" && scale_given)
     throw CLI::ValidationError("--scale", "sizes a --view figure: add --view, or leave --scale out");
   if (o.view == "shaded" && rays_given)
@@ -167,7 +168,7 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given)
   if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get())) {
     vulkan::VulkanFrame gpu_frame(*vk, scene, {.width = o.width, .height = o.height, .bounce = !o.no_bounce, .shadows = shadows});
     for (uint32_t frame = 0; frame < o.frames; ++frame) {
-      const float time = o.time + float(frame) / o.fps;
+      const float time = frame_time(o.time, frame, o.fps);
       if (frame > 0) vk->update(time);
       t0 = std::chrono::steady_clock::now();
       gpu_frame.render(frame);
@@ -183,7 +184,7 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given)
 #endif
   const Camera camera = scene.frame_camera();
   for (uint32_t frame = 0; frame < o.frames; ++frame) {
-    const float time = o.time + float(frame) / o.fps;
+    const float time = frame_time(o.time, frame, o.fps);
     if (frame > 0) {
       tracer->update(time);
       if (gather_tracer) gather_tracer->update(time);

@@ -17,7 +17,9 @@ glm::mat4 Motion::at(float time) const {
   if (path_points.size() > 1 && path_period > 0.0f) {
     // Piecewise-linear closed loop through the path points, one loop per path_period.
     const float n = float(path_points.size());
-    float phase = std::fmod(time / path_period, 1.0f);
+    // The phase in double: in float, time / period at large times keeps no digit of the loop (a
+    // period of 1 ms at 1e6 s: 1e9, whose float step is 64 loops)
+    float phase = float(std::fmod(double(time) / double(path_period), 1.0));
     if (phase < 0.0f) phase += 1.0f;
     if (!(phase >= 0.0f && phase < 1.0f)) phase = 0.0f;  // a non-finite time (rejected by the callers)
     const float s = phase * n;
@@ -30,12 +32,10 @@ glm::mat4 Motion::at(float time) const {
   }
   if (angular_speed != 0.0f) {
     m = glm::translate(m, pivot);
-    // The angle; where the float product passes float range (or leaves it without a digit of the
-    // turn), the same angle reduced modulo a turn in double precision, so that no time makes the
-    // rotation NaN (the instance would vanish from the frame)
-    float angle = angular_speed * time;
-    if (!(std::abs(angle) <= 1.0e6f))
-      angle = float(std::fmod(double(angular_speed) * double(time), 2.0 * std::numbers::pi));
+    // The angle reduced modulo a turn in double precision: the float product loses the turn's
+    // digits at large times (1e5 rad: a float step of 1/128 rad) and passes float range at larger
+    // ones (a NaN rotation: the instance vanished from the frame)
+    const float angle = float(std::fmod(double(angular_speed) * double(time), 2.0 * std::numbers::pi));
     m = glm::rotate(m, angle, glm::normalize(axis));
     m = glm::translate(m, -pivot);
   }

@@ -345,3 +345,14 @@ TEST_CASE("CLI: stats --candidates --measure builds each candidate as chosen (th
   CHECK(measured == candidates);
   CHECK(chosen == 1);
 }
+
+TEST_CASE("CLI: frames a float's step apart are refused, not repeated", "[cli]") {
+  // Near 1e6 s a float's step is 1/16 s: at 60 frames a second, frames 0 and 1 fell on one time and
+  // rendered the same picture twice, without a word
+  const Run r = run_tool("render builtin:atrium --time 999000 --frames 4 --fps 60 --width 8 --height 8 -o " +
+                         (fs::temp_directory_path() / "gridrt_repeat.png").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 2);
+  CHECK_THAT(r.output, Catch::Contains("both fall on t = 999000") && Catch::Contains("float's step"));
+  CHECK(run_tool("diff builtin:atrium --time 999000 --frames 2 --fps 60").exit_code == 2);
+}

@@ -212,3 +212,28 @@ TEST_CASE("Lights at any distance: shadow rays within the traces' domain on the 
   z.lights.push_back(Light{.position = glm::vec3(0.0f), .directional = true});
   CHECK_THROWS_WITH(z.finalize(), Catch::Contains("zero direction"));
 }
+
+TEST_CASE("Motions at large times keep their phase: a path's loop and a turn's angle reduced in double", "[unit][scene]") {
+  // An outside tester's find: the path's phase was time / period in float, which near 1e6 s keeps
+  // no digit of a short loop; the angle was the float product, a step of 1/16 rad near 1e6 rad
+  Motion m;
+  m.path_points = {glm::vec3(0.0f), glm::vec3(1.0f, 0.0f, 0.0f)};
+  m.path_period = 0.001f;
+  for (const float t : {999999.9375f, 524288.5f, 0.25e-3f, 1.0f / 3.0f}) {
+    INFO("t = " << t);
+    double phase = std::fmod(double(t) / double(m.path_period), 1.0);
+    const double s = phase * 2.0;
+    const double x = s < 1.0 ? s : 2.0 - s;  // out along x in the first half loop, back in the second
+    CHECK(std::abs(double(m.at(t)[3].x) - x) <= 1e-5);
+  }
+  Motion r;
+  r.angular_speed = 1.0f;
+  r.axis = glm::vec3(0.0f, 0.0f, 1.0f);
+  for (const float t : {999999.9375f, 123456.789f, 2.5f}) {
+    INFO("t = " << t);
+    const double a = std::fmod(double(t), 2.0 * 3.14159265358979323846);
+    const glm::vec4 p = r.at(t) * glm::vec4(1.0f, 0.0f, 0.0f, 1.0f);
+    CHECK(std::abs(double(p.x) - std::cos(a)) <= 1e-6);
+    CHECK(std::abs(double(p.y) - std::sin(a)) <= 1e-6);
+  }
+}
