@@ -61,8 +61,39 @@ class SceneFileReader {
     // JSON text holds no NUL byte (the parser would stop there and take what follows for nothing)
     if (const size_t nul = text.find('\0'); nul != std::string::npos)
       throw Error(where(nul) + ": JSON syntax error: a NUL byte (a JSON text has none)");
+    // A key given twice in one object: the parser would keep the last without a word (a second
+    // "motion" pasted into an instance), so the parse's callback names the first duplicate's path
+    struct Level {
+      bool object = false;
+      std::set<std::string> keys;
+      std::string key;
+    };
+    std::vector<Level> levels;
+    std::string duplicate;
+    const json::parser_callback_t track = [&](int, json::parse_event_t event, json& parsed) {
+      switch (event) {
+        case json::parse_event_t::object_start: levels.push_back({true, {}, {}}); break;
+        case json::parse_event_t::array_start: levels.push_back({false, {}, {}}); break;
+        case json::parse_event_t::object_end:
+        case json::parse_event_t::array_end:
+          if (!levels.empty()) levels.pop_back();
+          break;
+        case json::parse_event_t::key:
+          if (!levels.empty() && parsed.is_string()) {
+            Level& l = levels.back();
+            l.key = parsed.get<std::string>();
+            if (!l.keys.insert(l.key).second && duplicate.empty()) {
+              for (size_t i = 0; i < levels.size(); ++i)
+                duplicate += levels[i].object ? (i > 0 ? "." : "") + levels[i].key : "[]";
+            }
+          }
+          break;
+        default: break;
+      }
+      return true;
+    };
     try {
-      root = json::parse(text);
+      root = json::parse(text, track);
     } catch (const json::out_of_range& e) {
       // e.g. an integer of 400 digits ("number overflow")
       throw Error(path_ + ": JSON number out of range: " + e.what());
@@ -71,6 +102,8 @@ class SceneFileReader {
       const size_t at = std::min(e.byte > 0 ? e.byte - 1 : 0, text.size());
       throw Error(where(at) + ": JSON syntax error: " + e.what());
     }
+    if (!duplicate.empty())
+      throw Error(path_ + ": " + duplicate + ": the key is given twice in its object (the last would win without a word)");
     expect_object(root, "the top level");
     check_keys(root, "", {"name", "description", "meshes", "materials", "instances", "camera", "lights", "grid", "background"});
 

@@ -148,3 +148,29 @@ TEST_CASE("A JSON scene file with a NUL byte is refused where the byte is", "[ba
   CHECK_THROWS_WITH(load_scene(corpus + "json/bad_nul_then_garbage.json"),
                     Contains("bad_nul_then_garbage.json:1:") && Contains("NUL byte"));
 }
+
+TEST_CASE("A JSON scene file with a key given twice in one object is refused, naming its path", "[badinput]") {
+  // An outside tester's find: two meshes of one name, a second "translate", a second "rotate"
+  // pasted into a motion all loaded, the last one winning without a word
+  const fs::path dir = fs::temp_directory_path() / "gridrt_duplicate_keys";
+  fs::create_directories(dir);
+  std::ofstream(dir / "tri.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  const std::string head = R"({"meshes": {"a": {"file": "tri.obj"})";
+  const std::pair<std::string, std::string> cases[] = {
+      {head + R"(, "a": {"file": "tri.obj"}}, "instances": [{"mesh": "a"}]})", "meshes.a"},
+      {head + R"(}, "instances": [{"mesh": "a", "translate": [1, 0, 0], "translate": [2, 0, 0]}]})", "instances[].translate"},
+      {head + R"(}, "instances": [{"mesh": "a", "motion": {"rotate": {"axis": [0, 1, 0], "speed": 1}, )"
+                  R"("rotate": {"axis": [1, 0, 0], "speed": 2}}}]})",
+       "instances[].motion.rotate"},
+  };
+  for (const auto& [text, where] : cases) {
+    INFO(text);
+    std::ofstream(dir / "scene.json") << text;
+    CHECK_THROWS_WITH(load_scene((dir / "scene.json").string()), Contains(where) && Contains("given twice"));
+  }
+  // The same keys in different objects are fine
+  std::ofstream(dir / "scene.json") << head + R"(, "b": {"file": "tri.obj"}}, "instances": [{"mesh": "a", "translate": [1, 0, 0]}, )"
+                                              R"({"mesh": "b", "translate": [2, 0, 0]}]})";
+  CHECK(load_scene((dir / "scene.json").string()).instances.size() == 2);
+  fs::remove_all(dir);
+}
