@@ -356,3 +356,27 @@ TEST_CASE("CLI: frames a float's step apart are refused, not repeated", "[cli]")
   CHECK_THAT(r.output, Catch::Contains("both fall on t = 999000") && Catch::Contains("float's step"));
   CHECK(run_tool("diff builtin:atrium --time 999000 --frames 2 --fps 60").exit_code == 2);
 }
+
+TEST_CASE("CLI: a small instance turning about a far pivot is warned of, once, and still rendered", "[cli]") {
+  // An outside tester's find: the grid sized its cells for the swept box, 35,000 still triangles
+  // fell into one cell and a 64 x 36 picture took 30 s instead of 1.6, without a word
+  const fs::path d = fs::temp_directory_path() / "gridrt_far_pivot";
+  fs::create_directories(d);
+  std::ofstream(d / "tri.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  const std::string mesh = R"({"meshes": {"t": {"file": "tri.obj"}}, "instances": [{"mesh": "t"}, )";
+  std::ofstream(d / "far.json") << mesh + R"({"name": "spinner", "mesh": "t", "translate": [0, 0, 0.5], )"
+                                          R"("motion": {"rotate": {"axis": [0, 1, 0], "speed": 1, "pivot": [0, 0, 5000000]}}}]})";
+  std::ofstream(d / "near.json") << mesh + R"({"name": "spinner", "mesh": "t", "translate": [0, 0, 0.5], )"
+                                           R"("motion": {"rotate": {"axis": [0, 1, 0], "speed": 1, "pivot": [0, 0, 1]}}}]})";
+  const Run far = run_tool("render " + (d / "far.json").string() + " --width 8 --height 8 -o " + (d / "far.png").string());
+  INFO(far.output);
+  CHECK(far.exit_code == 0);
+  CHECK_THAT(far.output, Catch::Contains("instance 'spinner' sweeps a box") && Catch::Contains("times the still geometry"));
+  size_t count = 0;
+  for (size_t at = far.output.find("sweeps a box"); at != std::string::npos; at = far.output.find("sweeps a box", at + 1)) ++count;
+  CHECK(count == 1);
+  const Run near = run_tool("render " + (d / "near.json").string() + " --width 8 --height 8 -o " + (d / "near.png").string());
+  CHECK(near.exit_code == 0);
+  CHECK(near.output.find("sweeps a box") == std::string::npos);
+  fs::remove_all(d);
+}
