@@ -66,7 +66,13 @@ uint64_t host_memory_available() {
     if (getrlimit(resource, &r) == 0 && r.rlim_cur != RLIM_INFINITY)
       room = std::min(room, left(uint64_t(r.rlim_cur), resource == RLIMIT_AS ? vm_size : vm_data));
   }
-  if (input_limits().max_host_bytes != 0) room = std::min(room, left(input_limits().max_host_bytes, vm_rss));
+  // --max-host-mib counts what the grids take: the resident set beyond the one at the first check
+  // (the program, its libraries and the scene, about 130 MiB, before any grid is planned)
+  if (input_limits().max_host_bytes != 0) {
+    static const uint64_t base = vm_rss.value_or(0);
+    const std::optional<uint64_t> work = vm_rss ? std::optional<uint64_t>(*vm_rss > base ? *vm_rss - base : 0) : std::nullopt;
+    room = std::min(room, left(input_limits().max_host_bytes, work));
+  }
   return room;
 }
 

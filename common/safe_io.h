@@ -34,14 +34,17 @@ struct InputLimits {
   uint32_t max_json_depth = 256;                    // nesting of arrays and objects (JSON, glTF)
   uint32_t max_node_depth = 1000;                   // glTF node hierarchy
   uint64_t max_host_bytes = 0;  // the grid build's host memory (--max-host-mib); 0: what the machine has free
+
 };
 InputLimits& input_limits();
 
 // The host memory this process may still take, in bytes: the least of the machine's available
 // memory (/proc/meminfo's MemAvailable), its cgroup's room (memory.max less memory.current), the
 // address-space and data limits (ulimit -v, -d) less this process's address space and data
-// segment, and --max-host-mib where it is set less its resident set (/proc/self/status: what it
-// already holds, earlier grids of the same verb included). UINT64_MAX where none can be read.
+// segment, and --max-host-mib where it is set less what its resident set has grown by since the
+// first call (/proc/self/status: the earlier grids of the same verb; the program, its libraries
+// and the scene, held before any grid is planned, are not counted). UINT64_MAX where none can be
+// read.
 uint64_t host_memory_available();
 
 // Error, before anything is allocated, when `bytes` exceed host_memory_available(): "<what> need

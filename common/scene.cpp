@@ -354,7 +354,20 @@ Bounds Scene::bounds(float time) const {
 
 void Scene::require_extent(float time, const std::string& who) const {
   if (triangle_count() == 0) return;
-  const glm::vec3 e = bounds(time).extent();
+  // The box over the motions' longest period (16 times, as the spill list's trial samples them):
+  // the answer then does not depend on the time asked (a moving tiny model passed at one time and
+  // was refused at another)
+  double horizon = 0.0;
+  for (const Instance& inst : instances) {
+    if (!inst.motion.moves()) continue;
+    if (inst.motion.path_points.size() > 1) horizon = std::max(horizon, double(inst.motion.path_period));
+    if (inst.motion.angular_speed != 0.0f)
+      horizon = std::max(horizon, 2.0 * std::numbers::pi / std::abs(double(inst.motion.angular_speed)));
+  }
+  horizon = std::min(horizon, 60.0);
+  Bounds box = bounds(time);
+  for (int k = 1; horizon > 0.0 && k < 16; ++k) box.grow(bounds(float(double(time) + horizon * k / 16.0)));
+  const glm::vec3 e = box.extent();
   const float side = std::max({e.x, e.y, e.z});
   if (side > 0.0f && side < shared::kDomainMinExtent) {
     char buf[64];

@@ -1,9 +1,10 @@
 // choose.cpp: choosing the grid (choose_grid and its capacity policies), the spill list's capacity
 // and the trace's flags.
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <mutex>
+#include <set>
 
 #include "gridrt/common/invocations.h"
 #include "gridrt/common/parallel.h"
@@ -69,12 +70,21 @@ Bounds instance_animation_bounds(const Scene& scene, const Instance& inst, float
 Bounds animation_bounds(const Scene& scene, float time) {
   Bounds b, still;
   const Instance* widest = nullptr;
-  float widest_side = 0.0f;
+  float widest_side = 0.0f, widest_own = 0.0f;  // the widest sweep against its instance's own size
+  const auto side = [](const Bounds& x) {
+    const glm::vec3 e = x.empty() ? glm::vec3(0.0f) : x.extent();
+    return std::max({e.x, e.y, e.z});
+  };
   for (const Instance& inst : scene.instances) {
     const Bounds ib = instance_animation_bounds(scene, inst, time);
-    const glm::vec3 e = ib.empty() ? glm::vec3(0.0f) : ib.extent();
-    if (!inst.motion.moves()) still.grow(ib);
-    else if (std::max({e.x, e.y, e.z}) > widest_side) widest = &inst, widest_side = std::max({e.x, e.y, e.z});
+    if (!inst.motion.moves()) {
+      still.grow(ib);
+    } else if (side(ib) > widest_side) {
+      Bounds own;
+      const glm::mat4 m = inst.transform_at(time);
+      for (const glm::vec3& p : scene.meshes[inst.mesh].positions) own.grow(glm::vec3(m * glm::vec4(p, 1.0f)));
+      widest = &inst, widest_side = side(ib), widest_own = side(own);
+    }
     // A sweep past float range (a pivot 3e38 away: the rotation's sphere overflowed, and the grid
     // blamed its cell size): named here, with the instance
     const auto finite = [](const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
@@ -83,20 +93,22 @@ Bounds animation_bounds(const Scene& scene, float time) {
       throw Error("instance '" + inst.name + "': its bounds over the animation (pivot, rotation, path) are not finite");
     b.grow(ib);
   }
-  // One moving instance sweeping a box far larger than the still geometry (a small object turning
-  // about a pivot far away): the grid's cells are sized for the whole box, and the still geometry
-  // falls into a few of them (an outside tester's 35,000 triangles in one cell: 30 s for a 64 x 36
-  // picture instead of 1.6). Valid, so said once, not refused
-  static std::atomic<bool> warned{false};
-  if (widest && !still.empty()) {
-    const glm::vec3 s = still.extent();
-    const float side = std::max({s.x, s.y, s.z});
-    if (widest_side > 1000.0f * side && side > 0.0f && !warned.exchange(true))
+  // One moving instance sweeping a box far larger than itself and the still geometry (a small
+  // object turning about a pivot far away): the grid's cells are sized for the whole box, and the
+  // still geometry falls into a few of them (an outside tester's 35,000 triangles in one cell: 30 s
+  // for a 64 x 36 picture instead of 1.6). Valid, so said once per scene, not refused
+  static std::mutex warned_lock;
+  static std::set<std::string> warned;
+  const float still_side = side(still);
+  const float reference = std::max(still_side, widest_own);
+  if (widest && still_side > 0.0f && widest_side > 1000.0f * reference) {
+    const std::lock_guard<std::mutex> hold(warned_lock);
+    if (warned.insert(scene.name).second)
       std::fprintf(stderr,
-                   "gridrt: warning: instance '%s' sweeps a box of %g over its motion, %.0f times the still geometry's %g: "
-                   "the grid's cells are sized for the whole box, and the still geometry falls into few cells (slow "
-                   "traces); a pivot or path nearer the scene keeps them fine\n",
-                   widest->name.c_str(), double(widest_side), double(widest_side / side), double(side));
+                   "gridrt: warning: instance '%s' sweeps a box of %g over its motion, %.0f times its own size and the "
+                   "still geometry's (%g): the grid's cells are sized for the whole box, and the still geometry falls "
+                   "into few cells (slow traces); a pivot or path nearer the scene keeps them fine\n",
+                   widest->name.c_str(), double(widest_side), double(widest_side / reference), double(reference));
   }
   return b;
 }
@@ -351,6 +363,7 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
     if (bytes > host_memory_available()) {
       if (range_bounded) {
         c.fits = false;
+        c.over_host = bytes;
         return c;
       }
       require_host_memory(bytes,
@@ -669,6 +682,15 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
     const GridCandidate c = weigh_j(j, paddings[0], g);
     if (c.fits) ch.candidates.push_back(c);
     else coarsest_unfit = c;
+  }
+  // Where the last grid tried was left out for the host's memory, that is what to name
+  if (ch.candidates.empty()) {
+    const std::optional<GridCandidate>& c = coarsest_unfit ? coarsest_unfit : unfit;
+    if (c && c->over_host)
+      require_host_memory(c->over_host,
+                          "grid: " + std::to_string(c->cells.x) + "x" + std::to_string(c->cells.y) + "x" +
+                              std::to_string(c->cells.z) + " cells (the coarsest grid tried)",
+                          "raise --max-host-mib, or free memory");
   }
   // A cell-size override that does not fit: the compact layout's budget, or the image's limits
   if (ch.candidates.empty() && cs_over && unfit && !unfit->over_bound && (g.flags & shared::kGridCompact) != 0u)

@@ -159,6 +159,7 @@ struct GridCandidate {
   bool sparse_offsets = false;   // compact layout: the offsets of the occupied cells only (kGridSparseOffsets)
   uint64_t range_cells = 0;      // the triangles' AABB range cells, summed (range_cells)
   bool over_bound = false;       // range_cells over the work bound: not counted, not a candidate
+  uint64_t over_host = 0;        // the host memory its trial and build would take, over what is left: not a candidate
   bool fits = false;             // within max_image_dimension and max_texels (compact: the memory budget)
   WorkEstimate work;             // trace_cost policy: the estimated work on its ray sample
   double cost = 0.0;             // trace_cost policy: work_cost(work)

@@ -258,6 +258,15 @@ TEST_CASE("A grid the host cannot hold is refused at once, with its size and the
   const auto ok = run_tool("--max-host-mib 2000 stats builtin:atrium --traversal exact --memory-budget 100000 "
                            "--resolution 160,160,160");
   CHECK(ok.exit_code == 0);
+  // The limit counts what the grids take, not the program and the scene held before them (about
+  // 130 MiB: a limit below that refused the teapot, in words about the image's limits)
+  CHECK(run_tool("--max-host-mib 50 stats builtin:teapot").exit_code == 0);
+  CHECK(run_tool("--max-host-mib 50 render builtin:teapot --width 16 --height 16 -o " + (d / "t.png").string()).exit_code == 0);
+  // And where every automatic grid is over it, the message names the host's memory
+  const auto tight = run_tool("--max-host-mib 1 stats builtin:atrium --traversal exact");
+  INFO(tight.output);
+  CHECK(tight.exit_code == 1);
+  CHECK_THAT(tight.output, Contains("of host memory") && Contains("--max-host-mib"));
 }
 
 TEST_CASE("A scene below the domain's least extent (2^-40) is refused by every tracer, not rendered blank",

@@ -211,3 +211,22 @@ TEST_CASE("CLI: llvmpipe's loop limit - the mailbox's trace and the gather's fin
   CHECK(trace.exit_code == (llvmpipe ? 1 : 0));
   if (llvmpipe) CHECK_THAT(trace.output, Catch::Contains("refused from 2048"));
 }
+
+TEST_CASE("CLI: llvmpipe's loop limit - a cell's spill list of 32,768 entries or more is refused, not cut", "[vulkan][cli][hardcase]") {
+  // 33,000 copies of one triangle in one cell of capacity 1 (the image layout): 32,999 spilled
+  // entries in one cell's list, whose order pass llvmpipe would cut past 65,535 iterations (70,000
+  // triangles gave a wrong picture with exit 0). Other devices build it (exit 0).
+  const bool llvmpipe = gridrt::test::bit_exact_device(gridrt::test::vk_context());
+  const fs::path d = temp_dir();
+  {
+    std::ofstream f(d / "copies.obj");
+    f << "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    for (int i = 0; i < 33000; ++i) f << "f 1 2 3\n";
+  }
+  const Run r = run_tool("render " + (d / "copies.obj").string() +
+                         " --backend vulkan --traversal exact --layout image --capacity 1 --resolution 1,1,1 --width 4 "
+                         "--height 4 -o " + (d / "copies.ppm").string());
+  INFO(r.output);
+  CHECK(r.exit_code == (llvmpipe ? 1 : 0));
+  if (llvmpipe) CHECK_THAT(r.output, Catch::Contains("spill list holds 32999") && Catch::Contains("refused from 32768"));
+}

@@ -237,3 +237,25 @@ TEST_CASE("Motions at large times keep their phase: a path's loop and a turn's a
     CHECK(std::abs(double(p.y) - std::sin(a)) <= 1e-6);
   }
 }
+
+TEST_CASE("The least extent is judged on the box over the motions, whatever the time asked", "[unit][scene][badinput]") {
+  // An outside tester's find: two triangles 1e-13 across, one on a 10-unit path, were refused at
+  // t = 0 (both at the origin) and accepted at t = 2.5
+  Scene s;
+  s.name = "tiny";
+  Mesh m;
+  m.name = "t";
+  m.positions = {{0, 0, 0}, {1e-13f, 0, 0}, {0, 1e-13f, 0}};
+  m.triangles = {{0u, 1u, 2u}};
+  m.materials = {0u};
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  s.finalize();
+  CHECK_THROWS_WITH(s.require_extent(0.0f, "grid"), Catch::Contains("spans only"));
+  Instance b{.name = "b", .mesh = 0, .dynamic = true};
+  b.motion.path_points = {glm::vec3(0.0f), glm::vec3(10.0f, 0.0f, 0.0f)};
+  b.motion.path_period = 10.0f;
+  s.instances.push_back(b);
+  s.finalize();
+  for (const float t : {0.0f, 2.5f, 10.0f}) CHECK_NOTHROW(s.require_extent(t, "grid"));
+}

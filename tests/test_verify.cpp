@@ -490,6 +490,12 @@ TEST_CASE("gridrt verify: cells too fine for the translated run's coordinates sk
   CHECK(r.exit_code == 0);
   CHECK_THAT(r.output, Catch::Contains("the translated run is skipped") && Catch::Contains("narrower than"));
   CHECK_THAT(r.output, Catch::Contains("\ncamera ") && Catch::Contains("verify: OK"));
+  // A grid the scene itself cannot take is the run's error, not the translated run's
+  const test::Run bad = test::run_tool("verify " + obj.string() + " --traversal exact -n 20 --aabb-padding 0");
+  INFO(bad.output);
+  CHECK(bad.exit_code == 1);
+  CHECK_THAT(bad.output, Catch::Contains("AABB padding of 0"));
+  CHECK(bad.output.find("translated run is skipped") == std::string::npos);
   fs::remove(obj);
 }
 

@@ -219,6 +219,19 @@ std::string translated_problem(const Scene& scene, glm::vec3 offset, const refer
   Scene s = translated(scene, offset);
   try {
     s.finalize();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  // The grid out there, where the scene's own can be chosen (else its error is the run's, not the
+  // translation's)
+  if (grid) {
+    try {
+      reference::choose_grid(scene, 0.0f, *grid);
+    } catch (const Error&) {
+      return "";
+    }
+  }
+  try {
     if (grid) reference::choose_grid(s, 0.0f, *grid);
   } catch (const Error& e) {
     return e.what();

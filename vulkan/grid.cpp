@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstring>
 #include <map>
+#include <unordered_map>
 
 #include "gridrt/vulkan/ray_pass.h"
 #include "gridrt/vulkan/shaders/grid_interface.h"
@@ -513,6 +514,20 @@ void VulkanGridTracer::after_insert(bool warn) {
   d.on = (params_.flags & shared::kGridSpill) != 0u;
   d.header = spill_header_;
   if (warn) plan::warn_spill_overflow(d, name(), overflow_warned_);
+  // llvmpipe's loop limit: a cell listing kLlvmpipeSpillListLimit entries or more (the lists' cells
+  // read back only where the whole list is that long)
+  if (ctx_->info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE && d.on && d.stored() >= kLlvmpipeSpillListLimit) {
+    const std::vector<shared::SpillEntry> entries =
+        ctx_->download<shared::SpillEntry>(gpu_->spill, d.stored(), sizeof(shared::SpillHeader));
+    std::unordered_map<uint32_t, uint32_t> per_cell;
+    uint32_t most = 0;
+    for (const shared::SpillEntry& e : entries) most = std::max(most, ++per_cell[e.cell]);
+    if (most >= kLlvmpipeSpillListLimit)
+      throw Error("vulkan-grid: a cell's spill list holds " + std::to_string(most) +
+                  " references; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, "
+                  "which cuts the list's order pass and walk short (refused from " +
+                  std::to_string(kLlvmpipeSpillListLimit) + "): run on a GPU, or with --backend cpu");
+  }
 }
 
 const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32_t mode, uint32_t rays) {

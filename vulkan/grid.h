@@ -88,6 +88,9 @@ inline constexpr uint32_t kLlvmpipeImageTestLimit = 32768;
 // The frame's gather: a screen tile's list of triangles, walked by its fine pass's workgroup (a
 // tile of about 64,000 was cut short); VulkanFrame::render refuses from this many on llvmpipe.
 inline constexpr uint32_t kLlvmpipeTilePairLimit = 16384;
+// The spill list's order pass and walk: a cell listing 65,535 entries or more is cut (70,000
+// triangles in one cell of capacity 1); after_insert refuses, on llvmpipe, a cell listing this many.
+inline constexpr uint32_t kLlvmpipeSpillListLimit = 32768;
 void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what);
 
 class VulkanGridTracer : public Tracer {
