@@ -149,8 +149,16 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given)
   // The paper rasterizes its gather buffer: primary visibility is exact, only the bounce goes
   // through the paper's segments (and may meet gap-fill voxels). A grid backend in paper mode
   // therefore makes the gather buffer with a second tracer on the exact traversal.
+  // The gather's rule is Moller-Trumbore's test (docs/SPEC.md "The gather as a rasterizer"; the
+  // GPU frame's gather keeps it): a CPU grid tracing with the watertight test (the exact
+  // traversal's default) gathers with a second one too (a ray on a triangle's outer edge was lit on
+  // the GPU and background on the CPU)
+  const reference::GridOptions& gg = o.backend_options.grid;
+  const bool watertight = gg.triangle_test == reference::GridOptions::TriangleTest::watertight ||
+                          (gg.triangle_test == reference::GridOptions::TriangleTest::automatic &&
+                           gg.traversal == reference::Traversal::exact);
   std::unique_ptr<Tracer> gather_tracer;
-  if (backend != "embree" && o.backend_options.grid.traversal == reference::Traversal::paper) {
+  if ((backend != "embree" && gg.traversal == reference::Traversal::paper) || (backend == "cpu" && watertight)) {
     BackendOptions exact = o.backend_options;
     exact.grid = plan::gather_options(exact.grid);
     gather_tracer = make_backend(backend, exact, scene);

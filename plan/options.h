@@ -162,7 +162,9 @@ inline GridOptions gather_options(GridOptions o) {
   o.sphere_enlargement = std::max(o.sphere_enlargement, 1.0f);
   // and AABB padding above 0 (0 is the paper traversal's knob too): the default where it is not
   if (o.aabb_padding && !(*o.aabb_padding > 0.0f)) o.aabb_padding.reset();
-  if (o.triangle_test == AlgorithmOptions::TriangleTest::automatic) o.triangle_test = AlgorithmOptions::TriangleTest::moller;
+  // and the gather's rule, Moller-Trumbore's test, whatever the trace's (the GPU frame's gather
+  // has no other: docs/SPEC.md "The gather as a rasterizer")
+  o.triangle_test = AlgorithmOptions::TriangleTest::moller;
   return o;
 }
 

@@ -329,6 +329,12 @@ TEST_CASE("grid: cells wider than the domain, an exact traversal below the cell'
   go.sphere_enlargement = 0.5f;  // drops triangles at cells' corners: refused by the exact traversal
   CHECK_THROWS_WITH(reference::choose_grid(scene, 0.0f, go), Catch::Contains("needs at") && Catch::Contains("least 1"));
   CHECK(plan::gather_options(go).sphere_enlargement == 1.0f);  // the paper's gather stays exact
+  // and takes the gather's rule, Moller-Trumbore's test, whatever the trace's
+  for (auto test : {reference::GridOptions::TriangleTest::automatic, reference::GridOptions::TriangleTest::watertight}) {
+    reference::GridOptions t = go;
+    t.triangle_test = test;
+    CHECK(plan::gather_options(t).triangle_test == reference::GridOptions::TriangleTest::moller);
+  }
   go.traversal = reference::Traversal::paper;  // the paper's knob
   CHECK_NOTHROW(reference::choose_grid(scene, 0.0f, go));
   // An AABB padding of 0 leaves a triangle on a cell face out of the cell across it: refused by
