@@ -239,6 +239,28 @@ inline Scene wall_into_slab_scene() {
   return s;
 }
 
+// The spill list's growth tests' case for a layout (tests/test_spill.cpp, tests/test_vulkan_spill.cpp):
+// the compact layout spills every dynamic reference, and the turning wall outgrows the forecast;
+// the image layout spills only from full cells (the slab's, four slots a cell), its static entries
+// first (a grown list keeps them), and the wall moving into the slab outgrows it (the forecast
+// sampling t = 0 alone: its 16 samples over the period would include t = 1). `peak`: the time of
+// the most references spilled.
+struct SpillGrowthCase {
+  Scene scene;
+  reference::GridOptions options;
+  float peak = 0.0f;
+};
+inline SpillGrowthCase spill_growth_case(reference::GridOptions::Layout layout) {
+  const bool compact = layout == reference::GridOptions::Layout::compact;
+  SpillGrowthCase c{compact ? turning_wall_scene() : wall_into_slab_scene(), {}, compact ? 0.5f : 1.0f};
+  c.options.traversal = reference::Traversal::exact;
+  c.options.layout = layout;
+  c.options.cell_size = 0.25f;
+  c.options.threads = 2;
+  if (!compact) c.options.capacity = 4, c.options.capacity_time_samples = 1;
+  return c;
+}
+
 // Rays at the fans: from random points of the room towards random points of random fan triangles
 // (of the grid's geometry buffer, instances >= 1), and random rays through the middle of the room.
 inline std::vector<Ray> fan_rays(const reference::GridData& g, uint32_t count, uint32_t seed);

@@ -239,21 +239,12 @@ TEST_CASE("Spill: dynamic references spill, move away and back - the clear pass 
 
 TEST_CASE("Spill: an update past the forecast grows the list and inserts again - nothing lost, a fresh build's hits",
           "[hardcase][oracle][grid]") {
-  
   for (GridOptions::Layout layout : {GridOptions::Layout::compact, GridOptions::Layout::image}) {
     INFO((layout == GridOptions::Layout::compact ? "compact" : "image") << " layout");
-    // The compact layout spills every dynamic reference: the turning wall outgrows the forecast.
-    // The image layout spills only from full cells (the slab's, four slots a cell), its static
-    // entries first (a grown list keeps them): the wall moving into the slab outgrows it.
-    const Scene scene = layout == GridOptions::Layout::compact ? gridtest::turning_wall_scene() : gridtest::wall_into_slab_scene();
-    const float peak = layout == GridOptions::Layout::compact ? 0.5f : 1.0f;  // the most references spilled
-    GridOptions o;
-    o.traversal = Traversal::exact;
-    o.layout = layout;
-    o.cell_size = 0.25f;
-    o.threads = 2;
-    // (the forecast sampling t = 0 alone: its 16 samples over the period would include t = 1)
-    if (layout == GridOptions::Layout::image) o.capacity = 4, o.capacity_time_samples = 1;
+    const gridtest::SpillGrowthCase growth = gridtest::spill_growth_case(layout);
+    const Scene& scene = growth.scene;
+    const GridOptions& o = growth.options;
+    const float peak = growth.peak;
     ReferenceGridTracer grid(o);
     grid.build(scene, 0.0f);
     const uint32_t forecast = grid.data().spill_header.capacity;
