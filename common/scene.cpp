@@ -366,7 +366,14 @@ void Scene::require_extent(float time, const std::string& who) const {
   }
   horizon = std::min(horizon, 60.0);
   Bounds box = bounds(time);
-  for (int k = 1; horizon > 0.0 && k < 16; ++k) box.grow(bounds(float(double(time) + horizon * k / 16.0)));
+  for (int k = 1; horizon > 0.0 && k < 16; ++k) {
+    const float t = float(double(time) + horizon * k / 16.0);
+    for (const Instance& inst : instances) {  // the moving ones: the others are where they were
+      if (!inst.motion.moves()) continue;
+      const glm::mat4 m = inst.transform_at(t);
+      for (const glm::vec3& p : meshes[inst.mesh].positions) box.grow(glm::vec3(m * glm::vec4(p, 1.0f)));
+    }
+  }
   const glm::vec3 e = box.extent();
   const float side = std::max({e.x, e.y, e.z});
   if (side > 0.0f && side < shared::kDomainMinExtent) {
