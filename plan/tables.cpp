@@ -2,6 +2,9 @@
 // alpha masks), packed once for every backend.
 #include "gridrt/plan/plan.h"
 
+#include <cstdint>
+#include <map>
+
 namespace gridrt::plan {
 
 void append_rgba8(const Texture& tex, std::vector<uint32_t>& texels) {
@@ -37,14 +40,23 @@ GridTables pack_tables(const Scene& scene) {
       }
     }
   }
+  // Each mask once, however many materials key with it (16 materials of one 4096^2 mask were 16
+  // copies: 2.3 GB)
+  std::map<int32_t, uint32_t> mask_offsets;
   for (const Material& mat : scene.materials) {
     shared::GridMaterial gm{};
     if (mat.alpha_keyed()) {
       const Texture& tex = scene.textures[size_t(mat.alpha_texture)];
-      gm.alpha_offset = uint32_t(t.texels.size());
+      auto [it, added] = mask_offsets.emplace(mat.alpha_texture, uint32_t(t.texels.size()));
+      if (added) {
+        if (t.texels.size() + uint64_t(tex.width) * tex.height > UINT32_MAX)
+          throw Error("the scene's alpha masks hold more than 2^32 texels (the grid's texel offsets are 32 bits): "
+                      "use smaller masks");
+        append_rgba8(tex, t.texels);
+      }
+      gm.alpha_offset = it->second;
       gm.alpha_width = tex.width;
       gm.alpha_height = tex.height;
-      append_rgba8(tex, t.texels);
     }
     t.materials.push_back(gm);
   }

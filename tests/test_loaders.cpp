@@ -15,6 +15,8 @@
 #include "gridrt/common/image_io.h"
 #include "gridrt/common/loaders/loaders.h"
 #include "gridrt/common/scene_io.h"
+#include "gridrt/common/shared/alpha.h"
+#include "gridrt/plan/plan.h"
 
 using namespace gridrt;
 namespace fs = std::filesystem;
@@ -125,9 +127,10 @@ TEST_CASE("glTF and GLB: node hierarchy, flipped v, MASK material", "[unit][load
     CHECK(inst[0].name == "quad");
     CHECK(glm::vec3(inst[0].transform * glm::vec4(1, 1, 0, 1)) == glm::vec3(12, 2, 0));
     CHECK(glm::vec3(inst[1].transform * glm::vec4(1, 1, 0, 1)) == glm::vec3(11, 6, 0));
-    // glTF uv (0, 1) (bottom-left of the image) becomes (0, 0): v = 0 at the last row.
-    CHECK(m.uvs[0] == glm::vec2(0, 0));
-    CHECK(m.uvs[2] == glm::vec2(1, 1));
+    // The uvs as the file has them (glTF (0, 1): the image's bottom-left); the image's rows are
+    // stored last first, so that alpha.h's rule (v = 0 at the stored last row) reads them
+    CHECK(m.uvs[0] == glm::vec2(0, 1));
+    CHECK(m.uvs[2] == glm::vec2(1, 0));
     REQUIRE(s.materials.size() == 1);
     const Material& mat = s.materials[0];
     CHECK(mat.name == "leaf");
@@ -136,12 +139,62 @@ TEST_CASE("glTF and GLB: node hierarchy, flipped v, MASK material", "[unit][load
     CHECK(mat.alpha_texture == mat.diffuse_texture);
     REQUIRE(s.textures.size() == 1);
     CHECK(s.textures[0].width == 2);
-    CHECK(s.textures[0].texel(1, 0) == glm::u8vec4(0, 255, 0, 0));
+    CHECK(s.textures[0].texel(1, s.textures[0].height - 1) == glm::u8vec4(0, 255, 0, 0));  // the file's first row
     CHECK(s.textures[0].has_alpha);
   }
 }
 
 namespace {
+
+std::string base64(const std::string& bin) {
+  static const char* b64 = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string enc;
+  for (size_t i = 0; i < bin.size(); i += 3) {
+    uint32_t v = uint32_t(uint8_t(bin[i])) << 16;
+    if (i + 1 < bin.size()) v |= uint32_t(uint8_t(bin[i + 1])) << 8;
+    if (i + 2 < bin.size()) v |= uint32_t(uint8_t(bin[i + 2]));
+    enc += b64[(v >> 18) & 63];
+    enc += b64[(v >> 12) & 63];
+    enc += i + 1 < bin.size() ? b64[(v >> 6) & 63] : '=';
+    enc += i + 2 < bin.size() ? b64[v & 63] : '=';
+  }
+  return enc;
+}
+
+// A glTF file of `materials.size()` triangles, triangle k with material k, every vertex's
+// TEXCOORD_0 `uv`, each material's base colour texture the image `image_uri`; `image_json`
+// replaces the image's object where given.
+std::string gltf_textured(glm::vec2 uv, const std::vector<std::string>& materials, const std::string& image_uri,
+                          const std::string& image_json = "") {
+  std::string bin;
+  std::string primitives, mats;
+  const size_t n = materials.size();
+  for (size_t k = 0; k < n; ++k) {
+    const float x = float(2 * k);
+    const float pos[9] = {x, 0, 0, x + 1, 0, 0, x, 1, 0};
+    bin.append(reinterpret_cast<const char*>(pos), sizeof pos);
+  }
+  const size_t uv_offset = bin.size();
+  for (size_t v = 0; v < 3 * n; ++v) bin.append(reinterpret_cast<const char*>(&uv), sizeof uv);
+  std::string views = "{\"buffer\":0,\"byteOffset\":0,\"byteLength\":" + std::to_string(uv_offset) +
+                      "},{\"buffer\":0,\"byteOffset\":" + std::to_string(uv_offset) +
+                      ",\"byteLength\":" + std::to_string(bin.size() - uv_offset) + "}";
+  std::string accessors;
+  for (size_t k = 0; k < n; ++k) {
+    accessors += std::string(k ? "," : "") + "{\"bufferView\":0,\"byteOffset\":" + std::to_string(36 * k) +
+                 ",\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},{\"bufferView\":1,\"byteOffset\":" +
+                 std::to_string(24 * k) + ",\"componentType\":5126,\"count\":3,\"type\":\"VEC2\"}";
+    primitives += std::string(k ? "," : "") + "{\"attributes\":{\"POSITION\":" + std::to_string(2 * k) +
+                  ",\"TEXCOORD_0\":" + std::to_string(2 * k + 1) + "},\"material\":" + std::to_string(k) + "}";
+    mats += std::string(k ? "," : "") + materials[k];
+  }
+  const std::string image = image_json.empty() ? "{\"uri\":\"" + image_uri + "\"}" : image_json;
+  return "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+         "\"meshes\":[{\"primitives\":[" + primitives + "]}],\"accessors\":[" + accessors + "],\"bufferViews\":[" +
+         views + "],\"buffers\":[{\"byteLength\":" + std::to_string(bin.size()) +
+         ",\"uri\":\"data:application/octet-stream;base64," + base64(bin) + "\"}],\"materials\":[" + mats +
+         "],\"textures\":[{\"source\":0}],\"images\":[" + image + "]}";
+}
 
 // A glTF file of one mesh over the unit square's corners (0,0) (1,0) (0,1) (1,1) at z = 0: one
 // primitive per (mode, indices) pair, unsigned-short indices, the buffer inline as base64.
@@ -163,17 +216,7 @@ std::string gltf_with_primitives(const std::vector<std::pair<int, std::vector<ui
     primitives += std::string(k ? "," : "") + "{\"attributes\":{\"POSITION\":0},\"indices\":" + std::to_string(k + 1) +
                   ",\"mode\":" + std::to_string(prims[k].first) + "}";
   }
-  static const char* b64 = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string enc;
-  for (size_t i = 0; i < bin.size(); i += 3) {
-    uint32_t v = uint32_t(uint8_t(bin[i])) << 16;
-    if (i + 1 < bin.size()) v |= uint32_t(uint8_t(bin[i + 1])) << 8;
-    if (i + 2 < bin.size()) v |= uint32_t(uint8_t(bin[i + 2]));
-    enc += b64[(v >> 18) & 63];
-    enc += b64[(v >> 12) & 63];
-    enc += i + 1 < bin.size() ? b64[(v >> 6) & 63] : '=';
-    enc += i + 2 < bin.size() ? b64[v & 63] : '=';
-  }
+  const std::string enc = base64(bin);
   return "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
          "\"meshes\":[{\"primitives\":[" + primitives + "]}],\"accessors\":[" + accessors + "],\"bufferViews\":[" +
          views + "],\"buffers\":[{\"byteLength\":" + std::to_string(bin.size()) +
@@ -528,4 +571,92 @@ TEST_CASE("glTF MASK without a texture: the factor's alpha alone keeps or cuts t
       CHECK((t.width == 1 && t.height == 1 && t.texel(0, 0).a == 0));
     }
   }
+}
+
+// Outside sweeps' finds: glTF put v = 0 at the image's first row, and the loader flipped v to
+// 1 - v, which for a v of 0 (or below about 3e-8, rounding to 1) read the last row instead: a
+// strip of constant v = 0 was cut where its texel is opaque. Now the rows are stored last first and
+// v kept. Two MASK cutoffs six digits apart shared one baked mask (its key printed 6 digits).
+TEST_CASE("glTF textures: v = 0 reads the image's first row, masks keyed by exact cutoffs", "[unit][loaders]") {
+  const fs::path d = temp_dir();
+  // 1 x 2 texels: the file's first row opaque, its second transparent; the alpha 128 of a third
+  // file tells two cutoffs apart (128 / 255 = 0.50196078)
+  const std::vector<uint8_t> rows = {255, 255, 255, 255, 255, 255, 255, 0};
+  write_image_rgba8((d / "rows.png").string(), 1, 2, rows);
+  const std::string mask = R"({"alphaMode":"MASK","pbrMetallicRoughness":{"baseColorTexture":{"index":0}}})";
+  for (const float v : {0.0f, 1e-8f, 2e-8f, 0.25f, 1.0f, 3.0f}) {
+    INFO("v = " << v);
+    Scene s;
+    TextureCache cache;
+    load_gltf(write_text(d / "row.gltf", gltf_textured(glm::vec2(0.5f, v), {mask}, "rows.png")), s, cache);
+    REQUIRE(s.materials.size() == 1);
+    const Texture& t = s.textures[size_t(s.materials[0].alpha_texture)];
+    const glm::uvec2 xy = shared::alpha_texel_coords(s.meshes[0].uvs[0], t.width, t.height);
+    // glTF: row floor(frac(v) * 2) of the file, the first for every v here
+    CHECK(t.texel(xy.x, xy.y).a == 255);
+  }
+  const std::vector<uint8_t> half = {255, 255, 255, 128};
+  write_image_rgba8((d / "half.png").string(), 1, 1, half);
+  Scene s;
+  TextureCache cache;
+  const std::string a = R"({"alphaMode":"MASK","alphaCutoff":0.5019606,"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}})";
+  const std::string b = R"({"alphaMode":"MASK","alphaCutoff":0.5019612,"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}})";
+  load_gltf(write_text(d / "cutoffs.gltf", gltf_textured(glm::vec2(0.5f), {a, b}, "half.png")), s, cache);
+  REQUIRE(s.materials.size() == 2);
+  CHECK(s.materials[0].alpha_texture != s.materials[1].alpha_texture);
+  CHECK(s.textures[size_t(s.materials[0].alpha_texture)].texel(0, 0).a == 255);  // 0.50196 >= 0.5019606: kept
+  CHECK(s.textures[size_t(s.materials[1].alpha_texture)].texel(0, 0).a == 0);    // below 0.5019612: cut
+}
+
+// An outside sweep's find: an image in a buffer view whose offset lay past its buffer was handed
+// to the decoder as the buffer's bytes from that offset, unchecked (2^31 past it: a crash).
+TEST_CASE("glTF: an image's buffer view past its buffer, an unknown alphaMode, a negative cutoff are refused",
+          "[unit][loaders][badinput]") {
+  const fs::path d = temp_dir();
+  const std::string mask = R"({"alphaMode":"MASK","pbrMetallicRoughness":{"baseColorTexture":{"index":0}}})";
+  for (const std::string offset : {"2147483648", "4611686018427387904", "40"}) {
+    std::string text = gltf_textured(glm::vec2(0.5f), {mask}, "", R"({"bufferView":2,"mimeType":"image/png"})");
+    // A third view over the buffer's end (its 60 bytes), the image's
+    const std::string views_end = "}],\"buffers\"";
+    text.replace(text.find(views_end), views_end.size(),
+                 "},{\"buffer\":0,\"byteOffset\":" + offset + ",\"byteLength\":72}],\"buffers\"");
+    Scene s;
+    TextureCache cache;
+    INFO("offset " << offset);
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "view.gltf", text), s, cache), Catch::Contains("lies past buffer 0"));
+  }
+  for (const auto& [material, why] : std::vector<std::pair<std::string, std::string>>{
+           {R"({"alphaMode":"MASKED"})", "is none of OPAQUE, MASK, BLEND"},
+           {R"({"alphaMode":"MASK","alphaCutoff":-1})", "is below 0"}}) {
+    Scene s;
+    TextureCache cache;
+    const std::vector<uint8_t> texel = {255, 255, 255, 255};
+    write_image_rgba8((d / "one.png").string(), 1, 1, texel);
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "mode.gltf", gltf_textured(glm::vec2(0.5f), {material}, "one.png")), s, cache),
+                      Catch::Contains(why));
+  }
+}
+
+// An outside sweep's find: 16 materials keying with one 4096^2 mask made 16 copies of it in the
+// grid's texel table (2.3 GB). Each mask is now packed once.
+TEST_CASE("OBJ: materials that share a mask share its texels in the grid's tables", "[unit][loaders]") {
+  const fs::path d = temp_dir();
+  const std::vector<uint8_t> rgba(4 * 8 * 4, 200);
+  write_image_rgba8((d / "leaf.png").string(), 8, 4, rgba);
+  std::string mtl, obj = "mtllib shared.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n";
+  for (int k = 0; k < 5; ++k) {
+    mtl += "newmtl m" + std::to_string(k) + "\nKd 1 1 1\nmap_d leaf.png\n";
+    obj += "usemtl m" + std::to_string(k) + "\nf 1/1 2/2 3/3\n";
+  }
+  write_text(d / "shared.mtl", mtl);
+  Scene s;
+  TextureCache cache;
+  load_obj(write_text(d / "shared.obj", obj), s, cache);
+  size_t keyed = 0;
+  for (const Material& m : s.materials) keyed += m.alpha_keyed();
+  REQUIRE(keyed == 5);
+  const plan::GridTables t = plan::pack_tables(s);
+  CHECK(t.texels.size() == 8 * 4);
+  for (const shared::GridMaterial& gm : t.materials)
+    if (gm.alpha_width) CHECK(gm.alpha_offset == 0);
 }

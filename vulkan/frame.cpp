@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <map>
+#include <set>
 
 #include "gridrt/common/camera.h"
 #include "gridrt/vulkan/pipeline.h"
@@ -290,22 +292,36 @@ FrameMaterials pack_materials(const Scene& scene, bool alpha_keying, uint64_t ma
   std::vector<uint32_t>& texels = out.texels;
   bool& textured = out.textured;
   bool& alpha = out.alpha;
+  // Each texture once, however many materials use it: the distinct masks and diffuse textures
+  std::map<int32_t, uint32_t> mask_offsets, diffuse_offsets;
+  std::set<int32_t> masks, diffuse;
+  for (const Material& m : scene.materials) {
+    if (m.alpha_keyed() && alpha_keying) masks.insert(m.alpha_texture);
+    if (m.diffuse_texture >= 0) diffuse.insert(m.diffuse_texture);
+  }
   uint64_t texel_budget = max_storage_buffer_range / 4;
-  for (const Material& m : scene.materials)
-    if (m.alpha_keyed()) {
-      const Texture& t = scene.textures[size_t(m.alpha_texture)];
-      texel_budget -= std::min<uint64_t>(texel_budget, uint64_t(t.width) * t.height);
-    }
+  for (int32_t k : masks) {
+    const Texture& t = scene.textures[size_t(k)];
+    texel_budget -= std::min<uint64_t>(texel_budget, uint64_t(t.width) * t.height);
+  }
   uint32_t shrink = 0;
+  uint64_t whole = 0;
   for (;; ++shrink) {
     uint64_t total = 0;
-    for (const Material& m : scene.materials)
-      if (m.diffuse_texture >= 0) {
-        const Texture& t = scene.textures[size_t(m.diffuse_texture)];
-        total += uint64_t(std::max(1u, t.width >> shrink)) * std::max(1u, t.height >> shrink);
-      }
+    for (int32_t k : diffuse) {
+      const Texture& t = scene.textures[size_t(k)];
+      total += uint64_t(std::max(1u, t.width >> shrink)) * std::max(1u, t.height >> shrink);
+    }
+    if (shrink == 0) whole = total;
     if (total <= texel_budget || shrink > 12) break;
   }
+  if (shrink > 0)
+    std::fprintf(stderr,
+                 "warning: vulkan frame: the diffuse textures' %llu texels are more than the texel buffer holds beside "
+                 "the alpha masks (maxStorageBufferRange %llu bytes): shading reads them at 1/%u of their width and height, the "
+                 "CPU's whole, so the shaded pictures differ (the hits do not)\n",
+                 static_cast<unsigned long long>(whole), static_cast<unsigned long long>(max_storage_buffer_range),
+                 1u << shrink);
   for (const Material& m : scene.materials) {
     shared::FrameMaterial fm{};
     fm.diffuse = m.diffuse;
@@ -315,26 +331,31 @@ FrameMaterials pack_materials(const Scene& scene, bool alpha_keying, uint64_t ma
       const Texture& t = scene.textures[size_t(m.diffuse_texture)];
       if (t.width > 0 && t.height > 0) {
         const uint32_t tw = std::max(1u, t.width >> shrink), th = std::max(1u, t.height >> shrink);
-        fm.texture_offset = uint32_t(texels.size());
+        auto [it, added] = diffuse_offsets.emplace(m.diffuse_texture, uint32_t(texels.size()));
+        if (added)
+          for (uint32_t y = 0; y < th; ++y)
+            for (uint32_t x = 0; x < tw; ++x) {
+              const glm::u8vec4 c = t.texel(std::min(x << shrink, t.width - 1), std::min(y << shrink, t.height - 1));
+              texels.push_back(uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | uint32_t(c.a) << 24);
+            }
+        fm.texture_offset = it->second;
         fm.texture_width = tw;
         fm.texture_height = th;
-        for (uint32_t y = 0; y < th; ++y)
-          for (uint32_t x = 0; x < tw; ++x) {
-            const glm::u8vec4 c = t.texel(std::min(x << shrink, t.width - 1), std::min(y << shrink, t.height - 1));
-            texels.push_back(uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | uint32_t(c.a) << 24);
-          }
         textured = true;
       }
     }
     if (m.alpha_keyed() && alpha_keying) {
       // The mask at full resolution, as the grid's trace reads it
       const Texture& t = scene.textures[size_t(m.alpha_texture)];
-      fm.alpha_offset = uint32_t(texels.size());
+      auto [it, added] = mask_offsets.emplace(m.alpha_texture, uint32_t(texels.size()));
+      if (added) plan::append_rgba8(t, texels);
+      fm.alpha_offset = it->second;
       fm.alpha_width = t.width;
       fm.alpha_height = t.height;
-      plan::append_rgba8(t, texels);
       alpha = true;
     }
+    if (texels.size() > UINT32_MAX)
+      throw Error("vulkan frame: the scene's textures hold more than 2^32 texels (32-bit offsets): use smaller textures");
     materials.push_back(fm);
   }
   return out;

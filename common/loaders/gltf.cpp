@@ -108,6 +108,16 @@ std::vector<glm::vec<N, float>> read_vectors(const Ctx& c, int accessor, const c
   std::vector<glm::vec<N, float>> out;
   size_t count; int ctype; bool norm;
   const int want = N == 2 ? TINYGLTF_TYPE_VEC2 : TINYGLTF_TYPE_VEC3;
+  // Floats, or (normalized) bytes and shorts: what glTF and KHR_mesh_quantization allow a vertex
+  // attribute (an unsigned int one was read as zeros)
+  if (accessor >= 0 && size_t(accessor) < c.model.accessors.size()) {
+    const int t = c.model.accessors[size_t(accessor)].componentType;
+    if (t != TINYGLTF_COMPONENT_TYPE_FLOAT && t != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+        t != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT && t != TINYGLTF_COMPONENT_TYPE_BYTE &&
+        t != TINYGLTF_COMPONENT_TYPE_SHORT)
+      c.fail(std::string(what) + " (accessor " + std::to_string(accessor) + "): component type " + std::to_string(t) +
+             " is none a vertex attribute may have (float, byte, short, their unsigned and normalized forms)");
+  }
   // First pass sizes `out` through the count; elements are written as they come.
   for_each_element(
       c, accessor, what, want,
@@ -162,8 +172,12 @@ Texture image_texture(const Ctx& c, int image_index) {
     const unsigned char* p = img.image.data() + (i * nc + k) * bpc;
     return bpc == 1 ? p[0] : p[1];  // 16-bit little-endian: keep the high byte
   };
+  // Rows stored last first: glTF puts v = 0 at the image's first row, alpha.h's rule at the stored
+  // texture's last row, so the rule applies to the file's v unchanged. (Flipping v instead, to
+  // 1 - v, rounded v below about 3e-8 to 1 and read the last row for a v of 0.)
+  const size_t row = size_t(img.width);
   for (size_t i = 0; i < n; ++i) {
-    uint8_t* q = tex.rgba.data() + i * 4;
+    uint8_t* q = tex.rgba.data() + ((n / row - 1 - i / row) * row + i % row) * 4;
     if (nc >= 3) { q[0] = chan(i, 0); q[1] = chan(i, 1); q[2] = chan(i, 2); }
     else { q[0] = q[1] = q[2] = chan(i, 0); }
     q[3] = (nc == 2 || nc == 4) ? chan(i, nc - 1) : 255;
@@ -248,8 +262,29 @@ bool image_header_size(const unsigned char* p, size_t n, uint64_t& w, uint64_t& 
 }
 
 // TinyGLTF's image decoder, after the header's size was checked against the pixel limit.
+// `user`: the model being parsed (its buffers and buffer views are read before its images). An
+// image in a buffer view is handed over as the buffer's bytes from the view's offset, unchecked:
+// a view past its buffer is refused here, before a byte is read.
 bool load_image_checked(tinygltf::Image* image, const int index, std::string* err, std::string* warn, int req_w,
                         int req_h, const unsigned char* bytes, int size, void* user) {
+  if (image->bufferView >= 0 && user) {
+    const tinygltf::Model& model = *static_cast<const tinygltf::Model*>(user);
+    if (size_t(image->bufferView) >= model.bufferViews.size()) {
+      if (err) *err += "image " + std::to_string(index) + ": buffer view " + std::to_string(image->bufferView) + " does not exist\n";
+      return false;
+    }
+    const tinygltf::BufferView& view = model.bufferViews[size_t(image->bufferView)];
+    const size_t have = view.buffer >= 0 && size_t(view.buffer) < model.buffers.size()
+                            ? model.buffers[size_t(view.buffer)].data.size()
+                            : 0;
+    if (view.byteOffset > have || view.byteLength > have - view.byteOffset) {
+      if (err)
+        *err += "image " + std::to_string(index) + ": buffer view " + std::to_string(image->bufferView) + " (offset " +
+                std::to_string(view.byteOffset) + ", " + std::to_string(view.byteLength) + " bytes) lies past buffer " +
+                std::to_string(view.buffer) + " (" + std::to_string(have) + " bytes)\n";
+      return false;
+    }
+  }
   uint64_t w = 0, h = 0;
   if (size <= 0 || !image_header_size(bytes, size_t(size), w, h)) {
     if (err) *err += "image " + std::to_string(index) + ": not a PNG or JPEG with a readable header\n";
@@ -262,7 +297,7 @@ bool load_image_checked(tinygltf::Image* image, const int index, std::string* er
               " (--max-texture-pixels)\n";
     return false;
   }
-  return tinygltf::LoadImageData(image, index, err, warn, req_w, req_h, bytes, size, user);
+  return tinygltf::LoadImageData(image, index, err, warn, req_w, req_h, bytes, size, nullptr);  // its options: none
 }
 
 // The model: the file read here (a regular file within the size bound), the JSON's nesting depth
@@ -280,7 +315,7 @@ tinygltf::Model parse_model(const std::string& path) {
   if (data.size() > UINT32_MAX) throw Error("cannot load glTF '" + path + "': larger than 4 GiB");
   tinygltf::FsCallbacks fs_callbacks{&tinygltf::FileExists, &tinygltf::ExpandFilePath, &read_external, nullptr, nullptr};
   loader.SetFsCallbacks(fs_callbacks);
-  loader.SetImageLoader(&load_image_checked, nullptr);
+  loader.SetImageLoader(&load_image_checked, &model);
   std::string base_dir = fs::path(path).parent_path().string();
   if (base_dir.empty()) base_dir = ".";
   bool ok = false;
@@ -305,6 +340,10 @@ tinygltf::Model parse_model(const std::string& path) {
     if (required != "KHR_mesh_quantization")
       throw Error("cannot load glTF '" + path + "': it requires the extension " + required +
                   ", which gridrt does not implement (supported: KHR_mesh_quantization)");
+  for (const std::string& used : model.extensionsUsed)
+    if (used == "KHR_texture_transform")
+      std::cerr << "warning: " << path << ": KHR_texture_transform is used (not required): its transforms are not "
+                << "applied, the texture coordinates are read as stored\n";
   if (!warn.empty()) {
     std::istringstream ws(warn);
     for (std::string w; std::getline(ws, w);)
@@ -332,8 +371,28 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
       factor_alpha = float(pbr.baseColorFactor[3]);
       mat.opacity = factor_alpha;
     }
+    // alphaMode: OPAQUE, MASK (keyed) or BLEND (traced as opaque: this tracer keys, it does not
+    // blend); any other name is not glTF
+    if (gm.alphaMode != "OPAQUE" && gm.alphaMode != "MASK" && gm.alphaMode != "BLEND")
+      c.fail("material '" + mat.name + "': alphaMode '" + gm.alphaMode + "' is none of OPAQUE, MASK, BLEND");
+    if (gm.alphaMode == "MASK" && !(gm.alphaCutoff >= 0.0))
+      c.fail("material '" + mat.name + "': alphaCutoff " + std::to_string(gm.alphaCutoff) + " is below 0");
+    if (gm.alphaMode == "BLEND")
+      std::cerr << "warning: " << path << ": material '" << mat.name
+                << "' has alphaMode BLEND, traced as opaque (gridrt keys MASK materials, it does not blend)\n";
     if (pbr.baseColorTexture.index >= 0) {
       const int image = texture_of(pbr.baseColorTexture.index);
+      // Samplers: every texture repeats, nearest texel (shared/alpha.h); another wrap mode is said
+      const int sampler = c.model.textures[size_t(pbr.baseColorTexture.index)].sampler;
+      if (sampler >= 0) {
+        if (size_t(sampler) >= c.model.samplers.size())
+          c.fail("texture " + std::to_string(pbr.baseColorTexture.index) + ": sampler " + std::to_string(sampler) +
+                 " does not exist");
+        const tinygltf::Sampler& smp = c.model.samplers[size_t(sampler)];
+        if (smp.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT || smp.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT)
+          std::cerr << "warning: " << path << ": material '" << mat.name << "': sampler " << sampler
+                    << "'s wrap modes are not read: its texture repeats (gridrt's one uv rule)\n";
+      }
       if (pbr.baseColorTexture.texCoord != 0)
         std::cerr << "warning: " << path << ": material '" << mat.name << "' uses TEXCOORD_"
                   << pbr.baseColorTexture.texCoord << "; only TEXCOORD_0 is read\n";
@@ -345,8 +404,9 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
           mat.alpha_texture = mat.diffuse_texture;
         } else {
           // Bake factor and cutoff into a copy, so that alpha.h's fixed cutoff (128) applies.
+          // Keyed by the two floats' exact values (6 digits made 0.5019606 and 0.5019612 one key)
           std::ostringstream k;
-          k << key << "#mask" << cutoff << "x" << factor_alpha;
+          k << key << "#mask" << std::hexfloat << cutoff << "x" << factor_alpha;
           const int32_t src = mat.diffuse_texture;
           mat.alpha_texture = textures.get_or_add(scene, k.str(), [&] {
             Texture t = scene.textures[size_t(src)];
@@ -447,12 +507,17 @@ std::string add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
         }
         material = uint32_t(default_material);
       }
+      // A texture without texture coordinates reads uv (0, 0) everywhere: one texel keeps or cuts
+      // a keyed primitive whole, said
+      if (prim_uvs.empty() && material < scene.materials.size() && scene.materials[material].alpha_keyed())
+        std::cerr << "warning: " << c.path << ": " << where << " has no TEXCOORD_0, but its material '"
+                  << scene.materials[material].name << "' keys with a texture: every point reads its texel at uv (0, 0)\n";
       const uint32_t first = uint32_t(mesh.positions.size());
       for (size_t v = 0; v < positions.size(); ++v) {
         mesh.positions.push_back(positions[v]);
         normals.push_back(prim_normals.empty() ? glm::vec3(0.0f) : prim_normals[v]);
-        // glTF puts v = 0 at the first row of the image; alpha.h puts it at the last: flip.
-        mesh.uvs.push_back(prim_uvs.empty() ? glm::vec2(0.0f) : glm::vec2(prim_uvs[v].x, 1.0f - prim_uvs[v].y));
+        // As the file has them: the textures' rows are stored last first (image_texture)
+        mesh.uvs.push_back(prim_uvs.empty() ? glm::vec2(0.0f) : prim_uvs[v]);
       }
       // Triangle i of a strip is (v_i, v_i+1, v_i+2) with every odd one's last two swapped, so that
       // all keep the first one's winding; of a fan (v_i+1, v_i+2, v_0) (the glTF 2.0 specification,

@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 #include <string_view>
+#include <tuple>
 #include <unordered_map>
 
 #include <tiny_obj_loader.h>
@@ -255,9 +256,28 @@ tinyobj::ObjReader parse_obj(const std::string& path) {
 }
 
 // Materials, with their textures, appended to the scene's.
+// The options of a map_ line this loader does not apply ("-s, -clamp"), "" for none: a texture is
+// read whole, repeating, its alpha from the image (or its first channel), as shared/alpha.h says.
+std::string ignored_texture_options(const tinyobj::texture_option_t& t) {
+  std::string out;
+  auto add = [&](const char* name) { out += (out.empty() ? "" : ", ") + std::string(name); };
+  if (t.origin_offset[0] != 0 || t.origin_offset[1] != 0 || t.origin_offset[2] != 0) add("-o");
+  if (t.scale[0] != 1 || t.scale[1] != 1 || t.scale[2] != 1) add("-s");
+  if (t.turbulence[0] != 0 || t.turbulence[1] != 0 || t.turbulence[2] != 0) add("-t");
+  if (t.clamp) add("-clamp");
+  if (t.imfchan != 'm' && t.imfchan != 'l') add("-imfchan");
+  return out;
+}
+
 void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const fs::path& dir, Scene& scene,
-                       TextureCache& textures) {
+                       TextureCache& textures, const std::string& path) {
   for (const auto& m : mats) {
+    for (const auto& [key, name, opt] : {std::tuple{"map_Kd", &m.diffuse_texname, &m.diffuse_texopt},
+                                         std::tuple{"map_d", &m.alpha_texname, &m.alpha_texopt}})
+      if (!name->empty())
+        if (const std::string ignored = ignored_texture_options(*opt); !ignored.empty())
+          std::cerr << "warning: " << path << ": material '" << m.name << "': " << key << "'s " << ignored
+                    << " not applied: the texture is read whole and repeats\n";
     Material mat;
     mat.name = m.name;
     mat.diffuse = glm::vec3(float(m.diffuse[0]), float(m.diffuse[1]), float(m.diffuse[2]));
@@ -347,7 +367,7 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, ui
 std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCache& textures) {
   const tinyobj::ObjReader file_reader = parse_obj(path);
   const uint32_t base = uint32_t(scene.materials.size());
-  add_obj_materials(file_reader.GetMaterials(), fs::path(path).parent_path(), scene, textures);
+  add_obj_materials(file_reader.GetMaterials(), fs::path(path).parent_path(), scene, textures, path);
   Mesh mesh = obj_mesh(path, file_reader, base, scene);
   Instance inst;
   inst.name = mesh.name;

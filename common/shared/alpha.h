@@ -18,14 +18,16 @@ SH_INLINE vec2 interpolate_uv(SH_IN(vec2) uv0, SH_IN(vec2) uv1, SH_IN(vec2) uv2,
 }
 
 // Nearest texel of a repeating texture, row 0 = first row of the file, v = 0 at the last row.
-// frac(x) = x - floor(x) lies in [0, 1]; the product with the size is clamped to size - 1.
+// frac(x) = x - floor(x) lies in [0, 1]; the product with the size is clamped to size - 1. A uv
+// that interpolated to an infinity (corners near +-3e38) gives a NaN there: texel 0, taken by a
+// comparison (max(NaN, 0) is either on a GPU, and a NaN's conversion to uint undefined).
 SH_INLINE uvec2 alpha_texel_coords(SH_IN(vec2) uv, uint width, uint height) {
   SH_PRECISE float fu = uv.x - floor(uv.x);
   SH_PRECISE float fv = uv.y - floor(uv.y);
   SH_PRECISE float xf = fu * float(width);
   SH_PRECISE float yf = (1.0f - fv) * float(height);
-  uint x = min(uint(max(xf, 0.0f)), width - 1u);
-  uint y = min(uint(max(yf, 0.0f)), height - 1u);
+  uint x = xf >= 1.0f ? min(uint(xf), width - 1u) : 0u;
+  uint y = yf >= 1.0f ? min(uint(yf), height - 1u) : 0u;
   return uvec2(x, y);
 }
 
