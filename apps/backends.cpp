@@ -181,8 +181,8 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
            "where it fits the memory budget; sparse for a finer grid only where its estimate is 5 % cheaper)")
       ->group(kExpert);
   cmd->add_option("--max-capacity", g.max_capacity,
-                  "Largest automatic capacity (at least 4, the automatic capacity's least; --capacity N fixes any "
-                  "number of slots)")
+                  "Largest automatic capacity (at least 4, the automatic capacity's least; --capacity N fixes a "
+                  "number of slots, up to 1024)")
       ->check(CLI::Range(4u, 65535u))->group(kExpert);
   add_enum(cmd, "--slot-axis", g.slot_axis,
            {{"auto", GO::SlotAxis::automatic}, {"x", GO::SlotAxis::x}, {"y", GO::SlotAxis::y}, {"z", GO::SlotAxis::z}},
@@ -324,14 +324,21 @@ reference::GridOptions grid_options_for(const BackendOptions& o, const Scene& sc
   return g;
 }
 
+#ifdef GRIDRT_HAVE_VULKAN
+vulkan::VulkanGridOptions vulkan_grid_options(const BackendOptions& o) {
+  vulkan::VulkanGridOptions vk;
+  vk.build = o.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+  vk.ray_tracing = o.ray_tracing;
+  vk.build_pass_timestamps = o.build_pass_timestamps;
+  return vk;
+}
+#endif
+
 std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptions& o, const Scene& scene) {
   if (name == "cpu") return std::make_unique<reference::ReferenceGridTracer>(grid_options_for(o, scene));
 #ifdef GRIDRT_HAVE_VULKAN
   if (name == "vulkan") {
-    vulkan::VulkanGridOptions vk;
-    vk.build = o.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
-    vk.ray_tracing = o.ray_tracing;
-    vk.build_pass_timestamps = o.build_pass_timestamps;
+    const vulkan::VulkanGridOptions vk = vulkan_grid_options(o);
     try {
       return std::make_unique<vulkan::VulkanGridTracer>(grid_options_for(o, scene), vk);
     } catch (const Error& e) {
@@ -362,7 +369,12 @@ void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
 GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
                               float time, std::optional<size_t> only_pixel) {
   reference::ReferenceGridTracer tracer(plan::gather_options(grid));
-  tracer.build(scene, time);
+  try {
+    tracer.build(scene, time);
+  } catch (const Error& e) {
+    // Its own grid, which the user never named: say whose it is
+    throw Error(std::string("the CPU gather's grid (the exact traversal's, for the primary rays): ") + e.what());
+  }
   if (only_pixel) {
     OneRayTracer one(tracer, *only_pixel);
     return make_gather(scene, one, scene.frame_camera(), w, h, time);

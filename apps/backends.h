@@ -16,6 +16,10 @@
 #include "gridrt/common/tracer.h"
 #include "gridrt/reference/grid.h"
 
+namespace gridrt::vulkan {
+struct VulkanGridOptions;
+}
+
 namespace gridrt::app {
 
 struct BackendOptions {
@@ -30,6 +34,9 @@ struct BackendOptions {
   // vulkan backend (so both tracers of `diff` choose the same grid), else 4096 (lavapipe's)
   std::optional<uint32_t> max_image_dimension;
 };
+
+// The Vulkan grid's options from the command line's (where built with Vulkan).
+vulkan::VulkanGridOptions vulkan_grid_options(const BackendOptions& options);
 
 // The largest 3D image side of the Vulkan device the tool would use (0 without one).
 uint32_t vulkan_max_image_dimension();

@@ -554,6 +554,9 @@ int DiffRun::run() {
   const auto t0 = std::chrono::steady_clock::now();
   if (!o_.json_path.empty()) check_output_path(o_.json_path);
   if (!o_.junit_path.empty()) check_output_path(o_.junit_path);
+  if (!o_.json_path.empty() && !o_.junit_path.empty() && names_same_file(o_.json_path, o_.junit_path))
+    throw CLI::ValidationError("--junit", "--json and --junit both name " + o_.junit_path +
+                                              ": give each report its own file");
   check_frame_size(o_.width, o_.height);
   // Frame k at --time + k / --fps: the last one within the scene time's limit (1e6 s)
   if (o_.frames > 1 && !(std::abs(double(o_.time) + double(o_.frames - 1) / double(o_.fps)) <= 1.0e6))
@@ -570,8 +573,7 @@ int DiffRun::run() {
   co.best_practices = o.validation == "best-practices";
   co.raster_build = o.backend_options.vk_build != "compute";
   ctx_ = std::make_unique<vulkan::Context>(co);
-  vulkan::VulkanGridOptions vk;
-  vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+  const vulkan::VulkanGridOptions vk = vulkan_grid_options(o.backend_options);
   gpu_ = std::make_unique<vulkan::VulkanGridTracer>(*ctx_, grid_, vk);
   ref_ = std::make_unique<reference::ReferenceGridTracer>(grid_);
   std::printf("diff: %s, %ux%u, %u frame(s), traversal %s, insertion %s, spill %s, mailbox %s, Vulkan device %s (%s build), "

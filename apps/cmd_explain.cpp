@@ -125,8 +125,7 @@ class Explainer {
     if (!context_) context_ = std::make_unique<vulkan::Context>();
     auto& p = gpu_[t];
     if (!p) {
-      vulkan::VulkanGridOptions vk;
-      vk.build = o_.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+      const vulkan::VulkanGridOptions vk = vulkan_grid_options(o_.backend_options);
       p = std::make_unique<vulkan::VulkanGridTracer>(*context_, options(t), vk);
       p->build(scene_, o_.time);
     }
@@ -518,9 +517,15 @@ void add_explain_command(CLI::App& app) {
       outputs.emplace_back("--export's materials", std::filesystem::path(o->obj).replace_extension(".mtl").string());
     for (size_t a = 0; a < outputs.size(); ++a)
       for (size_t b = a + 1; b < outputs.size(); ++b)
-        if (std::filesystem::path(outputs[a].second).lexically_normal() == std::filesystem::path(outputs[b].second).lexically_normal())
+        if (names_same_file(outputs[a].second, outputs[b].second))
           throw CLI::ValidationError("explain", outputs[a].first + " and " + outputs[b].first + " both name " +
                                                     outputs[b].second + ": give each output its own file");
+    // Nor an input: the scene or the ray file would be replaced by the picture of its own rays
+    for (const auto& [name, path] : outputs)
+      for (const auto& [input, in_path] : {std::pair{"the scene", o->scene}, std::pair{"--ray-file", o->ray_file}})
+        if (!in_path.empty() && names_same_file(path, in_path))
+          throw CLI::ValidationError("explain", std::string(name) + " names " + input + "'s file " + in_path +
+                                                    ": an output may not replace an input");
     if (o->gpu_frame && o->backend != "vulkan")
       throw CLI::ValidationError("explain", "--gpu-frame needs --backend vulkan (the GPU frame runs on the device)");
     o->traversal_given = cmd->count("--traversal") > 0;

@@ -82,9 +82,14 @@ SlicePanels colour_cells(const reference::GridData& grid, const SliceLayout& l) 
 
 // The ray: its visited cells outlined, its samples as dots (in cell units from the origin); the
 // number of cells it visits.
-size_t draw_ray(plot::Canvas& c, const SliceLayout& l, const sh::GridParams& g, const reference::ExplainRecord& ray) {
+// The ray's cells read, outlined; returns how many, and in `skips` its skip steps over empty cells
+// (a visit each in explain's and the hit record's count, not drawn).
+size_t draw_ray(plot::Canvas& c, const SliceLayout& l, const sh::GridParams& g, const reference::ExplainRecord& ray,
+                size_t& skips) {
   size_t visits = 0;
+  skips = 0;
   for (const sh::ExplainEvent& e : ray.events) {
+    skips += e.kind == sh::kEvSkip;
     if (e.kind != sh::kEvCell) continue;
     ++visits;
     const uint32_t s = e.cell[l.a];
@@ -145,9 +150,14 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
     c.frame(x - 1, y - 1, x + l.pw + 1, y + l.ph + 1, plot::colors::grey);
   }
   if (ray) {
-    const size_t visits = draw_ray(c, l, g, *ray);
-    std::snprintf(t, sizeof t, "%s: %zu cells visited (outlined), %s (dots)", ray_name.c_str(), visits,
-                  g.traversal == sh::kTraversalPaper ? "midpoint samples" : "entry points");
+    size_t skips = 0;
+    const size_t visits = draw_ray(c, l, g, *ray, skips);
+    if (skips == 0)
+      std::snprintf(t, sizeof t, "%s: %zu cells visited (outlined), %s (dots)", ray_name.c_str(), visits,
+                    g.traversal == sh::kTraversalPaper ? "midpoint samples" : "entry points");
+    else  // explain's count of visits: the cells read and the skip steps
+      std::snprintf(t, sizeof t, "%s: %zu visits, %zu cells read (outlined) and %zu skip steps over empty cells; entry "
+                    "points (dots)", ray_name.c_str(), visits + skips, visits, skips);
     c.text(pad, 60, t, plot::colors::black, 12);
   }
   const int sx = pad + int(l.cols) * (l.pw + l.gap) + 10;

@@ -76,8 +76,7 @@ std::string traversal_name(const reference::GridOptions& g) {
 void diff_view(const ViewOptions& o, const Scene& scene, const reference::GridOptions& grid, const std::vector<Ray>& rays,
                const std::vector<PixelRecord>& px, size_t used, const plot::LegendEntry& no_ray, plot::ImageFigure& f) {
   const size_t n = rays.size();
-  vulkan::VulkanGridOptions vk;
-  vk.build = o.backend_options.vk_build == "compute" ? vulkan::BuildMode::compute : vulkan::BuildMode::raster;
+  const vulkan::VulkanGridOptions vk = vulkan_grid_options(o.backend_options);
   vulkan::VulkanGridTracer gpu(grid, vk);
   gpu.build(scene, o.time);
   std::vector<Hit> got(n);

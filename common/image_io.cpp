@@ -79,6 +79,9 @@ void write_oiio(const std::string& path, uint32_t width, uint32_t height, int ch
   auto out = OIIO::ImageOutput::create(ext.substr(1));
   if (!out) throw Error("cannot write image '" + path + "': " + OIIO::geterror());
   OIIO::ImageSpec spec(int(width), int(height), channels, type);
+  // A fixed date: OpenEXR's and TIFF's writers stamp the time of writing otherwise, and the same
+  // render would not give the same bytes twice (the other formats carry no date)
+  if (ext == ".exr" || ext == ".tif" || ext == ".tiff") spec.attribute("DateTime", "1970:01:01 00:00:00");
   if (out->supports("ioproxy")) {
     std::vector<unsigned char> buffer;
     OIIO::Filesystem::IOVecOutput proxy(buffer);

@@ -7,7 +7,9 @@
 #include <filesystem>
 #include <optional>
 #include <cstdio>
+#include <iostream>
 
+#include <csignal>
 #include <fcntl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
@@ -227,6 +229,42 @@ fs::path temp_sibling(const fs::path& path) {
   return dir / ("." + path.filename().string() + ".tmp" + std::to_string(::getpid()) + path.extension().string());
 }
 
+// The temporary file being written, removed if SIGINT, SIGTERM or SIGHUP ends the process
+// meanwhile (then the signal takes its default course): an interrupted run leaves the old output
+// and nothing beside it. One at a time; its path in a fixed buffer, as a handler can only unlink.
+char pending_tmp[4096];
+volatile sig_atomic_t pending_set = 0;
+
+extern "C" void remove_pending_and_reraise(int sig) {
+  if (pending_set) ::unlink(pending_tmp);
+  ::signal(sig, SIG_DFL);
+  ::raise(sig);
+}
+
+struct PendingTemp {
+  explicit PendingTemp(const fs::path& tmp) {
+    for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+      struct sigaction old {};
+      // Where the signal takes its default course; a handler the program set itself is left alone
+      if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_DFL && !(old.sa_flags & SA_SIGINFO)) {
+        struct sigaction sa {};
+        sa.sa_handler = &remove_pending_and_reraise;
+        sigemptyset(&sa.sa_mask);
+        ::sigaction(sig, &sa, nullptr);
+      }
+    }
+    const std::string p = tmp.string();
+    if (p.size() < sizeof pending_tmp) {
+      pending_set = 0;
+      std::memcpy(pending_tmp, p.c_str(), p.size() + 1);
+      pending_set = 1;
+    }
+  }
+  ~PendingTemp() { pending_set = 0; }
+  PendingTemp(const PendingTemp&) = delete;
+  PendingTemp& operator=(const PendingTemp&) = delete;
+};
+
 // A temporary file in the system's temporary folder with `path`'s extension: for an output that
 // is streamed (below), whose own folder (/dev) is no place for it.
 fs::path temp_elsewhere(const fs::path& path) {
@@ -250,10 +288,31 @@ fs::path temp_elsewhere(const fs::path& path) {
 struct OutputTarget {
   fs::path path;
   bool stream = false;
+  int fd = -1;  // the process's own descriptor the path names (/dev/stdout...), written directly
 };
+
+// The descriptor /dev/stdout, /dev/stderr, /dev/fd/N or /proc/self/fd/N names, else -1. Opened by
+// its path these lead, through /proc, to whatever the descriptor holds: with the output
+// redirected to a file (`>> log`), the file, which the rename would replace (the log's earlier
+// lines gone) and a new open would overwrite from its start.
+int own_descriptor(const std::string& path) {
+  if (path == "/dev/stdout") return 1;
+  if (path == "/dev/stderr") return 2;
+  for (const char* prefix : {"/dev/fd/", "/proc/self/fd/"}) {
+    const std::string_view p(prefix);
+    if (path.size() > p.size() && path.compare(0, p.size(), p) == 0 && path.size() - p.size() <= 6 &&
+        std::all_of(path.begin() + std::ptrdiff_t(p.size()), path.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      return std::stoi(path.substr(p.size()));
+  }
+  return -1;
+}
 
 OutputTarget resolve_output(const std::string& path, const std::string& what) {
   const std::string head = "cannot write " + what + " '" + path + "': ";
+  if (const int fd = own_descriptor(path); fd >= 0) {
+    if (::fcntl(fd, F_GETFD) < 0) throw Error(head + "the descriptor is not open");
+    return {path, true, fd};
+  }
   struct stat st {};
   if (::stat(path.c_str(), &st) == 0) {  // what the path leads to, links followed
     if (S_ISFIFO(st.st_mode) || S_ISCHR(st.st_mode)) return {path, true};  // opened through the links
@@ -322,6 +381,7 @@ int write_all(int fd, std::string_view bytes) {
 // The bytes to `tmp` (created new), synced, verified and renamed over `target`.
 void write_replacing(const std::string& path, const std::string& what, const fs::path& target, const fs::path& tmp,
                      std::string_view bytes, const std::function<void(const std::string& tmp)>& verify) {
+  const PendingTemp pending(tmp);
   ::unlink(tmp.c_str());  // a leftover of an earlier process with the same id
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0) {
@@ -337,7 +397,17 @@ void write_replacing(const std::string& path, const std::string& what, const fs:
 }
 
 // A FIFO or character device: the complete bytes, written in order, every write checked.
-void write_stream(const std::string& path, const std::string& what, const fs::path& target, std::string_view bytes) {
+void write_stream(const std::string& path, const std::string& what, const OutputTarget& t, std::string_view bytes) {
+  if (t.fd >= 0) {
+    // The process's own standard output or error: after what it printed there, in order
+    std::cout.flush();
+    std::cerr.flush();
+    std::fflush(nullptr);
+    if (const int e = write_all(t.fd, bytes); e != 0)
+      throw Error("cannot write " + what + " '" + path + "': write failed: " + std::strerror(e));
+    return;
+  }
+  const fs::path& target = t.path;
   const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC);
   if (fd < 0) {
     const int e = errno;
@@ -381,13 +451,14 @@ void write_file_atomically(const std::string& path, const std::string& what, std
     write_replacing(path, what, tmp, tmp, bytes, verify);
     ::unlink(tmp.c_str());
   }
-  write_stream(path, what, t.path, bytes);
+  write_stream(path, what, t, bytes);
 }
 
 void write_file_atomically(const std::string& path, const std::string& what,
                            const std::function<void(const std::string& tmp)>& write) {
   const OutputTarget t = resolve_output(path, what);
   const fs::path tmp = t.stream ? temp_elsewhere(t.path) : temp_sibling(t.path);
+  const PendingTemp pending(tmp);
   ::unlink(tmp.c_str());
   try {
     write(tmp.string());
@@ -395,10 +466,21 @@ void write_file_atomically(const std::string& path, const std::string& what,
     ::unlink(tmp.c_str());
     throw;
   }
-  if (t.stream) return write_stream(path, what, t.path, slurp_and_remove(path, what, tmp));
+  if (t.stream) return write_stream(path, what, t, slurp_and_remove(path, what, tmp));
   const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) fail_write(path, what, tmp, errno, "cannot reopen the temporary file");
   finish(path, what, t.path, tmp, fd, nullptr);
+}
+
+bool names_same_file(const std::string& a, const std::string& b) {
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) {
+    const bool same = fs::equivalent(a, b, ec);
+    if (!ec) return same;
+  }
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
+  const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+  return ca.lexically_normal() == cb.lexically_normal();
 }
 
 }  // namespace gridrt

@@ -81,6 +81,11 @@ std::string normalize_text(std::string text);
 // a * b, or Error("<what>: ... overflows") when the product does not fit 64 bits.
 uint64_t checked_mul(uint64_t a, uint64_t b, const std::string& what);
 
+// Whether two paths name one file: the same file where both exist (links followed, however
+// spelled), else the same absolute path once "." and ".." and the links of its existing part are
+// resolved ("a.json" and "$PWD/a.json", "./a.svg" and "a.svg", "sub/../a" and "a").
+bool names_same_file(const std::string& a, const std::string& b);
+
 // Write `bytes` to `path` atomically (see above). `what` names the kind of file in messages
 // ("image", "scene cache", "CSV table"). `verify(tmp)`, where given, checks the written
 // temporary file before it replaces anything (it throws to refuse it; a streamed output is

@@ -2,12 +2,20 @@
 // Error whose message names the file (and the line where one is known), never a crash.
 #include <catch2/catch.hpp>
 
+#include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <thread>
+#include <vector>
+
+#include <sys/wait.h>
 
 #include <unistd.h>
 
 #include "gridrt/common/image_io.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/scene_io.h"
 
 using namespace gridrt;
@@ -172,5 +180,65 @@ TEST_CASE("A JSON scene file with a key given twice in one object is refused, na
   std::ofstream(dir / "scene.json") << head + R"(, "b": {"file": "tri.obj"}}, "instances": [{"mesh": "a", "translate": [1, 0, 0]}, )"
                                               R"({"mesh": "b", "translate": [2, 0, 0]}]})";
   CHECK(load_scene((dir / "scene.json").string()).instances.size() == 2);
+  fs::remove_all(dir);
+}
+
+// An outside sweep's find: SIGINT or SIGTERM while an output was written left its temporary file
+// (".o.pfm.tmp15377.pfm", 8 MB) beside the untouched old output. The temporary file is now removed
+// by the signal's handler, which then lets the signal end the process as it would have.
+TEST_CASE("An output's temporary file is removed when SIGTERM ends the process while it is written", "[badinput]") {
+  const fs::path dir = fs::temp_directory_path() / ("gridrt_signal_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path out = dir / "o.pfm";
+  std::ofstream(out) << "OLD";
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) {
+    ::signal(SIGTERM, SIG_DFL);  // as the tool has it (the test runner handles the signal itself)
+    try {
+      write_file_atomically(out.string(), "image", [](const std::string& tmp) {
+        std::ofstream(tmp) << "partial";
+        ::raise(SIGTERM);  // as a user's kill would arrive, halfway through the write
+      });
+    } catch (...) {
+    }
+    ::_exit(0);  // not reached: the signal ends the child
+  }
+  int status = 0;
+  REQUIRE(::waitpid(child, &status, 0) == child);
+  CHECK(WIFSIGNALED(status));
+  CHECK(WTERMSIG(status) == SIGTERM);
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  CHECK(names == std::vector<std::string>{"o.pfm"});
+  std::ifstream in(out);
+  std::string text;
+  in >> text;
+  CHECK(text == "OLD");
+  fs::remove_all(dir);
+}
+
+// An outside sweep's find: OpenEXR's and TIFF's writers stamped the time of writing, so one
+// render gave other bytes a second later (CI could not compare outputs).
+TEST_CASE("EXR and TIFF outputs are the same bytes when written twice", "[badinput][image]") {
+  if (!have_image_library()) {
+    WARN("built without OpenImageIO: no EXR or TIFF to write");
+    return;
+  }
+  const fs::path dir = fs::temp_directory_path() / ("gridrt_stamp_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::vector<glm::vec3> rgb(4 * 3, glm::vec3(0.25f, 0.5f, 0.75f));
+  for (const char* ext : {".exr", ".tif"}) {
+    write_image((dir / (std::string("a") + ext)).string(), 4, 3, rgb);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1100));  // past the stamp's second
+    write_image((dir / (std::string("b") + ext)).string(), 4, 3, rgb);
+    auto bytes = [](const fs::path& p) {
+      std::ifstream in(p, std::ios::binary);
+      return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    INFO(ext);
+    CHECK(bytes(dir / (std::string("a") + ext)) == bytes(dir / (std::string("b") + ext)));
+  }
   fs::remove_all(dir);
 }

@@ -387,3 +387,44 @@ TEST_CASE("CLI: a small instance turning about a far pivot is warned of, once, a
   CHECK(big.output.find("sweeps a box") == std::string::npos);
   fs::remove_all(d);
 }
+
+// Outside sweeps' finds: `--json /dev/stdout >> log` replaced the log by the JSON (the path leads,
+// through /proc, to the log, which the output's rename replaced); explain's outputs could replace
+// its own scene or ray file, and two outputs naming one file were caught only when spelled alike.
+TEST_CASE("CLI: explain writes /dev/stdout after its report, and refuses outputs that alias inputs or each other",
+          "[cli][explain][badinput]") {
+  const fs::path d = fs::temp_directory_path() / "gridrt_cli_alias";
+  fs::remove_all(d);
+  fs::create_directories(d);
+  const fs::path log = d / "ci.log";
+  std::ofstream(log) << "EARLIER LOG LINE\n";
+  const Run r = run_tool("explain builtin:cornell --ray 1,1,1,0,0,1 --brief --json /dev/stdout >> " + log.string());
+  CHECK(r.exit_code == 0);
+  std::ifstream in(log);
+  const std::string text((std::istreambuf_iterator<char>(in)), {});
+  CHECK(text.rfind("EARLIER LOG LINE\n", 0) == 0);  // the log's line kept, first
+  const size_t report = text.find("ray 0:"), json = text.find("{");
+  CHECK(report != std::string::npos);
+  CHECK(json != std::string::npos);
+  CHECK(report < json);  // the JSON after the report, as printed
+  std::ofstream(d / "tri.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  std::ofstream(d / "rays.txt") << "0.2,0.2,-1,0,0,1\n";
+  const std::string obj = (d / "tri.obj").string(), rays = (d / "rays.txt").string();
+  for (const auto& [args, why] : std::vector<std::pair<std::string, std::string>>{
+           {obj + " --ray 0.2,0.2,-1,0,0,1 --export " + obj, "an output may not replace an input"},
+           {obj + " --ray-file " + rays + " --json " + (d / "." / "rays.txt").string(), "an output may not replace an input"},
+           {"builtin:cornell --ray 1,1,1,0,0,1 --json " + fs::relative(d / "a.json").string() + " --html " +
+                (d / "sub" / ".." / "a.json").string(),
+            "both name"}}) {
+    fs::create_directories(d / "sub");
+    const Run a = run_tool("explain " + args);
+    INFO(args << ": " << a.output);
+    CHECK(a.exit_code == 2);
+    CHECK_THAT(a.output, Catch::Contains(why));
+  }
+  // Untouched
+  std::ifstream tri(obj);
+  const std::string mesh((std::istreambuf_iterator<char>(tri)), {});
+  CHECK(mesh == "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  fs::remove_all(d);
+}

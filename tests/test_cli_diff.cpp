@@ -144,6 +144,12 @@ TEST_CASE("CLI: gridrt diff - validation messages exit 4, bad input 1, bad comma
   // Command line: an unknown flag, a bad value
   CHECK(run_tool("diff builtin:cornell --bogus").exit_code == 2);
   CHECK(run_tool("diff builtin:cornell --validation loud").exit_code == 2);
+  // One file for both reports (the JSON was replaced by the JUnit XML, exit 0: an outside sweep's find)
+  const Run same = run_tool(std::string("diff ") + kSmall + " --frames 1 --json " + (d / "r.xml").string() +
+                            " --junit " + (d / "." / "r.xml").string());
+  INFO(same.output);
+  CHECK(same.exit_code == 2);
+  CHECK(same.output.find("both name") != std::string::npos);
   fs::remove_all(d);
 }
 
