@@ -165,6 +165,12 @@ inline GridOptions gather_options(GridOptions o) {
   // and the gather's rule, Moller-Trumbore's test, whatever the trace's (the GPU frame's gather
   // has no other: docs/SPEC.md "The gather as a rasterizer")
   o.triangle_test = AlgorithmOptions::TriangleTest::moller;
+  // and every reference kept: the spill list on at its forecast capacity (a full cell of
+  // `--spill off` or a fixed `--spill-capacity` dropped triangles the GPU's gathers see), and no
+  // self-hit offset (the bounce rays' knob: it made camera rays miss what the GPU's gathers hit)
+  o.spill = AlgorithmOptions::Spill::on;
+  o.spill_capacity.reset();
+  o.self_hit_offset = AlgorithmOptions{}.self_hit_offset;
   return o;
 }
 

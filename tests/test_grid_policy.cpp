@@ -329,6 +329,18 @@ TEST_CASE("grid: cells wider than the domain, an exact traversal below the cell'
   go.sphere_enlargement = 0.5f;  // drops triangles at cells' corners: refused by the exact traversal
   CHECK_THROWS_WITH(reference::choose_grid(scene, 0.0f, go), Catch::Contains("needs at") && Catch::Contains("least 1"));
   CHECK(plan::gather_options(go).sphere_enlargement == 1.0f);  // the paper's gather stays exact
+  // and keeps every reference, with no self-hit offset (an outside sweep's finds: `--spill off`
+  // in a full cell, or `--self-hit-offset 20`, made the CPU's gather miss what the GPU's hit)
+  {
+    reference::GridOptions t = go;
+    t.spill = reference::GridOptions::Spill::off;
+    t.spill_capacity = 5u;
+    t.self_hit_offset = 20.0f;
+    const reference::GridOptions gt = plan::gather_options(t);
+    CHECK(gt.spill == reference::GridOptions::Spill::on);
+    CHECK_FALSE(gt.spill_capacity.has_value());
+    CHECK(gt.self_hit_offset == 0.0f);
+  }
   // and takes the gather's rule, Moller-Trumbore's test, whatever the trace's
   for (auto test : {reference::GridOptions::TriangleTest::automatic, reference::GridOptions::TriangleTest::watertight}) {
     reference::GridOptions t = go;

@@ -7,6 +7,7 @@
 #include <random>
 #include <vector>
 
+#include "gridrt/common/shared/alpha.h"
 #include "test_grid_util.h"
 
 using namespace gridrt;
@@ -375,6 +376,30 @@ TEST_CASE("Paper segments: one cell edge in t units, midpoint samples, elongatio
   CHECK_FALSE(sh::ray_setup(g, {-1.0f, 1.0f, 1.0f}, {-1.0f, 0.0f, 0.0f}, 0.0f, INFINITY, rs));
   CHECK_FALSE(sh::ray_setup(g, {-1.0f, 1.0f, 1.0f}, {1.0f, 0.0f, 0.0f}, 0.0f, 0.5f, rs));
   CHECK_FALSE(sh::ray_setup(g, {-1.0f, 6.0f, 1.0f}, {1.0f, 0.0f, 0.0f}, 0.0f, INFINITY, rs));
+  // From the box's face outward: the slab's (lo - o) * inv is -0, which min and max may pass on
+  // or not (a GPU's differed from C++'s); the setup's zeros are +0 (an outside sweep's find)
+  (void)sh::ray_setup(g, {0.0f, 1.0f, 1.0f}, {-1.0f, 0.0f, 0.0f}, 0.0f, INFINITY, rs);
+  CHECK(glm::floatBitsToUint(rs.t_end) == 0u);
+  CHECK(glm::floatBitsToUint(rs.t_start) == 0u);
+}
+
+// An outside sweep's find: uvs of +-3e38 interpolate to infinities, frac() of which is NaN, and
+// max(NaN, 0) and a NaN's conversion to uint are either or undefined on a GPU: texel 0 now, by a
+// comparison; every finite uv keeps its texel.
+TEST_CASE("The uv rule: an infinite or NaN uv reads texel 0, finite ones their texel", "[unit][alpha]") {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  for (const glm::vec2 uv : {glm::vec2(inf, 0.5f), glm::vec2(-inf, 0.5f), glm::vec2(0.5f, inf), glm::vec2(nan, nan)}) {
+    const glm::uvec2 xy = sh::alpha_texel_coords(uv, 7, 5);
+    CHECK(xy.x < 7);
+    CHECK(xy.y < 5);
+    if (!std::isfinite(uv.x)) CHECK(xy.x == 0u);
+    if (!std::isfinite(uv.y)) CHECK(xy.y == 0u);
+  }
+  // Finite uvs: u in [0, 1) spans the columns, v = 0 the last row, v just below 1 the first
+  CHECK(sh::alpha_texel_coords({0.0f, 0.0f}, 7, 5) == glm::uvec2(0, 4));
+  CHECK(sh::alpha_texel_coords({0.99f, 0.99f}, 7, 5) == glm::uvec2(6, 0));
+  CHECK(sh::alpha_texel_coords({0.5f, 0.5f}, 7, 5) == glm::uvec2(3, 2));
+  CHECK(sh::alpha_texel_coords({-0.25f, 2.25f}, 8, 4) == glm::uvec2(6, 3));
 }
 
 TEST_CASE("Ray validation rejects NaN, inf and zero directions", "[unit][grid]") {

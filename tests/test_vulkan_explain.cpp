@@ -39,6 +39,13 @@ TEST_CASE("Explain: --backend vulkan sets the shader's record beside the referen
   CHECK(ray["alignment"]["identical"] == true);
   CHECK(ray["alignment"]["rows"].size() == ray["reference"]["events"].size());
   for (const auto& row : ray["alignment"]["rows"]) CHECK(row[2] == true);
+  // An outside sweep's find: rays from the grid box's edge pointing out of it had t_end -0 on the
+  // CPU and +0 in the shader (min of -0 and +0); the setup now makes every zero +0
+  const gridrt::test::Run z = run_tool("explain builtin:cornell --traversal exact "
+                                       "--ray=-0x1.6e7a32p-8,0x1.60b3aap+2,1,-1,1,0 --backend vulkan");
+  INFO(z.output);
+  REQUIRE(z.exit_code == 0);
+  CHECK_THAT(z.output, Catch::Contains("t_end 0 [0x00000000]") && Catch::Contains("agree bit for bit"));
 }
 
 TEST_CASE("Explain: --backend vulkan with the mailbox - the skipped re-tests on both backends alike, --mailbox off "

@@ -236,6 +236,43 @@ TEST_CASE("Vulkan grid: a triangle over 66049 cells is in every one of them, ras
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
+// An outside sweep's find: a triangle's invocation lists its range's runs one by one, 110,592 of
+// them for one triangle over 96^3 cells; llvmpipe cut that loop, leaving cells without the
+// triangle and the list's tail stale (junk references), with exit 0 or a count mismatch. Such a
+// triangle is now refused on llvmpipe, at the build and at an update, naming its range.
+TEST_CASE("Vulkan grid on llvmpipe: a triangle whose range the build's run list cannot hold is refused",
+          "[vulkan][grid][badinput]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  // One triangle across the unit cube's diagonal: its range is every cell
+  Scene scene;
+  scene.name = "diagonal";
+  Mesh tri;
+  tri.name = "tri";
+  tri.positions = {{0.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 1.0f}};
+  tri.triangles = {{0, 1, 2}};
+  tri.materials = {0u};
+  scene.meshes = {tri};
+  scene.materials.push_back(Material{.name = "default"});
+  scene.instances.push_back(Instance{.name = "tri", .mesh = 0});
+  scene.camera = Camera{.eye = {0.5f, 0.5f, -3.0f}, .target = {0.5f, 0.5f, 0.5f}};
+  scene.finalize();
+  for (const BuildMode mode : {BuildMode::raster, BuildMode::compute}) {
+    GridOptions o;
+    o.threads = 2;
+    o.resolution = glm::uvec3(72u);  // 373,248 cells in the triangle's range: more than kLlvmpipeRangeCellLimit
+    o.capacity = 1;
+    o.traversal = Traversal::paper;
+    VulkanGridTracer gpu(ctx, o, vulkan::VulkanGridOptions{.build = mode});
+    if (ctx.info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE) {
+      CHECK_THROWS_WITH(gpu.build(scene, 0.0f), Catch::Contains("AABB range holds") && Catch::Contains("llvmpipe"));
+    } else {
+      REQUIRE_NOTHROW(gpu.build(scene, 0.0f));  // a GPU lists every run
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
 TEST_CASE("Vulkan diff on a built-in scene: both builds, traversals and insertions, through an update",
           "[vulkan][diff][grid]") {
   diff_all(make_builtin("atrium"), 1024, 48, 27);

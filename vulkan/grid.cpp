@@ -12,6 +12,7 @@
 #include <map>
 #include <unordered_map>
 
+#include "gridrt/plan/policy.h"
 #include "gridrt/vulkan/ray_pass.h"
 #include "gridrt/vulkan/shaders/grid_interface.h"
 
@@ -113,6 +114,7 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
     const std::vector<uint32_t> boxes = plan::skip_box_words(scene, time, params_);
     ctx_->upload(gpu_->skip, boxes.data(), boxes.size() * sizeof(uint32_t));
   }
+  check_build_ranges(scene, time, 0);
   create_pipelines();
   record_build(uint32_t(scene.instances.size()));
   after_insert();
@@ -636,8 +638,24 @@ void VulkanGridTracer::grow_spill(uint32_t capacity) {
   gpu.set->bind(shared::kGridBindSpill, gpu.spill);
 }
 
+void VulkanGridTracer::check_build_ranges(const Scene& scene, float time, uint32_t first) const {
+  if (ctx_->info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE) return;
+  uint64_t most = 0;
+  for (size_t i = first; i < scene.instances.size(); ++i)
+    plan::for_each_placed_triangle(scene, i, time, params_, [&](const plan::PlacedTriangle& p) {
+      const glm::uvec3 k = p.hi - p.lo + 1u;
+      most = std::max(most, uint64_t(k.x) * k.y * k.z);
+    });
+  if (most > kLlvmpipeRangeCellLimit)
+    throw Error("vulkan-grid: a triangle's AABB range holds " + std::to_string(most) +
+                " cells; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, which cuts "
+                "the build's listing of its runs short (refused above " + std::to_string(kLlvmpipeRangeCellLimit) +
+                " cells): its grid cannot be trusted (coarser cells, run on a GPU, or --backend cpu)");
+}
+
 void VulkanGridTracer::update_insert(float time) {
   const uint32_t n = uint32_t(scene_->instances.size());
+  check_build_ranges(*scene_, time, static_instances_);
   Gpu& gpu = *gpu_;
   upload_transforms(time, static_instances_, n);
   const GridParams& g = params_;

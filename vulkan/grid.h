@@ -91,6 +91,11 @@ inline constexpr uint32_t kLlvmpipeTilePairLimit = 16384;
 // The spill list's order pass and walk: a cell listing 65,535 entries or more is cut (70,000
 // triangles in one cell of capacity 1); after_insert refuses, on llvmpipe, a cell listing this many.
 inline constexpr uint32_t kLlvmpipeSpillListLimit = 32768;
+// The build's run list: a triangle's invocation lists its AABB range's runs of 8 cells one by one
+// (build.glsl), a loop of 110,592 iterations for a triangle over 96^3 cells, cut on llvmpipe (the
+// list's tail left stale: junk references, cells left out). build and update refuse, on llvmpipe,
+// a triangle whose range holds more cells than this (32,768 runs).
+inline constexpr uint64_t kLlvmpipeRangeCellLimit = 262144;
 void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what);
 
 class VulkanGridTracer : public Tracer {
@@ -183,6 +188,9 @@ class VulkanGridTracer : public Tracer {
   struct Gpu;  // buffers, image, descriptors, pipelines
   // build()'s steps
   void check_device() const;
+  // llvmpipe: refuses a triangle of instances [first, end) whose AABB range at `time` holds more
+  // than kLlvmpipeRangeCellLimit cells; elsewhere nothing.
+  void check_build_ranges(const Scene& scene, float time, uint32_t first) const;
   plan::GridPlan make_plan(const Scene& scene, float time);
   void make_build_input(const Scene& scene, float time, std::vector<glm::vec4>& positions,
                         std::vector<uint32_t>& indices);

@@ -605,6 +605,9 @@ SH_INLINE bool clip_to_grid(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) di
   return ok && t0 <= t1;
 }
 
+// x, with -0 made +0.
+SH_INLINE float positive_zero(float x) { return floatBitsToUint(x) == 0x80000000u ? 0.0f : x; }
+
 // Per-ray values both traversals start from, computed once per ray.
 struct RaySetup {
   float seg_t;    // one cell edge in t units: cell_size / sqrt(dot(dir, dir))
@@ -625,8 +628,11 @@ SH_INLINE bool ray_setup(SH_IN(GridParams) g, SH_IN(vec3) org, SH_IN(vec3) dir, 
   float t0;
   float t1;
   bool hit = clip_to_grid(g, org, dir, t0, t1);
-  rs.t_start = max(tmin, t0);
-  rs.t_end = min(tmax, t1);
+  // A zero as +0: min and max of -0 and +0 (an origin on the box's face, a slab's (lo - o) * inv)
+  // may give either on a GPU, where C++'s give the first; the walk reads no sign of a zero, the
+  // explain record prints it (taken by the bits: a compiler may fold a comparison with zero)
+  rs.t_start = positive_zero(max(tmin, t0));
+  rs.t_end = positive_zero(min(tmax, t1));
   return hit && rs.t_start <= rs.t_end && tmin < tmax;
 }
 
