@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -127,10 +128,10 @@ TEST_CASE("glTF and GLB: node hierarchy, flipped v, MASK material", "[unit][load
     CHECK(inst[0].name == "quad");
     CHECK(glm::vec3(inst[0].transform * glm::vec4(1, 1, 0, 1)) == glm::vec3(12, 2, 0));
     CHECK(glm::vec3(inst[1].transform * glm::vec4(1, 1, 0, 1)) == glm::vec3(11, 6, 0));
-    // The uvs as the file has them (glTF (0, 1): the image's bottom-left); the image's rows are
-    // stored last first, so that alpha.h's rule (v = 0 at the stored last row) reads them
-    CHECK(m.uvs[0] == glm::vec2(0, 1));
-    CHECK(m.uvs[2] == glm::vec2(1, 0));
+    // v flipped (1 - v); where that is a whole number (glTF's v = 1 and v = 0 here), the next
+    // float below it, so that the rule reads the first row there, as glTF's repeating texture does
+    CHECK(m.uvs[0] == glm::vec2(0, std::nextafter(0.0f, -1.0f)));
+    CHECK(m.uvs[2] == glm::vec2(1, std::nextafter(1.0f, 0.0f)));
     REQUIRE(s.materials.size() == 1);
     const Material& mat = s.materials[0];
     CHECK(mat.name == "leaf");
@@ -139,7 +140,7 @@ TEST_CASE("glTF and GLB: node hierarchy, flipped v, MASK material", "[unit][load
     CHECK(mat.alpha_texture == mat.diffuse_texture);
     REQUIRE(s.textures.size() == 1);
     CHECK(s.textures[0].width == 2);
-    CHECK(s.textures[0].texel(1, s.textures[0].height - 1) == glm::u8vec4(0, 255, 0, 0));  // the file's first row
+    CHECK(s.textures[0].texel(1, 0) == glm::u8vec4(0, 255, 0, 0));
     CHECK(s.textures[0].has_alpha);
   }
 }
@@ -575,16 +576,19 @@ TEST_CASE("glTF MASK without a texture: the factor's alpha alone keeps or cuts t
 
 // Outside sweeps' finds: glTF put v = 0 at the image's first row, and the loader flipped v to
 // 1 - v, which for a v of 0 (or below about 3e-8, rounding to 1) read the last row instead: a
-// strip of constant v = 0 was cut where its texel is opaque. Now the rows are stored last first and
-// v kept. Two MASK cutoffs six digits apart shared one baked mask (its key printed 6 digits).
-TEST_CASE("glTF textures: v = 0 reads the image's first row, masks keyed by exact cutoffs", "[unit][loaders]") {
+// strip of constant v = 0 was cut where its texel is opaque. (Storing the rows last first instead
+// put every tie v = k / h a row off: a review's find.) Now a flipped v that is a whole number
+// takes the next float below it. Two MASK cutoffs six digits apart shared one baked mask (its key
+// printed 6 digits).
+TEST_CASE("glTF textures: v reads glTF's nearest row, ties and v = 0 included, masks keyed by exact cutoffs",
+          "[unit][loaders]") {
   const fs::path d = temp_dir();
   // 1 x 2 texels: the file's first row opaque, its second transparent; the alpha 128 of a third
   // file tells two cutoffs apart (128 / 255 = 0.50196078)
   const std::vector<uint8_t> rows = {255, 255, 255, 255, 255, 255, 255, 0};
   write_image_rgba8((d / "rows.png").string(), 1, 2, rows);
   const std::string mask = R"({"alphaMode":"MASK","pbrMetallicRoughness":{"baseColorTexture":{"index":0}}})";
-  for (const float v : {0.0f, 1e-8f, 2e-8f, 0.25f, 1.0f, 3.0f}) {
+  for (const float v : {0.0f, 1e-8f, 2e-8f, 0.25f, 0.4999999f, 0.5f, 0.75f, 1.0f, 3.0f, -0.5f, -1.0f}) {
     INFO("v = " << v);
     Scene s;
     TextureCache cache;
@@ -592,8 +596,10 @@ TEST_CASE("glTF textures: v = 0 reads the image's first row, masks keyed by exac
     REQUIRE(s.materials.size() == 1);
     const Texture& t = s.textures[size_t(s.materials[0].alpha_texture)];
     const glm::uvec2 xy = shared::alpha_texel_coords(s.meshes[0].uvs[0], t.width, t.height);
-    // glTF: row floor(frac(v) * 2) of the file, the first for every v here
-    CHECK(t.texel(xy.x, xy.y).a == 255);
+    // glTF's nearest texel: row floor(frac(v) * 2) of the file, the first opaque, the second not
+    const double f = double(v) - std::floor(double(v));
+    const bool first_row = std::floor(f * 2.0) == 0.0;
+    CHECK(t.texel(xy.x, xy.y).a == (first_row ? 255 : 0));
   }
   const std::vector<uint8_t> half = {255, 255, 255, 128};
   write_image_rgba8((d / "half.png").string(), 1, 1, half);

@@ -1,6 +1,8 @@
 // gltf.cpp: glTF 2.0 (.gltf, .glb) through TinyGLTF.
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <set>
 #include <cstring>
 #include <filesystem>
 #include <cstdio>
@@ -172,18 +174,25 @@ Texture image_texture(const Ctx& c, int image_index) {
     const unsigned char* p = img.image.data() + (i * nc + k) * bpc;
     return bpc == 1 ? p[0] : p[1];  // 16-bit little-endian: keep the high byte
   };
-  // Rows stored last first: glTF puts v = 0 at the image's first row, alpha.h's rule at the stored
-  // texture's last row, so the rule applies to the file's v unchanged. (Flipping v instead, to
-  // 1 - v, rounded v below about 3e-8 to 1 and read the last row for a v of 0.)
-  const size_t row = size_t(img.width);
   for (size_t i = 0; i < n; ++i) {
-    uint8_t* q = tex.rgba.data() + ((n / row - 1 - i / row) * row + i % row) * 4;
+    uint8_t* q = tex.rgba.data() + i * 4;
     if (nc >= 3) { q[0] = chan(i, 0); q[1] = chan(i, 1); q[2] = chan(i, 2); }
     else { q[0] = q[1] = q[2] = chan(i, 0); }
     q[3] = (nc == 2 || nc == 4) ? chan(i, nc - 1) : 255;
     if (q[3] < 255) tex.has_alpha = true;
   }
   return tex;
+}
+
+// glTF puts v = 0 at an image's first row, alpha.h's rule at its last: v is flipped, to 1 - v,
+// which keeps glTF's nearest texel, floor(frac(v) h) from the top, ties included. Where 1 - v is
+// a whole number (v a whole number, or within about 3e-8 of one, rounded) the rule's frac() would
+// give 0, the last row, where glTF reads the first: the next float below it reads the first row.
+// (Stored as they come, with v unflipped, put every tie v = k / h a row off.)
+glm::vec2 gltf_uv(glm::vec2 uv) {
+  float v = 1.0f - uv.y;
+  if (v == std::floor(v)) v = std::nextafter(v, -std::numeric_limits<float>::infinity());
+  return {uv.x, v};
 }
 
 // A node's local transform: its matrix, else T * R * S. The rotation must be a unit quaternion
@@ -358,8 +367,13 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
   auto texture_of = [&](int texture_index) -> int {
     if (texture_index < 0 || size_t(texture_index) >= c.model.textures.size())
       c.fail("texture " + std::to_string(texture_index) + " does not exist");
-    return c.model.textures[size_t(texture_index)].source;
+    const int source = c.model.textures[size_t(texture_index)].source;
+    if (source < 0)
+      c.fail("texture " + std::to_string(texture_index) + " has no source image gridrt reads (a source given only "
+             "through an extension, such as EXT_texture_webp, is not read)");
+    return source;
   };
+  std::set<int> warned_samplers;
   for (size_t mi = 0; mi < c.model.materials.size(); ++mi) {
     const tinygltf::Material& gm = c.model.materials[mi];
     const auto& pbr = gm.pbrMetallicRoughness;
@@ -389,7 +403,8 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
           c.fail("texture " + std::to_string(pbr.baseColorTexture.index) + ": sampler " + std::to_string(sampler) +
                  " does not exist");
         const tinygltf::Sampler& smp = c.model.samplers[size_t(sampler)];
-        if (smp.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT || smp.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT)
+        if ((smp.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT || smp.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT) &&
+            warned_samplers.insert(sampler).second)  // once a sampler
           std::cerr << "warning: " << path << ": material '" << mat.name << "': sampler " << sampler
                     << "'s wrap modes are not read: its texture repeats (gridrt's one uv rule)\n";
       }
@@ -509,15 +524,16 @@ std::string add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
       }
       // A texture without texture coordinates reads uv (0, 0) everywhere: one texel keeps or cuts
       // a keyed primitive whole, said
-      if (prim_uvs.empty() && material < scene.materials.size() && scene.materials[material].alpha_keyed())
+      // (not a material cut whole by its factor: its 1x1 mask reads the same texel at every uv)
+      if (prim_uvs.empty() && material < scene.materials.size() && scene.materials[material].alpha_keyed() &&
+          !scene.textures[size_t(scene.materials[material].alpha_texture)].path.ends_with("#cut"))
         std::cerr << "warning: " << c.path << ": " << where << " has no TEXCOORD_0, but its material '"
                   << scene.materials[material].name << "' keys with a texture: every point reads its texel at uv (0, 0)\n";
       const uint32_t first = uint32_t(mesh.positions.size());
       for (size_t v = 0; v < positions.size(); ++v) {
         mesh.positions.push_back(positions[v]);
         normals.push_back(prim_normals.empty() ? glm::vec3(0.0f) : prim_normals[v]);
-        // As the file has them: the textures' rows are stored last first (image_texture)
-        mesh.uvs.push_back(prim_uvs.empty() ? glm::vec2(0.0f) : prim_uvs[v]);
+        mesh.uvs.push_back(prim_uvs.empty() ? glm::vec2(0.0f) : gltf_uv(prim_uvs[v]));
       }
       // Triangle i of a strip is (v_i, v_i+1, v_i+2) with every odd one's last two swapped, so that
       // all keep the first one's winding; of a fan (v_i+1, v_i+2, v_0) (the glTF 2.0 specification,
