@@ -640,12 +640,23 @@ void VulkanGridTracer::grow_spill(uint32_t capacity) {
 
 void VulkanGridTracer::check_build_ranges(const Scene& scene, float time, uint32_t first) const {
   if (ctx_->info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE) return;
-  uint64_t most = 0;
+  uint64_t most = 0, runs = 0;
   for (size_t i = first; i < scene.instances.size(); ++i)
     plan::for_each_placed_triangle(scene, i, time, params_, [&](const plan::PlacedTriangle& p) {
       const glm::uvec3 k = p.hi - p.lo + 1u;
-      most = std::max(most, uint64_t(k.x) * k.y * k.z);
+      const uint64_t cells = uint64_t(k.x) * k.y * k.z;
+      most = std::max(most, cells);
+      if (cells > kBuildRunCells) runs += (cells + kBuildRunCells - 1) / kBuildRunCells;
     });
+  // Past a full run list a triangle walks the rest of its range itself, 4 to 7 iterations a cell
+  // (a review's find: 33 triangles of 64^3 cells filled the 2^20 runs, the 33rd's walk was cut)
+  if (gpu_ && runs > gpu_->build_list_capacity && most > kLlvmpipeWalkCellLimit)
+    throw Error("vulkan-grid: the triangles' AABB ranges list " + std::to_string(runs) + " runs of " +
+                std::to_string(kBuildRunCells) + " cells, more than the build's run list holds (" +
+                std::to_string(gpu_->build_list_capacity) + "), and one holds " + std::to_string(most) +
+                " cells: llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, which "
+                "cuts the walk of a range past the list short (refused above " + std::to_string(kLlvmpipeWalkCellLimit) +
+                " cells): its grid cannot be trusted (coarser cells, run on a GPU, or --backend cpu)");
   if (most > kLlvmpipeRangeCellLimit)
     throw Error("vulkan-grid: a triangle's AABB range holds " + std::to_string(most) +
                 " cells; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, which cuts "

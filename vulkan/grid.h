@@ -96,6 +96,10 @@ inline constexpr uint32_t kLlvmpipeSpillListLimit = 32768;
 // list's tail left stale: junk references, cells left out). build and update refuse, on llvmpipe,
 // a triangle whose range holds more cells than this (32,768 runs).
 inline constexpr uint64_t kLlvmpipeRangeCellLimit = 262144;
+// And where the ranges' runs overflow the list, a triangle walks the rest of its range itself
+// (4 to 7 iterations a cell): refused there, on llvmpipe, above this many cells.
+inline constexpr uint64_t kLlvmpipeWalkCellLimit = 8192;
+inline constexpr uint64_t kBuildRunCells = 8;  // build.glsl's kBuildRun
 void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what);
 
 class VulkanGridTracer : public Tracer {
