@@ -371,6 +371,8 @@ GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& 
   reference::ReferenceGridTracer tracer(plan::gather_options(grid));
   try {
     tracer.build(scene, time);
+  } catch (const OptionsError&) {
+    throw;  // the user's options, as the trace's grid would say
   } catch (const Error& e) {
     // Its own grid, which the user never named: say whose it is
     throw Error(std::string("the CPU gather's grid (the exact traversal's, for the primary rays): ") + e.what());

@@ -554,7 +554,8 @@ int DiffRun::run() {
   const auto t0 = std::chrono::steady_clock::now();
   if (!o_.json_path.empty()) check_output_path(o_.json_path);
   if (!o_.junit_path.empty()) check_output_path(o_.junit_path);
-  if (!o_.json_path.empty() && !o_.junit_path.empty() && names_same_file(o_.json_path, o_.junit_path))
+  if (!o_.json_path.empty() && !o_.junit_path.empty() && !is_stream_output(o_.json_path) &&
+      names_same_file(o_.json_path, o_.junit_path))
     throw CLI::ValidationError("--junit", "--json and --junit both name " + o_.junit_path +
                                               ": give each report its own file");
   check_frame_size(o_.width, o_.height);

@@ -517,7 +517,7 @@ void add_explain_command(CLI::App& app) {
       outputs.emplace_back("--export's materials", std::filesystem::path(o->obj).replace_extension(".mtl").string());
     for (size_t a = 0; a < outputs.size(); ++a)
       for (size_t b = a + 1; b < outputs.size(); ++b)
-        if (names_same_file(outputs[a].second, outputs[b].second))
+        if (!is_stream_output(outputs[a].second) && names_same_file(outputs[a].second, outputs[b].second))
           throw CLI::ValidationError("explain", outputs[a].first + " and " + outputs[b].first + " both name " +
                                                     outputs[b].second + ": give each output its own file");
     // Nor an input: the scene or the ray file would be replaced by the picture of its own rays

@@ -146,6 +146,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   app::command_line.assign(argv, argv + argc);
+  guard_inputs(true);  // no output replaces a file this run read (the scene, its textures, a ray file)
   try {
     app.parse(argc, argv);
     return 0;
@@ -157,6 +158,9 @@ int main(int argc, char** argv) {
     return 3;
   } catch (const app::ExitStatus& e) {
     return e.code;
+  } catch (const OptionsError& e) {  // options that contradict one another: the command line's
+    std::fprintf(stderr, "gridrt: error: %s\n", e.what());
+    return 2;
   } catch (const Error& e) {
     std::fprintf(stderr, "gridrt: error: %s\n", e.what());
     return 1;

@@ -8,6 +8,8 @@
 #include <optional>
 #include <cstdio>
 #include <iostream>
+#include <map>
+#include <mutex>
 
 #include <csignal>
 #include <fcntl.h>
@@ -94,6 +96,26 @@ std::string mib(uint64_t bytes) { return std::to_string((bytes + (1u << 20) - 1)
 
 // Opens `path` for reading after checking it is a regular file within the size bound; returns
 // the descriptor (the caller closes it) and the size.
+// The inputs read so far (guard_inputs): device and inode, and how they were named.
+struct InputRecord {
+  std::string path, what;
+};
+struct InputRegistry {
+  std::mutex mutex;
+  bool on = false;
+  std::map<std::pair<dev_t, ino_t>, InputRecord> files;
+};
+InputRegistry& input_registry() {
+  static InputRegistry r;
+  return r;
+}
+
+void note_input(const struct stat& st, const std::string& path, const std::string& what) {
+  InputRegistry& r = input_registry();
+  std::lock_guard<std::mutex> lock(r.mutex);
+  if (r.on) r.files.try_emplace({st.st_dev, st.st_ino}, InputRecord{path, what});
+}
+
 int open_input(const std::string& path, const std::string& what, uint64_t& size) {
   const std::string head = "cannot open " + what + " '" + path + "': ";
   // O_NONBLOCK: opening a FIFO without a writer must not block; fstat then rejects it.
@@ -118,6 +140,7 @@ int open_input(const std::string& path, const std::string& what, uint64_t& size)
                                               : "not a regular file";
     throw Error(head + "it is " + kind + ", not a regular file");
   }
+  note_input(st, path, what);
   size = uint64_t(st.st_size);
   if (size > input_limits().max_file_bytes) {
     ::close(fd);
@@ -296,13 +319,24 @@ struct OutputTarget {
 // redirected to a file (`>> log`), the file, which the rename would replace (the log's earlier
 // lines gone) and a new open would overwrite from its start.
 int own_descriptor(const std::string& path) {
-  if (path == "/dev/stdout") return 1;
-  if (path == "/dev/stderr") return 2;
-  for (const char* prefix : {"/dev/fd/", "/proc/self/fd/"}) {
-    const std::string_view p(prefix);
-    if (path.size() > p.size() && path.compare(0, p.size(), p) == 0 && path.size() - p.size() <= 6 &&
-        std::all_of(path.begin() + std::ptrdiff_t(p.size()), path.end(), [](char c) { return c >= '0' && c <= '9'; }))
-      return std::stoi(path.substr(p.size()));
+  const std::string pid = std::to_string(::getpid());
+  const std::string prefixes[] = {"/dev/fd/", "/proc/self/fd/", "/proc/thread-self/fd/", "/proc/" + pid + "/fd/"};
+  // However spelled ("/dev//stdout", "/dev/./stdout") and through the user's own links to them
+  fs::path p = fs::path(path).lexically_normal();
+  for (int links = 0; links < 40; ++links) {
+    const std::string s = p.string();
+    if (s == "/dev/stdout") return 1;
+    if (s == "/dev/stderr") return 2;
+    for (const std::string& prefix : prefixes)
+      if (s.size() > prefix.size() && s.compare(0, prefix.size(), prefix) == 0 && s.size() - prefix.size() <= 6 &&
+          std::all_of(s.begin() + std::ptrdiff_t(prefix.size()), s.end(), [](char c) { return c >= '0' && c <= '9'; }))
+        return std::stoi(s.substr(prefix.size()));
+    struct stat lst {};
+    if (::lstat(p.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) return -1;
+    std::error_code ec;
+    const fs::path target = fs::read_symlink(p, ec);
+    if (ec) return -1;
+    p = (target.is_absolute() ? target : p.parent_path() / target).lexically_normal();
   }
   return -1;
 }
@@ -442,9 +476,31 @@ std::string slurp_and_remove(const std::string& path, const std::string& what, c
 
 }  // namespace
 
+void guard_inputs(bool on) {
+  InputRegistry& r = input_registry();
+  std::lock_guard<std::mutex> lock(r.mutex);
+  r.on = on;
+}
+
+namespace {
+// An output over a file this run read (guard_inputs): refused, before a byte is written.
+void refuse_input_target(const OutputTarget& t, const std::string& path, const std::string& what) {
+  if (t.stream) return;
+  struct stat st {};
+  if (::stat(t.path.c_str(), &st) != 0) return;
+  InputRegistry& r = input_registry();
+  std::lock_guard<std::mutex> lock(r.mutex);
+  const auto it = r.files.find({st.st_dev, st.st_ino});
+  if (it != r.files.end())
+    throw Error("cannot write " + what + " '" + path + "': it is the " + it->second.what + " '" + it->second.path +
+                "' this run read; an output may not replace an input: name another file");
+}
+}  // namespace
+
 void write_file_atomically(const std::string& path, const std::string& what, std::string_view bytes,
                            const std::function<void(const std::string& tmp)>& verify) {
   const OutputTarget t = resolve_output(path, what);
+  refuse_input_target(t, path, what);
   if (!t.stream) return write_replacing(path, what, t.path, temp_sibling(t.path), bytes, verify);
   if (verify) {  // checked on a file of its own before a byte goes out
     const fs::path tmp = temp_elsewhere(t.path);
@@ -457,6 +513,7 @@ void write_file_atomically(const std::string& path, const std::string& what, std
 void write_file_atomically(const std::string& path, const std::string& what,
                            const std::function<void(const std::string& tmp)>& write) {
   const OutputTarget t = resolve_output(path, what);
+  refuse_input_target(t, path, what);
   const fs::path tmp = t.stream ? temp_elsewhere(t.path) : temp_sibling(t.path);
   const PendingTemp pending(tmp);
   ::unlink(tmp.c_str());
@@ -472,15 +529,36 @@ void write_file_atomically(const std::string& path, const std::string& what,
   finish(path, what, t.path, tmp, fd, nullptr);
 }
 
+bool is_stream_output(const std::string& path) {
+  if (own_descriptor(path) >= 0) return true;
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode));
+}
+
+namespace {
+// The path with its links followed, a dangling one's too (weakly_canonical stops at a link to a
+// file not made yet), as absolute and normal.
+fs::path links_followed(const std::string& path) {
+  std::error_code ec;
+  fs::path p = fs::absolute(path, ec).lexically_normal();
+  for (int links = 0; links < 40; ++links) {
+    struct stat lst {};
+    if (::lstat(p.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) break;
+    const fs::path target = fs::read_symlink(p, ec);
+    if (ec) break;
+    p = (target.is_absolute() ? target : p.parent_path() / target).lexically_normal();
+  }
+  return fs::weakly_canonical(p, ec).lexically_normal();
+}
+}  // namespace
+
 bool names_same_file(const std::string& a, const std::string& b) {
   std::error_code ec;
   if (fs::exists(a, ec) && fs::exists(b, ec)) {
     const bool same = fs::equivalent(a, b, ec);
     if (!ec) return same;
   }
-  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
-  const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
-  return ca.lexically_normal() == cb.lexically_normal();
+  return links_followed(a) == links_followed(b);
 }
 
 }  // namespace gridrt

@@ -81,10 +81,19 @@ std::string normalize_text(std::string text);
 // a * b, or Error("<what>: ... overflows") when the product does not fit 64 bits.
 uint64_t checked_mul(uint64_t a, uint64_t b, const std::string& what);
 
+// From now on, remember every input file this process reads (check_input_file, read_input_file:
+// the scene, its meshes, materials, textures, ray files) and refuse, in write_file_atomically, an
+// output that would replace one of them (however its path is spelled: the same device and inode).
+// The tool turns it on; a library's caller may.
+void guard_inputs(bool on);
+
 // Whether two paths name one file: the same file where both exist (links followed, however
 // spelled), else the same absolute path once "." and ".." and the links of its existing part are
 // resolved ("a.json" and "$PWD/a.json", "./a.svg" and "a.svg", "sub/../a" and "a").
 bool names_same_file(const std::string& a, const std::string& b);
+// Whether an output path is a stream (the process's own descriptor however spelled, a character
+// device, a FIFO): written in order, replacing nothing, so two outputs may share it.
+bool is_stream_output(const std::string& path);
 
 // Write `bytes` to `path` atomically (see above). `what` names the kind of file in messages
 // ("image", "scene cache", "CSV table"). `verify(tmp)`, where given, checks the written

@@ -32,6 +32,14 @@ class Error : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Options that contradict one another (the compact layout with the paper traversal, ...): an
+// Error of the caller's request, not of its input; the tool exits 2 for it, as for any bad
+// command line.
+class OptionsError : public Error {
+ public:
+  using Error::Error;
+};
+
 struct Mesh {
   std::string name;
   std::vector<glm::vec3> positions;

@@ -146,9 +146,9 @@ bool compact_enabled(const AlgorithmOptions& o) {
 void compact_check(const AlgorithmOptions& o) {
   if (o.layout != AlgorithmOptions::Layout::compact) return;
   if (o.traversal != Traversal::exact)
-    throw Error("grid: the compact layout is for the exact traversal (the paper traversal keeps the image: --layout image)");
+    throw OptionsError("grid: the compact layout is for the exact traversal (the paper traversal keeps the image: --layout image)");
   if (!spill_enabled(o))
-    throw Error("grid: the compact layout keeps the dynamic references in the spill list: it needs --spill on");
+    throw OptionsError("grid: the compact layout keeps the dynamic references in the spill list: it needs --spill on");
 }
 
 uint64_t compact_budget(const PlanOptions& o, uint64_t scene_triangles) {
@@ -732,13 +732,13 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
   // The exact traversal's promise (every triangle in every cell it overlaps) needs the plane test's
   // sphere to hold the whole cell: an enlargement below 1 drops triangles that cross a corner
   if (o.traversal == Traversal::exact && !(o.sphere_enlargement >= 1.0f))
-    throw Error("grid: an enlargement of " + gnum(o.sphere_enlargement) +
+    throw OptionsError("grid: an enlargement of " + gnum(o.sphere_enlargement) +
                 " lets the plane test drop triangles that cross a cell's corners; the exact traversal needs at "
                 "least 1 (the cell's own bounding sphere); below 1 is the paper traversal's knob");
   // And AABB padding above 0: without it a triangle whose edge lies on a cell face is left out of
   // the cell across it, where a ray crossing that edge is walked (an outside tester's miss)
   if (o.traversal == Traversal::exact && o.aabb_padding && !(*o.aabb_padding > 0.0f))
-    throw Error("grid: an AABB padding of " + gnum(*o.aabb_padding) +
+    throw OptionsError("grid: an AABB padding of " + gnum(*o.aabb_padding) +
                 " leaves a triangle whose edge lies on a cell face out of the cell across it; the exact traversal "
                 "needs a padding above 0 (default " + gnum(kAabbPadding) + "); 0 is the paper traversal's knob");
   scene.require_extent(time, "grid");
@@ -908,7 +908,7 @@ GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options) {
   compact_check(options);
   plan.params = choose_grid(scene, time, options, &plan.choice);
   if (options.offsets != GridOptions::Offsets::automatic && (plan.params.flags & shared::kGridCompact) == 0u)
-    throw Error("grid: --offsets is the compact layout's (the image layout has no offsets): the compact layout "
+    throw OptionsError("grid: --offsets is the compact layout's (the image layout has no offsets): the compact layout "
                 "needs the exact traversal and the spill list, and no --capacity");
   plan.spill_capacity = choose_spill_capacity(scene, time, options, plan.params, plan.choice);
   // The compact layout's budget holds the whole grid: a spill list asked for alone over it is refused

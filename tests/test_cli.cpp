@@ -422,6 +422,37 @@ TEST_CASE("CLI: explain writes /dev/stdout after its report, and refuses outputs
     CHECK(a.exit_code == 2);
     CHECK_THAT(a.output, Catch::Contains(why));
   }
+  // Other spellings of the process's own descriptor, and a link to it, are written to it too
+  for (const std::string spelling : {"/dev//stdout", "/dev/./stdout", "/proc/thread-self/fd/1"}) {
+    std::ofstream(log) << "EARLIER LOG LINE\n";
+    const Run s = run_tool("explain builtin:cornell --ray 1,1,1,0,0,1 --brief --json " + spelling + " >> " + log.string());
+    CHECK(s.exit_code == 0);
+    std::ifstream again(log);
+    const std::string kept((std::istreambuf_iterator<char>(again)), {});
+    INFO(spelling);
+    CHECK(kept.rfind("EARLIER LOG LINE\n", 0) == 0);
+  }
+  // Two outputs to one stream replace nothing: accepted; two through a link not yet made: refused
+  CHECK(run_tool("explain builtin:cornell --ray 1,1,1,0,0,1 --brief --json /dev/null --svg /dev/null").exit_code == 0);
+  fs::create_symlink(d / "later.json", d / "link.svg");
+  const Run dangling = run_tool("explain builtin:cornell --ray 1,1,1,0,0,1 --brief --json " + (d / "later.json").string() +
+                                " --svg " + (d / "link.svg").string());
+  CHECK(dangling.exit_code == 2);
+  // An output over any file the run read (here the mesh's texture) is refused before a byte is
+  // written, however the verb names it (a review's find: render -o, sweep -o, --json of diff,
+  // bench and verify replaced the scene, its .mtl or its texture)
+  std::ofstream(d / "tex.mtl") << "newmtl m\nKd 1 1 1\nmap_Kd tex.ppm\n";
+  std::ofstream(d / "tex.ppm", std::ios::binary) << "P6\n1 1\n255\n" << std::string("\xff\x80\x00", 3);
+  std::ofstream(d / "tex.obj") << "mtllib tex.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\n";
+  const Run over = run_tool("render " + (d / "tex.obj").string() + " --width 8 --height 6 -o " + (d / "tex.ppm").string());
+  INFO(over.output);
+  CHECK(over.exit_code == 1);
+  CHECK_THAT(over.output, Catch::Contains("an output may not replace an input"));
+  CHECK(fs::file_size(d / "tex.ppm") == 14);
+  const Run verify_over = run_tool("verify " + (d / "tex.obj").string() + " -n 4 --no-translated --json " +
+                                   (d / "tex.obj").string());
+  INFO(verify_over.output);
+  CHECK(verify_over.exit_code == 1);
   // Untouched
   std::ifstream tri(obj);
   const std::string mesh((std::istreambuf_iterator<char>(tri)), {});

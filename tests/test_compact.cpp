@@ -282,12 +282,16 @@ TEST_CASE("Compact layout: the paper traversal or spill off is refused with a cl
   o.spill = GridOptions::Spill::off;
   ReferenceGridTracer nospill(o);
   CHECK_THROWS_WITH(nospill.build(scene, 0.0f), Catch::Contains("--spill on"));
+  // Options that contradict one another: the command line's error, exit 2 (an outside sweep found 1)
   const auto r = gridrt::test::run_tool("stats builtin:teapot --layout compact --traversal paper");
-  CHECK(r.exit_code == 1);
+  CHECK(r.exit_code == 2);
   CHECK_THAT(r.output, Catch::Contains("compact layout is for the exact traversal"));
   // The offsets' form asked for: refused where the grid is an image, named on the compact layout
   const auto image = gridrt::test::run_tool("stats builtin:teapot --offsets sparse --traversal paper");
-  CHECK(image.exit_code == 1);
+  CHECK(image.exit_code == 2);
+  const auto no_spill = gridrt::test::run_tool("stats builtin:teapot --layout compact --traversal exact --spill off");
+  CHECK(no_spill.exit_code == 2);
+  CHECK_THAT(no_spill.output, Catch::Contains("needs --spill on"));
   CHECK_THAT(image.output, Catch::Contains("--offsets is the compact layout's"));
   const auto sparse = gridrt::test::run_tool("stats builtin:teapot --offsets sparse --traversal exact");
   CHECK(sparse.exit_code == 0);
