@@ -157,8 +157,13 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given)
   const bool watertight = gg.triangle_test == reference::GridOptions::TriangleTest::watertight ||
                           (gg.triangle_test == reference::GridOptions::TriangleTest::automatic &&
                            gg.traversal == reference::Traversal::exact);
+  // and so does one that may leave triangles out of its cells or its hits (the spill list off or
+  // bounded, a self-hit offset): the gather keeps every reference (plan::gather_options)
+  const bool drops = gg.spill == reference::GridOptions::Spill::off || gg.spill_capacity.has_value() ||
+                     gg.self_hit_offset != 0.0f;
   std::unique_ptr<Tracer> gather_tracer;
-  if ((backend != "embree" && gg.traversal == reference::Traversal::paper) || (backend == "cpu" && watertight)) {
+  if ((backend != "embree" && gg.traversal == reference::Traversal::paper) ||
+      (backend == "cpu" && (watertight || drops))) {
     BackendOptions exact = o.backend_options;
     exact.grid = plan::gather_options(exact.grid);
     gather_tracer = make_backend(backend, exact, scene);

@@ -262,3 +262,20 @@ TEST_CASE("CLI: the CPU render's gather keeps the gather's rule (Moller-Trumbore
   INFO(w.output);
   CHECK(w.exit_code == 0);
 }
+
+// An outside sweep's find: a CPU render with the exact traversal and Moller-Trumbore's test
+// gathered on the trace's own grid, so `--spill off` with a full cell left triangles out of its
+// gather that the GPU frame's gather sees: the two pictures differed, exit 0. A grid that may drop
+// a triangle now gathers on a grid of its own (plan::gather_options).
+TEST_CASE("CLI: a CPU render whose grid drops references gathers as the GPU frame does", "[vulkan][cli][gather]") {
+  const fs::path d = temp_dir();
+  const std::string args = " builtin:cornell --width 32 --height 24 --traversal exact --triangle-test moller "
+                           "--capacity 1 --spill off -o ";
+  const Run cpu = run_tool("render -b cpu" + args + (d / "cpu.ppm").string());
+  const Run gpu = run_tool("render -b vulkan" + args + (d / "gpu.ppm").string());
+  INFO(cpu.output << gpu.output);
+  REQUIRE(cpu.exit_code == 0);
+  REQUIRE(gpu.exit_code == 0);
+  CHECK(read_file(d / "cpu.ppm") == read_file(d / "gpu.ppm"));
+  fs::remove_all(d);
+}
