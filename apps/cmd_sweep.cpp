@@ -350,6 +350,14 @@ void plot_agreement(const std::string& path, const std::string& title, const std
   std::printf("  plot: %s\n", path.c_str());
 }
 
+// A CSV field: quoted where it holds a comma, a quote or a line break (RFC 4180), quotes doubled.
+std::string csv_field(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string out = "\"";
+  for (char c : text) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
 std::string file_stem(const std::string& scene) {
   std::string s = std::filesystem::path(scene).stem().string();
   for (char& c : s)
@@ -370,7 +378,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
     for (size_t i = 0; i < rows.size(); ++i) {
       const Row& r = rows[i];
       const Config& c = r.config;
-      csv << r.index << "," << title << "," << r.backend << "," << c.traversal << "," << c.triangle_test << ","
+      csv << r.index << "," << csv_field(title) << "," << r.backend << "," << c.traversal << "," << c.triangle_test << ","
           << c.capacity << "," << c.enlargement << "," << r.padding << "," << c.elongation << "," << c.repeats << ","
           << c.gap_fill << "," << (r.spill_on ? "on" : "off") << "," << c.launch << "," << c.max_dim << "," << r.grid
           << "," << r.capacity << "," << r.saturated << "," << r.spill_stored << "," << r.spill_overflow << ","
@@ -508,11 +516,16 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
     row.capacity = g.capacity;
     row.padding = g.aabb_padding;
     row.grid = std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" + std::to_string(g.cells.z);
-    // Saturated cells from the image's status texels
-    for (uint32_t z = 0; z < g.cells.z; ++z)
-      for (uint32_t y = 0; y < g.cells.y; ++y)
-        for (uint32_t x = 0; x < g.cells.x; ++x)
-          row.saturated += dump.texels[shared::texel_index(shared::cell_status_texel(g, {x, y, z}), dump.extent)] != 0u;
+    // Saturated cells from the image's status texels; the compact layout has no slots to fill (its
+    // dump is the offsets and references: reading it as an image ran past it, an outside sweep's
+    // crash) and no saturated cell
+    const shared::GridParams& built = vk->params();
+    if ((built.flags & shared::kGridCompact) == 0u && dump.kind == "grid")
+      for (uint32_t z = 0; z < built.cells.z; ++z)
+        for (uint32_t y = 0; y < built.cells.y; ++y)
+          for (uint32_t x = 0; x < built.cells.x; ++x)
+            row.saturated +=
+                dump.texels[shared::texel_index(shared::cell_status_texel(built, {x, y, z}), dump.extent)] != 0u;
   }
 #endif
   row.acc = accuracy(want, got);
@@ -572,8 +585,12 @@ void run_sweep(const SweepOptions& o) {
       }
     progress.finish();
     // Two scenes of one name (a/quad.obj, b/quad.obj) write apart: the second as quad-2
-    std::string stem = file_stem(spec);
-    if (const int n = ++stems_used[stem]; n > 1) stem += "-" + std::to_string(n);
+    // A name no earlier scene took: "x" twice gives "x-2", unless a scene is named "x-2" itself
+    // (an outside sweep's find: the second x.obj's tables replaced those of x-2.obj)
+    const std::string base = file_stem(spec);
+    std::string stem = base;
+    for (int n = 2; stems_used.count(stem); ++n) stem = base + "-" + std::to_string(n);
+    stems_used[stem] = 1;
     std::ostringstream header;
     header << "Scene `" << scene.name << "`: " << scene.triangle_count() << " triangles, " << rays.size()
            << " " << kind << " rays of a " << o.width << "x" << o.height << " gather buffer (frame 0, t = 0); Embree "
