@@ -366,17 +366,21 @@ void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
       ->type_name("on|off|auto");
 }
 
-GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
-                              float time, std::optional<size_t> only_pixel) {
-  reference::ReferenceGridTracer tracer(plan::gather_options(grid));
+void build_gather_grid(Tracer& tracer, const Scene& scene, float time) {
   try {
     tracer.build(scene, time);
   } catch (const OptionsError&) {
     throw;  // the user's options, as the trace's grid would say
   } catch (const Error& e) {
     // Its own grid, which the user never named: say whose it is
-    throw Error(std::string("the CPU gather's grid (the exact traversal's, for the primary rays): ") + e.what());
+    throw Error(std::string("the gather's grid (the exact traversal's, for the primary rays): ") + e.what());
   }
+}
+
+GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& grid, uint32_t w, uint32_t h,
+                              float time, std::optional<size_t> only_pixel) {
+  reference::ReferenceGridTracer tracer(plan::gather_options(grid));
+  build_gather_grid(tracer, scene, time);
   if (only_pixel) {
     OneRayTracer one(tracer, *only_pixel);
     return make_gather(scene, one, scene.frame_camera(), w, h, time);

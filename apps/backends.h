@@ -137,6 +137,10 @@ class OneRayTracer : public Tracer {
   size_t index_;
 };
 
+// Builds a frame's gather grid (the tracer of plan::gather_options' grid, which the user never
+// named): an error of it says whose grid it is, an OptionsError passes as it is.
+void build_gather_grid(Tracer& tracer, const Scene& scene, float time);
+
 // The CPU reference's gather buffer of a frame (plan::gather_options: the exact traversal with the
 // GPU gather's triangle test, so the CPU and GPU gathers agree in bits); with `only_pixel`, only that
 // pixel's primary ray is traced (explain).

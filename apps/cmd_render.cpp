@@ -167,14 +167,7 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given)
     BackendOptions exact = o.backend_options;
     exact.grid = plan::gather_options(exact.grid);
     gather_tracer = make_backend(backend, exact, scene);
-    try {
-      gather_tracer->build(scene, o.time);
-    } catch (const OptionsError&) {
-      throw;
-    } catch (const Error& e) {
-      // Its own grid, which the user never named: say whose it is
-      throw Error(std::string("the gather's grid (the exact traversal's, for the primary rays): ") + e.what());
-    }
+    build_gather_grid(*gather_tracer, scene, o.time);
   }
 
   auto t0 = std::chrono::steady_clock::now();

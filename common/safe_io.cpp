@@ -318,6 +318,16 @@ struct OutputTarget {
 // its path these lead, through /proc, to whatever the descriptor holds: with the output
 // redirected to a file (`>> log`), the file, which the rename would replace (the log's earlier
 // lines gone) and a new open would overwrite from its start.
+// Where the symbolic link `p` leads (its target, a relative one taken from p's folder); nothing
+// where p is no link. `error`: set where the link cannot be read.
+std::optional<fs::path> link_target(const fs::path& p, std::error_code& error) {
+  struct stat lst {};
+  if (::lstat(p.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) return std::nullopt;
+  const fs::path target = fs::read_symlink(p, error);
+  if (error) return std::nullopt;
+  return target.is_absolute() ? target : p.parent_path() / target;
+}
+
 int own_descriptor(const std::string& path) {
   const std::string pid = std::to_string(::getpid());
   const std::string prefixes[] = {"/dev/fd/", "/proc/self/fd/", "/proc/thread-self/fd/", "/proc/" + pid + "/fd/"};
@@ -331,12 +341,10 @@ int own_descriptor(const std::string& path) {
       if (s.size() > prefix.size() && s.compare(0, prefix.size(), prefix) == 0 && s.size() - prefix.size() <= 6 &&
           std::all_of(s.begin() + std::ptrdiff_t(prefix.size()), s.end(), [](char c) { return c >= '0' && c <= '9'; }))
         return std::stoi(s.substr(prefix.size()));
-    struct stat lst {};
-    if (::lstat(p.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) return -1;
     std::error_code ec;
-    const fs::path target = fs::read_symlink(p, ec);
-    if (ec) return -1;
-    p = (target.is_absolute() ? target : p.parent_path() / target).lexically_normal();
+    const std::optional<fs::path> next = link_target(p, ec);
+    if (!next) return -1;
+    p = next->lexically_normal();
   }
   return -1;
 }
@@ -369,13 +377,12 @@ OutputTarget resolve_output(const std::string& path, const std::string& what) {
   // Nothing there: a new file, or a dangling link whose target is created (as a shell's `>` does)
   fs::path p = path;
   for (int links = 0;; ++links) {
-    struct stat lst {};
-    if (::lstat(p.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) return {p, false};
-    if (links >= 40) throw Error(head + "more than 40 symbolic links to follow");
     std::error_code ec;
-    const fs::path target = fs::read_symlink(p, ec);
+    const std::optional<fs::path> next = link_target(p, ec);
     if (ec) throw Error(head + "cannot read the symbolic link '" + p.string() + "': " + ec.message());
-    p = target.is_absolute() ? target : p.parent_path() / target;
+    if (!next) return {p, false};
+    if (links >= 40) throw Error(head + "more than 40 symbolic links to follow");
+    p = *next;
   }
 }
 
@@ -542,11 +549,9 @@ fs::path links_followed(const std::string& path) {
   std::error_code ec;
   fs::path p = fs::absolute(path, ec).lexically_normal();
   for (int links = 0; links < 40; ++links) {
-    struct stat lst {};
-    if (::lstat(p.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) break;
-    const fs::path target = fs::read_symlink(p, ec);
-    if (ec) break;
-    p = (target.is_absolute() ? target : p.parent_path() / target).lexically_normal();
+    const std::optional<fs::path> next = link_target(p, ec);
+    if (!next) break;
+    p = next->lexically_normal();
   }
   return fs::weakly_canonical(p, ec).lexically_normal();
 }
