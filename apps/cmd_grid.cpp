@@ -78,10 +78,12 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
                                                                                             : "percentile");
   std::vector<Ray> rays;
   std::vector<Hit> want;  // Embree's hits, where this build has it
+  bool bounce = false;    // the rays are glossy bounce rays (else camera rays)
   if (o.measure) {
     const GatherBuffer gather = reference_gather(scene, go, o.width, o.height, o.time);
     for (const Ray& r : bounce_rays(scene, gather, 0))
       if (!is_unused(r)) rays.push_back(r);
+    bounce = !rays.empty();
     if (rays.empty()) rays = camera_rays(scene.frame_camera(), o.width, o.height);
 #ifdef GRIDRT_HAVE_EMBREE
     EmbreeTracer embree(reference::thread_count(go));
@@ -89,10 +91,17 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
     want.resize(rays.size());
     embree.trace(rays, want);
 #endif
-    std::printf("measured on %zu rays of a %ux%u gather buffer, %u thread(s), trace median of %u\n", rays.size(),
+    std::printf("measured on %zu %s of a %ux%u gather buffer, %u thread(s), trace median of %u\n", rays.size(),
+                bounce ? "glossy bounce rays" : "camera rays (the scene has no glossy material: the kind the "
+                                                "trace-cost policy samples)",
                 o.width, o.height, reference::thread_count(go), o.repeat);
   }
-  std::printf("| | cells | cell size | AABB padding | capacity | largest count | saturated cells | dropped refs | MiB | range cells/tri | est. cells/ray "
+  // The candidates' figures are choose_grid's, not the built grid's above: the counts the worst
+  // over the animation's samples, the memory the layout's storage
+  std::printf("candidates' columns: largest count, saturated cells and dropped refs are the worst over the scene's "
+              "animation samples (the grid above is counted at --time alone); MiB is the compact layout's whole grid, "
+              "the image layout's image\n");
+  std::printf("| | cells | cell size | AABB padding | capacity | largest count | saturated cells (worst sample) | dropped refs (worst sample) | MiB | range cells/tri | est. cells/ray "
               "| est. tests/ray | est. at risk %% | est. skipped %% | est. lost %% | est. cost |%s\n",
               o.measure ? " cells/ray | tests/ray | gap-fill % | agree % | trace ms |" : "");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|%s\n", o.measure ? "---|---|---|---|---|" : "");
@@ -189,7 +198,8 @@ void add_grid_commands(CLI::App& app) {
     cmd->add_flag("--candidates", o->candidates,
                   "Also list the candidate grids choose_grid weighed, with the trace-cost policy's estimates");
     cmd->add_flag("--measure", o->measure,
-                  "Also build every candidate and trace the frame's bounce rays (--width x --height gather buffer) "
+                  "Also build every candidate and trace the frame's glossy bounce rays (--width x --height gather "
+                  "buffer; camera rays on a scene without glossy materials, as the trace-cost policy samples) "
                   "through it: measured cells and tests per ray and trace time beside the estimates");
     cmd->add_option("--repeat", o->repeat, "--measure: trace this many times (median)")->check(CLI::Range(1u, 100u));
     cmd->add_option("--slices", o->slices,

@@ -160,7 +160,10 @@ std::vector<Config> configurations(const SweepOptions& o) {
                   c.repeats = o.repeats[ri];
                   c.traversal = tr;
                   c.triangle_test = tt;
-                  c.capacity = cap;
+                  // A number of slots spelled any way (8, 08) is one value: its decimal form
+                  c.capacity = cap.find_first_not_of("0123456789") == std::string::npos
+                                   ? std::to_string(std::strtoul(cap.c_str(), nullptr, 10))
+                                   : cap;
                   c.enlargement = parse_float("enlargement", en, 0.0f, 16.0f);
                   // Below 1 the plane test drops triangles at cells' corners: the paper's knob; the
                   // exact traversal refuses it (plan::choose_grid), so the sweep leaves it out there
@@ -171,7 +174,10 @@ std::vector<Config> configurations(const SweepOptions& o) {
                   c.gap_fill = o.gap_fill[gi];
                   c.spill = sp;
                   c.launch = la;
-                  c.max_dim = uint32_t(parse_float("max-image-dimension", md, 2.0f, 65536.0f));
+                  const float dim = parse_float("max-image-dimension", md, 2.0f, 65536.0f);
+                  if (dim != std::floor(dim))
+                    throw CLI::ValidationError("--max-image-dimension", "'" + md + "' is not a whole number of texels");
+                  c.max_dim = uint32_t(dim);
                   if (std::find(out.begin(), out.end(), c) == out.end()) out.push_back(c);
                 }
   if (out.empty())
@@ -297,6 +303,14 @@ std::string causes(const Row& r) {
 
 // ---- The plot: agreement against trace time (common/plot.h) ----
 
+// The CSV's measured figures: six significant digits, so that small times are not rounded to
+// 0.00 beside a rate made from them (the Markdown rounds for reading)
+std::string data(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+
 std::string fmt(double v, int digits) {
   char b[32];
   std::snprintf(b, sizeof b, "%.*f", digits, v);
@@ -385,8 +399,8 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
           << r.acc.rays << "," << r.acc.differ << "," << r.acc.ties << "," << r.acc.max_tie_ulps << "," << r.acc.holes
           << "," << r.acc.false_hits << ","
           << r.acc.gap_fill << "," << fmt(r.acc.agree(), 3) << "," << r.acc.median_dt << "," << r.acc.max_dt << ","
-          << fmt(r.build_ms, 2) << "," << fmt(r.update_ms, 2) << "," << fmt(r.trace_ms, 2) << "," << fmt(r.mrays, 3)
-          << "," << fmt(r.grid_mib, 2) << "," << (front[i] ? 1 : 0) << "," << fmt(r.work.cells, 2) << ","
+          << data(r.build_ms) << "," << data(r.update_ms) << "," << data(r.trace_ms) << "," << data(r.mrays)
+          << "," << data(r.grid_mib) << "," << (front[i] ? 1 : 0) << "," << fmt(r.work.cells, 2) << ","
           << fmt(r.work.tests, 2);
       using D = reference::Difference;
       for (D d : {D::skipped_cell, D::window, D::dropped, D::reported_early, D::tested, D::grid_nearer, D::gap_fill,
@@ -453,7 +467,7 @@ std::vector<Ray> sweep_rays(const SweepOptions& o, const Scene& scene, EmbreeTra
     aim.traversal = reference::Traversal::exact;
     reference::ReferenceGridTracer aimer(aim);
     aimer.build(scene, 0.0f);
-    rays = verify::rays_of_kind(kind, scene, aimer.data(), embree, size_t(o.width) * o.height);
+    rays = verify::rays_of_kind(kind, scene, aimer.data(), embree, o.width, o.height);
     if (o.rays == "auto") std::printf("sweep: %s has no glossy material: %s rays instead\n", scene.name.c_str(), kind.c_str());
     if (rays.empty()) throw Error("sweep: " + scene.name + " gives no " + kind + " rays");
   }
@@ -515,6 +529,7 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
     row.spill_overflow = row.spill_on && sh.count > sh.capacity ? sh.count - sh.capacity : 0u;
     row.capacity = g.capacity;
     row.padding = g.aabb_padding;
+    row.grid_mib = double(vk->memory().total()) / (1 << 20);  // everything the grid keeps, as the CPU row's
     row.grid = std::to_string(g.cells.x) + "x" + std::to_string(g.cells.y) + "x" + std::to_string(g.cells.z);
     // Saturated cells from the image's status texels; the compact layout has no slots to fill (its
     // dump is the offsets and references: reading it as an image ran past it, an outside sweep's
@@ -542,11 +557,17 @@ void run_sweep(const SweepOptions& o) {
   throw Error("sweep needs the Embree oracle, which this build does not have");
 #else
   if (o.scenes.empty()) throw Error("sweep: name at least one scene");
-  if (o.backends.empty()) throw Error("--backend: the list is empty");
+  // The command line is checked before any work (exit 2): the backends, the rays' kind, the knobs
+  if (o.backends.empty()) throw OptionsError("--backend: the list is empty");
   for (const std::string& b : o.backends)
-    if (b != "cpu" && b != "vulkan") throw Error("--backend: '" + b + "' cannot be swept (cpu, vulkan)");
+    if (b != "cpu" && b != "vulkan") throw OptionsError("--backend: '" + b + "' cannot be swept (cpu, vulkan)");
+  if (!verify::is_ray_kind(o.rays)) throw OptionsError("--rays: unknown kind '" + o.rays + "' (" + verify::ray_kind_list() + ")");
   check_frame_size(o.width, o.height);
   const std::vector<Config> configs = configurations(o);
+  // A backend named twice is swept once (its rows would repeat)
+  std::vector<std::string> backends;
+  for (const std::string& b : o.backends)
+    if (std::find(backends.begin(), backends.end(), b) == backends.end()) backends.push_back(b);
   {
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);
@@ -555,7 +576,7 @@ void run_sweep(const SweepOptions& o) {
                   (ec ? ec.message() : std::string("it exists and is not a folder")));
   }
   std::printf("sweep: %zu configurations x %zu backend(s) per scene, %ux%u gather buffer, trace medians of %u\n",
-              configs.size(), o.backends.size(), o.width, o.height, o.repeat);
+              configs.size(), backends.size(), o.width, o.height, o.repeat);
   std::map<std::string, int> stems_used;
   for (const std::string& spec : o.scenes) {
     const Scene scene = load_scene_or_default(spec);
@@ -571,8 +592,8 @@ void run_sweep(const SweepOptions& o) {
                 (unsigned long long)scene.triangle_count(), rays.size(), kind.c_str(), embree_ms);
 
     std::vector<Row> rows;
-    Progress progress("sweep " + scene.name, configs.size() * o.backends.size());
-    for (const std::string& backend : o.backends)
+    Progress progress("sweep " + scene.name, configs.size() * backends.size());
+    for (const std::string& backend : backends)
       for (const Config& c : configs) {
         Row row;
         row.index = rows.size();

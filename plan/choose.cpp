@@ -579,10 +579,15 @@ Error over_budget(const GridCandidate& c, const GridOptions& o, const Scene& sce
     std::snprintf(b, sizeof b, "%.1f", double(bytes) / double(1u << 20));
     return std::string(b);
   };
+  // Two sizes that round alike ("0.1 MiB over a budget of 0.1 MiB") are given in bytes too
+  const uint64_t budget = compact_budget(o, scene.triangle_count());
+  const bool alike = mib(c.memory) == mib(budget);
+  const auto size = [&](uint64_t bytes) {
+    return mib(bytes) + " MiB" + (alike ? " (" + std::to_string(bytes) + " bytes)" : std::string());
+  };
   return Error("grid: " + std::to_string(c.cells.x) + "x" + std::to_string(c.cells.y) + "x" + std::to_string(c.cells.z) +
-               " cells take " + (c.range_cells == 0 ? "at least " : "") + mib(c.memory) +
-               " MiB in the compact layout, over its memory budget of " +
-               mib(compact_budget(o, scene.triangle_count())) + " MiB (--memory-budget)");
+               " cells take " + (c.range_cells == 0 ? "at least " : "") + size(c.memory) +
+               " in the compact layout, over its memory budget of " + size(budget) + " (--memory-budget)");
 }
 
 // The candidate search of the no_saturation and trace_cost policies (and the one candidate of a
@@ -916,9 +921,11 @@ GridPlan plan_grid(const Scene& scene, float time, const GridOptions& options) {
     const uint64_t bytes = sizeof(shared::SpillHeader) + uint64_t(std::max(plan.spill_capacity, 1u)) * sizeof(shared::SpillEntry);
     const uint64_t budget = compact_budget(options, scene.triangle_count());
     if (bytes > budget) {
-      char text[160];
-      std::snprintf(text, sizeof text, "takes %.1f MiB, over the compact layout's memory budget of %.1f MiB",
-                    double(bytes) / double(1u << 20), double(budget) / double(1u << 20));
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "takes %.1f MiB (%llu bytes), over the compact layout's memory budget of %.1f MiB (%llu bytes)",
+                    double(bytes) / double(1u << 20), (unsigned long long)bytes, double(budget) / double(1u << 20),
+                    (unsigned long long)budget);
       throw Error("grid: --spill-capacity " + std::to_string(plan.spill_capacity) + " " + text +
                   " for the whole grid (--memory-budget)");
     }

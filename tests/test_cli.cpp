@@ -313,9 +313,11 @@ TEST_CASE("CLI: bench --rays times a chosen kind of rays on a scene without glos
   const Run glossy = run_tool("bench builtin:cornell --backend cpu --rays glossy --width 8 --height 8 --frames 1");
   CHECK(glossy.exit_code == 1);
   CHECK(glossy.output.find("no glossy material") != std::string::npos);
+  // A kind it does not know is a bad command line (exit 2), said before any work
   const Run bad = run_tool("bench builtin:cornell --backend cpu --rays nonsense --width 8 --height 8 --frames 1");
-  CHECK(bad.exit_code == 1);
+  CHECK(bad.exit_code == 2);
   CHECK(bad.output.find("unknown kind") != std::string::npos);
+  CHECK(bad.output.find("gather buffer") == std::string::npos);
   fs::remove(json);
 }
 
@@ -457,5 +459,42 @@ TEST_CASE("CLI: explain writes /dev/stdout after its report, and refuses outputs
   std::ifstream tri(obj);
   const std::string mesh((std::istreambuf_iterator<char>(tri)), {});
   CHECK(mesh == "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  fs::remove_all(d);
+}
+
+TEST_CASE("Outside sweep: the reporting verbs check their command line first and name their rays", "[cli]") {
+  const fs::path d = scratch("reporting");
+  fs::remove_all(d);
+  // A bad --rays or --backend is a bad command line (exit 2), before any scene is loaded or
+  // folder made
+  for (const std::string args : {"sweep builtin:cornell --rays bogus -o ", "sweep builtin:cornell -b bogus -o ",
+                                 "bench builtin:cornell -b bogus --json ", "bench builtin:cornell --rays bogus --json "}) {
+    const Run r = run_tool(args + (d / "out").string());
+    INFO(args << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK(!fs::exists(d / "out"));
+  }
+  // An image limit is a whole number of texels (4096.5 became 4096)
+  CHECK(run_tool("sweep builtin:cornell --max-image-dimension 4096.5 -o " + (d / "out").string()).exit_code == 2);
+  // The diffuse rays start from the W x H gather buffer asked for: a 40x1 buffer has at most 40
+  // (a 16:9 buffer of about as many pixels gave more rays than pixels)
+  {
+    const Run r = run_tool("bench builtin:cornell --backend cpu --rays diffuse --width 40 --height 1 --frames 1 --warmup 0");
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    const size_t at = r.output.find(" diffuse rays per frame");
+    REQUIRE(at != std::string::npos);
+    const size_t start = r.output.rfind(' ', at - 1);
+    CHECK(std::stoul(r.output.substr(start + 1, at - start - 1)) <= 40u);
+  }
+  // stats --measure names the kind of rays it traced (camera rays on a scene without glossy
+  // materials, the kind the trace-cost policy samples; its help said bounce rays)
+  {
+    const Run r = run_tool("stats builtin:cornell --candidates --measure --width 16 --height 12");
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    CHECK_THAT(r.output, Catch::Contains("camera rays (the scene has no glossy material"));
+    CHECK_THAT(r.output, Catch::Contains("saturated cells (worst sample)"));
+  }
   fs::remove_all(d);
 }

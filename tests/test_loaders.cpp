@@ -666,3 +666,37 @@ TEST_CASE("OBJ: materials that share a mask share its texels in the grid's table
   for (const shared::GridMaterial& gm : t.materials)
     if (gm.alpha_width) CHECK(gm.alpha_offset == 0);
 }
+
+// Outside sweeps' finds: tinyobjloader reads -o, -s and -t as three numbers whatever follows, so
+// "map_Kd -s 2 2 t.png" lost its file name and the texture was dropped without a word; a vt
+// past a float's range was refused without its line.
+TEST_CASE("OBJ: map options with fewer numbers keep their texture, a float overflow names its line",
+          "[unit][loaders][badinput]") {
+  const fs::path d = temp_dir();
+  const std::vector<uint8_t> rgba(4 * 2 * 2, 90);
+  write_image_rgba8((d / "t.png").string(), 2, 2, rgba);
+  const std::string obj = "mtllib o.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\n";
+  for (const std::string line : {"map_Kd -s 2 2 t.png", "map_Kd -o 0.5 t.png", "map_Kd -t 1 2 t.png",
+                                 "map_Kd -mm 0 t.png", "map_Kd -s 2 2 2 t.png", "map_Kd -clamp on -s 3 t.png"}) {
+    INFO(line);
+    write_text(d / "o.mtl", "newmtl m\nKd 1 1 1\n" + line + "\n");
+    Scene s;
+    TextureCache cache;
+    load_obj(write_text(d / "o.obj", obj), s, cache);
+    REQUIRE(s.materials.size() == 1);
+    CHECK(s.materials[0].diffuse_texture >= 0);
+  }
+  {
+    write_text(d / "o.mtl", "newmtl m\nKd 1 1 1\nmap_Kd -s t.png\n");
+    Scene s;
+    TextureCache cache;
+    CHECK_THROWS_WITH(load_obj(write_text(d / "o.obj", obj), s, cache),
+                      Catch::Contains("o.mtl:3") && Catch::Contains("'-s' without a number"));
+  }
+  {
+    Scene s;
+    TextureCache cache;
+    CHECK_THROWS_WITH(load_obj(write_text(d / "big.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 1e39 0\nf 1/1 2/1 3/1\n"), s, cache),
+                      Catch::Contains("big.obj:4") && Catch::Contains("beyond a float's range"));
+  }
+}

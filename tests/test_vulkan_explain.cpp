@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -69,4 +71,69 @@ TEST_CASE("Explain: --backend vulkan with the mailbox - the skipped re-tests on 
   REQUIRE(off.exit_code == 0);
   CHECK_THAT(off.output, !Catch::Contains("mailbox"));
   CHECK_THAT(off.output, Catch::Contains("identical: all ") && Catch::Contains("agree bit for bit"));
+}
+
+TEST_CASE("Outside sweep: sweep and bench report the figures they measured, and only those", "[vulkan][cli]") {
+  namespace fs = std::filesystem;
+  const fs::path d = fs::temp_directory_path() / "gridrt_report_figures";
+  fs::remove_all(d);
+  fs::create_directories(d);
+  // sweep: the Vulkan row's grid_mib is everything the grid keeps, as the CPU row's (it was the
+  // image alone), and the CSV keeps the figures' digits (times of 0.00 beside a rate made of them)
+  {
+    const gridrt::test::Run r = run_tool("sweep builtin:teapot -b cpu,vulkan,cpu --width 16 --height 12 --traversal exact "
+                                         "--triangle-test moller --capacity 8,08 -o " + (d / "sweep").string());
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    std::ifstream f(d / "sweep" / "builtin-teapot.csv");
+    std::string header, line;
+    std::getline(f, header);
+    std::vector<std::vector<std::string>> rows;
+    while (std::getline(f, line)) {
+      std::vector<std::string> cells;
+      std::stringstream s(line);
+      for (std::string c; std::getline(s, c, ',');) cells.push_back(c);
+      rows.push_back(cells);
+    }
+    std::vector<std::string> names;
+    {
+      std::stringstream s(header);
+      for (std::string c; std::getline(s, c, ',');) names.push_back(c);
+    }
+    auto col = [&](const std::string& n) { return size_t(std::find(names.begin(), names.end(), n) - names.begin()); };
+    // cpu named twice, 8 and 08 one value: one CPU row and one Vulkan row
+    REQUIRE(rows.size() == 2);
+    CHECK(rows[0][col("backend")] == "cpu");
+    CHECK(rows[1][col("backend")] == "vulkan");
+    CHECK(rows[0][col("capacity_knob")] == "8");
+    CHECK(rows[0][col("grid_mib")] == rows[1][col("grid_mib")]);
+    for (const auto& row : rows) {
+      const double ms = std::stod(row[col("trace_ms")]), rate = std::stod(row[col("mrays_per_s")]);
+      CHECK(ms > 0.0);
+      CHECK(rate > 0.0);
+    }
+  }
+  // bench on lavapipe (the host clock): the phases it did not time are null in the JSON and "-"
+  // in the table, not zeros, and grid_mib means what the CPU backend's means
+  {
+    const fs::path json = d / "bench.json";
+    const gridrt::test::Run r = run_tool("bench builtin:atrium -b cpu,vulkan --width 24 --height 16 --frames 1 --warmup 0 "
+                                         "--json " + json.string());
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    std::ifstream f(json);
+    const nlohmann::json j = nlohmann::json::parse(f);
+    const nlohmann::json& v = j["backends"]["vulkan"];
+    if (v["clock"].get<std::string>().rfind("host", 0) == 0) {
+      CHECK(v["mrays_per_s"].is_null());
+      CHECK(v["build_warm_ms"].is_null());
+      CHECK(!v.contains("trace_ms"));
+      CHECK(!v.contains("gather_ms"));
+      CHECK(v["frame_ms"].get<double>() > 0.0);
+      CHECK_THAT(r.output, Catch::Contains("| - | - | - | - |"));
+    }
+    CHECK(v["grid_mib"].get<double>() == Approx(j["backends"]["cpu"]["grid_mib"].get<double>()));
+    CHECK(v["storage_mib"].get<double>() <= v["grid_mib"].get<double>());
+  }
+  fs::remove_all(d);
 }

@@ -544,12 +544,11 @@ FamilyRays make_family(Family f, const Scene& scene, const reference::GridData& 
 }
 
 std::vector<Ray> rays_of_kind(const std::string& kind, const Scene& scene, const reference::GridData& grid,
-                              Tracer& oracle, size_t count, uint64_t seed) {
-  if (kind == "primary") return rays_of_kind("camera", scene, grid, oracle, count, seed);
+                              Tracer& oracle, uint32_t width, uint32_t height, uint64_t seed) {
+  if (kind == "primary") return rays_of_kind("camera", scene, grid, oracle, width, height, seed);
   if (kind == "glossy" || kind == "diffuse") {
-    const uint32_t w = std::max<uint32_t>(1, uint32_t(std::sqrt(double(count) * 16.0 / 9.0)));
-    const uint32_t h = std::max<uint32_t>(1, uint32_t((count + w - 1) / w));
-    const GatherBuffer gb = make_gather(scene, oracle, scene.frame_camera(), w, h, 0.0f);
+    // The gather buffer asked for (it was a 16:9 one of about as many pixels, whatever the shape)
+    const GatherBuffer gb = make_gather(scene, oracle, scene.frame_camera(), std::max(width, 1u), std::max(height, 1u), 0.0f);
     std::vector<Ray> rays;
     if (kind == "glossy") {
       for (const Ray& r : bounce_rays(scene, gb, 0))
@@ -567,12 +566,18 @@ std::vector<Ray> rays_of_kind(const std::string& kind, const Scene& scene, const
     return rays;
   }
   const std::optional<Family> f = family_from_string(kind);
-  if (!f) throw Error("--rays: unknown kind '" + kind + "' (glossy, primary, diffuse, " + family_list() + ")");
+  if (!f) throw OptionsError("--rays: unknown kind '" + kind + "' (" + ray_kind_list() + ")");
   const Topology topo = make_topology(grid);
   FamilyOptions o;
-  o.rays = count;
+  o.rays = size_t(width) * height;
   o.seed = seed;
   return make_family(*f, scene, grid, topo, oracle, o).rays;
 }
+
+bool is_ray_kind(const std::string& kind) {
+  return kind == "auto" || kind == "glossy" || kind == "primary" || kind == "diffuse" || family_from_string(kind).has_value();
+}
+
+std::string ray_kind_list() { return "auto, glossy, primary, diffuse, " + family_list(); }
 
 }  // namespace gridrt::verify

@@ -71,9 +71,14 @@ FamilyRays make_family(Family f, const Scene& scene, const reference::GridData& 
                        Tracer& oracle, const FamilyOptions& options);
 
 // The ray kinds of sweep/bench (--rays): glossy (the frame's glossy bounce rays), primary, bounce
-// (mirror + diffuse off the primary hits), diffuse, random, or any family name.
+// (mirror + diffuse off the primary hits), diffuse, random, or any family name. glossy and
+// diffuse start from a gather buffer of width x height pixels (one ray per covered pixel); the
+// others make width x height rays (edge and vertex: at most).
 std::vector<Ray> rays_of_kind(const std::string& kind, const Scene& scene, const reference::GridData& grid,
-                              Tracer& oracle, size_t count, uint64_t seed = 1);
+                              Tracer& oracle, uint32_t width, uint32_t height, uint64_t seed = 1);
+// Whether `kind` names rays_of_kind's rays (or "auto", the verbs' default); the list for messages.
+bool is_ray_kind(const std::string& kind);
+std::string ray_kind_list();
 
 // A copy of `scene` moved by `offset` (instances frozen at time 0, camera, lights), for the
 // translated runs.

@@ -158,7 +158,10 @@ Texture image_texture(const Ctx& c, int image_index) {
     c.fail("image " + std::to_string(image_index) + " does not exist");
   const tinygltf::Image& img = c.model.images[size_t(image_index)];
   const std::string what = "image " + std::to_string(image_index) + (img.uri.empty() ? "" : " ('" + img.uri + "')");
-  if (img.width <= 0 || img.height <= 0 || img.component < 1 || img.component > 4 || (img.bits != 8 && img.bits != 16))
+  if (img.width <= 0 || img.height <= 0)
+    c.fail(what + ": not decoded (no image data was read for it: its file, buffer view or data URI is missing, "
+                  "empty or not a PNG or JPEG)");
+  if (img.component < 1 || img.component > 4 || (img.bits != 8 && img.bits != 16))
     c.fail(what + ": not decoded (" + std::to_string(img.width) + " x " + std::to_string(img.height) + ", " +
            std::to_string(img.component) + " channels of " + std::to_string(img.bits) + " bits)");
   const size_t n = size_t(img.width) * size_t(img.height);
@@ -349,10 +352,17 @@ tinygltf::Model parse_model(const std::string& path) {
     if (required != "KHR_mesh_quantization")
       throw Error("cannot load glTF '" + path + "': it requires the extension " + required +
                   ", which gridrt does not implement (supported: KHR_mesh_quantization)");
-  for (const std::string& used : model.extensionsUsed)
-    if (used == "KHR_texture_transform")
-      std::cerr << "warning: " << path << ": KHR_texture_transform is used (not required): its transforms are not "
-                << "applied, the texture coordinates are read as stored\n";
+  // KHR_texture_transform (not required): said only where a texture this loader reads (the base
+  // colour, for the diffuse colour and the alpha mask) carries a transform; a normal or occlusion
+  // texture's transform changes nothing here
+  for (size_t m = 0; m < model.materials.size(); ++m) {
+    const tinygltf::TextureInfo& base = model.materials[m].pbrMetallicRoughness.baseColorTexture;
+    if (base.index >= 0 && base.extensions.count("KHR_texture_transform"))
+      std::cerr << "warning: " << path << ": material " << m
+                << (model.materials[m].name.empty() ? "" : " ('" + model.materials[m].name + "')")
+                << ": its base colour texture's KHR_texture_transform is not applied, the texture coordinates are "
+                   "read as stored\n";
+  }
   if (!warn.empty()) {
     std::istringstream ws(warn);
     for (std::string w; std::getline(ws, w);)

@@ -118,6 +118,11 @@ void check_numbers(const std::string& path, size_t line, const std::vector<std::
       fail_at(path, line, "'" + std::string(tok[0]) + "': '" + std::string(tok[i]) + "' is not a number");
     if (!std::isfinite(v))
       fail_at(path, line, "'" + std::string(tok[0]) + "': non-finite value '" + std::string(tok[i]) + "'");
+    // The loader keeps floats: a value past a float's range would become inf there, and be
+    // refused later without its line (vt 1e39)
+    if (!std::isfinite(static_cast<float>(v)))
+      fail_at(path, line, "'" + std::string(tok[0]) + "': value '" + std::string(tok[i]) +
+                              "' is beyond a float's range (about 3.4e38)");
     ++numbers;
   }
   if (numbers < min_numbers)
@@ -182,6 +187,58 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
   return scan;
 }
 
+// A texture statement's options as tinyobjloader reads them: -o, -s and -t always take three
+// numbers and -mm two, where the MTL format lets the later ones be left out (-s u [v [w]]). So
+// "map_Kd -s 2 2 t.png" lost its file name to the third number, and the texture was dropped
+// without a word. Such a line is written out with the defaults the format gives (-o and -t: 0,
+// -s: 1, -mm's gain: 1); every other line is kept as it is.
+std::string pad_texture_options(const std::string& path, const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  size_t pos = 0;
+  size_t number = 0;
+  while (pos < text.size()) {
+    ++number;
+    size_t end = text.find('\n', pos);
+    const bool last = end == std::string::npos;
+    if (last) end = text.size();
+    const std::string_view line(text.data() + pos, end - pos);
+    pos = end + 1;
+    std::string_view body = line;
+    const size_t hash = body.find('#');
+    if (hash != std::string_view::npos) body = body.substr(0, hash);
+    const std::vector<std::string_view> tok = split_ws(body);
+    bool texture = !tok.empty() && (tok[0].substr(0, 4) == "map_" || tok[0] == "bump" || tok[0] == "disp" ||
+                                    tok[0] == "decal" || tok[0] == "refl");
+    std::string rewritten;
+    bool padded = false;
+    for (size_t i = 0; texture && i < tok.size(); ++i) {
+      rewritten += (i ? " " : "") + std::string(tok[i]);
+      const std::string_view o = tok[i];
+      const size_t want = (o == "-o" || o == "-s" || o == "-t") ? 3 : o == "-mm" ? 2 : 0;
+      if (i == 0 || want == 0) continue;
+      // Numbers up to `want`, never the last token (the file name)
+      size_t have = 0;
+      double v;
+      while (have < want && i + 2 < tok.size() && parse_float(tok[i + 1], v)) {
+        rewritten += " " + std::string(tok[++i]);
+        ++have;
+      }
+      if (have == 0)
+        fail_at(path, number, std::string(tok[0]) + ": option '" + std::string(o) + "' without a number");
+      for (; have < want; ++have, padded = true) rewritten += (o == "-s" || o == "-mm") ? " 1" : " 0";
+    }
+    if (padded) {
+      out += rewritten;
+      if (hash != std::string_view::npos) out += " " + std::string(line.substr(hash));
+    } else {
+      out += line;
+    }
+    if (!last) out += '\n';
+  }
+  return out;
+}
+
 // MTL lines tinyobjloader reads leniently: scalar and colour statements must hold numbers,
 // texture statements a file name.
 std::string scan_mtl(const std::string& path) {
@@ -197,7 +254,7 @@ std::string scan_mtl(const std::string& path) {
       if (tok.size() < 2) fail_at(path, line, std::string(k) + " without a file name");
     }
   });
-  return text;
+  return pad_texture_options(path, text);
 }
 
 std::string texture_path(const fs::path& dir, std::string name) {
