@@ -10,7 +10,6 @@
 #endif
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "gridrt/vulkan/grid.h"
-#  include "gridrt/vulkan/frame.h"
 #endif
 
 namespace gridrt::app {
@@ -353,23 +352,6 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
   if (name == "embree") return std::make_unique<EmbreeTracer>();
 #endif
   throw Error("unknown backend '" + name + "' (this build has: " + backend_list() + ")");
-}
-
-uint32_t vulkan_default_trace_budget() {
-#ifdef GRIDRT_HAVE_VULKAN
-  return vulkan::kDefaultTraceBudget;
-#else
-  return 0;
-#endif
-}
-
-void add_trace_budget_option(CLI::App* cmd, uint32_t& budget) {
-  cmd->add_option("--trace-budget", budget,
-                  "Vulkan frame, the compact layout's exact traversal: iterations of the trace's loop each ray gets "
-                  "in the first pass; the rays that need more are traced again, whole, in a second pass over a list "
-                  "of them (the same hits; 0: one pass; default " + std::to_string(vulkan_default_trace_budget()) + ")")
-      ->check(CLI::Range(0u, (1u << 20) - 1u))
-      ->group("Vulkan");
 }
 
 void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {

@@ -114,10 +114,6 @@ class ProgressTracer : public Tracer {
 
 // --shadows on|off|auto (auto: on iff the scene has lights; shadows_for, common/gather.h).
 void add_shadows_option(CLI::App* cmd, ShadowMode& mode);
-// The Vulkan frame's tail pass (vulkan::FrameOptions::trace_budget): its default, and the option
-// --trace-budget N (0: off) of the verbs that run the frame.
-uint32_t vulkan_default_trace_budget();
-void add_trace_budget_option(CLI::App* cmd, uint32_t& budget);
 
 // Traces only the ray of one index and answers a miss for every other: a gather buffer whose one
 // pixel is real, for explaining that pixel without tracing the whole image.

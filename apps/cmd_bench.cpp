@@ -52,7 +52,6 @@ struct BenchOptions {
   std::string rays = "auto";       // the traced rays: auto, glossy (the frame's), or a kind (rays_of_kind)
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
-  uint32_t trace_budget = vulkan_default_trace_budget();  // vulkan: the tail pass's budget (FrameOptions)
   ShadowMode shadows = ShadowMode::automatic;  // shadow rays to the lights (auto: iff the scene has some)
   uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
   float fps = 30.0f;
@@ -189,7 +188,6 @@ struct FrameRun {
   float last_time = 0.0f;
   uint32_t counted = 0, gather_tiles = 0;
   vulkan::GatherPairs gather_pairs;  // frame 0's tile lists (compute gather)
-  uint64_t tail_rays = 0;             // frame 0's rays the tail pass traced (bounce and shadow)
 };
 
 // The frames, warm-up then timed: per frame the update, the frame's passes and (with `rtx`) the
@@ -220,7 +218,6 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
     if (rtx) rtx->update_and_trace(frame.ray_buffer(), rtx_hits, frame.ray_count());
     if (f == 0) gather_tiles = frame.download_gather_tiles();
     if (f == 0) run.gather_pairs = frame.download_gather_pairs();
-    if (f == 0) run.tail_rays = frame.download_tail_rays();
     if (f < o.warmup) continue;
     if (rtx) {
       const vulkan::RtxTimings& rt = rtx->timings();
@@ -560,7 +557,6 @@ vulkan::FrameOptions frame_options(const BenchOptions& o, const Scene& scene) {
               : o.gather == "boxes" ? vulkan::GatherMode::boxes
                                     : vulkan::GatherMode::compute;
   fo.compact_rays = o.compact_rays;
-  fo.trace_budget = o.trace_budget;
   fo.shadows = shadows_for(o.shadows, scene);
   return fo;
 }
@@ -648,10 +644,6 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z,
               (gp.flags & shared::kGridCompact) != 0u ? "compact, largest cell" : "capacity", gp.capacity, gather_name,
               o.compact_rays ? "compacted" : "every-pixel");
-  if (frame.trace_budget())
-    std::printf("tail pass: a budget of %u iterations a ray; in frame 0, %llu rays (bounce and shadow) traced again, "
-                "whole, in the second pass\n",
-                frame.trace_budget(), (unsigned long long)run.tail_rays);
   print_frame_tables(o, scene, frame, m, t, stamps, gather_tiles, run.gather_pairs, build, build_warm, mrays, mem, spill_text(spill, spill_flags));
   const nlohmann::json trace_counters = trace_counter_report(counters, rays, m["trace"], counted);
   if (t.count("b2b_frame"))
@@ -690,8 +682,6 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   j["gather_pairs_frame0"] = run.gather_pairs.pairs;
   j["gather_pairs_overflow"] = run.gather_pairs.overflow;
   j["compact_rays"] = o.compact_rays;
-  j["trace_budget"] = frame.trace_budget();
-  j["tail_rays_frame0"] = run.tail_rays;
   j["shadows"] = frame.shadows();
   j["shadow_rays_per_frame"] = frame.shadows() ? scene.lights.size() * o.width * o.height : 0;
   for (auto& [k, v] : t) {
@@ -998,7 +988,6 @@ void add_bench_command(CLI::App& app) {
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");
-  add_trace_budget_option(cmd, o->trace_budget);
   cmd->add_flag("--build-passes", o->backend_options.build_pass_timestamps,
                 "Vulkan: time every pass of the static build and of the skip field (printed with the first build's "
                 "split; the extra timestamps add about 0.01 ms to the build)");

@@ -48,7 +48,6 @@ struct DiffOptions {
   uint32_t ulps_t = 0;   // float fields of otherwise equal hits may differ by this many ulps in t
   float abs_uv = 0.0f;   // ... and by this much in u and v (absolute)
   bool gpu_frame = false;  // also the GPU frame's own passes: gather, bounce rays, trace
-  uint32_t trace_budget = vulkan_default_trace_budget();  // the GPU frame's tail pass (--trace-budget)
   ShadowMode shadows = ShadowMode::automatic;  // the GPU frame's shadow pass (auto: iff the scene has lights)
   std::string validation = "on";  // on, best-practices, off
   std::string json_path, junit_path;
@@ -380,8 +379,7 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   if (!gpu_frame_)
     gpu_frame_ = std::make_unique<vulkan::VulkanFrame>(
         *gpu_, scene_,
-        vulkan::FrameOptions{.width = o_.width, .height = o_.height, .shadows = shadows_for(o_.shadows, scene_),
-                             .trace_budget = o_.trace_budget});
+        vulkan::FrameOptions{.width = o_.width, .height = o_.height, .shadows = shadows_for(o_.shadows, scene_)});
   vulkan::VulkanFrame& fr = *gpu_frame_;
   fr.render(frame);
   const uint32_t w = o_.width;
@@ -635,7 +633,7 @@ int DiffRun::run() {
 // flags and the scene left out), each as typed.
 std::string given_grid_flags(const CLI::App* cmd) {
   static const char* const kOwn[] = {"--width", "--height", "--time", "-t", "--frames", "--fps", "--ulps",
-                                     "--uv-tolerance", "--gpu-frame", "--shadows", "--trace-budget", "--validation", "--json", "--junit",
+                                     "--uv-tolerance", "--gpu-frame", "--shadows", "--validation", "--json", "--junit",
                                      "--inject-difference"};
   const std::vector<std::string>& args = command_line;
   size_t k = 0;
@@ -683,7 +681,6 @@ void add_diff_command(CLI::App& app) {
                 "Also run the GPU frame's own passes (gather, bounce, trace) and compare its bounce rays "
                 "and hits, bit for bit, with the reference's from the same gather");
   add_shadows_option(cmd, o->shadows);  // the GPU frame's shadow pass (a scene of more than 8 lights: off)
-  add_trace_budget_option(cmd, o->trace_budget);
   add_choice(cmd, "--validation", o->validation, {"on", "best-practices", "off"},
                   "The Khronos validation layer (with synchronization validation): on (default; any message "
                   "fails the run with exit 4), best-practices (also the layer's best-practices checks), off");

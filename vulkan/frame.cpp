@@ -437,9 +437,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   gpu.image = ctx.create_buffer(pixels * 4, sb);
   const VkBufferUsageFlags list_usage = sb | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT;
   const size_t header = sizeof(shared::WorkListHeader);
-  // The tail pass's list of rays left to it (the compacted rays' list otherwise)
-  tail_budget_ = !compact && (bounce_ || shadows_) && grid.trace_budget_applies() ? options_.trace_budget : 0u;
-  gpu.ray_list = ctx.create_buffer(compact || tail_budget_ ? header + pixels * 4 : header, list_usage);
+  gpu.ray_list = ctx.create_buffer(compact ? header + pixels * 4 : header, list_usage);
   const bool compute = gather_ != GatherMode::raster;
   if (compute) {
     // The large triangles: a set-up record for every triangle of the geometry buffer at most
@@ -523,7 +521,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   if (compact) gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
   gpu.shade = std::make_unique<Pipeline>(ctx, "shade.comp", set.layout(), 0, spec());
   const uint32_t list_push = 3 * sizeof(uint32_t);
-  if (compact || tail_budget_) {
+  if (compact) {
     gpu.ray_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
     gpu.ray_list_set->bind(0, gpu.ray_list);
     gpu.ray_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.ray_list_set->layout(), list_push);
@@ -552,23 +550,12 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   Context& ctx = grid_.context();
   Gpu& gpu = *gpu_;
   const uint32_t w = options_.width, h = options_.height;
-  const bool compact = bool(gpu.ray_list_dispatch) && !tail_budget_;
+  const bool compact = bool(gpu.ray_list_dispatch);
   const uint32_t max_groups_x = ctx.info().limits.maxComputeWorkGroupCount[0];
   repeats = std::max(repeats, 1u);
   ctx.upload(gpu.params, &frame, sizeof frame, offsetof(shared::FrameParams, frame));
-  if (bounce_ || shadows_)
-    grid_.bind_ray_buffers(gpu.rays, gpu.hits, compact || tail_budget_ ? &gpu.ray_list : nullptr);
+  if (bounce_ || shadows_) grid_.bind_ray_buffers(gpu.rays, gpu.hits, compact ? &gpu.ray_list : nullptr);
   if (bounce_ || shadows_) grid_.bind_frame(gpu.gather, gpu.params, gpu.materials);
-  // The tail pass: the list's dispatch step over the rays the first pass left, then their trace
-  auto tail_pass = [&](VkCommandBuffer cb, uint32_t mode) {
-    barrier(cb);
-    const shared::WorkListDispatchPush list_push{64u, max_groups_x, w * h};
-    gpu.ray_list_dispatch->bind(cb, gpu.ray_list_set->set());
-    gpu.ray_list_dispatch->push(cb, list_push);
-    vkCmdDispatch(cb, 1, 1, 1);
-    barrier(cb);
-    grid_.record_trace_list(cb, mode);
-  };
   const std::vector<shared::GridInstance>& instances = grid_.instances();
   const uint32_t triangles = instances.empty() ? 0u : instances.back().tri_offset + instances.back().tri_count;
   const auto t0 = std::chrono::steady_clock::now();
@@ -698,8 +685,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           grid_.record_trace_list(cb);
         } else {
           if (timed) gpu.timestamps->write(cb, 4);
-          grid_.record_bounce_trace_image(cb, w, h, tail_budget_);  // an 8x8 pixel tile a workgroup
-          if (tail_budget_) tail_pass(cb, shared::kTraceClosestHit);
+          grid_.record_bounce_trace_image(cb, w, h);  // an 8x8 pixel tile a workgroup
         }
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 5);
@@ -717,8 +703,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           // a barrier orders as the synchronization validation reads the whole binding
           if (l > 0) barrier(cb);
           grid_.record_shadow_trace_image(cb, w, h, (1 + l) * w * h, scene_.lights[l].position,
-                                          scene_.lights[l].directional, tail_budget_);
-          if (tail_budget_) tail_pass(cb, shared::kTraceAnyHit);
+                                          scene_.lights[l].directional);
         }
         barrier(cb);
         if (timed) gpu.timestamps->write(cb, 7);
@@ -848,11 +833,6 @@ GatherPairs VulkanFrame::download_gather_pairs() const {
   if (!gpu_->fine) return {};
   const auto h = grid_.context().download<shared::GatherFineHeader>(gpu_->tile_bins, 1)[0];
   return {h.pairs, gpu_->pair_capacity, h.overflow != 0};
-}
-
-uint64_t VulkanFrame::download_tail_rays() const {
-  if (!tail_budget_) return 0;
-  return grid_.context().download<shared::WorkListHeader>(gpu_->ray_list, 1)[0].dispatched;
 }
 
 uint32_t VulkanFrame::download_gather_tiles() const {

@@ -83,10 +83,6 @@ enum class GatherMode {
 // gather's clip plane, and the compute gather's where a triangle's box needs it (the header comment).
 float frame_near_plane(const Scene& scene);
 
-// The tail pass's default budget (FrameOptions::trace_budget), chosen on the H200
-// (docs/BENCHMARKS.md, "The tail pass").
-inline constexpr uint32_t kDefaultTraceBudget = 0;
-
 struct FrameOptions {
   uint32_t width = 1920, height = 1080;
   float ambient = 0.2f, exposure = 1.0f;  // ShadeOptions
@@ -106,11 +102,6 @@ struct FrameOptions {
   // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
   // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
   bool compact_rays = false;
-  // The tail pass (the compact layout's exact traversal; 0: off): the frame's bounce and shadow
-  // traces give each ray this many iterations of the trace's loop, append the rays that need more
-  // to a list and trace those again, whole, in a second pass (trace.comp, kGridSpecTraceBudget):
-  // a subgroup's short rays no longer wait on its long ones. The same hits either way.
-  uint32_t trace_budget = kDefaultTraceBudget;
 };
 
 // The compute gather's tile lists of the last render (GatherMode::compute; zeros otherwise).
@@ -147,10 +138,6 @@ class VulkanFrame {
   // GatherMode::boxes; 0 for the raster gather).
   uint32_t download_gather_tiles() const;
   GatherPairs download_gather_pairs() const;
-  // The rays the tail pass traced since the frame was made (every render, every trace: the
-  // list's count of dispatched items; 0 without the tail pass), and its budget (0: off).
-  uint64_t download_tail_rays() const;
-  uint32_t trace_budget() const { return tail_budget_; }
 
   // The device buffers of the bounce rays and hits (another tracer may trace the same rays).
   const Buffer& ray_buffer() const;
@@ -173,7 +160,6 @@ class VulkanFrame {
   FrameOptions options_;
   bool bounce_ = true;
   bool shadows_ = false;
-  uint32_t tail_budget_ = 0;  // the tail pass's budget where it applies (FrameOptions::trace_budget), else 0
   GatherMode gather_ = GatherMode::compute;
   std::unique_ptr<Gpu> gpu_;
   FrameTimings timings_;

@@ -532,10 +532,9 @@ void VulkanGridTracer::after_insert(bool warn) {
   }
 }
 
-const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32_t mode, uint32_t rays, uint32_t budget) {
+const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32_t mode, uint32_t rays) {
   Gpu& gpu = *gpu_;
-  if (budget >= (1u << 20)) throw Error("vulkan-grid: a trace budget of " + std::to_string(budget) + " iterations (at most 2^20 - 1)");
-  const uint64_t key = uint64_t(budget != 0u) << 44 | uint64_t(rays) << 40 | uint64_t(mode) << 34 | uint64_t(list) << 33 |
+  const uint64_t key = uint64_t(rays) << 40 | uint64_t(mode) << 34 | uint64_t(list) << 33 |
                        uint64_t(explain) << 32 | params_.flags;
   std::unique_ptr<Pipeline>& p = gpu.traces[key];
   if (!p) {
@@ -543,7 +542,6 @@ const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32
     if (list) spec.add(shared::kGridSpecTraceList, true);
     spec.add(shared::kGridSpecTraceMode, mode);
     if (rays != shared::kTraceRaysBuffer) spec.add(shared::kGridSpecTraceRays, rays);
-    if (budget != 0u) spec.add(shared::kGridSpecTraceBudget, true);
     p = std::make_unique<Pipeline>(*ctx_, "trace.comp", gpu.set->layout(), uint32_t(sizeof(shared::TracePush)), std::move(spec));
   }
   return *p;
@@ -843,13 +841,9 @@ void VulkanGridTracer::bind_frame(const Buffer& gather, const Buffer& frame_para
   gpu_->bound_frame_params_bytes = frame_params.size;
 }
 
-bool VulkanGridTracer::trace_budget_applies() const {
-  return params_.traversal == shared::kTraversalExact && (params_.flags & shared::kGridCompact) != 0u;
-}
-
-void VulkanGridTracer::record_trace_list(VkCommandBuffer cb, uint32_t mode) {
+void VulkanGridTracer::record_trace_list(VkCommandBuffer cb) {
   if (!gpu_ || !gpu_->ray_list) throw Error("vulkan-grid: record_trace_list without a bound ray list");
-  const Pipeline& pipe = trace_pipeline(false, true, mode);
+  const Pipeline& pipe = trace_pipeline(false, true);
   pipe.bind(cb, gpu_->set->set());
   const shared::TracePush push{0u, 0u, shared::kNoExplain, vk_.explain_capacity, 0u, 0u};
   pipe.push(cb, push);
@@ -880,9 +874,7 @@ void VulkanGridTracer::record_trace_image(VkCommandBuffer cb, uint32_t width, ui
 }
 
 void VulkanGridTracer::record_frame_trace(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first_ray,
-                                          uint32_t rays, glm::vec3 light, bool directional, uint32_t budget) {
-  if (budget != 0u && (!gpu_->ray_list || !trace_budget_applies()))
-    throw Error("vulkan-grid: a trace budget needs a bound ray list and the compact layout's exact traversal");
+                                          uint32_t rays, glm::vec3 light, bool directional) {
   // What the traces read and write must be bound and large enough: a clear error, not an access
   // past a buffer on the device
   const Gpu& gpu = *gpu_;
@@ -895,24 +887,24 @@ void VulkanGridTracer::record_frame_trace(VkCommandBuffer cb, uint32_t width, ui
       gpu.bound_hit_bytes < (first_ray + pixels) * sizeof(shared::HitRecord))
     throw Error("vulkan-grid: the frame's trace writes rays and hits " + std::to_string(first_ray) + ".." +
                 std::to_string(first_ray + pixels) + ", past the bound ray or hit buffer (bind_ray_buffers)");
-  const Pipeline& pipe = trace_pipeline(
-      false, false, rays == shared::kTraceRaysShadow ? shared::kTraceAnyHit : shared::kTraceClosestHit, rays, budget);
+  const Pipeline& pipe =
+      trace_pipeline(false, false, rays == shared::kTraceRaysShadow ? shared::kTraceAnyHit : shared::kTraceClosestHit, rays);
   pipe.bind(cb, gpu_->set->set());
   const shared::TracePush push{first_ray, width * height, shared::kNoExplain, vk_.explain_capacity, width, height,
-                               light.x, light.y, light.z, directional ? 1u : 0u, budget, 0u};
+                               light.x, light.y, light.z, directional ? 1u : 0u};
   pipe.push(cb, push);
   vkCmdDispatch(cb, groups(width, 8), groups(height, 8), 1);
 }
 
-void VulkanGridTracer::record_bounce_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t budget) {
+void VulkanGridTracer::record_bounce_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height) {
   if (!gpu_) throw Error("vulkan-grid: record_bounce_trace_image before build");
-  record_frame_trace(cb, width, height, 0u, shared::kTraceRaysBounce, glm::vec3(0.0f), false, budget);
+  record_frame_trace(cb, width, height, 0u, shared::kTraceRaysBounce, glm::vec3(0.0f), false);
 }
 
 void VulkanGridTracer::record_shadow_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height,
-                                                 uint32_t first_ray, glm::vec3 light, bool directional, uint32_t budget) {
+                                                 uint32_t first_ray, glm::vec3 light, bool directional) {
   if (!gpu_) throw Error("vulkan-grid: record_shadow_trace_image before build");
-  record_frame_trace(cb, width, height, first_ray, shared::kTraceRaysShadow, light, directional, budget);
+  record_frame_trace(cb, width, height, first_ray, shared::kTraceRaysShadow, light, directional);
 }
 
 AccelDump VulkanGridTracer::dump() const {

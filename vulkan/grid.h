@@ -175,21 +175,15 @@ class VulkanGridTracer : public Tracer {
   // pixel's glossy bounce ray from the bound gather (as bounce.comp, common/shared/bounce.h; the
   // empty ray where there is none), writes it as ray `pixel` of the bound ray buffer and traces
   // it, a workgroup per 8x8 pixel tile (no barriers).
-  // `budget` (the tail pass, over the compact layout's exact traversal; 0: none): a ray whose walk
-  // takes more iterations is not traced whole here but appended to the bound ray list, which
-  // record_trace_list then traces (after the list's dispatch step).
-  void record_bounce_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t budget = 0);
+  void record_bounce_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height);
   // The frame's shadow trace towards one light: the same with the pixel's shadow ray
   // (shared::shadow_ray towards `light`, a position, or with `directional` the direction towards
   // it), written as ray `first` + pixel and traced for any hit.
   void record_shadow_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first,
-                                 glm::vec3 light, bool directional, uint32_t budget = 0);
-  // Whether a budget applies to this grid's traces (the compact layout's exact traversal: the
-  // one loop it counts); without it every ray is traced whole in the first pass.
-  bool trace_budget_applies() const;
+                                 glm::vec3 light, bool directional);
   // Records the trace of the rays the bound ray list names, dispatched indirectly on the list
   // (its dispatch step must have run; no barriers). The other rays' hits are not written.
-  void record_trace_list(VkCommandBuffer cb, uint32_t mode = shared::kTraceClosestHit);
+  void record_trace_list(VkCommandBuffer cb);
   uint32_t static_instance_count() const { return static_instances_; }
   const std::vector<shared::GridInstance>& instances() const { return instances_; }
   Context& context() const { return *ctx_; }
@@ -223,9 +217,9 @@ class VulkanGridTracer : public Tracer {
   // The trace pipeline for the current flags, with explain or on a ray list (made on first use:
   // gap-fill comes and goes with saturation).
   const Pipeline& trace_pipeline(bool explain, bool list = false, uint32_t mode = shared::kTraceClosestHit,
-                                 uint32_t rays = shared::kTraceRaysBuffer, uint32_t budget = 0);
+                                 uint32_t rays = shared::kTraceRaysBuffer);
   void record_frame_trace(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first, uint32_t rays,
-                          glm::vec3 light, bool directional, uint32_t budget);
+                          glm::vec3 light, bool directional);
   void upload_transforms(float time, uint32_t first, uint32_t last);
   void record_skip_field(VkCommandBuffer cb, Timestamps* stamps = nullptr);
   void record_compact(VkCommandBuffer cb, Timestamps* stamps = nullptr);

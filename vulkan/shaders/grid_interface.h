@@ -57,7 +57,6 @@ SH_CONST uint kGridSpecTriangleTest = 6u;  // GridParams::triangle_test
 SH_CONST uint kGridSpecTraceList = 7u;     // trace: rays from the ray list (dispatched indirectly)
 SH_CONST uint kGridSpecTraceMode = 8u;     // trace: which hit, kTraceClosestHit or kTraceAnyHit (shared/grid.h)
 SH_CONST uint kGridSpecTraceRays = 9u;     // trace: where an image's rays come from (kTraceRays*)
-SH_CONST uint kGridSpecTraceBudget = 11u;   // trace: the frame's first pass leaves rays over TracePush::budget to the tail pass
 SH_CONST uint kGridSpecOrderShared = 10u;   // spill_order.comp: entries its shared copy holds (from maxComputeSharedMemorySize)
 
 // Where the trace's rays come from (kGridSpecTraceRays): the ray buffer, or (the frame's traces,
@@ -83,12 +82,6 @@ struct TracePush {
   float light_y;
   float light_z;
   uint light_directional;  // 1: directional, 0: point light
-  // The tail pass's budget (kGridSpecTraceBudget set): iterations of the trace's loop before a ray
-  // is left to the second pass. A push constant, not the specialization constant's value: a
-  // constant bound let the compiler unroll the loop that many times (measured: the trace 1.5x
-  // slower at a budget of 192 with two thousand rays deferred)
-  uint budget;
-  uint pad0;
 };
 SH_CONST uint kNoExplain = 0xFFFFFFFFu;
 
@@ -123,7 +116,7 @@ struct ExplainHeader {
 SH_END
 
 #ifdef __cplusplus
-static_assert(sizeof(gridrt::shared::TracePush) == 48, "layout of TracePush");
+static_assert(sizeof(gridrt::shared::TracePush) == 40, "layout of TracePush");
 static_assert(sizeof(gridrt::shared::ClearPush) == 4, "layout of ClearPush");
 static_assert(sizeof(gridrt::shared::SpillOrderPush) == 4, "layout of SpillOrderPush");
 static_assert(sizeof(gridrt::shared::SkipFieldPush) == 4, "layout of SkipFieldPush");

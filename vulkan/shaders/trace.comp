@@ -9,7 +9,6 @@
 // at every candidate; and the frame's traces make each pixel's bounce or shadow ray themselves
 // from the gather buffer (kTraceRays).
 #extension GL_GOOGLE_include_directive : require
-#extension GL_KHR_shader_subgroup_ballot : require
 #include "grid_common.glsl"
 #include "gridrt/common/shared/bounce.h"
 #include "gridrt/common/shared/shadow.h"
@@ -58,18 +57,6 @@ layout(constant_id = kGridSpecTraceMode) const uint kTraceMode = kTraceClosestHi
 // read it) and traced: the frame has no pass between the gather and the trace, and the rays are
 // not read back from memory.
 layout(constant_id = kGridSpecTraceRays) const uint kTraceRays = kTraceRaysBuffer;
-// The tail pass (kGridSpecTraceBudget, the frame's traces over the compact layout): a ray whose
-// walk has taken pc.budget cells and tests when it leaves a cell is left to a second pass, its index
-// appended to the ray list (kGridBindRayList), which the list's trace (kTraceList) then traces
-// from the start, whole: the same function on the same ray, so the same hit. A subgroup no longer
-// waits on its longest ray; the long rays run together, in subgroups of their own.
-layout(constant_id = kGridSpecTraceBudget) const bool kTraceBudget = false;
-layout(std430, binding = kGridBindRayList) buffer TailList {
-  WorkListHeader tail_header;
-  uint tail_rays[];
-};
-// The flag of a hit record scene_trace returns for a ray left to the tail pass (never written)
-const uint kTraceDeferred = 0x80000000u;
 layout(std430, binding = kGridBindGather) readonly buffer Gather { GatherTexel gather[]; };
 layout(std430, binding = kGridBindFrameParams) readonly buffer FrameParamsBuffer { FrameParams fp; };
 layout(std430, binding = kGridBindFrameMaterials) readonly buffer FrameMaterials { FrameMaterial fmaterials[]; };
@@ -570,9 +557,6 @@ HitRecord trace_exact_flat(GridParams g) {
     // The cell (or box) is done: report the closest hit once it lies inside it or before
     if (st.has_best && (st.mode == kTraceAnyHit || st.best_t <= w.t_exit)) return report(k);
     if (w.t_exit >= st.rs.t_end) return finish(w.t_exit >= st.tmax ? kMissTmax : kMissLeftGrid, k);
-    // The tail pass: past its budget of cells and tests (the counters the hit record keeps, so no
-    // register of its own), the ray is left to the second pass, which traces it again, whole
-    if (kTraceBudget && st.cells + st.tests >= pc.budget) return miss(kMissStepLimit, k, kTraceDeferred);
     const uint face = skip_entry_face(st.dir, dda_step_axis(w.exits));
     if (!dda_walk_next(g, st.org, st.dir, inv_dir, w)) return finish(kMissLeftGrid, k);
     k += 1u;
@@ -652,22 +636,7 @@ void main() {
                                 : shadow_ray(t.position, t.normal, t.launch_ref, vec3(pc.light_x, pc.light_y, pc.light_z),
                                              pc.light_directional != 0u);
       rays_out[r] = ray;
-      const HitRecord h = scene_trace(grid_params(), ray, kTraceMode);
-      if (kTraceBudget) {
-        const bool deferred = (h.flags & kTraceDeferred) != 0u;
-        // The subgroup's deferred rays appended with one atomic (the ray is already in the ray
-        // buffer, where the tail pass reads it)
-        const uvec4 ballot = subgroupBallot(deferred);
-        const uint n = subgroupBallotBitCount(ballot);
-        if (n != 0u) {
-          uint base = 0u;
-          if (subgroupElect()) base = atomicAdd(tail_header.appended, n);
-          base = subgroupBroadcastFirst(base);
-          if (deferred) tail_rays[base + subgroupBallotExclusiveBitCount(ballot)] = r;
-        }
-        if (deferred) return;
-      }
-      hits[r] = h;
+      hits[r] = scene_trace(grid_params(), ray, kTraceMode);
       return;
     }
     hits[r] = scene_trace(grid_params(), rays[r], kTraceMode);
