@@ -105,7 +105,9 @@ class SampleCaster : public Tracer {
     return alpha_keeps(tex.rgba[4 * (size_t(xy.y) * tex.width + xy.x) + 3]);
   }
 
-  Hit cast(const Ray& ray) const {
+  Hit cast(const Ray& given) const {
+    Ray ray = given;
+    ray.dir = traced_direction(given.dir);  // as scene_trace walks it
     Hit h{};
     h.t = sh_infinity();
     h.instance = kNoInstance;
@@ -196,9 +198,11 @@ WorkSample work_sample(const Scene& scene, float time, const GridParams& base, c
   return s;
 }
 
-bool for_each_visit(const GridParams& g, const Ray& ray,
+bool for_each_visit(const GridParams& g, const Ray& given,
                     const std::function<bool(uvec3 cell, uint k, uint last, float t_report, bool tested)>& f,
                     const std::function<uint32_t(uvec3 cell)>& skip) {
+  Ray ray = given;
+  ray.dir = traced_direction(given.dir);  // as scene_trace walks it
   RaySetup rs;
   if (!ray_valid(ray.org, ray.dir, ray.tmin, ray.tmax) || !ray_setup(g, ray.org, ray.dir, ray.tmin, ray.tmax, rs))
     return false;
@@ -259,13 +263,14 @@ SkipDistances::SkipDistances(const GridParams& g, const TrialCounts& counts, std
 
 uint32_t SkipDistances::box_mask(const Ray& ray, const RaySetup& rs) const {
   // The dynamic boxes the ray's walk can reach (the trace's skip_box_mask)
-  const vec3 inv = dda_inverse_direction(ray.dir);
-  const uvec3 k0 = dda_walk_begin(g_, ray.org, ray.dir, rs.t_start).cell;
+  const vec3 dir = traced_direction(ray.dir);  // as scene_trace walks it
+  const vec3 inv = dda_inverse_direction(dir);
+  const uvec3 k0 = dda_walk_begin(g_, ray.org, dir, rs.t_start).cell;
   uint32_t mask = 0u;
   const uint32_t boxes = boxes_.empty() ? 0u : boxes_[0];
   for (uint32_t b = 0u; b < boxes; ++b) {
     const uint32_t w = skip_box_word(b);
-    if (skip_box_reached(g_, ray.org, ray.dir, inv, k0, rs.t_end, uvec3(boxes_[w], boxes_[w + 1], boxes_[w + 2]),
+    if (skip_box_reached(g_, ray.org, dir, inv, k0, rs.t_end, uvec3(boxes_[w], boxes_[w + 1], boxes_[w + 2]),
                          uvec3(boxes_[w + 4], boxes_[w + 5], boxes_[w + 6])))
       mask |= 1u << b;
   }

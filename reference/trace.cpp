@@ -397,8 +397,8 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain, ui
   const GridParams& g = grid.params;
   TraceState st{};
   st.org = ray.org;
-  st.dir = ray.dir;
-  st.tmin = origin_tmin(ray.org, ray.dir, ray.tmin);  // the origin epsilon
+  st.dir = traced_direction(ray.dir);  // a subnormal component taken as 0
+  st.tmin = origin_tmin(ray.org, st.dir, ray.tmin);  // the origin epsilon
   st.tmax = ray.tmax;
   st.launch_normal = ray.launch_normal;
   st.launch_ref = ray.launch_ref;
@@ -423,7 +423,7 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain, ui
   // A far origin: moved along the ray to just before the grid box (docs/SPEC.md "Far origins")
   st.t_base = far_origin_base(g, st.org, st.dir, st.tmin, st.tmax);
   if (st.t_base > 0.0f) {
-    st.org = ray.org + ray.dir * st.t_base;
+    st.org = ray.org + st.dir * st.t_base;
     st.tmin = max(st.tmin - st.t_base, 0.0f);
     st.tmax = st.tmax - st.t_base;
   }

@@ -427,9 +427,17 @@ struct FamilyMaker {
         o[a] = g.origin[a] + float(c) * g.cell_size;
       }
       glm::vec3 d = rng.sphere();
+      int last_plane = -1;  // an axis whose coordinate is on a cell plane
+      for (int a = 0; a < 3; ++a)
+        if (o[a] == g.origin[a] + std::round((o[a] - g.origin[a]) / g.cell_size) * g.cell_size) last_plane = a;
       if (i % 4 == 3) {  // along an axis, along the lattice
         d = glm::vec3(0.0f);
         d[rng.index(3)] = rng.uniform() < 0.5 ? -1.0f : 1.0f;
+      } else if (i % 8 == 5 && last_plane >= 0) {
+        // Leaving the plane by a subnormal component (1 / d overflows): an outside sweep's find,
+        // the DDA's exit along that axis was 0 * inf = NaN and the walk left closed meshes
+        static const float kSubnormal[4] = {1e-40f, -1e-40f, 1.401298464e-45f, -2.9e-39f};
+        d[last_plane] = kSubnormal[rng.index(4)];
       }
       push(make_ray(o, d));
     }

@@ -569,8 +569,8 @@ HitRecord trace_exact_flat(GridParams g) {
 // ---- Scene trace (paper 2.3) ----
 HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   st.org = ray.org;
-  st.dir = ray.dir;
-  st.tmin = origin_tmin(ray.org, ray.dir, ray.tmin);  // the origin epsilon
+  st.dir = traced_direction(ray.dir);  // a subnormal component taken as 0
+  st.tmin = origin_tmin(ray.org, st.dir, ray.tmin);  // the origin epsilon
   st.tmax = ray.tmax;
   st.launch_normal = ray.launch_normal;
   st.launch_ref = ray.launch_ref;
@@ -594,7 +594,7 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   // A far origin: moved along the ray to just before the grid box (docs/SPEC.md "Far origins")
   st.t_base = far_origin_base(g, st.org, st.dir, st.tmin, st.tmax);
   if (st.t_base > 0.0f) {
-    precise vec3 moved = ray.org + ray.dir * st.t_base;
+    precise vec3 moved = ray.org + st.dir * st.t_base;
     st.org = moved;
     precise float tmin_moved = st.tmin - st.t_base;
     st.tmin = max(tmin_moved, 0.0f);
