@@ -324,3 +324,28 @@ TEST_CASE("CLI: bench times lavapipe on the host's clock", "[vulkan][cli][bench]
   CHECK(b.output.find("| vulkan | llvmpipe") != std::string::npos);
   CHECK(b.output.find("| host |") != std::string::npos);
 }
+
+TEST_CASE("CLI: llvmpipe's loop limit - the paper traversal's trace is refused, not wrong", "[vulkan][cli][hardcase]") {
+  // An outside sweep's find: the guard covered the exact traversal only; shadow rays through 400
+  // cells of 170 references each came back from llvmpipe as misses (a wall drawn lit, exit 0).
+  // Here camera rays run along a row of 40 cells holding 1,000 triangles each that they pass by,
+  // to a wall: 40,000 tests a ray. Other devices trace them (exit 0, AGREE).
+  const bool llvmpipe = gridrt::test::bit_exact_device(gridrt::test::vk_context());
+  const fs::path d = temp_dir();
+  {
+    std::ofstream f(d / "row.obj");
+    for (int c = 0; c < 40; ++c)
+      f << "v " << c + 0.25 << " 0.5 0.25\nv " << c + 0.75 << " 0.5 0.25\nv " << c + 0.5 << " 0.6 0.75\n";
+    f << "v 40.5 0 0\nv 40.5 1 0\nv 40.5 1 1\nv 40.5 0 1\n";
+    for (int c = 0; c < 40; ++c)
+      for (int k = 0; k < 1000; ++k) f << "f " << 3 * c + 1 << " " << 3 * c + 2 << " " << 3 * c + 3 << "\n";
+    f << "f 121 122 123\nf 121 123 124\n";
+  }
+  std::ofstream(d / "row.json") << R"({"meshes":{"r":{"file":"row.obj"}},"instances":[{"mesh":"r"}],)"
+                                << R"("camera":{"eye":[-0.5,0.2,0.5],"target":[10,0.2,0.5],"vfov":0.5}})";
+  const Run r = run_tool("diff " + (d / "row.json").string() +
+                         " --width 2 --height 2 --frames 1 --traversal paper --resolution 40,1,1 --capacity 1000 --gap-fill off --spill on");
+  INFO(r.output);
+  CHECK(r.exit_code == (llvmpipe ? 1 : 0));
+  if (llvmpipe) CHECK_THAT(r.output, Catch::Contains("references and cells") && Catch::Contains("refused from 32768"));
+}
