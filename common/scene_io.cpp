@@ -267,6 +267,9 @@ class SceneFileReader {
     if (j.contains("rotate")) {
       const json& r = j["rotate"];
       const json list = r.is_array() ? r : json::array({r});
+      // Applied in order, as SCENE_FORMAT.md says: the first rotation acts on the object first,
+      // so R = R(n-1) * ... * R(0) (post-multiplying each one applied the last first)
+      glm::mat4 rotation(1.0f);
       for (size_t i = 0; i < list.size(); ++i) {
         const std::string w = where + ".rotate" + (r.is_array() ? "[" + std::to_string(i) + "]" : "");
         expect_object(list[i], w);
@@ -274,8 +277,11 @@ class SceneFileReader {
         if (!list[i].contains("axis") || !list[i].contains("degrees")) fail(w, "needs \"axis\" and \"degrees\"");
         const glm::vec3 axis = get_vec3(list[i]["axis"], w + ".axis");
         if (glm::length(axis) == 0.0f) fail(w + ".axis", "zero axis");
-        m = glm::rotate(m, glm::radians(get_number(list[i]["degrees"], w + ".degrees")), glm::normalize(axis));
+        rotation = glm::rotate(glm::mat4(1.0f), glm::radians(get_number(list[i]["degrees"], w + ".degrees")),
+                               glm::normalize(axis)) *
+                   rotation;
       }
+      m = m * rotation;
     }
     if (j.contains("scale")) {
       const json& s = j["scale"];

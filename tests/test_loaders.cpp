@@ -700,3 +700,23 @@ TEST_CASE("OBJ: map options with fewer numbers keep their texture, a float overf
                       Catch::Contains("big.obj:4") && Catch::Contains("beyond a float's range"));
   }
 }
+
+// An outside sweep's find: "rotate": [r0, r1] applied r1 to the object first, where SCENE_FORMAT.md
+// says the rotations apply in order.
+TEST_CASE("Scene file: a rotate array applies its rotations in order, the first to the object first",
+          "[unit][scenefile]") {
+  const fs::path d = temp_dir();
+  write_text(d / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_text(d / "rot.json", R"({"meshes":{"t":{"file":"tri.obj"}},"instances":[{"mesh":"t","rotate":[)"
+                             R"({"axis":[0,1,0],"degrees":90},{"axis":[1,0,0],"degrees":90}]}]})");
+  const Scene s = load_scene((d / "rot.json").string());
+  REQUIRE(s.instances.size() == 1);
+  // (1, 0, 0): about y by 90 degrees to (0, 0, -1), then about x by 90 degrees to (0, 1, 0)
+  const glm::vec3 p = glm::vec3(s.instances[0].transform * glm::vec4(1, 0, 0, 1));
+  CHECK(p.x == Approx(0).margin(1e-6));
+  CHECK(p.y == Approx(1).margin(1e-6));
+  CHECK(p.z == Approx(0).margin(1e-6));
+  // (0, 1, 0): about y unchanged, then about x to (0, 0, 1)
+  const glm::vec3 q = glm::vec3(s.instances[0].transform * glm::vec4(0, 1, 0, 1));
+  CHECK(q.z == Approx(1).margin(1e-6));
+}
