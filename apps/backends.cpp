@@ -84,6 +84,7 @@ void add_grid_options(CLI::App* cmd, BackendOptions& o) {
          [&g](const std::string& v) {
            if (const auto policy = capacity_policy_named(v)) {
              g.capacity_policy = *policy;
+             g.capacity_policy_given = true;
              g.capacity.reset();
              return;
            }

@@ -118,6 +118,7 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
       // capacity: a capacity asked for means the image layout), or the image with its capacity
       reference::GridOptions gc = go;
       gc.cell_size = c.cell_size;
+      gc.resolution.reset();  // the candidate's size, whatever sized the grid
       gc.aabb_padding = c.aabb_padding;
       if ((chosen.flags & sh::kGridCompact) != 0u) {
         gc.layout = reference::GridOptions::Layout::compact;

@@ -209,6 +209,7 @@ BackendOptions backend_options_for(const SweepOptions& o, const Config& c) {
   } else if (c.capacity != "auto") {
     g.capacity = uint32_t(std::stoul(c.capacity));
   }
+  g.capacity_policy_given = c.capacity != "auto" && !g.capacity;  // a rule named: over the file's capacity
   g.sphere_enlargement = c.enlargement;
   g.aabb_padding = c.padding;
   g.elongation = c.elongation;

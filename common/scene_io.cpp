@@ -389,6 +389,9 @@ class SceneFileReader {
     }
     if (j.contains("capacity")) scene_.grid.capacity = get_uint(j["capacity"], "grid.capacity");
     if (j.contains("cell_size")) scene_.grid.cell_size = get_number(j["cell_size"], "grid.cell_size");
+    // Both size the grid: one of them was silently dropped (an outside sweep's find)
+    if (scene_.grid.resolution && scene_.grid.cell_size)
+      fail("grid", "gives both \"resolution\" and \"cell_size\", which both size the grid: give one of them");
   }
 
   std::string path_;

@@ -420,9 +420,18 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
 }
 
 GridOptions settle_overrides(GridOptions o, const Scene& scene) {
-  if (!o.resolution) o.resolution = scene.grid.resolution;
-  if (!o.cell_size) o.cell_size = scene.grid.cell_size;
-  if (!o.capacity) o.capacity = scene.grid.capacity;
+  // The command line over the scene file, the grid's size as one choice: a resolution or a cell
+  // size given there replaces the file's (either); both given at one level are refused, where
+  // the cell size silently won (an outside sweep's find)
+  if (o.resolution && o.cell_size)
+    throw OptionsError("--resolution and --cell-size both size the grid: give one of them");
+  if (!o.resolution && !o.cell_size) {
+    o.resolution = scene.grid.resolution;
+    o.cell_size = scene.grid.cell_size;
+  }
+  // A capacity rule named on the command line (--capacity trace-cost, ...) replaces the file's
+  // number too, as a number named there does
+  if (!o.capacity && !o.capacity_policy_given) o.capacity = scene.grid.capacity;
   return o;
 }
 

@@ -97,6 +97,8 @@ struct PlanOptions {
   // dropping the fewest references.
   // percentile: the original rule, capacity = capacity_percentile of the non-empty cells' counts.
   enum class CapacityPolicy { trace_cost, no_saturation, percentile } capacity_policy = CapacityPolicy::trace_cost;
+  // The rule was named by the user (--capacity RULE): a scene file's capacity does not replace it
+  bool capacity_policy_given = false;
   // trace_cost: the cost of a candidate in reference tests per ray: tests + cell_visit_cost *
   // cells visited + saturation_cost * (expected share of rays whose answer saturation changes).
   // Unset: the traversal's own (plan::cell_visit_cost: the exact trace's fitted on the H200, the

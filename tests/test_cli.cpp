@@ -498,3 +498,33 @@ TEST_CASE("Outside sweep: the reporting verbs check their command line first and
   }
   fs::remove_all(d);
 }
+
+TEST_CASE("Outside sweep: the grid's overrides - the command line over the file, two sizes refused", "[cli][grid]") {
+  const fs::path d = scratch("overrides");
+  fs::create_directories(d);
+  std::ofstream(d / "tri.obj") << "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n";
+  std::ofstream(d / "cs.json") << R"({"meshes":{"t":{"file":"tri.obj"}},"instances":[{"mesh":"t"}],"grid":{"cell_size":0.5,"capacity":7}})";
+  std::ofstream(d / "both.json")
+      << R"({"meshes":{"t":{"file":"tri.obj"}},"instances":[{"mesh":"t"}],"grid":{"cell_size":0.5,"resolution":[8,8,8]}})";
+  // A resolution on the command line replaces the file's cell size (it was dropped without a word)
+  const Run res = run_tool("stats " + (d / "cs.json").string() + " --resolution 16,16,1");
+  INFO(res.output);
+  REQUIRE(res.exit_code == 0);
+  CHECK_THAT(res.output, Catch::Contains("grid: 16 x 16 x 1 cells"));
+  // A capacity rule named on the command line replaces the file's number
+  const Run rule = run_tool("stats " + (d / "cs.json").string() + " --capacity no-saturation");
+  INFO(rule.output);
+  REQUIRE(rule.exit_code == 0);
+  CHECK_THAT(rule.output, !Catch::Contains("capacity 7"));
+  const Run number = run_tool("stats " + (d / "cs.json").string());
+  CHECK_THAT(number.output, Catch::Contains("capacity 7"));
+  // Both sizes at one level: refused (the file's: bad input; the command line's: exit 2)
+  const Run file = run_tool("stats " + (d / "both.json").string());
+  INFO(file.output);
+  CHECK(file.exit_code == 1);
+  CHECK_THAT(file.output, Catch::Contains("\"resolution\" and \"cell_size\""));
+  const Run cli = run_tool("stats builtin:cornell --resolution 8,8,8 --cell-size 0.1");
+  INFO(cli.output);
+  CHECK(cli.exit_code == 2);
+  CHECK_THAT(cli.output, Catch::Contains("--resolution and --cell-size"));
+}
