@@ -606,6 +606,12 @@ void run_sweep(const SweepOptions& o) {
         progress.advance();
       }
     progress.finish();
+    // A backend that measured nothing (no Vulkan device, every configuration refused) is an
+    // error, not an empty table with exit 0 (an outside sweep's find)
+    for (const std::string& backend : backends)
+      if (std::none_of(rows.begin(), rows.end(), [&](const Row& r) { return r.backend == backend; }))
+        throw Error("sweep: " + scene.name + ": the " + backend +
+                    " backend measured no configuration (each was skipped, the reasons above)");
     // Two scenes of one name (a/quad.obj, b/quad.obj) write apart: the second as quad-2
     // A name no earlier scene took: "x" twice gives "x-2", unless a scene is named "x-2" itself
     // (an outside sweep's find: the second x.obj's tables replaced those of x-2.obj)

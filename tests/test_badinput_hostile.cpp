@@ -448,3 +448,15 @@ TEST_CASE("Outside sweep: ray files with a NUL byte or a signed launch reference
   std::ofstream(d / "plus.txt") << "2.78,2.74,2.79,0,0,-1,0,100,+0:+1\n";
   CHECK(run_tool("explain builtin:cornell --brief --ray-file " + (d / "plus.txt").string()).exit_code == 1);
 }
+
+TEST_CASE("Outside sweep: sweep -b vulkan without a Vulkan driver exits 1, not 0 with an empty table", "[badinput][cli]") {
+  const fs::path d = scratch("sweep_nodevice");
+  setenv("VK_DRIVER_FILES", "/nonexistent/icd.json", 1);
+  setenv("VK_ICD_FILENAMES", "/nonexistent/icd.json", 1);
+  const auto r = run_tool("sweep builtin:cornell --width 8 --height 8 -b vulkan --traversal exact -o " + (d / "sv").string());
+  unsetenv("VK_DRIVER_FILES");
+  unsetenv("VK_ICD_FILENAMES");
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("measured no configuration") && Contains("no Vulkan device"));
+}
