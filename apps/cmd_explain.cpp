@@ -75,6 +75,9 @@ struct Item {
   Traversal traversal = Traversal::paper;
   uint32_t mode = shared::kTraceClosestHit;  // shadow rays: kTraceAnyHit, as the frame traces them
   std::optional<Hit> frame_hit;  // --gpu-frame: the frame's own hit of this ray
+  // Traced on the gather's grid (plan::gather_options: the exact traversal with Moller-Trumbore),
+  // as the frame traces a pixel's primary ray, not on the grid of the options given
+  bool gather_grid = false;
 };
 
 const char* policy_name(reference::GridOptions::CapacityPolicy p) {
@@ -119,6 +122,14 @@ class Explainer {
     return *p;
   }
   std::string grid(Traversal t) { return grid_words(options(t), scene_, reference(t).params()); }
+  // The gather's grid: the frame's primary rays are traced there (plan::gather_options)
+  reference::ReferenceGridTracer& gather_reference() {
+    if (!gather_) {
+      gather_ = std::make_unique<reference::ReferenceGridTracer>(plan::gather_options(grid_));
+      build_gather_grid(*gather_, scene_, o_.time);
+    }
+    return *gather_;
+  }
 
 #ifdef GRIDRT_HAVE_VULKAN
   vulkan::VulkanGridTracer& gpu(Traversal t) {
@@ -130,6 +141,15 @@ class Explainer {
       p->build(scene_, o_.time);
     }
     return *p;
+  }
+  vulkan::VulkanGridTracer& gather_gpu() {
+    if (!context_) context_ = std::make_unique<vulkan::Context>();
+    if (!gather_gpu_) {
+      const vulkan::VulkanGridOptions vk = vulkan_grid_options(o_.backend_options);
+      gather_gpu_ = std::make_unique<vulkan::VulkanGridTracer>(*context_, plan::gather_options(grid_), vk);
+      build_gather_grid(*gather_gpu_, scene_, o_.time);
+    }
+    return *gather_gpu_;
   }
   // The GPU frame's passes at --width x --height (gather, bounce, trace) on the grid of the
   // frame's traversal; its read-backs.
@@ -174,9 +194,11 @@ class Explainer {
   const Scene& scene_;
   reference::GridOptions grid_;
   std::map<Traversal, std::unique_ptr<reference::ReferenceGridTracer>> reference_;
+  std::unique_ptr<reference::ReferenceGridTracer> gather_;
 #ifdef GRIDRT_HAVE_VULKAN
   std::unique_ptr<vulkan::Context> context_;
   std::map<Traversal, std::unique_ptr<vulkan::VulkanGridTracer>> gpu_;
+  std::unique_ptr<vulkan::VulkanGridTracer> gather_gpu_;
   std::unique_ptr<GpuFrame> frame_;
 #endif
 };
@@ -231,12 +253,17 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
     Item it;
     it.ray = camera_ray(scene.frame_camera(), o.width, o.height, x, y);
     it.traversal = o.traversal_given ? frame_t : Traversal::exact;
+    // On the gather's grid, with its test (Moller-Trumbore), as the frame traces the pixel: the
+    // explain's own options gave the watertight test, and on coplanar faces another triangle than
+    // the pixel shows (an outside sweep's find)
+    it.gather_grid = !o.traversal_given;
     it.label = std::string(where) + ": the primary ray";
     it.header = {it.label + (o.kind == "auto" && !o.primary ? " (the pixel has no glossy bounce)" : "")};
     it.header.insert(it.header.end(), frame_words.begin(), frame_words.end());
     it.header.push_back(std::string("explained by the ") + traversal_name(it.traversal) + " traversal" +
-                        (it.traversal == Traversal::exact ? ", as the frame's gather traces it"
-                                                          : " (asked for with --traversal; the frame's gather uses the exact one)") +
+                        (it.gather_grid ? " on the gather's grid (Moller-Trumbore), as the frame's gather traces it"
+                                        : " (asked for with --traversal, on the options given; the frame's gather "
+                                          "uses the exact traversal with Moller-Trumbore)") +
                         (o.gpu_frame ? " (the GPU frame gathers by its " + gpu_gather +
                                            " pass: the same camera rays, not traced through the grid)"
                                      : std::string()));
@@ -409,13 +436,13 @@ void run_explain(const ExplainOptions& options) {
   size_t kept = 0;  // events kept for --json and --html (a few KiB each there)
   for (size_t i = 0; i < items.size(); ++i) {
     const Item& it = items[i];
-    reference::ReferenceGridTracer& ref = ex.reference(it.traversal);
+    reference::ReferenceGridTracer& ref = it.gather_grid ? ex.gather_reference() : ex.reference(it.traversal);
     const reference::ExplainRecord want = ref.explain_ray(it.ray, it.mode);
     std::optional<reference::ExplainRecord> got;
     std::string device;
 #ifdef GRIDRT_HAVE_VULKAN
     if (vulkan) {
-      got = ex.gpu(it.traversal).explain_ray(it.ray, it.mode);
+      got = (it.gather_grid ? ex.gather_gpu() : ex.gpu(it.traversal)).explain_ray(it.ray, it.mode);
       device = ex.device();
     }
 #endif

@@ -400,3 +400,17 @@ TEST_CASE("Explain: the HTML viewer loads in headless chromium without script er
   CHECK_THAT(dom, Catch::Contains("id=\"cell-") && Catch::Contains("id=\"marker\""));
   CHECK_THAT(dom, Catch::Contains("#" + std::to_string(test)));
 }
+
+// An outside sweep's find: a pixel's primary ray was explained on the explain's own grid options
+// (the exact traversal's watertight test), where the frame's gather traces it with
+// Moller-Trumbore on the gather's grid: on coplanar faces it showed another triangle than the
+// pixel's. It is explained on the gather's grid now, whatever --triangle-test says.
+TEST_CASE("Explain: a pixel's primary ray is traced on the gather's grid, as the frame traces it", "[cli][explain]") {
+  for (const char* test : {"", " --triangle-test watertight"}) {
+    const gridrt::test::Run r =
+        gridrt::test::run_tool(std::string("explain builtin:cornell --width 32 --height 24 --pixel 16,12 --kind primary --brief") + test);
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    CHECK_THAT(r.output, Catch::Contains("on the gather's grid (Moller-Trumbore)"));
+  }
+}
