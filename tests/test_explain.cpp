@@ -285,7 +285,7 @@ TEST_CASE("Explain: the command line - any ray, ray files, kinds, brief, JSON, p
   const test::Run p = run_tool("explain builtin:cornell --width 48 --height 36 --pixel 24,18 --kind primary --brief");
   INFO(p.output);
   REQUIRE(p.exit_code == 0);
-  CHECK_THAT(p.output, Catch::Contains("explained by the exact traversal, as the frame's gather traces it"));
+  CHECK_THAT(p.output, Catch::Contains("explained by the exact traversal on the gather's grid (Moller-Trumbore), as the frame's gather traces it"));
   CHECK_THAT(p.output, Catch::Contains("traversal exact") && !Catch::Contains("0x"));
   CHECK_THAT(p.output, Catch::Contains("capacity") && Catch::Contains("policy"));
   // Shadow rays toward the Cornell box's light
