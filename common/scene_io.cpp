@@ -625,7 +625,24 @@ Scene load_model_scene(const std::string& path) {
   return scene;
 }
 
-Scene load_scene(std::string_view spec) {
+namespace {
+
+// Material opacity is kept (the scene, its cache) but not rendered: every surface is opaque, and
+// alpha masks are the transparency the grid traces. A material below 1 is said once per load,
+// where it did nothing without a word (an outside sweep's find).
+void warn_unrendered_opacity(const Scene& s, const std::string& what) {
+  std::string names;
+  size_t count = 0;
+  for (const Material& m : s.materials)
+    if (m.opacity < 1.0f && count++ < 3) names += (names.empty() ? "'" : ", '") + m.name + "'";
+  if (count == 0) return;
+  std::fprintf(stderr,
+               "warning: %s: %zu material(s) with an opacity below 1 (%s%s): opacity is read but not rendered, "
+               "every surface is opaque (alpha masks, map_d or glTF MASK, cut surfaces out)\n",
+               what.c_str(), count, names.c_str(), count > 3 ? ", ..." : "");
+}
+
+Scene load_scene_any(std::string_view spec) {
   if (spec.rfind("builtin:", 0) == 0) {
     return make_builtin(spec.substr(8));
   }
@@ -638,6 +655,14 @@ Scene load_scene(std::string_view spec) {
   if (ext == ".obj" || ext == ".gltf" || ext == ".glb") return load_model_scene(path);
   throw Error("cannot load scene '" + path + "': unknown extension '" + ext +
               "' (expected builtin:NAME, .json, .obj, .gltf, .glb or .gridscene)");
+}
+
+}  // namespace
+
+Scene load_scene(std::string_view spec) {
+  Scene s = load_scene_any(spec);
+  warn_unrendered_opacity(s, std::string(spec));
+  return s;
 }
 
 void save_scene_binary(const Scene& s, const std::string& path) {
