@@ -88,7 +88,7 @@ void render_cpu_frame(const RenderOptions& o, const Scene& scene, Tracer& tracer
                frame, time, seconds_since(t0), path.c_str());
 }
 
-void run_render(const RenderOptions& options, bool scale_given, bool rays_given) {
+void run_render(const RenderOptions& options, bool scale_given, bool rays_given, const std::vector<std::string>& given) {
   RenderOptions o = options;
   check_frame_size(o.width, o.height);
   if (!(std::abs(o.time) <= 1.0e6f))
@@ -129,7 +129,17 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given)
   }
   resolve_image_limit(o.backend_options, o.backend == "vulkan");
   if (o.backend.rfind("portal", 0) == 0) {
-    // The portal-div raytracer renders worlds of voxels with its own shading (cmd_portal.cpp).
+    // The portal-div raytracer renders worlds of voxels with its own shading (cmd_portal.cpp): it
+    // takes the scene, the size and the output; the grid's and the frame's options do not apply
+    // and are refused (they were dropped without a word: an outside sweep's find)
+    std::string ignored;
+    for (const std::string& name : given)
+      if (name != "--backend" && name != "--width" && name != "--height" && name != "--output" && name != "scene" &&
+          name != "--help")
+        ignored += (ignored.empty() ? "" : ", ") + name;
+    if (!ignored.empty())
+      throw OptionsError("render --backend " + o.backend + " takes the scene, --width, --height and --output only; " +
+                         ignored + " do(es) not apply to the portal raytracer (gridrt portal render --help lists its own)");
     PortalRenderOptions p;
     p.scene = o.scene.empty() ? "builtin:level" : o.scene;
     p.backend = o.backend;
@@ -234,7 +244,13 @@ void add_render_command(CLI::App& app) {
   auto* scale_opt =
       cmd->add_option("--scale", o->scale, "--view: figure pixels per image pixel")->check(CLI::Range(1, 16))->group("Views");
   add_backend_options(cmd, o->backend_options);
-  cmd->callback([o, scale_opt, rays_opt] { run_render(*o, scale_opt->count() > 0, rays_opt->count() > 0); });
+  cmd->callback([o, cmd, scale_opt, rays_opt] {
+    // The options given (for the portal backends, which take only a few of them)
+    std::vector<std::string> given;
+    for (const CLI::Option* opt : cmd->get_options())
+      if (opt->count() > 0) given.push_back(opt->get_name());
+    run_render(*o, scale_opt->count() > 0, rays_opt->count() > 0, given);
+  });
 }
 
 }  // namespace gridrt::app

@@ -113,6 +113,12 @@ TEST_CASE("CLI: the portal backend renders a tile map and explains a pixel again
   INFO(r.output);
   REQUIRE(r.exit_code == 0);
   CHECK(fs::exists(out));
+  // The grid's and the frame's options do not apply to it: refused, not dropped (an outside sweep's find)
+  const Run frames = run_tool("render --backend portal-cpu " + std::string(GRIDRT_DATA_DIR) +
+                              "/maps/tiny.map --width 24 --height 12 --frames 3 --shadows off -o " + out.string());
+  INFO(frames.output);
+  CHECK(frames.exit_code == 2);
+  CHECK_THAT(frames.output, Catch::Contains("--frames") && Catch::Contains("--shadows"));
   const Run e = run_tool("portal explain --width 24 --height 12 --pixel 12,6");
   INFO(e.output);
   REQUIRE(e.exit_code == 0);
