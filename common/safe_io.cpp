@@ -92,7 +92,12 @@ void require_host_memory(uint64_t bytes, const std::string& what, const std::str
 
 namespace {
 
-std::string mib(uint64_t bytes) { return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB"; }
+// A size for a message: whole MiB from 16 MiB up, below that in bytes too, so that a file just
+// over a small limit does not read "1 MiB, more than the limit of 1 MiB" (an outside sweep's find)
+std::string mib(uint64_t bytes) {
+  const std::string whole = std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB";
+  return bytes >= (uint64_t(16) << 20) ? whole : whole + " (" + std::to_string(bytes) + " bytes)";
+}
 
 // Opens `path` for reading after checking it is a regular file within the size bound; returns
 // the descriptor (the caller closes it) and the size.
