@@ -188,10 +188,18 @@ std::string to_text(const GridStats& s) {
      << double(s.memory.total()) / double(1 << 20) << " MiB: image " << s.memory.image << ", offsets "
      << s.memory.offsets << ", references " << s.memory.refs << ", spill list " << s.memory.spill << ", heads "
      << s.memory.heads << ", skip field " << s.memory.skip << ", dirty-cell list " << s.memory.dirty << ")\n";
-  os << "cells: " << s.cell_count << ", empty " << s.empty_cells << " ("
-     << (s.cell_count ? 100.0 * double(s.empty_cells) / double(s.cell_count) : 0.0) << "%), saturated by static "
-     << s.saturated_static << ", by dynamic " << s.saturated_dynamic << "\n";
-  if (s.spill_on)
+  // The compact layout keeps its static references per cell and every dynamic one in the spill
+  // list (no cell has slots to fill): its figures say which they count (they read as if the
+  // moving instances' references were missing, "found no slot": an outside sweep's find)
+  os << "cells: " << s.cell_count << (s.compact ? ", without a static reference " : ", empty ") << s.empty_cells
+     << " (" << (s.cell_count ? 100.0 * double(s.empty_cells) / double(s.cell_count) : 0.0)
+     << "%), saturated by static " << s.saturated_static << ", by dynamic " << s.saturated_dynamic << "\n";
+  if (s.spill_on && s.compact)
+    os << "spill list (the compact layout's dynamic references): " << s.spill_appended - s.spill_static
+       << " dynamic references, " << s.spill_static << " static; " << s.spill_stored << " stored of "
+       << s.spill_capacity << " entries, " << s.spill_overflow << " lost to overflow"
+       << (s.spill_overflow ? " (WARNING: holes are possible; raise --spill-capacity)" : "") << "\n";
+  else if (s.spill_on)
     os << "spill list: " << s.spill_appended << " references found no slot (" << s.spill_static << " static); "
        << s.spill_stored << " stored of " << s.spill_capacity << " entries, " << s.spill_overflow
        << " lost to overflow" << (s.spill_overflow ? " (WARNING: holes are possible; raise --spill-capacity)" : "")
@@ -199,14 +207,15 @@ std::string to_text(const GridStats& s) {
   else
     os << "spill list: off; " << s.spill_appended << " references found no slot (dropped)"
        << (s.gap_fill_active ? "; gap-fill on" : "") << "\n";
-  os << "references: " << s.references << " for " << s.triangles << " triangles (" << s.degenerate_triangles
+  os << "references: " << s.references << (s.compact ? " static (the dynamic ones in the spill list above)" : "")
+     << " for " << s.triangles << " triangles (" << s.degenerate_triangles
      << " zero-area, never inserted); per triangle mean " << s.references_per_triangle_mean << ", max "
      << s.references_per_triangle_max << "\n";
   os << "build work: AABB range cells per triangle mean " << s.range_cells_per_triangle_mean << ", max "
      << s.range_cells_per_triangle_max << "; slot accesses of insertions walked from slot 0: " << s.walk_accesses
      << " in total, " << s.walk_chain_max << " along the longest invocation; galloping search loads along it: "
      << s.search_chain_max << "\n";
-  os << "occupancy (references per cell: cells):";
+  os << (s.compact ? "occupancy (static references per cell: cells):" : "occupancy (references per cell: cells):");
   for (size_t k = 0; k < s.occupancy.size(); ++k)
     if (s.occupancy[k]) os << " " << k << ":" << s.occupancy[k];
   os << "\n";

@@ -502,6 +502,16 @@ TEST_CASE("Outside sweep: the reporting verbs check their command line first and
     CHECK_THAT(r.output, Catch::Contains("camera rays (the scene has no glossy material"));
     CHECK_THAT(r.output, Catch::Contains("saturated cells (worst sample)"));
   }
+  // On the compact layout the moving instances' references are the spill list's, said so (they
+  // read as references that "found no slot", left out of the counts)
+  {
+    const Run r = run_tool("stats builtin:atrium --traversal exact --threads 2");
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    CHECK_THAT(r.output, Catch::Contains("the compact layout's dynamic references") &&
+                             Catch::Contains("static (the dynamic ones in the spill list above)"));
+    CHECK_THAT(r.output, !Catch::Contains("found no slot"));
+  }
   fs::remove_all(d);
 }
 
