@@ -162,6 +162,9 @@ void print_candidates(const StatsOptions& o, const Scene& scene, const reference
 }
 
 void run_stats(const StatsOptions& o) {
+  // --pixel draws a ray into --slices' pictures: alone it did nothing, without a word
+  if (!o.ray_pixel.empty() && o.slices.empty())
+    throw OptionsError("--pixel draws its camera ray into --slices' pictures: give --slices FOLDER too");
   check_frame_size(o.width, o.height);
   const Scene scene = load_scene_or_default(o.scene);
   const reference::GridOptions go = grid_options_for(o.backend_options, scene);

@@ -469,7 +469,13 @@ std::vector<Ray> sweep_rays(const SweepOptions& o, const Scene& scene, EmbreeTra
     reference::ReferenceGridTracer aimer(aim);
     aimer.build(scene, 0.0f);
     rays = verify::rays_of_kind(kind, scene, aimer.data(), embree, o.width, o.height);
-    if (o.rays == "auto") std::printf("sweep: %s has no glossy material: %s rays instead\n", scene.name.c_str(), kind.c_str());
+    // A scene with glossy materials none of which the camera sees has no glossy bounce rays
+    // either: said as it is (it read "has no glossy material")
+    if (o.rays == "auto")
+      std::printf("sweep: %s %s: %s rays instead\n", scene.name.c_str(),
+                  Features::for_scene(scene).glossy ? "has glossy materials, but its frame makes no glossy bounce ray"
+                                                    : "has no glossy material",
+                  kind.c_str());
     if (rays.empty()) throw Error("sweep: " + scene.name + " gives no " + kind + " rays");
   }
   return rays;

@@ -113,7 +113,9 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
                   char axis, const reference::ExplainRecord* ray, const std::string& ray_name) {
   if (!plot::available())
     throw Error("--slices needs OpenImageIO and the DejaVu fonts (Debian: libopenimageio-dev, fonts-dejavu-core)");
-  if (!is_folder(dir)) throw Error("--slices: folder '" + dir + "' does not exist");
+  if (!is_folder(dir))
+    throw Error("--slices: '" + dir + "' " +
+                (std::filesystem::exists(dir) ? "is not a folder" : "does not exist (the folder is not made for you)"));
   const reference::GridData& grid = ref.data();
   const sh::GridParams& g = grid.params;
   const SliceLayout l(g, axis, ray != nullptr);
