@@ -216,7 +216,6 @@ TEST_CASE("The separating-axis cell test keeps every cell a double-precision cli
         w[k] = g.origin + f[k] * gd.cs;
         local[k] = glm::dvec3(sh::grid_local(g, w[k]));
       }
-      const glm::vec3 n = sh::triangle_normal(w[0], w[1], w[2]);
       if (sh::triangle_zero_area(w[0], w[1], w[2])) continue;
       // The box's own axes are the cell range's; the test adds the plane and the edge products
       glm::uvec3 lo, hi;
