@@ -421,19 +421,18 @@ struct FamilyMaker {
     for (size_t i = 0; i < n; ++i) {
       glm::vec3 o = rng.in_box(lo, hi);
       const int planes = (i % 3 == 2) ? 3 : int(i % 3) + 1;  // one, two or all three coordinates
+      int last_plane = 0;  // an axis whose coordinate was put on a cell plane
       for (int q = 0; q < planes; ++q) {
         const int a = planes == 3 ? q : int(rng.index(3));
         const uint32_t c = uint32_t(rng.index(g.cells[a] + 1));
         o[a] = g.origin[a] + float(c) * g.cell_size;
+        last_plane = a;
       }
       glm::vec3 d = rng.sphere();
-      int last_plane = -1;  // an axis whose coordinate is on a cell plane
-      for (int a = 0; a < 3; ++a)
-        if (o[a] == g.origin[a] + std::round((o[a] - g.origin[a]) / g.cell_size) * g.cell_size) last_plane = a;
       if (i % 4 == 3) {  // along an axis, along the lattice
         d = glm::vec3(0.0f);
         d[rng.index(3)] = rng.uniform() < 0.5 ? -1.0f : 1.0f;
-      } else if (i % 8 == 5 && last_plane >= 0) {
+      } else if (i % 8 == 5) {
         // Leaving the plane by a subnormal component (1 / d overflows): an outside sweep's find,
         // the DDA's exit along that axis was 0 * inf = NaN and the walk left closed meshes
         static const float kSubnormal[4] = {1e-40f, -1e-40f, 1.401298464e-45f, -2.9e-39f};
