@@ -460,3 +460,14 @@ TEST_CASE("Outside sweep: sweep -b vulkan without a Vulkan driver exits 1, not 0
   CHECK(r.exit_code == 1);
   CHECK_THAT(r.output, Contains("measured no configuration") && Contains("no Vulkan device"));
 }
+
+TEST_CASE("Outside sweep: the portal verbs without a Vulkan driver name their own CPU backend", "[badinput][cli][portal]") {
+  setenv("VK_DRIVER_FILES", "/nonexistent/icd.json", 1);
+  setenv("VK_ICD_FILENAMES", "/nonexistent/icd.json", 1);
+  const auto r = run_tool("portal explain -b portal-vulkan --width 8 --height 8 --pixel 1,1");
+  unsetenv("VK_DRIVER_FILES");
+  unsetenv("VK_ICD_FILENAMES");
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("--backend portal-cpu"));
+}

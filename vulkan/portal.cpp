@@ -106,6 +106,20 @@ std::vector<std::string> lines_of(const std::string& s) {
   return out;
 }
 
+// The portal tracer's own context: a failure's way out names the portal verbs' CPU backend
+// (the grid's advice, "use --backend cpu", is a backend they do not take)
+std::unique_ptr<Context> portal_context() {
+  try {
+    return std::make_unique<Context>(context_options());
+  } catch (const Error& e) {
+    std::string what = e.what();
+    const std::string grid_way = "--backend cpu";
+    for (size_t at = what.find(grid_way); at != std::string::npos; at = what.find(grid_way, at + 1))
+      what.replace(at, grid_way.size(), "--backend portal-cpu");
+    throw Error(what);
+  }
+}
+
 }  // namespace
 
 struct PortalVulkanTracer::Gpu {
@@ -118,14 +132,14 @@ struct PortalVulkanTracer::Gpu {
 };
 
 PortalVulkanTracer::PortalVulkanTracer(uint32_t resolution, portal::PortalOptions options)
-    : owned_(std::make_unique<Context>(context_options())), ctx_(owned_.get()), resolution_(resolution),
+    : owned_(portal_context()), ctx_(owned_.get()), resolution_(resolution),
       options_(options) {}
 
 PortalVulkanTracer::PortalVulkanTracer(portal::World world, portal::PortalOptions options)
     : PortalVulkanTracer(portal::build_portal(std::move(world), options), options) {}
 
 PortalVulkanTracer::PortalVulkanTracer(portal::PortalBuild build, portal::PortalOptions options)
-    : owned_(std::make_unique<Context>(context_options())), ctx_(owned_.get()), resolution_(0), options_(options),
+    : owned_(portal_context()), ctx_(owned_.get()), resolution_(0), options_(options),
       build_(std::make_unique<portal::PortalBuild>(std::move(build))) {
   upload();
 }
