@@ -440,6 +440,13 @@ TEST_CASE("Portal: bad input is a clear Error", "[portal][unit][badinput]") {
   CHECK_THAT(msg([] { parse_tile_map("size 0 2 1\nmap\n"); }), Catch::Contains("empty world"));
   CHECK_THAT(msg([] { parse_tile_map("# nothing\n"); }), Catch::Contains("empty world"));
   CHECK_THAT(msg([] { parse_tile_map("size 3 3 1\nmap\n1E1\n"); }), Catch::Contains("expected 3 map rows"));
+  // An outside sweep's finds: the row count's error had no line (now where the map ends, or its
+  // first extra row), and a second 'size' replaced the first without a word
+  CHECK_THAT(msg([] { parse_tile_map("size 3 3 1\nmap\n1E1\n", "few"); }), Catch::Contains("few:3:"));
+  CHECK_THAT(msg([] { parse_tile_map("size 3 1 1\nmap\n1E1\n111\n", "extra"); }),
+             Catch::Contains("extra:4: expected 1 map rows, found 2"));
+  CHECK_THAT(msg([] { parse_tile_map("size 3 1 1\nsize 4 1 1\nmap\n1E1\n", "two"); }),
+             Catch::Contains("two:2: 'size' given twice"));
   CHECK_THAT(msg([] { parse_tile_map("size 3 1 1\nbogus\nmap\n1E1\n"); }), Catch::Contains("unknown keyword"));
   World big;
   big.name = "big";

@@ -193,6 +193,9 @@ TileMapText read_tile_map(std::string_view text, const std::string& name, World&
     std::string key;
     ls >> key;
     if (key == "size") {
+      // A second size replaced the first without a word (the rows then failed on the second's
+      // count, a confusing message): refused, as the block maps' 'scale' given twice is
+      if (have_size) fail(name, lineno, "'size' given twice");
       parse_size(ls, name, lineno, t);
       have_size = true;
     } else if (key == "material") {
@@ -206,8 +209,10 @@ TileMapText read_tile_map(std::string_view text, const std::string& name, World&
   }
   if (!have_size) fail(name, 0, "no 'size' line (empty world)");
   if (!in_map) fail(name, 0, "no 'map' section");
+  // A wrong number of rows names the line where the map ends (too few) or its first extra row
   if (t.rows.size() != t.D)
-    fail(name, 0, "expected " + std::to_string(t.D) + " map rows, found " + std::to_string(t.rows.size()));
+    fail(name, t.rows.size() > t.D ? t.row_lines[t.D] : lineno,
+         "expected " + std::to_string(t.D) + " map rows, found " + std::to_string(t.rows.size()));
   return t;
 }
 
