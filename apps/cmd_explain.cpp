@@ -288,6 +288,9 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
     if (!gather.valid[p]) throw Error(std::string(where) + ": the primary ray meets no surface, so no shadow rays");
     if (scene.lights.empty())
       throw Error("the scene has no lights: shading uses a headlight, which casts no shadow rays");
+    // The frame traces no shadow ray on a scene of more lights than it takes: none to explain
+    // (a ninth light's ray was explained though render refuses it; an outside sweep's find)
+    check_shadow_lights(scene);
     if (o.light && *o.light >= scene.lights.size())
       throw Error("light " + std::to_string(*o.light) + " does not exist (the scene has " +
                   std::to_string(scene.lights.size()) + ")");

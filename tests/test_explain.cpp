@@ -414,3 +414,22 @@ TEST_CASE("Explain: a pixel's primary ray is traced on the gather's grid, as the
     CHECK_THAT(r.output, Catch::Contains("on the gather's grid (Moller-Trumbore)"));
   }
 }
+
+// An outside sweep's find: on a scene of more lights than the frame traces shadow rays to (8),
+// explain explained a ninth light's shadow ray, which render refuses to trace.
+TEST_CASE("Explain: no shadow ray is explained on a scene whose shadows the frame refuses", "[cli][explain]") {
+  const std::filesystem::path d = std::filesystem::temp_directory_path() / "gridrt_explain_nine";
+  std::filesystem::create_directories(d);
+  {
+    std::ofstream s(d / "nine.json");
+    s << R"({"meshes":{"pot":{"builtin":"teapot","level":2}},"instances":[{"mesh":"pot"}],"lights":[)";
+    for (int i = 0; i < 9; ++i) s << (i ? "," : "") << R"({"position":[)" << i - 4 << R"(,6,3],"intensity":10})";
+    s << "]}";
+  }
+  const gridrt::test::Run r = gridrt::test::run_tool("explain " + (d / "nine.json").string() +
+                                                     " --width 16 --height 16 --pixel 8,8 --kind shadow --light 8 --brief");
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Catch::Contains("8 at most"));
+  std::filesystem::remove_all(d);
+}
