@@ -570,6 +570,8 @@ TEST_CASE("Portal: generated levels parse, are deterministic, and trace like the
   CHECK(generated_level_text(40, 30, 4, 3) != generated_level_text(40, 30, 4, 4));
   const World w = generated_level_spec("gen:60x40x5:2");
   CHECK(w.dims == glm::uvec3(60, 7, 40));
+  CHECK(w.name == "gen:60x40x5:2");  // the seed named (two seeds' levels printed one name)
+  CHECK(generated_level_spec("gen:60x40x5").name == "gen:60x40x5");
   CHECK(w.lights.size() == 2);
   const PortalBuild b = build_portal(w, PortalOptions{1024, 1024, 0, false});
   const Compare in = compare_with_dda(b, 1500, false, 5), out = compare_with_dda(b, 500, true, 6);

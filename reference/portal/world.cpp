@@ -450,8 +450,12 @@ std::string generated_level_text(uint32_t width, uint32_t depth, uint32_t height
 }
 
 World generated_level(uint32_t width, uint32_t depth, uint32_t height, uint32_t seed) {
+  // Named as it is asked for: two seeds' levels are two names (the seed was dropped); seed 1 is
+  // the default and unnamed
   return parse_tile_map(generated_level_text(width, depth, height, seed),
-                        "gen:" + std::to_string(width) + "x" + std::to_string(depth) + "x" + std::to_string(height), true);
+                        "gen:" + std::to_string(width) + "x" + std::to_string(depth) + "x" + std::to_string(height) +
+                            (seed != 1 ? ":" + std::to_string(seed) : std::string()),
+                        true);
 }
 
 bool parse_generated_spec(const std::string& spec, const std::string& prefix, uint32_t& w, uint32_t& d, uint32_t& h,
