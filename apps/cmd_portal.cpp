@@ -595,6 +595,8 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("-o,--output", *output, "The scene file (.json); the meshes are written beside it")->required();
     cmd->add_flag("--flatten", *flat, "One mesh of the flattened world instead of the blocks as instances");
     cmd->callback([=] {
+      // The output's folder checked first, as every verb's (its message named a temporary file)
+      check_output_path(*output);
       std::optional<portal::InstancedWorld> iw = load_instanced(*spec);
       if (!iw) throw Error("portal export: '" + *spec + "' is not a block map");
       const size_t triangles = portal::export_scene(*iw, *output, *flat);

@@ -471,3 +471,11 @@ TEST_CASE("Outside sweep: the portal verbs without a Vulkan driver name their ow
   CHECK(r.exit_code == 1);
   CHECK_THAT(r.output, Contains("--backend portal-cpu"));
 }
+
+TEST_CASE("Outside sweep: portal export to a folder that does not exist names the folder", "[badinput][cli][portal]") {
+  const fs::path d = scratch("portal_export");
+  const auto r = run_tool("portal export builtin:blocks -o " + (d / "missing" / "x.json").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("does not exist") && !Contains("temporary"));
+}
