@@ -86,24 +86,29 @@ TEST_CASE("triangle_test_code gives triangle_test's code on every case and its r
           "[unit][triangle]") {
   const std::vector<Case> cases = corpus();
   for (uint32_t which : {sh::kTriangleMoller, sh::kTriangleWatertight})
-  for (const bool launched : {false, true}) {
-    INFO((which == sh::kTriangleWatertight ? "watertight" : "Moller-Trumbore") << (launched ? ", surface rule" : ""));
+  for (const int rule : {0, 1, 2}) {
+    // 0: no surface rule; 1: the rule with no launch triangle's cap (the face term whole); 2: a
+    // cap of 0 (a launch triangle at the origin: the origin's term alone)
+    const bool launched = rule != 0;
+    const float cap = rule == 1 ? sh::sh_infinity() : 0.0f;
+    INFO((which == sh::kTriangleWatertight ? "watertight" : "Moller-Trumbore") << (launched ? ", surface rule" : "")
+                                                                              << (rule == 2 ? ", capped" : ""));
     size_t early = 0, accepted = 0, refused = 0;
     for (size_t i = 0; i < cases.size(); ++i) {
       const Case& c = cases[i];
       // A ray launched from a surface: the surface rule's tolerance (the watertight test decides it)
       const float stol = launched ? sh::surface_rule_tol(c.org) : -1.0f;
       sh::TriangleTest full{}, fast{};
-      const uint32_t want = sh::triangle_test(which, c.org, c.dir, c.v0, c.v1, c.v2, c.t_lo, c.t_hi, c.best, stol, full);
+      const uint32_t want = sh::triangle_test(which, c.org, c.dir, c.v0, c.v1, c.v2, c.t_lo, c.t_hi, c.best, stol, cap, full);
       const uint32_t got = sh::triangle_test_code(which, c.org, c.dir, sh::watertight_ray(c.dir), c.v0, c.v1, c.v2,
-                                                     c.t_lo, c.t_hi, c.best, stol, fast);
+                                                     c.t_lo, c.t_hi, c.best, stol, cap, fast);
       INFO("case " << i);
       REQUIRE(got == want);
       REQUIRE(fast.code == want);
       // The watertight test's rule from its own plane values is origin_on_plane's decision (what
       // the Moller-Trumbore trace, the Embree oracle and the referee ask)
       if (which == sh::kTriangleWatertight && launched && (want == sh::kTestAccepted || want == sh::kTestOriginPlane))
-        REQUIRE((want == sh::kTestOriginPlane) == sh::origin_on_plane(c.org, c.v0, c.v1, c.v2));
+        REQUIRE((want == sh::kTestOriginPlane) == sh::origin_on_plane(c.org, cap, c.v0, c.v1, c.v2));
       if (which != sh::kTriangleWatertight || !launched) REQUIRE(want != sh::kTestOriginPlane);
       refused += want == sh::kTestOriginPlane;
       // Where it stops early: only on its first rejections
@@ -177,7 +182,7 @@ TEST_CASE("The watertight test's inside decision is exact for its sheared coordi
     refined += (u0 == 0.0f && su != 0) + (v0f == 0.0f && sv != 0) + (w0 == 0.0f && sw != 0);
     sh::TriangleTest r;
     const uint32_t code = sh::watertight(org, dir, v0, v1, v2, 0.0f, std::numeric_limits<float>::infinity(),
-                                         std::numeric_limits<float>::infinity(), -1.0f, r);
+                                         std::numeric_limits<float>::infinity(), -1.0f, std::numeric_limits<float>::infinity(), r);
     const bool outside = code == sh::kTestOutsideU || code == sh::kTestOutsideV || code == sh::kTestOutsideUV;
     REQUIRE(outside == !exact_inside);
     inside += exact_inside;
@@ -187,4 +192,43 @@ TEST_CASE("The watertight test's inside decision is exact for its sheared coordi
   // The cases the refinement exists for occur, and both answers do
   CHECK(refined > 100);
   CHECK(inside > 1000);
+}
+
+// An outside sweep's find: the dot products' form of Cramer's rule (denom = d00 d11 - d01^2)
+// squared a sliver's condition, weights in steps of 1/8 on a 1000:1 strip (alpha masks and uv
+// sampled at the wrong texel), and underflowed below edges of 3e-10 (weights (1, 0)). The weights
+// in the plane the triangle projects onto largest keep to the exact ones.
+TEST_CASE("cramer_barycentrics: slivers and tiny triangles get their exact weights within rounding", "[unit][triangle]") {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  struct Tri {
+    glm::dvec3 v0, v1, v2;
+    double tol;
+  };
+  const std::vector<Tri> tris = {
+      {{0, 0, 0}, {2, 0, 0}, {2, 0.002, 0}, 2e-4},                   // 1000:1 strip
+      {{1, 2, 3}, {11.95, 2.3, 3.1}, {11.6, 2.6, 3.05}, 2e-4},       // a 36:1 sliver off the origin
+      {{0.5, 0.5, 0.5}, {0.5 + 3e-10, 0.5, 0.5}, {0.5, 0.5 + 3e-10, 0.5}, 2e-2},  // tiny, at 0.5: p rounds at 0.5's ulp
+      {{0, 0, 0}, {3e-10, 0, 0}, {0, 3e-10, 1e-10}, 1e-4},           // tiny, at the origin
+  };
+  for (size_t k = 0; k < tris.size(); ++k) {
+    const Tri& t = tris[k];
+    const glm::vec3 v0(t.v0), v1(t.v1), v2(t.v2);
+    double worst = 0.0;
+    for (int i = 0; i < 200; ++i) {
+      double a = u(rng), b = u(rng);
+      if (a + b > 1.0) a = 1.0 - a, b = 1.0 - b;
+      // The point from the float vertices, in double, rounded once; its exact weights by least squares
+      const glm::dvec3 e0 = glm::dvec3(v1) - glm::dvec3(v0), e1 = glm::dvec3(v2) - glm::dvec3(v0);
+      const glm::vec3 p(glm::dvec3(v0) + a * e0 + b * e1);
+      const glm::dvec3 q = glm::dvec3(p) - glm::dvec3(v0);
+      const double d00 = glm::dot(e0, e0), d01 = glm::dot(e0, e1), d11 = glm::dot(e1, e1);
+      const double d20 = glm::dot(q, e0), d21 = glm::dot(q, e1), den = d00 * d11 - d01 * d01;
+      const double w1 = (d11 * d20 - d01 * d21) / den, w2 = (d00 * d21 - d01 * d20) / den;
+      const glm::vec2 got = sh::cramer_barycentrics(v0, v1, v2, p);
+      worst = std::max({worst, std::abs(double(got.x) - std::clamp(w1, 0.0, 1.0)), std::abs(double(got.y) - std::clamp(w2, 0.0, 1.0))});
+    }
+    INFO("triangle " << k << ": worst weight error " << worst);
+    CHECK(worst <= t.tol);
+  }
 }

@@ -296,12 +296,13 @@ SH_INLINE uint watertight_outside_code(SH_IN(WatertightEdges) e) {
 // The watertight test's second half, from its edge functions `e` (watertight_edges of the ray).
 // `surface_tol`: the surface rule's tolerance for a ray launched from a surface
 // (surface_rule_tol(org)), negative for any other ray: an accepted candidate whose plane passes
-// within the face's tolerance (surface_rule_face_tol of it and A) of the origin is refused
+// within the face's tolerance (surface_rule_face_tol of it, `launch_cap` (the launch triangle's
+// surface_rule_launch_cap; infinity where there is none to read) and A) of the origin is refused
 // (kTestOriginPlane), origin_on_plane's decision made from the test's own plane values (the same
 // normal, |n . A| = |n . (org - v0)| and max |A_i| in the same bits).
 SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
                                SH_IN(WatertightEdges) e, float t_lo, float t_hi, float best_t,
-                               float surface_tol, SH_OUT(TriangleTest) r) {
+                               float surface_tol, float launch_cap, SH_OUT(TriangleTest) r) {
   SH_PRECISE vec3 adir = abs(dir);
   SH_PRECISE vec3 A = e.A;
   SH_PRECISE float dz = e.dz;
@@ -337,7 +338,7 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
   SH_PRECISE float scaled_den = apden * 4096.0f;
   SH_PRECISE float pnum = sh_dot(nrm, A);
   SH_PRECISE float pdist = abs(pnum);
-  SH_PRECISE float pbound = surface_rule_face_tol(surface_tol, A) * n1;
+  SH_PRECISE float pbound = surface_rule_face_tol(surface_tol, launch_cap, A) * n1;
   bool on_plane = surface_tol >= 0.0f && pdist <= pbound;
   if (scaled_den >= nd && pden != 0.0f) {
     D = -pden;
@@ -375,11 +376,11 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
 }
 
 SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t, float surface_tol,
+                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t, float surface_tol, float launch_cap,
                           SH_OUT(TriangleTest) r) {
   WatertightEdges e;
   watertight_edges(org, watertight_ray(dir), v0, v1, v2, e);
-  return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
+  return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, launch_cap, r);
 }
 
 // The triangle test GridParams::triangle_test names. `surface_tol`: the watertight test's surface
@@ -387,8 +388,8 @@ SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_I
 // origin_on_plane).
 SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
                              SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
-                             float surface_tol, SH_OUT(TriangleTest) r) {
-  if (which == kTriangleWatertight) return watertight(org, dir, v0, v1, v2, t_lo, t_hi, best_t, surface_tol, r);
+                             float surface_tol, float launch_cap, SH_OUT(TriangleTest) r) {
+  if (which == kTriangleWatertight) return watertight(org, dir, v0, v1, v2, t_lo, t_hi, best_t, surface_tol, launch_cap, r);
   return moller_trumbore(org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
 }
 
@@ -402,7 +403,7 @@ SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN
 // `w`: watertight_ray(dir), made once per ray by the caller (the same values as made here).
 SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(WatertightRay) w,
                                   SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi,
-                                  float best_t, float surface_tol, SH_OUT(TriangleTest) r) {
+                                  float best_t, float surface_tol, float launch_cap, SH_OUT(TriangleTest) r) {
   if (which == kTriangleWatertight) {
     WatertightEdges e;
     watertight_edges(org, w, v0, v1, v2, e);
@@ -410,7 +411,7 @@ SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, 
       r.code = watertight_outside_code(e);
       return r.code;
     }
-    return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
+    return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, launch_cap, r);
   }
   MollerFirst m;
   moller_trumbore_first(org, dir, v0, v1, v2, m);
@@ -429,13 +430,22 @@ SH_INLINE float moller_trumbore_t(SH_IN(TriangleTest) r) {
   return t;
 }
 
-// Barycentric weights (of v1, of v2) of point p by Cramer's rule (Ericson 2004): with
-// e0 = v1 - v0, e1 = v2 - v0, e2 = p - v0 and the dot products dij,
-// denom = d00 d11 - d01 d01, w1 = (d11 d20 - d01 d21) / denom, w2 = (d00 d21 - d01 d20) / denom,
-// the division done once as a reciprocal. A point off the plane gets the weights of its
-// projection. denom == 0 (degenerate) gives (0, 0). The weights are then clamped into the
-// triangle (clamp_barycentrics): a hit point far from the ray's origin carries more rounding than
-// a small triangle is wide, and its unclamped weights were anything (190.7 and -125.2 measured).
+// Barycentric weights (of v1, of v2) of point p by Cramer's rule in the plane the triangle
+// projects onto largest: with e0 = v1 - v0, e1 = v2 - v0, e2 = p - v0 and n = e0 x e1, the two
+// coordinates (i, j) other than n's largest component (ties: x, then y), det(a, b) = a_i b_j -
+// a_j b_i, w1 = det(e2, e1) / det(e0, e1), w2 = det(e0, e2) / det(e0, e1), the division done once
+// as a reciprocal (det(e0, e1) is that component of n). A point off the plane gets the weights of
+// its projection along that axis. det(e0, e1) == 0 (degenerate) gives (0, 0). The weights are then
+// clamped into the triangle (clamp_barycentrics): a hit point far from the ray's origin carries
+// more rounding than a small triangle is wide, and its unclamped weights were anything (190.7 and
+// -125.2 measured).
+// Not the dot products' form (denom = d00 d11 - d01^2, Ericson 2004), which squares the triangle's
+// condition: an outside sweep found weights in steps of 1/8 on a 1000:1 strip (its denominator 8
+// ulps of d00 d11: alpha masks sampled at the wrong texel in 1,197 of 5,760 pixels against Embree,
+// and a Sponza sliver of 36:1 at (1/12, 0.168) where the exact weights are (0.0829, 0.1691)), and
+// its fourth powers of the edges underflowed below edges of 3e-10 (weights (1, 0): alpha masks
+// ignored). The projected determinants are products of two edges: no cancellation beyond the
+// triangle's own (n's component is exact on the strip), no underflow above edges of 1e-19.
 SH_INLINE vec2 clamp_barycentrics(float w1, float w2) {
   // Comparisons only (a NaN weight becomes 0), the same bits on every device:
   // u = min(max(w1, 0), 1), v = min(max(w2, 0), 1 - u).
@@ -451,16 +461,34 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
   SH_PRECISE vec3 e0 = v1 - v0;
   SH_PRECISE vec3 e1 = v2 - v0;
   SH_PRECISE vec3 e2 = p - v0;
-  SH_PRECISE float d00 = sh_dot(e0, e0);
-  SH_PRECISE float d01 = sh_dot(e0, e1);
-  SH_PRECISE float d11 = sh_dot(e1, e1);
-  SH_PRECISE float d20 = sh_dot(e2, e0);
-  SH_PRECISE float d21 = sh_dot(e2, e1);
-  SH_PRECISE float denom = d00 * d11 - d01 * d01;
+  vec3 n = sh_cross(e0, e1);
+  SH_PRECISE vec3 an = abs(n);
+  // The plane (i, j): drop n's largest axis
+  SH_PRECISE vec2 a = vec2(e0.x, e0.y);
+  SH_PRECISE vec2 b = vec2(e1.x, e1.y);
+  SH_PRECISE vec2 c = vec2(e2.x, e2.y);
+  if (an.x >= an.y && an.x >= an.z) {
+    a = vec2(e0.y, e0.z);
+    b = vec2(e1.y, e1.z);
+    c = vec2(e2.y, e2.z);
+  } else if (an.y >= an.z) {
+    a = vec2(e0.z, e0.x);
+    b = vec2(e1.z, e1.x);
+    c = vec2(e2.z, e2.x);
+  }
+  SH_PRECISE float ab0 = a.x * b.y;
+  SH_PRECISE float ab1 = a.y * b.x;
+  SH_PRECISE float denom = ab0 - ab1;
   if (denom == 0.0f) return vec2(0.0f);
   SH_PRECISE float inv = sh_rcp(denom);
-  SH_PRECISE float w1 = (d11 * d20 - d01 * d21) * inv;
-  SH_PRECISE float w2 = (d00 * d21 - d01 * d20) * inv;
+  SH_PRECISE float cb0 = c.x * b.y;
+  SH_PRECISE float cb1 = c.y * b.x;
+  SH_PRECISE float n1 = cb0 - cb1;
+  SH_PRECISE float ac0 = a.x * c.y;
+  SH_PRECISE float ac1 = a.y * c.x;
+  SH_PRECISE float n2 = ac0 - ac1;
+  SH_PRECISE float w1 = n1 * inv;
+  SH_PRECISE float w2 = n2 * inv;
   return clamp_barycentrics(w1, w2);
 }
 
