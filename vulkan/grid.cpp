@@ -6,6 +6,7 @@
 #include "gridrt/common/util.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstddef>
 #include <cstring>
@@ -40,7 +41,12 @@ template <class T>
 Buffer make_buffer(Context& ctx, const std::vector<T>& data, VkBufferUsageFlags extra_usage = 0) {
   Buffer b = ctx.create_buffer(std::max<size_t>(data.size() * sizeof(T), 16),
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | extra_usage);
-  ctx.upload(b, data.data(), data.size() * sizeof(T));
+  if (data.empty()) {  // zeros, not whatever the memory held: an empty table reads as counts of 0
+    const std::array<uint8_t, 16> zeros{};
+    ctx.upload(b, zeros.data(), zeros.size());
+  } else {
+    ctx.upload(b, data.data(), data.size() * sizeof(T));
+  }
   return b;
 }
 
@@ -724,22 +730,19 @@ void VulkanGridTracer::update_insert(float time) {
 
 void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what) {
   if (ctx.info().driver_id != VK_DRIVER_ID_MESA_LLVMPIPE) return;
-  // The paper traversal's loops (its segments, each cell's slots, the spill lists) as the image
-  // layout's: the cells and the tests counted together (an outside sweep: shadow rays through
-  // 400 cells of 170 references each came back as misses, a wall drawn lit, with exit 0)
-  const bool paper = g.traversal != shared::kTraversalExact;
-  const uint32_t limit = paper || (g.flags & shared::kGridCompact) == 0u ? kLlvmpipeImageTestLimit
-                         : (g.flags & shared::kGridMailbox) != 0u ? kLlvmpipeMailboxTestLimit
-                                                                  : kLlvmpipeTestLimit;
-  uint32_t most = 0;
-  for (const Hit& h : hits) most = std::max(most, paper ? h.tests + h.cells : h.tests);
-  if (most < limit) return;
-  throw Error("vulkan-grid: " + std::string(what) + ": a ray tested " + std::to_string(most) +
-              (paper ? " references and cells" : " references") +
+  uint64_t most = 0;
+  const Hit* worst = nullptr;
+  for (const Hit& h : hits) {
+    const uint64_t e = llvmpipe_loop_estimate(g, h.tests, h.cells);
+    if (e > most) most = e, worst = &h;
+  }
+  if (most < kLlvmpipeLoopBudget) return;
+  throw Error("vulkan-grid: " + std::string(what) + ": a ray made " + std::to_string(worst->tests) +
+              " triangle tests over " + std::to_string(worst->cells) + " cells" +
               "; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, "
-              "which cuts this trace short (refused from " + std::to_string(limit) +
-              "): its hits cannot be trusted (the cells hold too many overlapping triangles: run on a GPU, or "
-              "with --backend cpu)");
+              "which cuts this trace short (refused from an estimated " + std::to_string(kLlvmpipeLoopBudget) +
+              " iterations): its hits cannot be trusted (cells holding too many overlapping triangles, or a ray "
+              "through thousands of cells: run on a GPU, or with --backend cpu)");
 }
 
 void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t explain_index,

@@ -74,17 +74,27 @@ struct GridTimings {
 };
 
 // llvmpipe, Mesa's CPU driver, ends every loop of a shader invocation once its loops have run
-// 65,535 iterations in all (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), and says nothing: the exact
-// traversal's one-loop trace (trace.comp trace_exact_flat, the compact layout) is cut near 4,680
-// reference tests and the ray's record is wrong (measured: N copies of one triangle, N >= 3,000);
-// with the mailbox (its loops count too) near 2,980; the image layout's trace near 64,500.
-// check_loop_limit refuses, on llvmpipe and for the exact traversal, records of kLlvmpipeTestLimit
-// tests or more (kLlvmpipeMailboxTestLimit with the mailbox, kLlvmpipeImageTestLimit on the image
-// layout; a cut record shows the tests it made before the cut, above those) (`what`: the rays, for
-// the message); elsewhere it does nothing (docs/VULKAN.md).
-inline constexpr uint32_t kLlvmpipeTestLimit = 4096;
-inline constexpr uint32_t kLlvmpipeMailboxTestLimit = 2048;
-inline constexpr uint32_t kLlvmpipeImageTestLimit = 32768;
+// 65,535 iterations in all (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), and says nothing. The exact
+// traversal's trace was cut (measured on Mesa 22.3, each alone): the compact layout's one-loop
+// trace (trace.comp trace_exact_flat) near 4,680 reference tests (N copies of one triangle) and
+// near 5,041 cells walked with one test (a ray down a tube of 12,000 empty cells, --skip-empty
+// off, or beside a wall that keeps the skip boxes small); with the mailbox near 2,980 tests and
+// 4,680 cells; the image layout near 64,500 tests, 7,240 with the mailbox. So a ray's loop
+// iterations are about (kLlvmpipeIterationsPerTest of its layout) x tests + 14 x cells, and
+// check_loop_limit refuses, on llvmpipe and for every traversal, a trace where a ray's estimate
+// reaches kLlvmpipeLoopBudget (3/4 of the limit: the per-cell cost was measured on one shape of
+// walk) (`what`: the rays, for the message); elsewhere it does nothing (docs/VULKAN.md). The
+// paper traversal's segments and slots: tests + cells from 32,768 (an outside sweep: shadow rays
+// through 400 cells of 170 references each came back as misses).
+inline constexpr uint64_t kLlvmpipeLoopBudget = 49152;
+inline constexpr uint64_t kLlvmpipeIterationsPerCell = 14;
+// The estimate of a ray's loop iterations the guard compares with kLlvmpipeLoopBudget.
+inline uint64_t llvmpipe_loop_estimate(const shared::GridParams& g, uint32_t tests, uint32_t cells) {
+  if (g.traversal != shared::kTraversalExact) return 2ull * (uint64_t(tests) + cells) * kLlvmpipeLoopBudget / 65536;
+  const bool compact = (g.flags & shared::kGridCompact) != 0u, mailbox = (g.flags & shared::kGridMailbox) != 0u;
+  const uint64_t per_test = compact ? (mailbox ? 22 : 14) : (mailbox ? 10 : 2);
+  return per_test * tests + kLlvmpipeIterationsPerCell * cells;
+}
 // The frame's gather: a screen tile's list of triangles, walked by its fine pass's workgroup (a
 // tile of about 64,000 was cut short); VulkanFrame::render refuses from this many on llvmpipe.
 inline constexpr uint32_t kLlvmpipeTilePairLimit = 16384;
