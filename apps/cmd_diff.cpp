@@ -143,6 +143,11 @@ class DiffRun {
   std::optional<FirstDifference> first_;
   std::vector<std::string> messages_;
   size_t total_rays_ = 0, total_identical_ = 0, total_discrete_ = 0, total_beyond_ = 0;
+  // This frame's grids may differ by design (first-empty insertion with saturated cells: a cell
+  // keeps the references that arrived first; an overflowing spill list: the entries that arrived
+  // first), so may the hits of rays through them: counted and said, not held to bits
+  std::string timing_;
+  size_t total_timing_ = 0;
 };
 
 // Grid images: sorted texel for texel; first-empty per cell as multisets. The compact layout's
@@ -187,6 +192,7 @@ void DiffRun::diff_images(uint32_t frame, float time) {
   std::snprintf(line, sizeof line, "first-empty grid: %zu of %zu cells break the multiset rule (%zu saturated)",
                 c.bad.size(), c.cells, c.saturated);
   std::printf("frame %u: %s\n", frame, line);
+  if (c.saturated > 0) timing_ = "first-empty insertion with saturated cells keeps whichever references arrive first";
   if (c.bad.empty()) return check(name, true, line);
   const size_t i = c.bad.front();
   const glm::uvec3 cell(uint32_t(i % g.cells.x), uint32_t((i / g.cells.x) % g.cells.y),
@@ -209,7 +215,8 @@ void DiffRun::diff_spill(uint32_t frame) {
   const bool same_counts = want.header.count == got.header.count &&
                            want.header.static_count == got.header.static_count &&
                            want.header.capacity == got.header.capacity;
-  const bool ok = same_counts && (!on || !sorted || d.same());
+  // An overflowing list keeps on each side the entries that arrived first: only its counts compare
+  const bool ok = same_counts && (!on || !sorted || d.same() || want.overflow());
   std::string line = std::string("spill list ") + (on ? "on" : "off (counted only)") + ": " +
                      std::to_string(want.header.count) + " references found no slot (" +
                      std::to_string(want.header.static_count) + " static); reference " +
@@ -220,6 +227,8 @@ void DiffRun::diff_spill(uint32_t frame) {
                      : ", entries differ: " + std::to_string(d.only_want.size()) + " only in the reference, " +
                            std::to_string(d.only_got.size()) + " only in vulkan";
   if (want.overflow()) line += " (OVERFLOW: references lost)";
+  if (want.overflow() || got.overflow())
+    timing_ = "the spill list overflowed: each side kept the entries that arrived first";
   std::printf("frame %u: %s\n", frame, line.c_str());
   std::string f;
   std::optional<glm::uvec3> cell;
@@ -294,6 +303,16 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
                 d.rays, d.identical, d.same_discrete - d.identical, d.max_ulps_t, double(max_duv), beyond, o_.ulps_t,
                 double(o_.abs_uv), d.discrete.size());
   std::printf("frame %u: %s\n", frame, line);
+  if (!timing_.empty() && !(d.discrete.empty() && beyond == 0)) {
+    // Not a difference of the port: said, counted, and the verdict left to the other checks
+    total_timing_ += d.discrete.size() + beyond;
+    total_discrete_ -= d.discrete.size();
+    total_beyond_ -= beyond;
+    std::printf("frame %u: those %zu hit records are not held to bits: %s (timing, on either device), so rays "
+                "through those cells may meet other triangles\n",
+                frame, d.discrete.size() + beyond, timing_.c_str());
+    return;
+  }
   const bool ok = d.discrete.empty() && beyond == 0;
   std::string f;
   if (!ok) {
@@ -488,8 +507,14 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   std::printf("frame %u: %s\n", frame, line);
   if (!f.empty()) std::printf("  %s\n", f.c_str());
   if (fr.gather_mode() == vulkan::GatherMode::compute) diff_gather_boxes(frame, gpu_gather);
+  // Grids that differ by design (timing_): the frame's hits through them may differ too
+  const size_t hit_mismatch = bounce.hit_mismatch + shadow.hit_mismatch;
+  if (!timing_.empty() && hit_mismatch > 0) {
+    std::printf("frame %u: those %zu frame hits are not held to bits: %s\n", frame, hit_mismatch, timing_.c_str());
+    total_timing_ += hit_mismatch;
+  }
   check("frame " + std::to_string(frame) + ": GPU frame",
-        gather_mismatch + bounce.ray_mismatch + bounce.hit_mismatch + shadow.ray_mismatch + shadow.hit_mismatch == 0, line,
+        gather_mismatch + bounce.ray_mismatch + shadow.ray_mismatch + (timing_.empty() ? hit_mismatch : 0) == 0, line,
         f);
 }
 
@@ -594,6 +619,7 @@ int DiffRun::run() {
       ref_->update(time);
       gpu_->update(time);
     }
+    timing_.clear();
     diff_images(frame, time);
     diff_spill(frame);
     if (o.gpu_frame) diff_gpu_frame(frame, time);
@@ -615,6 +641,10 @@ int DiffRun::run() {
               "the frames compared; %zu validation message(s)\n",
               same ? "AGREE" : "DIFFER", total_identical_, total_rays_, total_discrete_, total_beyond_,
               messages_.size());
+  if (total_timing_ > 0)
+    std::printf("  and %zu hit records not held to bits (grids that differ by design: first-empty insertion with "
+                "saturated cells, or an overflowing spill list)\n",
+                total_timing_);
   if (first_) {
     std::printf("first difference: frame %u, %s%s%s\n", first_->frame, first_->what.c_str(),
                 first_->cell ? (", scene cell " + cell_text(*first_->cell)).c_str() : "",
@@ -690,6 +720,12 @@ void add_diff_command(CLI::App& app) {
   add_json_option(cmd, o->json_path, "the result");
   cmd->add_option("--junit", o->junit_path, "Also write the result as a JUnit XML report to this file")->type_name("FILE");
   cmd->callback([o, cmd] {
+    // Options that did nothing here, without a word (an outside sweep)
+    if (cmd->get_option("--shadows")->count() > 0 && !o->gpu_frame)
+      throw OptionsError("--shadows switches the GPU frame's shadow pass: it needs --gpu-frame");
+    if (cmd->get_option("--fallback-cpu")->count() > 0)
+      throw OptionsError("--fallback-cpu does not apply to diff: it compares the CPU reference with the Vulkan port, "
+                         "and needs a Vulkan device");
     o->explain_flags = given_grid_flags(cmd);
     const int code = DiffRun(*o).run();
     if (code != 0) throw ExitStatus{code};
