@@ -279,7 +279,24 @@ void validate_lights_and_grid(const Scene& s) {
     throw Error("scene '" + s.name + "': grid resolution must be at least 1 cell per axis");
   if (s.grid.cell_size && !(*s.grid.cell_size > 0.0f && std::isfinite(*s.grid.cell_size)))
     throw Error("scene '" + s.name + "': grid cell size must be a positive finite number");
+  // As the scene file's reader says, for every source (a .gridscene with both had its resolution
+  // dropped without a word: an outside sweep)
+  if (s.grid.resolution && s.grid.cell_size)
+    throw Error("scene '" + s.name + "': the grid gives both a resolution and a cell size, which both size it: one of them");
+  for (const Instance& inst : s.instances)
+    if (!inst.dynamic && inst.motion.moves())
+      throw Error("scene '" + s.name + "', instance '" + inst.name +
+                  "': a motion on a static instance (it would never move): mark it dynamic or leave the motion out");
 }
+
+
+void directions_in_range(Scene& s) {
+  for (Light& l : s.lights)
+    if (l.directional) l.position = direction_in_range(l.position);
+  for (Instance& inst : s.instances) inst.motion.axis = direction_in_range(inst.motion.axis);
+}
+
+}  // namespace
 
 // A direction (a directional light's, a rotation's axis) of any finite length: scaled by a power of
 // two (exact: the same direction, in the same bits but for the exponent) so that its largest
@@ -293,14 +310,6 @@ glm::vec3 direction_in_range(glm::vec3 v) {
   std::frexp(m, &e);  // m = f 2^e, f in [0.5, 1)
   return glm::vec3(std::ldexp(v.x, 1 - e), std::ldexp(v.y, 1 - e), std::ldexp(v.z, 1 - e));
 }
-
-void directions_in_range(Scene& s) {
-  for (Light& l : s.lights)
-    if (l.directional) l.position = direction_in_range(l.position);
-  for (Instance& inst : s.instances) inst.motion.axis = direction_in_range(inst.motion.axis);
-}
-
-}  // namespace
 
 void Scene::finalize() {
   if (materials.empty()) materials.push_back(Material{.name = "default"});

@@ -32,6 +32,11 @@ class Error : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A direction of any finite length scaled by a power of two (exact) so that its largest component
+// lies in [1, 2) where it lies outside [2^-20, 2^20]: normalizing it then neither overflows nor
+// underflows (directional lights, rotation axes). Zero stays zero.
+glm::vec3 direction_in_range(glm::vec3 v);
+
 // Options that contradict one another (the compact layout with the paper traversal, ...): an
 // Error of the caller's request, not of its input; the tool exits 2 for it, as for any bad
 // command line.

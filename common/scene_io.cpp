@@ -172,6 +172,8 @@ class SceneFileReader {
 
   // "${GRIDRT_SCENES}/x" -> real_scenes_dir()/x; relative paths are relative to the scene file.
   std::string resolve(const std::string& p, const std::string& where) const {
+    // A NUL ends the name the system opens but not the one whose extension picks the loader
+    if (p.find('\0') != std::string::npos) fail(where, "a path may not contain a NUL character (\\u0000)");
     static const std::string kVar = "${GRIDRT_SCENES}";
     std::string out = p;
     bool real = false;
@@ -275,7 +277,8 @@ class SceneFileReader {
         expect_object(list[i], w);
         check_keys(list[i], w, {"axis", "degrees"});
         if (!list[i].contains("axis") || !list[i].contains("degrees")) fail(w, "needs \"axis\" and \"degrees\"");
-        const glm::vec3 axis = get_vec3(list[i]["axis"], w + ".axis");
+        // Scaled first, as a motion's axis is (an axis of length 1e30 overflowed the normalization)
+        const glm::vec3 axis = direction_in_range(get_vec3(list[i]["axis"], w + ".axis"));
         if (glm::length(axis) == 0.0f) fail(w + ".axis", "zero axis");
         rotation = glm::rotate(glm::mat4(1.0f), glm::radians(get_number(list[i]["degrees"], w + ".degrees")),
                                glm::normalize(axis)) *

@@ -49,7 +49,11 @@ Bounds instance_animation_bounds(const Scene& scene, const Instance& inst, float
     float r = 0.0f;
     for (const glm::vec3& p : mesh.positions)
       r = std::max(r, glm::length(glm::vec3(inst.transform * glm::vec4(p, 1.0f)) - mo.pivot));
-    r = r * 1.0001f + 1e-6f;
+    // Relative margins: 1e-4 of the radius, and 8 ulps of the coordinates the rotated vertices
+    // round at (an absolute 1e-6 made a scene 2e-9 across a grid 1000 times its size, and the
+    // policy's warning blamed the pivot: an outside sweep)
+    const glm::vec3 ap = glm::abs(mo.pivot);
+    r = r * 1.0001f + (std::max({ap.x, ap.y, ap.z}) + r) * 9.5367431640625e-07f;
     local.grow(mo.pivot - glm::vec3(r));
     local.grow(mo.pivot + glm::vec3(r));
   } else {

@@ -15,6 +15,7 @@
 
 #include "gridrt/common/image_io.h"
 #include "gridrt/common/loaders/loaders.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/scene_io.h"
 #include "gridrt/common/shared/alpha.h"
 #include "gridrt/plan/plan.h"
@@ -398,6 +399,7 @@ TEST_CASE("Binary scene cache round trip gives an identical scene", "[unit][scen
   }
   const fs::path dir = temp_dir();
   Scene a = load_scene(fixture("scene_small.json"));
+  a.grid.resolution.reset();  // the cell size in its place (a scene gives one of them)
   a.grid.cell_size = 0.25f;
   const std::string path = (dir / "small.gridscene").string();
   save_scene_binary(a, path);
@@ -719,4 +721,68 @@ TEST_CASE("Scene file: a rotate array applies its rotations in order, the first 
   // (0, 1, 0): about y unchanged, then about x to (0, 0, 1)
   const glm::vec3 q = glm::vec3(s.instances[0].transform * glm::vec4(0, 1, 0, 1));
   CHECK(q.z == Approx(1).margin(1e-6));
+}
+
+// Outside sweeps' finds: an MTL "Kd 0.5" was read as (0.5, 0, 0), grey drawn red (the format's g
+// and b default to r); glTF node matrices that are not affine passed without a word.
+TEST_CASE("OBJ: a one-number colour is grey - glTF: a node's matrix is affine", "[unit][loaders][badinput]") {
+  const fs::path d = temp_dir();
+  {
+    write_text(d / "kd.mtl", "newmtl grey\nKd 0.5\nnewmtl red\nKd 0.5 0 0\n");
+    Scene s;
+    TextureCache cache;
+    load_obj(write_text(d / "kd.obj", "mtllib kd.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl grey\nf 1 2 3\nusemtl red\nf 1 3 2\n"),
+             s, cache);
+    REQUIRE(s.materials.size() == 2);
+    for (const Material& m : s.materials) {
+      INFO(m.name);
+      CHECK(m.diffuse == (m.name == "grey" ? glm::vec3(0.5f) : glm::vec3(0.5f, 0, 0)));
+    }
+  }
+  const std::string base = gltf_textured(glm::vec2(0.5f), {"{}"}, "", R"({"uri":"none.png"})");
+  const std::string node = R"("nodes":[{"mesh":0}])";
+  REQUIRE(base.find(node) != std::string::npos);
+  for (const auto& [replacement, why] : std::vector<std::pair<std::string, std::string>>{
+           {R"("nodes":[{"mesh":0,"matrix":[1,0,0,0, 0,1,0,0, 0,0,1,0.5, 0,0,0,1]}])", "not 0 0 0 1"}}) {
+    std::string text = base;
+    text.replace(text.find(node), node.size(), replacement);
+    text.replace(text.find(",\"textures\""), std::string(",\"textures\":[{\"source\":0}],\"images\":[{\"uri\":\"none.png\"}]").size(), "");
+    Scene s;
+    TextureCache cache;
+    INFO(replacement);
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "matrix.gltf", text), s, cache), Catch::Contains(why));
+  }
+}
+
+// Outside sweeps' finds, each a silently wrong scene before: a rotation axis of length 1e30 was refused as a
+// non-finite transform (a motion's was accepted); a NUL in a mesh path opened one file and took
+// another's loader; a grid with both sizes, or a static instance with a motion, from a source
+// other than the scene file's reader, dropped one without a word.
+TEST_CASE("Scenes: huge rotation axes, NUL in paths, both grid sizes, a static instance with a motion",
+          "[unit][loaders][badinput]") {
+  const fs::path d = temp_dir();
+  write_text(d / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  {
+    const std::string scene = write_text(
+        d / "axis.json", R"({"meshes":{"t":{"file":"tri.obj"}},"instances":[{"mesh":"t","rotate":{"axis":[1e30,1e30,0],"degrees":90}}]})");
+    const Scene s = load_scene(scene);
+    const glm::vec4 p = s.instances[0].transform * glm::vec4(0, 0, 1, 1);  // about (1, 1, 0) / sqrt 2: z to k x z
+    CHECK(std::abs(p.x - 0.7071f) < 1e-4f);
+    CHECK(std::abs(p.y + 0.7071f) < 1e-4f);
+  }
+  {
+    const std::string nul = std::string(R"({"meshes":{"t":{"file":"tri.obj)") + "\\u0000" + R"(.gltf"}},"instances":[{"mesh":"t"}]})";
+    CHECK_THROWS_WITH(load_scene(write_text(d / "nul.json", nul)), Catch::Contains("NUL"));
+  }
+  {
+    Scene s = load_scene(write_text(d / "plain.json", R"({"meshes":{"t":{"file":"tri.obj"}},"instances":[{"mesh":"t"}]})"));
+    Scene both = s;
+    both.grid.resolution = glm::uvec3(4);
+    both.grid.cell_size = 0.5f;
+    CHECK_THROWS_WITH(both.finalize(), Catch::Contains("both a resolution and a cell size"));
+    Scene moving = s;
+    moving.instances[0].dynamic = false;
+    moving.instances[0].motion.angular_speed = 1.0f;
+    CHECK_THROWS_WITH(moving.finalize(), Catch::Contains("a motion on a static instance"));
+  }
 }

@@ -201,8 +201,15 @@ glm::vec2 gltf_uv(glm::vec2 uv) {
 // A node's local transform: its matrix, else T * R * S. The rotation must be a unit quaternion
 // (glTF 2.0, node.rotation): one within 1e-3 of unit length (an exporter's rounding) is normalized,
 // any other refused (as is a non-finite one), where glm would scale the model by its squared length.
+// A matrix must be an affine transform (its last row 0 0 0 1): another is an error naming the node
+// (it passed without a word: an outside sweep). With a matrix, TinyGLTF reads no translation,
+// rotation or scale (glTF 2.0 allows one or the other).
 glm::mat4 local_matrix(const Ctx& c, int ni, const tinygltf::Node& n) {
+  if (!n.matrix.empty() && n.matrix.size() != 16)
+    c.fail("node " + std::to_string(ni) + ": a matrix has 16 numbers, not " + std::to_string(n.matrix.size()));
   if (n.matrix.size() == 16) {
+    if (n.matrix[3] != 0.0 || n.matrix[7] != 0.0 || n.matrix[11] != 0.0 || n.matrix[15] != 1.0)
+      c.fail("node " + std::to_string(ni) + ": the matrix's last row is not 0 0 0 1 (not an affine transform)");
     glm::mat4 m;
     for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = float(n.matrix[size_t(i)]);
     return m;
@@ -588,6 +595,19 @@ std::vector<Instance> node_instances(const Ctx& c, const Scene& scene, uint32_t 
     const glm::mat4 world = parent * local_matrix(c, ni, node);
     if (node.mesh >= 0) {
       if (size_t(node.mesh) >= c.model.meshes.size()) c.fail("node " + std::to_string(ni) + ": mesh " + std::to_string(node.mesh) + " does not exist");
+      // Skins and morph targets are not applied: said, not drawn in another pose silently
+      if (node.skin >= 0)
+        std::cerr << "warning: " << c.path << ": node " << ni << " is skinned (skin " << node.skin
+                  << "): drawn as its mesh at the node's transform, not posed by its joints (skins are not supported)\n";
+      const tinygltf::Mesh& gm = c.model.meshes[size_t(node.mesh)];
+      bool morphs = false;
+      for (const auto& p : gm.primitives) morphs = morphs || !p.targets.empty();
+      const std::vector<double>& w = node.weights.empty() ? gm.weights : node.weights;
+      bool weighted = false;
+      for (double x : w) weighted = weighted || x != 0.0;
+      if (morphs && weighted)
+        std::cerr << "warning: " << c.path << ": node " << ni << ": mesh " << node.mesh
+                  << " has morph targets with non-zero weights: drawn without them (morph targets are not supported)\n";
       Instance inst;
       inst.name = node.name.empty() ? "node" + std::to_string(ni) : node.name;
       inst.mesh = mesh_base + uint32_t(node.mesh);

@@ -191,7 +191,9 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
 // numbers and -mm two, where the MTL format lets the later ones be left out (-s u [v [w]]). So
 // "map_Kd -s 2 2 t.png" lost its file name to the third number, and the texture was dropped
 // without a word. Such a line is written out with the defaults the format gives (-o and -t: 0,
-// -s: 1, -mm's gain: 1); every other line is kept as it is.
+// -s: 1, -mm's gain: 1). A colour statement (Kd, Ka, Ks, Ke, Tf) with one number is written
+// with it three times, as the format says (tinyobjloader read "Kd 0.5" as (0.5, 0, 0): grey drawn
+// red, found by an outside sweep). Every other line is kept as it is.
 std::string pad_texture_options(const std::string& path, const std::string& text) {
   std::string out;
   out.reserve(text.size());
@@ -212,6 +214,13 @@ std::string pad_texture_options(const std::string& path, const std::string& text
                                     tok[0] == "decal" || tok[0] == "refl");
     std::string rewritten;
     bool padded = false;
+    // A colour with one number: the MTL format's g and b default to r (tinyobjloader reads 0)
+    const bool colour = tok.size() == 2 && (tok[0] == "Kd" || tok[0] == "Ka" || tok[0] == "Ks" || tok[0] == "Ke" ||
+                                            tok[0] == "Tf");
+    if (colour) {
+      rewritten = std::string(tok[0]) + " " + std::string(tok[1]) + " " + std::string(tok[1]) + " " + std::string(tok[1]);
+      padded = true;
+    }
     for (size_t i = 0; texture && i < tok.size(); ++i) {
       rewritten += (i ? " " : "") + std::string(tok[i]);
       const std::string_view o = tok[i];
