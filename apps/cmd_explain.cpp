@@ -378,7 +378,7 @@ nlohmann::json item_json(const Item& it, const reference::ExplainRecord& want,
 void print_item(const Item& it, size_t i, size_t count, const reference::ExplainRecord& want,
                 const std::optional<reference::ExplainRecord>& got, const std::string& device,
                 const plan::ExplainFormat& fmt) {
-  if (count > 1) std::printf("%s== ray %zu of %zu ==\n", i ? "\n" : "", i + 1, count);
+  if (count > 1) std::printf("%s== ray %zu (%zu of %zu) ==\n", i ? "\n" : "", i, i + 1, count);  // numbered from 0, as its label and files
   for (const std::string& h : it.header) std::printf("%s\n", h.c_str());
   std::printf("\n== CPU reference ==\n%s", plan::explain_text(want, fmt).c_str());
   if (got) {
@@ -398,6 +398,9 @@ void write_pictures(const ExplainOptions& o, size_t i, size_t count, const refer
   if (!o.obj.empty()) {
     const std::string path = numbered(o.obj, i, count);
     const std::filesystem::path mtl = std::filesystem::path(path).replace_extension(".mtl");
+    // Both checked before either is written: a refused OBJ left its .mtl replaced (an outside sweep)
+    check_output_allowed(path, "OBJ");
+    if (!o.svg.empty()) check_output_allowed(numbered(o.svg, i, count), "SVG");
     write_file_atomically(mtl.string(), "OBJ materials", reference::explain_mtl());
     write_file_atomically(path, "OBJ", reference::explain_obj(want, data, mtl.filename().string()));
     written.push_back(path + " (and " + mtl.string() + ")");
@@ -530,6 +533,14 @@ void add_explain_command(CLI::App& app) {
       throw CLI::ValidationError("explain", "--kind, --primary, --light and --gpu-frame go with --pixel");
     if (o->light && o->kind != "shadow")
       throw CLI::ValidationError("explain", "--light picks the shadow ray of one light: it goes with --kind shadow");
+    // Options that did nothing here, without a word (an outside sweep)
+    if (cmd->get_option("--fallback-cpu")->count() > 0)
+      throw CLI::ValidationError("--fallback-cpu", "does not apply to explain (--backend vulkan shows the shader's own "
+                                                   "record beside the reference's, and needs a Vulkan device)");
+    if (!o->rays.empty() || !o->ray_file.empty())
+      for (const char* name : {"--width", "--height", "--frame"})
+        if (cmd->get_option(name)->count() > 0)
+          throw CLI::ValidationError(name, "goes with --pixel (a given ray is traced as it is)");
     const auto lower_extension = [](const std::string& path) {
       std::string e = std::filesystem::path(path).extension().string();
       for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));

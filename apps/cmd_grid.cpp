@@ -205,16 +205,25 @@ void add_grid_commands(CLI::App& app) {
                   "Also build every candidate and trace the frame's glossy bounce rays (--width x --height gather "
                   "buffer; camera rays on a scene without glossy materials, as the trace-cost policy samples) "
                   "through it: measured cells and tests per ray and trace time beside the estimates");
-    cmd->add_option("--repeat", o->repeat, "--measure: trace this many times (median)")->check(CLI::Range(1u, 100u));
+    auto* repeat_opt =
+        cmd->add_option("--repeat", o->repeat, "--measure: trace this many times (median)")->check(CLI::Range(1u, 100u));
     cmd->add_option("--slices", o->slices,
                     "Also draw the grid slice by slice into this folder (occupancy.png: references per cell, "
                     "saturated cells, with a legend)");
-    add_choice(cmd, "--slice-axis", o->slice_axis, {"x", "y", "z"}, "--slices: the axis the slices are cut along");
+    auto* axis_opt =
+        add_choice(cmd, "--slice-axis", o->slice_axis, {"x", "y", "z"}, "--slices: the axis the slices are cut along");
     cmd->add_option("--pixel,-p,--ray-pixel", o->ray_pixel,
                     "--slices: also draw the camera ray of pixel X,Y (of --width x --height): the cells its traversal "
                     "visits and its samples")
         ->delimiter(',')->expected(2)->type_name("X,Y");
-    cmd->callback([o] { run_stats(*o); });
+    cmd->callback([o, repeat_opt, axis_opt] {
+      // Each did nothing without its verb's option, without a word (an outside sweep)
+      if (repeat_opt->count() > 0 && !o->measure)
+        throw OptionsError("--repeat times --measure's traces: give --measure, or leave --repeat out");
+      if (axis_opt->count() > 0 && o->slices.empty())
+        throw OptionsError("--slice-axis cuts --slices' pictures: give --slices FOLDER too");
+      run_stats(*o);
+    });
   }
 }
 

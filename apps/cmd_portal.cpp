@@ -62,8 +62,17 @@ void add_mip_options(CLI::App* cmd, uint32_t& levels, float& distance) {
       ->check(CLI::Range(1u, shared::kPortalMaxLevels));
   cmd->add_option("--mip-distance", distance,
                   "Mip-mapped space: a ray moves to level l at distance mip-distance * 2^l voxels from its origin "
-                  "(default: where one pixel spans one voxel)")
-      ->check(CLI::Range(0.0f, 1e9f));
+                  "(default: where one pixel spans one voxel); needs --mip-levels 2 or more")
+      ->check(CLI::Range(0.0f, 1e9f))
+      ->check([](const std::string& v) {  // 0 is the "not given" of the default, not a distance
+        return std::strtod(v.c_str(), nullptr) > 0.0 ? std::string() : std::string("must be above 0");
+      });
+}
+
+// --mip-distance without coarse levels has nothing to move to (it was ignored without a word).
+void check_mip_distance(uint32_t levels, float distance) {
+  if (distance != 0.0f && levels < 2)
+    throw CLI::ValidationError("--mip-distance", "needs --mip-levels 2 or more (without coarse levels it does nothing)");
 }
 
 // A world from a tile map (.map), the built-in level (empty or builtin:level), a generated level
@@ -225,7 +234,7 @@ void run_portal_render(const PortalRenderOptions& o) {
       differ += std::memcmp(&rgb[i], &full_rgb[i], sizeof(glm::vec3)) != 0;
     }
     const double rmse = std::sqrt(se / (3.0 * double(rgb.size())));
-    std::printf("mip %u levels, distance %.1f voxels, against full resolution: RMSE %.4f, PSNR %.2f dB, %zu of %zu pixels "
+    std::printf("mip %u levels, distance %.4g voxels, against full resolution: RMSE %.4f, PSNR %.2f dB, %zu of %zu pixels "
                 "differ; steps per primary ray %.3f (full %.3f), per shadow ray %.3f (full %.3f); render %.3f s (full %.3f s)\n",
                 o.mip_levels, double(options.mip_distance), rmse, rmse > 0 ? 20.0 * std::log10(1.0 / rmse) : INFINITY,
                 differ, rgb.size(), double(stats.primary_steps) / double(stats.primary_rays),
@@ -522,6 +531,7 @@ void add_portal_command(CLI::App& app) {
         throw CLI::ValidationError("--flat-compare", "renders both the instanced and the flattened world: leave out --flatten");
       if (o->mip_compare && o->mip_levels < 2)
         throw CLI::ValidationError("--mip-compare", "needs --mip-levels 2 or more");
+      check_mip_distance(o->mip_levels, o->mip_distance);
       o->view == "shaded" ? run_portal_render(*o) : run_portal_view(*o);
     });
   }
@@ -546,6 +556,7 @@ void add_portal_command(CLI::App& app) {
                     "Tracer: " + portal_backends() + " (portal-vulkan: the shader's own record beside the reference's)");
     cmd->callback([=] {
       check_portal_backend(*backend);
+      check_mip_distance(*mip_levels, *mip_distance);
       check_frame_size(*width, *height);
       const uint32_t w = *width, h = *height, x = (*pixel)[0], y = (*pixel)[1];
       if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
@@ -619,7 +630,10 @@ void add_portal_command(CLI::App& app) {
         ->check(CLI::Range(0.0f, 1.0f));
     cmd->add_option("--pixels", o->pixels, "Allow this fraction of the render's pixels to differ in bits (default 0)")
         ->check(CLI::Range(0.0, 1.0));
-    cmd->callback([o] { run_portal_diff(*o); });
+    cmd->callback([o] {
+      check_mip_distance(o->mip_levels, o->mip_distance);
+      run_portal_diff(*o);
+    });
   }
 #endif
 }

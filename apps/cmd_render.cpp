@@ -1,5 +1,6 @@
 // gridrt render: a frame (or an animation) of a scene through one backend: primary rays into a
 // gather buffer, one glossy bounce off it, simple shading, an image file.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -100,6 +101,12 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
                                                " from --time " + std::to_string(o.time) +
                                                " pass 1e6 s, the scene time's limit");
   require_distinct_frame_times(o.time, 0, o.frames, o.fps, "--fps");
+  // Options that did nothing in the combination given, without a word (an outside sweep)
+  const auto has = [&](const char* name) { return std::find(given.begin(), given.end(), name) != given.end(); };
+  if (has("--fps") && o.frames <= 1)
+    throw OptionsError("--fps spaces the frames of --frames: give --frames 2 or more, or leave --fps out");
+  if (has("--vk-build") && o.backend != "vulkan")
+    throw OptionsError("--vk-build chooses the Vulkan grid's build: it needs --backend vulkan");
   if (o.view == "shaded" && scale_given)
     throw CLI::ValidationError("--scale", "sizes a --view figure: add --view, or leave --scale out");
   if (o.view == "shaded" && rays_given)

@@ -632,6 +632,8 @@ void run_sweep(const SweepOptions& o) {
            << " hardware threads. agree = same triangle or both miss; ties = differing rays whose t is within "
            << kTieUlps << " ulps of Embree's; dt = |t - t_embree| over same-triangle hits; times: medians, host clock.";
     std::printf("%s\n", header.str().c_str());
+    // The three files checked before any is written: a refused plot left the tables replaced
+    for (const char* ext : {".csv", ".md", ".png"}) check_output_allowed(o.out + "/" + stem + ext, "sweep output");
     write_outputs(o.out, stem, scene.name, rows, header.str());
     plot_agreement(o.out + "/" + stem + ".png", scene.name, rows);
   }

@@ -120,6 +120,17 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
   const sh::GridParams& g = grid.params;
   const SliceLayout l(g, axis, ray != nullptr);
   const char names[3] = {'x', 'y', 'z'};
+  // The sheet's pixels count against --max-pixels before anything is drawn (a 4096x4096x2 grid
+  // made a figure of 138 Mpixel, 6 GB: an outside sweep)
+  {
+    const uint64_t w = uint64_t(l.pad) + uint64_t(l.cols) * uint64_t(l.pw + l.gap) + 600;
+    const uint64_t h = uint64_t(l.title_h) + uint64_t(l.rows) * uint64_t(l.ph + l.gap + l.label_h) + uint64_t(l.pad);
+    if (w * h > frame_limits().max_pixels)
+      throw Error("--slices: the figure of " + std::to_string(l.ns) + " slices of " + std::to_string(l.nu) + "x" +
+                  std::to_string(l.nv) + " cells would be about " + std::to_string(w) + " x " + std::to_string(h) +
+                  " pixels, more than the limit of " + std::to_string(frame_limits().max_pixels) +
+                  " (--max-pixels): cut along another --slice-axis, or give a coarser grid");
+  }
   const SlicePanels panels = colour_cells(grid, l);
 
   // The sheet: a title, a panel per slice, the colour bar and the legend

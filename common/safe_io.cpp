@@ -509,6 +509,10 @@ void refuse_input_target(const OutputTarget& t, const std::string& path, const s
 }
 }  // namespace
 
+void check_output_allowed(const std::string& path, const std::string& what) {
+  refuse_input_target(resolve_output(path, what), path, what);
+}
+
 void write_file_atomically(const std::string& path, const std::string& what, std::string_view bytes,
                            const std::function<void(const std::string& tmp)>& verify) {
   const OutputTarget t = resolve_output(path, what);

@@ -86,6 +86,11 @@ uint64_t checked_mul(uint64_t a, uint64_t b, const std::string& what);
 // output that would replace one of them (however its path is spelled: the same device and inode).
 // The tool turns it on; a library's caller may.
 void guard_inputs(bool on);
+// Refuses now (throws Error, as write_file_atomically would) an output `path` that would replace an
+// input this run read (guard_inputs), or that cannot be named as an output: for a verb that writes
+// several files, every one is checked before the first is written, so that a refused one leaves the
+// others as they were.
+void check_output_allowed(const std::string& path, const std::string& what);
 
 // Whether two paths name one file: the same file where both exist (links followed, however
 // spelled), else the same absolute path once "." and ".." and the links of its existing part are

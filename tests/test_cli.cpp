@@ -544,3 +544,67 @@ TEST_CASE("Outside sweep: the grid's overrides - the command line over the file,
   CHECK(cli.exit_code == 2);
   CHECK_THAT(cli.output, Catch::Contains("--resolution and --cell-size"));
 }
+
+// An outside sweep's finds: options that did nothing in the combination given, with exit 0. Each
+// is now refused as a bad command line, before any work.
+TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "[cli]") {
+  const fs::path dir = scratch("ignored");
+  fs::create_directories(dir);
+  const std::string out = " -o " + (dir / "x.png").string();
+  for (const std::string args :
+       {"render builtin:cornell --width 8 --height 8 --fps 10" + out,
+        "render builtin:cornell --width 8 --height 8 --vk-build compute" + out, std::string("stats builtin:cornell --repeat 3"),
+        std::string("stats builtin:cornell --slice-axis y"),
+        std::string("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --width 10"),
+        std::string("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --frame 3"),
+        "portal render builtin:level --width 16 --height 8 --mip-levels 3 --mip-distance 0" + out,
+        "portal render builtin:level --width 16 --height 8 --mip-distance 4" + out}) {
+    const Run r = run_tool(args);
+    INFO(args << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, !Catch::Contains("not expected") && !Catch::Contains("were not expected"));
+  }
+  // Without the option that would do nothing, each runs
+  CHECK(run_tool("render builtin:cornell --width 8 --height 8 --frames 2 --fps 10" + out).exit_code == 0);
+  CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --brief").exit_code == 0);
+}
+
+// Outside sweeps' finds: a block map with an empty block exported a scene no verb could load (its
+// block's OBJ had no faces); a refused output of portal export left its .mtl replaced; the stats
+// --slices figure was bounded by nothing (138 Mpixel, 6 GB for a 4096x4096x2 grid).
+TEST_CASE("Outside sweep: portal export leaves out empty blocks, the slices figure counts against --max-pixels",
+          "[cli][portal]") {
+  const fs::path d = scratch("export-empty");
+  fs::create_directories(d);
+  {
+    std::ofstream m(d / "air.map");
+    m << "scale 2\nblock air\nend\nblock solid\nbox 0 0 0 2 2 2 1\nend\ntile a air\ntile s solid\nsize 5 5 1\nmap\n"
+         "11111\n1E.a1\n1...1\n1s.L1\n11111\n";
+  }
+  const Run e = run_tool("portal export " + (d / "air.map").string() + " -o " + (d / "air.json").string());
+  INFO(e.output);
+  REQUIRE(e.exit_code == 0);
+  CHECK_FALSE(fs::exists(d / "air_block_air.obj"));
+  const Run r = run_tool("render " + (d / "air.json").string() + " --width 16 --height 8 -o " + (d / "air.png").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 0);
+  // A folder in the way of one output: refused before the .mtl is replaced
+  {
+    std::ofstream keep(d / "y.mtl");
+    keep << "keep\n";
+  }
+  fs::create_directories(d / "y_tiles.obj");
+  const Run y = run_tool("portal export " + (d / "air.map").string() + " -o " + (d / "y.json").string());
+  INFO(y.output);
+  CHECK(y.exit_code == 1);
+  std::ifstream kept(d / "y.mtl");
+  std::string line;
+  std::getline(kept, line);
+  CHECK(line == "keep");
+  // The slices figure: refused past --max-pixels, named
+  const Run s = run_tool("--max-pixels 100000 stats builtin:cornell --resolution 64,64,4 --slices " + d.string());
+  INFO(s.output);
+  CHECK(s.exit_code == 1);
+  CHECK_THAT(s.output, Catch::Contains("--max-pixels"));
+  CHECK(run_tool("stats builtin:cornell --resolution 64,64,4 --slices " + d.string()).exit_code == 0);
+}

@@ -305,7 +305,7 @@ TEST_CASE("Explain: the command line - any ray, ray files, kinds, brief, JSON, p
   INFO(j.output);
   REQUIRE(j.exit_code == 0);
   // --json FILE as on every verb: the JSON in the file, the text report still on stdout
-  CHECK_THAT(j.output, Catch::Contains("== ray 3 of 3 ==") && Catch::Contains("wrote " + json.string()));
+  CHECK_THAT(j.output, Catch::Contains("== ray 2 (3 of 3) ==") && Catch::Contains("wrote " + json.string()));
   const nlohmann::json doc = nlohmann::json::parse(slurp(json));
   REQUIRE(doc["rays"].size() == 3);
   CHECK(doc["rays"][0]["reference"]["events"].size() > 2);

@@ -785,6 +785,19 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
   const fs::path dir = jp.parent_path().empty() ? fs::path(".") : jp.parent_path();
   const World& w = iw.top;
   const std::string mtl = stem + ".mtl";
+  // Every file it writes is named before any is written: a folder in the way of one of them is
+  // refused before the others replace anything (the .mtl was written first: an outside sweep)
+  {
+    std::vector<std::string> outputs = {mtl, stem + (flat ? "_flat.obj" : "_tiles.obj"), jp.filename().string()};
+    if (!flat)
+      for (const Block& bl : iw.blocks) outputs.push_back(stem + "_block_" + bl.name + ".obj");
+    for (const std::string& o : outputs) {
+      std::error_code ec;
+      if (fs::is_directory(dir / o, ec))
+        throw Error("portal export: cannot write '" + (dir / o).string() + "': it is a folder");
+      check_output_allowed((dir / o).string(), "portal export file");
+    }
+  }
   {
     std::ostringstream f;
     for (size_t m = 0; m < w.materials.size(); ++m)
@@ -792,7 +805,7 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
         << w.materials[m].color.z << "\n";
     write_file_atomically((dir / mtl).string(), "portal export materials", f.str());
   }
-  std::string meshes, instances;
+  std::vector<std::string> meshes, instances;  // the scene's entries, joined by ", " below
   size_t triangles = 0;
   auto count = [&](const std::map<uint32_t, std::vector<glm::vec3>>& q) {
     for (const auto& [m, v] : q) triangles += v.size() / 2;
@@ -802,19 +815,23 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
     std::map<uint32_t, std::vector<glm::vec3>> q;
     grid_faces(glm::ivec3(fw.dims), fw.voxel_size, fw.origin, false, [&](glm::ivec3 v) { return fw.solid(v); },
                [&](glm::ivec3 v) { return uint32_t(fw.at(v)); }, q);
-    write_obj((dir / (stem + "_flat.obj")).string(), mtl, q);
-    count(q);
-    meshes = "\"world\": {\"file\": \"" + stem + "_flat.obj\"}";
-    instances = "{\"name\": \"world\", \"mesh\": \"world\"}";
+    if (!q.empty()) {
+      write_obj((dir / (stem + "_flat.obj")).string(), mtl, q);
+      count(q);
+      meshes.push_back("\"world\": {\"file\": \"" + stem + "_flat.obj\"}");
+      instances.push_back("{\"name\": \"world\", \"mesh\": \"world\"}");
+    }
   } else {
     // The plain tiles once; each block once, placed by one instance per instance tile.
     auto plain = [&](glm::ivec3 v) { return w.solid(v) && w.at(v) < iw.instance_base; };
     std::map<uint32_t, std::vector<glm::vec3>> q;
     grid_faces(glm::ivec3(w.dims), w.voxel_size, w.origin, false, plain, [&](glm::ivec3 v) { return uint32_t(w.at(v)); }, q);
-    write_obj((dir / (stem + "_tiles.obj")).string(), mtl, q);
-    count(q);
-    meshes = "\"tiles\": {\"file\": \"" + stem + "_tiles.obj\"}";
-    instances = "{\"name\": \"tiles\", \"mesh\": \"tiles\"}";
+    if (!q.empty()) {  // a file without faces is no model (the OBJ loader refuses it)
+      write_obj((dir / (stem + "_tiles.obj")).string(), mtl, q);
+      count(q);
+      meshes.push_back("\"tiles\": {\"file\": \"" + stem + "_tiles.obj\"}");
+      instances.push_back("{\"name\": \"tiles\", \"mesh\": \"tiles\"}");
+    }
     const int S = int(iw.scale);
     for (size_t b = 0; b < iw.blocks.size(); ++b) {
       const Block& bl = iw.blocks[b];
@@ -822,28 +839,36 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
       std::map<uint32_t, std::vector<glm::vec3>> bq;
       grid_faces(glm::ivec3(S), w.voxel_size / float(S), glm::vec3(0.0f), true,
                  [&](glm::ivec3 v) { return at(v) != kEmpty; }, [&](glm::ivec3 v) { return uint32_t(at(v)); }, bq);
+      if (bq.empty()) continue;  // an empty block draws nothing: no file, no instances
       const std::string file = stem + "_block_" + bl.name + ".obj";
       write_obj((dir / file).string(), mtl, bq);
-      meshes += ", " + json_string("block " + bl.name) + ": {\"file\": " + json_string(file) + "}";
+      meshes.push_back(json_string("block " + bl.name) + ": {\"file\": " + json_string(file) + "}");
       size_t placed = 0;
       for (uint32_t z = 0; z < w.dims.z; ++z)
         for (uint32_t y = 0; y < w.dims.y; ++y)
           for (uint32_t x = 0; x < w.dims.x; ++x)
             if (w.at(glm::ivec3(x, y, z)) == iw.instance_base + b) {
-              instances += ", {\"name\": " +
-                           json_string(bl.name + " " + std::to_string(x) + "," + std::to_string(y) + "," + std::to_string(z)) +
-                           ", \"mesh\": " + json_string("block " + bl.name) + ", \"translate\": " +
-                           json_vec(w.origin + glm::vec3(x, y, z) * w.voxel_size) + "}";
+              instances.push_back("{\"name\": " +
+                                  json_string(bl.name + " " + std::to_string(x) + "," + std::to_string(y) + "," +
+                                              std::to_string(z)) +
+                                  ", \"mesh\": " + json_string("block " + bl.name) + ", \"translate\": " +
+                                  json_vec(w.origin + glm::vec3(x, y, z) * w.voxel_size) + "}");
               ++placed;
             }
       for (const auto& [m, v] : bq) triangles += placed * (v.size() / 2);
     }
   }
+  if (instances.empty()) throw Error("portal export: the world has no faces to export (every voxel empty)");
+  const auto join = [](const std::vector<std::string>& v) {
+    std::string out;
+    for (size_t i = 0; i < v.size(); ++i) out += (i ? ", " : "") + v[i];
+    return out;
+  };
   std::ostringstream f;
   f << "{\n  \"name\": " << json_string(w.name + (flat ? " (flattened)" : "")) << ",\n"
     << "  \"description\": \"gridrt portal export of a block map: the voxel faces as triangles"
     << (flat ? ", one mesh" : ", each block one mesh placed by instances") << "\",\n"
-    << "  \"meshes\": {" << meshes << "},\n  \"instances\": [" << instances << "],\n"
+    << "  \"meshes\": {" << join(meshes) << "},\n  \"instances\": [" << join(instances) << "],\n"
     << "  \"camera\": {\"eye\": " << json_vec(w.camera.eye) << ", \"target\": " << json_vec(w.camera.target)
     << ", \"up\": " << json_vec(w.camera.up) << ", \"vfov\": " << w.camera.vfov_degrees << "},\n  \"lights\": [";
   for (size_t i = 0; i < w.lights.size(); ++i)
