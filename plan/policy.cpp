@@ -84,15 +84,6 @@ class SampleCaster : public Tracer {
   }
 
   const std::array<vec3, 3>& triangle(uint32_t instance, uint32_t t) const { return tris_[offset_[instance] + t]; }
-  // The surface rule's cap from the ray's launch triangle, as the tracers make it
-  float launch_cap(const Ray& ray) const {
-    const uint32_t i = ref_instance(ray.launch_ref), t = ref_triangle(ray.launch_ref);
-    if (ray.launch_ref == kNoRef || i >= offset_.size()) return sh_infinity();
-    const size_t end = i + 1 < offset_.size() ? offset_[i + 1] : tris_.size();
-    if (offset_[i] + t >= end) return sh_infinity();
-    const std::array<vec3, 3>& l = tris_[offset_[i] + t];
-    return surface_rule_launch_cap(ray.org, l[0], l[1], l[2]);
-  }
 
   void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
     run_invocations(uint32_t(rays.size()), thread_count(o_), std::nullopt,
@@ -127,8 +118,6 @@ class SampleCaster : public Tracer {
     DdaWalk w = dda_walk_begin(g_, ray.org, ray.dir, rs.t_start);
     float best = sh_infinity();
     uint best_ref = kBlank;
-    const float stol = ray.launch_ref != kNoRef ? surface_rule_tol(ray.org) : -1.0f;  // the surface rule
-    const float cap = launch_cap(ray);
     for (uint k = 0u; k < g_.max_segments; ++k) {
       dda_walk_exits(g_, ray.org, ray.dir, inv, 0u, w);
       const float t_exit = w.t_exit;
@@ -139,7 +128,8 @@ class SampleCaster : public Tracer {
         const uint32_t i = ref_instance(ref), t = ref_triangle(ref);
         const std::array<vec3, 3>& v = tris_[offset_[i] + t];
         TriangleTest r;
-        if (triangle_test(g_.triangle_test, ray.org, ray.dir, v[0], v[1], v[2], rs.t_lo, ray.tmax, best, stol, cap, r) !=
+        const float stol = ray.launch_ref != kNoRef ? surface_rule_tol(ray.org) : -1.0f;  // the surface rule
+        if (triangle_test(g_.triangle_test, ray.org, ray.dir, v[0], v[1], v[2], rs.t_lo, ray.tmax, best, stol, r) !=
             kTestAccepted)
           continue;
         const float th = moller_trumbore_t(r);

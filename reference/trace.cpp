@@ -33,21 +33,9 @@ struct TraceState {
   uint mode;        // kTraceClosestHit or kTraceAnyHit
   WatertightRay wray;  // the watertight test's per-ray part (triangle_test_code)
   float surface_tol;   // the surface rule's tolerance (a ray launched from a surface), else -1
-  float launch_cap;    // the surface rule's cap on a face's term (surface_rule_launch_cap)
   uint box_mask;       // the dynamic boxes the walk can reach (skip_box_reached), bit b for box b
   ExplainRecord* ex;
 };
-
-// The surface rule's cap on a face's term, from the launch triangle's world-space vertices
-// (surface_rule_launch_cap); infinity where the ray has no launch triangle or its reference names
-// none of the scene's (a ray file's).
-float launch_cap_of(const GridData& grid, uint launch_ref, vec3 org) {
-  if (launch_ref == kNoRef || ref_instance(launch_ref) >= grid.instances.size()) return sh_infinity();
-  const GridInstance inst = grid.instances[ref_instance(launch_ref)];
-  if (ref_triangle(launch_ref) >= inst.tri_count) return sh_infinity();
-  const GridTriangle l = grid.triangles[inst.tri_offset + ref_triangle(launch_ref)];
-  return surface_rule_launch_cap(org, l.v0, l.v1, l.v2);
-}
 
 // Any hit (kTraceAnyHit): a candidate is accepted, so the trace stops reading references.
 bool found_any(const TraceState& st) { return st.mode == kTraceAnyHit && st.has_best; }
@@ -81,9 +69,9 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   // events to record, its code alone where its first rejections decide it (triangle_test_code)
   TriangleTest r{};
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, st.launch_cap, r)
+  uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, r)
                     : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
-                                                  best, st.surface_tol, st.launch_cap, r);
+                                                  best, st.surface_tol, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -94,7 +82,7 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
     // The surface rule: a ray launched from a surface hits no face whose plane passes through its
     // origin (within 8 ulps); the watertight test decided it above, from its own plane values
     if (code == kTestAccepted && g.triangle_test != kTriangleWatertight && st.launch_ref != kNoRef &&
-        origin_on_plane(st.org, st.launch_cap, tri.v0, tri.v1, tri.v2))
+        origin_on_plane(st.org, tri.v0, tri.v1, tri.v2))
       code = kTestOriginPlane;
     // Alpha keying: the mask texel under the interpolated uv
     if (code == kTestAccepted && (g.flags & kGridAlphaKeying) != 0u && (inst.flags & kInstanceAlphaKeyed) != 0u) {
@@ -442,7 +430,6 @@ Hit scene_trace(const GridData& grid, const Ray& ray, ExplainRecord* explain, ui
   // The surface rule's tolerance (a ray launched from a surface), else none: from the origin the
   // trace tests from (moved, for a far origin)
   st.surface_tol = st.launch_ref != kNoRef ? surface_rule_tol(st.org) : -1.0f;
-  st.launch_cap = launch_cap_of(grid, st.launch_ref, st.org);
   // Per-ray setup: segment length, the grid box
   const bool meets = ray_setup(g, st.org, st.dir, st.tmin, st.tmax, st.rs);
   emit(st, kEvSetup, g.traversal, kBlank, 0u, uvec3(0u), meets ? 1u : 0u,

@@ -86,29 +86,24 @@ TEST_CASE("triangle_test_code gives triangle_test's code on every case and its r
           "[unit][triangle]") {
   const std::vector<Case> cases = corpus();
   for (uint32_t which : {sh::kTriangleMoller, sh::kTriangleWatertight})
-  for (const int rule : {0, 1, 2}) {
-    // 0: no surface rule; 1: the rule with no launch triangle's cap (the face term whole); 2: a
-    // cap of 0 (a launch triangle at the origin: the origin's term alone)
-    const bool launched = rule != 0;
-    const float cap = rule == 1 ? sh::sh_infinity() : 0.0f;
-    INFO((which == sh::kTriangleWatertight ? "watertight" : "Moller-Trumbore") << (launched ? ", surface rule" : "")
-                                                                              << (rule == 2 ? ", capped" : ""));
+  for (const bool launched : {false, true}) {
+    INFO((which == sh::kTriangleWatertight ? "watertight" : "Moller-Trumbore") << (launched ? ", surface rule" : ""));
     size_t early = 0, accepted = 0, refused = 0;
     for (size_t i = 0; i < cases.size(); ++i) {
       const Case& c = cases[i];
       // A ray launched from a surface: the surface rule's tolerance (the watertight test decides it)
       const float stol = launched ? sh::surface_rule_tol(c.org) : -1.0f;
       sh::TriangleTest full{}, fast{};
-      const uint32_t want = sh::triangle_test(which, c.org, c.dir, c.v0, c.v1, c.v2, c.t_lo, c.t_hi, c.best, stol, cap, full);
+      const uint32_t want = sh::triangle_test(which, c.org, c.dir, c.v0, c.v1, c.v2, c.t_lo, c.t_hi, c.best, stol, full);
       const uint32_t got = sh::triangle_test_code(which, c.org, c.dir, sh::watertight_ray(c.dir), c.v0, c.v1, c.v2,
-                                                     c.t_lo, c.t_hi, c.best, stol, cap, fast);
+                                                     c.t_lo, c.t_hi, c.best, stol, fast);
       INFO("case " << i);
       REQUIRE(got == want);
       REQUIRE(fast.code == want);
       // The watertight test's rule from its own plane values is origin_on_plane's decision (what
       // the Moller-Trumbore trace, the Embree oracle and the referee ask)
       if (which == sh::kTriangleWatertight && launched && (want == sh::kTestAccepted || want == sh::kTestOriginPlane))
-        REQUIRE((want == sh::kTestOriginPlane) == sh::origin_on_plane(c.org, cap, c.v0, c.v1, c.v2));
+        REQUIRE((want == sh::kTestOriginPlane) == sh::origin_on_plane(c.org, c.v0, c.v1, c.v2));
       if (which != sh::kTriangleWatertight || !launched) REQUIRE(want != sh::kTestOriginPlane);
       refused += want == sh::kTestOriginPlane;
       // Where it stops early: only on its first rejections
@@ -182,7 +177,7 @@ TEST_CASE("The watertight test's inside decision is exact for its sheared coordi
     refined += (u0 == 0.0f && su != 0) + (v0f == 0.0f && sv != 0) + (w0 == 0.0f && sw != 0);
     sh::TriangleTest r;
     const uint32_t code = sh::watertight(org, dir, v0, v1, v2, 0.0f, std::numeric_limits<float>::infinity(),
-                                         std::numeric_limits<float>::infinity(), -1.0f, std::numeric_limits<float>::infinity(), r);
+                                         std::numeric_limits<float>::infinity(), -1.0f, r);
     const bool outside = code == sh::kTestOutsideU || code == sh::kTestOutsideV || code == sh::kTestOutsideUV;
     REQUIRE(outside == !exact_inside);
     inside += exact_inside;

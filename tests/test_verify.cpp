@@ -331,42 +331,29 @@ TEST_CASE("The surface rule: an origin on a sliver's shared edge lies on its nei
   const glm::vec3 apex(0, 0, 1), b0(float(std::cos(a0)), float(std::sin(a0)), 0), b1(float(std::cos(a1)), float(std::sin(a1)), 0),
       b2(float(std::cos(a2)), float(std::sin(a2)), 0);
   const glm::vec3 mid = 0.5f * (apex + b1);  // on the shared edge, rounded
-  const float cap = sh::surface_rule_launch_cap(mid, apex, b0, b1);  // launched from the first sliver
-  CHECK(sh::origin_on_plane(mid, cap, apex, b0, b1));
-  CHECK(sh::origin_on_plane(mid, cap, apex, b1, b2));  // the neighbour: its apex's two edges' normal is too rounded to
+  CHECK(sh::origin_on_plane(mid, apex, b0, b1));
+  CHECK(sh::origin_on_plane(mid, apex, b1, b2));  // the neighbour: its apex's two edges' normal is too rounded to
                                                   // say so, its two shortest edges' is not
   // The neighbour's plane is the launch plane turned by 2 pi / 1000 round the shared edge: the
   // launch sliver's centroid is about 1e-3 off it, far beyond 8 ulps of its coordinates
   const glm::vec3 inside = (apex + b0 + b1) / 3.0f;
-  CHECK_FALSE(sh::origin_on_plane(inside, sh::surface_rule_launch_cap(inside, apex, b0, b1), apex, b1, b2));
+  CHECK_FALSE(sh::origin_on_plane(inside, apex, b1, b2));
   // A face whose plane holds the origin is refused wherever it lies in the plane (a ray from a
   // point of the plane meets it only at t = 0). The tolerance is 8 ulps of the larger of the
-  // origin's and org - v0's coordinates (the plane value rounds at the latter's scale), the
-  // latter capped by the launch triangle's org - l_j (no cap: infinity): here |org - v0| reaches
-  // 9.75, so 2^-20 * 9.75 = 9.3e-6; 2e-6 off is within it, 2e-5 off is not
-  const float none = sh::sh_infinity();
+  // origin's and org - v0's coordinates (the plane value rounds at the latter's scale): here
+  // |org - v0| reaches 9.75, so 2^-20 * 9.75 = 9.3e-6; 2e-6 off is within it, 2e-5 off is not
   const glm::vec3 f0(10, 10, 0), f1(11, 10, 0), f2(10, 11, 0);
-  CHECK(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 0.0f), none, f0, f1, f2));
-  CHECK(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 2e-6f), none, f0, f1, f2));
-  CHECK_FALSE(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 2e-5f), none, f0, f1, f2));
-  // Launched from a triangle as large (its vertices 10 from the origin): the same tolerance
-  const glm::vec3 l0(-10, 0, 0), l1(0, -10, 0), l2(0, 10, 0);
-  CHECK(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 2e-6f), sh::surface_rule_launch_cap(glm::vec3(0.25f, 0.5f, 2e-6f), l0, l1, l2), f0, f1, f2));
-  // Launched from a small triangle (0.5 across, at the origin): the large face's term is capped
-  // at the launch triangle's 2^-20 * 0.5 (its farthest vertex from the origin), so 2e-6 off is kept (a ray launched just above a large
-  // floor from a small object meets the floor)
-  const glm::vec3 s0(0, 0, 2e-6f), s1(0.5f, 0, 2e-6f), s2(0, 0.75f, 2e-6f);
-  const glm::vec3 o(0.25f, 0.5f, 2e-6f);
-  CHECK_FALSE(sh::origin_on_plane(o, sh::surface_rule_launch_cap(o, s0, s1, s2), f0, f1, f2));
-  CHECK(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 0.0f), sh::surface_rule_launch_cap(o, s0, s1, s2), f0, f1, f2));
+  CHECK(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 0.0f), f0, f1, f2));
+  CHECK(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 2e-6f), f0, f1, f2));
+  CHECK_FALSE(sh::origin_on_plane(glm::vec3(0.25f, 0.5f, 2e-5f), f0, f1, f2));
   // A unit face at the world's origin, launched from 0.25 away: 2e-6 off is kept (tol 2.4e-7)
-  CHECK_FALSE(sh::origin_on_plane(glm::vec3(0.25f, 0.25f, 2e-6f), none, glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0)));
+  CHECK_FALSE(sh::origin_on_plane(glm::vec3(0.25f, 0.25f, 2e-6f), glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0)));
   // A zero-area face is refused (det == 0 refuses it anyway); the origin itself at 0: exactly on
-  CHECK(sh::origin_on_plane(glm::vec3(1, 2, 3), none, glm::vec3(0), glm::vec3(1, 1, 1), glm::vec3(2, 2, 2)));
-  CHECK(sh::origin_on_plane(glm::vec3(0.0f), none, glm::vec3(-1, -1, 0), glm::vec3(1, -1, 0), glm::vec3(0, 1, 0)));
+  CHECK(sh::origin_on_plane(glm::vec3(1, 2, 3), glm::vec3(0), glm::vec3(1, 1, 1), glm::vec3(2, 2, 2)));
+  CHECK(sh::origin_on_plane(glm::vec3(0.0f), glm::vec3(-1, -1, 0), glm::vec3(1, -1, 0), glm::vec3(0, 1, 0)));
   // The origin at 0, a face of unit size 1e-30 off: within its own rounding, refused; 1e-5 off, kept
-  CHECK(sh::origin_on_plane(glm::vec3(0.0f), none, glm::vec3(-1, -1, 1e-30f), glm::vec3(1, -1, 1e-30f), glm::vec3(0, 1, 1e-30f)));
-  CHECK_FALSE(sh::origin_on_plane(glm::vec3(0.0f), none, glm::vec3(-1, -1, 1e-5f), glm::vec3(1, -1, 1e-5f), glm::vec3(0, 1, 1e-5f)));
+  CHECK(sh::origin_on_plane(glm::vec3(0.0f), glm::vec3(-1, -1, 1e-30f), glm::vec3(1, -1, 1e-30f), glm::vec3(0, 1, 1e-30f)));
+  CHECK_FALSE(sh::origin_on_plane(glm::vec3(0.0f), glm::vec3(-1, -1, 1e-5f), glm::vec3(1, -1, 1e-5f), glm::vec3(0, 1, 1e-5f)));
 }
 
 TEST_CASE("Rays launched from fans of slivers: no wrong answer (the surface rule), where the origin epsilon alone "

@@ -770,7 +770,7 @@ TEST_CASE("Vulkan grid: the surface rule on rays launched from a fan of slivers,
       // The triangle test alone on the neighbour (k + 1), at the trace's interval
       sh::TriangleTest t{};
       if (sh::triangle_test(sh::kTriangleWatertight, r.org, r.dir, apex, b2, b3, sh::origin_tmin(r.org, r.dir, 0.0f),
-                            r.tmax, std::numeric_limits<float>::infinity(), -1.0f, std::numeric_limits<float>::infinity(), t) == sh::kTestAccepted)
+                            r.tmax, std::numeric_limits<float>::infinity(), -1.0f, t) == sh::kTestAccepted)
         neighbour_accepted += 1;
     }
     for (int j = 0; j < 4; ++j) {

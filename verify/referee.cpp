@@ -143,13 +143,6 @@ const char* to_string(Verdict v) {
 Referee::Referee(const reference::GridData& grid, const Topology& topo, EmbreeTracer& embree)
     : grid_(grid), topo_(topo), embree_(embree) {}
 
-float Referee::launch_cap(const Ray& ray) const {
-  const size_t i = ray.launch_ref == sh::kNoRef ? SIZE_MAX : topo_.index_of(ray.launch_ref);
-  if (i == SIZE_MAX) return sh::sh_infinity();
-  const auto& l = topo_.tri[i];
-  return sh::surface_rule_launch_cap(ray.org, l[0], l[1], l[2]);
-}
-
 ExactTest Referee::test(const Ray& ray, uint32_t ref) const {
   const size_t i = topo_.index_of(ref);
   if (i == SIZE_MAX) return {};
@@ -158,7 +151,7 @@ ExactTest Referee::test(const Ray& ray, uint32_t ref) const {
   // The surface rule (both tracers', in their float arithmetic: a rule on the inputs, as the
   // origin epsilon is): a ray launched from a surface hits no face whose plane passes within 8
   // ulps of its origin
-  if (ray.launch_ref != sh::kNoRef && sh::origin_on_plane(ray.org, launch_cap(ray), t[0], t[1], t[2])) return {};
+  if (ray.launch_ref != sh::kNoRef && sh::origin_on_plane(ray.org, t[0], t[1], t[2])) return {};
   return exact_test(ray, t[0], t[1], t[2]);
 }
 
@@ -266,11 +259,10 @@ bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got, uint32_t ex
   }
   // The surface rule's refusals (the tracers' float decision on the ray as given)
   std::vector<char> refused(near.size(), 0);
-  const float cap = launch_cap(ray);
   if (ray.launch_ref != sh::kNoRef)
     for (size_t i = 0; i < near.size(); ++i) {
       const auto& t = topo_.tri[near[i]];
-      refused[i] = sh::origin_on_plane(ray.org, cap, t[0], t[1], t[2]) ? 1 : 0;
+      refused[i] = sh::origin_on_plane(ray.org, t[0], t[1], t[2]) ? 1 : 0;
     }
   // The triangles by 2D bin, for the per-offset tests
   constexpr int kBins = 16;

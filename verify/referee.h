@@ -82,9 +82,6 @@ class Referee {
   Judgement judge(const Ray& ray, const Hit& got, const Hit& want, const std::vector<uint32_t>& aimed) const;
   // The exact test of one ref.
   ExactTest test(const Ray& ray, uint32_t ref) const;
-  // The surface rule's cap from the ray's launch triangle (shared::surface_rule_launch_cap), as
-  // the tracers make it; infinity where it names none.
-  float launch_cap(const Ray& ray) const;
   // Whether `got` is the exact answer of the ray as traced (the unresolved verdict): the exact
   // closest hit (or a tie with it), or a miss, among every triangle near the ray, in the scene as
   // seen from the origin in float (each vertex v - org rounded to float), for the ray itself or the

@@ -39,7 +39,6 @@ struct Context {
   RTCIntersectContext rtc;
   uint32_t launch_ref;
   glm::vec3 org;                                     // the ray's origin (the surface rule)
-  float launch_cap = 0.0f;                           // the surface rule's cap (surface_rule_launch_cap)
   const Scene* scene;                                // for the hit triangle's vertices
   const std::vector<std::vector<glm::vec3>>* world;  // per instance, world-space vertices
 };
@@ -60,22 +59,8 @@ void self_filter(const RTCFilterFunctionNArguments* args) {
     }
     const glm::uvec3 t = ctx->scene->meshes[ctx->scene->instances[geom].mesh].triangles[prim];
     const std::vector<glm::vec3>& w = (*ctx->world)[geom];
-    if (shared::origin_on_plane(ctx->org, ctx->launch_cap, w[t[0]], w[t[1]], w[t[2]])) args->valid[i] = 0;
+    if (shared::origin_on_plane(ctx->org, w[t[0]], w[t[1]], w[t[2]])) args->valid[i] = 0;
   }
-}
-
-// The surface rule's cap on a face's term from the launch triangle's world-space vertices, as the
-// tracers make it (shared::surface_rule_launch_cap; infinity where the reference names no
-// triangle of the scene).
-float launch_cap_of(const Scene& scene, const std::vector<std::vector<glm::vec3>>& world, uint32_t launch_ref,
-                    glm::vec3 org) {
-  const uint32_t geom = launch_ref >> 16, prim = launch_ref & 0xFFFFu;
-  if (launch_ref == shared::kNoRef || geom >= scene.instances.size()) return shared::sh_infinity();
-  const auto& tris = scene.meshes[scene.instances[geom].mesh].triangles;
-  if (prim >= tris.size()) return shared::sh_infinity();
-  const glm::uvec3 t = tris[prim];
-  const std::vector<glm::vec3>& w = world[geom];
-  return shared::surface_rule_launch_cap(org, w[t[0]], w[t[1]], w[t[2]]);
 }
 
 // hits_along: the context of a ray whose every hit is recorded and then refused (so Embree goes on).
@@ -198,7 +183,6 @@ struct EmbreeTracer::Impl {
     ctx.org = ray.org;
     ctx.scene = scene;
     ctx.world = &world;
-    ctx.launch_cap = launch_cap_of(*scene, world, ray.launch_ref, ray.org);
     if (ray.launch_ref != shared::kNoRef) ctx.rtc.filter = self_filter;
     rtcIntersect1(rtc_scene, &ctx.rtc, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;

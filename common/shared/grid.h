@@ -570,41 +570,20 @@ SH_INLINE float surface_rule_tol(SH_IN(vec3) org) {
   SH_PRECISE float tol = max(max(ao.x, ao.y), ao.z) * kOriginEpsilon;
   return tol;
 }
-// The launch triangle's cap on the face term (a ray launched from a surface): 8 ulps of the
-// largest component of `org - l_j` over the launch triangle's vertices `l_j`, the scale at which a
-// launch point made from them, or a plane value at such a point, is rounded. The face term of a
-// candidate (below) is at most this: a face larger than the launch triangle's neighbourhood is no
-// longer refused within 2^-20 of its own size of every launch point near it (a floor 2e4 wide let
-// a ray launched 5 mm above it through). Without a launch triangle to read (a ray file's
-// reference to no triangle), infinity: the face term alone.
-SH_INLINE float surface_rule_launch_cap(SH_IN(vec3) org, SH_IN(vec3) l0, SH_IN(vec3) l1, SH_IN(vec3) l2) {
-  SH_PRECISE vec3 d0 = org - l0;
-  SH_PRECISE vec3 d1 = org - l1;
-  SH_PRECISE vec3 d2 = org - l2;
-  SH_PRECISE vec3 m = max(max(abs(d0), abs(d1)), abs(d2));
-  SH_PRECISE float cap = max(max(m.x, m.y), m.z) * kOriginEpsilon;
-  return cap;
-}
 // The tolerance for one face: the origin's (surface_rule_tol) or 8 ulps of the largest component
-// of `a` = org - v0 (or v0 - org: the same magnitudes) capped by the launch triangle's
-// (surface_rule_launch_cap), whichever is larger. The face term is needed only where both the face
-// and the launch triangle are large beside the origin's coordinates: a face through the launch
-// point shares it with a launch triangle at least as near (an edge, a vertex, a coplanar overlap),
-// and the plane value's rounding there is within both scales.
-SH_INLINE float surface_rule_face_tol(float origin_tol, float launch_cap, SH_IN(vec3) a) {
+// of `a` = org - v0 (or v0 - org: the same magnitudes), whichever is larger.
+SH_INLINE float surface_rule_face_tol(float origin_tol, SH_IN(vec3) a) {
   SH_PRECISE vec3 aa = abs(a);
   SH_PRECISE float face = max(max(aa.x, aa.y), aa.z) * kOriginEpsilon;
-  SH_PRECISE float capped = min(face, launch_cap);
-  return max(origin_tol, capped);
+  return max(origin_tol, face);
 }
-SH_INLINE bool origin_on_plane(SH_IN(vec3) org, float launch_cap, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                               SH_IN(vec3) v2) {
+SH_INLINE bool origin_on_plane(SH_IN(vec3) org, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
   vec3 n = plane_normal(v0, v1, v2);
   SH_PRECISE vec3 an = abs(n);
   SH_PRECISE float nsum = an.x + an.y;
   SH_PRECISE float n1 = nsum + an.z;
   SH_PRECISE vec3 s = org - v0;
-  SH_PRECISE float tol = surface_rule_face_tol(surface_rule_tol(org), launch_cap, s);
+  SH_PRECISE float tol = surface_rule_face_tol(surface_rule_tol(org), s);
   SH_PRECISE float dist = abs(sh_dot(n, s));
   SH_PRECISE float bound = tol * n1;
   return dist <= bound;

@@ -296,13 +296,12 @@ SH_INLINE uint watertight_outside_code(SH_IN(WatertightEdges) e) {
 // The watertight test's second half, from its edge functions `e` (watertight_edges of the ray).
 // `surface_tol`: the surface rule's tolerance for a ray launched from a surface
 // (surface_rule_tol(org)), negative for any other ray: an accepted candidate whose plane passes
-// within the face's tolerance (surface_rule_face_tol of it, `launch_cap` (the launch triangle's
-// surface_rule_launch_cap; infinity where there is none to read) and A) of the origin is refused
+// within the face's tolerance (surface_rule_face_tol of it and A) of the origin is refused
 // (kTestOriginPlane), origin_on_plane's decision made from the test's own plane values (the same
 // normal, |n . A| = |n . (org - v0)| and max |A_i| in the same bits).
 SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
                                SH_IN(WatertightEdges) e, float t_lo, float t_hi, float best_t,
-                               float surface_tol, float launch_cap, SH_OUT(TriangleTest) r) {
+                               float surface_tol, SH_OUT(TriangleTest) r) {
   SH_PRECISE vec3 adir = abs(dir);
   SH_PRECISE vec3 A = e.A;
   SH_PRECISE float dz = e.dz;
@@ -338,7 +337,7 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
   SH_PRECISE float scaled_den = apden * 4096.0f;
   SH_PRECISE float pnum = sh_dot(nrm, A);
   SH_PRECISE float pdist = abs(pnum);
-  SH_PRECISE float pbound = surface_rule_face_tol(surface_tol, launch_cap, A) * n1;
+  SH_PRECISE float pbound = surface_rule_face_tol(surface_tol, A) * n1;
   bool on_plane = surface_tol >= 0.0f && pdist <= pbound;
   if (scaled_den >= nd && pden != 0.0f) {
     D = -pden;
@@ -376,11 +375,11 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
 }
 
 SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
-                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t, float surface_tol, float launch_cap,
+                          SH_IN(vec3) v2, float t_lo, float t_hi, float best_t, float surface_tol,
                           SH_OUT(TriangleTest) r) {
   WatertightEdges e;
   watertight_edges(org, watertight_ray(dir), v0, v1, v2, e);
-  return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, launch_cap, r);
+  return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
 }
 
 // The triangle test GridParams::triangle_test names. `surface_tol`: the watertight test's surface
@@ -388,8 +387,8 @@ SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_I
 // origin_on_plane).
 SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0,
                              SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi, float best_t,
-                             float surface_tol, float launch_cap, SH_OUT(TriangleTest) r) {
-  if (which == kTriangleWatertight) return watertight(org, dir, v0, v1, v2, t_lo, t_hi, best_t, surface_tol, launch_cap, r);
+                             float surface_tol, SH_OUT(TriangleTest) r) {
+  if (which == kTriangleWatertight) return watertight(org, dir, v0, v1, v2, t_lo, t_hi, best_t, surface_tol, r);
   return moller_trumbore(org, dir, v0, v1, v2, t_lo, t_hi, best_t, r);
 }
 
@@ -403,7 +402,7 @@ SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN
 // `w`: watertight_ray(dir), made once per ray by the caller (the same values as made here).
 SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(WatertightRay) w,
                                   SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, float t_lo, float t_hi,
-                                  float best_t, float surface_tol, float launch_cap, SH_OUT(TriangleTest) r) {
+                                  float best_t, float surface_tol, SH_OUT(TriangleTest) r) {
   if (which == kTriangleWatertight) {
     WatertightEdges e;
     watertight_edges(org, w, v0, v1, v2, e);
@@ -411,7 +410,7 @@ SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, 
       r.code = watertight_outside_code(e);
       return r.code;
     }
-    return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, launch_cap, r);
+    return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
   }
   MollerFirst m;
   moller_trumbore_first(org, dir, v0, v1, v2, m);

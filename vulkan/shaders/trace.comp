@@ -96,7 +96,6 @@ struct TraceState {
   uint mode;        // kTraceClosestHit or kTraceAnyHit
   WatertightRay wray;  // the watertight test's per-ray part (triangle_test_code)
   float surface_tol;   // the surface rule's tolerance (a ray launched from a surface), else -1
-  float launch_cap;    // the surface rule's cap on a face's term (surface_rule_launch_cap)
   uint box_mask;       // the dynamic boxes the walk can reach (skip_box_reached), bit b for box b
 };
 
@@ -111,17 +110,6 @@ void emit(uint kind, uint code, uint ref, uint step, uvec3 cell, uint slot, vec4
   const uint i = explain_count;
   if (i < pc.explain_capacity) explain_events[i] = ExplainEvent(kind, code, ref, step, cell, slot, f0, f1);
   explain_count = i + 1u;
-}
-
-// The surface rule's cap on a face's term, from the launch triangle's world-space vertices
-// (surface_rule_launch_cap); infinity where the ray has no launch triangle or its reference names
-// none of the scene's (a ray file's): as the reference's launch_cap_of.
-float launch_cap_of(uint launch_ref, vec3 org) {
-  if (launch_ref == kNoRef || ref_instance(launch_ref) >= uint(instances.length())) return sh_infinity();
-  const GridInstance inst = instances[ref_instance(launch_ref)];
-  if (ref_triangle(launch_ref) >= inst.tri_count) return sh_infinity();
-  const GridTriangle l = triangles[inst.tri_offset + ref_triangle(launch_ref)];
-  return surface_rule_launch_cap(org, l.v0, l.v1, l.v2);
 }
 
 // Test one reference of a cell against the interval (t_lo, t_hi); the closest accepted hit so far
@@ -146,9 +134,9 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   // events to record, its code alone where its first rejections decide it (triangle_test_code)
   TriangleTest r;
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = kExplain ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, st.launch_cap, r)
+  uint code = kExplain ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, r)
                        : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
-                                               best, st.surface_tol, st.launch_cap, r);
+                                               best, st.surface_tol, r);
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
@@ -160,7 +148,7 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
     // The surface rule: a ray launched from a surface hits no face whose plane passes through its
     // origin (within 8 ulps); the watertight test decided it above, from its own plane values
     if (code == kTestAccepted && g.triangle_test != kTriangleWatertight && st.launch_ref != kNoRef &&
-        origin_on_plane(st.org, st.launch_cap, tri.v0, tri.v1, tri.v2))
+        origin_on_plane(st.org, tri.v0, tri.v1, tri.v2))
       code = kTestOriginPlane;
     // Alpha keying: the mask texel under the interpolated uv
     if (code == kTestAccepted && (g.flags & kGridAlphaKeying) != 0u && (inst.flags & kInstanceAlphaKeyed) != 0u) {
@@ -616,7 +604,6 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   // The surface rule's tolerance (a ray launched from a surface), else none: from the origin the
   // trace tests from (moved, for a far origin)
   st.surface_tol = st.launch_ref != kNoRef ? surface_rule_tol(st.org) : -1.0f;
-  st.launch_cap = launch_cap_of(st.launch_ref, st.org);
   // Per-ray setup: segment length, the grid box
   const bool meets = ray_setup(g, st.org, st.dir, st.tmin, st.tmax, st.rs);
   emit(kEvSetup, g.traversal, kBlank, 0u, uvec3(0u), meets ? 1u : 0u,
