@@ -304,9 +304,16 @@ void require_distinct_frame_times(float start, uint32_t first, uint32_t count, f
 }
 
 void resolve_image_limit(BackendOptions& o, bool uses_vulkan) {
-  if (o.max_image_dimension || !uses_vulkan) return;
+  if (!uses_vulkan) return;
   const uint32_t limit = vulkan_max_image_dimension();
   if (limit == 0) return;
+  // A limit above the device's: the Vulkan side lowered it on its own and planned another grid than
+  // the reference's (diff said the images "cannot be compared", explain showed a false divergence)
+  if (o.max_image_dimension && *o.max_image_dimension > limit)
+    throw OptionsError("--max-image-dimension " + std::to_string(*o.max_image_dimension) +
+                       " exceeds the Vulkan device's maxImageDimension3D (" + std::to_string(limit) +
+                       "): give at most that, or leave it out");
+  if (o.max_image_dimension) return;
   o.max_image_dimension = limit;
   std::fprintf(stderr, "grid image limit: %u texels per side (the Vulkan device's maxImageDimension3D)\n", limit);
 }

@@ -215,8 +215,8 @@ std::string ray_words(const Ray& r) {
 std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Explainer& ex) {
   const uint32_t x = o.pixel[0], y = o.pixel[1];
   if (x >= o.width || y >= o.height)
-    throw Error("pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
-                std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
+    throw OptionsError("pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
+                       std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
   const size_t p = size_t(y) * o.width + x;
   const Traversal frame_t = ex.options().traversal;
   char where[128];
@@ -434,6 +434,26 @@ void run_explain(const ExplainOptions& options) {
 
   // The rays
   const std::vector<Item> items = !o.pixel.empty() ? pixel_items(o, scene, ex) : ray_items(o, scene, ex);
+  // Every ray's pictures and the reports named and checked before the first is written: a refused
+  // later one left the earlier replaced (an outside sweep), and no two may name one file
+  {
+    std::vector<std::string> names;
+    for (size_t i = 0; i < items.size(); ++i) {
+      if (!o.obj.empty()) {
+        names.push_back(numbered(o.obj, i, items.size()));
+        names.push_back(std::filesystem::path(names.back()).replace_extension(".mtl").string());
+      }
+      if (!o.svg.empty()) names.push_back(numbered(o.svg, i, items.size()));
+    }
+    if (!o.html.empty()) names.push_back(o.html);
+    if (!o.json.empty()) names.push_back(o.json);
+    for (size_t a = 0; a < names.size(); ++a) {
+      check_output_allowed(names[a], "explain output");
+      for (size_t b = a + 1; b < names.size(); ++b)
+        if (!is_stream_output(names[a]) && names_same_file(names[a], names[b]))
+          throw OptionsError("explain: two outputs name one file, '" + names[a] + "' (" + names[b] + ")");
+    }
+  }
 
   // Each ray through the reference, and the shader
   nlohmann::json json_rays = nlohmann::json::array();

@@ -179,7 +179,7 @@ void run_stats(const StatsOptions& o) {
     if (!o.ray_pixel.empty()) {
       const uint32_t x = o.ray_pixel[0], y = o.ray_pixel[1];
       if (x >= o.width || y >= o.height)
-        throw Error("--pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
+        throw OptionsError("--pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
                     std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
       ray = ref.explain_ray(camera_ray(scene.frame_camera(), o.width, o.height, x, y));
       ray_name = "camera ray of pixel " + std::to_string(x) + "," + std::to_string(y) + " of " +

@@ -11,6 +11,7 @@
 #include "gridrt/common/gather.h"
 #include "gridrt/common/image_io.h"
 #include "gridrt/common/progress.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/shade.h"
 #include "gridrt/common/util.h"
 #ifdef GRIDRT_HAVE_VULKAN
@@ -159,6 +160,10 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
   check_output_path(o.output);
   check_image_extension(o.output);
   const Scene scene = load_scene_or_default(o.scene);
+  // Every frame's file checked before the first is written, once the inputs are known (a later
+  // frame over a texture this run read was refused after the earlier frames had replaced theirs:
+  // an outside sweep)
+  for (uint32_t frame = 0; frame < o.frames; ++frame) check_output_allowed(frame_path(o.output, frame, o.frames), "image");
   const std::string backend = o.backend.empty() ? backend_names().front() : o.backend;
   const bool shadows = shadows_for(o.shadows, scene);
   if (shadows) check_shadow_lights(scene);
@@ -254,8 +259,18 @@ void add_render_command(CLI::App& app) {
   cmd->callback([o, cmd, scale_opt, rays_opt] {
     // The options given (for the portal backends, which take only a few of them)
     std::vector<std::string> given;
-    for (const CLI::Option* opt : cmd->get_options())
-      if (opt->count() > 0) given.push_back(opt->get_name());
+    std::string grid_given;  // the grid's and the Vulkan port's options given
+    for (const CLI::Option* opt : cmd->get_options()) {
+      if (opt->count() == 0) continue;
+      given.push_back(opt->get_name());
+      const std::string& g = opt->get_group();
+      if ((g == "Grid" || g == "Grid (expert)" || g == "Vulkan") && opt->get_name() != "--threads")
+        grid_given += (grid_given.empty() ? "" : ", ") + opt->get_name();
+    }
+    // Embree traces its own BVH: the grid's options did nothing there, without a word (an outside sweep)
+    if (o->backend == "embree" && !grid_given.empty())
+      throw OptionsError("render --backend embree traces Embree's own structure: " + grid_given +
+                         " do(es) not apply (leave them out, or render with --backend cpu)");
     run_render(*o, scale_opt->count() > 0, rays_opt->count() > 0, given);
   });
 }

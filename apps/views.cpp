@@ -116,10 +116,10 @@ void check_view(const ViewOptions& o) {
   const auto& names = view_names();
   if (std::find(names.begin(), names.end(), o.view) == names.end()) throw Error("unknown view '" + o.view + "'");
   if (o.view == "diff" && o.backend != "vulkan")
-    throw Error("--view diff compares the CPU reference with the Vulkan shader: add --backend vulkan");
+    throw OptionsError("--view diff compares the CPU reference with the Vulkan shader: add --backend vulkan");
   if (o.view != "diff" && !o.backend.empty() && o.backend != "cpu")
-    throw Error("--view " + o.view + " shows the CPU reference's records (the shader's agree bit for bit, which "
-                "--view diff checks): use --backend cpu");
+    throw OptionsError("--view " + o.view + " shows the CPU reference's records (the shader's agree bit for bit, "
+                       "which --view diff checks): use --backend cpu");
 #ifndef GRIDRT_HAVE_VULKAN
   if (o.view == "diff") throw Error("--view diff needs the Vulkan backend, which this build does not have");
 #endif

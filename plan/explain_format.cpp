@@ -736,7 +736,8 @@ std::vector<Ray> read_ray_file(const std::string& path) {
 size_t visit_of(const ExplainRecord& rec, size_t i) {
   if (rec.events.empty()) return kNoEvent;
   for (size_t k = std::min(i, rec.events.size() - 1) + 1; k-- > 0;)
-    if (rec.events[k].kind == kEvCell || rec.events[k].kind == kEvCellSkipped) return k;
+    if (rec.events[k].kind == kEvCell || rec.events[k].kind == kEvCellSkipped || rec.events[k].kind == kEvSkip)
+      return k;  // a skip step is a visit too (a divergence inside a run of them was placed before it)
   return kNoEvent;
 }
 

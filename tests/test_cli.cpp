@@ -227,7 +227,7 @@ TEST_CASE("CLI: render --view pictures agree with what the grid does", "[cli][vi
   CHECK_THAT(cells, Catch::Contains("1296 rays"));
   // diff without the Vulkan backend: a clear message
   const Run diff = run_tool("render builtin:cornell --width 8 --height 8 --view diff -o " + out.string());
-  CHECK(diff.exit_code == 1);
+  CHECK(diff.exit_code == 2);  // a bad command line
   CHECK_THAT(diff.output, Catch::Contains("--backend vulkan"));
 }
 
@@ -257,7 +257,7 @@ TEST_CASE("CLI: stats --slices draws the grid slice by slice", "[cli][views]") {
   const Run missing = run_tool("stats builtin:cornell --width 16 --height 9 --slices /nonexistent/dir");
   CHECK(missing.exit_code == 1);
   const Run outside = run_tool("stats builtin:cornell --width 16 --height 9 --pixel 16,4 --slices " + dir.string());
-  CHECK(outside.exit_code == 1);
+  CHECK(outside.exit_code == 2);  // a pixel outside the image asked for: a bad command line
   CHECK_THAT(outside.output, Catch::Contains("outside the 16x9 image"));
 }
 
@@ -558,7 +558,13 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         std::string("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --width 10"),
         std::string("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --frame 3"),
         "portal render builtin:level --width 16 --height 8 --mip-levels 3 --mip-distance 0" + out,
-        "portal render builtin:level --width 16 --height 8 --mip-distance 4" + out}) {
+        "portal render builtin:level --width 16 --height 8 --mip-distance 4" + out,
+        // Contradictions that exited 1, as bad input: a pixel outside the image, mip levels on an
+        // instanced world, a view of the CPU's records on another backend
+        std::string("explain builtin:cornell --width 64 --height 48 --pixel 64,30"),
+        "portal render builtin:blocks --width 16 --height 8 --mip-levels 3" + out,
+        "render builtin:cornell --width 8 --height 8 --backend portal-cpu --view cells" + out,
+        "render builtin:cornell --width 8 --height 8 --backend embree --traversal exact" + out}) {
     const Run r = run_tool(args);
     INFO(args << "\n" << r.output);
     CHECK(r.exit_code == 2);

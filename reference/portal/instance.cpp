@@ -481,7 +481,9 @@ std::vector<uint16_t> append_build(PackedPortal& p, std::vector<uint8_t>& info, 
 
 PortalBuild build_instanced(const InstancedWorld& iw, const PortalOptions& opt) {
   iw.validate();
-  if (opt.mip_levels > 1) throw Error("portal instancing: mip levels are not supported with instanced worlds");
+  if (opt.mip_levels > 1)
+    throw OptionsError("portal instancing: mip levels are not supported with instanced worlds (--flatten builds "
+                       "the flat world, which takes them)");
   const auto t0 = std::chrono::steady_clock::now();
   const uint32_t S = iw.scale, k = iw.scale_log2();
   World top = iw.top;
@@ -782,6 +784,11 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
   const std::string stem = jp.stem().string();
   if (json_path.find_first_of("\"\\") != std::string::npos)
     throw Error("portal export: the output path may not contain '\"' or '\\'");
+  // The OBJs name their .mtl by the stem on a mtllib line, which ends at white space
+  for (const char ch : stem)
+    if (std::isspace(static_cast<unsigned char>(ch)) || std::iscntrl(static_cast<unsigned char>(ch)))
+      throw Error("portal export: the output's name may not contain spaces or control characters (an OBJ's "
+                  "mtllib line names the materials by it): '" + stem + "'");
   const fs::path dir = jp.parent_path().empty() ? fs::path(".") : jp.parent_path();
   const World& w = iw.top;
   const std::string mtl = stem + ".mtl";
@@ -798,13 +805,7 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
       check_output_allowed((dir / o).string(), "portal export file");
     }
   }
-  {
-    std::ostringstream f;
-    for (size_t m = 0; m < w.materials.size(); ++m)
-      f << "newmtl m" << m << "\nKd " << w.materials[m].color.x << " " << w.materials[m].color.y << " "
-        << w.materials[m].color.z << "\n";
-    write_file_atomically((dir / mtl).string(), "portal export materials", f.str());
-  }
+
   std::vector<std::string> meshes, instances;  // the scene's entries, joined by ", " below
   size_t triangles = 0;
   auto count = [&](const std::map<uint32_t, std::vector<glm::vec3>>& q) {
@@ -839,7 +840,12 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
       std::map<uint32_t, std::vector<glm::vec3>> bq;
       grid_faces(glm::ivec3(S), w.voxel_size / float(S), glm::vec3(0.0f), true,
                  [&](glm::ivec3 v) { return at(v) != kEmpty; }, [&](glm::ivec3 v) { return uint32_t(at(v)); }, bq);
-      if (bq.empty()) continue;  // an empty block draws nothing: no file, no instances
+      bool placed_somewhere = false;
+      for (uint32_t z = 0; z < w.dims.z && !placed_somewhere; ++z)
+        for (uint32_t y = 0; y < w.dims.y && !placed_somewhere; ++y)
+          for (uint32_t x = 0; x < w.dims.x && !placed_somewhere; ++x)
+            placed_somewhere = w.at(glm::ivec3(x, y, z)) == iw.instance_base + b;
+      if (bq.empty() || !placed_somewhere) continue;  // an empty or unplaced block draws nothing: no file
       const std::string file = stem + "_block_" + bl.name + ".obj";
       write_obj((dir / file).string(), mtl, bq);
       meshes.push_back(json_string("block " + bl.name) + ": {\"file\": " + json_string(file) + "}");
@@ -859,6 +865,14 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
     }
   }
   if (instances.empty()) throw Error("portal export: the world has no faces to export (every voxel empty)");
+  // The materials last: a world flatten refuses (too large) left the .mtl replaced before
+  {
+    std::ostringstream f;
+    for (size_t m = 0; m < w.materials.size(); ++m)
+      f << "newmtl m" << m << "\nKd " << w.materials[m].color.x << " " << w.materials[m].color.y << " "
+        << w.materials[m].color.z << "\n";
+    write_file_atomically((dir / mtl).string(), "portal export materials", f.str());
+  }
   const auto join = [](const std::vector<std::string>& v) {
     std::string out;
     for (size_t i = 0; i < v.size(); ++i) out += (i ? ", " : "") + v[i];
