@@ -211,14 +211,18 @@ void DiffRun::diff_images(uint32_t frame, float time) {
     const AccelDump want = ref_->dump();
     for (uint32_t z = 0; z < g.cells.z; ++z)
       for (uint32_t y = 0; y < g.cells.y; ++y)
-        for (uint32_t x = 0; x < g.cells.x; ++x)
+        for (uint32_t x = 0; x < g.cells.x; ++x) {
+          // The cell's references as sets (slots in arrival order differ without consequence)
+          std::vector<uint32_t> a, b;
           for (uint32_t sl = 0; sl < g.capacity; ++sl) {
             const size_t t = sh::texel_index(sh::cell_slot_texel(g, glm::uvec3(x, y, z), sl), got.extent);
-            if (t < want.texels.size() && t < got.texels.size() && want.texels[t] != got.texels[t]) {
-              timing_cells_.insert((size_t(z) * g.cells.y + y) * g.cells.x + x);
-              break;
-            }
+            if (t < want.texels.size()) a.push_back(want.texels[t]);
+            if (t < got.texels.size()) b.push_back(got.texels[t]);
           }
+          std::sort(a.begin(), a.end());
+          std::sort(b.begin(), b.end());
+          if (a != b) timing_cells_.insert((size_t(z) * g.cells.y + y) * g.cells.x + x);
+        }
     if (!timing_cells_.empty())
       timing_ = std::to_string(timing_cells_.size()) +
                 " saturated cell(s) whose slots kept other references than the reference's (first-empty insertion "
@@ -332,8 +336,7 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
   total_identical_ += d.identical;
   total_discrete_ += d.discrete.size();
   // Float-only differences: within the stated bounds or not.
-  size_t beyond = 0;
-  std::optional<size_t> first_beyond;
+  std::vector<size_t> beyond_rays;
   float max_duv = 0.0f;
   for (size_t i : d.differing) {
     const Hit& a = want[i];
@@ -343,11 +346,11 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
       continue;
     const float duv = std::max(std::abs(a.u - b.u), std::abs(a.v - b.v));
     max_duv = std::max(max_duv, duv);
-    if (reference::ulp_distance(a.t, b.t) > o_.ulps_t || duv > o_.abs_uv) {
-      if (!first_beyond) first_beyond = i;
-      ++beyond;
-    }
+    if (reference::ulp_distance(a.t, b.t) > o_.ulps_t || duv > o_.abs_uv) beyond_rays.push_back(i);
   }
+  size_t beyond = beyond_rays.size();
+  std::optional<size_t> first_beyond;
+  if (!beyond_rays.empty()) first_beyond = beyond_rays.front();
   total_beyond_ += beyond;
   char line[512];
   std::snprintf(line, sizeof line,
@@ -361,35 +364,20 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
   if (!timing_.empty() && !(d.discrete.empty() && beyond == 0)) {
     // A record that differs only where its ray passes a cell whose contents differ by design is
     // said and counted, not a difference of the port; every other one still is
-    std::vector<size_t> kept;
-    for (size_t i : d.discrete)
-      if (through_timing_cell(rays[i])) ++excused;
-      else kept.push_back(i);
-    total_discrete_ -= d.discrete.size() - kept.size();
-    d.discrete = kept;
-    if (first_beyond && through_timing_cell(rays[*first_beyond])) {
-      // the float-only ones: recounted without the excused rays
-      size_t left = 0;
-      first_beyond.reset();
-      for (size_t i : d.differing) {
-        const Hit& a = want[i];
-        const Hit& b = got[i];
-        if (a.instance != b.instance || a.triangle != b.triangle || a.flags != b.flags || a.cells != b.cells ||
-            a.tests != b.tests)
-          continue;
-        const float duv = std::max(std::abs(a.u - b.u), std::abs(a.v - b.v));
-        if (reference::ulp_distance(a.t, b.t) > o_.ulps_t || duv > o_.abs_uv) {
-          if (through_timing_cell(rays[i])) {
-            ++excused;
-            continue;
-          }
-          if (!first_beyond) first_beyond = i;
-          ++left;
-        }
-      }
-      total_beyond_ -= beyond - left;
-      beyond = left;
-    }
+    const auto keep = [&](std::vector<size_t>& v) {
+      std::vector<size_t> kept;
+      for (size_t i : v)
+        if (through_timing_cell(rays[i])) ++excused;
+        else kept.push_back(i);
+      const size_t dropped = v.size() - kept.size();
+      v = std::move(kept);
+      return dropped;
+    };
+    total_discrete_ -= keep(d.discrete);
+    total_beyond_ -= keep(beyond_rays);
+    beyond = beyond_rays.size();
+    first_beyond.reset();
+    if (!beyond_rays.empty()) first_beyond = beyond_rays.front();
     total_timing_ += excused;
     if (excused)
       std::printf("frame %u: %zu hit record(s) not held to bits: their rays pass %s\n", frame, excused, timing_.c_str());
