@@ -250,10 +250,17 @@ void add_vulkan_options(CLI::App* cmd, BackendOptions& o) {
 
 }  // namespace
 
-void add_backend_options(CLI::App* cmd, BackendOptions& o) {
+void add_backend_options(CLI::App* cmd, BackendOptions& o, bool vulkan) {
   add_grid_options(cmd, o);
   add_expert_options(cmd, o);
-  add_vulkan_options(cmd, o);
+  if (vulkan) add_vulkan_options(cmd, o);
+}
+
+void check_vulkan_options_apply(const CLI::App* cmd, bool vulkan_runs) {
+  if (vulkan_runs) return;
+  for (const char* name : {"--vk-build", "--fallback-cpu"})
+    if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
+      throw OptionsError(std::string(name) + " chooses how the Vulkan backend runs: it needs --backend vulkan");
 }
 
 std::vector<std::string> backend_names() {

@@ -56,8 +56,12 @@ void require_distinct_frame_times(float start, uint32_t first, uint32_t count, f
 std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(const std::string& name);
 
 // Registers the grid's options on a verb: a common set (--traversal, --capacity, --resolution,
-// --spill, --gap-fill, --self-hit, --threads) and the expert knobs in their own help group.
-void add_backend_options(CLI::App* cmd, BackendOptions& options);
+// --spill, --gap-fill, --self-hit, --threads) and the expert knobs in their own help group;
+// `vulkan`: the Vulkan port's (--vk-build, --fallback-cpu) too, for a verb that can run it.
+void add_backend_options(CLI::App* cmd, BackendOptions& options, bool vulkan = true);
+// --vk-build and --fallback-cpu choose how the Vulkan backend runs: given where it does not run
+// they did nothing, without a word (an outside sweep). OptionsError (exit 2) there.
+void check_vulkan_options_apply(const CLI::App* cmd, bool vulkan_runs);
 // The grid verbs' positional scene: a scene file, a mesh, a .gridscene or builtin:NAME (empty:
 // the embedded atrium).
 CLI::Option* add_scene_argument(CLI::App* cmd, std::string& scene);

@@ -1002,7 +1002,10 @@ void add_bench_command(CLI::App& app) {
   add_shadows_option(cmd, o->shadows);
   add_json_option(cmd, o->json, "the figures");
   add_backend_options(cmd, o->backend_options);
-  cmd->callback([o] { run_bench(*o); });
+  cmd->callback([o, cmd] {
+    check_vulkan_options_apply(cmd, std::find(o->backends.begin(), o->backends.end(), "vulkan") != o->backends.end());
+    run_bench(*o);
+  });
 }
 
 }  // namespace gridrt::app

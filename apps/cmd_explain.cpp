@@ -557,6 +557,12 @@ void add_explain_command(CLI::App& app) {
     if (cmd->get_option("--fallback-cpu")->count() > 0)
       throw CLI::ValidationError("--fallback-cpu", "does not apply to explain (--backend vulkan shows the shader's own "
                                                    "record beside the reference's, and needs a Vulkan device)");
+    check_vulkan_options_apply(cmd, o->backend == "vulkan");
+    // The frame number seeds only the glossy bounce's random numbers
+    if (cmd->count("--frame") > 0 && (o->primary || o->kind == "primary" || o->kind == "shadow"))
+      throw CLI::ValidationError("--frame", "seeds the glossy bounce's random numbers: it does not change a " +
+                                                std::string(o->kind == "shadow" ? "shadow" : "primary") +
+                                                " ray (leave it out)");
     if (!o->rays.empty() || !o->ray_file.empty())
       for (const char* name : {"--width", "--height", "--frame"})
         if (cmd->get_option(name)->count() > 0)

@@ -106,8 +106,6 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
   const auto has = [&](const char* name) { return std::find(given.begin(), given.end(), name) != given.end(); };
   if (has("--fps") && o.frames <= 1)
     throw OptionsError("--fps spaces the frames of --frames: give --frames 2 or more, or leave --fps out");
-  if (has("--vk-build") && o.backend != "vulkan")
-    throw OptionsError("--vk-build chooses the Vulkan grid's build: it needs --backend vulkan");
   if (o.view == "shaded" && scale_given)
     throw CLI::ValidationError("--scale", "sizes a --view figure: add --view, or leave --scale out");
   if (o.view == "shaded" && rays_given)
@@ -271,6 +269,7 @@ void add_render_command(CLI::App& app) {
     if (o->backend == "embree" && !grid_given.empty())
       throw OptionsError("render --backend embree traces Embree's own structure: " + grid_given +
                          " do(es) not apply (leave them out, or render with --backend cpu)");
+    check_vulkan_options_apply(cmd, o->backend == "vulkan");
     run_render(*o, scale_opt->count() > 0, rays_opt->count() > 0, given);
   });
 }

@@ -132,7 +132,10 @@ void add_verify_command(CLI::App& app) {
   add_json_option(cmd, o->json, "the results");
   cmd->add_flag("--strict", o->strict, "Fail on wrong answers and cracks with the paper traversal too");
   add_backend_options(cmd, o->backend_options);
-  cmd->callback([o] { run_verify(*o); });
+  cmd->callback([o, cmd] {
+    check_vulkan_options_apply(cmd, o->backend == "vulkan");
+    run_verify(*o);
+  });
 }
 
 }  // namespace gridrt::app

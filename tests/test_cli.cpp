@@ -551,7 +551,7 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
   const fs::path dir = scratch("ignored");
   fs::create_directories(dir);
   const std::string out = " -o " + (dir / "x.png").string();
-  for (const std::string args :
+  for (const std::string& args :
        {"render builtin:cornell --width 8 --height 8 --fps 10" + out,
         "render builtin:cornell --width 8 --height 8 --vk-build compute" + out, std::string("stats builtin:cornell --repeat 3"),
         std::string("stats builtin:cornell --slice-axis y"),
@@ -564,13 +564,27 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         std::string("explain builtin:cornell --width 64 --height 48 --pixel 64,30"),
         "portal render builtin:blocks --width 16 --height 8 --mip-levels 3" + out,
         "render builtin:cornell --width 8 --height 8 --backend portal-cpu --view cells" + out,
-        "render builtin:cornell --width 8 --height 8 --backend embree --traversal exact" + out}) {
+        "render builtin:cornell --width 8 --height 8 --backend embree --traversal exact" + out,
+        // The Vulkan port's options where no Vulkan backend runs, the frame's seed on rays it does
+        // not seed
+        "render builtin:cornell --width 8 --height 8 --fallback-cpu" + out,
+        std::string("verify builtin:cornell -n 5 --fallback-cpu"),
+        std::string("bench builtin:cornell --width 8 --height 8 --frames 1 --warmup 0 --vk-build compute"),
+        std::string("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --primary --frame 2"),
+        std::string("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --kind shadow --frame 2")}) {
     const Run r = run_tool(args);
     INFO(args << "\n" << r.output);
     CHECK(r.exit_code == 2);
     CHECK_THAT(r.output, !Catch::Contains("not expected") && !Catch::Contains("were not expected"));
   }
+  // stats builds the CPU reference's grid only: it has no Vulkan options
+  for (const char* args : {"stats builtin:cornell --vk-build compute", "stats builtin:cornell --fallback-cpu"}) {
+    const Run r = run_tool(args);
+    INFO(args << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+  }
   // Without the option that would do nothing, each runs
+  CHECK(run_tool("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --frame 2 --brief").exit_code == 0);
   CHECK(run_tool("render builtin:cornell --width 8 --height 8 --frames 2 --fps 10" + out).exit_code == 0);
   CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --brief").exit_code == 0);
 }
