@@ -52,7 +52,12 @@ void check_output_path(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path p(path);
   const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
-  if (!is_folder(dir.string())) throw Error("cannot write '" + path + "': folder '" + dir.string() + "' does not exist");
+  if (!is_folder(dir.string())) {
+    std::error_code ec;
+    throw Error("cannot write '" + path + "': " +
+                (fs::exists(dir, ec) ? "'" + dir.string() + "' is not a folder"
+                                     : "folder '" + dir.string() + "' does not exist"));
+  }
   if (is_folder(p.string())) throw Error("cannot write '" + path + "': it is a folder");
 }
 

@@ -478,4 +478,10 @@ TEST_CASE("Outside sweep: portal export to a folder that does not exist names th
   INFO(r.output);
   CHECK(r.exit_code == 1);
   CHECK_THAT(r.output, Contains("does not exist") && !Contains("temporary"));
+  // A file where the folder should be is not called missing
+  std::ofstream(d / "file.json") << "{}";
+  const auto f = run_tool("portal export builtin:blocks -o " + (d / "file.json" / "x.json").string());
+  INFO(f.output);
+  CHECK(f.exit_code == 1);
+  CHECK_THAT(f.output, Contains("is not a folder") && !Contains("does not exist"));
 }
