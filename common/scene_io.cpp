@@ -205,9 +205,19 @@ class SceneFileReader {
         check_keys(m, where, {"file"});
         const std::string file = resolve(get_string(m["file"], where + ".file"), where + ".file");
         const std::string ext = lower_extension(file);
+        // A model named under several keys is loaded once, its meshes shared (N keys loaded it N
+        // times: N times the memory and the time, an outside sweep)
+        std::error_code ec;
+        std::string same = std::filesystem::weakly_canonical(file, ec).string();
+        if (ec) same = file;
+        if (const auto loaded = files_.find(same); loaded != files_.end()) {
+          meshes_[it.key()] = loaded->second;
+          continue;
+        }
         if (ext == ".obj") parts = load_obj(file, scene_, textures_);
         else if (ext == ".gltf" || ext == ".glb") parts = load_gltf(file, scene_, textures_);
         else fail(where + ".file", "unknown model extension '" + ext + "' (expected .obj, .gltf or .glb)");
+        files_[same] = parts;
       } else if (m.contains("builtin")) {
         check_keys(m, where, {"builtin", "level", "diffuse"});
         const std::string name = get_string(m["builtin"], where + ".builtin");
@@ -402,6 +412,7 @@ class SceneFileReader {
   Scene scene_;
   TextureCache textures_;
   std::map<std::string, std::vector<Instance>> meshes_;  // by name: the instances a file gave
+  std::map<std::string, std::vector<Instance>> files_;   // by the file's canonical path: the same
 };
 
 // ---------------------------------------------------------------------------------------------

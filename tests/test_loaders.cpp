@@ -786,3 +786,24 @@ TEST_CASE("Scenes: huge rotation axes, NUL in paths, both grid sizes, a static i
     CHECK_THROWS_WITH(moving.finalize(), Catch::Contains("a motion on a static instance"));
   }
 }
+
+TEST_CASE("Scene file: one model named under several mesh keys is loaded once, its meshes shared", "[unit][scenefile]") {
+  // N keys naming one file loaded it N times: N times its memory and time (an outside sweep)
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("gridrt_shared_model_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string quad = fixture("quad.obj");
+  std::ofstream(dir / "twice.json") << R"({"meshes": {"a": {"file": ")" << quad << R"("}, "b": {"file": ")" << quad
+                                    << R"("}, "c": {"builtin": "teapot", "level": 2}},
+    "instances": [{"mesh": "a"}, {"mesh": "b", "translate": [3, 0, 0]}, {"mesh": "c", "translate": [0, 3, 0]}]})";
+  std::ofstream(dir / "once.json") << R"({"meshes": {"a": {"file": ")" << quad << R"("}},
+    "instances": [{"mesh": "a"}]})";
+  const Scene twice = load_scene((dir / "twice.json").string());
+  const Scene once = load_scene((dir / "once.json").string());
+  REQUIRE(twice.instances.size() == 3);
+  CHECK(twice.meshes.size() == once.meshes.size() + 1);  // the teapot its own
+  CHECK(twice.instances[0].mesh == twice.instances[1].mesh);
+  CHECK(twice.instances[0].name == "a");
+  CHECK(twice.instances[1].name == "b");
+  CHECK(twice.triangle_count() == 2 * once.triangle_count() + twice.meshes[twice.instances[2].mesh].triangles.size());
+  std::filesystem::remove_all(dir);
+}
