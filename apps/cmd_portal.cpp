@@ -63,10 +63,13 @@ void add_mip_options(CLI::App* cmd, uint32_t& levels, float& distance) {
   cmd->add_option("--mip-distance", distance,
                   "Mip-mapped space: a ray moves to level l at distance mip-distance * 2^l voxels from its origin "
                   "(default: where one pixel spans one voxel); needs --mip-levels 2 or more")
-      ->check(CLI::Range(0.0f, 1e9f))
-      ->check([](const std::string& v) {  // 0 is the "not given" of the default, not a distance
-        return std::strtod(v.c_str(), nullptr) > 0.0 ? std::string() : std::string("must be above 0");
-      });
+      // 0 is the "not given" of the default, not a distance: the range is open at 0
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            const double d = std::strtod(v.c_str(), nullptr);
+            return d > 0.0 && d <= 1e9 ? std::string() : std::string("must lie in (0, 1e9]");
+          },
+          "FLOAT in (0 - 1e+09]"));
 }
 
 // --mip-distance without coarse levels has nothing to move to (it was ignored without a word).
