@@ -7,6 +7,7 @@
 // differs, 4 the validation layer reported something (whatever the comparison found).
 // --json FILE and --junit FILE write reports, each atomically (a temporary file renamed over FILE).
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -737,9 +738,11 @@ int DiffRun::run() {
   return code;
 }
 
-// The grid flags given on the command line after the verb, as explain takes them (the verb's own
-// flags and the scene left out), each as typed.
+// The grid and limit options given, as explain takes them (the verb's own options and the scene
+// left out), each value as parsed (several joined by commas).
 std::string given_grid_flags(const CLI::App* cmd) {
+  // The app's limit options given after the verb count too, and a value of several words
+  // (--resolution 8 8 8) is joined by commas: the printed command lost both (an outside sweep)
   static const char* const kOwn[] = {"--width", "--height", "--time", "-t", "--frames", "--fps", "--ulps",
                                      "--uv-tolerance", "--gpu-frame", "--shadows", "--validation", "--json", "--junit",
                                      "--inject-difference"};
@@ -752,13 +755,21 @@ std::string given_grid_flags(const CLI::App* cmd) {
     if (a.size() < 2 || a[0] != '-') continue;  // the scene
     const std::string name = a.substr(0, a.find('='));
     const CLI::Option* opt = cmd->get_option_no_throw(name);
-    const bool takes_value = opt && opt->get_expected_min() > 0 && a.find('=') == std::string::npos;
+    if (!opt && cmd->get_parent()) opt = cmd->get_parent()->get_option_no_throw(name);
     const bool own = std::find(std::begin(kOwn), std::end(kOwn), name) != std::end(kOwn);
     if (!own) out += " " + shell_quote(a);
-    if (takes_value && k + 1 < args.size()) {
-      ++k;
-      if (!own) out += " " + shell_quote(args[k]);
+    if (!opt || opt->get_expected_min() == 0 || a.find('=') != std::string::npos) continue;
+    // The words of its value: as many items as it takes (a word may hold several, comma separated)
+    const int items = std::max(1, opt->get_items_expected_max());
+    std::string value;
+    int have = 0;
+    while (have < items && k + 1 < args.size() && !(args[k + 1].size() > 1 && args[k + 1][0] == '-' &&
+                                                    !std::isdigit(static_cast<unsigned char>(args[k + 1][1])))) {
+      const std::string& w = args[++k];
+      have += 1 + int(std::count(w.begin(), w.end(), ','));
+      value += (value.empty() ? "" : ",") + w;
     }
+    if (!own && !value.empty()) out += " " + shell_quote(value);
   }
   return out;
 }

@@ -93,8 +93,10 @@ TEST_CASE("CLI: gridrt diff - a differing texel and hit exit 3, named by scene c
   }
   {
     const fs::path json_path = d / "hit.json";
+    // A value of several words, a flag and a limit option after the verb: the printed command
+    // lost the second and third words and the limit's value (an outside sweep)
     const Run r = run_tool(std::string("diff ") + kSmall + " --frames 1 --traversal exact --inject-difference hit --json " +
-                           json_path.string());
+                           json_path.string() + " --resolution 6 5 4 --all-effects --max-pixels 100000");
     INFO(r.output);
     CHECK(r.exit_code == 3);
     const nlohmann::json j = nlohmann::json::parse(read_file(json_path));
@@ -110,6 +112,9 @@ TEST_CASE("CLI: gridrt diff - a differing texel and hit exit 3, named by scene c
     CHECK(cmd.find("--traversal exact") != std::string::npos);
     CHECK(cmd.find("--primary") != std::string::npos);
     CHECK(cmd.find("--inject") == std::string::npos);
+    CHECK(cmd.find(" --resolution 6,5,4") != std::string::npos);
+    CHECK(cmd.find(" --all-effects") != std::string::npos);
+    CHECK(cmd.find(" --max-pixels 100000") != std::string::npos);
     const Run e = run_tool(cmd.substr(std::string("gridrt ").size()));
     INFO(e.output);
     CHECK(e.exit_code == 0);
@@ -308,7 +313,7 @@ TEST_CASE("CLI: sweep - the Vulkan row on the compact layout, colliding stems, a
   const std::string tri = "v 0 0 0\nv 2 0 0\nv 0 2 0\nf 1 2 3\n";
   fs::create_directories(d / "a");
   fs::create_directories(d / "b");
-  for (const fs::path p : {d / "x-2.obj", d / "a" / "x.obj", d / "b" / "x.obj", d / "a,b.obj"}) std::ofstream(p) << tri;
+  for (const fs::path& p : {d / "x-2.obj", d / "a" / "x.obj", d / "b" / "x.obj", d / "a,b.obj"}) std::ofstream(p) << tri;
   const Run names = run_tool("sweep " + (d / "x-2.obj").string() + " " + (d / "a" / "x.obj").string() + " " +
                              (d / "b" / "x.obj").string() + " '" + (d / "a,b.obj").string() + "' -b cpu --width 8 " +
                              "--height 8 --traversal exact --triangle-test moller --capacity 4 -o " + (d / "s").string());
