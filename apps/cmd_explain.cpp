@@ -437,21 +437,28 @@ void run_explain(const ExplainOptions& options) {
   // Every ray's pictures and the reports named and checked before the first is written: a refused
   // later one left the earlier replaced (an outside sweep), and no two may name one file
   {
-    std::vector<std::string> names;
+    std::vector<std::string> paths;
     for (size_t i = 0; i < items.size(); ++i) {
       if (!o.obj.empty()) {
-        names.push_back(numbered(o.obj, i, items.size()));
-        names.push_back(std::filesystem::path(names.back()).replace_extension(".mtl").string());
+        paths.push_back(numbered(o.obj, i, items.size()));
+        paths.push_back(std::filesystem::path(paths.back()).replace_extension(".mtl").string());
+        // The OBJ names its .mtl on a mtllib line, which ends at white space and where '#' starts
+        // a comment: such a name wrote an OBJ that opened without its colours (an outside sweep)
+        const std::string mtl = std::filesystem::path(paths.back()).filename().string();
+        for (const char ch : mtl)
+          if (std::isspace(static_cast<unsigned char>(ch)) || std::iscntrl(static_cast<unsigned char>(ch)) || ch == '#')
+            throw OptionsError("explain --export: the OBJ's name may not contain spaces, '#' or control characters "
+                               "(its mtllib line names the materials by it): '" + mtl + "'");
       }
-      if (!o.svg.empty()) names.push_back(numbered(o.svg, i, items.size()));
+      if (!o.svg.empty()) paths.push_back(numbered(o.svg, i, items.size()));
     }
-    if (!o.html.empty()) names.push_back(o.html);
-    if (!o.json.empty()) names.push_back(o.json);
-    for (size_t a = 0; a < names.size(); ++a) {
-      check_output_allowed(names[a], "explain output");
-      for (size_t b = a + 1; b < names.size(); ++b)
-        if (!is_stream_output(names[a]) && names_same_file(names[a], names[b]))
-          throw OptionsError("explain: two outputs name one file, '" + names[a] + "' (" + names[b] + ")");
+    if (!o.html.empty()) paths.push_back(o.html);
+    if (!o.json.empty()) paths.push_back(o.json);
+    for (size_t a = 0; a < paths.size(); ++a) {
+      check_output_allowed(paths[a], "explain output");
+      for (size_t b = a + 1; b < paths.size(); ++b)
+        if (!is_stream_output(paths[a]) && names_same_file(paths[a], paths[b]))
+          throw OptionsError("explain: two outputs name one file, '" + paths[a] + "' (" + paths[b] + ")");
     }
   }
 

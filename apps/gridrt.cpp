@@ -2,13 +2,17 @@
 //
 // Exit codes: 0 success, 1 a user error (bad input, limits, no device), 2 bad command line,
 // 5 an internal error (a bug: please report it); diff also 3 (differs) and 4 (validation messages).
+#include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <cstring>
 #include <functional>
+#include <iostream>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -98,7 +102,27 @@ std::string non_finite_argument(int argc, char** argv) {
 
 }  // namespace gridrt::app
 
+namespace {
+
+// Standard output written in full, or exit 1: the verbs whose product is their text (stats,
+// explain) exited 0 with none of it written to a full disk (an outside sweep)
+int stdout_status() {
+  std::cout.flush();
+  errno = 0;
+  if (std::fflush(stdout) == 0 && !std::ferror(stdout) && !std::cout.fail()) return 0;
+  std::fprintf(stderr, "gridrt: error: cannot write to standard output%s%s\n", errno ? ": " : "",
+               errno ? std::strerror(errno) : "");
+  return 1;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  // A write to a closed pipe or past the file-size limit returns its error (EPIPE, EFBIG), which
+  // every write checks, rather than ending the process by a signal with no word and a temporary
+  // file left behind (an outside sweep)
+  std::signal(SIGPIPE, SIG_IGN);
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{
       "gridrt: ray tracing without ray-tracing hardware. The fixed-capacity grid of\n"
       "\"Hybrid ray/voxel tracing with fixed-capacity grids\" as a CPU reference (the spec) and a\n"
@@ -154,10 +178,10 @@ int main(int argc, char** argv) {
   guard_inputs(true);  // no output replaces a file this run read (the scene, its textures, a ray file)
   try {
     app.parse(argc, argv);
-    return 0;
+    return stdout_status();
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);  // prints help, version or the parse error
-    return code == 0 ? 0 : 2;
+    return code == 0 ? stdout_status() : 2;
   } catch (const app::Differs& e) {
     std::fprintf(stderr, "gridrt: %s\n", e.what());
     return 3;

@@ -3,6 +3,7 @@
 #include "gridrt/common/safe_io.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -179,6 +180,22 @@ void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
 #endif
 }
 
+#ifdef GRIDRT_WITH_OIIO
+namespace {
+void check_jpeg_end(const std::string& path) {
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
+  const std::streamoff size = f.tellg();
+  const std::streamoff tail = std::min<std::streamoff>(size, 4096);
+  std::string end(size_t(tail > 0 ? tail : 0), '\0');
+  f.seekg(size - tail);
+  if (tail <= 0 || !f.read(end.data(), tail)) throw Error("cannot load texture '" + path + "': cannot read its end");
+  while (!end.empty() && (end.back() == '\0' || std::isspace(static_cast<unsigned char>(end.back())))) end.pop_back();
+  if (end.size() < 2 || uint8_t(end[end.size() - 2]) != 0xFF || uint8_t(end.back()) != 0xD9)
+    throw Error("cannot load texture '" + path + "': its JPEG data ends before the end-of-image marker (a truncated file)");
+}
+}  // namespace
+#endif
+
 Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_channel) {
 #ifdef GRIDRT_WITH_OIIO
   // Keep colour and alpha as stored (OpenImageIO premultiplies by default): a masked-out texel
@@ -207,19 +224,27 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
   tex.width = uint32_t(spec.width);
   tex.height = uint32_t(spec.height);
   const size_t n = size_t(tex.width) * tex.height;
-  std::vector<uint8_t> px(n * size_t(nch));
-  if (!in->read_image(0, 0, 0, nch, OIIO::TypeDesc::UINT8, px.data()))
-    throw Error("cannot load texture '" + path + "': " + in->geterror());
-  in->close();
-
   // Which channel is alpha: the one the file names, else the last of 2 or 4.
   int a = spec.alpha_channel;
   if (a < 0 || a >= nch) a = (nch == 2 || nch == 4) ? nch - 1 : -1;
   if (alpha_channel) *alpha_channel = a >= 0;
   if (a < 0 && alpha == AlphaSource::kFirstChannel) a = 0;
+  // Only the channels used (colour, alpha) are read: a header of 64 channels took 64 bytes a pixel
+  // (4 GiB at the pixel limit, from a 66 KB file: an outside sweep)
+  const int used = std::min(nch, std::max(3, a + 1));
+  std::vector<uint8_t> px(n * size_t(used));
+  if (!in->read_image(0, 0, 0, used, OIIO::TypeDesc::UINT8, px.data())) {
+    std::string why = in->geterror();
+    throw Error("cannot load texture '" + path + "': " + (why.empty() ? "its pixels do not decode (truncated or corrupt)" : why));
+  }
+  const std::string format = in->format_name();
+  in->close();
+  // libjpeg calls missing scan lines a warning and OpenImageIO returns them grey without an
+  // error: a JPEG must end with its end-of-image marker (FF D9), trailing blanks aside
+  if (format == "jpeg") check_jpeg_end(path);
   tex.rgba.resize(n * 4);
   for (size_t i = 0; i < n; ++i) {
-    const uint8_t* p = px.data() + i * size_t(nch);
+    const uint8_t* p = px.data() + i * size_t(used);
     uint8_t* q = tex.rgba.data() + i * 4;
     if (nch >= 3) { q[0] = p[0]; q[1] = p[1]; q[2] = p[2]; }
     else { q[0] = q[1] = q[2] = p[0]; }

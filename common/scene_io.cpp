@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -110,6 +111,11 @@ class SceneFileReader {
     scene_.name = root.contains("name") ? get_string(root["name"], "name") : fs::path(path_).stem().string();
     if (!root.contains("meshes")) fail("", "no \"meshes\"");
     if (!root.contains("instances")) fail("", "no \"instances\"");
+    // The meshes some instance names (an unused one was loaded and kept too: 150 unused teapots of
+    // a 6.5 KB file took 4 GB before any limit, an outside sweep)
+    if (root["instances"].is_array())
+      for (const json& in : root["instances"])
+        if (in.is_object() && in.contains("mesh") && in["mesh"].is_string()) used_.insert(in["mesh"].get<std::string>());
     read_meshes(root["meshes"]);
     if (root.contains("materials")) read_materials(root["materials"]);
     read_instances(root["instances"]);
@@ -148,6 +154,8 @@ class SceneFileReader {
     if (!j.is_number()) fail(where, std::string("expected a number, found ") + j.type_name());
     const double d = j.get<double>();
     if (!std::isfinite(d)) fail(where, "not a finite number");
+    // Kept as a float: 1e39 became inf, refused later as "non-finite" without its path
+    if (!std::isfinite(float(d))) fail(where, j.dump() + " is beyond a float's range (about 3.4e38)");
     return float(d);
   }
   uint32_t get_uint(const json& j, const std::string& where) const {
@@ -200,6 +208,12 @@ class SceneFileReader {
       const std::string where = "meshes." + it.key();
       const json& m = it.value();
       expect_object(m, where);
+      if (!used_.count(it.key())) {  // checked, not loaded
+        check_keys(m, where, {"file", "builtin", "level", "diffuse"});
+        if (!m.contains("file") && !m.contains("builtin")) fail(where, "needs \"file\" or \"builtin\"");
+        std::fprintf(stderr, "warning: %s: %s: no instance uses it (not loaded)\n", path_.c_str(), where.c_str());
+        continue;
+      }
       std::vector<Instance> parts;
       if (m.contains("file")) {
         check_keys(m, where, {"file"});
@@ -236,6 +250,19 @@ class SceneFileReader {
         fail(where, "needs \"file\" or \"builtin\"");
       }
       meshes_[it.key()] = std::move(parts);
+      // Each mesh loaded counts at least once over the instances: a file over the limits is
+      // refused as it is read, not after every mesh is held
+      uint64_t triangles = 0, vertices = 0;
+      for (const Mesh& mesh : scene_.meshes) {
+        triangles += mesh.triangles.size();
+        vertices += mesh.positions.size();
+      }
+      if (triangles > input_limits().max_triangles)
+        fail(where, "the meshes loaded so far hold " + std::to_string(triangles) + " triangles, more than the limit of " +
+                        std::to_string(input_limits().max_triangles) + " (--max-triangles)");
+      if (vertices > input_limits().max_vertices)
+        fail(where, "the meshes loaded so far hold " + std::to_string(vertices) + " vertices, more than the limit of " +
+                        std::to_string(input_limits().max_vertices));
     }
   }
 
@@ -413,6 +440,7 @@ class SceneFileReader {
   TextureCache textures_;
   std::map<std::string, std::vector<Instance>> meshes_;  // by name: the instances a file gave
   std::map<std::string, std::vector<Instance>> files_;   // by the file's canonical path: the same
+  std::set<std::string> used_;                           // the mesh names the instances give
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -603,7 +631,13 @@ void transfer_scene(A& a, S& s) {
 }  // namespace
 
 std::string real_scenes_dir() {
-  if (const char* env = std::getenv("GRIDRT_SCENES"); env && *env) return env;
+  // A relative value is the working folder's, as any path an environment variable names (it was
+  // read against the scene file's folder)
+  if (const char* env = std::getenv("GRIDRT_SCENES"); env && *env) {
+    std::error_code ec;
+    const fs::path p = fs::absolute(env, ec);
+    return ec ? std::string(env) : p.string();
+  }
   return GRIDRT_DEFAULT_SCENES;
 }
 

@@ -603,6 +603,25 @@ Error over_budget(const GridCandidate& c, const GridOptions& o, const Scene& sce
                " in the compact layout, over its memory budget of " + size(budget) + " (--memory-budget)");
 }
 
+// A grid whose densest cell holds thousands of references: a part of the scene far smaller than
+// its extent (a teapot in a stadium) that no uniform grid within the limits separates. Every ray
+// through that cell tests all of them (an outside test: a teapot of 89,000 triangles beside two
+// triangles 1e6 away, one cell of 9 x 9 x 9 holding the teapot, 70 s for a 160 x 90 frame).
+// Valid, so said once per scene, with what the trace will pay and what helps.
+void warn_crowded_cell(const Scene& scene, const GridCandidate& c) {
+  if (c.max_count < kCrowdedCellReferences) return;
+  static std::mutex warned_lock;
+  static std::set<std::string> warned;
+  const std::lock_guard<std::mutex> hold(warned_lock);
+  if (!warned.insert(scene.name).second) return;
+  std::fprintf(stderr,
+               "gridrt: warning: grid %ux%ux%u: its densest cell holds %u references of the scene's %llu triangles; "
+               "every ray through it tests them all. A part of the scene far smaller than its extent (a dense "
+               "model beside far geometry) is more than a uniform grid within the limits can separate: expect slow "
+               "traces; keep the far geometry out, or give finer cells (--resolution, --memory-budget)\n",
+               c.cells.x, c.cells.y, c.cells.z, c.max_count, (unsigned long long)scene.triangle_count());
+}
+
 // The candidate search of the no_saturation and trace_cost policies (and the one candidate of a
 // resolution, cell-size or capacity override).
 GridParams choose_by_candidates(const Scene& scene, float time, const GridOptions& o, GridParams g, glm::vec3 e,
@@ -777,6 +796,7 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
                      ? choose_by_percentile(scene, time, o, g, e, cs)
                      : choose_by_candidates(scene, time, o, g, e, cs, &ch);
   if ((p.flags & shared::kGridCompact) == 0u) p.flags &= ~shared::kGridSkipCovered;
+  if (!ch.candidates.empty()) warn_crowded_cell(scene, ch.candidates[ch.chosen]);
   return p;
 }
 

@@ -19,6 +19,9 @@ enum class Traversal { paper, exact };
 enum class Insertion { first_empty, sorted };
 
 inline constexpr float kAabbPadding = 1.0e-3f;  // the AABB padding where none is chosen
+// A chosen grid whose densest cell holds this many references is warned of (plan/choose.cpp,
+// warn_crowded_cell): the real scenes' densest cells hold at most a few hundred
+inline constexpr uint32_t kCrowdedCellReferences = 4096;
 
 // The algorithm: what GridParams and the trace's flags are made of (make_params, trace_flags).
 struct AlgorithmOptions {

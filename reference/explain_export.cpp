@@ -470,18 +470,17 @@ nlohmann::json explain_view(const std::string& label, const std::vector<std::str
 
 std::string explain_html(const std::string& title, const nlohmann::json& views) {
   std::string page = kExplainViewerHtml;
-  // The data as JSON inside a script element: "</" written as "<\/" (the same string in JSON)
+  // The data as JSON inside a script element: every '<' and '>' written as \u003c and \u003e (the
+  // same strings in JSON; they occur in strings only). "</" alone was escaped, and a name holding
+  // "<!--" then "<script" put the page's own </script> inside the script (an outside sweep)
   std::string data = nlohmann::json{{"title", title}, {"views", views}}.dump(-1, ' ', false,
                                                                              nlohmann::json::error_handler_t::replace);
   std::string safe;
   safe.reserve(data.size());
-  for (size_t i = 0; i < data.size(); ++i) {
-    if (data[i] == '<' && i + 1 < data.size() && data[i + 1] == '/') {
-      safe += "<\\/";
-      ++i;
-    } else {
-      safe += data[i];
-    }
+  for (const char c : data) {
+    if (c == '<') safe += "\\u003c";
+    else if (c == '>') safe += "\\u003e";
+    else safe += c;
   }
   const std::string data_mark = "/*GRIDRT_DATA*/null", title_mark = "<!--GRIDRT_TITLE-->";
   for (size_t t = page.find(title_mark); t != std::string::npos; t = page.find(title_mark, t)) {

@@ -1,4 +1,5 @@
 // obj.cpp: Wavefront OBJ + MTL through tinyobjloader, with the checks it does not make.
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cctype>
@@ -7,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <set>
 #include <sstream>
 #include <string_view>
@@ -104,15 +106,14 @@ bool parse_int(std::string_view s, long& out) {
   throw Error(path + ":" + std::to_string(line) + ": " + what);
 }
 
-// Every token after the keyword that is not an option (-name) must be a finite number; at least
-// `min_numbers` of them.
+// Every token after the keyword must be a finite number (but d's one option, -halo); at least
+// `min_numbers` of them. Every other word was skipped as an option where it began with '-' and a
+// letter, so "-NaN" and "-Inf" passed, and tinyobjloader read them as 0 (an outside sweep).
 void check_numbers(const std::string& path, size_t line, const std::vector<std::string_view>& tok,
                    size_t min_numbers) {
   size_t numbers = 0;
   for (size_t i = 1; i < tok.size(); ++i) {
-    if (tok[i].size() > 1 && tok[i][0] == '-' && std::isalpha(static_cast<unsigned char>(tok[i][1])) &&
-        tok[i] != "-inf" && tok[i] != "-nan")
-      continue;
+    if (tok[0] == "d" && tok[i] == "-halo") continue;
     double v;
     if (!parse_float(tok[i], v))
       fail_at(path, line, "'" + std::string(tok[0]) + "': '" + std::string(tok[i]) + "' is not a number");
@@ -139,9 +140,14 @@ struct ObjScan {
 // tinyobjloader reads a malformed number as 0 and only warns about out-of-range indices (with
 // the number of the last line); this pass finds such lines first.
 ObjScan scan_obj(const std::string& path, const std::string& text) {
+  // A NUL byte: not a text file (UTF-16 saved, or binary), which read as an empty model
+  if (const size_t nul = text.find('\0'); nul != std::string::npos)
+    fail_at(path, size_t(std::count(text.begin(), text.begin() + std::ptrdiff_t(nul), '\n')) + 1,
+            "a NUL byte: an OBJ is a text file (UTF-8 or ASCII; UTF-16 is not read)");
   ObjScan scan;
   std::set<std::string> used;
   long counts[3] = {0, 0, 0};                     // v, vt, vn so far
+  uint64_t triangles = 0;                         // the faces' triangles so far
   long max_index[3] = {0, 0, 0};                  // largest positive index used
   size_t max_line[3] = {0, 0, 0};                 // where
   static const char* kinds[3] = {"vertex", "texture coordinate", "normal"};
@@ -152,6 +158,12 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
     else if (k == "vn") { check_numbers(path, line, tok, 3); ++counts[2]; }
     else if (k == "f") {
       if (tok.size() < 4) fail_at(path, line, "face with fewer than 3 vertices");
+      // Its triangles counted against the limit as they are read (a file of 2,000,000 triangles
+      // was parsed whole before --max-triangles 1000 refused it)
+      triangles += tok.size() - 3;
+      if (triangles > input_limits().max_triangles)
+        fail_at(path, line, "the faces so far make more than the limit of " +
+                                std::to_string(input_limits().max_triangles) + " triangles (--max-triangles)");
       if (tok.size() - 1 > input_limits().max_face_vertices)
         fail_at(path, line, "face with " + std::to_string(tok.size() - 1) + " vertices, more than the limit of " +
                                 std::to_string(input_limits().max_face_vertices));
@@ -237,9 +249,20 @@ std::string pad_texture_options(const std::string& path, const std::string& text
         fail_at(path, number, std::string(tok[0]) + ": option '" + std::string(o) + "' without a number");
       for (; have < want; ++have, padded = true) rewritten += (o == "-s" || o == "-mm") ? " 1" : " 0";
     }
+    // newmtl: tinyobjloader keeps the blanks after the keyword in the name ("newmtl  leaf" defined
+    // " leaf"); a texture statement: it takes the rest of the line, a comment too, as the file's
+    // name. Both written without them (an outside sweep)
+    const bool newmtl = !tok.empty() && tok[0] == "newmtl" && tok.size() > 1;
+    if (newmtl || (texture && !padded && hash != std::string_view::npos)) {
+      std::string_view rest = body.substr(size_t(tok[0].data() + tok[0].size() - body.data()));
+      while (!rest.empty() && std::isspace(static_cast<unsigned char>(rest.front()))) rest.remove_prefix(1);
+      while (!rest.empty() && std::isspace(static_cast<unsigned char>(rest.back()))) rest.remove_suffix(1);
+      rewritten = std::string(tok[0]) + " " + std::string(rest);
+      padded = true;
+    }
     if (padded) {
       out += rewritten;
-      if (hash != std::string_view::npos) out += " " + std::string(line.substr(hash));
+      if (hash != std::string_view::npos && !texture && !newmtl) out += " " + std::string(line.substr(hash));
     } else {
       out += line;
     }
@@ -255,7 +278,10 @@ std::string scan_mtl(const std::string& path) {
   for_each_line(text, [&](size_t line, const std::vector<std::string_view>& tok) {
     const std::string_view k = tok[0];
     if (k == "Kd" || k == "Ka" || k == "Ks" || k == "Ke" || k == "Tf") {
-      if (tok.size() > 1 && (tok[1] == "spectral" || tok[1] == "xyz")) return;
+      // tinyobjloader reads "xyz" and "spectral" as the number 0: another colour, or black
+      if (tok.size() > 1 && (tok[1] == "spectral" || tok[1] == "xyz"))
+        fail_at(path, line, "'" + std::string(k) + " " + std::string(tok[1]) +
+                                "': CIE XYZ and spectral colours are not read; give r g b");
       check_numbers(path, line, tok, 1);
     } else if (k == "Ns" || k == "Ni" || k == "d" || k == "Tr" || k == "illum") {
       check_numbers(path, line, tok, 1);
@@ -288,6 +314,10 @@ tinyobj::ObjReader parse_obj(const std::string& path) {
   const fs::path dir = fs::path(path).parent_path();
   std::string mtl_text;  // every library, checked and normalized, in order
   std::set<std::string> mtl_seen;
+  // Where each material is first defined: the line of the mtllib that reads its library, and the
+  // library (tinyobjloader knows only the libraries read before a usemtl, and keeps the first of
+  // two definitions of one name)
+  std::map<std::string, std::pair<size_t, std::string>> defined;
   for (const auto& [name, line] : scan.mtllibs) {
     const fs::path mtl = dir / name;
     if (const std::string why = why_missing(mtl.string()); why == "no such file")
@@ -295,9 +325,23 @@ tinyobj::ObjReader parse_obj(const std::string& path) {
     else if (!why.empty())
       fail_at(path, line, "material library '" + mtl.string() + "': " + why);
     if (!mtl_seen.insert(mtl.lexically_normal().string()).second) continue;
-    mtl_text += scan_mtl(mtl.string());
+    const std::string lib = scan_mtl(mtl.string());
+    for_each_line(lib, [&](size_t mline, const std::vector<std::string_view>& tok) {
+      if (tok[0] != "newmtl" || tok.size() < 2) return;
+      const std::string m(tok[1]);
+      if (!defined.emplace(m, std::pair{line, mtl.string()}).second)
+        std::cerr << "warning: " << mtl.string() << ":" << mline << ": material '" << m << "' is defined again (first in "
+                  << defined[m].second << "): the first definition is used\n";
+    });
+    mtl_text += lib;
     mtl_text += "\n";
   }
+  // A material used before the mtllib of its library was dropped, with a warning the file
+  // contradicts (an outside sweep)
+  for (const auto& [name, line] : scan.usemtls)
+    if (const auto d = defined.find(name); d != defined.end() && d->second.first > line)
+      fail_at(path, line, "usemtl '" + name + "' before the mtllib (line " + std::to_string(d->second.first) +
+                              ") of its library: put the mtllib line first");
 
   tinyobj::ObjReaderConfig config;
   config.triangulate = true;

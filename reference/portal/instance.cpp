@@ -784,10 +784,11 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
   const std::string stem = jp.stem().string();
   if (json_path.find_first_of("\"\\") != std::string::npos)
     throw Error("portal export: the output path may not contain '\"' or '\\'");
-  // The OBJs name their .mtl by the stem on a mtllib line, which ends at white space
+  // The OBJs name their .mtl by the stem on a mtllib line, which ends at white space, and where
+  // '#' starts a comment
   for (const char ch : stem)
-    if (std::isspace(static_cast<unsigned char>(ch)) || std::iscntrl(static_cast<unsigned char>(ch)))
-      throw Error("portal export: the output's name may not contain spaces or control characters (an OBJ's "
+    if (std::isspace(static_cast<unsigned char>(ch)) || std::iscntrl(static_cast<unsigned char>(ch)) || ch == '#')
+      throw Error("portal export: the output's name may not contain spaces, '#' or control characters (an OBJ's "
                   "mtllib line names the materials by it): '" + stem + "'");
   const fs::path dir = jp.parent_path().empty() ? fs::path(".") : jp.parent_path();
   const World& w = iw.top;
