@@ -2,10 +2,12 @@
 // box enumeration, the world's occupancy, the exact voxel DDA, the paper's own 2D example.
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <fstream>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include "gridrt/common/builtin/builtin.h"
@@ -364,6 +366,31 @@ TEST_CASE("Portal: state machine and separate loops render the same image, bit f
   size_t bright = 0;
   for (const auto& p : a) bright += p.x + p.y + p.z > 0.5f;
   CHECK(bright > 0);
+}
+
+TEST_CASE("Portal: a voxelized scene's lights outside its world box light it", "[portal][unit]") {
+  // The world is the model's box and one voxel: a shadow ray leaving it reaches its light. The
+  // outside blocked every shadow ray there (the teapot's light, a directional light, a light put
+  // at an eye outside the box), and the picture was flat ambient grey (an outside sweep)
+  const PortalBuild& b = teapot_build();
+  REQUIRE(b.world.open_outside);
+  REQUIRE_FALSE(builtin_build().world.open_outside);  // a tile map's outside lies beyond its walls
+  RenderOptions o;
+  o.width = 64, o.height = 36;
+  RenderStats st;
+  const auto img = render(b, b.world.camera, o, &st);
+  CHECK(st.shadow_rays > 0);
+  // The surface's pixels: ambient alone is filter * colour * ambient; a lit one is brighter
+  std::set<std::array<float, 3>> shades;
+  size_t lit = 0;
+  for (const glm::vec3& p : img) {
+    if (p == o.background) continue;
+    shades.insert({p.x, p.y, p.z});
+    const glm::vec3 ambient_only = b.world.materials[0].color * o.ambient;
+    lit += p.x > ambient_only.x * 1.01f;
+  }
+  CHECK(shades.size() > 10);
+  CHECK(lit > 0);
 }
 
 TEST_CASE("Portal: refraction never forks - total internal reflection reflects", "[portal][unit]") {

@@ -318,6 +318,7 @@ std::vector<glm::vec3> PortalVulkanTracer::render(const Camera& camera, const po
   rp.max_interfaces = opt.max_interfaces;
   rp.refraction = opt.refraction ? 1u : 0u;
   rp.background = opt.background;
+  rp.open_outside = w.open_outside && !portal().packed.scale_log2 ? 1u : 0u;
   ctx.upload(gpu.render_params, &rp, sizeof rp);
   const size_t n = size_t(opt.width) * opt.height;
   if (n > gpu.pixel_capacity) {

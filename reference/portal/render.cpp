@@ -241,7 +241,8 @@ void transition(const Context& c, PixelState& s, const Step& st) {
     s.mode = kDone;
     return;
   }
-  // Shadow rays: reaching t = 1 (tmax) is reaching the light; a wall, glass or the outside blocks.
+  // Shadow rays: reaching t = 1 (tmax) is reaching the light, as is leaving a voxelized scene's
+  // world (World::open_outside); a wall, glass or a tile map's outside blocks.
   ++s.steps_shadow;
   const uint32_t i = s.mode - kShadowA;
   if (st.kind == StepKind::kNext) {
@@ -251,7 +252,7 @@ void transition(const Context& c, PixelState& s, const Step& st) {
       s.div = st.texel;
       return;
     }
-  } else if (st.kind == StepKind::kTmax) {
+  } else if (st.kind == StepKind::kTmax || (st.kind == StepKind::kOutside && c.build.world.open_outside)) {
     s.light += glm::dot(s.normal, glm::normalize(s.ray.dir));
   }
   begin_shadow(c, s, i + 1);

@@ -45,6 +45,11 @@ struct World {
   bool has_eye = false;
   Camera camera;
   std::vector<glm::vec3> lights;
+  // Voxelized scenes: the world is the model's box and one voxel, and space goes on beyond it, so
+  // a shadow ray that leaves it reaches its light (lights outside the box, a directional light, a
+  // missing light put at an eye outside: all blocked before, every such picture unlit, an outside
+  // sweep). Tile and block maps: the outside lies beyond the walls, and blocks.
+  bool open_outside = false;
 
   size_t index(uint32_t x, uint32_t y, uint32_t z) const { return x + size_t(dims.x) * (y + size_t(dims.y) * z); }
   size_t index(glm::uvec3 v) const { return index(v.x, v.y, v.z); }

@@ -45,7 +45,7 @@ struct PortalRenderParams {
   vec3 light1;          // voxel-space position of the second light
   uint refraction;      // RenderOptions::refraction (0 or 1)
   vec3 background;      // RenderOptions::background
-  uint pad0;
+  uint open_outside;    // World::open_outside (0 or 1): a shadow ray leaving the world reaches its light
 };
 
 // A wall material as the renderer reads it (WallMaterial).

@@ -367,7 +367,8 @@ void transition(inout PortalPixel s, Step st) {
     s.mode = kDone;
     return;
   }
-  // Shadow rays: reaching t = 1 (tmax) is reaching the light; a wall, glass or the outside blocks.
+  // Shadow rays: reaching t = 1 (tmax) is reaching the light, as is leaving a voxelized scene's
+  // world (open_outside); a wall, glass or a tile map's outside blocks.
   ++s.steps_shadow;
   const uint i = s.mode - kShadowA;
   if (st.kind == kStepNext) {
@@ -377,7 +378,7 @@ void transition(inout PortalPixel s, Step st) {
       s.div = st.texel;
       return;
     }
-  } else if (st.kind == kStepTmax) {
+  } else if (st.kind == kStepTmax || (st.kind == kStepOutside && rp.open_outside != 0u)) {
     precise float l = s.light + sh_dot(s.normal, ref_normalize(s.dir));
     s.light = l;
   }
