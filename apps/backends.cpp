@@ -137,7 +137,7 @@ void add_grid_options(CLI::App* cmd, BackendOptions& o) {
   add_enum(cmd, "--self-hit", g.exclude_launch_ref, {{"exclude", true}, {"keep", false}},
            "The ray's launch triangle: exclude (never accept it, the default) or keep (test it like any other)")
       ->group(kGrid);
-  cmd->add_option("--threads", g.threads, "CPU threads (0: all)")->group(kGrid);
+  cmd->add_option("--threads", g.threads, "CPU threads (0: all)")->check(CLI::Range(0u, kMaxThreads))->group(kGrid);
 }
 
 // The expert knobs ("Grid (expert)").

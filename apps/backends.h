@@ -22,6 +22,9 @@ struct VulkanGridOptions;
 
 namespace gridrt::app {
 
+// --threads: at most this many (a large number made threads until the system refused one)
+inline constexpr unsigned kMaxThreads = 1024;
+
 struct BackendOptions {
   reference::GridOptions grid;   // the grid's knobs, shared by cpu and vulkan
   std::string vk_build = "raster";  // raster (the paper's geometry-shader pass) or compute

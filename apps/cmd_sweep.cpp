@@ -673,7 +673,8 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--self-hit", o->launch, "Knob values: exclude,keep (the launch triangle)")->delimiter(',')->type_name("A,B,..")->group("Knobs");
   cmd->add_option("--max-image-dimension", o->max_dim, "Knob values: image limit (4096 lavapipe, 16384 NVIDIA)")
       ->delimiter(',')->type_name("A,B,..")->group("Knobs");
-  cmd->add_option("--threads", o->backend_options.grid.threads, "CPU threads (0: all)")->group("Grid");
+  cmd->add_option("--threads", o->backend_options.grid.threads, "CPU threads (0: all)")
+      ->check(CLI::Range(0u, kMaxThreads))->group("Grid");
   // The fixed expert knobs of every configuration, grouped as on the other verbs
   constexpr const char* kExpert = "Grid (expert)";
   cmd->add_option("--density", o->backend_options.grid.density, "Target cells per triangle")

@@ -2,6 +2,7 @@
 //
 // Exit codes: 0 success, 1 a user error (bad input, limits, no device), 2 bad command line,
 // 5 an internal error (a bug: please report it); diff also 3 (differs) and 4 (validation messages).
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -14,6 +15,7 @@
 #include <functional>
 #include <iostream>
 #include <string>
+#include <utility>
 
 #include <CLI/CLI.hpp>
 
@@ -71,7 +73,32 @@ namespace {
 // through (every comparison with NaN is false), and "1e999" converts to infinity. A token
 // (or the value after '=', or an element of a comma list) that reads in full as a number and is
 // not a finite float is rejected before parsing.
-std::string non_finite_argument(int argc, char** argv) {
+// Also a value glued to a short option (-tnan: it passed), and a number written with a leading
+// zero (010), which CLI11 reads as octal for an integer (--width 010 made 8 pixels): both found by
+// an outside sweep. Returns the token and what is wrong with it, or empty strings.
+std::pair<std::string, std::string> bad_number_argument(int argc, char** argv) {
+  const auto bad_part = [](const std::string& part) -> std::string {
+    if (part.empty()) return "";
+    char* stop = nullptr;
+    const double v = std::strtod(part.c_str(), &stop);
+    if (stop && *stop == '\0' && stop != part.c_str() && !(std::isfinite(v) && std::fabs(v) <= 3.4e38))
+      return "numbers on the command line must be finite (no nan, inf or overflow)";
+    const size_t d = (part[0] == '+' || part[0] == '-') ? 1 : 0;
+    if (part.size() > d + 1 && part[d] == '0' &&
+        part.find_first_not_of("0123456789", d) == std::string::npos)
+      return "a number may not start with 0 (it would be read as octal): write it without the leading zeros";
+    return "";
+  };
+  const auto bad_value = [&](const std::string& a) -> std::string {
+    size_t start = 0;
+    while (start <= a.size()) {
+      size_t end = a.find(',', start);
+      if (end == std::string::npos) end = a.size();
+      if (std::string why = bad_part(a.substr(start, end - start)); !why.empty()) return why;
+      start = end + 1;
+    }
+    return "";
+  };
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     // explain --ray takes inf and nan on purpose: it shows how the tracer rejects such a ray
@@ -81,21 +108,12 @@ std::string non_finite_argument(int argc, char** argv) {
     }
     if (a.rfind("--ray=", 0) == 0) continue;
     if (const size_t eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) a = a.substr(eq + 1);
-    size_t start = 0;
-    while (start <= a.size()) {
-      size_t end = a.find(',', start);
-      if (end == std::string::npos) end = a.size();
-      const std::string part = a.substr(start, end - start);
-      if (!part.empty()) {
-        char* stop = nullptr;
-        const double v = std::strtod(part.c_str(), &stop);
-        if (stop && *stop == '\0' && stop != part.c_str() && !(std::isfinite(v) && std::fabs(v) <= 3.4e38))
-          return argv[i];
-      }
-      start = end + 1;
-    }
+    if (std::string why = bad_value(a); !why.empty()) return {argv[i], why};
+    // -tVALUE: a short option with its value glued on
+    if (a.size() > 2 && a[0] == '-' && std::isalpha(static_cast<unsigned char>(a[1])))
+      if (std::string why = bad_value(a.substr(2)); !why.empty()) return {argv[i], why};
   }
-  return "";
+  return {"", ""};
 }
 
 }  // namespace
@@ -169,9 +187,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-pixels", app::frame_limits().max_pixels,
                  "Largest rendered image (width x height) in pixels (default 33554432)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
-  if (const std::string bad = app::non_finite_argument(argc, argv); !bad.empty()) {
-    std::fprintf(stderr, "gridrt: error: '%s': numbers on the command line must be finite (no nan, inf or overflow)\n",
-                 bad.c_str());
+  if (const auto [bad, why] = app::bad_number_argument(argc, argv); !bad.empty()) {
+    std::fprintf(stderr, "gridrt: error: '%s': %s\n", bad.c_str(), why.c_str());
     return 2;
   }
   app::command_line.assign(argv, argv + argc);

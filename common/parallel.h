@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstddef>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -19,10 +20,19 @@ inline unsigned thread_count_or_hardware(unsigned requested) {
 }
 
 // work() on `threads` threads at once, the calling thread one of them; returns when all return.
+// work() takes its share itself (a shared counter): where the system makes fewer threads than
+// asked (its limits), those made do it all (a thread's failure ended the process in
+// std::terminate with the others running: an outside sweep).
 template <class Work>
 void run_on_threads(unsigned threads, Work&& work) {
   std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+  for (unsigned t = 1; t < threads; ++t) {
+    try {
+      pool.emplace_back(work);
+    } catch (const std::system_error&) {
+      break;
+    }
+  }
   work();
   for (std::thread& t : pool) t.join();
 }

@@ -137,6 +137,8 @@ int Canvas::text(int x, int y, const std::string& s, glm::vec3 c, int size, Alig
   const int w = text_width(s, size, bold);
   if (align == Align::center) x -= w / 2;
   if (align == Align::right) x -= w;
+  // Text wholly outside the canvas is not set (OpenImageIO asserts on it)
+  if (x >= int(w_) || x + w <= 0 || y - size >= int(h_) || y + size / 2 <= 0) return w;
   OIIO::ImageBuf buf(OIIO::ImageSpec(int(w_), int(h_), 3, OIIO::TypeDesc::FLOAT), px_.data());
   const float color[3] = {c.r, c.g, c.b};
   if (!OIIO::ImageBufAlgo::render_text(buf, x, y, s, size, font_path(bold), color))
@@ -244,7 +246,10 @@ Canvas draw_image_figure(const ImageFigure& f) {
   if (f.has_bar) side = std::max(side, Canvas::text_width(f.bar.label, 13));
   for (const LegendEntry& e : f.legend) side = std::max(side, 13 + 6 + Canvas::text_width(e.second, 13));
   const int legend_h = int(f.legend.size()) * 21;
-  const int body_h = std::max(ih, (f.has_bar ? 150 + 30 : 0) + legend_h + 20);
+  // The bar's height, and the legend below it: the body holds both (the legend was placed below
+  // the canvas for images about 200-280 pixels high, and OpenImageIO aborted: an outside sweep)
+  const int bh = std::max(std::min(ih - 18, 260), 150);
+  const int body_h = std::max(ih, (f.has_bar ? 18 + bh + 24 : 0) + legend_h + 20);
   const int width = std::max(pad + iw + (side ? pad * 2 + side : 0) + pad, Canvas::text_width(f.title, 16, true) + 2 * pad);
   Canvas c(uint32_t(width), uint32_t(title_h + body_h + pad));
   c.text(pad, 22, f.title, colors::black, 16, Align::left, true);
@@ -255,7 +260,6 @@ Canvas draw_image_figure(const ImageFigure& f) {
   int sy = top + 18;
   const int sx = pad + iw + 2 * pad;
   if (f.has_bar) {
-    const int bh = std::max(std::min(ih - 18, 260), 150);
     draw_color_bar(c, sx, sy, 20, bh, f.bar);
     sy += bh + 24;
   }

@@ -70,6 +70,17 @@ TEST_CASE("Command-line numbers: NaN, infinity and values past the limits are ex
     const auto r = run_tool(std::string(args) + " -o /nonexistent/x.png");
     CHECK(r.exit_code == 2);
   }
+  // A value glued to a short option (it ran at t = nan, exit 0), leading zeros (read as octal by
+  // CLI11 for an integer: --width 010 made 8 pixels), threads without bound: an outside sweep's
+  for (const char* args : {"stats builtin:cornell -tnan", "stats builtin:cornell -t-inf",
+                           "explain builtin:cornell --width 010 --height 8 -p 1,1 --brief",
+                           "stats builtin:cornell --resolution 8,010,8", "stats builtin:cornell --threads 100000"}) {
+    const auto r = run_tool(args);
+    INFO(args << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+  }
+  // Zero itself, and numbers that only contain a zero, stay numbers
+  CHECK(run_tool("explain builtin:cornell --width 10 --height 8 -p 0,0 -t0 --brief").exit_code == 0);
 }
 
 TEST_CASE("An image larger than --max-pixels is refused before any work, naming the limit", "[badinput][cli]") {
