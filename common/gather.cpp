@@ -11,6 +11,7 @@
 #include "gridrt/common/shared/grid.h"
 #include "gridrt/common/shared/shadow.h"
 #include "gridrt/common/shared/transform.h"
+#include "gridrt/common/shared/triangle.h"
 
 namespace gridrt {
 
@@ -63,7 +64,8 @@ GatherBuffer make_gather(const Scene& scene, Tracer& tracer, const Camera& camer
     const glm::vec4 nrm = shared::gather_normal(a, b, c, r.dir);
     if (!(nrm.w > 0.0f)) continue;
     g.valid[p] = 1;
-    g.position[p] = shared::point_at(r.org, r.dir, h.t);
+    // On the triangle at the hit's weights (shared/triangle.h surface_point), not eye + t * dir
+    g.position[p] = shared::surface_point(a, b, c, shared::cramer_barycentrics(a, b, c, shared::point_at(r.org, r.dir, h.t)));
     g.normal[p] = glm::vec3(nrm);
     g.material[p] = mesh.materials.empty() ? 0u : mesh.materials[h.triangle];
     if (!mesh.uvs.empty()) g.uv[p] = shared::interpolate_uv(mesh.uvs[t[0]], mesh.uvs[t[1]], mesh.uvs[t[2]], h.u, h.v);

@@ -491,6 +491,21 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
   return clamp_barycentrics(w1, w2);
 }
 
+// The point of the triangle at barycentrics `bc` (the weights of v1 and v2): v0 + u e0 + v e1, its
+// rounding at the triangle's own scale. A launch point (the gather's position, where bounce and
+// shadow rays start): eye + t * dir rounds at the eye's distance instead, and a camera 4,000 units
+// from a unit sphere put it 1e-4 inside, where shadow rays met the neighbouring triangles
+// (speckles on a lit convex surface, a mirror reflecting itself: an outside sweep).
+SH_INLINE vec3 surface_point(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, SH_IN(vec2) bc) {
+  SH_PRECISE vec3 e0 = v1 - v0;
+  SH_PRECISE vec3 e1 = v2 - v0;
+  SH_PRECISE vec3 a = e0 * bc.x;
+  SH_PRECISE vec3 b = e1 * bc.y;
+  SH_PRECISE vec3 ab = a + b;
+  SH_PRECISE vec3 p = v0 + ab;
+  return p;
+}
+
 // The alpha of an RGBA8 texel packed as r | g << 8 | b << 16 | a << 24.
 SH_INLINE uint texel_alpha(uint rgba) { return rgba >> 24u; }
 

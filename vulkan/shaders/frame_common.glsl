@@ -72,9 +72,8 @@ GatherTexel gather_texel(uint ref, vec3 dir) {
   const vec4 n = gather_normal(tri.v0, tri.v1, tri.v2, dir);
   if (r.det != 0.0f && n.w > 0.0f) {
     const float t = moller_trumbore_t(r);
-    const vec3 pos = point_at(c.eye, dir, t);
-    const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, pos);
-    g.position = pos;
+    const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(c.eye, dir, t));
+    g.position = surface_point(tri.v0, tri.v1, tri.v2, bc);
     g.material = tri.material;
     g.normal = n.xyz;
     g.launch_ref = ref;
