@@ -268,6 +268,10 @@ void validate_lights_and_grid(const Scene& s) {
       throw Error(where + ": non-finite values");
     if (l.intensity < 0.0f || l.color.x < 0.0f || l.color.y < 0.0f || l.color.z < 0.0f)
       throw Error(where + ": negative intensity or colour");
+    // The shading takes colour * intensity: past a float's range it was inf, and a colour channel
+    // of 0 times inf put NaN pixels in the float images (an outside sweep)
+    if (!finite(l.color * l.intensity))
+      throw Error(where + ": its colour times its intensity is beyond a float's range (about 3.4e38)");
     if (l.directional && !(glm::length(l.position) > 0.0f))
       throw Error(where + ": zero direction (a directional light needs a direction towards the light)");
   }

@@ -11,6 +11,7 @@ using glm::max;
 using glm::min;
 }  // namespace gridrt::shared
 #include "gridrt/common/shared/alpha.h"
+#include "gridrt/common/shared/bounce.h"
 
 namespace gridrt {
 
@@ -97,17 +98,18 @@ std::vector<glm::vec3> shade(const Scene& scene, const GatherBuffer& g, std::spa
         const glm::vec3 a = surface_albedo(scene, h.instance, h.triangle, u, v);
         const Ray& r = bounce_rays[p];
         const glm::vec3 hp = r.org + h.t * r.dir;
-        // The bounce hit's normal, facing the bounce ray.
+        // The bounce hit's normal, facing the bounce ray: gather_normal, as the shader takes it (a
+        // plain cross product's length underflowed for edges about 1e-12, and every such hit was
+        // shaded as facing +y on the CPU alone: an outside sweep)
         glm::vec3 n(0.0f, 1.0f, 0.0f);
         const Mesh& mesh = scene.meshes[scene.instances[h.instance].mesh];
         if (h.triangle < mesh.triangles.size()) {
           const shared::Affine m = shared::to_affine(scene.instances[h.instance].transform_at(g.time));
           const glm::uvec3 t = mesh.triangles[h.triangle];
-          const glm::vec3 v0 = shared::transform_point(m, mesh.positions[t[0]]);
-          const glm::vec3 nn = glm::cross(shared::transform_point(m, mesh.positions[t[1]]) - v0,
-                                          shared::transform_point(m, mesh.positions[t[2]]) - v0);
-          if (glm::length(nn) > 0.0f) n = glm::normalize(nn);
-          if (glm::dot(n, r.dir) > 0.0f) n = -n;
+          const glm::vec4 nn = shared::gather_normal(shared::transform_point(m, mesh.positions[t[0]]),
+                                                     shared::transform_point(m, mesh.positions[t[1]]),
+                                                     shared::transform_point(m, mesh.positions[t[2]]), r.dir);
+          if (nn.w > 0.0f) n = glm::vec3(nn);
         }
         b = a * (options.ambient + direct_light(scene, hp, n));
       }
