@@ -65,6 +65,27 @@ TEST_CASE("Gather: positions on the surface, normals facing the viewer, launch r
   CHECK(floor > 100);
 }
 
+TEST_CASE("Gather: from a camera far away the positions still lie on the surface", "[unit][oracle]") {
+  // eye + t * dir rounds at the eye's distance: a camera 4,000 units away put the position about
+  // 1e-4 off a unit sphere, and its shadow rays met the neighbouring triangles (an outside sweep).
+  // The point at the hit's weights rounds at the surface's own scale.
+  Scene s = mirror_scene(0.5f);
+  for (const float d : {1.0e3f, 4.0e3f, 4.0e5f}) {
+    s.camera = Camera{.eye = {0.0f, 0.6f * d, 0.8f * d}, .target = {0, 0, 0}, .vfov_degrees = 2000.0f / d};
+    EmbreeTracer tracer(2);
+    tracer.build(s, 0.0f);
+    const GatherBuffer g = make_gather(s, tracer, *s.camera, 32, 24);
+    size_t floor = 0;
+    for (size_t p = 0; p < g.size(); ++p) {
+      if (!g.valid[p] || g.hit[p].instance != 0) continue;
+      ++floor;
+      INFO("camera " << d << " away, pixel " << p << ": y = " << g.position[p].y);
+      CHECK(g.position[p].y == 0.0f);  // the floor's vertices have y = 0 exactly
+    }
+    CHECK(floor > 40);
+  }
+}
+
 TEST_CASE("Bounce rays: deterministic, normalized, in the hemisphere, mirror at glossiness 1", "[unit][oracle]") {
   for (float gloss : {1.0f, 0.6f, 0.1f}) {
     CAPTURE(gloss);
