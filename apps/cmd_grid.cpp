@@ -4,12 +4,14 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
 
 #include "apps/backends.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/util.h"
 #include "apps/commands.h"
 #include "apps/slices.h"
@@ -165,6 +167,10 @@ void run_stats(const StatsOptions& o) {
   // --pixel draws a ray into --slices' pictures: alone it did nothing, without a word
   if (!o.ray_pixel.empty() && o.slices.empty())
     throw OptionsError("--pixel draws its camera ray into --slices' pictures: give --slices FOLDER too");
+  // The folder checked before the build and the report, as every output (it was checked after)
+  if (!o.slices.empty() && !is_folder(o.slices))
+    throw Error("--slices: '" + o.slices + "' " +
+                (std::filesystem::exists(o.slices) ? "is not a folder" : "does not exist (the folder is not made for you)"));
   check_frame_size(o.width, o.height);
   const Scene scene = load_scene_or_default(o.scene);
   const reference::GridOptions go = grid_options_for(o.backend_options, scene);

@@ -562,7 +562,7 @@ void add_portal_command(CLI::App& app) {
       check_mip_distance(*mip_levels, *mip_distance);
       check_frame_size(*width, *height);
       const uint32_t w = *width, h = *height, x = (*pixel)[0], y = (*pixel)[1];
-      if (x >= w || y >= h) throw Error("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
+      if (x >= w || y >= h) throw OptionsError("pixel outside the " + std::to_string(w) + "x" + std::to_string(h) + " image");
       portal::PortalOptions options = portal_options(*choice, *atlas, true);
       options.mip_levels = *mip_levels;
       if (*mip_levels > 1) options.mip_distance = mip_distance_for(*mip_distance, world_camera(*spec, *voxels), h);

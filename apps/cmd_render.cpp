@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 
 #include "apps/backends.h"
 #include "apps/commands.h"
@@ -161,7 +162,28 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
   // Every frame's file checked before the first is written, once the inputs are known (a later
   // frame over a texture this run read was refused after the earlier frames had replaced theirs:
   // an outside sweep)
-  for (uint32_t frame = 0; frame < o.frames; ++frame) check_output_allowed(frame_path(o.output, frame, o.frames), "image");
+  // No two frames in one file either (a frame's name a link to another's: the first frame was
+  // written there, then replaced, an outside sweep)
+  {
+    std::map<std::string, std::string> resolved;
+    for (uint32_t frame = 0; frame < o.frames; ++frame) {
+      const std::string path = frame_path(o.output, frame, o.frames);
+      check_output_allowed(path, "image");
+      // Links followed, a dangling one too (it names the file it will create)
+      std::error_code ec;
+      std::filesystem::path at = path;
+      for (int hop = 0; hop < 40 && std::filesystem::is_symlink(at, ec); ++hop) {
+        const std::filesystem::path to = std::filesystem::read_symlink(at, ec);
+        if (ec) break;
+        at = to.is_absolute() ? to : at.parent_path() / to;
+      }
+      const std::string key = std::filesystem::weakly_canonical(at, ec).string();
+      if (ec || is_stream_output(path)) continue;
+      if (const auto [it, fresh] = resolved.emplace(key, path); !fresh)
+        throw Error("render: frames '" + it->second + "' and '" + path + "' name one file (" + key +
+                    "): each frame needs its own");
+    }
+  }
   const std::string backend = o.backend.empty() ? backend_names().front() : o.backend;
   const bool shadows = shadows_for(o.shadows, scene);
   if (shadows) check_shadow_lights(scene);

@@ -575,6 +575,20 @@ void run_sweep(const SweepOptions& o) {
   std::vector<std::string> backends;
   for (const std::string& b : o.backends)
     if (std::find(backends.begin(), backends.end(), b) == backends.end()) backends.push_back(b);
+  // A limit above the Vulkan device's, as every other verb refuses it (the sweep built an image
+  // wider than the device allows: an outside sweep)
+  if (std::find(backends.begin(), backends.end(), "vulkan") != backends.end())
+    if (const uint32_t limit = vulkan_max_image_dimension(); limit != 0)
+      for (const Config& c : configs)
+        if (c.max_dim > limit)
+          throw OptionsError("--max-image-dimension " + std::to_string(c.max_dim) +
+                             " exceeds the Vulkan device's maxImageDimension3D (" + std::to_string(limit) +
+                             "): give at most that for --backend vulkan");
+  // Every scene file there before the first is swept (a missing second one was found after the
+  // first's outputs were written)
+  for (const std::string& spec : o.scenes)
+    if (!spec.empty() && spec.rfind("builtin:", 0) != 0)
+      if (const std::string why = why_missing(spec); !why.empty()) throw Error("sweep: scene '" + spec + "': " + why);
   {
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);

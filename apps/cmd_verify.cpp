@@ -50,6 +50,14 @@ void run_verify(const VerifyCliOptions& o) {
       vo.families.push_back(*fam);
     }
     vo.translated = vo.translated && std::find(o.families.begin(), o.families.end(), "translated") != o.families.end();
+    // The translated run traces the other families on the moved scene: alone it traced nothing and
+    // said OK (an outside sweep)
+    const bool asked = std::find(o.families.begin(), o.families.end(), "translated") != o.families.end();
+    if (asked && vo.families.empty())
+      throw OptionsError("--families translated traces the other families on the moved scene: name one or more of " +
+                         verify::family_list() + " too");
+    if (asked && o.no_translated)
+      throw OptionsError("--families translated and --no-translated contradict each other: give one");
   }
   const Scene scene = load_scene_or_default(o.scene);
   // The translated run by default only where the moved scene is still a scene; asked for by name,

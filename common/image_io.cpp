@@ -109,6 +109,9 @@ void check_extension(const std::string& path, const std::string& ext) {
   if (ext == ".ppm" || ext == ".pfm") return;
 #ifdef GRIDRT_WITH_OIIO
   if (ext.empty()) throw Error("cannot write image '" + path + "': no file extension to choose the format by");
+  // OpenImageIO's pseudo-formats write no file: "term" draws on the terminal, "null" nothing
+  if (ext == ".term" || ext == ".null" || ext == ".nullimage")
+    throw Error("cannot write image '" + path + "': '" + ext + "' writes no image file (use .png, .exr, .ppm, ...)");
   if (!OIIO::ImageOutput::create(path))
     throw Error("cannot write image '" + path + "': OpenImageIO knows no format for '" + ext + "'");
 #else

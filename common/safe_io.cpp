@@ -435,6 +435,9 @@ void write_replacing(const std::string& path, const std::string& what, const fs:
     throw Error("cannot write " + what + " '" + path + "': cannot create the temporary file '" + tmp.string() +
                 "': " + std::strerror(e));
   }
+  // A file replaced keeps its permissions (a 0600 file became 0644: an outside sweep)
+  struct stat old {};
+  if (::stat(target.c_str(), &old) == 0 && S_ISREG(old.st_mode)) (void)::fchmod(fd, old.st_mode & 07777);
   if (const int e = write_all(fd, bytes); e != 0) {
     ::close(fd);
     fail_write(path, what, tmp, e, "write failed");

@@ -159,6 +159,10 @@ void validate_textures_materials_instances(const Scene& s) {
     if (!finite(inst.transform) || !finite(inst.motion.axis) || !finite(inst.motion.pivot) ||
         !std::isfinite(inst.motion.angular_speed) || !std::isfinite(inst.motion.path_period))
       throw Error("instance '" + inst.name + "' has a non-finite transform or motion");
+    // Affine, whatever the source (a .gridscene's last row was ignored; glTF refused it)
+    if (inst.transform[0][3] != 0.0f || inst.transform[1][3] != 0.0f || inst.transform[2][3] != 0.0f ||
+        inst.transform[3][3] != 1.0f)
+      throw Error("instance '" + inst.name + "': its transform is not affine (the last row is not 0 0 0 1)");
     for (const glm::vec3& p : inst.motion.path_points)
       if (!finite(p)) throw Error("instance '" + inst.name + "' has a non-finite path point");
     if (inst.motion.angular_speed != 0.0f && glm::length(inst.motion.axis) == 0.0f)

@@ -571,7 +571,11 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         std::string("verify builtin:cornell -n 5 --fallback-cpu"),
         std::string("bench builtin:cornell --width 8 --height 8 --frames 1 --warmup 0 --vk-build compute"),
         std::string("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --primary --frame 2"),
-        std::string("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --kind shadow --frame 2")}) {
+        std::string("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --kind shadow --frame 2"),
+        // verify's translated run alone traced nothing and said OK; portal explain's pixel outside
+        std::string("verify builtin:cornell -n 5 --families translated"),
+        std::string("verify builtin:cornell -n 5 --families camera,translated --no-translated"),
+        std::string("portal explain --width 8 --height 8 -p 9,1")}) {
     const Run r = run_tool(args);
     INFO(args << "\n" << r.output);
     CHECK(r.exit_code == 2);
@@ -627,4 +631,28 @@ TEST_CASE("Outside sweep: portal export leaves out empty blocks, the slices figu
   CHECK(s.exit_code == 1);
   CHECK_THAT(s.output, Catch::Contains("--max-pixels"));
   CHECK(run_tool("stats builtin:cornell --resolution 64,64,4 --slices " + d.string()).exit_code == 0);
+}
+
+TEST_CASE("Outside sweep: outputs - a frame linked to another, permissions kept, pseudo-formats refused", "[cli]") {
+  const fs::path dir = scratch("outputs_sweep");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // Frame 0's name a link to frame 1's: the first frame was written there, then replaced
+  fs::create_symlink("fr_0001.png", dir / "fr_0000.png");
+  const Run r = run_tool("render builtin:teapot --width 16 --height 9 --frames 2 --fps 1 -o " + (dir / "fr.png").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Catch::Contains("name one file"));
+  CHECK_FALSE(fs::exists(dir / "fr_0001.png"));
+  // A file replaced keeps its permissions
+  const fs::path priv = dir / "private.png";
+  std::ofstream(priv) << "old";
+  fs::permissions(priv, fs::perms::owner_read | fs::perms::owner_write);
+  CHECK(run_tool("render builtin:cornell --width 8 --height 8 -o " + priv.string()).exit_code == 0);
+  CHECK(fs::status(priv).permissions() == (fs::perms::owner_read | fs::perms::owner_write));
+  // OpenImageIO's terminal and null writers write no file
+  const Run t = run_tool("render builtin:cornell --width 8 --height 8 -o " + (dir / "x.term").string());
+  CHECK(t.exit_code == 1);
+  CHECK_THAT(t.output, Catch::Contains("writes no image file"));
+  fs::remove_all(dir);
 }
