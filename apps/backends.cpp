@@ -250,6 +250,14 @@ void add_vulkan_options(CLI::App* cmd, BackendOptions& o) {
 
 }  // namespace
 
+void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
+  if (o.grid.traversal != reference::Traversal::exact) return;
+  for (const char* name : {"--gap-fill", "--revisit", "--elongation", "--gap-fill-distance"})
+    if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
+      throw OptionsError(std::string(name) + " is a knob of the paper traversal's segments and gap-fill: with "
+                         "--traversal exact it does nothing (leave it out)");
+}
+
 void add_backend_options(CLI::App* cmd, BackendOptions& o, bool vulkan) {
   add_grid_options(cmd, o);
   add_expert_options(cmd, o);

@@ -65,6 +65,10 @@ void add_backend_options(CLI::App* cmd, BackendOptions& options, bool vulkan = t
 // --vk-build and --fallback-cpu choose how the Vulkan backend runs: given where it does not run
 // they did nothing, without a word (an outside sweep). OptionsError (exit 2) there.
 void check_vulkan_options_apply(const CLI::App* cmd, bool vulkan_runs);
+// The paper traversal's knobs (--gap-fill, --revisit, --elongation, --gap-fill-distance) with
+// --traversal exact did nothing, without a word (an outside sweep): OptionsError. (The exact
+// traversal's own knobs stay with the paper's: they shape the frame's gather grid.)
+void check_traversal_options(const CLI::App* cmd, const BackendOptions& options);
 // The grid verbs' positional scene: a scene file, a mesh, a .gridscene or builtin:NAME (empty:
 // the embedded atrium).
 CLI::Option* add_scene_argument(CLI::App* cmd, std::string& scene);

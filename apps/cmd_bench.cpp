@@ -1004,6 +1004,7 @@ void add_bench_command(CLI::App& app) {
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o, cmd] {
     check_vulkan_options_apply(cmd, std::find(o->backends.begin(), o->backends.end(), "vulkan") != o->backends.end());
+    check_traversal_options(cmd, o->backend_options);
     run_bench(*o);
   });
 }

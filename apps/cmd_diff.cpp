@@ -89,7 +89,7 @@ std::string shell_quote(const std::string& s) {
   return q + "'";
 }
 
-std::string explain_command(const DiffOptions& o, uint32_t x, uint32_t y, bool primary, float time) {
+std::string explain_command(const DiffOptions& o, uint32_t x, uint32_t y, bool primary, float time, uint32_t frame) {
   std::ostringstream os;
   os << "gridrt explain " << shell_quote(o.scene.empty() ? "builtin:atrium" : o.scene) << " --pixel " << x << ","
      << y << " --width " << o.width << " --height " << o.height;
@@ -98,6 +98,8 @@ std::string explain_command(const DiffOptions& o, uint32_t x, uint32_t y, bool p
     std::snprintf(t, sizeof t, "%.9g", double(time));
     os << " --time " << t;
   }
+  // A later frame's bounce: its glossy directions are seeded by the frame's number
+  if (!primary && frame > 0) os << " --frame " << frame;
   os << o.explain_flags << " --backend vulkan" << (primary ? " --primary" : "");
   return os.str();
 }
@@ -404,9 +406,7 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
         reference::hex_hit(got[i]);
     FirstDifference fd{.what = "hit", .frame = frame, .cell = cell, .pixel = glm::uvec2(x, y),
                        .ray_kind = bounce ? "bounce" : "primary", .text = f,
-                       .explain = explain_command(o_, x, y, !bounce, time)};
-    if (frame > 0 && bounce)
-      fd.explain += "   # explain draws frame 0's bounce; this is frame " + std::to_string(frame) + "'s";
+                       .explain = explain_command(o_, x, y, !bounce, time, frame)};
     std::printf("  %s\n  shown by: %s\n", f.c_str(), fd.explain.c_str());
     if (!first_) {
       // The accounts of the first difference; one that cannot be made (a ray of more events than
@@ -753,12 +753,15 @@ std::string given_grid_flags(const CLI::App* cmd) {
   for (++k; k < args.size(); ++k) {
     const std::string& a = args[k];
     if (a.size() < 2 || a[0] != '-') continue;  // the scene
-    const std::string name = a.substr(0, a.find('='));
+    std::string name = a.substr(0, a.find('='));
+    // -t0.5: a short option with its value glued on (it was printed beside the --time given)
+    const bool glued = a.size() > 2 && a[0] == '-' && a[1] != '-';
+    if (glued) name = a.substr(0, 2);
     const CLI::Option* opt = cmd->get_option_no_throw(name);
     if (!opt && cmd->get_parent()) opt = cmd->get_parent()->get_option_no_throw(name);
     const bool own = std::find(std::begin(kOwn), std::end(kOwn), name) != std::end(kOwn);
     if (!own) out += " " + shell_quote(a);
-    if (!opt || opt->get_expected_min() == 0 || a.find('=') != std::string::npos) continue;
+    if (!opt || opt->get_expected_min() == 0 || a.find('=') != std::string::npos || glued) continue;
     // The words of its value: as many items as it takes (a word may hold several, comma separated)
     const int items = std::max(1, opt->get_items_expected_max());
     std::string value;
@@ -809,6 +812,7 @@ void add_diff_command(CLI::App& app) {
   add_json_option(cmd, o->json_path, "the result");
   cmd->add_option("--junit", o->junit_path, "Also write the result as a JUnit XML report to this file")->type_name("FILE");
   cmd->callback([o, cmd] {
+    check_traversal_options(cmd, o->backend_options);
     // Options that did nothing here, without a word (an outside sweep)
     if (cmd->get_option("--shadows")->count() > 0 && !o->gpu_frame)
       throw OptionsError("--shadows switches the GPU frame's shadow pass: it needs --gpu-frame");

@@ -565,6 +565,7 @@ void add_explain_command(CLI::App& app) {
       throw CLI::ValidationError("--fallback-cpu", "does not apply to explain (--backend vulkan shows the shader's own "
                                                    "record beside the reference's, and needs a Vulkan device)");
     check_vulkan_options_apply(cmd, o->backend == "vulkan");
+    check_traversal_options(cmd, o->backend_options);
     // The frame number seeds only the glossy bounce's random numbers
     if (cmd->count("--frame") > 0 && (o->primary || o->kind == "primary" || o->kind == "shadow"))
       throw CLI::ValidationError("--frame", "seeds the glossy bounce's random numbers: it does not change a " +

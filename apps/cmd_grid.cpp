@@ -222,7 +222,8 @@ void add_grid_commands(CLI::App& app) {
                     "--slices: also draw the camera ray of pixel X,Y (of --width x --height): the cells its traversal "
                     "visits and its samples")
         ->delimiter(',')->expected(2)->type_name("X,Y");
-    cmd->callback([o, repeat_opt, axis_opt] {
+    cmd->callback([o, cmd, repeat_opt, axis_opt] {
+      check_traversal_options(cmd, o->backend_options);
       // Each did nothing without its verb's option, without a word (an outside sweep)
       if (repeat_opt->count() > 0 && !o->measure)
         throw OptionsError("--repeat times --measure's traces: give --measure, or leave --repeat out");

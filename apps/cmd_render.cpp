@@ -292,6 +292,7 @@ void add_render_command(CLI::App& app) {
       throw OptionsError("render --backend embree traces Embree's own structure: " + grid_given +
                          " do(es) not apply (leave them out, or render with --backend cpu)");
     check_vulkan_options_apply(cmd, o->backend == "vulkan");
+    check_traversal_options(cmd, o->backend_options);
     run_render(*o, scale_opt->count() > 0, rays_opt->count() > 0, given);
   });
 }

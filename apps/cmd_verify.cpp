@@ -142,6 +142,7 @@ void add_verify_command(CLI::App& app) {
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o, cmd] {
     check_vulkan_options_apply(cmd, o->backend == "vulkan");
+    check_traversal_options(cmd, o->backend_options);
     run_verify(*o);
   });
 }

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
@@ -664,7 +665,8 @@ Scene load_model_scene(const std::string& path) {
   scene.camera = cam;
   const Bounds b = scene.bounds(0.0f);
   const glm::vec3 center = 0.5f * (b.lo + b.hi);
-  const float radius = std::max(0.5f * glm::length(b.extent()), 1e-6f);
+  // (no absolute floor: 1e-6 put the light of a model 1e-9 across straight overhead, an outside sweep)
+  const float radius = std::max(0.5f * glm::length(b.extent()), std::numeric_limits<float>::min());
   Light light;
   light.position = center + 0.5f * (cam.eye - center) + glm::vec3(0.0f, 2.0f * radius, 0.0f);
   const float d = glm::length(light.position - center);

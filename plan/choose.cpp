@@ -446,7 +446,10 @@ Bounds grid_box(const Scene& scene, float time) {
   Bounds b = animation_bounds(scene, time);
   if (b.empty()) throw Error("grid: the scene has no vertices");
   const glm::vec3 ext = b.extent();
-  const float big = std::max({ext.x, ext.y, ext.z, 1e-3f});
+  // 1e-3 of the largest extent, whatever the scene's size: a floor of 1e-3 padded a scene 1e-9
+  // across by 1e-6 on every side, and the whole model fell into one cell of a grid a thousand
+  // times its size (the paper traversal dropping references, an outside sweep)
+  const float big = std::max({ext.x, ext.y, ext.z});
   // At least the narrowest cell the domain allows at the box's reach (min_cell_size): a flat or
   // tiny model far from the origin keeps a box of non-zero extent on every axis, where 1e-3 of its
   // size would round away in its coordinates.

@@ -124,7 +124,7 @@ TEST_CASE("CLI: the portal backend renders a tile map and explains a pixel again
   REQUIRE(e.exit_code == 0);
   CHECK_THAT(e.output, Catch::Contains("(agrees)"));
   const Run bad = run_tool("portal explain --width 24 --height 12 --pixel 30,6");
-  CHECK(bad.exit_code == 1);
+  CHECK(bad.exit_code == 2);  // a contradiction on the command line, as render's and explain's
   CHECK_THAT(bad.output, Catch::Contains("outside"));
 }
 
@@ -191,7 +191,7 @@ TEST_CASE("CLI: one vocabulary - enum help is readable, expert knobs grouped, re
     CHECK_THAT(r.output, !Catch::Contains("--size"));
   }
   const Run portal = run_tool("portal explain --width 24 --height 12 --pixel 30,6");
-  CHECK(portal.exit_code == 1);
+  CHECK(portal.exit_code == 2);
   CHECK_THAT(portal.output, Catch::Contains("24x12"));
 }
 

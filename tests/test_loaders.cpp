@@ -7,11 +7,14 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <mutex>
 
 #include <unistd.h>
+
+#include <nlohmann/json.hpp>
 
 #include "gridrt/common/image_io.h"
 #include "gridrt/common/loaders/loaders.h"
@@ -805,5 +808,52 @@ TEST_CASE("Scene file: one model named under several mesh keys is loaded once, i
   CHECK(twice.instances[0].name == "a");
   CHECK(twice.instances[1].name == "b");
   CHECK(twice.triangle_count() == 2 * once.triangle_count() + twice.meshes[twice.instances[2].mesh].triangles.size());
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("glTF: values TinyGLTF drops are refused by path, images no material uses are not decoded",
+          "[unit][loaders][badinput]") {
+  // A property of the wrong type or length, or an index below -1, was read as absent: the parent's
+  // translation, a child's scale or a whole mesh silently gone (an outside sweep)
+  const std::string text = read_input_file(fixture("quad.gltf"), "glTF");
+  const nlohmann::json base = nlohmann::json::parse(text);
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("gridrt_gltf_values_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const auto load = [&](const nlohmann::json& j) {
+    const std::filesystem::path p = dir / "m.gltf";
+    std::ofstream(p) << j.dump();
+    return load_scene(p.string());
+  };
+  struct Case {
+    const char* what;
+    std::function<void(nlohmann::json&)> edit;
+    const char* where;
+  };
+  const std::vector<Case> cases = {
+      {"a string in a translation", [](nlohmann::json& j) { j["nodes"][0]["translation"] = {"a", 0, 0}; },
+       "nodes[0].translation"},
+      {"a scale of two numbers", [](nlohmann::json& j) { j["nodes"][1]["scale"] = {2, 2}; }, "nodes[1].scale"},
+      {"a rotation of five numbers", [](nlohmann::json& j) { j["nodes"][1]["rotation"] = {0, 0, 0, 1, 0}; },
+       "nodes[1].rotation"},
+      {"a mesh index of -2", [](nlohmann::json& j) { j["nodes"][1]["mesh"] = -2; }, "nodes[1].mesh"},
+      {"a material index of -2", [](nlohmann::json& j) { j["meshes"][0]["primitives"][0]["material"] = -2; },
+       "meshes[0].primitives[0].material"},
+      {"a string alphaCutoff", [](nlohmann::json& j) { j["materials"][0]["alphaCutoff"] = "0.5"; },
+       "materials[0].alphaCutoff"}};
+  for (const Case& c : cases) {
+    nlohmann::json j = base;
+    c.edit(j);
+    INFO(c.what);
+    CHECK_THROWS_WITH(load(j), Catch::Contains(c.where));
+  }
+  // Images no material names are not decoded (twelve unused 8192 x 8192 entries took 3.5 GB): an
+  // unused entry that is no image at all loads
+  nlohmann::json j = base;
+  j["images"].push_back({{"uri", "data:image/png;base64,AAAA"}});
+  CHECK_NOTHROW(load(j));
+  j["textures"].push_back({{"source", 1}});
+  j["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["index"] = 1;  // now used: refused
+  CHECK_THROWS_WITH(load(j), Catch::Contains("image 1"));
   std::filesystem::remove_all(dir);
 }

@@ -373,8 +373,8 @@ static void check_gather_eye(const glm::vec3& eye, const shared::GridParams& g) 
   if (!(reach > g.cell_size)) return;
   char msg[640];
   std::snprintf(msg, sizeof msg,
-                "vulkan frame: the eye (%g, %g, %g) is far for this grid: 64 ulps of its coordinates (%g) exceed "
-                "a cell (%g). The CPU's gather moves such a primary ray's origin to the grid before testing "
+                "vulkan frame: the eye (%.9g, %.9g, %.9g) is far for this grid: 64 ulps of its coordinates (%.9g) exceed "
+                "a cell (%.9g). The CPU's gather moves such a primary ray's origin to the grid before testing "
                 "(docs/SPEC.md \"Far origins\"); the GPU's gather tests from the eye and would differ from it. "
                 "Move the camera closer, take cells of at least %g (--cell-size), or use --backend cpu",
                 double(eye.x), double(eye.y), double(eye.z), double(reach), double(g.cell_size), double(reach));
@@ -401,6 +401,16 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   // Parameters: the camera of the CPU's primary rays
   gpu.camera = camera_params(scene.frame_camera(), w, h);
   check_gather_eye(gpu.camera.eye, grid.params());
+  // The CPU's gather runs on a grid of its own (plan::gather_options: the exact traversal), whose
+  // cells may be finer than the frame's (the paper traversal's): checked on it too where the eye
+  // comes near (the paper traversal's frame rendered such an eye, and differed from the CPU's on
+  // 24 pixels: an outside sweep). The eye's reach is far below a cell everywhere else.
+  {
+    const glm::vec3 e = gpu.camera.eye;
+    const float reach = std::max(std::max(std::abs(e.x), std::abs(e.y)), std::abs(e.z)) * shared::kFarOriginRatio;
+    if (reach * 16.0f > grid.params().cell_size)
+      check_gather_eye(e, plan::choose_grid(scene, grid.build_time(), plan::gather_options(grid.options())));
+  }
   const shared::FrameParams fp = frame_params(scene, gpu.camera, options_);
   const FrameMaterials fmat = pack_materials(scene, (grid.params().flags & shared::kGridAlphaKeying) != 0u,
                                              ctx.info().limits.maxStorageBufferRange);

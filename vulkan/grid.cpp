@@ -111,6 +111,7 @@ void VulkanGridTracer::build(const Scene& scene, float time) {
   check_device();
   gpu_.reset();
   scene_ = &scene;
+  build_time_ = time;
   const plan::GridPlan plan = make_plan(scene, time);
   std::vector<glm::vec4> positions;
   std::vector<uint32_t> indices;

@@ -154,6 +154,7 @@ class VulkanGridTracer : public Tracer {
 
   const shared::GridParams& params() const { return params_; }
   const plan::GridOptions& options() const { return options_; }
+  float build_time() const { return build_time_; }  // the scene time of the last build
   const GridTimings& timings() const { return timings_; }
 
   // For passes of other pipelines on the grid's device data (vulkan/frame.h), valid after
@@ -239,6 +240,7 @@ class VulkanGridTracer : public Tracer {
   Context* ctx_ = nullptr;
   plan::GridOptions options_;
   VulkanGridOptions vk_;
+  float build_time_ = 0.0f;
   const Scene* scene_ = nullptr;
   shared::GridParams params_{};
   uint32_t requested_flags_ = 0;  // params_.flags as choose_grid chose them

@@ -115,7 +115,7 @@ std::unique_ptr<Context> portal_context() {
     std::string what = e.what();
     const std::string grid_way = "--backend cpu";
     for (size_t at = what.find(grid_way); at != std::string::npos; at = what.find(grid_way, at + 1))
-      what.replace(at, grid_way.size(), "--backend portal-cpu");
+      what.replace(at, grid_way.size(), "--backend portal-cpu (portal render and explain; portal diff and bench compare with the device and need it)");
     throw Error(what);
   }
 }

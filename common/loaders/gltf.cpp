@@ -13,6 +13,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
 #include "gridrt/common/loaders/loaders.h"
@@ -280,14 +281,111 @@ bool image_header_size(const unsigned char* p, size_t n, uint64_t& w, uint64_t& 
   return false;
 }
 
+// The values TinyGLTF reads leniently: a property of the wrong type or length, or an index below
+// -1, was dropped and read as absent (a node's translation ["a", 0, 0], a scale of two numbers, a
+// mesh or material index of -2, a string alphaCutoff: exit 0 and another picture, an outside
+// sweep). Checked on the JSON first, each named by its path. Also: the images a material's base
+// colour names, the only ones this loader reads (`used`).
+void check_gltf_json(const std::string& path, std::string_view text, std::set<int>& used) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text.begin(), text.end());
+  } catch (const nlohmann::json::exception&) {
+    return;  // TinyGLTF names the syntax error
+  }
+  const auto fail = [&](const std::string& where, const std::string& what) {
+    throw Error("cannot load glTF '" + path + "': " + where + ": " + what);
+  };
+  const auto numbers = [&](const nlohmann::json& o, const char* key, size_t n, const std::string& where) {
+    if (!o.contains(key)) return;
+    const nlohmann::json& a = o[key];
+    if (!a.is_array() || a.size() != n) fail(where + "." + key, "expected an array of " + std::to_string(n) + " numbers");
+    for (const nlohmann::json& v : a)
+      if (!v.is_number()) fail(where + "." + key, "expected an array of " + std::to_string(n) + " numbers");
+  };
+  const auto index = [&](const nlohmann::json& o, const char* key, const std::string& where) {
+    if (!o.is_object() || !o.contains(key)) return;
+    const nlohmann::json& v = o[key];
+    if (!v.is_number_integer() || v.get<int64_t>() < 0 || v.get<int64_t>() > INT32_MAX)
+      fail(where + "." + key, "expected an index (an integer from 0), found " + v.dump());
+  };
+  const auto array = [&](const char* key) -> const nlohmann::json* {
+    return j.is_object() && j.contains(key) && j[key].is_array() ? &j[key] : nullptr;
+  };
+  if (const nlohmann::json* nodes = array("nodes"))
+    for (size_t i = 0; i < nodes->size(); ++i) {
+      const nlohmann::json& n = (*nodes)[i];
+      if (!n.is_object()) continue;
+      const std::string where = "nodes[" + std::to_string(i) + "]";
+      numbers(n, "translation", 3, where);
+      numbers(n, "rotation", 4, where);
+      numbers(n, "scale", 3, where);
+      numbers(n, "matrix", 16, where);
+      for (const char* key : {"mesh", "camera", "skin"}) index(n, key, where);
+      if (n.contains("children")) {
+        if (!n["children"].is_array()) fail(where + ".children", "expected an array of indices");
+        for (const nlohmann::json& c : n["children"])
+          if (!c.is_number_integer() || c.get<int64_t>() < 0) fail(where + ".children", "expected an array of indices");
+      }
+    }
+  if (const nlohmann::json* meshes = array("meshes"))
+    for (size_t i = 0; i < meshes->size(); ++i) {
+      const nlohmann::json& m = (*meshes)[i];
+      if (!m.is_object() || !m.contains("primitives") || !m["primitives"].is_array()) continue;
+      for (size_t k = 0; k < m["primitives"].size(); ++k) {
+        const nlohmann::json& p = m["primitives"][k];
+        const std::string where = "meshes[" + std::to_string(i) + "].primitives[" + std::to_string(k) + "]";
+        for (const char* key : {"material", "indices", "mode"}) index(p, key, where);
+        if (p.is_object() && p.contains("attributes") && p["attributes"].is_object())
+          for (auto a = p["attributes"].begin(); a != p["attributes"].end(); ++a)
+            if (!a->is_number_integer() || a->get<int64_t>() < 0)
+              fail(where + ".attributes." + a.key(), "expected an accessor index, found " + a->dump());
+      }
+    }
+  std::set<int> textures;
+  if (const nlohmann::json* materials = array("materials"))
+    for (size_t i = 0; i < materials->size(); ++i) {
+      const nlohmann::json& m = (*materials)[i];
+      if (!m.is_object()) continue;
+      const std::string where = "materials[" + std::to_string(i) + "]";
+      if (m.contains("alphaCutoff") && !m["alphaCutoff"].is_number()) fail(where + ".alphaCutoff", "expected a number");
+      if (m.contains("alphaMode") && !m["alphaMode"].is_string()) fail(where + ".alphaMode", "expected a string");
+      if (m.contains("pbrMetallicRoughness") && m["pbrMetallicRoughness"].is_object()) {
+        const nlohmann::json& pbr = m["pbrMetallicRoughness"];
+        numbers(pbr, "baseColorFactor", 4, where + ".pbrMetallicRoughness");
+        if (pbr.contains("baseColorTexture")) {
+          index(pbr["baseColorTexture"], "index", where + ".pbrMetallicRoughness.baseColorTexture");
+          if (pbr["baseColorTexture"].is_object() && pbr["baseColorTexture"].contains("index"))
+            textures.insert(pbr["baseColorTexture"]["index"].get<int>());
+        }
+      }
+    }
+  if (const nlohmann::json* texs = array("textures"))
+    for (size_t t = 0; t < texs->size(); ++t) {
+      index((*texs)[t], "source", "textures[" + std::to_string(t) + "]");
+      if (textures.count(int(t)) && (*texs)[t].is_object() && (*texs)[t].contains("source"))
+        used.insert((*texs)[t]["source"].get<int>());
+    }
+}
+
+// The model being parsed and the images its materials use, for the image callback.
+struct ImageLoad {
+  const tinygltf::Model* model = nullptr;
+  std::set<int> used;
+};
+
 // TinyGLTF's image decoder, after the header's size was checked against the pixel limit.
 // `user`: the model being parsed (its buffers and buffer views are read before its images). An
 // image in a buffer view is handed over as the buffer's bytes from the view's offset, unchecked:
 // a view past its buffer is refused here, before a byte is read.
 bool load_image_checked(tinygltf::Image* image, const int index, std::string* err, std::string* warn, int req_w,
                         int req_h, const unsigned char* bytes, int size, void* user) {
-  if (image->bufferView >= 0 && user) {
-    const tinygltf::Model& model = *static_cast<const tinygltf::Model*>(user);
+  // An image no material's base colour names is not decoded: twelve unused entries of one 8192 x
+  // 8192 PNG took 3.5 GB (an outside sweep)
+  const ImageLoad* load = static_cast<const ImageLoad*>(user);
+  if (load && !load->used.count(index)) return true;
+  if (image->bufferView >= 0 && load && load->model) {
+    const tinygltf::Model& model = *load->model;
     if (size_t(image->bufferView) >= model.bufferViews.size()) {
       if (err) *err += "image " + std::to_string(index) + ": buffer view " + std::to_string(image->bufferView) + " does not exist\n";
       return false;
@@ -331,10 +429,13 @@ tinygltf::Model parse_model(const std::string& path) {
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
   const bool binary = ext == ".glb";
   check_json_depth(binary ? glb_json_chunk(data) : std::string_view(data), path, input_limits().max_json_depth);
+  ImageLoad images;
+  images.model = &model;
+  check_gltf_json(path, binary ? glb_json_chunk(data) : std::string_view(data), images.used);
   if (data.size() > UINT32_MAX) throw Error("cannot load glTF '" + path + "': larger than 4 GiB");
   tinygltf::FsCallbacks fs_callbacks{&tinygltf::FileExists, &tinygltf::ExpandFilePath, &read_external, nullptr, nullptr};
   loader.SetFsCallbacks(fs_callbacks);
-  loader.SetImageLoader(&load_image_checked, &model);
+  loader.SetImageLoader(&load_image_checked, &images);
   std::string base_dir = fs::path(path).parent_path().string();
   if (base_dir.empty()) base_dir = ".";
   bool ok = false;

@@ -782,7 +782,7 @@ void close_faces(PortalBuild& b, const FluxDensity& flux, const MediumGrid& medi
     stored_count += list.size();
     if (stored_count > shared::kPortalMaxDivs)
       throw Error("portal build: world '" + w.name + "' needs more than " + std::to_string(shared::kPortalMaxDivs) +
-                  " divs, the most 15-bit div indices address (use a coarser voxelization)");
+                  " divs, the most 15-bit div indices address (a coarser --voxels for a voxelized scene, a smaller or simpler map for a tile or block map)");
     if (area > atlas_capacity)
       throw Error("portal build: world '" + w.name + "' needs more than " + std::to_string(area) +
                   " atlas texels, beyond an atlas " + std::to_string(opt.atlas_width) +
@@ -1054,7 +1054,7 @@ void store_divs(PortalBuild& b) {
     }
   if (b.divs.size() > shared::kPortalMaxDivs)
     throw Error("portal build: world '" + w.name + "' needs " + std::to_string(b.divs.size()) +
-                " divs, the 16-bit atlas texels address at most 32768 (use a coarser voxelization)");
+                " divs, the 16-bit atlas texels address at most 32768 (a coarser --voxels for a voxelized scene, a smaller or simpler map for a tile or block map)");
 }
 
 // 5a. The atlas's layout: shelf packing, tallest faces first; each (div, face)'s texel corner.

@@ -130,11 +130,15 @@ static Hit mip_surface_hit(const PackedPortal& p, const VoxelRay& r, uint32_t le
     material = sh::portal_texel_is_wall(t0) ? t0 - sh::kPortalWallBit : m;
   }
   const Hit h = wall_hit(p.dims, r, a, num * up, ad * up, side, wall, material, steps, texels);
-  if (log)
+  if (log) {
     *log += fmt("hit: coarse voxel (%d, %d, %d) of level %u, material %u (coverage %g)%s: voxel (%d, %d, %d) face %s, "
                 "material %u, t = %.9g\n", v.x, v.y, v.z, level, m, double(p.coverage[m]),
                 p.resolve[m] ? ", opaque: back to full resolution" : ", translucent", wall.x, wall.y, wall.z,
                 face_name(hit_face(h)), h.instance, double(h.t));
+    if (!p.resolve[m])
+      *log += "  (this account ends at the first translucent coarse voxel, an approximation of the fine ones: the\n"
+              "  renderer blends it by its coverage and goes on; the voxel DDA, on the fine voxels, may differ here)\n";
+  }
   return h;
 }
 
@@ -500,8 +504,11 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
     if (next_medium != cur_medium) {
       const uint32_t m = next_medium != 0xFFFFFFFFu ? next_medium : cur_medium;
       const Hit h = wall_hit(p.dims, r, s.axis, s.num, s.ad, s.voxel, wall, m, steps, texels);
-      if (log) *log += fmt("hit: glass surface, voxel (%d, %d, %d) face %s, material %u, t = %.9g\n", wall.x, wall.y, wall.z,
-                           face_name(hit_face(h)), m, double(h.t));
+      if (log)
+        *log += fmt("hit: glass surface, voxel (%d, %d, %d) face %s, material %u, t = %.9g\n"
+                    "  (this account ends at the first change of medium; the renderer refracts there and goes on,\n"
+                    "  so the pixel shows what lies behind: docs/PORTAL.md \"Renderer\")\n",
+                    wall.x, wall.y, wall.z, face_name(hit_face(h)), m, double(h.t));
       return h;
     }
     cur = s.texel;
