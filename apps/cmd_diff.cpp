@@ -352,7 +352,7 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
     if (reference::ulp_distance(a.t, b.t) > o_.ulps_t || duv > o_.abs_uv) beyond_rays.push_back(i);
   }
   size_t beyond = beyond_rays.size();
-  std::optional<size_t> first_beyond;
+  size_t first_beyond = 0;  // the first record beyond the float bounds, where `beyond` > 0
   if (!beyond_rays.empty()) first_beyond = beyond_rays.front();
   total_beyond_ += beyond;
   char line[512];
@@ -379,8 +379,7 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
     total_discrete_ -= keep(d.discrete);
     total_beyond_ -= keep(beyond_rays);
     beyond = beyond_rays.size();
-    first_beyond.reset();
-    if (!beyond_rays.empty()) first_beyond = beyond_rays.front();
+    first_beyond = beyond_rays.empty() ? 0 : beyond_rays.front();
     total_timing_ += excused;
     if (excused)
       std::printf("frame %u: %zu hit record(s) not held to bits: their rays pass %s\n", frame, excused, timing_.c_str());
@@ -388,7 +387,7 @@ void DiffRun::diff_hits(uint32_t frame, float time) {
   const bool ok = d.discrete.empty() && beyond == 0;
   std::string f;
   if (!ok) {
-    const size_t i = !d.discrete.empty() ? d.discrete.front() : *first_beyond;
+    const size_t i = !d.discrete.empty() ? d.discrete.front() : first_beyond;
     const bool bounce = i < pixels;
     const size_t p = i % pixels;
     const uint32_t x = uint32_t(p % w), y = uint32_t(p / w);

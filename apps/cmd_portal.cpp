@@ -44,7 +44,7 @@ void check_portal_backend(const std::string& backend) {
 #ifdef GRIDRT_HAVE_VULKAN
   if (backend == "portal-vulkan") return;
 #endif
-  throw Error("backend '" + backend + "' is not built for portal worlds (this build has: " + portal_backends() + ")");
+  throw OptionsError("backend '" + backend + "' is not built for portal worlds (this build has: " + portal_backends() + ")");
 }
 
 }  // namespace
@@ -99,6 +99,19 @@ portal::World load_world(const std::string& spec, uint32_t voxels) {
   if (ends_with(spec, ".map")) return portal::load_tile_map(spec);
   const Scene scene = load_scene_or_default(spec);
   return portal::voxelize(scene, voxels);
+}
+
+// --voxels voxelizes a scene and --flatten flattens a block map: given for another kind of world
+// they did nothing, without a word (an outside sweep). OptionsError (exit 2).
+void check_world_options(const CLI::App* cmd, const std::string& spec) {
+  const bool map = spec.empty() || spec == "builtin:level" || spec == "builtin:blocks" || spec.rfind("gen:", 0) == 0 ||
+                   spec.rfind("gen-blocks:", 0) == 0 || ends_with(spec, ".map");
+  if (cmd->get_option_no_throw("--voxels") && cmd->count("--voxels") > 0 && map)
+    throw OptionsError("--voxels voxelizes a scene or mesh: '" + (spec.empty() ? std::string("builtin:level") : spec) +
+                       "' is a tile or block map, voxels already (leave it out)");
+  if (cmd->get_option_no_throw("--flatten") && cmd->count("--flatten") > 0 && !load_instanced(spec))
+    throw OptionsError("--flatten flattens an instanced world (a block map): '" +
+                       (spec.empty() ? std::string("builtin:level") : spec) + "' is not one (leave it out)");
 }
 
 // The portal build's options from the verbs' --div-choice and --atlas-width.
@@ -161,7 +174,7 @@ void run_portal_render(const PortalRenderOptions& o) {
   check_portal_backend(o.backend);
   if (o.flat_compare && o.flatten) throw Error("--flat-compare renders both: leave out --flatten");
   const bool instanced = load_instanced(o.scene).has_value();
-  if (o.flat_compare && !instanced) throw Error("--flat-compare needs an instanced world (a block map)");
+  if (o.flat_compare && !instanced) throw OptionsError("--flat-compare needs an instanced world (a block map)");
   portal::PortalOptions options = portal_options(o.div_choice, o.atlas_width, true);
   options.mip_levels = o.mip_levels;
   if (o.mip_levels > 1) {
@@ -522,7 +535,8 @@ void add_portal_command(CLI::App& app) {
     add_choice(cmd, "--view", o->view, {"shaded", "divs", "dda"},
                     "What the picture shows: shaded (the render), or per pixel with a colour bar: divs (divs the "
                     "portal traversal visits per camera ray) or dda (voxels an exact voxel DDA steps through)");
-    cmd->callback([o] {
+    cmd->callback([o, cmd] {
+      check_world_options(cmd, o->scene);
       // The per-pixel work views build the plain world at full resolution: options they would
       // ignore are refused (they were ignored, and the checks below skipped)
       if (o->view != "shaded" && (o->mip_levels > 1 || o->mip_distance != 0.0f || o->mip_compare || o->flatten ||
@@ -558,6 +572,7 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("--backend,-b", *backend,
                     "Tracer: " + portal_backends() + " (portal-vulkan: the shader's own record beside the reference's)");
     cmd->callback([=] {
+      check_world_options(cmd, *spec);
       check_portal_backend(*backend);
       check_mip_distance(*mip_levels, *mip_distance);
       check_frame_size(*width, *height);
@@ -596,7 +611,10 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("--repeat", *repeats, "Best of this many runs")->check(CLI::Range(1u, 1000u));
     cmd->add_flag("--vulkan-only", *vulkan_only, "Measure portal-vulkan only");
     add_flatten_option(cmd, *flat);
-    cmd->callback([=] { run_portal_bench(*spec, *voxels, *width, *height, *repeats, *vulkan_only, *choice, *atlas, *flat); });
+    cmd->callback([=] {
+      check_world_options(cmd, *spec);
+      run_portal_bench(*spec, *voxels, *width, *height, *repeats, *vulkan_only, *choice, *atlas, *flat);
+    });
   }
   {
     auto spec = std::make_shared<std::string>();
@@ -633,7 +651,8 @@ void add_portal_command(CLI::App& app) {
         ->check(CLI::Range(0.0f, 1.0f));
     cmd->add_option("--pixels", o->pixels, "Allow this fraction of the render's pixels to differ in bits (default 0)")
         ->check(CLI::Range(0.0, 1.0));
-    cmd->callback([o] {
+    cmd->callback([o, cmd] {
+      check_world_options(cmd, o->spec);
       check_mip_distance(o->mip_levels, o->mip_distance);
       run_portal_diff(*o);
     });

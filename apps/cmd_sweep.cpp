@@ -701,6 +701,7 @@ void add_sweep_command(CLI::App& app) {
       ->group(kExpert);
   cmd->add_option("--saturation-cost", o->backend_options.grid.saturation_cost,
                   "trace-cost policy: the cost of a ray whose answer the grid changes, in reference tests")
+      ->check(CLI::Range(0.0f, 1.0e12f))  // as the other verbs' (a negative cost was taken)
       ->group(kExpert);
   cmd->add_option("--work-sample", o->work_sample, "trace-cost policy: the sample's gather buffer W,H")
       ->delimiter(',')

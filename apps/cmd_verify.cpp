@@ -133,7 +133,15 @@ void add_verify_command(CLI::App& app) {
                   "Ray families (comma separated; default all): " + verify::family_list() + ", translated")
       ->delimiter(',');
   cmd->add_option("-n,--rays-per-family", o->rays, "Rays per family")->check(CLI::Range(size_t(1), size_t(10000000)));
-  cmd->add_option("--seed", o->seed, "Seed of the ray generation");
+  // (a negative or too large value wrapped around without a word: an outside sweep)
+  cmd->add_option("--seed", o->seed, "Seed of the ray generation")
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            return !v.empty() && v.find_first_not_of("0123456789") == std::string::npos && v.size() <= 19
+                       ? std::string()
+                       : std::string("must be a whole number from 0 to 9999999999999999999");
+          },
+          "0 .. 2^64-1"));
   cmd->add_flag("--no-translated", o->no_translated, "Skip the run on the scene moved far from the origin");
   cmd->add_option("--offset", o->offset, "Offset X,Y,Z of the translated run (default 1e5,-5e4,7.5e4)")
       ->delimiter(',')->expected(3);

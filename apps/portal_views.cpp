@@ -21,7 +21,7 @@ void run_portal_view(const PortalRenderOptions& o) {
   check_frame_size(o.width, o.height);
   if (o.view != "divs" && o.view != "dda") throw Error("unknown portal view '" + o.view + "'");
   if (o.backend != "portal-cpu")
-    throw Error("portal --view shows the CPU reference's records: use --backend portal-cpu");
+    throw OptionsError("portal --view shows the CPU reference's records: use --backend portal-cpu");
   if (!plot::available())
     throw Error("--view needs OpenImageIO and the DejaVu fonts (Debian: libopenimageio-dev, fonts-dejavu-core)");
   check_output_path(o.output);

@@ -575,7 +575,11 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         // verify's translated run alone traced nothing and said OK; portal explain's pixel outside
         std::string("verify builtin:cornell -n 5 --families translated"),
         std::string("verify builtin:cornell -n 5 --families camera,translated --no-translated"),
-        std::string("portal explain --width 8 --height 8 -p 9,1")}) {
+        std::string("portal explain --width 8 --height 8 -p 9,1"),
+        // --voxels on a map, --flatten on a world that is no block map, a backend portal worlds lack
+        "portal render builtin:level --width 16 --height 8 --voxels 5" + out,
+        "portal render builtin:level --width 16 --height 8 --flatten" + out,
+        std::string("portal explain builtin:level --width 16 --height 8 -p 1,1 -b cpu")}) {
     const Run r = run_tool(args);
     INFO(args << "\n" << r.output);
     CHECK(r.exit_code == 2);

@@ -461,6 +461,10 @@ TEST_CASE("Portal: bad input is a clear Error", "[portal][unit][badinput]") {
   };
   CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1E1\n11\n"); }), Catch::Contains("ragged"));
   CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1E1\n1?1\n"); }), Catch::Contains("unknown character '?'"));
+  // A byte that does not print is named by its value (a NUL cut the message short)
+  CHECK_THAT(msg([] { parse_tile_map(std::string("size 3 2 1\nmap\n1E1\n1\0" "1\n", 23)); }),
+             Catch::Contains("unknown character byte 0x00 at column 2"));
+  CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1E1\n1\t1\n"); }), Catch::Contains("byte 0x09 at column 2"));
   CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1.1\n111\n"); }), Catch::Contains("no eye"));
   CHECK_NOTHROW(parse_tile_map("size 3 2 1\nmap\n1.1\n111\n", "x", false));
   CHECK_THAT(msg([] { parse_tile_map("size 300 2 1\nmap\n"); }), Catch::Contains("255"));

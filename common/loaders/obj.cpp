@@ -326,10 +326,11 @@ tinyobj::ObjReader parse_obj(const std::string& path) {
       fail_at(path, line, "material library '" + mtl.string() + "': " + why);
     if (!mtl_seen.insert(mtl.lexically_normal().string()).second) continue;
     const std::string lib = scan_mtl(mtl.string());
+    const size_t lib_line = line;  // (a structured binding: clang captures none)
     for_each_line(lib, [&](size_t mline, const std::vector<std::string_view>& tok) {
       if (tok[0] != "newmtl" || tok.size() < 2) return;
       const std::string m(tok[1]);
-      if (!defined.emplace(m, std::pair{line, mtl.string()}).second)
+      if (!defined.emplace(m, std::pair{lib_line, mtl.string()}).second)
         std::cerr << "warning: " << mtl.string() << ":" << mline << ": material '" << m << "' is defined again (first in "
                   << defined[m].second << "): the first definition is used\n";
     });

@@ -2,6 +2,7 @@
 #include "gridrt/reference/portal/world.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <optional>
 #include <random>
@@ -240,7 +241,16 @@ void fill_voxels(const TileMapText& t, const std::string& name, const std::strin
       } else {
         const size_t at = c ? chars.find(c) : std::string::npos;
         if (at == std::string::npos)
-          fail(name, t.row_lines[z], std::string("unknown character '") + c + "' at column " + std::to_string(x + 1));
+        {
+          // A byte that does not print (a NUL cut the message, a tab or a UTF-8 byte printed raw)
+          // is named by its value
+          char shown[16];
+          if (std::isprint(static_cast<unsigned char>(c)))
+            std::snprintf(shown, sizeof shown, "'%c'", c);
+          else
+            std::snprintf(shown, sizeof shown, "byte 0x%02X", unsigned(static_cast<unsigned char>(c)));
+          fail(name, t.row_lines[z], std::string("unknown character ") + shown + " at column " + std::to_string(x + 1));
+        }
         m = uint16_t(at);
       }
       w.voxels[w.index(x, 0, z)] = kFloorMaterial;
