@@ -751,7 +751,8 @@ std::string given_grid_flags(const CLI::App* cmd) {
   std::string out;
   for (++k; k < args.size(); ++k) {
     const std::string& a = args[k];
-    if (a.size() < 2 || a[0] != '-') continue;  // the scene
+    // The scene, and values that look like options: a negative number (--time -.5)
+    if (a.size() < 2 || a[0] != '-' || std::isdigit(static_cast<unsigned char>(a[1])) || a[1] == '.') continue;
     std::string name = a.substr(0, a.find('='));
     // -t0.5: a short option with its value glued on (it was printed beside the --time given)
     const bool glued = a.size() > 2 && a[0] == '-' && a[1] != '-';
@@ -765,8 +766,9 @@ std::string given_grid_flags(const CLI::App* cmd) {
     const int items = std::max(1, opt->get_items_expected_max());
     std::string value;
     int have = 0;
-    while (have < items && k + 1 < args.size() && !(args[k + 1].size() > 1 && args[k + 1][0] == '-' &&
-                                                    !std::isdigit(static_cast<unsigned char>(args[k + 1][1])))) {
+    while (have < items && k + 1 < args.size() &&
+           !(args[k + 1].size() > 1 && args[k + 1][0] == '-' && !std::isdigit(static_cast<unsigned char>(args[k + 1][1])) &&
+             args[k + 1][1] != '.')) {
       const std::string& w = args[++k];
       have += 1 + int(std::count(w.begin(), w.end(), ','));
       value += (value.empty() ? "" : ",") + w;

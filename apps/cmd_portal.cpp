@@ -67,7 +67,8 @@ void add_mip_options(CLI::App* cmd, uint32_t& levels, float& distance) {
       ->check(CLI::Validator(
           [](std::string& v) {
             const double d = std::strtod(v.c_str(), nullptr);
-            return d > 0.0 && d <= 1e9 ? std::string() : std::string("must lie in (0, 1e9]");
+            // as the float it is kept in (1e-50 became 0, the default's "not given")
+            return float(d) > 0.0f && d <= 1e9 ? std::string() : std::string("must lie in (0, 1e9], above 1e-38");
           },
           "FLOAT in (0 - 1e+09]"));
 }

@@ -5,6 +5,7 @@
 // line; 3 the tracer is wrong or cracks.
 #include <algorithm>
 #include <cstdio>
+#include <cerrno>
 #include <cstdlib>
 #include <memory>
 
@@ -137,9 +138,11 @@ void add_verify_command(CLI::App& app) {
   cmd->add_option("--seed", o->seed, "Seed of the ray generation")
       ->check(CLI::Validator(
           [](std::string& v) {
-            return !v.empty() && v.find_first_not_of("0123456789") == std::string::npos && v.size() <= 19
-                       ? std::string()
-                       : std::string("must be a whole number from 0 to 9999999999999999999");
+            errno = 0;
+            const bool digits = !v.empty() && v.find_first_not_of("0123456789") == std::string::npos;
+            (void)std::strtoull(v.c_str(), nullptr, 10);
+            return digits && errno == 0 ? std::string()
+                                        : std::string("must be a whole number from 0 to 18446744073709551615");
           },
           "0 .. 2^64-1"));
   cmd->add_flag("--no-translated", o->no_translated, "Skip the run on the scene moved far from the origin");

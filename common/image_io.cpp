@@ -168,9 +168,15 @@ void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
   std::vector<float> floats;
   std::vector<uint8_t> bytes;
   const size_t n = size_t(width) * height;
+  // The bytes are sRGB-encoded (the shader's srgb8): a float image holds linear values, as the CPU
+  // writes them (they were written as byte / 255, sRGB values read as linear: an outside sweep)
   if (is_float_format(ext)) {
+    floats.reserve(n * 3);
     for (size_t i = 0; i < n; ++i)
-      for (int k = 0; k < 3; ++k) floats.push_back(float(rgba[i * 4 + k]) / 255.0f);
+      for (int k = 0; k < 3; ++k) {
+        const float c = float(rgba[i * 4 + k]) / 255.0f;
+        floats.push_back(c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f));
+      }
   } else if (ext == ".ppm") {
     for (size_t i = 0; i < n; ++i)
       for (int k = 0; k < 3; ++k) bytes.push_back(rgba[i * 4 + k]);
@@ -186,15 +192,35 @@ void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
 #ifdef GRIDRT_WITH_OIIO
 namespace {
 void check_jpeg_end(const std::string& path) {
-  std::ifstream f(path, std::ios::binary | std::ios::ate);
-  const std::streamoff size = f.tellg();
-  const std::streamoff tail = std::min<std::streamoff>(size, 4096);
-  std::string end(size_t(tail > 0 ? tail : 0), '\0');
-  f.seekg(size - tail);
-  if (tail <= 0 || !f.read(end.data(), tail)) throw Error("cannot load texture '" + path + "': cannot read its end");
-  while (!end.empty() && (end.back() == '\0' || std::isspace(static_cast<unsigned char>(end.back())))) end.pop_back();
-  if (end.size() < 2 || uint8_t(end[end.size() - 2]) != 0xFF || uint8_t(end.back()) != 0xD9)
+  // The markers walked from the start: segments skipped by their lengths, entropy-coded data
+  // scanned for the next marker (FF 00 is a stuffed byte, FF D0-D7 a restart) until the
+  // end-of-image marker FF D9. Bytes after it are allowed (cameras append data there); a file
+  // that ends first is truncated. An embedded thumbnail lies inside an APP segment: skipped whole.
+  const std::string data = read_input_file(path, "texture");
+  const auto byte = [&](size_t k) { return static_cast<unsigned char>(data[k]); };
+  const auto truncated = [&] {
     throw Error("cannot load texture '" + path + "': its JPEG data ends before the end-of-image marker (a truncated file)");
+  };
+  size_t k = 2;  // after SOI (FF D8), which OpenImageIO has read
+  bool in_scan = false;
+  while (k + 1 < data.size()) {
+    if (byte(k) != 0xFF) {
+      if (!in_scan) truncated();  // not a marker where one must be: corrupt or cut
+      ++k;
+      continue;
+    }
+    const unsigned char m = byte(k + 1);
+    if (m == 0xD9) return;                                     // EOI
+    if (m == 0xFF) { ++k; continue; }                          // fill byte
+    if (in_scan && (m == 0x00 || (m >= 0xD0 && m <= 0xD7))) { k += 2; continue; }  // stuffed byte, restart
+    if (m >= 0xD0 && m <= 0xD8) { k += 2; continue; }          // restart or SOI without a length
+    if (k + 3 >= data.size()) truncated();
+    const size_t length = size_t(byte(k + 2)) << 8 | byte(k + 3);
+    if (length < 2) truncated();
+    k += 2 + length;
+    in_scan = m == 0xDA;  // SOS: its entropy-coded data follows
+  }
+  truncated();
 }
 }  // namespace
 #endif

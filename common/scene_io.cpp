@@ -212,7 +212,7 @@ class SceneFileReader {
       if (!used_.count(it.key())) {  // checked, not loaded
         check_keys(m, where, {"file", "builtin", "level", "diffuse"});
         if (!m.contains("file") && !m.contains("builtin")) fail(where, "needs \"file\" or \"builtin\"");
-        std::fprintf(stderr, "warning: %s: %s: no instance uses it (not loaded)\n", path_.c_str(), where.c_str());
+        unused_.push_back(it.key());
         continue;
       }
       std::vector<Instance> parts;
@@ -265,6 +265,12 @@ class SceneFileReader {
         fail(where, "the meshes loaded so far hold " + std::to_string(vertices) + " vertices, more than the limit of " +
                         std::to_string(input_limits().max_vertices));
     }
+    if (!unused_.empty()) {
+      std::string list;
+      for (size_t i = 0; i < unused_.size() && i < 5; ++i) list += (i ? ", " : "") + unused_[i];
+      std::fprintf(stderr, "warning: %s: %zu mesh entr%s no instance uses (%s%s): not loaded\n", path_.c_str(),
+                   unused_.size(), unused_.size() == 1 ? "y" : "ies", list.c_str(), unused_.size() > 5 ? ", ..." : "");
+    }
   }
 
   Mesh builtin_teapot(uint32_t level, const std::string& where) const {
@@ -295,6 +301,13 @@ class SceneFileReader {
           if (it->contains("glossiness")) m.glossiness = get_number((*it)["glossiness"], where + ".glossiness");
           if (it->contains("diffuse")) m.diffuse = get_vec3((*it)["diffuse"], where + ".diffuse");
           if (it->contains("opacity")) m.opacity = get_number((*it)["opacity"], where + ".opacity");
+        }
+        // A material of a mesh entry no instance uses (not loaded) is not in the scene: said, not
+        // refused (such a file loaded before unused entries were skipped)
+        if (!found && !unused_.empty()) {
+          std::fprintf(stderr, "warning: %s: %s: no loaded material is named \"%s\" (mesh entries no instance uses are "
+                       "not loaded): ignored\n", path_.c_str(), where.c_str(), it.key().c_str());
+          continue;
         }
         if (!found) fail(where, "no material is named \"" + it.key() + "\"");
       }
@@ -442,6 +455,7 @@ class SceneFileReader {
   std::map<std::string, std::vector<Instance>> meshes_;  // by name: the instances a file gave
   std::map<std::string, std::vector<Instance>> files_;   // by the file's canonical path: the same
   std::set<std::string> used_;                           // the mesh names the instances give
+  std::vector<std::string> unused_;                      // the mesh entries no instance uses (not loaded)
 };
 
 // ---------------------------------------------------------------------------------------------

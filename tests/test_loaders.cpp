@@ -790,6 +790,22 @@ TEST_CASE("Scenes: huge rotation axes, NUL in paths, both grid sizes, a static i
   }
 }
 
+TEST_CASE("Scene file: an override naming only an unused mesh's material is ignored, not refused", "[unit][scenefile]") {
+  // Unused mesh entries are not loaded; such a file loaded before they were skipped (the review)
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("gridrt_unused_override_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "s.json") << R"({"meshes": {"used": {"builtin": "teapot", "level": 2}, "spare": {"builtin": "teapot", "level": 2}},
+    "materials": {"overrides": {"spare": {"glossiness": 0.5}}}, "instances": [{"mesh": "used"}]})";
+  Scene s;
+  REQUIRE_NOTHROW(s = load_scene((dir / "s.json").string()));
+  CHECK(s.instances.size() == 1);
+  // Without unused entries a name no material has is still an error
+  std::ofstream(dir / "t.json") << R"({"meshes": {"used": {"builtin": "teapot", "level": 2}},
+    "materials": {"overrides": {"nothing": {"glossiness": 0.5}}}, "instances": [{"mesh": "used"}]})";
+  CHECK_THROWS_WITH(load_scene((dir / "t.json").string()), Catch::Contains("no material is named"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST_CASE("Scene file: one model named under several mesh keys is loaded once, its meshes shared", "[unit][scenefile]") {
   // N keys naming one file loaded it N times: N times its memory and time (an outside sweep)
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("gridrt_shared_model_" + std::to_string(getpid()));
@@ -855,5 +871,30 @@ TEST_CASE("glTF: values TinyGLTF drops are refused by path, images no material u
   j["textures"].push_back({{"source", 1}});
   j["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["index"] = 1;  // now used: refused
   CHECK_THROWS_WITH(load(j), Catch::Contains("image 1"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("Textures: a truncated JPEG is refused, one with bytes after its end marker or progressive loads",
+          "[unit][loaders][badinput]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO");
+    return;
+  }
+  // libjpeg calls missing scan lines a warning and OpenImageIO drew them grey without an error (an
+  // outside sweep); cameras append data after the end marker, which must still load (the review)
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("gridrt_jpeg_end_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  std::vector<glm::vec3> rgb(64 * 64);
+  for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = glm::vec3(float(i % 64) / 63.0f, float(i / 64) / 63.0f, 0.5f);
+  const std::string whole = (dir / "whole.jpg").string();
+  write_image(whole, 64, 64, rgb);
+  const std::string bytes = read_input_file(whole, "texture");
+  std::ofstream((dir / "cut.jpg").string(), std::ios::binary) << bytes.substr(0, bytes.size() * 3 / 4);
+  std::ofstream((dir / "tail.jpg").string(), std::ios::binary) << bytes << std::string(500, '\x5a');
+  CHECK_NOTHROW(load_texture(whole, AlphaSource::kImage, nullptr));
+  CHECK_NOTHROW(load_texture((dir / "tail.jpg").string(), AlphaSource::kImage, nullptr));
+  CHECK_THROWS_WITH(load_texture((dir / "cut.jpg").string(), AlphaSource::kImage, nullptr),
+                    Catch::Contains("truncated"));
   std::filesystem::remove_all(dir);
 }

@@ -250,11 +250,13 @@ std::string pad_texture_options(const std::string& path, const std::string& text
       for (; have < want; ++have, padded = true) rewritten += (o == "-s" || o == "-mm") ? " 1" : " 0";
     }
     // newmtl: tinyobjloader keeps the blanks after the keyword in the name ("newmtl  leaf" defined
-    // " leaf"); a texture statement: it takes the rest of the line, a comment too, as the file's
-    // name. Both written without them (an outside sweep)
-    const bool newmtl = !tok.empty() && tok[0] == "newmtl" && tok.size() > 1;
-    if (newmtl || (texture && !padded && hash != std::string_view::npos)) {
-      std::string_view rest = body.substr(size_t(tok[0].data() + tok[0].size() - body.data()));
+    // " leaf", an outside sweep): written without them. The rest of the line is kept, a '#' too,
+    // as tinyobjloader reads it (a name "mat#2" cut at its '#' lost its material without a word;
+    // whole, its usemtl is refused below as before). A texture statement keeps its line as well:
+    // a file name may hold a '#'.
+    const bool newmtl = !padded && !tok.empty() && tok[0] == "newmtl" && tok.size() > 1;
+    if (newmtl) {
+      std::string_view rest = line.substr(size_t(tok[0].data() + tok[0].size() - line.data()));
       while (!rest.empty() && std::isspace(static_cast<unsigned char>(rest.front()))) rest.remove_prefix(1);
       while (!rest.empty() && std::isspace(static_cast<unsigned char>(rest.back()))) rest.remove_suffix(1);
       rewritten = std::string(tok[0]) + " " + std::string(rest);
@@ -262,7 +264,7 @@ std::string pad_texture_options(const std::string& path, const std::string& text
     }
     if (padded) {
       out += rewritten;
-      if (hash != std::string_view::npos && !texture && !newmtl) out += " " + std::string(line.substr(hash));
+      if (hash != std::string_view::npos && !newmtl) out += " " + std::string(line.substr(hash));
     } else {
       out += line;
     }
@@ -329,7 +331,8 @@ tinyobj::ObjReader parse_obj(const std::string& path) {
     const size_t lib_line = line;  // (a structured binding: clang captures none)
     for_each_line(lib, [&](size_t mline, const std::vector<std::string_view>& tok) {
       if (tok[0] != "newmtl" || tok.size() < 2) return;
-      const std::string m(tok[1]);
+      std::string m(tok[1]);  // the whole name ("a b" and "a c" are two)
+      for (size_t i = 2; i < tok.size(); ++i) m += " " + std::string(tok[i]);
       if (!defined.emplace(m, std::pair{lib_line, mtl.string()}).second)
         std::cerr << "warning: " << mtl.string() << ":" << mline << ": material '" << m << "' is defined again (first in "
                   << defined[m].second << "): the first definition is used\n";
