@@ -128,8 +128,9 @@ int stdout_status() {
   std::cout.flush();
   errno = 0;
   if (std::fflush(stdout) == 0 && !std::ferror(stdout) && !std::cout.fail()) return 0;
+  // (the failed write's errno is gone by now: stdio keeps only its error flag)
   std::fprintf(stderr, "gridrt: error: cannot write to standard output%s%s\n", errno ? ": " : "",
-               errno ? std::strerror(errno) : "");
+               errno ? std::strerror(errno) : " (a full disk, or a pipe whose reader has gone)");
   return 1;
 }
 

@@ -496,3 +496,18 @@ TEST_CASE("Outside sweep: portal export to a folder that does not exist names th
   CHECK(f.exit_code == 1);
   CHECK_THAT(f.output, Contains("is not a folder") && !Contains("does not exist"));
 }
+
+TEST_CASE("Standard output that cannot be written is exit 1 with the reason, a closed pipe too", "[badinput][cli]") {
+  // stats and explain exited 0 with none of their report written to a full disk; a closed pipe
+  // killed the process by SIGPIPE (an outside sweep)
+  const auto full = run_tool(std::string("--version >/dev/null; (") + GRIDRT_TOOL + " stats builtin:cornell >/dev/full)");
+  INFO(full.output);
+  CHECK(full.exit_code == 1);
+  CHECK_THAT(full.output, Contains("cannot write to standard output"));
+  // The reader gone before the first line (true exits at once; stats builds its grid first)
+  const auto pipe = run_tool(std::string("--version >/dev/null; bash -c '") + GRIDRT_TOOL +
+                             " stats builtin:cornell | true; exit ${PIPESTATUS[0]}'");
+  INFO(pipe.output);
+  CHECK(pipe.exit_code == 1);  // not 141 (killed by SIGPIPE)
+  CHECK_THAT(pipe.output, Contains("cannot write to standard output"));
+}

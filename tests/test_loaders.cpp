@@ -898,3 +898,32 @@ TEST_CASE("Textures: a truncated JPEG is refused, one with bytes after its end m
                     Catch::Contains("truncated"));
   std::filesystem::remove_all(dir);
 }
+
+TEST_CASE("OBJ and MTL: values tinyobjloader reads as 0 or drops are refused with their line", "[unit][loaders][badinput]") {
+  // An outside sweep's finds: "Kd xyz" and "Kd spectral" read as numbers, "-NaN" and "-Inf"
+  // skipped as options and read as 0, a UTF-16 file called empty, a usemtl before its library's
+  // mtllib losing its material
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("gridrt_obj_values_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  const auto load = [&](const std::string& obj, const std::string& mtl) {
+    std::ofstream(dir / "m.mtl") << mtl;
+    std::ofstream(dir / "m.obj", std::ios::binary) << obj;
+    return load_scene((dir / "m.obj").string());
+  };
+  const std::string use = "mtllib m.mtl\n" + tri + "usemtl a\nf 1 2 3\n";
+  CHECK_THROWS_WITH(load(use, "newmtl a\nKd xyz 0.9 0.9 0.9\n"), Catch::Contains("m.mtl:2") && Catch::Contains("XYZ"));
+  CHECK_THROWS_WITH(load(use, "newmtl a\nKd spectral x.spd\n"), Catch::Contains("m.mtl:2"));
+  CHECK_THROWS_WITH(load(use, "newmtl a\nKd 1 -NaN 1\n"), Catch::Contains("m.mtl:2") && Catch::Contains("-NaN"));
+  CHECK_THROWS_WITH(load("v -Inf 1 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", ""), Catch::Contains("m.obj:1"));
+  CHECK_THROWS_WITH(load(std::string("v\0 0", 4) + "\n" + tri + "f 1 2 3\n", ""), Catch::Contains("NUL"));
+  CHECK_THROWS_WITH(load(tri + "usemtl a\nf 1 2 3\nmtllib m.mtl\n", "newmtl a\nKd 1 0 0\n"),
+                    Catch::Contains("m.obj:4") && Catch::Contains("before the mtllib"));
+  // Read right: blanks after newmtl, a texture option line; the same material twice keeps the first
+  Scene s;
+  REQUIRE_NOTHROW(s = load(use, "newmtl   a\nKd 1 0 0\n"));
+  CHECK(s.materials[s.meshes[0].materials[0]].diffuse == glm::vec3(1, 0, 0));
+  REQUIRE_NOTHROW(s = load(use, "newmtl a\nKd 1 0 0\nnewmtl a\nKd 0 0 1\n"));
+  CHECK(s.materials[s.meshes[0].materials[0]].diffuse == glm::vec3(1, 0, 0));
+  std::filesystem::remove_all(dir);
+}
