@@ -168,9 +168,7 @@ void run_stats(const StatsOptions& o) {
   if (!o.ray_pixel.empty() && o.slices.empty())
     throw OptionsError("--pixel draws its camera ray into --slices' pictures: give --slices FOLDER too");
   // The folder checked before the build and the report, as every output (it was checked after)
-  if (!o.slices.empty() && !is_folder(o.slices))
-    throw Error("--slices: '" + o.slices + "' " +
-                (std::filesystem::exists(o.slices) ? "is not a folder" : "does not exist (the folder is not made for you)"));
+  if (!o.slices.empty()) check_slices_folder(o.slices);
   check_frame_size(o.width, o.height);
   const Scene scene = load_scene_or_default(o.scene);
   const reference::GridOptions go = grid_options_for(o.backend_options, scene);

@@ -109,13 +109,17 @@ size_t draw_ray(plot::Canvas& c, const SliceLayout& l, const sh::GridParams& g, 
 
 }  // namespace
 
+void check_slices_folder(const std::string& dir) {
+  if (!is_folder(dir))
+    throw Error("--slices: '" + dir + "' " +
+                (std::filesystem::exists(dir) ? "is not a folder" : "does not exist (the folder is not made for you)"));
+}
+
 void write_slices(const reference::ReferenceGridTracer& ref, const std::string& scene_name, const std::string& dir,
                   char axis, const reference::ExplainRecord* ray, const std::string& ray_name) {
   if (!plot::available())
     throw Error("--slices needs OpenImageIO and the DejaVu fonts (Debian: libopenimageio-dev, fonts-dejavu-core)");
-  if (!is_folder(dir))
-    throw Error("--slices: '" + dir + "' " +
-                (std::filesystem::exists(dir) ? "is not a folder" : "does not exist (the folder is not made for you)"));
+  check_slices_folder(dir);
   const reference::GridData& grid = ref.data();
   const sh::GridParams& g = grid.params;
   const SliceLayout l(g, axis, ray != nullptr);

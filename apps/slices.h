@@ -7,6 +7,9 @@
 
 namespace gridrt::app {
 
+// --slices: an existing folder (checked before the build, and again before writing)
+void check_slices_folder(const std::string& dir);
+
 // Writes DIR/occupancy.png: the grid's cells slice by slice along `axis` ('x', 'y' or 'z'). With
 // `ray`, the cells its traversal visits are outlined black and the paper's midpoint samples (or
 // the exact traversal's entry points) drawn as dots in the slice that holds them.
