@@ -75,7 +75,7 @@ struct Item {
   Traversal traversal = Traversal::paper;
   uint32_t mode = shared::kTraceClosestHit;  // shadow rays: kTraceAnyHit, as the frame traces them
   std::optional<Hit> frame_hit;  // --gpu-frame: the frame's own hit of this ray
-  // Traced on the gather's grid (plan::gather_options: the exact traversal with Moller-Trumbore),
+  // Traced on the gather's grid (plan::gather_options: the exact traversal with the watertight test),
   // as the frame traces a pixel's primary ray, not on the grid of the options given
   bool gather_grid = false;
 };
@@ -253,17 +253,18 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
     Item it;
     it.ray = camera_ray(scene.frame_camera(), o.width, o.height, x, y);
     it.traversal = o.traversal_given ? frame_t : Traversal::exact;
-    // On the gather's grid, with its test (Moller-Trumbore), as the frame traces the pixel: the
-    // explain's own options gave the watertight test, and on coplanar faces another triangle than
-    // the pixel shows (an outside sweep's find)
+    // On the gather's grid, with its test (the watertight one: plan::gather_options), as the frame
+    // traces the pixel: the explain's own options may give another test, and on coplanar faces
+    // another triangle than the pixel shows (an outside sweep's find)
     it.gather_grid = !o.traversal_given;
     it.label = std::string(where) + ": the primary ray";
     it.header = {it.label + (o.kind == "auto" && !o.primary ? " (the pixel has no glossy bounce)" : "")};
     it.header.insert(it.header.end(), frame_words.begin(), frame_words.end());
+    const std::string gather_test = "the watertight test";  // whatever the trace's (plan::gather_options)
     it.header.push_back(std::string("explained by the ") + traversal_name(it.traversal) + " traversal" +
-                        (it.gather_grid ? " on the gather's grid (Moller-Trumbore), as the frame's gather traces it"
+                        (it.gather_grid ? " on the gather's grid (" + gather_test + "), as the frame's gather traces it"
                                         : " (asked for with --traversal, on the options given; the frame's gather "
-                                          "uses the exact traversal with Moller-Trumbore)") +
+                                          "uses the exact traversal with " + gather_test + ")") +
                         (o.gpu_frame ? " (the GPU frame gathers by its " + gpu_gather +
                                            " pass: the same camera rays, not traced through the grid)"
                                      : std::string()));
@@ -558,6 +559,8 @@ void add_explain_command(CLI::App& app) {
       throw CLI::ValidationError("explain", "give --pixel X,Y, --ray or --ray-file");
     if (o->pixel.empty() && (o->kind != "auto" || o->primary || o->gpu_frame || o->light))
       throw CLI::ValidationError("explain", "--kind, --primary, --light and --gpu-frame go with --pixel");
+    if (o->primary && o->kind != "auto" && o->kind != "primary")
+      throw CLI::ValidationError("--primary", "is --kind primary: it contradicts --kind " + o->kind + " (give one)");
     if (o->light && o->kind != "shadow")
       throw CLI::ValidationError("explain", "--light picks the shadow ray of one light: it goes with --kind shadow");
     // Options that did nothing here, without a word (an outside sweep)

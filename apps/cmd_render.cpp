@@ -113,6 +113,13 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
     throw CLI::ValidationError("--rays", "picks a --view figure's rays: add --view, or leave --rays out");
   if (o.view != "shaded") {
     if (o.frames > 1) throw CLI::ValidationError("--view", o.view + " makes one picture: leave out --frames");
+    // A figure of one kind of ray: the frame's other switches change nothing in it (an outside sweep)
+    if (std::find(given.begin(), given.end(), "--shadows") != given.end())
+      throw CLI::ValidationError("--shadows", "switches the frame's shadow rays; a --view figure shows the primary or "
+                                              "bounce rays' records: leave it out");
+    if (o.no_bounce)
+      throw CLI::ValidationError("--no-bounce", "a --view figure picks its rays with --rays (bounce or primary): "
+                                                "give --rays primary, and leave --no-bounce out");
     // The figure is --scale times the image along each side: its pixels count against --max-pixels
     // too (about 40 bytes each)
     const uint64_t figure = uint64_t(o.width) * o.height * uint64_t(o.scale) * uint64_t(o.scale);
@@ -191,16 +198,12 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
   // The paper rasterizes its gather buffer: primary visibility is exact, only the bounce goes
   // through the paper's segments (and may meet gap-fill voxels). A grid backend in paper mode
   // therefore makes the gather buffer with a second tracer on the exact traversal.
-  // The gather's rule is Moller-Trumbore's test (docs/SPEC.md "The gather as a rasterizer"; the
-  // GPU frame's gather keeps it): a CPU grid tracing with the watertight test (the exact
-  // traversal's default) gathers with a second one too (a ray on a triangle's outer edge was lit on
-  // the GPU and background on the CPU)
+  // The gather's test is the watertight one (plan::gather_options; the exact traversal's default),
+  // so a CPU grid tracing with Moller-Trumbore gathers with a second tracer too, and so does one
+  // that may leave triangles out of its cells or its hits (the spill list off or bounded, a
+  // self-hit offset): the gather keeps every reference (plan::gather_options)
   const reference::GridOptions& gg = o.backend_options.grid;
-  const bool watertight = gg.triangle_test == reference::GridOptions::TriangleTest::watertight ||
-                          (gg.triangle_test == reference::GridOptions::TriangleTest::automatic &&
-                           gg.traversal == reference::Traversal::exact);
-  // and so does one that may leave triangles out of its cells or its hits (the spill list off or
-  // bounded, a self-hit offset): the gather keeps every reference (plan::gather_options)
+  const bool moller = plan::resolved_triangle_test(gg) == reference::GridOptions::TriangleTest::moller;
   const bool drops = gg.spill == reference::GridOptions::Spill::off || gg.spill_capacity.has_value() ||
                      gg.self_hit_offset != 0.0f;
   // The Vulkan frame gathers on the GPU: it built a second grid it never read (about 3 s and 160
@@ -211,7 +214,7 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
 #endif
   std::unique_ptr<Tracer> gather_tracer;
   if (!frame_on_gpu && ((backend != "embree" && gg.traversal == reference::Traversal::paper) ||
-                     (backend == "cpu" && (watertight || drops)))) {
+                     (backend == "cpu" && (moller || drops)))) {
     BackendOptions exact = o.backend_options;
     exact.grid = plan::gather_options(exact.grid);
     gather_tracer = make_backend(backend, exact, scene);
@@ -234,7 +237,7 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
       t0 = std::chrono::steady_clock::now();
       gpu_frame.render(frame);
       const std::string path = frame_path(o.output, frame, o.frames);
-      write_image_rgba8(path, o.width, o.height, gpu_frame.download_rgba());
+      write_image_rgba8(path, o.width, o.height, gpu_frame.download_rgba(), false);  // RGB, as the CPU's
       std::fprintf(stderr, "%s: frame %u (t = %.3f s) rendered on the GPU in %.2f s (device: gather %.3f, bounce %.3f, "
                    "trace %.3f, shadow %.3f, shade %.3f ms) -> %s\n", tracer->name().c_str(), frame, time, seconds_since(t0),
                    gpu_frame.timings().gather_ms, gpu_frame.timings().bounce_ms, gpu_frame.timings().trace_ms,

@@ -161,7 +161,8 @@ void write_image(const std::string& path, uint32_t width, uint32_t height, const
 #endif
 }
 
-void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgba) {
+void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgba,
+                       bool alpha) {
   check_size(path, width, height, rgba.size(), 4);
   const std::string ext = lower_extension(path);
   check_extension(path, ext);
@@ -177,7 +178,11 @@ void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
         const float c = float(rgba[i * 4 + k]) / 255.0f;
         floats.push_back(c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f));
       }
-  } else if (ext == ".ppm") {
+  } else if (ext == ".ppm" || !alpha) {
+    // RGB: without `alpha`, as write_image writes every backend's picture (the shader's alpha, 255,
+    // made a Vulkan PNG or TIFF a four-channel file no comparison with the CPU's passed: outside
+    // sweeps)
+    bytes.reserve(n * 3);
     for (size_t i = 0; i < n; ++i)
       for (int k = 0; k < 3; ++k) bytes.push_back(rgba[i * 4 + k]);
   }
@@ -185,7 +190,8 @@ void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
     return write_file_atomically(path, "image", netpbm_bytes(width, height, ext == ".pfm", bytes, floats));
 #ifdef GRIDRT_WITH_OIIO
   if (is_float_format(ext)) write_oiio(path, width, height, 3, OIIO::TypeDesc::FLOAT, floats.data());
-  else write_oiio(path, width, height, 4, OIIO::TypeDesc::UINT8, rgba.data());
+  else if (alpha) write_oiio(path, width, height, 4, OIIO::TypeDesc::UINT8, rgba.data());
+  else write_oiio(path, width, height, 3, OIIO::TypeDesc::UINT8, bytes.data());
 #endif
 }
 
@@ -258,14 +264,31 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
   if (a < 0 || a >= nch) a = (nch == 2 || nch == 4) ? nch - 1 : -1;
   if (alpha_channel) *alpha_channel = a >= 0;
   if (a < 0 && alpha == AlphaSource::kFirstChannel) a = 0;
-  // Only the channels used (colour, alpha) are read: a header of 64 channels took 64 bytes a pixel
-  // (4 GiB at the pixel limit, from a 66 KB file: an outside sweep)
-  const int used = std::min(nch, std::max(3, a + 1));
-  std::vector<uint8_t> px(n * size_t(used));
-  if (!in->read_image(0, 0, 0, used, OIIO::TypeDesc::UINT8, px.data())) {
-    std::string why = in->geterror();
+  // Only the channels used are read: the colour's (the first three, or one grey) and the alpha's,
+  // each by itself. A header of 64 channels took 64 bytes a pixel (4 GiB at the pixel limit, from
+  // a 66 KB file), and so did one whose alpha is its last channel (an EXR layer's "*.A" sorts last:
+  // outside sweeps).
+  const int colour = std::min(nch, 3);
+  // Each texture is within the pixel limit, but nothing else bounds their sum (ten copies of one
+  // 8192 x 8192 PNG took 3 GB, beyond --max-host-mib: an outside sweep): the read and the RGBA
+  // copy must fit the host's memory before anything is allocated
+  require_host_memory(uint64_t(n) * uint64_t(colour + 1 + 4), "texture '" + path + "' (" + std::to_string(tex.width) +
+                          " x " + std::to_string(tex.height) + " pixels, decoded)",
+                      "lower --max-texture-pixels, or use smaller textures");
+  std::vector<uint8_t> px(n * size_t(colour));
+  std::vector<uint8_t> alpha_px;
+  auto failed = [&](const std::string& why) {
     throw Error("cannot load texture '" + path + "': " + (why.empty() ? "its pixels do not decode (truncated or corrupt)" : why));
+  };
+  if (!in->read_image(0, 0, 0, colour, OIIO::TypeDesc::UINT8, px.data())) failed(in->geterror());
+  if (a >= colour) {
+    alpha_px.resize(n);
+    if (!in->read_image(0, 0, a, a + 1, OIIO::TypeDesc::UINT8, alpha_px.data())) failed(in->geterror());
   }
+  // A reader may decode what it can and report the rest as an error while returning success: a
+  // TIFF cut short read its missing strips as black texels (an outside sweep)
+  if (std::string late = in->geterror(); !late.empty())
+    failed(late + " (the reader decoded what it could and reported this: a truncated or corrupt file)");
   const std::string format = in->format_name();
   in->close();
   // libjpeg calls missing scan lines a warning and OpenImageIO returns them grey without an
@@ -273,11 +296,11 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
   if (format == "jpeg") check_jpeg_end(path);
   tex.rgba.resize(n * 4);
   for (size_t i = 0; i < n; ++i) {
-    const uint8_t* p = px.data() + i * size_t(used);
+    const uint8_t* p = px.data() + i * size_t(colour);
     uint8_t* q = tex.rgba.data() + i * 4;
     if (nch >= 3) { q[0] = p[0]; q[1] = p[1]; q[2] = p[2]; }
     else { q[0] = q[1] = q[2] = p[0]; }
-    q[3] = a >= 0 ? p[a] : 255;
+    q[3] = a < 0 ? 255 : a >= colour ? alpha_px[i] : p[a];
     if (q[3] < 255) tex.has_alpha = true;
   }
   return tex;

@@ -41,10 +41,12 @@ uint8_t linear_to_srgb8(float linear);
 void write_image(const std::string& path, uint32_t width, uint32_t height,
                  const std::vector<glm::vec3>& rgb);
 
-// Write width x height RGBA8 pixels as they are (no encoding), e.g. a texture for inspection.
-// Float formats (.pfm, .exr, .hdr) get value / 255.
+// Write width x height RGBA8 pixels, sRGB-encoded bytes: 8-bit formats get them as they are
+// (with `alpha`, their alpha channel where the format has one: a texture for inspection; without,
+// RGB, as write_image writes a rendered frame), float formats (.pfm, .exr, .hdr) the linear values
+// they encode, RGB.
 void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
-                       const std::vector<uint8_t>& rgba);
+                       const std::vector<uint8_t>& rgba, bool alpha = true);
 
 // Whether this build reads textures (has OpenImageIO).
 bool have_image_library();

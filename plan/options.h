@@ -156,20 +156,30 @@ GridOptions settle_overrides(GridOptions o, const Scene& scene);
 
 unsigned thread_count(const EmulationOptions& options);
 
+// The triangle test `o` traces with: automatic is the watertight test for the exact traversal and
+// Moller-Trumbore for the paper's (plan/choose.cpp makes GridParams::triangle_test from it).
+inline AlgorithmOptions::TriangleTest resolved_triangle_test(const AlgorithmOptions& o) {
+  if (o.triangle_test != AlgorithmOptions::TriangleTest::automatic) return o.triangle_test;
+  return o.traversal == Traversal::exact ? AlgorithmOptions::TriangleTest::watertight
+                                         : AlgorithmOptions::TriangleTest::moller;
+}
+
 // The options of the grid that makes a frame's gather buffer on the CPU: the exact traversal
-// (the paper rasterizes its gather buffer, so primary visibility is exact) with the GPU gather's
-// own ray test, Moller-Trumbore (gather_visibility.glsl), unless a test is chosen explicitly: the
-// CPU and GPU gathers then agree in bits (docs/SPEC.md, "Triangle test").
+// with the watertight test, whatever the trace's. The paper rasterizes its gather buffer, so
+// primary visibility is exact, and watertight: a rasterizer's rules give every pixel of a closed
+// mesh to one of its triangles. The watertight test computes a shared edge's function once for
+// both faces, so no camera ray passes between them; Moller-Trumbore let 11 of 1,024 pixels of a
+// closed mesh see the background (an outside sweep). The GPU frame's gather takes the same test
+// (gather_ray_test): the CPU and GPU gathers agree in bits (docs/SPEC.md, "The gather as a
+// rasterizer").
 inline GridOptions gather_options(GridOptions o) {
   o.traversal = Traversal::exact;
+  o.triangle_test = AlgorithmOptions::TriangleTest::watertight;
   // Exact primary visibility: the plane test's sphere holds the whole cell (an enlargement below 1
   // is the paper traversal's knob, for its segments, not for the gather)
   o.sphere_enlargement = std::max(o.sphere_enlargement, 1.0f);
   // and AABB padding above 0 (0 is the paper traversal's knob too): the default where it is not
   if (o.aabb_padding && !(*o.aabb_padding > 0.0f)) o.aabb_padding.reset();
-  // and the gather's rule, Moller-Trumbore's test, whatever the trace's (the GPU frame's gather
-  // has no other: docs/SPEC.md "The gather as a rasterizer")
-  o.triangle_test = AlgorithmOptions::TriangleTest::moller;
   // and every reference kept: the spill list on at its forecast capacity (a full cell of
   // `--spill off` or a fixed `--spill-capacity` dropped triangles the GPU's gathers see), and no
   // self-hit offset (the bounce rays' knob: it made camera rays miss what the GPU's gathers hit)

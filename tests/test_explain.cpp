@@ -285,7 +285,7 @@ TEST_CASE("Explain: the command line - any ray, ray files, kinds, brief, JSON, p
   const test::Run p = run_tool("explain builtin:cornell --width 48 --height 36 --pixel 24,18 --kind primary --brief");
   INFO(p.output);
   REQUIRE(p.exit_code == 0);
-  CHECK_THAT(p.output, Catch::Contains("explained by the exact traversal on the gather's grid (Moller-Trumbore), as the frame's gather traces it"));
+  CHECK_THAT(p.output, Catch::Contains("explained by the exact traversal on the gather's grid (the watertight test), as the frame's gather traces it"));
   CHECK_THAT(p.output, Catch::Contains("traversal exact") && !Catch::Contains("0x"));
   CHECK_THAT(p.output, Catch::Contains("capacity") && Catch::Contains("policy"));
   // Shadow rays toward the Cornell box's light
@@ -403,17 +403,17 @@ TEST_CASE("Explain: the HTML viewer loads in headless chromium without script er
   CHECK_THAT(dom, Catch::Contains("#" + std::to_string(test)));
 }
 
-// An outside sweep's find: a pixel's primary ray was explained on the explain's own grid options
-// (the exact traversal's watertight test), where the frame's gather traces it with
-// Moller-Trumbore on the gather's grid: on coplanar faces it showed another triangle than the
-// pixel's. It is explained on the gather's grid now, whatever --triangle-test says.
+// An outside sweep's find: a pixel's primary ray was explained on the explain's own grid options,
+// where the frame's gather traces it on the gather's grid with its own test: on coplanar faces it
+// showed another triangle than the pixel's. It is explained on the gather's grid now, whatever
+// --triangle-test says.
 TEST_CASE("Explain: a pixel's primary ray is traced on the gather's grid, as the frame traces it", "[cli][explain]") {
-  for (const char* test : {"", " --triangle-test watertight"}) {
+  for (const char* test : {"", " --triangle-test moller", " --triangle-test watertight"}) {
     const gridrt::test::Run r =
         gridrt::test::run_tool(std::string("explain builtin:cornell --width 32 --height 24 --pixel 16,12 --kind primary --brief") + test);
     INFO(r.output);
     REQUIRE(r.exit_code == 0);
-    CHECK_THAT(r.output, Catch::Contains("on the gather's grid (Moller-Trumbore)"));
+    CHECK_THAT(r.output, Catch::Contains("on the gather's grid (the watertight test)"));
   }
 }
 

@@ -9,6 +9,9 @@
 #include "gridrt/common/embree/embree_tracer.h"
 #include "gridrt/common/gather.h"
 #include "gridrt/common/shade.h"
+#include "gridrt/plan/options.h"
+#include "gridrt/reference/grid.h"
+#include "tests/test_grid_util.h"
 
 using namespace gridrt;
 
@@ -34,6 +37,40 @@ Scene mirror_scene(float gloss) {
   s.instances = {Instance{.name = "floor", .mesh = 0}, Instance{.name = "wall", .mesh = 1}};
   s.camera = Camera{.eye = {0, 2, 4}, .target = {0, 0, 0}, .vfov_degrees = 50.0f};
   s.lights.push_back(Light{.position = {0, 1, 1}, .intensity = 1.0f, .directional = true});
+  s.finalize();
+  return s;
+}
+
+// A UV sphere of radius 1 at the origin: `n` segments, n / 2 rings, its triangles wound outward
+// (every face's normal points away from the centre).
+Scene sphere_scene(int n) {
+  Scene s;
+  s.name = "sphere";
+  s.materials = {Material{.name = "white", .diffuse = {0.8f, 0.8f, 0.8f}}};
+  Mesh m;
+  m.name = "sphere";
+  const int rings = n / 2;
+  m.positions.push_back({0.0f, 1.0f, 0.0f});
+  for (int r = 1; r < rings; ++r)
+    for (int k = 0; k < n; ++k) {
+      const double th = 3.14159265358979 * r / rings, ph = 2.0 * 3.14159265358979 * k / n;
+      m.positions.push_back(glm::vec3(float(std::sin(th) * std::cos(ph)), float(std::cos(th)),
+                                      float(std::sin(th) * std::sin(ph))));
+    }
+  m.positions.push_back({0.0f, -1.0f, 0.0f});
+  const uint32_t south = uint32_t(m.positions.size() - 1);
+  auto at = [&](int r, int k) { return uint32_t(1 + (r - 1) * n + (k % n)); };
+  for (int k = 0; k < n; ++k) {
+    m.triangles.push_back({0u, at(1, k + 1), at(1, k)});
+    m.triangles.push_back({south, at(rings - 1, k), at(rings - 1, k + 1)});
+    for (int r = 1; r + 1 < rings; ++r) {
+      m.triangles.push_back({at(r, k), at(r, k + 1), at(r + 1, k)});
+      m.triangles.push_back({at(r, k + 1), at(r + 1, k + 1), at(r + 1, k)});
+    }
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes = {m};
+  s.instances = {Instance{.name = "sphere", .mesh = 0}};
   s.finalize();
   return s;
 }
@@ -84,6 +121,61 @@ TEST_CASE("Gather: from a camera far away the positions still lie on the surface
     }
     CHECK(floor > 40);
   }
+}
+
+TEST_CASE("Gather: a closed sphere seen from far away shows a front face at every pixel it covers", "[unit][oracle]") {
+  // The camera rays of a far camera pass a mesh's shared edges with rounding far above the
+  // triangles' scale: Moller-Trumbore's test lets some through between two front faces, to a back
+  // face (7 of 14,400 pixels at 4,000 units: an outside sweep). The exact traversal's watertight
+  // test, which the gather takes with it (plan::gather_options), computes a shared edge's function
+  // once for both faces: no ray passes between them.
+  Scene s = sphere_scene(64);
+  for (const float d : {1.0e3f, 4.0e3f, 3.0e4f}) {
+    s.camera = Camera{.eye = {0.6f * d, 0.3f * d, 0.74f * d}, .target = {0, 0, 0}, .vfov_degrees = 150.0f / d};
+    reference::GridOptions o;
+    o.traversal = reference::Traversal::exact;  // the watertight test by default
+    reference::ReferenceGridTracer tracer(plan::gather_options(o));
+    tracer.build(s, 0.0f);
+    const GatherBuffer g = make_gather(s, tracer, *s.camera, 120, 90);
+    size_t covered = 0;
+    for (size_t p = 0; p < g.size(); ++p) {
+      if (!g.valid[p]) continue;
+      ++covered;
+      const glm::uvec3 tri = s.meshes[0].triangles[g.hit[p].triangle];
+      const glm::vec3 v0 = s.meshes[0].positions[tri.x], v1 = s.meshes[0].positions[tri.y],
+                      v2 = s.meshes[0].positions[tri.z];
+      const glm::vec3 nrm = glm::cross(v1 - v0, v2 - v0);
+      INFO("camera " << d << " away, pixel " << p << ": triangle " << g.hit[p].triangle);
+      CHECK(glm::dot(nrm, g.incident[p]) < 0.0f);  // a front face: the ray comes from outside
+    }
+    CHECK(covered > 2000);
+  }
+}
+
+TEST_CASE("Gather: no camera ray through a shared vertex passes between the triangles around it", "[unit][oracle]") {
+  // An outside sweep's find: every interior pixel's ray passes exactly through a vertex of the
+  // sheet; the gather's test is the watertight one (plan::gather_options) on either traversal.
+  const uint32_t w = 32;
+  const Scene s = gridtest::pixel_vertex_sheet(w);
+  for (const auto traversal : {reference::Traversal::paper, reference::Traversal::exact})
+    for (const auto test : {reference::GridOptions::TriangleTest::automatic, reference::GridOptions::TriangleTest::moller}) {
+      reference::GridOptions o;
+      o.traversal = traversal;
+      o.triangle_test = test;
+      reference::ReferenceGridTracer tracer(plan::gather_options(o));
+      tracer.build(s, 0.0f);
+      const GatherBuffer g = make_gather(s, tracer, *s.camera, w, w);
+      INFO("traversal " << (traversal == reference::Traversal::exact ? "exact" : "paper") << ", test "
+                        << (test == reference::GridOptions::TriangleTest::moller ? "moller" : "auto"));
+      CHECK(gridtest::sheet_pixels_missed(g, w) == 0);
+    }
+  // Moller-Trumbore's own test lets rays through: the scene does test watertightness
+  reference::GridOptions mt;
+  mt.traversal = reference::Traversal::exact;
+  mt.triangle_test = reference::GridOptions::TriangleTest::moller;
+  reference::ReferenceGridTracer tracer(mt);
+  tracer.build(s, 0.0f);
+  CHECK(gridtest::sheet_pixels_missed(make_gather(s, tracer, *s.camera, w, w), w) > 10);
 }
 
 TEST_CASE("Bounce rays: deterministic, normalized, in the hemisphere, mirror at glossiness 1", "[unit][oracle]") {

@@ -341,12 +341,15 @@ TEST_CASE("grid: cells wider than the domain, an exact traversal below the cell'
     CHECK_FALSE(gt.spill_capacity.has_value());
     CHECK(gt.self_hit_offset == 0.0f);
   }
-  // and takes the gather's rule, Moller-Trumbore's test, whatever the trace's
-  for (auto test : {reference::GridOptions::TriangleTest::automatic, reference::GridOptions::TriangleTest::watertight}) {
-    reference::GridOptions t = go;
-    t.triangle_test = test;
-    CHECK(plan::gather_options(t).triangle_test == reference::GridOptions::TriangleTest::moller);
-  }
+  // and takes the gather's rule, the watertight test, whatever the trace's and its traversal
+  for (auto test : {reference::GridOptions::TriangleTest::automatic, reference::GridOptions::TriangleTest::moller,
+                    reference::GridOptions::TriangleTest::watertight})
+    for (auto traversal : {reference::Traversal::paper, reference::Traversal::exact}) {
+      reference::GridOptions t = go;
+      t.triangle_test = test;
+      t.traversal = traversal;
+      CHECK(plan::gather_options(t).triangle_test == reference::GridOptions::TriangleTest::watertight);
+    }
   go.traversal = reference::Traversal::paper;  // the paper's knob
   CHECK_NOTHROW(reference::choose_grid(scene, 0.0f, go));
   // An AABB padding of 0 leaves a triangle on a cell face out of the cell across it: refused by

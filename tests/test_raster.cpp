@@ -1,5 +1,6 @@
 // test_raster.cpp: the compute gather's rasterizer bounds (common/shared/raster.h) are
-// conservative: every pixel the gather's ray test accepts passes the pixel test and the tile and
+// conservative: every pixel the gather's ray test (either triangle test: Moller-Trumbore or the
+// watertight one, plan::gather_options) accepts passes the pixel test and the tile and
 // bin tests of every rectangle holding it, and its t is not below the triangle's depth bound, on
 // adversarial triangles (sub-pixel, huge, behind the camera, edge-on, slivers, far away, vertices on
 // pixel centres and tile edges); and they do reject: most pixels far from a triangle fail them.
@@ -31,9 +32,10 @@ struct Counts {
 // The frame's near plane for the test's scale (VulkanFrame: the scene's extent x 1e-6).
 constexpr float kNear = 1.0e-5f;
 
-// Every pixel of a w x h image against one triangle.
-void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2,
-                    Counts& n) {
+// Every pixel of a w x h image against one triangle, by the gather's ray test `which`
+// (shared::kTriangleMoller or kTriangleWatertight: the grid's triangle test).
+void check_triangle(uint32_t which, const shared::CameraParams& c, const glm::vec3& v0, const glm::vec3& v1,
+                    const glm::vec3& v2, Counts& n) {
   glm::vec3 e0, e1, e2;
   float t_lo = 0.0f;
   ++n.triangles;
@@ -54,7 +56,8 @@ void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const gl
     for (uint32_t x = 0; x < c.width; ++x) {
       const glm::vec3 dir = shared::camera_direction(c, x, y);
       shared::TriangleTest r;
-      const bool hit = shared::moller_trumbore(c.eye, dir, v0, v1, v2, 0.0f, INFINITY, INFINITY, r) == shared::kTestAccepted;
+      const bool hit =
+          shared::triangle_test(which, c.eye, dir, v0, v1, v2, 0.0f, INFINITY, INFINITY, -1.0f, r) == shared::kTestAccepted;
       const bool pixel = shared::raster_pixel_may_hit(e0, e1, e2, x, y);
       // The 8x8 tile and the 32x32 bin holding the pixel (clipped to the image), and a rectangle
       // of the pixel alone
@@ -90,6 +93,8 @@ void check_triangle(const shared::CameraParams& c, const glm::vec3& v0, const gl
 }  // namespace
 
 TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the ray test accepts", "[unit][gather]") {
+  const uint32_t which = GENERATE(shared::kTriangleMoller, shared::kTriangleWatertight);
+  INFO((which == shared::kTriangleWatertight ? "the watertight test" : "Moller-Trumbore"));
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   auto rvec = [&] { return glm::vec3(u(rng), u(rng), u(rng)); };
@@ -204,7 +209,7 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
           v2 = eye + z * (0.2f * u(rng) * f + 2.0f * up) - 4.0f * z * f;
           break;
       }
-      check_triangle(c, v0, v1, v2, i % 13 >= 10 ? near_eye : n);
+      check_triangle(which, c, v0, v1, v2, i % 13 >= 10 ? near_eye : n);
     }
   }
   INFO(n.triangles << " triangles (" << n.set_up << " set up with bounds), " << n.accepted << " accepted pixels, "

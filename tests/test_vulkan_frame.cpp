@@ -25,6 +25,7 @@
 #include "gridrt/common/shared/triangle.h"
 #include "gridrt/reference/grid.h"
 #include "tests/run_tool.h"
+#include "tests/test_grid_util.h"
 #include "tests/vulkan_test_util.h"
 #include "gridrt/vulkan/frame.h"
 
@@ -79,10 +80,7 @@ TEST_CASE("Vulkan frame: raster gather, bounce rays, trace and shade agree with 
     o.threads = 2;
     if (capacity) o.capacity = capacity;
     // CPU: the gather by primary rays through the exact traversal (as gridrt bench makes it)
-    GridOptions oe = o;
-    oe.traversal = reference::Traversal::exact;
-    oe.triangle_test = GridOptions::TriangleTest::moller;  // the GPU gather's test (gather.frag)
-    ReferenceGridTracer gather_tracer(oe);
+    ReferenceGridTracer gather_tracer(plan::gather_options(o));  // the exact traversal, the watertight test
     ReferenceGridTracer ref(o);
     VulkanGridTracer vk(ctx, o);
     gather_tracer.build(scene, 0.0f);
@@ -345,13 +343,11 @@ Scene triangles_scene(const char* name, const std::vector<std::array<glm::vec3, 
 }
 
 // The CPU's gather of `scene` by `camera`: primary rays through the exact traversal with the
-// compute gather's triangle test, Moller-Trumbore (as gridrt bench and diff make it).
+// gather's triangle test, the watertight one (plan::gather_options, as gridrt bench and diff make it).
 GatherBuffer cpu_gather(const Scene& scene, const Camera& camera, uint32_t w, uint32_t h) {
   GridOptions o;
   o.threads = 2;
-  o.traversal = reference::Traversal::exact;
-  o.triangle_test = GridOptions::TriangleTest::moller;
-  ReferenceGridTracer tracer(o);
+  ReferenceGridTracer tracer(plan::gather_options(o));
   tracer.build(scene, 0.0f);
   return make_gather(scene, tracer, camera, w, h, 0.0f);
 }
@@ -562,6 +558,37 @@ TEST_CASE("Vulkan frame: zero-area triangles hide nothing in either gather", "[v
 // reported t. The CPU's gather (the exact traversal: cells in order, references in order within a
 // cell) and the compute gather (every triangle of the pixel, a 64-bit minimum) keep the same one,
 // the smallest (t, reference) (docs/SPEC.md, "The not closer bound").
+// Every interior pixel's ray through a vertex of a sheet (tests/test_grid_util.h): both GPU
+// gathers take the watertight test, as the CPU's, and none passes between the triangles.
+TEST_CASE("Vulkan frame: no camera ray through a shared vertex passes between the triangles around it",
+          "[vulkan][diff][frame][gather]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const uint32_t w = 32;
+  const Scene scene = gridtest::pixel_vertex_sheet(w);
+  const GatherBuffer cpu = cpu_gather(scene, scene.frame_camera(), w, w);
+  CHECK(gridtest::sheet_pixels_missed(cpu, w) == 0);
+  for (const auto traversal : {reference::Traversal::paper, reference::Traversal::exact}) {
+    GridOptions o;
+    o.threads = 2;
+    o.traversal = traversal;
+    VulkanGridTracer vk(ctx, o);
+    vk.build(scene, 0.0f);
+    for (const GatherMode mode : {GatherMode::compute, GatherMode::boxes}) {
+      VulkanFrame frame(vk, scene, FrameOptions{.width = w, .height = w, .bounce = false, .shadows = false, .gather = mode});
+      if (frame.gather_mode() != mode) continue;  // no compute gather on this device
+      const std::string label = std::string(mode == GatherMode::boxes ? "boxes" : "compute") + " gather, " +
+                                (traversal == reference::Traversal::exact ? "exact" : "paper") + " traversal";
+      INFO(label);
+      frame.render(0);
+      const GatherBuffer gpu = frame.download_gather();
+      CHECK(gridtest::sheet_pixels_missed(gpu, w) == 0);
+      CHECK(gather_differences(cpu, gpu, label, [](size_t) { return false; }) == 0);
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
 TEST_CASE("Vulkan frame: on coplanar overlapping faces the compute gather keeps the CPU's triangle",
           "[vulkan][diff][frame][gather]") {
   vulkan::Context& ctx = vk_context();

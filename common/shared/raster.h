@@ -1,7 +1,7 @@
 // raster.h: the conservative bounds the compute gather's rasterizer (Laine and Karras, "High-
 // Performance Software Rasterization on GPUs", HPG 2011: triangle setup once, then tile, then
 // pixel rejection, per-tile depth culling) uses to skip (triangle, pixel) pairs. They never decide
-// a pixel: every pair they keep is decided by the gather's own ray test (moller_trumbore from the
+// a pixel: every pair they keep is decided by the gather's own ray test (the watertight test from the
 // eye along camera_direction, common/shared/triangle.h and bounce.h), so the gather's result is
 // the same whichever pairs they skip, provided they skip only pairs that test rejects or that
 // cannot win the pixel. docs/SPEC.md ("The gather as a rasterizer") derives the bounds:

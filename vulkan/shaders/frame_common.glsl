@@ -56,9 +56,19 @@ layout(std430, binding = kFrameBindTileBins) buffer TileBins {
   uint tile_words[];
 };
 
+// The gather's ray test of a camera ray (origin the eye, interval (tmin, inf), no surface rule):
+// the watertight test, whatever the trace's, as the CPU's gather traces it (plan::gather_options):
+// no camera ray passes between two triangles of a closed mesh, as no pixel passes between them in
+// the paper's raster pass. (Its code alone, triangle_test_code, which stops after the edge
+// functions where their signs are mixed, measured no faster on the H200: docs/BENCHMARKS.md, "The
+// gather's watertight test".)
+uint gather_ray_test(vec3 dir, GridTriangle tri, float tmin, out TriangleTest r) {
+  return watertight(fp.camera.eye, dir, tri.v0, tri.v1, tri.v2, tmin, sh_infinity(), sh_infinity(), -1.0f, r);
+}
+
 // The gather texel of a pixel whose camera ray (direction `dir`: camera_direction) has `ref` as
-// its visible triangle (kNoRef: none): the ray meets that triangle where the shared
-// Moller-Trumbore test puts it, so position, normal, uv and material are computed exactly as
+// its visible triangle (kNoRef: none): the ray meets that triangle where the gather's ray test
+// (gather_ray_test) puts it, so position, normal, uv and material are computed exactly as
 // common/gather.cpp computes them from a traced primary hit (make_gather).
 GatherTexel gather_texel(uint ref, vec3 dir) {
   const CameraParams c = fp.camera;
@@ -68,7 +78,7 @@ GatherTexel gather_texel(uint ref, vec3 dir) {
   const GridTriangle tri = triangles[k];
   // The primary hit: t of the shared triangle test, barycentrics by Cramer's rule
   TriangleTest r;
-  moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, 0.0f, sh_infinity(), sh_infinity(), r);
+  gather_ray_test(dir, tri, 0.0f, r);
   const vec4 n = gather_normal(tri.v0, tri.v1, tri.v2, dir);
   if (r.det != 0.0f && n.w > 0.0f) {
     const float t = moller_trumbore_t(r);

@@ -1,6 +1,6 @@
 // gather_visibility.glsl: the compute gather's visibility (vulkan/frame.h): the triangle each
 // pixel's camera ray meets first, decided by the ray test the CPU's gather makes (make_gather:
-// primary rays through the exact traversal, common/shared/triangle.h moller_trumbore, the
+// primary rays through the exact traversal with the watertight test, gather_ray_test, the
 // smaller t and then the smaller reference), not by the rasterizer's coverage and depth.
 //   gather_bin.comp    per triangle: the screen box of the pixels its ray test can accept
 //                      (common/shared/raster.h gather_box: the triangle clipped to the view
@@ -37,8 +37,7 @@ bool gather_key_along(uint ref, uint k, GridTriangle tri, vec3 dir, float tmin, 
   key = uvec2(kNoRef, 0xFFFFFFFFu);
   const CameraParams c = fp.camera;
   TriangleTest r;
-  if (moller_trumbore(c.eye, dir, tri.v0, tri.v1, tri.v2, tmin, sh_infinity(), sh_infinity(), r) != kTestAccepted)
-    return false;
+  if (gather_ray_test(dir, tri, tmin, r) != kTestAccepted) return false;
   const float t = moller_trumbore_t(r);
   if ((kFrameFlags & kFrameAlpha) != 0u) {
     const FrameMaterial m = fmaterials[tri.material];
