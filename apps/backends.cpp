@@ -5,6 +5,7 @@
 #include <map>
 
 #include "gridrt/common/scene.h"
+#include "gridrt/plan/plan.h"
 #ifdef GRIDRT_HAVE_EMBREE
 #  include "gridrt/common/embree/embree_tracer.h"
 #endif
@@ -103,7 +104,8 @@ void add_grid_options(CLI::App* cmd, BackendOptions& o) {
          "Slots per cell: a number, or the rule that chooses the resolution and capacity: trace-cost (auto, the "
          "default: the candidate whose estimated trace work on a sample of the frame's rays is lowest), "
          "no-saturation (the resolution near the density target whose largest cell fits) or percentile (the 0.99 "
-         "percentile of cell counts, the original rule)")
+         "percentile of cell counts, clamped to --max-capacity, default 1024; the original rule clamps it to 64, "
+         "as sweep does: give --max-capacity 64)")
       ->type_name("N|auto|trace-cost|no-saturation|percentile")->group(kGrid);
   cmd->add_option("--resolution", o.resolution, "Cells per axis X,Y,Z (default: chosen from the scene)")
       ->delimiter(',')->expected(3)->check(CLI::Range(1u, 16384u))->type_name("X,Y,Z")->group(kGrid);
@@ -251,6 +253,15 @@ void add_vulkan_options(CLI::App* cmd, BackendOptions& o) {
 }  // namespace
 
 void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
+  const auto given = [&](const char* name) { return cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0; };
+  // Knobs of a part that does not run (outside sweeps: each was accepted and did nothing)
+  if (given("--spill-capacity") && !plan::spill_enabled(o.grid))
+    throw OptionsError("--spill-capacity sizes the spill list, which is off here (the paper traversal's default, or "
+                       "--spill off): it does nothing (leave it out, or give --spill on)");
+  if (given("--enlargement") && plan::cell_box_enabled(o.grid))
+    throw OptionsError("--enlargement scales the plane test's sphere; the separating-axis cell test (--cell-test box, "
+                       "the exact traversal's default) takes no sphere: it does nothing (leave it out, or give "
+                       "--cell-test sphere)");
   if (o.grid.traversal != reference::Traversal::exact) return;
   for (const char* name : {"--gap-fill", "--revisit", "--elongation", "--gap-fill-distance"})
     if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
@@ -374,7 +385,7 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
 #ifdef GRIDRT_HAVE_EMBREE
   if (name == "embree") return std::make_unique<EmbreeTracer>();
 #endif
-  throw Error("unknown backend '" + name + "' (this build has: " + backend_list() + ")");
+  throw OptionsError("unknown backend '" + name + "' (this build has: " + backend_list() + ")");
 }
 
 void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {

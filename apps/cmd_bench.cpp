@@ -446,7 +446,7 @@ double warm_build_ms(vulkan::VulkanGridTracer& vk, const Scene& scene, bool stam
 void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan::VulkanFrame& frame,
                         std::map<std::string, double>& m, const std::map<std::string, std::vector<double>>& t,
                         bool stamps, uint32_t gather_tiles, const vulkan::GatherPairs& pairs, double build, double build_warm, double mrays,
-                        const VulkanMemory& mem, const std::string& spill_line) {
+                        const VulkanMemory& mem, const std::string& spill_line, size_t shadow_used) {
   const char* gather_name = frame.gather_mode() == vulkan::GatherMode::compute ? "compute"
                             : frame.gather_mode() == vulkan::GatherMode::boxes ? "boxes"
                                                                                : "raster";
@@ -467,15 +467,15 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
               ms("update").c_str(), ms("clear").c_str(), ms("insert").c_str(), ms("gather").c_str(), ms("bounce").c_str(),
               ms("trace").c_str(), ms("shade").c_str(), ms("frame").c_str(), rate, mem.total, mem.frame);
   if (frame.shadows() && stamps)
-    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u): rays %.3f + trace %.3f = %.3f ms (in "
-                "the frame above, between trace and shade)%s\n\n",
-                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height,
+    std::printf("shadow pass: %zu shadow rays per frame, of %zu slots (%zu light(s) x %ux%u): rays %.3f + trace %.3f "
+                "= %.3f ms (in the frame above, between trace and shade)%s\n\n",
+                shadow_used, scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height,
                 m["shadow"] - m["shadow_trace"], m["shadow_trace"], m["shadow"],
                 t.count("b2b_shadow") ? (", back to back " + std::to_string(m["b2b_shadow"]) + " ms").c_str() : "");
   else if (frame.shadows())
-    std::printf("shadow pass: %zu shadow rays per frame (%zu light(s) x %ux%u), in the frame above (host clock: not "
-                "split; --shadows off gives the frame without it)\n\n",
-                scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height);
+    std::printf("shadow pass: %zu shadow rays per frame, of %zu slots (%zu light(s) x %ux%u), in the frame above (host "
+                "clock: not split; --shadows off gives the frame without it)\n\n",
+                shadow_used, scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height);
   else
     std::printf("shadow pass: none (%s)\n\n", scene.lights.empty() ? "the scene has no lights" : "--shadows off");
   std::printf("%s (after the last frame's update)\n\n", spill_line.c_str());
@@ -644,7 +644,14 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z,
               (gp.flags & shared::kGridCompact) != 0u ? "compact, largest cell" : "capacity", gp.capacity, gather_name,
               o.compact_rays ? "compacted" : "every-pixel");
-  print_frame_tables(o, scene, frame, m, t, stamps, gather_tiles, run.gather_pairs, build, build_warm, mrays, mem, spill_text(spill, spill_flags));
+  // The shadow rays the last frame made: a slot per pixel and light, a ray where the pixel has a
+  // surface facing its light (the slots were reported as rays, where the CPU counts rays: an
+  // outside sweep)
+  size_t shadow_used = 0;
+  if (frame.shadows())
+    for (const Ray& r : frame.download_shadow_rays()) shadow_used += !is_unused(r);
+  print_frame_tables(o, scene, frame, m, t, stamps, gather_tiles, run.gather_pairs, build, build_warm, mrays, mem,
+                     spill_text(spill, spill_flags), shadow_used);
   const nlohmann::json trace_counters = trace_counter_report(counters, rays, m["trace"], counted);
   if (t.count("b2b_frame"))
     std::printf("back to back (%u frames per submission, the last timed; update as above): gather %.3f, bounce %.3f, "
@@ -683,7 +690,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   j["gather_pairs_overflow"] = run.gather_pairs.overflow;
   j["compact_rays"] = o.compact_rays;
   j["shadows"] = frame.shadows();
-  j["shadow_rays_per_frame"] = frame.shadows() ? scene.lights.size() * o.width * o.height : 0;
+  j["shadow_rays_per_frame"] = shadow_used;
+  j["shadow_ray_slots_per_frame"] = frame.shadows() ? scene.lights.size() * o.width * o.height : 0;
   for (auto& [k, v] : t) {
     j[k + "_ms"] = m[k];
     j[k + "_ms_all"] = v;
@@ -782,7 +790,8 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
 #endif
   const double update = median(times.update), trace = median(times.trace);
   const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
-  std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.1f | %.2f |\n", name.c_str(), device.c_str(),
+  // three significant digits: a slow device's rate read "0.0" at one decimal (an outside sweep)
+  std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.3g | %.2f |\n", name.c_str(), device.c_str(),
               times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
   const bool grid = !dump.texels.empty();
   if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
@@ -913,6 +922,11 @@ void run_bench(const BenchOptions& options) {
   }
   // The gather's shadow rays (the same each frame), traced after the bounce as their own phase
   const bool shadows = shadows_for(o.shadows, scene);
+  // The shadow rays come from the frame's gather: rays of another kind have none (--shadows on
+  // with them did nothing, the header said "shadows yes": an outside sweep)
+  if (o.shadows == ShadowMode::on && !frame_rays)
+    throw OptionsError("--shadows on traces the frame's shadow rays, from its gather: --rays " + o.rays +
+                       " has no gather (give --rays glossy, on a scene with glossy materials, or leave --shadows out)");
   std::vector<Ray> shadow;
   if (cpu_rays && frame_rays && shadows) shadow = shadow_rays(scene, gather);
   else if (shadows) check_shadow_lights(scene);
@@ -1005,6 +1019,14 @@ void add_bench_command(CLI::App& app) {
   cmd->callback([o, cmd] {
     check_vulkan_options_apply(cmd, std::find(o->backends.begin(), o->backends.end(), "vulkan") != o->backends.end());
     check_traversal_options(cmd, o->backend_options);
+    if (cmd->count("--back-to-back") > 0 &&
+        std::find(o->backends.begin(), o->backends.end(), "vulkan") == o->backends.end())
+      throw OptionsError("--back-to-back times the Vulkan frame recorded several times a submission: it needs "
+                         "--backend vulkan");
+    // A fallback filed the CPU's times under "vulkan", in the table and the JSON (an outside sweep)
+    if (cmd->get_option_no_throw("--fallback-cpu") != nullptr && cmd->count("--fallback-cpu") > 0)
+      throw OptionsError("--fallback-cpu does not apply to bench: its figures are filed by backend; time the CPU "
+                         "reference with --backend cpu");
     run_bench(*o);
   });
 }

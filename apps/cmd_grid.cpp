@@ -227,6 +227,12 @@ void add_grid_commands(CLI::App& app) {
         throw OptionsError("--repeat times --measure's traces: give --measure, or leave --repeat out");
       if (axis_opt->count() > 0 && o->slices.empty())
         throw OptionsError("--slice-axis cuts --slices' pictures: give --slices FOLDER too");
+      // The gather buffer's size is read by --measure and --pixel alone (the trace-cost policy's
+      // sample is --work-sample's)
+      for (const char* name : {"--width", "--height"})
+        if (cmd->count(name) > 0 && !o->measure && o->ray_pixel.empty())
+          throw OptionsError(std::string(name) + " sizes the gather buffer of --measure and --pixel: give one of "
+                             "them, or leave it out (the policy's sample is --work-sample's)");
       run_stats(*o);
     });
   }

@@ -33,7 +33,7 @@ struct VerifyCliOptions {
 
 void run_verify(const VerifyCliOptions& o) {
   if (!o.json.empty()) check_output_path(o.json);
-  if (o.backend != "cpu" && o.backend != "vulkan") throw Error("verify: --backend must be cpu or vulkan");
+  if (o.backend != "cpu" && o.backend != "vulkan") throw OptionsError("verify: --backend must be cpu or vulkan");
   verify::VerifyOptions vo;
   vo.family.rays = o.rays;
   vo.family.seed = o.seed;
@@ -47,7 +47,7 @@ void run_verify(const VerifyCliOptions& o) {
         continue;
       }
       const auto fam = verify::family_from_string(f);
-      if (!fam) throw Error("--families: unknown family '" + f + "' (" + verify::family_list() + ", translated)");
+      if (!fam) throw OptionsError("--families: unknown family '" + f + "' (" + verify::family_list() + ", translated)");
       vo.families.push_back(*fam);
     }
     vo.translated = vo.translated && std::find(o.families.begin(), o.families.end(), "translated") != o.families.end();
@@ -59,7 +59,20 @@ void run_verify(const VerifyCliOptions& o) {
                          verify::family_list() + " too");
     if (asked && o.no_translated)
       throw OptionsError("--families translated and --no-translated contradict each other: give one");
+    // It traces camera, random, surface, edge and vertex rays on the moved scene: named with only
+    // other families it traced nothing, without a word (an outside sweep)
+    const auto moved = [](verify::Family f) {
+      using F = verify::Family;
+      return f == F::camera || f == F::random || f == F::surface || f == F::edge || f == F::vertex;
+    };
+    if (asked && std::none_of(vo.families.begin(), vo.families.end(), moved))
+      throw OptionsError("--families translated traces the camera, random, surface, edge and vertex families on the "
+                         "moved scene: name one of them too");
   }
+  // --offset places the translated run's scene: without that run it did nothing (an outside sweep)
+  if (!o.offset.empty() && !vo.translated)
+    throw OptionsError("--offset moves the translated run's scene, which is off here (--no-translated, or --families "
+                       "without translated): leave it out");
   const Scene scene = load_scene_or_default(o.scene);
   // The translated run by default only where the moved scene is still a scene; asked for by name,
   // verify_scene refuses it with the reason.

@@ -180,8 +180,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
   app.add_option_function<double>(
          "--max-host-mib", [&limits](double mib) { limits.max_host_bytes = uint64_t(mib * 1024.0 * 1024.0); },
-         "Most host memory the grids' plans and CPU builds may take, in MiB, beyond what the process holds before "
-         "the first (the program and the scene) (default: what the machine has free), checked before they allocate")
+         "Most host memory the decoded textures, the grids' plans and the CPU builds may take, in MiB, beyond what "
+         "the process holds before the first of them (the program and the scene read so far) (default: what the "
+         "machine has free), checked before they allocate")
       ->check(CLI::Range(1.0, 1.0e9))->group("Limits");
   app.add_option("--max-triangles", limits.max_triangles, "Most triangles in a scene, over all instances (default 33554432)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");

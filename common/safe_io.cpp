@@ -254,7 +254,13 @@ namespace {
 fs::path temp_sibling(const fs::path& path) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   // Same extension at the end: libraries that pick the format by name see the right one.
-  return dir / ("." + path.filename().string() + ".tmp" + std::to_string(::getpid()) + path.extension().string());
+  const std::string tag = ".tmp" + std::to_string(::getpid()) + path.extension().string();
+  std::string stem = path.filename().string();
+  // Within the file system's name limit (255 bytes): a legal output name of 241 bytes and more
+  // could not be written, its temporary's name too long (an outside sweep). Its first bytes then.
+  const size_t room = 255 - 1 - tag.size();
+  if (stem.size() > room) stem.resize(room);
+  return dir / ("." + stem + tag);
 }
 
 // The temporary file being written, removed if SIGINT, SIGTERM or SIGHUP ends the process

@@ -115,7 +115,7 @@ TEST_CASE("The input limits are options, and their messages name them", "[badinp
                            (d / "x.gridscene").string());
   CHECK(r2.exit_code == 1);
   CHECK_THAT(r2.output, Contains("--max-input-mib"));
-  const auto r3 = run_tool("--max-texture-pixels 4 convert " + std::string(GRIDRT_DATA_DIR) +
+  const auto r3 = run_tool("--max-texture-pixels 3 convert " + std::string(GRIDRT_DATA_DIR) +
                            "/fixtures/quad.obj -o " + (d / "x.gridscene").string());
   CHECK(r3.exit_code == 1);
   CHECK_THAT(r3.output, Contains("--max-texture-pixels"));

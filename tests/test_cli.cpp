@@ -76,7 +76,7 @@ TEST_CASE("CLI: bad input gives a clear message, a non-zero exit and no image", 
       {"render builtin:cornell --width 0", "width", 2},
       {"render builtin:cornell --height 0", "height", 2},
       {"render builtin:cornell --shadows sometimes", "sometimes", 2},
-      {"render builtin:cornell --backend warp-drive", "warp-drive", 1},
+      {"render builtin:cornell --backend warp-drive", "warp-drive", 2},  // a bad command line
       {"render builtin:cornell -o /nonexistent-dir/x.ppm", "/nonexistent-dir", 1},
       {"render builtin:cornell -o " + scratch("x.notanimage").string(), "x.notanimage", 1},
       {"render scene.unknown", "unknown extension", 1},
@@ -256,7 +256,7 @@ TEST_CASE("CLI: stats --slices draws the grid slice by slice", "[cli][views]") {
   INFO(r.output);
   CHECK(r.exit_code == 0);
   CHECK(fs::exists(dir / "occupancy.png"));
-  const Run missing = run_tool("stats builtin:cornell --width 16 --height 9 --slices /nonexistent/dir");
+  const Run missing = run_tool("stats builtin:cornell --slices /nonexistent/dir");
   CHECK(missing.exit_code == 1);
   const Run outside = run_tool("stats builtin:cornell --width 16 --height 9 --pixel 16,4 --slices " + dir.string());
   CHECK(outside.exit_code == 2);  // a pixel outside the image asked for: a bad command line
@@ -561,6 +561,8 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         std::string("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --frame 3"),
         "portal render builtin:level --width 16 --height 8 --mip-levels 3 --mip-distance 0" + out,
         "portal render builtin:level --width 16 --height 8 --mip-distance 4" + out,
+        // a distance that rounds to 0 as the float it is kept in (0 is the default's "not given")
+        "portal render builtin:level --width 16 --height 8 --mip-levels 3 --mip-distance 1e-50" + out,
         // Contradictions that exited 1, as bad input: a pixel outside the image, mip levels on an
         // instanced world, a view of the CPU's records on another backend
         std::string("explain builtin:cornell --width 64 --height 48 --pixel 64,30"),
@@ -581,7 +583,24 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         // --voxels on a map, --flatten on a world that is no block map, a backend portal worlds lack
         "portal render builtin:level --width 16 --height 8 --voxels 5" + out,
         "portal render builtin:level --width 16 --height 8 --flatten" + out,
-        std::string("portal explain builtin:level --width 16 --height 8 -p 1,1 -b cpu")}) {
+        std::string("portal explain builtin:level --width 16 --height 8 -p 1,1 -b cpu"),
+        // Knobs of a part that does not run, and options their verb does not read here
+        std::string("stats builtin:cornell --spill-capacity 5"),  // the paper traversal: no spill list
+        std::string("stats builtin:cornell --traversal exact --spill off --spill-capacity 5"),
+        std::string("stats builtin:cornell --traversal exact --enlargement 2"),  // the box cell test takes no sphere
+        std::string("stats builtin:cornell --width 10 --height 5"),
+        std::string("diff builtin:cornell --frames 1 --fps 10 --width 8 --height 8"),
+        std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --shadows on --rays primary"),
+        std::string("bench builtin:cornell -b vulkan --width 8 --height 8 --frames 1 --warmup 0 --fallback-cpu"),
+        std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --back-to-back 4"),
+        std::string("verify builtin:cornell -n 5 --no-translated --offset 1,2,3"),
+        std::string("verify builtin:cornell -n 5 --families camera --offset 1,2,3"),
+        std::string("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --kind bounce --primary"),
+        "render builtin:cornell --width 8 --height 8 --view cells --no-bounce" + out,
+        "render builtin:cornell --width 8 --height 8 --view cells --shadows off" + out,
+        // A bad backend or family: a bad command line, not bad input
+        "render builtin:cornell --width 8 --height 8 -b bogus" + out, std::string("verify builtin:cornell -n 5 -b bogus"),
+        std::string("verify builtin:cornell -n 5 --families bogus")}) {
     const Run r = run_tool(args);
     INFO(args << "\n" << r.output);
     CHECK(r.exit_code == 2);
@@ -597,6 +616,8 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
   CHECK(run_tool("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --frame 2 --brief").exit_code == 0);
   CHECK(run_tool("render builtin:cornell --width 8 --height 8 --frames 2 --fps 10" + out).exit_code == 0);
   CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --brief").exit_code == 0);
+  CHECK(run_tool("stats builtin:cornell --traversal exact --cell-test sphere --enlargement 2").exit_code == 0);
+  CHECK(run_tool("stats builtin:cornell --traversal exact --spill-capacity 4096").exit_code == 0);
 }
 
 // Outside sweeps' finds: a block map with an empty block exported a scene no verb could load (its
@@ -692,4 +713,53 @@ TEST_CASE("CLI: a Vulkan render to a float image holds linear values, as the CPU
   for (size_t i = 0; i < cpu.size(); ++i) sum += std::abs(double(cpu[i]) - double(gpu[i]));
   CHECK(sum / double(cpu.size()) < 0.01);
   fs::remove_all(dir);
+}
+
+// An outside sweep's finds on a scene's scale: a model far smaller than the scene's extent piles
+// into one cell (a teapot in a stadium), which is warned of, once; a model far smaller than a unit
+// keeps a grid of its own scale (its padding was an absolute 1e-6, which put it in one cell).
+TEST_CASE("Outside sweep: a crowded cell is warned of, and a tiny model keeps a grid of its own scale", "[cli][grid]") {
+  const fs::path dir = scratch("crowded");
+  fs::create_directories(dir);
+  auto write_obj = [&](const fs::path& path, float scale, bool far) {
+    std::ofstream f(path);
+    // a 65 x 65 sheet of quads, 8,192 triangles in a unit square (times scale)
+    const int n = 65;
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) f << "v " << scale * i / n << " " << scale * 0.01f * ((i + j) % 3) << " " << scale * j / n << "\n";
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const int a = 1 + j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+        f << "f " << a << " " << b << " " << d << "\nf " << a << " " << d << " " << c << "\n";
+      }
+    if (far) {  // one triangle a million units away
+      const int v = (n + 1) * (n + 1);
+      f << "v 1e6 0 0\nv 1e6 0 1\nv 1e6 1 0\nf " << v + 1 << " " << v + 2 << " " << v + 3 << "\n";
+    }
+  };
+  write_obj(dir / "stadium.obj", 1.0f, true);
+  const Run crowded = run_tool("stats " + (dir / "stadium.obj").string() + " --traversal exact");
+  INFO(crowded.output);
+  CHECK(crowded.exit_code == 0);
+  CHECK_THAT(crowded.output, Catch::Contains("densest cell holds") && Catch::Contains("expect slow traces"));
+  // said once, however many grids the policy weighs
+  CHECK(crowded.output.find("densest cell holds") == crowded.output.rfind("densest cell holds"));
+  // The same sheet alone is not crowded, at a unit's scale and at a billionth of it
+  std::string cells[2], occupancy[2];
+  for (const int k : {0, 1}) {
+    const fs::path obj = dir / (k == 0 ? "sheet.obj" : "tiny.obj");
+    write_obj(obj, k == 0 ? 1.0f : 1.0e-9f, false);
+    const Run r = run_tool("stats " + obj.string() + " --traversal exact");
+    INFO(r.output);
+    CHECK(r.exit_code == 0);
+    CHECK_THAT(r.output, !Catch::Contains("densest cell holds"));
+    const size_t at = r.output.find("grid: "), occ = r.output.find("occupancy (");
+    REQUIRE(at != std::string::npos);
+    REQUIRE(occ != std::string::npos);
+    cells[k] = r.output.substr(at, r.output.find(" cells of", at) - at);
+    occupancy[k] = r.output.substr(occ, r.output.find('\n', occ) - occ);
+  }
+  // the tiny sheet's grid is the unit sheet's, scaled: the same cells, the same occupancy
+  CHECK(cells[0] == cells[1]);
+  CHECK(occupancy[0] == occupancy[1]);
 }

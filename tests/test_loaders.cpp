@@ -98,8 +98,9 @@ TEST_CASE("OBJ: polygons triangulated, vertices welded by index triple, material
   CHECK(s.materials[1].opacity == 0.5f);
   CHECK(s.materials[1].diffuse_texture == -1);
   CHECK(s.materials[0].glossiness == 0.0f);
-  // map_Kd and map_d of one RGBA file share one texture; a gray map_d takes its first channel.
-  REQUIRE(s.textures.size() == 2);
+  // map_Kd and map_d of one RGBA file share one texture; graymask, which no face uses, keeps its
+  // place and decodes nothing (its grey map_d below, on a face that uses it)
+  REQUIRE(s.textures.size() == 1);
   CHECK(s.materials[0].diffuse_texture == s.materials[0].alpha_texture);
   const Texture& leaf = s.textures[size_t(s.materials[0].alpha_texture)];
   CHECK(leaf.width == 2);
@@ -108,12 +109,27 @@ TEST_CASE("OBJ: polygons triangulated, vertices welded by index triple, material
   CHECK(leaf.texel(0, 0) == glm::u8vec4(255, 0, 0, 255));  // row 0 = first row of the file
   CHECK(leaf.texel(1, 0) == glm::u8vec4(0, 255, 0, 0));
   CHECK(leaf.texel(0, 1) == glm::u8vec4(0, 0, 255, 200));
-  const Texture& gray = s.textures[size_t(s.materials[2].alpha_texture)];
+  CHECK(s.materials[2].name == "graymask");
+  CHECK(s.materials[2].alpha_texture == -1);
+  // A gray map_d takes its first channel: the fixture's material on a face of its own
+  const fs::path d = temp_dir();
+  fs::copy_file(fixture("quad.mtl"), d / "quad.mtl");
+  fs::copy_file(fixture("gray4x2.png"), d / "gray4x2.png");
+  fs::copy_file(fixture("rgba2x2.png"), d / "rgba2x2.png");
+  Scene g;
+  TextureCache gcache;
+  std::ofstream(d / "gray.obj") << "mtllib quad.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                   "usemtl graymask\nf 1/1 2/2 3/3\n";
+  load_obj((d / "gray.obj").string(), g, gcache);
+  REQUIRE(g.materials.size() == 3);
+  REQUIRE(g.materials[2].alpha_texture >= 0);
+  const Texture& gray = g.textures[size_t(g.materials[2].alpha_texture)];
   CHECK(gray.width == 4);
   CHECK(gray.texel(1, 0).a == 255);
   CHECK(gray.texel(0, 0).a == 0);
   CHECK(gray.texel(3, 1).a == 128);
-  CHECK(s.materials[2].diffuse_texture == -1);
+  CHECK(g.materials[2].diffuse_texture == -1);
+  fs::remove_all(d);
 }
 
 TEST_CASE("glTF and GLB: node hierarchy, flipped v, MASK material", "[unit][loaders]") {
@@ -926,4 +942,55 @@ TEST_CASE("OBJ and MTL: values tinyobjloader reads as 0 or drops are refused wit
   REQUIRE_NOTHROW(s = load(use, "newmtl a\nKd 1 0 0\nnewmtl a\nKd 0 0 1\n"));
   CHECK(s.materials[s.meshes[0].materials[0]].diffuse == glm::vec3(1, 0, 0));
   std::filesystem::remove_all(dir);
+}
+
+// Outside sweeps' finds: nothing bounded the decoded textures' sum. Ten glTF image entries naming
+// one PNG (however spelled) decoded it ten times (5.4 GB), and an OBJ decoded the textures of
+// materials no face uses (3 GB for one untextured triangle). An image whose bytes an earlier one
+// had is that image; an unused material keeps its place and colour and decodes nothing.
+TEST_CASE("Textures: one image under several glTF entries is decoded once, an OBJ's unused materials decode nothing",
+          "[unit][loaders]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO, so no textures");
+    return;
+  }
+  const fs::path d = temp_dir();
+  const std::vector<uint8_t> rgba = {10, 20, 30, 255, 40, 50, 60, 255};
+  write_image_rgba8((d / "a.png").string(), 1, 2, rgba);
+  write_image_rgba8((d / "b.png").string(), 1, 2, rgba);  // a copy: another file, the same bytes
+  {
+    const std::string opaque = R"({"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}})";
+    nlohmann::json j = nlohmann::json::parse(gltf_textured(glm::vec2(0.5f), {opaque, opaque, opaque}, "a.png"));
+    j["images"].push_back({{"uri", "./a.png"}});
+    j["images"].push_back({{"uri", "b.png"}});
+    j["textures"].push_back({{"source", 1}});
+    j["textures"].push_back({{"source", 2}});
+    j["materials"][1]["pbrMetallicRoughness"]["baseColorTexture"]["index"] = 1;
+    j["materials"][2]["pbrMetallicRoughness"]["baseColorTexture"]["index"] = 2;
+    Scene s;
+    TextureCache cache;
+    load_gltf(write_text(d / "three.gltf", j.dump()), s, cache);
+    REQUIRE(s.materials.size() == 3);
+    CHECK(s.textures.size() == 1);
+    for (const Material& m : s.materials) CHECK(m.diffuse_texture == s.materials[0].diffuse_texture);
+    REQUIRE(s.textures.size() >= 1);
+    CHECK(s.textures[0].rgba == rgba);
+  }
+  {
+    write_text(d / "two.mtl", "newmtl used\nKd 1 1 1\nmap_Kd a.png\nnewmtl unused\nKd 0.5 0.25 1\nmap_Kd b.png\n"
+                              "map_d b.png\n");
+    Scene s;
+    TextureCache cache;
+    load_obj(write_text(d / "one.obj", "mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                       "usemtl used\nf 1/1 2/2 3/3\n"),
+             s, cache);
+    REQUIRE(s.materials.size() == 2);
+    CHECK(s.materials[0].diffuse_texture >= 0);
+    CHECK(s.materials[1].name == "unused");
+    CHECK(s.materials[1].diffuse == glm::vec3(0.5f, 0.25f, 1.0f));
+    CHECK(s.materials[1].diffuse_texture < 0);
+    CHECK(s.materials[1].alpha_texture < 0);
+    CHECK(s.textures.size() == 1);
+  }
+  fs::remove_all(d);
 }

@@ -92,6 +92,24 @@ TEST_CASE("Non-finite coordinates and empty scenes are rejected", "[unit][scene]
   REQUIRE_THROWS_WITH(inf.finalize(), Catch::Contains("non-finite"));
 }
 
+TEST_CASE("An instance whose transform is not affine is refused when the scene loads", "[unit][scene][badinput]") {
+  // A .gridscene's last row was ignored (an outside sweep): the transform the file names is not
+  // the one the grid would build with. Every source ends in finalize, which refuses it.
+  for (const int k : {0, 1, 2, 3}) {
+    Scene s;
+    s.meshes.push_back(strip(2));
+    s.instances.push_back(Instance{.name = "skewed", .mesh = 0});
+    s.instances[0].transform[k][3] = k == 3 ? 2.0f : 0.5f;  // column-major: [k][3] is the last row
+    INFO("the last row's element " << k);
+    REQUIRE_THROWS_WITH(s.finalize(), Catch::Contains("'skewed'") && Catch::Contains("not affine"));
+  }
+  Scene ok;
+  ok.meshes.push_back(strip(2));
+  ok.instances.push_back(Instance{.name = "moved", .mesh = 0});
+  ok.instances[0].transform[3] = glm::vec4(5.0f, -2.0f, 1.0f, 1.0f);  // a translation stays affine
+  REQUIRE_NOTHROW(ok.finalize());
+}
+
 TEST_CASE("The camera framed for a scene without one is usable at any scale and distance from the origin", "[unit][scene][badinput]") {
   // A single triangle at subnormal size, tiny beside its distance from the origin, and huge: the
   // framed camera must give a finite eye distinct from the target and a resolvable view vector.

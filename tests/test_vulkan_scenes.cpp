@@ -292,6 +292,42 @@ TEST_CASE("Vulkan grid on llvmpipe: a triangle whose range the build's run list 
       CHECK(reference::compare_texels(ref.dump(), gpu.dump()).differing.empty());
     }
   }
+  // An outside sweep's find: past the list, a walk of 8,192 cells (the old limit) whose cells each
+  // take an insertion at 256 slots passed 65,535 iterations and lost 21,008 references, exit 0:
+  // 1,100 triangles of 128 x 64 x 1 cells each (1,126,400 runs) on a grid of 128 x 64 x 8
+  CHECK(vulkan::llvmpipe_walk_cell_limit(1) <= vulkan::kLlvmpipeWalkCellLimit);
+  CHECK(vulkan::llvmpipe_walk_cell_limit(1) >= 4096u);  // a kept cell costs about 12 iterations at 1 slot
+  CHECK(vulkan::llvmpipe_walk_cell_limit(256) < 256u);
+  if (ctx.info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE) {
+    Scene walk;
+    Mesh sheets;
+    sheets.name = "sheets";
+    for (uint32_t i = 0; i < 1100; ++i) {
+      const float z = 0.5f + float(i % 4) * 2.0f, s = 1.0e-3f * float(i % 97);
+      const uint32_t k = uint32_t(sheets.positions.size());
+      sheets.positions.insert(sheets.positions.end(), {{0.2f + s, 0.2f, z}, {127.8f, 0.2f + s, z}, {0.2f, 63.8f - s, z}});
+      sheets.triangles.push_back({k, k + 1, k + 2});
+    }
+    const uint32_t k = uint32_t(sheets.positions.size());  // anchors: the box 128 x 64 x 8
+    sheets.positions.insert(sheets.positions.end(), {{0, 0, 0}, {0.01f, 0, 0}, {0, 0.01f, 0}, {128, 64, 8},
+                                                     {127.99f, 64, 8}, {128, 63.99f, 8}});
+    sheets.triangles.push_back({k, k + 1, k + 2});
+    sheets.triangles.push_back({k + 3, k + 4, k + 5});
+    sheets.materials.assign(sheets.triangles.size(), 0u);
+    walk.meshes = {sheets};
+    walk.materials.push_back(Material{.name = "default"});
+    walk.instances.push_back(Instance{.name = "sheets", .mesh = 0});
+    walk.camera = Camera{.eye = {64.0f, 32.0f, -40.0f}, .target = {64.0f, 32.0f, 4.0f}};
+    walk.finalize();
+    GridOptions o;
+    o.threads = 2;
+    o.resolution = glm::uvec3(128u, 64u, 8u);
+    o.capacity = 256;
+    o.traversal = Traversal::paper;
+    VulkanGridTracer gpu(ctx, o, vulkan::VulkanGridOptions{.build = BuildMode::compute});
+    CHECK_THROWS_WITH(gpu.build(walk, 0.0f), Catch::Contains("more than the build's run list holds") &&
+                                                 Catch::Contains("at 256 slots a cell"));
+  }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 

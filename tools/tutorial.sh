@@ -28,13 +28,12 @@ slices() {  # slices NAME ARGS...: stats --slices into a folder of its own, kept
   run stats "$@" --slices "$tmp/$name"
   mv "$tmp/$name/occupancy.png" "$out/$name.png"
 }
-stats_size="--width 16 --height 9"
 # One camera ray drawn into the slices: pixel (250, 60) of 320 x 180, scaled to the image size
 ray="$size --pixel $((w * 250 / 320)),$((h * 60 / 180)) --slice-axis y"
 
 run render builtin:cornell $size --traversal exact -o "$out/00-cornell.png"
-slices 01-build builtin:cornell $roomy $stats_size
-slices 02-saturation builtin:cornell $tight $stats_size
+slices 01-build builtin:cornell $roomy
+slices 02-saturation builtin:cornell $tight
 slices 03a-ray-paper builtin:cornell $roomy $ray
 slices 03b-ray-exact builtin:cornell $roomy $ray --traversal exact
 run render builtin:cornell $size $roomy --view cells -o "$out/03-cells-paper.png"
@@ -46,8 +45,8 @@ run render builtin:cornell $size $tight --view saturation -o "$out/08-saturation
 run render builtin:cornell $size $tight --view gap-fill -o "$out/09-gap-fill.png"
 run render builtin:cornell $size $tight --view gap-fill --gap-fill off -o "$out/10-gap-fill-off.png"
 run render builtin:cornell $size $tight --view spill --traversal exact -o "$out/11-spill.png"
-slices 12-update-t0 builtin:atrium --resolution 16,8,16 --capacity 8 --threads "$threads" --slice-axis y --time 0 $stats_size
-slices 13-update-t2 builtin:atrium --resolution 16,8,16 --capacity 8 --threads "$threads" --slice-axis y --time 2 $stats_size
+slices 12-update-t0 builtin:atrium --resolution 16,8,16 --capacity 8 --threads "$threads" --slice-axis y --time 0
+slices 13-update-t2 builtin:atrium --resolution 16,8,16 --capacity 8 --threads "$threads" --slice-axis y --time 2
 run portal render builtin:level --width $((w * 2)) --height $w -o "$out/14-portal-level.png"
 run portal render builtin:level --width $((w * 2)) --height $w --view divs -o "$out/15-portal-divs.png"
 run portal render builtin:level --width $((w * 2)) --height $w --view dda -o "$out/16-portal-dda.png"

@@ -12,6 +12,7 @@
 // tracers build the same grid from the same GridOptions.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <memory>
 #include <optional>
@@ -106,9 +107,19 @@ inline constexpr uint32_t kLlvmpipeSpillListLimit = 32768;
 // list's tail left stale: junk references, cells left out). build and update refuse, on llvmpipe,
 // a triangle whose range holds more cells than this (32,768 runs).
 inline constexpr uint64_t kLlvmpipeRangeCellLimit = 262144;
-// And where the ranges' runs overflow the list, a triangle walks the rest of its range itself
-// (4 to 7 iterations a cell): refused there, on llvmpipe, above this many cells.
+// And where the ranges' runs overflow the list, a triangle walks the rest of its range itself: 4
+// to 7 iterations a cell, and in each cell it keeps the insertion's (the slot search's gallop and
+// halving, about 2 log2(capacity) + 2, and the sorted insert's cascade, up to the capacity). Refused
+// there, on llvmpipe, above this many cells, and above llvmpipe_walk_cell_limit(capacity): 8,192
+// walked cells of capacity 256 passed the 65,535 iterations and lost 21,008 references (an outside
+// sweep).
 inline constexpr uint64_t kLlvmpipeWalkCellLimit = 8192;
+inline uint64_t llvmpipe_walk_cell_limit(uint32_t capacity) {
+  uint64_t log2 = 0;
+  while ((uint64_t(1) << log2) < uint64_t(capacity) + 1u) ++log2;
+  const uint64_t per_cell = 7u + 2u * log2 + 2u + uint64_t(capacity);
+  return std::min<uint64_t>(kLlvmpipeWalkCellLimit, 60000u / per_cell);
+}
 inline constexpr uint64_t kBuildRunCells = 8;  // build.glsl's kBuildRun
 void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span<const Hit> hits, const char* what);
 

@@ -317,7 +317,7 @@ std::vector<glm::vec3> PortalVulkanTracer::render(const Camera& camera, const po
   }
   rp.max_interfaces = opt.max_interfaces;
   rp.refraction = opt.refraction ? 1u : 0u;
-  rp.background = opt.background;
+  rp.background = portal::background_of(opt, w);
   rp.open_outside = w.open_outside && !portal().packed.scale_log2 ? 1u : 0u;
   ctx.upload(gpu.render_params, &rp, sizeof rp);
   const size_t n = size_t(opt.width) * opt.height;

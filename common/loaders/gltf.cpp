@@ -2,7 +2,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <set>
+#include <string_view>
 #include <cstring>
 #include <filesystem>
 #include <cstdio>
@@ -27,6 +29,8 @@ namespace {
 struct Ctx {
   const std::string& path;
   const tinygltf::Model& model;
+  // An image whose encoded bytes are an earlier image's: that image (decoded once)
+  const std::map<int, int>& image_alias;
   [[noreturn]] void fail(const std::string& what) const { throw Error("glTF '" + path + "': " + what); }
 };
 
@@ -368,10 +372,13 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
     }
 }
 
-// The model being parsed and the images its materials use, for the image callback.
+// The model being parsed and the images its materials use, for the image callback; the encoded
+// bytes of each image decoded (by size and hash), and the images whose bytes were an earlier one's.
 struct ImageLoad {
   const tinygltf::Model* model = nullptr;
   std::set<int> used;
+  std::map<std::pair<size_t, size_t>, std::vector<std::pair<int, std::string>>> decoded;
+  std::map<int, int> alias;
 };
 
 // TinyGLTF's image decoder, after the header's size was checked against the pixel limit.
@@ -382,7 +389,7 @@ bool load_image_checked(tinygltf::Image* image, const int index, std::string* er
                         int req_h, const unsigned char* bytes, int size, void* user) {
   // An image no material's base colour names is not decoded: twelve unused entries of one 8192 x
   // 8192 PNG took 3.5 GB (an outside sweep)
-  const ImageLoad* load = static_cast<const ImageLoad*>(user);
+  ImageLoad* load = static_cast<ImageLoad*>(user);
   if (load && !load->used.count(index)) return true;
   if (image->bufferView >= 0 && load && load->model) {
     const tinygltf::Model& model = *load->model;
@@ -414,13 +421,31 @@ bool load_image_checked(tinygltf::Image* image, const int index, std::string* er
               " (--max-texture-pixels)\n";
     return false;
   }
+  // An image whose bytes an earlier one had (entries naming one file or buffer view, however
+  // spelled) is that image: decoded once (ten entries of one 8192 x 8192 PNG took 5.4 GB: an outside
+  // sweep)
+  // (after the checks above: the bytes of a view past its buffer are not to be read)
+  if (load && bytes && size > 0) {
+    const std::string_view encoded(reinterpret_cast<const char*>(bytes), size_t(size));
+    auto& same = load->decoded[{encoded.size(), std::hash<std::string_view>{}(encoded)}];
+    for (const auto& [first, seen] : same)
+      if (seen == encoded) {
+        load->alias[index] = first;
+        return true;
+      }
+    same.emplace_back(index, std::string(encoded));
+  }
+  // The decoded pixels (up to 16 bits a channel) and their RGBA8 copy must fit the host's memory
+  require_host_memory(w * h * 12, "glTF image " + std::to_string(index) + " (" + std::to_string(w) + " x " +
+                                      std::to_string(h) + " pixels, decoded)",
+                      "lower --max-texture-pixels, or use smaller textures");
   return tinygltf::LoadImageData(image, index, err, warn, req_w, req_h, bytes, size, nullptr);  // its options: none
 }
 
 // The model: the file read here (a regular file within the size bound), the JSON's nesting depth
 // checked before TinyGLTF's recursive parser sees it, external buffers and images read and decoded
 // only through the checked callbacks above.
-tinygltf::Model parse_model(const std::string& path) {
+tinygltf::Model parse_model(const std::string& path, std::map<int, int>& image_alias) {
   const std::string data = read_input_file(path, "glTF");
   tinygltf::TinyGLTF loader;
   tinygltf::Model model;
@@ -476,6 +501,7 @@ tinygltf::Model parse_model(const std::string& path) {
     for (std::string w; std::getline(ws, w);)
       if (!w.empty()) std::cerr << "warning: " << path << ": " << w << "\n";
   }
+  image_alias = images.alias;
   return model;
 }
 
@@ -489,7 +515,8 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
     if (source < 0)
       c.fail("texture " + std::to_string(texture_index) + " has no source image gridrt reads (a source given only "
              "through an extension, such as EXT_texture_webp, is not read)");
-    return source;
+    const auto same = c.image_alias.find(source);
+    return same != c.image_alias.end() ? same->second : source;
   };
   std::set<int> warned_samplers;
   for (size_t mi = 0; mi < c.model.materials.size(); ++mi) {
@@ -542,6 +569,9 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
           k << key << "#mask" << std::hexfloat << cutoff << "x" << factor_alpha;
           const int32_t src = mat.diffuse_texture;
           mat.alpha_texture = textures.get_or_add(scene, k.str(), [&] {
+            require_host_memory(scene.textures[size_t(src)].rgba.size(),
+                                "glTF material '" + mat.name + "': its alpha mask (a copy of its texture)",
+                                "fewer distinct alphaCutoff values, or smaller textures");
             Texture t = scene.textures[size_t(src)];
             t.path = k.str();
             t.has_alpha = false;
@@ -745,8 +775,9 @@ std::vector<Instance> node_instances(const Ctx& c, const Scene& scene, uint32_t 
 }  // namespace
 
 std::vector<Instance> load_gltf(const std::string& path, Scene& scene, TextureCache& textures) {
-  const tinygltf::Model model = parse_model(path);
-  const Ctx c{path, model};
+  std::map<int, int> image_alias;
+  const tinygltf::Model model = parse_model(path, image_alias);
+  const Ctx c{path, model, image_alias};
   const uint32_t material_base = uint32_t(scene.materials.size());
   add_materials(c, scene, textures);
   const uint32_t mesh_base = uint32_t(scene.meshes.size());

@@ -369,7 +369,6 @@ tinyobj::ObjReader parse_obj(const std::string& path) {
   return file_reader;
 }
 
-// Materials, with their textures, appended to the scene's.
 // The options of a map_ line this loader does not apply ("-s, -clamp"), "" for none: a texture is
 // read whole, repeating, its alpha from the image (or its first channel), as shared/alpha.h says.
 std::string ignored_texture_options(const tinyobj::texture_option_t& t) {
@@ -383,9 +382,13 @@ std::string ignored_texture_options(const tinyobj::texture_option_t& t) {
   return out;
 }
 
-void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const fs::path& dir, Scene& scene,
-                       TextureCache& textures, const std::string& path) {
-  for (const auto& m : mats) {
+// Materials appended to the scene's, with the textures of those some face uses (`used`, per
+// material): a library's materials no face names keep their place and colour, and decode nothing
+// (ten unused 8192 x 8192 textures took 3 GB for one untextured triangle: an outside sweep).
+void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const std::vector<bool>& used,
+                       const fs::path& dir, Scene& scene, TextureCache& textures, const std::string& path) {
+  for (size_t k = 0; k < mats.size(); ++k) {
+    const tinyobj::material_t& m = mats[k];
     for (const auto& [key, name, opt] : {std::tuple{"map_Kd", &m.diffuse_texname, &m.diffuse_texopt},
                                          std::tuple{"map_d", &m.alpha_texname, &m.alpha_texopt}})
       if (!name->empty())
@@ -396,9 +399,9 @@ void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const fs::p
     mat.name = m.name;
     mat.diffuse = glm::vec3(float(m.diffuse[0]), float(m.diffuse[1]), float(m.diffuse[2]));
     mat.opacity = float(m.dissolve);
-    if (!m.diffuse_texname.empty())
+    if (!m.diffuse_texname.empty() && used[k])
       mat.diffuse_texture = textures.load(scene, texture_path(dir, m.diffuse_texname), AlphaSource::kImage);
-    if (!m.alpha_texname.empty())
+    if (!m.alpha_texname.empty() && used[k])
       mat.alpha_texture = textures.load(scene, texture_path(dir, m.alpha_texname), AlphaSource::kFirstChannel);
     scene.materials.push_back(std::move(mat));
   }
@@ -481,7 +484,11 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, ui
 std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCache& textures) {
   const tinyobj::ObjReader file_reader = parse_obj(path);
   const uint32_t base = uint32_t(scene.materials.size());
-  add_obj_materials(file_reader.GetMaterials(), fs::path(path).parent_path(), scene, textures, path);
+  std::vector<bool> used(file_reader.GetMaterials().size(), false);
+  for (const auto& shape : file_reader.GetShapes())
+    for (const int id : shape.mesh.material_ids)
+      if (id >= 0 && size_t(id) < used.size()) used[size_t(id)] = true;
+  add_obj_materials(file_reader.GetMaterials(), used, fs::path(path).parent_path(), scene, textures, path);
   Mesh mesh = obj_mesh(path, file_reader, base, scene);
   Instance inst;
   inst.name = mesh.name;

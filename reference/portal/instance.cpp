@@ -630,7 +630,7 @@ std::vector<glm::vec3> render_instanced(const PortalBuild& build, const Camera& 
         ibegin_shadow(c, s, 0);
         return;
       }
-      s.color = glm::vec3(1.0f) * opt.background + glm::vec3(0.0f);
+      s.color = glm::vec3(1.0f) * opt.background.value_or(glm::vec3(0.0f)) + glm::vec3(0.0f);
       s.mode = kDone;
       return;
     }
@@ -655,7 +655,7 @@ std::vector<glm::vec3> render_instanced(const PortalBuild& build, const Camera& 
         s.ray = to_voxel_ray(p.origin, p.voxel_size, camera_ray(camera, opt.width, opt.height, x, y));
         const InstancedStart st = instanced_start(p, s.ray);
         if (st.kind == InstancedStart::kMiss) {
-          s.color = opt.background;
+          s.color = opt.background.value_or(glm::vec3(0.0f));
           s.mode = kDone;
         } else if (st.kind == InstancedStart::kInsideSolid) {
           s.albedo = w.materials[st.material].color;

@@ -81,7 +81,7 @@ void begin_primary(const Context& c, PixelState& s, const Ray& ray) {
   s.ray = to_voxel_ray(p.origin, p.voxel_size, ray);
   const Start st = start_ray(p, s.ray);
   if (st.kind == Start::kMiss) {
-    s.color = c.opt.background;
+    s.color = background_of(c.opt, c.build.world);
     s.mode = kDone;
   } else if (st.kind == Start::kInsideSolid) {
     s.albedo = c.build.world.materials[st.texel - sh::kPortalWallBit].color;
@@ -139,7 +139,7 @@ void mip_surface(const Context& c, PixelState& s, uint32_t level, uint32_t axis,
     const glm::ivec3 next = v + glm::ivec3(a < 3 && rl.dir[a] > 0.0f ? 1 : -1) * glm::ivec3(a == 0, a == 1, a == 2);
     if (a == 3 || !sh::portal_before_tmax(en, std::abs(rl.dir[a]), rl.tmax) || glm::any(glm::lessThan(next, glm::ivec3(0))) ||
         glm::any(glm::greaterThanEqual(glm::uvec3(next), ld))) {
-      s.color = s.filter * c.opt.background + s.mip_acc;
+      s.color = s.filter * background_of(c.opt, c.build.world) + s.mip_acc;
       s.mode = kDone;
       return;
     }
@@ -150,7 +150,7 @@ void mip_surface(const Context& c, PixelState& s, uint32_t level, uint32_t axis,
     }
     axis = a, num = en, ad = std::abs(rl.dir[a]), v = next, m = t - sh::kPortalWallBit;
   }
-  s.color = s.filter * c.opt.background + s.mip_acc;  // not reached: the coarse voxels ahead are finite
+  s.color = s.filter * background_of(c.opt, c.build.world) + s.mip_acc;  // not reached: the coarse voxels ahead are finite
   s.mode = kDone;
 }
 
@@ -237,7 +237,7 @@ void transition(const Context& c, PixelState& s, const Step& st) {
       begin_shadow(c, s, 0);
       return;
     }
-    s.color = s.filter * c.opt.background + s.mip_acc;  // outside, tmax or no direction
+    s.color = s.filter * background_of(c.opt, c.build.world) + s.mip_acc;  // outside, tmax or no direction
     s.mode = kDone;
     return;
   }

@@ -132,9 +132,14 @@ struct RenderOptions {
   bool refraction = true;      // glass refracts (never forks; total internal reflection reflects)
   unsigned threads = 0;        // 0: hardware concurrency
   float ambient = 0.15f;
-  glm::vec3 background{0.0f};  // a ray leaving the world
+  // A ray leaving the world (or a primary ray that misses it); unset: the world's own
+  // (World::background: a voxelized scene's, black for a map)
+  std::optional<glm::vec3> background;
   uint32_t max_interfaces = 32; // glass interfaces per primary ray before it is given up (black)
 };
+
+// The colour a ray leaving `world` gets under `o`.
+inline glm::vec3 background_of(const RenderOptions& o, const World& world) { return o.background.value_or(world.background); }
 
 struct RenderStats {
   uint64_t primary_rays = 0, shadow_rays = 0;

@@ -384,6 +384,7 @@ World voxelize(const Scene& scene, uint32_t resolution) {
   const Camera cam = scene.frame_camera();
   w.camera = cam;
   w.open_outside = true;
+  w.background = scene.background;
   for (const Light& l : scene.lights)
     w.lights.push_back(l.directional ? cam.eye + l.position * (2.0f * longest) : l.position);
   w.validate();

@@ -50,6 +50,9 @@ struct World {
   // missing light put at an eye outside: all blocked before, every such picture unlit, an outside
   // sweep). Tile and block maps: the outside lies beyond the walls, and blocks.
   bool open_outside = false;
+  // The colour beyond the world: a voxelized scene's `background` (it rendered black, where every
+  // grid backend shows the scene's: an outside sweep); black for tile and block maps.
+  glm::vec3 background{0.0f};
 
   size_t index(uint32_t x, uint32_t y, uint32_t z) const { return x + size_t(dims.x) * (y + size_t(dims.y) * z); }
   size_t index(glm::uvec3 v) const { return index(v.x, v.y, v.z); }
