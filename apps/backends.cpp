@@ -258,10 +258,11 @@ void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
   if (given("--spill-capacity") && !plan::spill_enabled(o.grid))
     throw OptionsError("--spill-capacity sizes the spill list, which is off here (the paper traversal's default, or "
                        "--spill off): it does nothing (leave it out, or give --spill on)");
-  if (given("--enlargement") && plan::cell_box_enabled(o.grid))
-    throw OptionsError("--enlargement scales the plane test's sphere; the separating-axis cell test (--cell-test box, "
-                       "the exact traversal's default) takes no sphere: it does nothing (leave it out, or give "
-                       "--cell-test sphere)");
+  // (below 1 the sphere still cuts cells the box test keeps: the paper traversal's knob acts there)
+  if (given("--enlargement") && plan::cell_box_enabled(o.grid) && o.grid.sphere_enlargement >= 1.0f)
+    throw OptionsError("--enlargement of 1 or more grows the plane test's sphere past the cell, where the "
+                       "separating-axis cell test (--cell-test box, the exact traversal's default) decides alone: it "
+                       "does nothing (leave it out, or give --cell-test sphere)");
   if (o.grid.traversal != reference::Traversal::exact) return;
   for (const char* name : {"--gap-fill", "--revisit", "--elongation", "--gap-fill-distance"})
     if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)

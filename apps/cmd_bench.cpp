@@ -790,9 +790,9 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
 #endif
   const double update = median(times.update), trace = median(times.trace);
   const double mrays = trace > 0.0 ? double(bounce_count) / (trace * 1e3) : 0.0;
-  // three significant digits: a slow device's rate read "0.0" at one decimal (an outside sweep)
-  std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.3g | %.2f |\n", name.c_str(), device.c_str(),
-              times.clock.c_str(), times.build, update, trace, mrays, grid_mib);
+  // more decimals for a slow device: its rate read "0.0" at one decimal (an outside sweep)
+  std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.*f | %.2f |\n", name.c_str(), device.c_str(),
+              times.clock.c_str(), times.build, update, trace, mrays >= 10.0 ? 1 : 3, mrays, grid_mib);
   const bool grid = !dump.texels.empty();
   if (grid) notes.push_back(name + ": " + spill_text(spill, spill_flags));
   // The grid's per-ray counters (the hit records' cells and tests) over the last frame's rays

@@ -15,6 +15,7 @@
 #include "gridrt/common/safe_io.h"
 #include "gridrt/common/shade.h"
 #include "gridrt/common/util.h"
+#include "gridrt/reference/grid.h"
 #ifdef GRIDRT_HAVE_VULKAN
 #  include "gridrt/vulkan/frame.h"
 #endif
@@ -207,14 +208,16 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
   const bool drops = gg.spill == reference::GridOptions::Spill::off || gg.spill_capacity.has_value() ||
                      gg.self_hit_offset != 0.0f;
   // The Vulkan frame gathers on the GPU: it built a second grid it never read (about 3 s and 160
-  // MB on the atrium: an outside sweep). A --fallback-cpu tracer is the CPU's, and gathers so.
+  // MB on the atrium: an outside sweep). A --fallback-cpu tracer is the CPU's, and gathers as one (cpu_tracer below).
   bool frame_on_gpu = false;
 #ifdef GRIDRT_HAVE_VULKAN
   frame_on_gpu = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get()) != nullptr;
 #endif
+  // The CPU reference's tracer: --backend cpu, or a --fallback-cpu tracer (its name is still vulkan)
+  const bool cpu_tracer = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()) != nullptr;
   std::unique_ptr<Tracer> gather_tracer;
   if (!frame_on_gpu && ((backend != "embree" && gg.traversal == reference::Traversal::paper) ||
-                     (backend == "cpu" && (moller || drops)))) {
+                     (cpu_tracer && (moller || drops)))) {
     BackendOptions exact = o.backend_options;
     exact.grid = plan::gather_options(exact.grid);
     gather_tracer = make_backend(backend, exact, scene);

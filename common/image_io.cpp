@@ -211,7 +211,8 @@ void check_jpeg_end(const std::string& path) {
   bool in_scan = false;
   while (k + 1 < data.size()) {
     if (byte(k) != 0xFF) {
-      if (!in_scan) truncated();  // not a marker where one must be: corrupt or cut
+      // entropy-coded data, or stray bytes between segments, which libjpeg skips to the next
+      // marker with a warning (the file decodes whole: refusing it was a review's find)
       ++k;
       continue;
     }
@@ -286,10 +287,12 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
     if (!in->read_image(0, 0, a, a + 1, OIIO::TypeDesc::UINT8, alpha_px.data())) failed(in->geterror());
   }
   // A reader may decode what it can and report the rest as an error while returning success: a
-  // TIFF cut short read its missing strips as black texels (an outside sweep)
-  if (std::string late = in->geterror(); !late.empty())
-    failed(late + " (the reader decoded what it could and reported this: a truncated or corrupt file)");
+  // TIFF (and a Maya IFF) cut short read its missing strips as black texels (an outside sweep).
+  // Not JPEG: libjpeg's warnings arrive the same way on files that decode whole (stray bytes
+  // between segments); its truncation is found by the end marker below.
   const std::string format = in->format_name();
+  if (std::string late = in->geterror(); !late.empty() && (format == "tiff" || format == "iff"))
+    failed(late + " (the reader decoded what it could and reported this: a truncated or corrupt file)");
   in->close();
   // libjpeg calls missing scan lines a warning and OpenImageIO returns them grey without an
   // error: a JPEG must end with its end-of-image marker (FF D9), trailing blanks aside

@@ -254,7 +254,8 @@ namespace {
 fs::path temp_sibling(const fs::path& path) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   // Same extension at the end: libraries that pick the format by name see the right one.
-  const std::string tag = ".tmp" + std::to_string(::getpid()) + path.extension().string();
+  std::string tag = ".tmp" + std::to_string(::getpid()) + path.extension().string();
+  if (tag.size() > 64) tag = ".tmp" + std::to_string(::getpid());  // an extension longer than any format's
   std::string stem = path.filename().string();
   // Within the file system's name limit (255 bytes): a legal output name of 241 bytes and more
   // could not be written, its temporary's name too long (an outside sweep). Its first bytes then.

@@ -910,6 +910,14 @@ TEST_CASE("Textures: a truncated JPEG is refused, one with bytes after its end m
   std::ofstream((dir / "tail.jpg").string(), std::ios::binary) << bytes << std::string(500, '\x5a');
   CHECK_NOTHROW(load_texture(whole, AlphaSource::kImage, nullptr));
   CHECK_NOTHROW(load_texture((dir / "tail.jpg").string(), AlphaSource::kImage, nullptr));
+  // Stray bytes between two segments: libjpeg skips them with a warning and decodes the file whole
+  // (a review's find: the end-marker walk, and a late-error check, refused it)
+  REQUIRE(bytes.size() > 6);
+  REQUIRE(static_cast<unsigned char>(bytes[2]) == 0xFF);
+  const size_t segment_end = 4 + (size_t(static_cast<unsigned char>(bytes[4])) << 8 | static_cast<unsigned char>(bytes[5]));
+  std::ofstream((dir / "stray.jpg").string(), std::ios::binary)
+      << bytes.substr(0, segment_end) << std::string("\x12\x34", 2) << bytes.substr(segment_end);
+  CHECK_NOTHROW(load_texture((dir / "stray.jpg").string(), AlphaSource::kImage, nullptr));
   CHECK_THROWS_WITH(load_texture((dir / "cut.jpg").string(), AlphaSource::kImage, nullptr),
                     Catch::Contains("truncated"));
   std::filesystem::remove_all(dir);

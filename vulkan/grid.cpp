@@ -657,15 +657,16 @@ void VulkanGridTracer::check_build_ranges(const Scene& scene, float time, uint32
     });
   // Past a full run list a triangle walks the rest of its range itself, 4 to 7 iterations a cell
   // (a review's find: 33 triangles of 64^3 cells filled the 2^20 runs, the 33rd's walk was cut)
-  const uint64_t walk_limit = llvmpipe_walk_cell_limit(params_.capacity);
+  const bool compact = (params_.flags & shared::kGridCompact) != 0u;
+  const uint64_t walk_limit = llvmpipe_walk_cell_limit(params_.capacity, compact);
   if (gpu_ && runs > gpu_->build_list_capacity && most > walk_limit)
     throw Error("vulkan-grid: the triangles' AABB ranges list " + std::to_string(runs) + " runs of " +
                 std::to_string(kBuildRunCells) + " cells, more than the build's run list holds (" +
                 std::to_string(gpu_->build_list_capacity) + "), and one holds " + std::to_string(most) +
                 " cells: llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, which "
                 "cuts the walk of a range past the list short (refused above " + std::to_string(walk_limit) +
-                " cells at " + std::to_string(params_.capacity) + " slots a cell): its grid cannot be trusted (coarser "
-                "cells, run on a GPU, or --backend cpu)");
+                " cells" + (compact ? std::string() : " at " + std::to_string(params_.capacity) + " slots a cell") +
+                "): its grid cannot be trusted (coarser cells, run on a GPU, or --backend cpu)");
   if (most > kLlvmpipeRangeCellLimit)
     throw Error("vulkan-grid: a triangle's AABB range holds " + std::to_string(most) +
                 " cells; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, which cuts "

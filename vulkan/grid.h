@@ -114,7 +114,10 @@ inline constexpr uint64_t kLlvmpipeRangeCellLimit = 262144;
 // walked cells of capacity 256 passed the 65,535 iterations and lost 21,008 references (an outside
 // sweep).
 inline constexpr uint64_t kLlvmpipeWalkCellLimit = 8192;
-inline uint64_t llvmpipe_walk_cell_limit(uint32_t capacity) {
+// `compact`: the compact layout's build counts a cell's pair and appends it (no slots, no
+// cascade: a few iterations a cell); its `capacity` is the largest cell's count, not slots.
+inline uint64_t llvmpipe_walk_cell_limit(uint32_t capacity, bool compact = false) {
+  if (compact) return kLlvmpipeWalkCellLimit;
   uint64_t log2 = 0;
   while ((uint64_t(1) << log2) < uint64_t(capacity) + 1u) ++log2;
   const uint64_t per_cell = 7u + 2u * log2 + 2u + uint64_t(capacity);

@@ -377,7 +377,14 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
 struct ImageLoad {
   const tinygltf::Model* model = nullptr;
   std::set<int> used;
-  std::map<std::pair<size_t, size_t>, std::vector<std::pair<int, std::string>>> decoded;
+  // (an image in a buffer view is seen where it lies, in the model's buffer, which outlives the
+  // parse; one from a file or data URI is copied: its bytes are gone after the callback)
+  struct Seen {
+    int index;
+    std::string copy;
+    std::string_view view;
+  };
+  std::map<std::pair<size_t, size_t>, std::vector<Seen>> decoded;
   std::map<int, int> alias;
 };
 
@@ -428,12 +435,13 @@ bool load_image_checked(tinygltf::Image* image, const int index, std::string* er
   if (load && bytes && size > 0) {
     const std::string_view encoded(reinterpret_cast<const char*>(bytes), size_t(size));
     auto& same = load->decoded[{encoded.size(), std::hash<std::string_view>{}(encoded)}];
-    for (const auto& [first, seen] : same)
-      if (seen == encoded) {
-        load->alias[index] = first;
+    for (const ImageLoad::Seen& seen : same)
+      if ((seen.copy.empty() ? seen.view : std::string_view(seen.copy)) == encoded) {
+        load->alias[index] = seen.index;
         return true;
       }
-    same.emplace_back(index, std::string(encoded));
+    if (image->bufferView >= 0) same.push_back({index, std::string(), encoded});
+    else same.push_back({index, std::string(encoded), std::string_view()});
   }
   // The decoded pixels (up to 16 bits a channel) and their RGBA8 copy must fit the host's memory
   require_host_memory(w * h * 12, "glTF image " + std::to_string(index) + " (" + std::to_string(w) + " x " +

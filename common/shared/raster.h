@@ -49,8 +49,9 @@ SH_INLINE vec3 raster_edge(SH_IN(CameraParams) c, SH_IN(vec3) n, float sigma, fl
   return vec3(nr * gx, -(nu * gy), cz);
 }
 
-// The triangle's setup (see the header comment). e0, e1, e2: the edges opposite v0, v1, v2 (the
-// ray test's (u + v) <= det, u >= 0 and v >= 0 conditions); t_lo: a lower bound of the ray test's
+// The triangle's setup (see the header comment). e0, e1, e2: the edges opposite v0, v1, v2 (in
+// exact arithmetic the ray test's edge conditions: the watertight test's U, V, W >= 0, as
+// Moller-Trumbore's (u + v) <= det, u >= 0 and v >= 0); t_lo: a lower bound of the ray test's
 // t at every pixel it accepts. Returns false where the bounds are not guaranteed: then every edge
 // is (0, 0, 1) (keeps every pixel) and t_lo is 0.
 SH_INLINE bool raster_setup(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
