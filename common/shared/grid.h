@@ -519,32 +519,168 @@ SH_INLINE float origin_tmin(SH_IN(vec3) org, SH_IN(vec3) dir, float tmin) {
   return max(tmin, eps);
 }
 
-// The normal (v1 - v0) x (v2 - v0) of the watertight test's plane equation, made as the cross
-// product of the triangle's two shortest edges, taken cyclically (e0 = v1 - v0, e1 = v2 - v1,
-// e2 = v0 - v2; e0 x e1 = e1 x e2 = e2 x e0 exactly). A cross product's error is u / sin of the
-// angle between its factors; the angle between the two shortest edges is the triangle's largest, at
-// least 60 degrees, where the two edges from a sliver's apex meet at its smallest: on a fan of 300
-// slivers (apex angle 1.2 degrees) the apex's pair put t up to 405 ulps from the exact t on rays
-// of condition number below 100, the shortest pair 27 (Embree 25; docs/ACCURACY.md, "t against
-// the exact t").
+// Veltkamp's split: the high half (12 significant bits) of a; a - hi is the low half, exactly.
+SH_INLINE float sh_split_high(float a) {
+  SH_PRECISE float c = 4097.0f * a;
+  SH_PRECISE float d = c - a;
+  SH_PRECISE float hi = c - d;
+  return hi;
+}
+
+// Dekker's product: the rounding error of p = fl(a * b), a * b - p, exactly (round to nearest,
+// no overflow, the error a normal float: |a * b| above about 2^-100).
+SH_INLINE float sh_product_error(float a, float b, float p) {
+  SH_PRECISE float ah = sh_split_high(a);
+  SH_PRECISE float al = a - ah;
+  SH_PRECISE float bh = sh_split_high(b);
+  SH_PRECISE float bl = b - bh;
+  SH_PRECISE float e0 = ah * bh - p;
+  SH_PRECISE float e1 = e0 + ah * bl;
+  SH_PRECISE float e2 = e1 + al * bh;
+  SH_PRECISE float e = e2 + al * bl;
+  return e;
+}
+
+// Knuth's two-sum for a difference: x - y - s exactly, s = fl(x - y) (round to nearest, no
+// overflow): an edge as the sum of two floats.
+SH_INLINE float sh_difference_error(float x, float y, float s) {
+  SH_PRECISE float my = -y;
+  SH_PRECISE float bv = s - x;
+  SH_PRECISE float av = s - bv;
+  SH_PRECISE float ea = x - av;
+  SH_PRECISE float eb = my - bv;
+  SH_PRECISE float e = ea + eb;
+  return e;
+}
+
+// One component a1 b2 - a2 b1 of the cross product of the exact edges a + la and b + lb: the two
+// products' rounding errors taken exactly (Dekker), the low parts' products in float (they are
+// an ulp of the high ones), their square dropped. Where a1 b2 and a2 b1 nearly cancel (a cap's
+// edges) this keeps the component to a few ulps of itself, where fl(a1 b2) - fl(a2 b1) keeps it
+// to an ulp of the products.
+SH_INLINE float cross_term_refined(float a1, float b2, float a2, float b1, float la1, float lb2, float la2, float lb1) {
+  SH_PRECISE float p = a1 * b2;
+  SH_PRECISE float q = a2 * b1;
+  SH_PRECISE float d = p - q;
+  SH_PRECISE float ep = sh_product_error(a1, b2, p);
+  SH_PRECISE float eq = sh_product_error(a2, b1, q);
+  SH_PRECISE float e = ep - eq;
+  SH_PRECISE float c1 = a1 * lb2;
+  SH_PRECISE float c2 = la1 * b2;
+  SH_PRECISE float c3 = a2 * lb1;
+  SH_PRECISE float c4 = la2 * b1;
+  SH_PRECISE float c12 = c1 + c2;
+  SH_PRECISE float c34 = c3 + c4;
+  SH_PRECISE float c = c12 - c34;
+  SH_PRECISE float lo = e + c;
+  SH_PRECISE float n = d + lo;
+  return n;
+}
+
+// The scale of the normal's rounding: |a|_1 |b|_1 for n = a x b (plane_normal_scaled), at least |n|_1.
+// A cross product's error is about ulp * |a| |b| whatever its length |a| |b| sin(angle): on a
+// "cap" (three vertices nearly on a line, its largest angle near 180 degrees) every pair of edges
+// meets at a small angle, and the normal's direction is off by ulp / sin(angle) (2e-4 rad on a
+// torus stretched 1e4 times; docs/ACCURACY.md, "cap slivers"). The surface rule measures the
+// plane value's rounding with it.
+SH_INLINE float plane_normal_scale(SH_IN(vec3) a, SH_IN(vec3) b) {
+  SH_PRECISE vec3 aa = abs(a);
+  SH_PRECISE vec3 ab = abs(b);
+  SH_PRECISE float sa = aa.x + aa.y;
+  SH_PRECISE float na = sa + aa.z;
+  SH_PRECISE float sb = ab.x + ab.y;
+  SH_PRECISE float nb = sb + ab.z;
+  SH_PRECISE float s = na * nb;
+  return s;
+}
+
+// A normal whose length is below this fraction of its rounding scale (the sine of the angle
+// between its edges below 1/16: a largest angle above about 176 degrees) is made again from the
+// exact edges (cross_term_refined).
+SH_CONST float kPlaneRefine = 16.0f;
+
+// The normal (v1 - v0) x (v2 - v0) of the watertight test's plane equation and of the surface
+// rule, made as the cross product of the triangle's two shortest edges, taken cyclically (e0 = v1
+// - v0, e1 = v2 - v1, e2 = v0 - v2; e0 x e1 = e1 x e2 = e2 x e0 exactly), and in `scale` its
+// rounding scale (plane_normal_scale). A cross product's error is u / sin of the angle between its
+// factors; the angle between the two shortest edges is the triangle's largest, at least 60
+// degrees, where the two edges from a sliver's apex meet at its smallest: on a fan of 300 slivers
+// (apex angle 1.2 degrees) the apex's pair put t up to 405 ulps from the exact t on rays of
+// condition number below 100, the shortest pair 27 (Embree 25; docs/ACCURACY.md, "t against the
+// exact t"). On a cap (three vertices nearly on a line) every pair meets at a small angle: there
+// (kPlaneRefine) the normal is made again from the exact edges, whose rounding was most of its
+// error (a cap made of a rounded edge midpoint met rays at a t 5 % off, before a triangle in front
+// of it: an outside sweep).
 // Ties go to the first of e0, e1, e2 as the longest.
-SH_INLINE vec3 plane_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+SH_INLINE vec3 plane_normal_scaled(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, SH_OUT(float) scale) {
   SH_PRECISE vec3 e0 = v1 - v0;
   SH_PRECISE vec3 e1 = v2 - v1;
   SH_PRECISE vec3 e2 = v0 - v2;
   SH_PRECISE float l0 = sh_dot(e0, e0);
   SH_PRECISE float l1 = sh_dot(e1, e1);
   SH_PRECISE float l2 = sh_dot(e2, e2);
+  // a = q - p, b = r - q
+  vec3 p = v0;
+  vec3 q = v1;
+  vec3 r = v2;
   vec3 a = e0;
   vec3 b = e1;
   if (l0 >= l1 && l0 >= l2) {
+    p = v1;
+    q = v2;
+    r = v0;
     a = e1;
     b = e2;
   } else if (l1 >= l2) {
+    p = v2;
+    q = v0;
+    r = v1;
     a = e2;
     b = e0;
   }
-  return sh_cross(a, b);
+  vec3 n = sh_cross(a, b);
+  scale = plane_normal_scale(a, b);
+  SH_PRECISE vec3 an = abs(n);
+  SH_PRECISE float ns = an.x + an.y;
+  SH_PRECISE float n1 = ns + an.z;
+  SH_PRECISE float refine_below = n1 * kPlaneRefine;
+  if (refine_below < scale) {
+    SH_PRECISE vec3 la = vec3(sh_difference_error(q.x, p.x, a.x), sh_difference_error(q.y, p.y, a.y),
+                              sh_difference_error(q.z, p.z, a.z));
+    SH_PRECISE vec3 lb = vec3(sh_difference_error(r.x, q.x, b.x), sh_difference_error(r.y, q.y, b.y),
+                              sh_difference_error(r.z, q.z, b.z));
+    n.x = cross_term_refined(a.y, b.z, a.z, b.y, la.y, lb.z, la.z, lb.y);
+    n.y = cross_term_refined(a.z, b.x, a.x, b.z, la.z, lb.x, la.x, lb.z);
+    n.z = cross_term_refined(a.x, b.y, a.y, b.x, la.x, lb.y, la.y, lb.x);
+  }
+  return n;
+}
+SH_INLINE vec3 plane_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  float scale;
+  return plane_normal_scaled(v0, v1, v2, scale);
+}
+
+// The vertex the surface rule's plane value n . (v - org) is taken at: of A, B, C (= v0, v1, v2 -
+// org), the one with the smallest largest |component| (the vertex nearest the origin; ties to the
+// first). The value's rounding is the normal's error times |v - org|: taken at v0, a launch point
+// on a long face's far end put a neighbour's plane value at the noise of the normal times the
+// face's length (0.2 units on a cap 5,400 long, where the exact value is 0). (The watertight
+// test's distance takes its value at the vertex nearest the hit instead: hit_anchor.)
+SH_INLINE vec3 plane_anchor(SH_IN(vec3) A, SH_IN(vec3) B, SH_IN(vec3) C) {
+  SH_PRECISE vec3 aa = abs(A);
+  SH_PRECISE vec3 ab = abs(B);
+  SH_PRECISE vec3 ac = abs(C);
+  SH_PRECISE float ma = max(max(aa.x, aa.y), aa.z);
+  SH_PRECISE float mb = max(max(ab.x, ab.y), ab.z);
+  SH_PRECISE float mc = max(max(ac.x, ac.y), ac.z);
+  vec3 p = A;
+  float mp = ma;
+  if (mb < mp) {
+    p = B;
+    mp = mb;
+  }
+  if (mc < mp) p = C;
+  return p;
 }
 
 // The surface rule (docs/SPEC.md, "Origin epsilon"): the epsilon above is a distance along the
@@ -577,16 +713,23 @@ SH_INLINE float surface_rule_face_tol(float origin_tol, SH_IN(vec3) a) {
   SH_PRECISE float face = max(max(aa.x, aa.y), aa.z) * kOriginEpsilon;
   return max(origin_tol, face);
 }
-SH_INLINE bool origin_on_plane(SH_IN(vec3) org, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
-  vec3 n = plane_normal(v0, v1, v2);
-  SH_PRECISE vec3 an = abs(n);
-  SH_PRECISE float nsum = an.x + an.y;
-  SH_PRECISE float n1 = nsum + an.z;
-  SH_PRECISE vec3 s = org - v0;
-  SH_PRECISE float tol = surface_rule_face_tol(surface_rule_tol(org), s);
-  SH_PRECISE float dist = abs(sh_dot(n, s));
-  SH_PRECISE float bound = tol * n1;
+// The rule's decision from a face's plane value `pnum` = n . P at its anchor P (plane_anchor) and
+// the normal's scale (plane_normal_scale): |n . P| <= tol * scale, tol the face's
+// (surface_rule_face_tol of the origin's and P).
+SH_INLINE bool plane_near_origin(float pnum, float scale, float origin_tol, SH_IN(vec3) P) {
+  SH_PRECISE float dist = abs(pnum);
+  SH_PRECISE float bound = surface_rule_face_tol(origin_tol, P) * scale;
   return dist <= bound;
+}
+SH_INLINE bool origin_on_plane(SH_IN(vec3) org, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  float scale;
+  vec3 n = plane_normal_scaled(v0, v1, v2, scale);
+  SH_PRECISE vec3 A = v0 - org;
+  SH_PRECISE vec3 B = v1 - org;
+  SH_PRECISE vec3 C = v2 - org;
+  vec3 P = plane_anchor(A, B, C);
+  SH_PRECISE float pnum = sh_dot(n, P);
+  return plane_near_origin(pnum, scale, surface_rule_tol(org), P);
 }
 
 SH_INLINE vec3 point_at(SH_IN(vec3) org, SH_IN(vec3) dir, float t) {

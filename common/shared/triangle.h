@@ -153,8 +153,9 @@ SH_INLINE float sh_component(SH_IN(vec3) v, uint k) { return k == 0u ? v.x : (k 
 // (the paper re-tests zeros in double precision; GLSL has no portable double, so here in float
 // with Dekker's exact products: edge_function_refined), so a zero left is a true zero of the
 // sheared coordinates; both triangles of a shared edge then accept and the tie rule picks
-// one. det = U + V + W. The distance: with n = (v1 - v0) x (v2 - v0), T = -n.A and
-// D = -n.dir (t = n.A / n.dir, the plane equation) where |n.dir| * 2^12 >= |n|_1 |dir|_1 (the
+// one. det = U + V + W. The distance: with n = (v1 - v0) x (v2 - v0) and P the vertex nearest the
+// origin less org (plane_anchor) and H that of the largest weight (hit_anchor), T = -n.H and
+// D = -n.dir (t = n.H / n.dir, the plane equation) where |n.dir| * 2^12 >= |n|_1 |dir|_1 (the
 // ray not grazing the plane), else T = U A[kz] + V B[kz] + W C[kz] = t * det * dz and
 // D = det * dz; all t decisions compare T against bounds times |D|, the sign of D folded in.
 // Recorded: det = D (its sign is that of moller_trumbore's det: < 0 a back face), u_det = V,
@@ -197,28 +198,6 @@ SH_INLINE WatertightRay watertight_ray(SH_IN(vec3) dir) {
   w.dy = sh_component(dir, w.ky);
   w.dz = sh_component(dir, w.kz);
   return w;
-}
-
-// Veltkamp's split: the high half (12 significant bits) of a; a - hi is the low half, exactly.
-SH_INLINE float sh_split_high(float a) {
-  SH_PRECISE float c = 4097.0f * a;
-  SH_PRECISE float d = c - a;
-  SH_PRECISE float hi = c - d;
-  return hi;
-}
-
-// Dekker's product: the rounding error of p = fl(a * b), a * b - p, exactly (round to nearest,
-// no overflow, the error a normal float: |a * b| above about 2^-100).
-SH_INLINE float sh_product_error(float a, float b, float p) {
-  SH_PRECISE float ah = sh_split_high(a);
-  SH_PRECISE float al = a - ah;
-  SH_PRECISE float bh = sh_split_high(b);
-  SH_PRECISE float bl = b - bh;
-  SH_PRECISE float e0 = ah * bh - p;
-  SH_PRECISE float e1 = e0 + ah * bl;
-  SH_PRECISE float e2 = e1 + al * bh;
-  SH_PRECISE float e = e2 + al * bl;
-  return e;
 }
 
 // An edge function e = fl(fl(x y) - fl(z w)) taken again where it rounded to zero. Rounding is
@@ -293,13 +272,32 @@ SH_INLINE uint watertight_outside_code(SH_IN(WatertightEdges) e) {
   return u < 0.0f ? kTestOutsideU : (v < 0.0f ? kTestOutsideV : kTestOutsideUV);
 }
 
+// Of A, B, C (= v0, v1, v2 - org), the vertex whose weight (U, V, W: the edge functions, the
+// weights of v0, v1, v2 times det; of one sign where the test goes on) is largest in magnitude, ties
+// to the first: the vertex nearest the hit in the triangle's own measure, where the plane value
+// for t is taken (a ray through a vertex of a cap then meets the plane at that vertex's own t).
+SH_INLINE vec3 hit_anchor(SH_IN(vec3) A, SH_IN(vec3) B, SH_IN(vec3) C, float U, float V, float W) {
+  SH_PRECISE float au = abs(U);
+  SH_PRECISE float av = abs(V);
+  SH_PRECISE float aw = abs(W);
+  vec3 h = A;
+  float best = au;
+  if (av > best) {
+    h = B;
+    best = av;
+  }
+  if (aw > best) h = C;
+  return h;
+}
+
 // The watertight test's second half, from its edge functions `e` (watertight_edges of the ray).
 // `surface_tol`: the surface rule's tolerance for a ray launched from a surface
 // (surface_rule_tol(org)), negative for any other ray: an accepted candidate whose plane passes
 // within the face's tolerance (surface_rule_face_tol of it and A) of the origin is refused
 // (kTestOriginPlane), origin_on_plane's decision made from the test's own plane values (the same
-// normal, |n . A| = |n . (org - v0)| and max |A_i| in the same bits).
-SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+// normal and anchor: A of `e` and v1, v2 - org made again, in the same bits as
+// watertight_edges's).
+SH_INLINE uint watertight_rest(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
                                SH_IN(WatertightEdges) e, float t_lo, float t_hi, float best_t,
                                float surface_tol, SH_OUT(TriangleTest) r) {
   SH_PRECISE vec3 adir = abs(dir);
@@ -320,12 +318,13 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
   SH_PRECISE float T = tuv + tw;
   SH_PRECISE float D = det * dz;
   // The distance from the plane equation where the ray is not grazing: with n = (v1 - v0) x
-  // (v2 - v0), t = n.A / n.dir, as a fraction -n.A / -n.dir (the denominator's sign that of D and
+  // (v2 - v0), t = n.H / n.dir, as a fraction -n.H / -n.dir (H: hit_anchor; the denominator's sign that of D and
   // of moller_trumbore's det). Its error follows the problem's condition (docs/ACCURACY.md, "t
   // against the exact t"); T / D, a weighted mean of the vertices' depths whose weights cancel on
   // slivers and near edges, is kept where |n.dir| < 2^-12 |n|_1 |dir|_1 (it stays within the
   // triangle's depth range there, where the plane's fraction may not).
-  vec3 nrm = plane_normal(v0, v1, v2);
+  float nscale;
+  vec3 nrm = plane_normal_scaled(v0, v1, v2, nscale);
   SH_PRECISE float pden = sh_dot(nrm, dir);
   SH_PRECISE vec3 anrm = abs(nrm);
   SH_PRECISE float nsum = anrm.x + anrm.y;
@@ -335,13 +334,20 @@ SH_INLINE uint watertight_rest(SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1, 
   SH_PRECISE float nd = n1 * d1;
   SH_PRECISE float apden = abs(pden);
   SH_PRECISE float scaled_den = apden * 4096.0f;
-  SH_PRECISE float pnum = sh_dot(nrm, A);
-  SH_PRECISE float pdist = abs(pnum);
-  SH_PRECISE float pbound = surface_rule_face_tol(surface_tol, A) * n1;
-  bool on_plane = surface_tol >= 0.0f && pdist <= pbound;
+  // The distance's plane value at the vertex of the largest weight (hit_anchor): the normal's
+  // error moves n . (v - org) / n . dir by its error times |v - hit| / |n . dir|, so the vertex
+  // nearest the hit; the surface rule's at the vertex nearest the origin (plane_anchor), as
+  // origin_on_plane takes it
+  SH_PRECISE vec3 B = v1 - org;
+  SH_PRECISE vec3 C = v2 - org;
+  vec3 H = hit_anchor(A, B, C, U, V, W);
+  SH_PRECISE float hnum = sh_dot(nrm, H);
+  vec3 P = plane_anchor(A, B, C);
+  SH_PRECISE float pnum = sh_dot(nrm, P);
+  bool on_plane = surface_tol >= 0.0f && plane_near_origin(pnum, nscale, surface_tol, P);
   if (scaled_den >= nd && pden != 0.0f) {
     D = -pden;
-    T = -pnum;
+    T = -hnum;
   }
   SH_PRECISE float sgn = D < 0.0f ? -1.0f : 1.0f;
   SH_PRECISE float sdet = det < 0.0f ? -1.0f : 1.0f;
@@ -379,7 +385,7 @@ SH_INLINE uint watertight(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_I
                           SH_OUT(TriangleTest) r) {
   WatertightEdges e;
   watertight_edges(org, watertight_ray(dir), v0, v1, v2, e);
-  return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
+  return watertight_rest(org, dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
 }
 
 // The triangle test GridParams::triangle_test names. `surface_tol`: the watertight test's surface
@@ -410,7 +416,7 @@ SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, 
       r.code = watertight_outside_code(e);
       return r.code;
     }
-    return watertight_rest(dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
+    return watertight_rest(org, dir, v0, v1, v2, e, t_lo, t_hi, best_t, surface_tol, r);
   }
   MollerFirst m;
   moller_trumbore_first(org, dir, v0, v1, v2, m);
