@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <string_view>
 #include <system_error>
 
 #include <unistd.h>
@@ -83,6 +84,9 @@ void write_oiio(const std::string& path, uint32_t width, uint32_t height, int ch
   // A fixed date: OpenEXR's and TIFF's writers stamp the time of writing otherwise, and the same
   // render would not give the same bytes twice (the other formats carry no date)
   if (ext == ".exr" || ext == ".tif" || ext == ".tiff") spec.attribute("DateTime", "1970:01:01 00:00:00");
+  // Four channels are colour and alpha as they are: OpenImageIO takes them as premultiplied and
+  // divided the colour by the alpha for PNG (a texel of alpha 7 and red 1 came back red 36)
+  if (channels == 4) spec.attribute("oiio:UnassociatedAlpha", 1);
   if (out->supports("ioproxy")) {
     std::vector<unsigned char> buffer;
     OIIO::Filesystem::IOVecOutput proxy(buffer);
@@ -197,6 +201,37 @@ void write_image_rgba8(const std::string& path, uint32_t width, uint32_t height,
 
 #ifdef GRIDRT_WITH_OIIO
 namespace {
+// The still-image formats read as textures, by their first bytes (TGA, which has no signature,
+// by its extension), as OpenImageIO's format names. OpenImageIO otherwise tries every reader it
+// has on a file its first choice refuses: a 38-byte text file named .mp4 was taken by the FFmpeg
+// reader as a playlist, which opened the files it names itself (a FIFO: the load hung; /dev/zero:
+// an abort), and a corrupt Maya IFF crashed its tile decoder (outside sweeps). The reader of the
+// format found is made by name, so no other is tried.
+std::string texture_format(const std::string& path) {
+  std::string head(16, '\0');
+  {
+    std::ifstream f(path, std::ios::binary);
+    f.read(head.data(), std::streamsize(head.size()));
+    head.resize(size_t(std::max<std::streamsize>(f.gcount(), 0)));
+  }
+  const auto starts = [&](std::string_view magic) { return head.compare(0, magic.size(), magic) == 0; };
+  if (starts("\x89PNG\r\n\x1a\n")) return "png";
+  if (starts("\xff\xd8\xff")) return "jpeg";
+  if (starts("II*\0") || starts("MM\0*") || starts("II+\0") || starts("MM\0+")) return "tiff";
+  if (starts("\x76\x2f\x31\x01")) return "openexr";
+  if (starts("BM")) return "bmp";
+  if (starts("GIF87a") || starts("GIF89a")) return "gif";
+  if (starts("RIFF") && head.size() >= 12 && head.compare(8, 4, "WEBP") == 0) return "webp";
+  if (starts("#?RADIANCE") || starts("#?RGBE")) return "hdr";
+  if (head.size() >= 2 && head[0] == 'P' && head[1] >= '1' && head[1] <= '6') return "pnm";
+  if (starts(std::string_view("\0\0\0\x0cjP  \r\n", 10)) || starts("\xff\x4f\xff\x51")) return "jpeg2000";
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".tga" || ext == ".tpic") return "targa";
+  throw Error("cannot load texture '" + path + "': not an image of a format read as a texture (PNG, JPEG, TGA, BMP, "
+              "TIFF, OpenEXR, HDR, PNM, GIF, WebP, JPEG 2000: told by its first bytes, TGA by its extension)");
+}
+
 void check_jpeg_end(const std::string& path) {
   // The markers walked from the start: segments skipped by their lengths, entropy-coded data
   // scanned for the next marker (FF 00 is a stuffed byte, FF D0-D7 a restart) until the
@@ -239,7 +274,14 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
   check_input_file(path, "texture");  // a regular file (not /dev/zero, a FIFO, a directory), bounded
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
-  auto in = OIIO::ImageInput::open(path, &config);
+  auto in = OIIO::ImageInput::create(texture_format(path));
+  if (in) {
+    OIIO::ImageSpec opened;
+    if (!in->open(path, opened, config)) {
+      const std::string why = in->geterror();
+      throw Error("cannot load texture '" + path + "': " + (why.empty() ? "it does not open as the format its first bytes name" : why));
+    }
+  }
   if (!in) {
     std::string why = OIIO::geterror();
     if (const std::string missing = why_missing(path); !missing.empty()) why = missing;

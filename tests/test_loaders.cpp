@@ -2,6 +2,7 @@
 // and on the real scenes of ../shared/data/scenes.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -662,6 +663,14 @@ TEST_CASE("glTF: an image's buffer view past its buffer, an unknown alphaMode, a
     CHECK_THROWS_WITH(load_gltf(write_text(d / "mode.gltf", gltf_textured(glm::vec2(0.5f), {material}, "one.png")), s, cache),
                       Catch::Contains(why));
   }
+  // Another major version than 2 (the spec asks a loader to refuse it; "3.0" was read as 2.0)
+  {
+    std::string text = gltf_with_primitives({{4, {0, 1, 2}}});
+    text.replace(text.find("\"2.0\""), 5, "\"3.0\"");
+    Scene s;
+    TextureCache cache;
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "v3.gltf", text), s, cache), Catch::Contains("asset.version is '3.0'"));
+  }
 }
 
 // An outside sweep's find: 16 materials keying with one 4096^2 mask made 16 copies of it in the
@@ -923,6 +932,82 @@ TEST_CASE("Textures: a truncated JPEG is refused, one with bytes after its end m
   std::filesystem::remove_all(dir);
 }
 
+TEST_CASE("Textures: alpha read apart from the colour, a TIFF cut short refused, the host's memory checked first",
+          "[unit][loaders][badinput]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO");
+    return;
+  }
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("gridrt_texture_reads_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const uint32_t w = 96, h = 80;
+  std::vector<uint8_t> rgba(size_t(w) * h * 4);
+  for (size_t i = 0; i < size_t(w) * h; ++i) {
+    rgba[4 * i + 0] = uint8_t(i % 251);
+    rgba[4 * i + 1] = uint8_t((i / w) * 3);
+    rgba[4 * i + 2] = uint8_t(200 - i % 97);
+    rgba[4 * i + 3] = uint8_t((i * 7) % 256);  // alpha, the last channel: read by itself
+  }
+  // Colour and alpha, each read by itself (an alpha past the colour's channels was read with every
+  // channel between: an outside sweep), come back as written, in PNG and TIFF
+  for (const char* ext : {".png", ".tif"}) {
+    const std::string path = (dir / (std::string("rgba") + ext)).string();
+    write_image_rgba8(path, w, h, rgba, true);
+    bool has_alpha = false;
+    const Texture t = load_texture(path, AlphaSource::kImage, &has_alpha);
+    INFO(path);
+    CHECK(has_alpha);
+    REQUIRE(t.width == w);
+    REQUIRE(t.height == h);
+    CHECK(t.rgba == rgba);
+    CHECK(t.has_alpha);
+  }
+  // Only still-image formats, told by their first bytes: a text file named .mp4 went to the FFmpeg
+  // reader as a playlist naming other files (a FIFO hung the load), and corrupt Maya IFF files
+  // crashed their reader (outside sweeps); a PNG under another extension is still a PNG
+  {
+    const std::string playlist = (dir / "list.mp4").string();
+    std::ofstream(playlist) << "ffconcat version 1.0\nfile other.png\n";
+    CHECK_THROWS_WITH(load_texture(playlist, AlphaSource::kImage, nullptr),
+                      Catch::Contains("list.mp4") && Catch::Contains("not an image of a format read as a texture"));
+    const std::string iff = (dir / "maya.iff").string();
+    bool wrote_iff = true;
+    try {
+      write_image_rgba8(iff, w, h, rgba, true);
+    } catch (const Error&) {
+      wrote_iff = false;  // no IFF writer in this OpenImageIO
+    }
+    if (wrote_iff) CHECK_THROWS_WITH(load_texture(iff, AlphaSource::kImage, nullptr), Catch::Contains("not an image of a format"));
+    std::filesystem::copy_file(dir / "rgba.png", dir / "misnamed.jpg");
+    CHECK(load_texture((dir / "misnamed.jpg").string(), AlphaSource::kImage, nullptr).rgba == rgba);
+  }
+  // A TIFF cut short: its missing strips were decoded black without an error (an outside sweep)
+  {
+    const std::string whole = (dir / "rgba.tif").string();
+    const std::string bytes = read_input_file(whole, "texture");
+    for (const size_t keep : {bytes.size() / 2, bytes.size() * 9 / 10}) {
+      const std::string cut = (dir / ("cut" + std::to_string(keep) + ".tif")).string();
+      std::ofstream(cut, std::ios::binary) << bytes.substr(0, keep);
+      INFO("kept " << keep << " of " << bytes.size() << " bytes");
+      CHECK_THROWS_AS(load_texture(cut, AlphaSource::kImage, nullptr), Error);
+    }
+  }
+  // The decode's memory is checked against --max-host-mib before it is allocated (ten decodes of
+  // one large PNG went past it: an outside sweep): 1 MiB holds none of a 2048 x 1024 texture
+  {
+    const std::string big = (dir / "big.png").string();
+    write_image_rgba8(big, 2048, 1024, std::vector<uint8_t>(size_t(2048) * 1024 * 4, 128), true);
+    const uint64_t before = input_limits().max_host_bytes;
+    input_limits().max_host_bytes = uint64_t(1) << 20;
+    CHECK_THROWS_WITH(load_texture(big, AlphaSource::kImage, nullptr),
+                      Catch::Contains("host memory") && Catch::Contains("--max-host-mib"));
+    input_limits().max_host_bytes = before;
+    CHECK_NOTHROW(load_texture(big, AlphaSource::kImage, nullptr));
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST_CASE("OBJ and MTL: values tinyobjloader reads as 0 or drops are refused with their line", "[unit][loaders][badinput]") {
   // An outside sweep's finds: "Kd xyz" and "Kd spectral" read as numbers, "-NaN" and "-Inf"
   // skipped as options and read as 0, a UTF-16 file called empty, a usemtl before its library's
@@ -1001,4 +1086,94 @@ TEST_CASE("Textures: one image under several glTF entries is decoded once, an OB
     CHECK(s.textures.size() == 1);
   }
   fs::remove_all(d);
+}
+
+namespace {
+// The faces of an OBJ of one polygon: the sum of its triangles' areas, the largest area one of them
+// has against the face's winding (a triangle outside the face, or folded over it), their count.
+struct FaceCover {
+  double area = 0.0, against = 0.0;
+  size_t triangles = 0;
+};
+FaceCover cover_of(const Scene& s, const glm::dvec3& face_normal) {
+  FaceCover c;
+  for (const Mesh& m : s.meshes)
+    for (const glm::uvec3& t : m.triangles) {
+      const glm::dvec3 a(m.positions[t.x]), b(m.positions[t.y]), d(m.positions[t.z]);
+      const double signed_area = 0.5 * glm::dot(glm::cross(b - a, d - a), face_normal);
+      c.area += std::abs(signed_area);
+      c.against = std::max(c.against, -signed_area);
+      ++c.triangles;
+    }
+  return c;
+}
+}  // namespace
+
+TEST_CASE("OBJ: a face of n corners gives n - 2 triangles covering it exactly, wherever it lies, concave or not",
+          "[unit][loaders]") {
+  // tinyobjloader's triangulation lost triangles of concave faces without a word, depending on
+  // where they lay (an L-shaped hexagon at the origin gave 4 triangles, moved by (-5, 5, 0) one: an
+  // outside sweep), and split a concave quad on the diagonal outside it
+  const fs::path dir = fs::temp_directory_path() / ("gridrt_obj_faces_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  uint64_t seed = 11;
+  const auto rnd = [&seed](double lo, double hi) {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return lo + (hi - lo) * double(seed >> 11) * 0x1p-53;
+  };
+  // Shapes in the plane, counter-clockwise: an L, a U, a comb, stars, a dart (a concave quad)
+  std::vector<std::pair<std::string, std::vector<glm::dvec2>>> shapes{
+      {"L", {{0, 0}, {2, 0}, {2, 1}, {1, 1}, {1, 2}, {0, 2}}},
+      {"U", {{0, 0}, {3, 0}, {3, 3}, {2, 3}, {2, 1}, {1, 1}, {1, 3}, {0, 3}}},
+      {"dart", {{0, 0}, {2, 1}, {0, 2}, {0.5, 1}}},
+      {"dart2", {{0.5, 1}, {0, 0}, {2, 1}, {0, 2}}}};
+  std::vector<glm::dvec2> comb{{0, 0}};
+  for (int k = 0; k < 12; ++k) comb.insert(comb.end(), {{k + 0.0, 3}, {k + 0.5, 3}, {k + 0.5, 1}, {k + 1.0, 1}});
+  comb.back() = {12, 0};
+  std::reverse(comb.begin(), comb.end());  // counter-clockwise
+  shapes.emplace_back("comb", comb);
+  for (const int points : {5, 9, 40, 512}) {  // 1,024 corners: the loader's limit for a face
+    std::vector<glm::dvec2> star;
+    for (int k = 0; k < 2 * points; ++k) {
+      const double r = k % 2 ? 0.4 : 1.0, a = M_PI * k / points;
+      star.emplace_back(r * std::cos(a), r * std::sin(a));
+    }
+    shapes.emplace_back("star" + std::to_string(points), star);
+  }
+  for (const auto& [name, shape] : shapes) {
+    double area = 0.0;  // the shoelace formula
+    for (size_t k = 0; k < shape.size(); ++k)
+      area += 0.5 * (shape[k].x * shape[(k + 1) % shape.size()].y - shape[(k + 1) % shape.size()].x * shape[k].y);
+    REQUIRE(area > 0.0);
+    for (int trial = 0; trial < 20; ++trial) {
+      // A random place: turned about a random axis, moved up to 1e3, either winding
+      const glm::dvec3 axis = glm::normalize(glm::dvec3(rnd(-1, 1), rnd(-1, 1), rnd(-1, 1)) + glm::dvec3(1e-3));
+      const double angle = rnd(0, 2 * M_PI), c = std::cos(angle), s = std::sin(angle);
+      const auto turn = [&](const glm::dvec3& p) {
+        return p * c + glm::cross(axis, p) * s + axis * glm::dot(axis, p) * (1.0 - c);
+      };
+      const glm::dvec3 offset(rnd(-1e3, 1e3), rnd(-1e3, 1e3), rnd(-1e3, 1e3));
+      const bool reversed = trial % 2 == 1;
+      std::ostringstream obj;
+      obj.precision(17);
+      for (const glm::dvec2& p : shape) {
+        const glm::dvec3 q = turn(glm::dvec3(p, 0.0)) + offset;
+        obj << "v " << float(q.x) << ' ' << float(q.y) << ' ' << float(q.z) << '\n';
+      }
+      obj << 'f';
+      for (size_t k = 0; k < shape.size(); ++k) obj << ' ' << (reversed ? shape.size() - k : k + 1);
+      obj << '\n';
+      const fs::path file = dir / (name + ".obj");
+      std::ofstream(file) << obj.str();
+      const Scene scene = load_scene(file.string());
+      const glm::dvec3 normal = turn(glm::dvec3(0, 0, reversed ? -1 : 1));
+      const FaceCover got = cover_of(scene, normal);
+      INFO(name << " trial " << trial << ": area " << got.area << " of " << area << ", " << got.triangles
+                << " triangles, one against the winding by " << got.against);
+      CHECK(got.triangles == shape.size() - 2);
+      CHECK(std::abs(got.area - area) <= 1e-4 * area);  // the vertices rounded to float at 1e3
+      CHECK(got.against <= 1e-4 * area);
+    }
+  }
+  fs::remove_all(dir);
 }

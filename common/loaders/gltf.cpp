@@ -485,6 +485,11 @@ tinygltf::Model parse_model(const std::string& path, std::map<int, int>& image_a
     while (!err.empty() && err.back() == '\n') err.pop_back();
     throw Error("cannot load glTF '" + path + "': " + (err.empty() ? std::string("TinyGLTF failed") : err));
   }
+  // glTF 2.x only: the spec asks a loader to refuse another major version ("3.0" was read as 2.0:
+  // an outside sweep)
+  if (const std::string& v = model.asset.version; !v.empty() && !(v == "2" || v.rfind("2.", 0) == 0))
+    throw Error("cannot load glTF '" + path + "': asset.version is '" + v.substr(0, 32) +
+                "'; gridrt reads glTF 2.x");
   // A file may require extensions; one this loader does not implement would be read as if it
   // were plain glTF (meshopt's compressed buffer views as raw vertices, Draco's geometry missing,
   // texture transforms ignored): refused, as the glTF spec asks. Quantized attributes (integer

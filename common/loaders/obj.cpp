@@ -128,13 +128,16 @@ void check_numbers(const std::string& path, size_t line, const std::vector<std::
   }
   if (numbers < min_numbers)
     fail_at(path, line, "'" + std::string(tok[0]) + "' needs " + std::to_string(min_numbers) +
-                            " numbers, has " + std::to_string(numbers));
+                            (min_numbers == 1 ? " number" : " numbers") + ", has " + std::to_string(numbers));
 }
 
 // What the pre-scan of an OBJ file learns.
 struct ObjScan {
   std::vector<std::pair<std::string, size_t>> mtllibs;  // file name, line
   std::vector<std::pair<std::string, size_t>> usemtls;  // material name, first line
+  // Each face's corners in file order: tinyobjloader keeps a face's count in a byte (a face of
+  // 1,024 corners read as 0), so the mesh takes them from here
+  std::vector<uint32_t> face_corners;
 };
 
 // tinyobjloader reads a malformed number as 0 and only warns about out-of-range indices (with
@@ -158,6 +161,7 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
     else if (k == "vn") { check_numbers(path, line, tok, 3); ++counts[2]; }
     else if (k == "f") {
       if (tok.size() < 4) fail_at(path, line, "face with fewer than 3 vertices");
+      scan.face_corners.push_back(uint32_t(tok.size() - 1));
       // Its triangles counted against the limit as they are read (a file of 2,000,000 triangles
       // was parsed whole before --max-triangles 1000 refused it)
       triangles += tok.size() - 3;
@@ -300,6 +304,105 @@ std::string texture_path(const fs::path& dir, std::string name) {
   return (dir / name).string();
 }
 
+// ---- Polygons to triangles ----
+// tinyobjloader's own triangulation of faces of five or more vertices lost triangles without a
+// word, depending on where the face lay (its ear test's sign came from the position, not the
+// orientation: an L-shaped hexagon at one place gave its 4 triangles, moved by (-5, 5, 0) one; an
+// outside sweep), and its quads took the shorter diagonal even where it runs outside a concave
+// quad. So the loader triangulates itself: every face of n vertices gives n - 2 triangles.
+
+// Twice the signed area of (a, b, c) in the face's plane.
+double orient2(const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& c) {
+  return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+}
+
+// Whether p lies in the closed triangle (a, b, c) of positive orientation.
+bool in_triangle(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& c) {
+  return orient2(a, b, p) >= 0.0 && orient2(b, c, p) >= 0.0 && orient2(c, a, p) >= 0.0;
+}
+
+// Ear clipping's work grows with the cube of a face's corners at worst (a star of many reflex
+// corners): a file's faces share this budget of corner tests (about a second), and past it faces
+// are split as fans, with a warning, so that no file makes the load hang.
+constexpr uint64_t kEarClipBudget = uint64_t(1) << 30;
+
+// The triangles of a face with corners `p` (n >= 3), as indices into `p`: n - 2 of them, each
+// in the face's winding. The face is projected on the plane of its Newell normal's largest axis
+// (its winding kept); a quad takes its shorter diagonal where both its triangles keep that winding,
+// else the other; larger faces are ear-clipped (an ear: a convex corner whose triangle holds no
+// other corner). A face with no ear left (self-intersecting, or not planar enough to project
+// simply) gives its first corner's triangle and goes on, so no part is dropped. `budget`: the
+// corner tests left (kEarClipBudget); `fan` set when it ran out and the rest was split as a fan.
+std::vector<glm::uvec3> triangulate_face(const std::vector<glm::dvec3>& p, uint64_t& budget, bool& fan) {
+  const size_t n = p.size();
+  std::vector<glm::uvec3> out;
+  out.reserve(n - 2);
+  if (n == 3) {
+    out.emplace_back(0, 1, 2);
+    return out;
+  }
+  glm::dvec3 normal(0.0);
+  for (size_t k = 0; k < n; ++k) {
+    const glm::dvec3& a = p[k];
+    const glm::dvec3& b = p[(k + 1) % n];
+    normal += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+  }
+  const glm::dvec3 an = glm::abs(normal);
+  const int axis = an.x >= an.y && an.x >= an.z ? 0 : an.y >= an.z ? 1 : 2;
+  // The two other axes, in the order that keeps the face's winding counter-clockwise in 2D
+  int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  if (normal[axis] < 0.0) std::swap(u, v);
+  std::vector<glm::dvec2> q(n);
+  for (size_t k = 0; k < n; ++k) q[k] = glm::dvec2(p[k][u], p[k][v]);
+  if (n == 4) {
+    const bool d02 = glm::distance(p[0], p[2]) <= glm::distance(p[1], p[3]);
+    const bool ok02 = orient2(q[0], q[1], q[2]) > 0.0 && orient2(q[0], q[2], q[3]) > 0.0;
+    const bool ok13 = orient2(q[0], q[1], q[3]) > 0.0 && orient2(q[1], q[2], q[3]) > 0.0;
+    if ((d02 && (ok02 || !ok13)) || (!d02 && ok02 && !ok13)) {
+      out.emplace_back(0, 1, 2);
+      out.emplace_back(0, 2, 3);
+    } else {
+      out.emplace_back(0, 1, 3);
+      out.emplace_back(1, 2, 3);
+    }
+    return out;
+  }
+  std::vector<uint32_t> left(n);
+  for (uint32_t k = 0; k < n; ++k) left[k] = k;
+  const auto is_ear = [&](size_t i) {
+    const size_t m = left.size();
+    const uint32_t a = left[(i + m - 1) % m], b = left[i], c = left[(i + 1) % m];
+    if (!(orient2(q[a], q[b], q[c]) > 0.0)) return false;
+    budget -= std::min<uint64_t>(budget, m);
+    for (const uint32_t k : left) {
+      if (k == a || k == b || k == c) continue;
+      if (q[k] == q[a] || q[k] == q[b] || q[k] == q[c]) continue;  // a corner repeated: a seam
+      if (in_triangle(q[k], q[a], q[b], q[c])) return false;
+    }
+    return true;
+  };
+  size_t i = 0;
+  while (left.size() > 3) {
+    const size_t m = left.size();
+    bool found = false;
+    for (size_t tried = 0; tried < m && budget > 0; ++tried, ++i) {
+      --budget;
+      if ((found = is_ear(i % m))) break;
+    }
+    if (!found && budget == 0) {  // the rest as a fan
+      fan = true;
+      for (size_t k = 1; k + 1 < m; ++k) out.emplace_back(left[0], left[k], left[k + 1]);
+      return out;
+    }
+    i %= m;  // an ear, or (none left) the corner the search started from
+    out.emplace_back(left[(i + m - 1) % m], left[i], left[(i + 1) % m]);
+    left.erase(left.begin() + ptrdiff_t(i));
+    if (i >= left.size()) i = 0;
+  }
+  out.emplace_back(left[0], left[1], left[2]);
+  return out;
+}
+
 struct TripleHash {
   size_t operator()(const std::array<int, 3>& t) const {
     return (size_t(uint32_t(t[0])) * 0x9E3779B97F4A7C15ull) ^ (size_t(uint32_t(t[1])) * 0xC2B2AE3D27D4EB4Full) ^
@@ -310,9 +413,10 @@ struct TripleHash {
 // The file parsed by tinyobjloader after the checks of what it lets pass (numbers, indices,
 // material libraries and names), from the same normalized text the checks read (the libraries'
 // text is handed to it for every mtllib statement); every usemtl names a material of the libraries.
-tinyobj::ObjReader parse_obj(const std::string& path) {
+tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& face_corners) {
   const std::string text = read_file(path, "OBJ file");
-  const ObjScan scan = scan_obj(path, text);
+  ObjScan scan = scan_obj(path, text);
+  face_corners = std::move(scan.face_corners);
   const fs::path dir = fs::path(path).parent_path();
   std::string mtl_text;  // every library, checked and normalized, in order
   std::set<std::string> mtl_seen;
@@ -348,7 +452,7 @@ tinyobj::ObjReader parse_obj(const std::string& path) {
                               ") of its library: put the mtllib line first");
 
   tinyobj::ObjReaderConfig config;
-  config.triangulate = true;
+  config.triangulate = false;  // triangulate_face: every face of n vertices gives n - 2 triangles
   config.vertex_color = false;
   tinyobj::ObjReader file_reader;
   if (!file_reader.ParseFromString(text, mtl_text, config) || !file_reader.Error().empty()) {
@@ -379,6 +483,16 @@ std::string ignored_texture_options(const tinyobj::texture_option_t& t) {
   if (t.turbulence[0] != 0 || t.turbulence[1] != 0 || t.turbulence[2] != 0) add("-t");
   if (t.clamp) add("-clamp");
   if (t.imfchan != 'm' && t.imfchan != 'l') add("-imfchan");
+  // The rest tinyobjloader parses (they were dropped without this warning: an outside sweep; -mm
+  // would change every texel's colour)
+  if (t.brightness != 0 || t.contrast != 1) add("-mm");
+  if (t.sharpness != 1) add("-boost");
+  if (t.texture_resolution != -1) add("-texres");
+  if (t.bump_multiplier != 1) add("-bm");
+  if (!t.blendu) add("-blendu");
+  if (!t.blendv) add("-blendv");
+  if (t.type != tinyobj::TEXTURE_TYPE_NONE) add("-type");
+  if (!t.colorspace.empty()) add("-colorspace");
   return out;
 }
 
@@ -409,7 +523,8 @@ void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const std::
 
 // The mesh: one vertex per distinct (v, vt, vn) triple; faces without usemtl get one "default"
 // material, added on first use. `base`: the scene's index of the file's first material.
-Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, uint32_t base, Scene& scene) {
+Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, const std::vector<uint32_t>& face_corners,
+              uint32_t base, Scene& scene) {
   const tinyobj::attrib_t& attrib = file_reader.GetAttrib();
   const auto& shapes = file_reader.GetShapes();
   const auto& mats = file_reader.GetMaterials();
@@ -419,54 +534,77 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, ui
   std::unordered_map<std::array<int, 3>, uint32_t, TripleHash> vertex_of;
   bool all_normals = true, any_uv = false;
   std::vector<glm::vec3> normals;
+  size_t fans = 0, largest_fan = 0, face = 0;
+  uint64_t budget = kEarClipBudget;
   for (const auto& shape : shapes) {
     const auto& idx = shape.mesh.indices;
-    for (size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
-      if (shape.mesh.num_face_vertices[f] != 3)
-        throw Error("cannot load OBJ '" + path + "': face not triangulated");
-      glm::uvec3 tri;
-      for (int k = 0; k < 3; ++k) {
-        const tinyobj::index_t& ix = idx[3 * f + size_t(k)];
-        const std::array<int, 3> key{ix.vertex_index, ix.texcoord_index, ix.normal_index};
-        auto [it, fresh] = vertex_of.try_emplace(key, uint32_t(mesh.positions.size()));
-        if (fresh) {
-          const size_t v = size_t(ix.vertex_index);
-          if (ix.vertex_index < 0 || 3 * v + 2 >= attrib.vertices.size())
-            throw Error("cannot load OBJ '" + path + "': vertex index out of range");
-          mesh.positions.emplace_back(attrib.vertices[3 * v], attrib.vertices[3 * v + 1], attrib.vertices[3 * v + 2]);
-          glm::vec2 uv(0.0f);
-          if (ix.texcoord_index >= 0) {
-            const size_t t = size_t(ix.texcoord_index);
-            if (2 * t + 1 >= attrib.texcoords.size()) throw Error("cannot load OBJ '" + path + "': texcoord index out of range");
-            uv = {attrib.texcoords[2 * t], attrib.texcoords[2 * t + 1]};
-            any_uv = true;
-          }
-          mesh.uvs.push_back(uv);
-          glm::vec3 n(0.0f);
-          if (ix.normal_index >= 0) {
-            const size_t t = size_t(ix.normal_index);
-            if (3 * t + 2 >= attrib.normals.size()) throw Error("cannot load OBJ '" + path + "': normal index out of range");
-            n = {attrib.normals[3 * t], attrib.normals[3 * t + 1], attrib.normals[3 * t + 2]};
-          } else {
-            all_normals = false;
-          }
-          normals.push_back(n);
-        }
-        tri[k] = it->second;
+    size_t first = 0;  // the face's first corner in idx
+    for (size_t f = 0; f < shape.mesh.num_face_vertices.size(); first += face_corners[face++], ++f) {
+      // The pre-scan's count (tinyobjloader's is the low byte of it)
+      if (face >= face_corners.size() || face_corners[face] % 256u != shape.mesh.num_face_vertices[f] ||
+          face_corners[face] < 3 || first + face_corners[face] > idx.size())
+        throw Error("cannot load OBJ '" + path + "': its faces do not read back as the pre-scan counted them");
+      const size_t corners = face_corners[face];
+      std::vector<glm::dvec3> at(corners);
+      for (size_t k = 0; k < corners; ++k) {
+        const int vi = idx[first + k].vertex_index;
+        if (vi < 0 || 3 * size_t(vi) + 2 >= attrib.vertices.size())
+          throw Error("cannot load OBJ '" + path + "': vertex index out of range");
+        at[k] = glm::dvec3(attrib.vertices[3 * size_t(vi)], attrib.vertices[3 * size_t(vi) + 1],
+                           attrib.vertices[3 * size_t(vi) + 2]);
       }
-      mesh.triangles.push_back(tri);
-      int mid = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
-      if (mid < 0 || size_t(mid) >= mats.size()) {
-        if (default_material < 0) {
-          default_material = int64_t(scene.materials.size());
-          scene.materials.push_back(Material{.name = "default"});
+      bool fan = false;
+      const std::vector<glm::uvec3> pieces = triangulate_face(at, budget, fan);
+      if (fan) ++fans, largest_fan = std::max(largest_fan, corners);
+      for (const glm::uvec3& piece : pieces) {
+        glm::uvec3 tri;
+        for (int k = 0; k < 3; ++k) {
+          const tinyobj::index_t& ix = idx[first + piece[k]];
+          const std::array<int, 3> key{ix.vertex_index, ix.texcoord_index, ix.normal_index};
+          auto [it, fresh] = vertex_of.try_emplace(key, uint32_t(mesh.positions.size()));
+          if (fresh) {
+            const size_t v = size_t(ix.vertex_index);
+            if (ix.vertex_index < 0 || 3 * v + 2 >= attrib.vertices.size())
+              throw Error("cannot load OBJ '" + path + "': vertex index out of range");
+            mesh.positions.emplace_back(attrib.vertices[3 * v], attrib.vertices[3 * v + 1], attrib.vertices[3 * v + 2]);
+            glm::vec2 uv(0.0f);
+            if (ix.texcoord_index >= 0) {
+              const size_t t = size_t(ix.texcoord_index);
+              if (2 * t + 1 >= attrib.texcoords.size()) throw Error("cannot load OBJ '" + path + "': texcoord index out of range");
+              uv = {attrib.texcoords[2 * t], attrib.texcoords[2 * t + 1]};
+              any_uv = true;
+            }
+            mesh.uvs.push_back(uv);
+            glm::vec3 n(0.0f);
+            if (ix.normal_index >= 0) {
+              const size_t t = size_t(ix.normal_index);
+              if (3 * t + 2 >= attrib.normals.size()) throw Error("cannot load OBJ '" + path + "': normal index out of range");
+              n = {attrib.normals[3 * t], attrib.normals[3 * t + 1], attrib.normals[3 * t + 2]};
+            } else {
+              all_normals = false;
+            }
+            normals.push_back(n);
+          }
+          tri[k] = it->second;
         }
-        mesh.materials.push_back(uint32_t(default_material));
-      } else {
-        mesh.materials.push_back(base + uint32_t(mid));
+        mesh.triangles.push_back(tri);
+        int mid = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
+        if (mid < 0 || size_t(mid) >= mats.size()) {
+          if (default_material < 0) {
+            default_material = int64_t(scene.materials.size());
+            scene.materials.push_back(Material{.name = "default"});
+          }
+          mesh.materials.push_back(uint32_t(default_material));
+        } else {
+          mesh.materials.push_back(base + uint32_t(mid));
+        }
       }
     }
   }
+  if (fans)
+    std::cerr << "warning: " << path << ": " << fans << " face(s) (the largest of " << largest_fan
+              << " corners) split as fans after the ear clipping's budget of corner tests ran out: a concave face "
+              "is covered wrongly so; triangulate such faces before\n";
   if (mesh.triangles.empty()) throw Error("OBJ '" + path + "' has no faces: an empty model");
   if (all_normals) mesh.normals = std::move(normals);  // a vertex without a normal: flat shading
   if (!any_uv) mesh.uvs.clear();
@@ -482,14 +620,15 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, ui
 }  // namespace
 
 std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCache& textures) {
-  const tinyobj::ObjReader file_reader = parse_obj(path);
+  std::vector<uint32_t> face_corners;
+  const tinyobj::ObjReader file_reader = parse_obj(path, face_corners);
   const uint32_t base = uint32_t(scene.materials.size());
   std::vector<bool> used(file_reader.GetMaterials().size(), false);
   for (const auto& shape : file_reader.GetShapes())
     for (const int id : shape.mesh.material_ids)
       if (id >= 0 && size_t(id) < used.size()) used[size_t(id)] = true;
   add_obj_materials(file_reader.GetMaterials(), used, fs::path(path).parent_path(), scene, textures, path);
-  Mesh mesh = obj_mesh(path, file_reader, base, scene);
+  Mesh mesh = obj_mesh(path, file_reader, face_corners, base, scene);
   Instance inst;
   inst.name = mesh.name;
   inst.mesh = uint32_t(scene.meshes.size());
