@@ -263,6 +263,27 @@ void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
     throw OptionsError("--enlargement of 1 or more grows the plane test's sphere past the cell, where the "
                        "separating-axis cell test (--cell-test box, the exact traversal's default) decides alone: it "
                        "does nothing (leave it out, or give --cell-test sphere)");
+  // The resolution's and the policy's knobs where the command line already fixed what they choose
+  // (outside sweeps: accepted, the grid the same)
+  if (given("--density") && (given("--resolution") || given("--cell-size")))
+    throw OptionsError("--density picks the automatic resolution, which --resolution or --cell-size fixes here: it does "
+                       "nothing (leave one out)");
+  const bool fixed = given("--resolution") && o.grid.capacity.has_value();
+  for (const char* name : {"--work-sample", "--cell-visit-cost", "--saturation-cost"}) {
+    if (!given(name)) continue;
+    if (fixed)
+      throw OptionsError(std::string(name) + " weighs the trace-cost policy's candidates; --resolution and --capacity N "
+                         "leave none to weigh: it does nothing (leave it out)");
+    if (o.grid.capacity_policy != reference::GridOptions::CapacityPolicy::trace_cost)
+      throw OptionsError(std::string(name) + " weighs the trace-cost policy's candidates (--capacity auto or "
+                         "trace-cost); --capacity no-saturation or percentile does not weigh them: it does nothing");
+  }
+  // The compact layout has no slots: nothing for --max-capacity to bound
+  if (given("--max-capacity") && o.grid.layout == reference::GridOptions::Layout::compact)
+    throw OptionsError("--max-capacity bounds the image layout's slots per cell; the compact layout (--layout compact) "
+                       "has none: it does nothing (leave it out, or give --layout image)");
+  // (The exact traversal's knobs are not refused with the paper traversal: the frame's gather and
+  // explain's primary rays trace the exact traversal's grid whatever the trace's, and take them.)
   if (o.grid.traversal != reference::Traversal::exact) return;
   for (const char* name : {"--gap-fill", "--revisit", "--elongation", "--gap-fill-distance"})
     if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
@@ -378,7 +399,10 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
       return std::make_unique<vulkan::VulkanGridTracer>(grid_options_for(o, scene), vk);
     } catch (const Error& e) {
       if (!o.fallback_cpu) throw;
-      std::fprintf(stderr, "gridrt: %s\ngridrt: falling back to the CPU reference (--fallback-cpu)\n", e.what());
+      // Said once: a render makes a second tracer for its gather (it said it twice: an outside sweep)
+      static bool said = false;
+      if (!said) std::fprintf(stderr, "gridrt: %s\ngridrt: falling back to the CPU reference (--fallback-cpu)\n", e.what());
+      said = true;
       return std::make_unique<reference::ReferenceGridTracer>(grid_options_for(o, scene));
     }
   }

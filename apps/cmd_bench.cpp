@@ -860,7 +860,7 @@ void run_bench(const BenchOptions& options) {
     throw Error("--rtx: this build has no Vulkan backend");
 #endif
     if (std::find(o.backends.begin(), o.backends.end(), "vulkan") == o.backends.end())
-      throw Error("--rtx runs beside the vulkan backend: add --backend vulkan");
+      throw OptionsError("--rtx runs beside the vulkan backend: add --backend vulkan");
     o.backend_options.ray_tracing = true;
   }
   resolve_image_limit(o.backend_options, std::find(o.backends.begin(), o.backends.end(), "vulkan") != o.backends.end());
@@ -964,7 +964,7 @@ void run_bench(const BenchOptions& options) {
   if (!notes.empty()) std::printf("\n");
   for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());
   for (const std::string& n : shadow_notes) std::printf("%s\n", n.c_str());
-  if (!o.json.empty()) write_file_atomically(o.json, "JSON report", out.dump(2) + "\n");
+  if (!o.json.empty()) write_file_atomically(o.json, "JSON report", out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
 }
 
 }  // namespace
@@ -1023,6 +1023,10 @@ void add_bench_command(CLI::App& app) {
         std::find(o->backends.begin(), o->backends.end(), "vulkan") == o->backends.end())
       throw OptionsError("--back-to-back times the Vulkan frame recorded several times a submission: it needs "
                          "--backend vulkan");
+    // The Vulkan frame's own knobs did nothing on the other backends (an outside sweep)
+    for (const char* name : {"--gather", "--compact-rays", "--build-passes", "--counter-frames"})
+      if (cmd->count(name) > 0 && std::find(o->backends.begin(), o->backends.end(), "vulkan") == o->backends.end())
+        throw OptionsError(std::string(name) + " is a knob of the Vulkan frame: it needs --backend vulkan");
     // A fallback filed the CPU's times under "vulkan", in the table and the JSON (an outside sweep)
     if (cmd->get_option_no_throw("--fallback-cpu") != nullptr && cmd->count("--fallback-cpu") > 0)
       throw OptionsError("--fallback-cpu does not apply to bench: its figures are filed by backend; time the CPU "

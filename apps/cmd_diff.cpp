@@ -104,7 +104,10 @@ std::string explain_command(const DiffOptions& o, uint32_t x, uint32_t y, bool p
   return os.str();
 }
 
-std::string xml_escape(const std::string& s) {
+std::string xml_escape(const std::string& raw) {
+  // Bytes that are not UTF-8 (a scene file's name may hold any) as U+FFFD: the XML must be
+  // well-formed (an outside sweep's report failed xmllint)
+  const std::string s = to_utf8(raw);
   std::string out;
   for (char c : s) {
     switch (c) {
@@ -633,7 +636,7 @@ void DiffRun::write_reports(int code, double seconds) {
     } else {
       j["first_difference"] = nullptr;
     }
-    write_file_atomically(o_.json_path, "JSON report", j.dump(2) + "\n");
+    write_file_atomically(o_.json_path, "JSON report", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
   }
   if (!o_.junit_path.empty()) {
     size_t failures = 0;

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <unistd.h>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -329,10 +330,11 @@ std::vector<bool> pareto(const std::vector<Row>& rows) {
   return front;
 }
 
-void plot_agreement(const std::string& path, const std::string& title, const std::vector<Row>& rows) {
+// The plot written to `path`; false (and said) where this build draws none.
+bool plot_agreement(const std::string& path, const std::string& title, const std::vector<Row>& rows) {
   if (!plot::available()) {
     std::printf("  plot: skipped (this build has no OpenImageIO or no DejaVu font)\n");
-    return;
+    return false;
   }
   plot::Canvas cv(760, 545);
   double tmax = 0.0, amin = 100.0;
@@ -362,7 +364,7 @@ void plot_agreement(const std::string& path, const std::string& title, const std
                      {plot::colors::blue, "other configurations (numbers: the rows of the table)"}},
                     12);
   cv.write(path);
-  std::printf("  plot: %s\n", path.c_str());
+  return true;
 }
 
 // A CSV field: quoted where it holds a comma, a quote or a line break (RFC 4180), quotes doubled.
@@ -648,8 +650,28 @@ void run_sweep(const SweepOptions& o) {
     std::printf("%s\n", header.str().c_str());
     // The three files checked before any is written: a refused plot left the tables replaced
     for (const char* ext : {".csv", ".md", ".png"}) check_output_allowed(o.out + "/" + stem + ext, "sweep output");
-    write_outputs(o.out, stem, scene.name, rows, header.str());
-    plot_agreement(o.out + "/" + stem + ".png", scene.name, rows);
+    // And written as a set: the plot first under a name of its own, then the tables, then the
+    // plot renamed over its place; a failed write leaves the earlier set whole (a full disk after
+    // the tables left them beside the last run's plot: an outside sweep)
+    const std::string png = o.out + "/" + stem + ".png";
+    const std::string staged = o.out + "/." + stem + ".sweep-" + std::to_string(getpid()) + ".png";
+    const bool plotted = plot_agreement(staged, scene.name, rows);
+    try {
+      write_outputs(o.out, stem, scene.name, rows, header.str());
+    } catch (...) {
+      std::error_code ignored;
+      if (plotted) std::filesystem::remove(staged, ignored);
+      throw;
+    }
+    if (plotted) {
+      std::error_code ec;
+      std::filesystem::rename(staged, png, ec);
+      if (ec) {
+        std::filesystem::remove(staged, ec);
+        throw Error("cannot write '" + png + "': " + ec.message());
+      }
+      std::printf("  plot: %s\n", png.c_str());
+    }
   }
 #endif
 }

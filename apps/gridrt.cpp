@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstdio>
 #include <exception>
+#include <set>
 #include <filesystem>
 #include <cstring>
 #include <functional>
@@ -99,14 +100,21 @@ std::pair<std::string, std::string> bad_number_argument(int argc, char** argv) {
     }
     return "";
   };
+  // Options whose value is a file or folder name, which may look like a number ("007", "inf": an
+  // outside sweep's folders were refused as octal or infinite)
+  static const std::set<std::string> paths{"-o", "--output", "--output-dir", "--slices", "--json", "--junit", "--svg",
+                                           "--html", "--export", "--ray-file"};
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     // explain --ray takes inf and nan on purpose: it shows how the tracer rejects such a ray
-    if (a == "--ray") {
+    if (a == "--ray" || paths.count(a)) {
       ++i;
       continue;
     }
     if (a.rfind("--ray=", 0) == 0) continue;
+    if (const size_t eq = a.find('='); eq != std::string::npos && paths.count(a.substr(0, eq))) continue;
+    // A file or folder that exists is a name, not a number (a scene named "1e999")
+    if (std::error_code ec; std::filesystem::exists(a, ec)) continue;
     if (const size_t eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) a = a.substr(eq + 1);
     if (std::string why = bad_value(a); !why.empty()) return {argv[i], why};
     // -tVALUE: a short option with its value glued on
@@ -170,6 +178,15 @@ int main(int argc, char** argv) {
     }
   };
   fall_through(&app);
+  // An empty value names nothing: `--json ""` wrote no file and said nothing, `--slices ""` drew
+  // nothing (an outside sweep). Every option that takes a value refuses an empty one (exit 2).
+  const CLI::Validator non_empty(
+      [](std::string& v) { return v.empty() ? std::string("an empty value names nothing") : std::string(); }, "");
+  const std::function<void(CLI::App*)> refuse_empty = [&](CLI::App* cmd) {
+    for (CLI::Option* opt : cmd->get_options([](const CLI::Option* o) { return o->get_type_size() != 0; }))
+      opt->check(non_empty);
+    for (CLI::App* sub : cmd->get_subcommands([](CLI::App*) { return true; })) refuse_empty(sub);
+  };
   InputLimits& limits = input_limits();
   app.add_option_function<double>(
          "--max-input-mib", [&limits](double mib) { limits.max_file_bytes = uint64_t(mib * 1024.0 * 1024.0); },
@@ -189,6 +206,7 @@ int main(int argc, char** argv) {
   app.add_option("--max-pixels", app::frame_limits().max_pixels,
                  "Largest rendered image (width x height) in pixels (default 33554432)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
+  refuse_empty(&app);
   if (const auto [bad, why] = app::bad_number_argument(argc, argv); !bad.empty()) {
     std::fprintf(stderr, "gridrt: error: '%s': %s\n", bad.c_str(), why.c_str());
     return 2;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <unordered_map>
 
 #include "apps/commands.h"
 #include "apps/slices.h"
@@ -50,6 +51,7 @@ struct SlicePanels {
   std::vector<std::vector<uint8_t>> moving;
   bool any_moving = false;
   uint32_t largest = 0;  // the fullest cell's references
+  uint32_t scale = 1;    // the colour bar's top: the capacity, or the fullest cell (compact)
   uint64_t empty = 0, saturated_static = 0, saturated_dynamic = 0;
 };
 
@@ -59,19 +61,42 @@ SlicePanels colour_cells(const reference::GridData& grid, const SliceLayout& l) 
   SlicePanels p;
   p.colour.assign(ns, std::vector<glm::vec3>(size_t(nu) * nv));
   p.moving.assign(ns, std::vector<uint8_t>(size_t(nu) * nv, 0));
+  // The references neither slots nor runs hold: the spill list's entries per cell (the image
+  // layout's overflow; the compact layout's dynamic references, which the sheet left out)
+  std::unordered_map<uint32_t, std::vector<uint32_t>> spilled;
+  const size_t stored = std::min<size_t>(grid.spill_header.count, grid.spill.size());
+  for (size_t k = 0; k < stored; ++k) spilled[grid.spill[k].cell].push_back(grid.spill[k].ref);
+  // The colour scale: the capacity, or with no slots (compact) the fullest cell
+  const bool compact = (g.flags & sh::kGridCompact) != 0u;
+  uint32_t scale = g.capacity;
+  if (compact) {
+    scale = 1;
+    for (uint32_t s = 0; s < ns; ++s)
+      for (uint32_t j = 0; j < nv; ++j)
+        for (uint32_t i = 0; i < nu; ++i) {
+          glm::uvec3 cell(0);
+          cell[l.a] = s, cell[l.u] = i, cell[l.v] = j;
+          const auto it = spilled.find(sh::cell_linear_index(g, cell));
+          scale = std::max(scale, uint32_t(reference::cell_references(grid, cell).size() +
+                                           (it == spilled.end() ? 0 : it->second.size())));
+        }
+  }
+  p.scale = scale;
   for (uint32_t s = 0; s < ns; ++s)
     for (uint32_t j = 0; j < nv; ++j)
       for (uint32_t i = 0; i < nu; ++i) {
         glm::uvec3 cell(0);
         cell[l.a] = s, cell[l.u] = i, cell[l.v] = j;
-        const std::vector<uint32_t> refs = reference::cell_references(grid, cell);
+        std::vector<uint32_t> refs = reference::cell_references(grid, cell);
+        if (const auto it = spilled.find(sh::cell_linear_index(g, cell)); it != spilled.end())
+          refs.insert(refs.end(), it->second.begin(), it->second.end());
         const uint32_t n = uint32_t(refs.size());
         for (uint32_t r : refs)
           if (r >= g.comparison_offset) p.moving[s][size_t(nv - 1 - j) * nu + i] = 1, p.any_moving = true;
         p.largest = std::max(p.largest, n);
         const uint32_t status = reference::cell_status(grid, cell);
         glm::vec3 c = n == 0 ? plot::colors::light_grey
-                             : plot::viridis(g.capacity > 1 ? float(n - 1) / float(g.capacity - 1) : 1.0f);
+                             : plot::viridis(scale > 1 ? std::min(1.0f, float(n - 1) / float(scale - 1)) : 1.0f);
         if (n == 0) ++p.empty;
         if (status & sh::kStatusStatic) c = plot::colors::red, ++p.saturated_static;
         else if (status & sh::kStatusDynamic) c = plot::colors::magenta, ++p.saturated_dynamic;
@@ -146,10 +171,12 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
   char t[200];
   std::snprintf(t, sizeof t, "Occupancy and saturation, %c slices", names[l.a]);
   c.text(pad, 22, t, plot::colors::black, 16, plot::Align::left, true);
+  const std::string layout = (g.flags & sh::kGridCompact) != 0u ? std::string("compact layout")
+                                                                   : "cells of " + std::to_string(g.capacity) + " slots";
   std::snprintf(t, sizeof t,
-                "%s: %ux%ux%u cells of %u slots; %llu empty, %llu saturated (static), %llu (dynamic); fullest %u; "
+                "%s: %ux%ux%u %s; %llu empty, %llu saturated (static), %llu (dynamic); fullest %u; "
                 "panels: %c right, %c up",
-                scene_name.c_str(), g.cells.x, g.cells.y, g.cells.z, g.capacity, (unsigned long long)panels.empty,
+                scene_name.c_str(), g.cells.x, g.cells.y, g.cells.z, layout.c_str(), (unsigned long long)panels.empty,
                 (unsigned long long)panels.saturated_static, (unsigned long long)panels.saturated_dynamic,
                 panels.largest, names[l.u], names[l.v]);
   c.text(pad, 41, t, plot::colors::dark_grey, 12);
@@ -178,7 +205,7 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
     c.text(pad, 60, t, plot::colors::black, 12);
   }
   const int sx = pad + int(l.cols) * (l.pw + l.gap) + 10;
-  plot::draw_color_bar(c, sx, l.title_h + 24, 20, 180, {1.0f, float(std::max(g.capacity, 2u)), "references", true});
+  plot::draw_color_bar(c, sx, l.title_h + 24, 20, 180, {1.0f, float(std::max(panels.scale, 2u)), "references", true});
   plot::draw_legend(c, sx, l.title_h + 230,
                     {{plot::colors::light_grey, "empty"},
                      {plot::colors::red, "saturated (static)"},

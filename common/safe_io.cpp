@@ -95,6 +95,8 @@ namespace {
 // A size for a message: whole MiB from 16 MiB up, below that in bytes too, so that a file just
 // over a small limit does not read "1 MiB, more than the limit of 1 MiB" (an outside sweep's find)
 std::string mib(uint64_t bytes) {
+  // Below a MiB, the bytes alone (a 2,418-byte file "held 1 MiB": an outside sweep)
+  if (bytes < (uint64_t(1) << 20)) return std::to_string(bytes) + " bytes";
   const std::string whole = std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB";
   return bytes >= (uint64_t(16) << 20) ? whole : whole + " (" + std::to_string(bytes) + " bytes)";
 }
@@ -583,6 +585,47 @@ bool names_same_file(const std::string& a, const std::string& b) {
     if (!ec) return same;
   }
   return links_followed(a) == links_followed(b);
+}
+
+namespace {
+// The length of the well-formed UTF-8 sequence at s[i], 0 if none starts there.
+size_t utf8_sequence(std::string_view s, size_t i) {
+  const auto b = [&](size_t k) { return uint8_t(s[k]); };
+  const uint8_t c = b(i);
+  const size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+  if (n == 0 || i + n > s.size()) return 0;
+  for (size_t k = 1; k < n; ++k)
+    if ((b(i + k) >> 6) != 0x2) return 0;
+  if (n == 2 && c < 0xC2) return 0;  // overlong
+  if (n == 3 && ((c == 0xE0 && b(i + 1) < 0xA0) || (c == 0xED && b(i + 1) >= 0xA0))) return 0;  // overlong, surrogate
+  if (n == 4 && ((c == 0xF0 && b(i + 1) < 0x90) || (c == 0xF4 && b(i + 1) >= 0x90) || c > 0xF4)) return 0;
+  return n;
+}
+}  // namespace
+
+bool is_utf8(std::string_view s) {
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = utf8_sequence(s, i);
+    if (n == 0) return false;
+    i += n;
+  }
+  return true;
+}
+
+std::string to_utf8(std::string_view s) {
+  std::string out;
+  out.reserve(s.size());
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = utf8_sequence(s, i);
+    if (n == 0) {
+      out += "\xEF\xBF\xBD";
+      ++i;
+    } else {
+      out.append(s.substr(i, n));
+      i += n;
+    }
+  }
+  return out;
 }
 
 }  // namespace gridrt

@@ -81,6 +81,12 @@ std::string normalize_text(std::string text);
 // a * b, or Error("<what>: ... overflows") when the product does not fit 64 bits.
 uint64_t checked_mul(uint64_t a, uint64_t b, const std::string& what);
 
+// Whether `s` is well-formed UTF-8 (no overlong forms, surrogates or code points past U+10FFFF):
+// what JSON and XML readers accept.
+bool is_utf8(std::string_view s);
+// `s` with every byte that is not part of a well-formed UTF-8 sequence as U+FFFD.
+std::string to_utf8(std::string_view s);
+
 // From now on, remember every input file this process reads (check_input_file, read_input_file:
 // the scene, its meshes, materials, textures, ray files) and refuse, in write_file_atomically, an
 // output that would replace one of them (however its path is spelled: the same device and inode).

@@ -780,9 +780,14 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
 GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice) {
   const GridOptions o = settle_overrides(options, scene);
   // A capacity asked for above the largest allowed: named (the image's limits are not the cause)
-  if (o.capacity && *o.capacity > o.max_capacity)
-    throw Error("grid: a capacity of " + std::to_string(*o.capacity) + " slots is above --max-capacity " +
-                std::to_string(o.max_capacity) + (options.capacity ? "" : " (the capacity is the scene file's)"));
+  if (o.capacity && *o.capacity > o.max_capacity) {
+    const std::string what = "grid: a capacity of " + std::to_string(*o.capacity) + " slots is above --max-capacity " +
+                             std::to_string(o.max_capacity);
+    // Two options that contradict each other are a bad command line (exit 2); the scene file's
+    // capacity against the option, bad input
+    if (options.capacity) throw OptionsError(what);
+    throw Error(what + " (the capacity is the scene file's)");
+  }
   // The exact traversal's promise (every triangle in every cell it overlaps) needs the plane test's
   // sphere to hold the whole cell: an enlargement below 1 drops triangles that cross a corner
   if (o.traversal == Traversal::exact && !(o.sphere_enlargement >= 1.0f))

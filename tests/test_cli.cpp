@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "gridrt/common/safe_io.h"
 #include "tests/run_tool.h"
 
 namespace fs = std::filesystem;
@@ -600,7 +601,21 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         "render builtin:cornell --width 8 --height 8 --view cells --shadows off" + out,
         // A bad backend or family: a bad command line, not bad input
         "render builtin:cornell --width 8 --height 8 -b bogus" + out, std::string("verify builtin:cornell -n 5 -b bogus"),
-        std::string("verify builtin:cornell -n 5 --families bogus")}) {
+        std::string("verify builtin:cornell -n 5 --families bogus"),
+        // More of them (outside sweeps): the policy's knobs where the command line fixed the grid, the compact layout's slots, the Vulkan
+        // frame's bench knobs on the CPU, --strict where it is the rule, an empty value
+        std::string("stats builtin:cornell --resolution 4,4,4 --density 5"),
+        std::string("stats builtin:cornell --cell-size 0.5 --density 5"),
+        std::string("stats builtin:cornell --resolution 4,4,4 --capacity 4 --cell-visit-cost 100"),
+        std::string("stats builtin:cornell --capacity no-saturation --work-sample 8,8"),
+        std::string("stats builtin:cornell --traversal exact --layout compact --max-capacity 8"),
+        std::string("stats builtin:cornell --capacity 8 --max-capacity 7"),
+        std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --gather boxes"),
+        std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --counter-frames 2"),
+        std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --rtx"),
+        std::string("verify builtin:cornell -n 5 --traversal exact --strict"),
+        std::string("verify builtin:cornell -n 5 --json \"\""), std::string("stats builtin:cornell --slices \"\""),
+        std::string("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --svg \"\"")}) {
     const Run r = run_tool(args);
     INFO(args << "\n" << r.output);
     CHECK(r.exit_code == 2);
@@ -762,4 +777,44 @@ TEST_CASE("Outside sweep: a crowded cell is warned of, and a tiny model keeps a 
   // the tiny sheet's grid is the unit sheet's, scaled: the same cells, the same occupancy
   CHECK(cells[0] == cells[1]);
   CHECK(occupancy[0] == occupancy[1]);
+}
+
+TEST_CASE("Outside sweep: names that look like numbers, a scene name that is not UTF-8, an export name that would "
+          "not load again",
+          "[cli]") {
+  const fs::path dir = scratch("names");
+  fs::remove_all(dir);
+  fs::create_directories(dir / "007");
+  // A folder named like a number is a folder (it was refused as an octal number)
+  {
+    const Run r = run_tool("sweep builtin:cornell --width 8 --height 8 --traversal exact --capacity 4 -o " +
+                           (dir / "007").string());
+    INFO(r.output);
+    CHECK(r.exit_code == 0);
+    CHECK(fs::exists(dir / "007" / "builtin-cornell.csv"));
+  }
+  // A scene whose file name holds a byte that is not UTF-8: the reports say it as U+FFFD (exit 5,
+  // an internal error, before), the JUnit report is well-formed
+  {
+    const fs::path obj = dir / "u\xff.obj";
+    std::ofstream(obj) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    const fs::path json = dir / "v.json";
+    const Run r = run_tool("verify '" + obj.string() + "' -n 5 --families camera --json " + json.string());
+    INFO(r.output);
+    CHECK(r.exit_code == 0);
+    REQUIRE(fs::exists(json));
+    std::ifstream in(json);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    CHECK(gridrt::is_utf8(text));
+    CHECK(text.find("u\xef\xbf\xbd") != std::string::npos);
+  }
+  // portal export writes only scenes that load again: a name a scene file would expand is refused
+  {
+    const Run r = run_tool("portal export builtin:blocks -o '" + (dir / "${X}.json").string() + "'");
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Catch::Contains("may not start with '${'"));
+    CHECK(!fs::exists(dir / "${X}.json"));
+  }
+  fs::remove_all(dir);
 }

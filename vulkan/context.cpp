@@ -2,6 +2,8 @@
 #include "gridrt/vulkan/context.h"
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <sstream>
@@ -181,8 +183,11 @@ ContextOptions ContextOptions::from_env() {
     o.validation = o.best_practices = true;
   if (const char* d = std::getenv("GRIDRT_VK_DEVICE"); d && *d) {
     char* end = nullptr;
+    errno = 0;
     const long v = std::strtol(d, &end, 10);
-    if (*end != '\0' || v < 0) throw Error(std::string("GRIDRT_VK_DEVICE=") + d + " is not a device index (0, 1, ...)");
+    // Past int's range it wrapped to another device or to "any" (an outside sweep)
+    if (*end != '\0' || v < 0 || errno == ERANGE || v > 65535 || !std::isdigit(static_cast<unsigned char>(*d)))
+      throw Error(std::string("GRIDRT_VK_DEVICE=") + d + " is not a device index (0, 1, ...)");
     o.device_index = int(v);
   }
   if (const char* l = std::getenv("GRIDRT_VK_LOADER"); l && *l) o.loader_path = l;

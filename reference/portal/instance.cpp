@@ -2,6 +2,7 @@
 #include "gridrt/reference/portal/instance.h"
 
 #include <algorithm>
+#include <iostream>
 #include <atomic>
 #include <chrono>
 #include <cctype>
@@ -201,6 +202,7 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
     ls >> key;
     if (in_block) {
       if (key == "end") {
+        expect_line_end(ls, name, lineno, "'end'");  // trailing text was ignored (an outside sweep)
         in_block = false;
       } else if (key == "box") {
         long long v[6];
@@ -282,6 +284,7 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
     } else if (key == "map") {
       if (!have_scale) fail(name, lineno, "'map' before 'scale'");
       if (!have_size) fail(name, lineno, "'map' before 'size'");
+      expect_line_end(ls, name, lineno, "'map'");
       in_map = true;
     } else {
       fail(name, lineno, "unknown keyword '" + key + "'");
@@ -384,6 +387,7 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
     w.camera.vfov_degrees = 60.0f;
   }
   for (const glm::ivec2& l : lights) w.lights.push_back(glm::vec3(float(l.x) + 0.5f, float(H) + 0.5f, float(l.y) + 0.5f));
+  warn_unused_lights(w);
   iw.validate();
   return iw;
 }
@@ -790,6 +794,15 @@ size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool
     if (std::isspace(static_cast<unsigned char>(ch)) || std::iscntrl(static_cast<unsigned char>(ch)) || ch == '#')
       throw Error("portal export: the output's name may not contain spaces, '#' or control characters (an OBJ's "
                   "mtllib line names the materials by it): '" + stem + "'");
+  // The scene names its OBJs by the stem, and a scene file's reader expands a leading ${...} and
+  // takes only UTF-8: such a name wrote a scene that did not load again (an outside sweep)
+  if (stem.rfind("${", 0) == 0 || !is_utf8(stem))
+    throw Error("portal export: the output's name may not start with '${' or hold bytes that are not UTF-8 (the "
+                "scene names its models by it, and must load again): '" + to_utf8(stem) + "'");
+  for (const Block& bl : iw.blocks)
+    if (!is_utf8(bl.name))
+      throw Error("portal export: block '" + to_utf8(bl.name) + "' has a name that is not UTF-8 (the scene names its "
+                  "model by it)");
   const fs::path dir = jp.parent_path().empty() ? fs::path(".") : jp.parent_path();
   const World& w = iw.top;
   const std::string mtl = stem + ".mtl";

@@ -2,6 +2,7 @@
 #include "gridrt/reference/portal/world.h"
 
 #include <algorithm>
+#include <iostream>
 #include <cctype>
 #include <cstdio>
 #include <optional>
@@ -203,6 +204,7 @@ TileMapText read_tile_map(std::string_view text, const std::string& name, World&
       parse_material(ls, name, lineno, w, chars);
     } else if (key == "map") {
       if (!have_size) fail(name, lineno, "'map' before 'size'");
+      expect_line_end(ls, name, lineno, "'map'");  // trailing text was ignored (an outside sweep)
       in_map = true;
     } else {
       fail(name, lineno, "unknown keyword '" + key + "'");
@@ -297,6 +299,7 @@ World parse_tile_map(std::string_view text, const std::string& name, bool requir
   if (eye_tile) place_camera(w, *eye_tile, t);
   for (const glm::ivec2& l : light_tiles)
     w.lights.push_back(glm::vec3(float(l.x) + 0.5f, float(t.H) + 0.5f, float(l.y) + 0.5f));
+  warn_unused_lights(w);
   w.validate();
   return w;
 }
@@ -335,6 +338,12 @@ bool triangle_box_overlap(glm::vec3 c, glm::vec3 h, glm::vec3 a, glm::vec3 b, gl
       if (std::min({p0, p1, p2}) > r || std::max({p0, p1, p2}) < -r) return false;
     }
   return true;
+}
+
+void warn_unused_lights(const World& w) {
+  if (w.lights.size() > 2)
+    std::cerr << "warning: world '" << w.name << "': " << w.lights.size()
+              << " lights; the portal renderer shades with the first two (two shadow rays a pixel)\n";
 }
 
 World voxelize(const Scene& scene, uint32_t resolution) {
@@ -387,6 +396,14 @@ World voxelize(const Scene& scene, uint32_t resolution) {
   w.background = scene.background;
   for (const Light& l : scene.lights)
     w.lights.push_back(l.directional ? cam.eye + l.position * (2.0f * longest) : l.position);
+  // What the voxels leave out, said (it was dropped without a word: an outside sweep)
+  if (scene.has_dynamic())
+    std::cerr << "warning: voxelize: scene '" << scene.name
+              << "': its moving instances are voxelized where they stand at t = 0 (the portal worlds are static)\n";
+  if (std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.alpha_keyed(); }))
+    std::cerr << "warning: voxelize: scene '" << scene.name
+              << "': alpha-masked surfaces are voxelized solid (the voxels carry no mask)\n";
+  warn_unused_lights(w);
   w.validate();
   return w;
 }

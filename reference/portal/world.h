@@ -107,7 +107,12 @@ bool parse_generated_spec(const std::string& spec, const std::string& prefix, ui
 // (triangle/box separating-axis test, Akenine-Moeller), its material the scene material of the
 // lowest (instance, triangle) that overlaps it. `resolution` voxels along the longest axis of the
 // bounds (1 .. 253); one empty voxel of margin on every side. Camera and lights from the scene.
+// Says on stderr what the voxels leave out: a moving instance's motion (voxelized at t = 0), alpha
+// masks (solid), lights past the renderer's two (warn_unused_lights).
 World voxelize(const Scene& scene, uint32_t resolution = 64);
+
+// A warning on stderr when the world has more lights than the portal renderer shades with (two).
+void warn_unused_lights(const World& w);
 
 // Triangle/axis-aligned box overlap (separating axis theorem: 3 box axes, the triangle normal,
 // 9 edge cross products). Exposed for tests.
