@@ -89,7 +89,7 @@ void run_verify(const VerifyCliOptions& o) {
   }
   const bool exact = go.traversal == reference::Traversal::exact;
   // The exact traversal fails on them anyway: --strict did nothing there (an outside sweep)
-  if (exact && o.strict)
+  if (o.strict && o.backend_options.grid.traversal == reference::Traversal::exact)  // the command line's
     throw OptionsError("--strict fails the paper traversal on wrong answers and cracks, as the exact traversal always "
                        "is: with --traversal exact it does nothing (leave it out)");
   std::printf("verify: %s, %s backend, %s traversal, %s triangle test; %zu rays per family, seed %llu\n",

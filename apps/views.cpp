@@ -93,13 +93,13 @@ void diff_view(const ViewOptions& o, const Scene& scene, const reference::GridOp
     if (std::memcmp(&a, &b, sizeof a) == 0) {
       ++bits;
       f.rgb[i] = plot::colors::white;
+    } else if (a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags && a.cells == b.cells &&
+               a.tests == b.tests) {
+      ++floats;  // never by design: the same triangle gives the same bits
+      f.rgb[i] = plot::colors::orange;
     } else if (first_empty && px[i].saturated > 0) {
       ++by_design;
       f.rgb[i] = plot::colors::grey;
-    } else if (a.instance == b.instance && a.triangle == b.triangle && a.flags == b.flags && a.cells == b.cells &&
-               a.tests == b.tests) {
-      ++floats;
-      f.rgb[i] = plot::colors::orange;
     } else {
       ++other;
       f.rgb[i] = plot::colors::red;

@@ -217,19 +217,27 @@ std::string texture_format(const std::string& path) {
   const auto starts = [&](std::string_view magic) { return head.compare(0, magic.size(), magic) == 0; };
   if (starts("\x89PNG\r\n\x1a\n")) return "png";
   if (starts("\xff\xd8\xff")) return "jpeg";
-  if (starts("II*\0") || starts("MM\0*") || starts("II+\0") || starts("MM\0+")) return "tiff";
+  if (starts(std::string_view("II*\0", 4)) || starts(std::string_view("MM\0*", 4)) ||
+      starts(std::string_view("II+\0", 4)) || starts(std::string_view("MM\0+", 4)))
+    return "tiff";
   if (starts("\x76\x2f\x31\x01")) return "openexr";
   if (starts("BM")) return "bmp";
   if (starts("GIF87a") || starts("GIF89a")) return "gif";
   if (starts("RIFF") && head.size() >= 12 && head.compare(8, 4, "WEBP") == 0) return "webp";
-  if (starts("#?RADIANCE") || starts("#?RGBE")) return "hdr";
-  if (head.size() >= 2 && head[0] == 'P' && head[1] >= '1' && head[1] <= '6') return "pnm";
+  if (starts("#?")) return "hdr";  // "#?RADIANCE", "#?RGBE", or another program's name
+  // P1-P6, and PFM (PF, Pf), which gridrt writes itself
+  if (head.size() >= 2 && head[0] == 'P' && ((head[1] >= '1' && head[1] <= '6') || head[1] == 'F' || head[1] == 'f'))
+    return "pnm";
+  if (starts("DDS ")) return "dds";
+  if (starts("8BPS")) return "psd";
+  if (starts("\x01\xda")) return "sgi";
   if (starts(std::string_view("\0\0\0\x0cjP  \r\n", 10)) || starts("\xff\x4f\xff\x51")) return "jpeg2000";
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   if (ext == ".tga" || ext == ".tpic") return "targa";
   throw Error("cannot load texture '" + path + "': not an image of a format read as a texture (PNG, JPEG, TGA, BMP, "
-              "TIFF, OpenEXR, HDR, PNM, GIF, WebP, JPEG 2000: told by its first bytes, TGA by its extension)");
+              "TIFF, OpenEXR, HDR, PNM and PFM, GIF, WebP, JPEG 2000, DDS, PSD, SGI: told by its first bytes, TGA by "
+              "its extension)");
 }
 
 void check_jpeg_end(const std::string& path) {

@@ -187,7 +187,7 @@ ContextOptions ContextOptions::from_env() {
     const long v = std::strtol(d, &end, 10);
     // Past int's range it wrapped to another device or to "any" (an outside sweep)
     if (*end != '\0' || v < 0 || errno == ERANGE || v > 65535 || !std::isdigit(static_cast<unsigned char>(*d)))
-      throw Error(std::string("GRIDRT_VK_DEVICE=") + d + " is not a device index (0, 1, ...)");
+      throw Error(std::string("GRIDRT_VK_DEVICE=") + d + " is not a device index (a whole number from 0 to 65535)");
     o.device_index = int(v);
   }
   if (const char* l = std::getenv("GRIDRT_VK_LOADER"); l && *l) o.loader_path = l;

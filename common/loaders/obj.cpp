@@ -322,7 +322,7 @@ bool in_triangle(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b, 
 }
 
 // Ear clipping's work grows with the cube of a face's corners at worst (a star of many reflex
-// corners): a file's faces share this budget of corner tests (about a second), and past it faces
+// corners): a file's faces share this budget of corner tests (seconds at most), and past it faces
 // are split as fans, with a warning, so that no file makes the load hang.
 constexpr uint64_t kEarClipBudget = uint64_t(1) << 30;
 
@@ -331,7 +331,8 @@ constexpr uint64_t kEarClipBudget = uint64_t(1) << 30;
 // (its winding kept); a quad takes its shorter diagonal where both its triangles keep that winding,
 // else the other; larger faces are ear-clipped (an ear: a convex corner whose triangle holds no
 // other corner). A face with no ear left (self-intersecting, or not planar enough to project
-// simply) gives its first corner's triangle and goes on, so no part is dropped. `budget`: the
+// simply) gives the triangle at the corner the search started from and goes on, so no part is
+// dropped (its cover is then not exact: such a face has none). `budget`: the
 // corner tests left (kEarClipBudget); `fan` set when it ran out and the rest was split as a fan.
 std::vector<glm::uvec3> triangulate_face(const std::vector<glm::dvec3>& p, uint64_t& budget, bool& fan) {
   const size_t n = p.size();
@@ -601,6 +602,9 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, co
       }
     }
   }
+  // Every face the pre-scan counted was read (a face tinyobjloader dropped would shift the counts)
+  if (face != face_corners.size())
+    throw Error("cannot load OBJ '" + path + "': its faces do not read back as the pre-scan counted them");
   if (fans)
     std::cerr << "warning: " << path << ": " << fans << " face(s) (the largest of " << largest_fan
               << " corners) split as fans after the ear clipping's budget of corner tests ran out: a concave face "

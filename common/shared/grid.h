@@ -577,7 +577,8 @@ SH_INLINE float cross_term_refined(float a1, float b2, float a2, float b1, float
   return n;
 }
 
-// The scale of the normal's rounding: |a|_1 |b|_1 for n = a x b (plane_normal_scaled), at least |n|_1.
+// The scale of the normal's rounding: |a|_1 |b|_1 for n = a x b (plane_normal_scaled), at least |n|_1
+// (for a normal made again from the exact edges, its own 1-norm plus 2^-20 of this).
 // A cross product's error is about ulp * |a| |b| whatever its length |a| |b| sin(angle): on a
 // "cap" (three vertices nearly on a line, its largest angle near 180 degrees) every pair of edges
 // meets at a small angle, and the normal's direction is off by ulp / sin(angle) (2e-4 rad on a
@@ -652,6 +653,14 @@ SH_INLINE vec3 plane_normal_scaled(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
     n.x = cross_term_refined(a.y, b.z, a.z, b.y, la.y, lb.z, la.z, lb.y);
     n.y = cross_term_refined(a.z, b.x, a.x, b.z, la.z, lb.x, la.x, lb.z);
     n.z = cross_term_refined(a.x, b.y, a.y, b.x, la.x, lb.y, la.y, lb.x);
+    // Its rounding is now a few ulps of itself (and of the dropped low products, ulp^2 of the
+    // edges'): the scale the surface rule measures with shrinks to that, or its band would stay
+    // 1 / sin wider than the normal's error (a review's find)
+    SH_PRECISE vec3 anr = abs(n);
+    SH_PRECISE float nrs = anr.x + anr.y;
+    SH_PRECISE float nr1 = nrs + anr.z;
+    SH_PRECISE float dropped = scale * 9.5367431640625e-07f;  // 2^-20
+    scale = nr1 + dropped;
   }
   return n;
 }
