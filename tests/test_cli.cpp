@@ -785,13 +785,16 @@ TEST_CASE("Outside sweep: names that look like numbers, a scene name that is not
   const fs::path dir = scratch("names");
   fs::remove_all(dir);
   fs::create_directories(dir / "007");
-  // A folder named like a number is a folder (it was refused as an octal number)
+  // A folder named like a number is a folder (it was refused as an octal number): given as the
+  // bare name "007", relative to the working folder, as a user types it
   {
-    const Run r = run_tool("sweep builtin:cornell --width 8 --height 8 --traversal exact --capacity 4 -o " +
-                           (dir / "007").string());
+    const fs::path here = fs::current_path() / "007";
+    fs::create_directories(here);
+    const Run r = run_tool("sweep builtin:cornell --width 8 --height 8 --traversal exact --capacity 4 -o 007");
     INFO(r.output);
     CHECK(r.exit_code == 0);
-    CHECK(fs::exists(dir / "007" / "builtin-cornell.csv"));
+    CHECK(fs::exists(here / "builtin-cornell.csv"));
+    fs::remove_all(here);
   }
   // A scene whose file name holds a byte that is not UTF-8: the reports say it as U+FFFD (exit 5,
   // an internal error, before), the JUnit report is well-formed
