@@ -664,12 +664,19 @@ void run_sweep(const SweepOptions& o) {
       throw;
     }
     if (plotted) {
-      std::error_code ec;
-      std::filesystem::rename(staged, png, ec);
-      if (ec) {
-        std::filesystem::remove(staged, ec);
-        throw Error("cannot write '" + png + "': " + ec.message());
+      // Put in its place as every output is (write_file_atomically: the file a link names, its
+      // permissions kept; a plain rename replaced the link and reset them: a review's find)
+      std::string bytes;
+      try {
+        bytes = read_input_file(staged, "plot");
+      } catch (...) {
+        std::error_code ignored;
+        std::filesystem::remove(staged, ignored);
+        throw;
       }
+      std::error_code ignored;
+      std::filesystem::remove(staged, ignored);
+      write_file_atomically(png, "plot", bytes);
       std::printf("  plot: %s\n", png.c_str());
     }
   }

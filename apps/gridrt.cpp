@@ -77,7 +77,17 @@ namespace {
 // Also a value glued to a short option (-tnan: it passed), and a number written with a leading
 // zero (010), which CLI11 reads as octal for an integer (--width 010 made 8 pixels): both found by
 // an outside sweep. Returns the token and what is wrong with it, or empty strings.
-std::pair<std::string, std::string> bad_number_argument(int argc, char** argv) {
+// How many values `name` (as written: -x, --name) takes as an option of `app` or of any of its
+// subcommands (the most of any; 0: a flag or no such option).
+int option_values(const CLI::App& app, const std::string& name) {
+  int n = 0;
+  if (const CLI::Option* o = app.get_option_no_throw(name)) n = std::max(n, o->get_items_expected_max());
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+    n = std::max(n, option_values(*sub, name));
+  return n;
+}
+
+std::pair<std::string, std::string> bad_number_argument(const CLI::App& app, int argc, char** argv) {
   const auto bad_part = [](const std::string& part) -> std::string {
     if (part.empty()) return "";
     char* stop = nullptr;
@@ -104,17 +114,30 @@ std::pair<std::string, std::string> bad_number_argument(int argc, char** argv) {
   // outside sweep's folders were refused as octal or infinite)
   static const std::set<std::string> paths{"-o", "--output", "--output-dir", "--slices", "--json", "--junit", "--svg",
                                            "--html", "--export", "--ray-file"};
+  int values_left = 0;  // tokens still to come that are the last option's values (--pixel 3 010)
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
+    const bool option_value = values_left > 0 && a.rfind("-", 0) != 0;
+    values_left = option_value ? values_left - 1 : 0;
+    if (a.size() > 1 && a[0] == '-' && a.find('=') == std::string::npos) {
+      const int n = option_values(app, a);
+      values_left = n > 16 ? 1 << 20 : n;  // a list option: every token up to the next option
+    }
     // explain --ray takes inf and nan on purpose: it shows how the tracer rejects such a ray
     if (a == "--ray" || paths.count(a)) {
       ++i;
+      values_left = 0;
       continue;
     }
     if (a.rfind("--ray=", 0) == 0) continue;
     if (const size_t eq = a.find('='); eq != std::string::npos && paths.count(a.substr(0, eq))) continue;
-    // A file or folder that exists is a name, not a number (a scene named "1e999")
-    if (std::error_code ec; std::filesystem::exists(a, ec)) continue;
+    // -oNAME: a path option's value glued on
+    if (a.size() > 2 && a[0] == '-' && a[1] != '-' && paths.count(a.substr(0, 2))) continue;
+    // A file or folder that exists is a name, not a number (a scene named "1e999"), where it stands
+    // as a positional argument: an option's value is judged as written (a file named 010 in the
+    // working folder let --width 010 through as octal 8, and one named nan NaN into --density:
+    // an outside review's find)
+    if (std::error_code ec; !option_value && std::filesystem::exists(a, ec)) continue;
     if (const size_t eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) a = a.substr(eq + 1);
     if (std::string why = bad_value(a); !why.empty()) return {argv[i], why};
     // -tVALUE: a short option with its value glued on
@@ -207,7 +230,7 @@ int main(int argc, char** argv) {
                  "Largest rendered image (width x height) in pixels (default 33554432)")
       ->check(CLI::Range(uint64_t(1), uint64_t(1) << 32))->group("Limits");
   refuse_empty(&app);
-  if (const auto [bad, why] = app::bad_number_argument(argc, argv); !bad.empty()) {
+  if (const auto [bad, why] = app::bad_number_argument(app, argc, argv); !bad.empty()) {
     std::fprintf(stderr, "gridrt: error: '%s': %s\n", bad.c_str(), why.c_str());
     return 2;
   }

@@ -220,24 +220,43 @@ std::string texture_format(const std::string& path) {
   if (starts(std::string_view("II*\0", 4)) || starts(std::string_view("MM\0*", 4)) ||
       starts(std::string_view("II+\0", 4)) || starts(std::string_view("MM\0+", 4)))
     return "tiff";
-  if (starts("\x76\x2f\x31\x01")) return "openexr";
   if (starts("BM")) return "bmp";
-  if (starts("GIF87a") || starts("GIF89a")) return "gif";
   if (starts("RIFF") && head.size() >= 12 && head.compare(8, 4, "WEBP") == 0) return "webp";
-  if (starts("#?")) return "hdr";  // "#?RADIANCE", "#?RGBE", or another program's name
   // P1-P6, and PFM (PF, Pf), which gridrt writes itself
   if (head.size() >= 2 && head[0] == 'P' && ((head[1] >= '1' && head[1] <= '6') || head[1] == 'F' || head[1] == 'f'))
     return "pnm";
-  if (starts("DDS ")) return "dds";
-  if (starts("8BPS")) return "psd";
-  if (starts("\x01\xda")) return "sgi";
-  if (starts(std::string_view("\0\0\0\x0cjP  \r\n", 10)) || starts("\xff\x4f\xff\x51")) return "jpeg2000";
+  // Not read: formats whose OpenImageIO readers an outside fuzz of damaged files hung (DDS: a zero
+  // colour mask), crashed (SGI, PSD), or made allocate gigabytes from a few bytes of header before
+  // any limit is consulted (PSD's colour-mode length, an OpenEXR attribute's size, a GIF's logical
+  // screen); HDR and JPEG 2000 with them, outside the formats meshes' textures come in. A texture
+  // must not hang, crash or exhaust a load
+  const auto refused = [&](const char* name) {
+    throw Error("cannot load texture '" + path + "': " + name +
+                " textures are not read (OpenImageIO's reader of them hangs, crashes or allocates without bound on "
+                "damaged files); convert it to PNG");
+  };
+  if (starts("DDS ")) refused("DDS");
+  if (starts("\x01\xda")) refused("SGI");
+  if (starts("8BPS")) refused("PSD");
+  if (starts("\x76\x2f\x31\x01")) refused("OpenEXR");
+  if (starts("GIF87a") || starts("GIF89a")) refused("GIF");
+  if (starts("#?")) refused("Radiance HDR");
+  if (starts(std::string_view("\0\0\0\x0cjP  \r\n", 10)) || starts("\xff\x4f\xff\x51")) refused("JPEG 2000");
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  if (ext == ".tga" || ext == ".tpic") return "targa";
+  if (ext == ".tga" || ext == ".tpic") {
+    // True-colour and grey images only (types 2, 3, 10, 11, no colour map): OpenImageIO's reader
+    // indexes a colour map with the pixel plus the header's first-entry index, unchecked, and read
+    // heap bytes past it as texels (an outside fuzz)
+    if (head.size() < 3) throw Error("cannot load texture '" + path + "': a TGA file shorter than its header");
+    const unsigned cmap = static_cast<unsigned char>(head[1]), type = static_cast<unsigned char>(head[2]);
+    if (cmap != 0 || (type != 2 && type != 3 && type != 10 && type != 11))
+      throw Error("cannot load texture '" + path + "': a colour-mapped TGA (or one of image type " + std::to_string(type) +
+                  "): only true-colour and grey TGA textures are read; convert it to PNG");
+    return "targa";
+  }
   throw Error("cannot load texture '" + path + "': not an image of a format read as a texture (PNG, JPEG, TGA, BMP, "
-              "TIFF, OpenEXR, HDR, PNM and PFM, GIF, WebP, JPEG 2000, DDS, PSD, SGI: told by its first bytes, TGA by "
-              "its extension)");
+              "TIFF, WebP, PNM and PFM: told by its first bytes, TGA by its extension)");
 }
 
 void check_jpeg_end(const std::string& path) {
@@ -275,14 +294,66 @@ void check_jpeg_end(const std::string& path) {
 }  // namespace
 #endif
 
+#ifdef GRIDRT_WITH_OIIO
+namespace {
+Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alpha_channel);
+}
+#endif
+
 Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_channel) {
 #ifdef GRIDRT_WITH_OIIO
+  // A reader's own C++ exceptions (a BMP's RLE data, a length computation past its range) are the
+  // texture's error, not gridrt's (they ended in exit 5, "internal error": an outside fuzz)
+  try {
+    return load_texture_oiio(path, alpha, alpha_channel);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::bad_alloc&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw Error("cannot load texture '" + path + "': its reader failed (" + e.what() + "): a damaged file");
+  }
+#else
+  (void)alpha;
+  (void)alpha_channel;
+  if (const std::string why = why_missing(path); !why.empty()) throw Error("cannot load texture '" + path + "': " + why);
+  throw Error("cannot load texture '" + path +
+              "': this build has no OpenImageIO (GRIDRT_WITH_OIIO off); load the scene from a "
+              ".gridscene cache written by a full build instead");
+#endif
+}
+
+#ifdef GRIDRT_WITH_OIIO
+namespace {
+Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alpha_channel) {
   // Keep colour and alpha as stored (OpenImageIO premultiplies by default): a masked-out texel
   // still has its colour.
   check_input_file(path, "texture");  // a regular file (not /dev/zero, a FIFO, a directory), bounded
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
-  auto in = OIIO::ImageInput::create(texture_format(path));
+  const std::string format_name = texture_format(path);
+  if (format_name == "bmp") {
+    // OpenImageIO decodes an RLE BMP whole in open(), before its size can be checked (381 MB for
+    // a 152-byte file: an outside fuzz): the header's size first (BITMAPINFOHEADER and later)
+    std::string head(26, '\0');
+    std::ifstream f(path, std::ios::binary);
+    f.read(head.data(), std::streamsize(head.size()));
+    if (f.gcount() == std::streamsize(head.size())) {
+      const auto i32 = [&](size_t k) {
+        return int32_t(uint32_t(uint8_t(head[k])) | uint32_t(uint8_t(head[k + 1])) << 8 |
+                       uint32_t(uint8_t(head[k + 2])) << 16 | uint32_t(uint8_t(head[k + 3])) << 24);
+      };
+      const auto u16 = [&](size_t k) { return uint64_t(uint8_t(head[k])) | uint64_t(uint8_t(head[k + 1])) << 8; };
+      const bool core = i32(14) == 12;  // OS/2's BITMAPCOREHEADER: 16-bit sizes
+      const uint64_t bw = core ? u16(18) : uint64_t(std::abs(int64_t(i32(18))));
+      const uint64_t bh = core ? u16(20) : uint64_t(std::abs(int64_t(i32(22))));
+      if (bw * bh > input_limits().max_texture_pixels)
+        throw Error("cannot load texture '" + path + "': its header declares " + std::to_string(bw) + " x " +
+                    std::to_string(bh) + " pixels, more than the limit of " +
+                    std::to_string(input_limits().max_texture_pixels) + " pixels (--max-texture-pixels)");
+    }
+  }
+  auto in = OIIO::ImageInput::create(format_name);
   if (in) {
     OIIO::ImageSpec opened;
     if (!in->open(path, opened, config)) {
@@ -337,11 +408,11 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
     if (!in->read_image(0, 0, a, a + 1, OIIO::TypeDesc::UINT8, alpha_px.data())) failed(in->geterror());
   }
   // A reader may decode what it can and report the rest as an error while returning success: a
-  // TIFF (and a Maya IFF) cut short read its missing strips as black texels (an outside sweep).
-  // Not JPEG: libjpeg's warnings arrive the same way on files that decode whole (stray bytes
-  // between segments); its truncation is found by the end marker below.
+  // TIFF cut short read its missing strips as black texels, a DDS its missing blocks (outside
+  // sweeps). Not JPEG: libjpeg's warnings arrive the same way on files that decode whole (stray
+  // bytes between segments); its truncation is found by the end marker below.
   const std::string format = in->format_name();
-  if (std::string late = in->geterror(); !late.empty() && (format == "tiff" || format == "iff"))
+  if (std::string late = in->geterror(); !late.empty() && format != "jpeg")
     failed(late + " (the reader decoded what it could and reported this: a truncated or corrupt file)");
   in->close();
   // libjpeg calls missing scan lines a warning and OpenImageIO returns them grey without an
@@ -357,14 +428,8 @@ Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_cha
     if (q[3] < 255) tex.has_alpha = true;
   }
   return tex;
-#else
-  (void)alpha;
-  (void)alpha_channel;
-  if (const std::string why = why_missing(path); !why.empty()) throw Error("cannot load texture '" + path + "': " + why);
-  throw Error("cannot load texture '" + path +
-              "': this build has no OpenImageIO (GRIDRT_WITH_OIIO off); load the scene from a "
-              ".gridscene cache written by a full build instead");
-#endif
 }
+}  // namespace
+#endif
 
 }  // namespace gridrt

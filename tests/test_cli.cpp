@@ -796,6 +796,31 @@ TEST_CASE("Outside sweep: names that look like numbers, a scene name that is not
     CHECK(fs::exists(here / "builtin-cornell.csv"));
     fs::remove_all(here);
   }
+  // ... but an option's value is judged as written, whatever the working folder holds: files named
+  // 010 and nan there let --width 010 through as octal 8 and NaN into --density (a review's find);
+  // the glued -o007 is a path
+  {
+    const fs::path f010 = fs::current_path() / "010", fnan = fs::current_path() / "nan";
+    std::ofstream(f010) << "x";
+    std::ofstream(fnan) << "x";
+    const Run width = run_tool("render builtin:cornell --width 010 --height 8 -o " + (dir / "w.ppm").string());
+    const Run density = run_tool("stats builtin:teapot --density nan");
+    const Run pixel = run_tool("explain builtin:cornell --pixel 3 010 --brief");
+    fs::create_directories(fs::current_path() / "007");
+    const Run glued = run_tool("sweep builtin:cornell --width 8 --height 8 --traversal exact --capacity 4 -o007");
+    fs::remove(f010);
+    fs::remove(fnan);
+    INFO(width.output << density.output << glued.output);
+    CHECK(width.exit_code == 2);
+    CHECK(width.output.find("may not start with 0") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "w.ppm"));
+    CHECK(density.exit_code == 2);
+    CHECK(density.output.find("must be finite") != std::string::npos);
+    CHECK(pixel.exit_code == 2);  // an option's second value too
+    CHECK(glued.exit_code == 0);
+    CHECK(fs::exists(fs::current_path() / "007" / "builtin-cornell.csv"));
+    fs::remove_all(fs::current_path() / "007");
+  }
   // A scene whose file name holds a byte that is not UTF-8: the reports say it as U+FFFD (exit 5,
   // an internal error, before), the JUnit report is well-formed
   {

@@ -755,6 +755,15 @@ TEST_CASE("Scene file: a rotate array applies its rotations in order, the first 
 // and b default to r); glTF node matrices that are not affine passed without a word.
 TEST_CASE("OBJ: a one-number colour is grey - glTF: a node's matrix is affine", "[unit][loaders][badinput]") {
   const fs::path d = temp_dir();
+  {  // a comment after a line's numbers, faces included (the face parser failed on its '#')
+    Scene s;
+    TextureCache cache;
+    load_obj(write_text(d / "comments.obj", "v 0 0 0 # origin\nv 1 0 0\nv 0 1 0\nv 1 1 0#\nf 1 2 3 # a note\nf 2 4 3#x\n"), s,
+             cache);
+    REQUIRE(s.meshes.size() == 1);
+    CHECK(s.meshes[0].triangles.size() == 2);
+    CHECK(s.meshes[0].positions.size() == 4);
+  }
   {
     write_text(d / "kd.mtl", "newmtl grey\nKd 0.5\nnewmtl red\nKd 0.5 0 0\n");
     Scene s;
@@ -981,6 +990,29 @@ TEST_CASE("Textures: alpha read apart from the colour, a TIFF cut short refused,
     if (wrote_iff) CHECK_THROWS_WITH(load_texture(iff, AlphaSource::kImage, nullptr), Catch::Contains("not an image of a format"));
     std::filesystem::copy_file(dir / "rgba.png", dir / "misnamed.jpg");
     CHECK(load_texture((dir / "misnamed.jpg").string(), AlphaSource::kImage, nullptr).rgba == rgba);
+    // Formats whose readers an outside fuzz hung, crashed or made allocate gigabytes from a few
+    // header bytes are refused by name, before any reader runs (here their first bytes alone)
+    for (const auto& [name, head] : std::vector<std::pair<std::string, std::string>>{
+             {"DDS", "DDS |"}, {"SGI", std::string("\x01\xda\x00\x01", 4)}, {"PSD", "8BPS"},
+             {"OpenEXR", "\x76\x2f\x31\x01"}, {"GIF", "GIF89a"}, {"Radiance HDR", "#?RADIANCE\n"},
+             {"JPEG 2000", "\xff\x4f\xff\x51"}}) {
+      const std::string file = (dir / ("refused_" + std::to_string(name.size()) + ".bin")).string();
+      std::ofstream(file, std::ios::binary) << head << std::string(64, '\0');
+      INFO(name);
+      CHECK_THROWS_WITH(load_texture(file, AlphaSource::kImage, nullptr),
+                        Catch::Contains(name + " textures are not read"));
+    }
+    // TGA: a true-colour one loads; a colour-mapped one is refused (OpenImageIO indexes its map
+    // with the header's first-entry index unchecked: heap bytes read as texels, an outside fuzz)
+    const std::string tga = (dir / "rgba.tga").string();
+    write_image_rgba8(tga, w, h, rgba, true);
+    CHECK(load_texture(tga, AlphaSource::kImage, nullptr).rgba == rgba);
+    std::string mapped = read_input_file(tga, "texture");
+    mapped[1] = 1;  // a colour map
+    mapped[2] = 1;  // colour-mapped image
+    std::ofstream((dir / "mapped.tga").string(), std::ios::binary) << mapped;
+    CHECK_THROWS_WITH(load_texture((dir / "mapped.tga").string(), AlphaSource::kImage, nullptr),
+                      Catch::Contains("colour-mapped TGA"));
   }
   // A TIFF cut short: its missing strips were decoded black without an error (an outside sweep)
   {

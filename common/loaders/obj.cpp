@@ -411,6 +411,30 @@ struct TripleHash {
   }
 };
 
+// The text with a `#` comment cut from every line of numbers (v, vt, vn, f, l, p): the checks read
+// it so, and tinyobjloader's face parser failed on the `#` of `f 1 2 3 # a note` (a review's find).
+// Other lines are kept whole (a texture's file name may hold a `#`); line numbers stay.
+std::string cut_number_line_comments(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + start, end - start);
+    const size_t k = line.find_first_not_of(" \t");
+    const std::string_view rest = k == std::string_view::npos ? std::string_view() : line.substr(k);
+    const size_t word_end = rest.find_first_of(" \t");
+    const std::string_view word = rest.substr(0, word_end);
+    if (word == "v" || word == "vt" || word == "vn" || word == "f" || word == "l" || word == "p")
+      if (const size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+    out.append(line);
+    if (end < text.size()) out.push_back('\n');
+    start = end + 1;
+  }
+  return out;
+}
+
 // The file parsed by tinyobjloader after the checks of what it lets pass (numbers, indices,
 // material libraries and names), from the same normalized text the checks read (the libraries'
 // text is handed to it for every mtllib statement); every usemtl names a material of the libraries.
@@ -456,7 +480,7 @@ tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& fac
   config.triangulate = false;  // triangulate_face: every face of n vertices gives n - 2 triangles
   config.vertex_color = false;
   tinyobj::ObjReader file_reader;
-  if (!file_reader.ParseFromString(text, mtl_text, config) || !file_reader.Error().empty()) {
+  if (!file_reader.ParseFromString(cut_number_line_comments(text), mtl_text, config) || !file_reader.Error().empty()) {
     std::string err = file_reader.Error();
     while (!err.empty() && err.back() == '\n') err.pop_back();
     throw Error("cannot load OBJ '" + path + "': " + (err.empty() ? "tinyobjloader failed" : err));
