@@ -10,14 +10,18 @@
 #include <set>
 #include <sstream>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "gridrt/common/builtin/builtin.h"
 #include "gridrt/common/camera.h"
+#include "gridrt/common/shared/transform.h"
 #include "gridrt/reference/portal/build.h"
 #include "gridrt/reference/portal/trace.h"
 #include "gridrt/reference/portal/world.h"
 
 using namespace gridrt;
 using namespace gridrt::portal;
+namespace sh = gridrt::shared;
 
 namespace {
 
@@ -268,6 +272,93 @@ TEST_CASE("Portal: trace agrees with the voxel DDA on a voxelized mesh (teapot)"
   CHECK(out.hits > 300);
   WARN("teapot: mean steps portal " << (in.portal_steps + out.portal_steps) / double(in.hits + out.hits) << " vs DDA "
                                     << (in.dda_steps + out.dda_steps) / double(in.hits + out.hits));
+}
+
+// Every point of every triangle lies in a solid voxel (or within a hair of one: the test's box is
+// 1.0001 voxels wide), wherever the model lies: a teapot a million units from the origin lost its
+// handle to float box centres, and a sliver's box test its boxes (outside sweeps).
+TEST_CASE("Portal: voxelize covers the surface wherever the model lies, slivers too", "[portal][unit]") {
+  Scene base = make_builtin("teapot");
+  {  // a few slivers beside it: 0.9 long, 1e-7 wide, at odd angles
+    Mesh m;
+    m.name = "slivers";
+    for (int k = 0; k < 6; ++k) {
+      const glm::vec3 a(0.2f * k - 0.5f, 0.3f, -0.4f + 0.13f * k), d = glm::normalize(glm::vec3(1.0f, 0.37f * k, 0.21f));
+      const uint32_t b = uint32_t(m.positions.size());
+      m.positions.insert(m.positions.end(), {a, a + 0.9f * d, a + 0.45f * d + glm::vec3(0.0f, 1e-7f, 1e-7f)});
+      m.triangles.push_back({b, b + 1, b + 2});
+    }
+    m.materials.assign(m.triangles.size(), 0u);
+    base.meshes.push_back(m);
+    base.instances.push_back(Instance{.name = "slivers", .mesh = uint32_t(base.meshes.size() - 1)});
+  }
+  for (const float offset : {0.0f, 1.0e5f, 1.0e6f}) {
+    Scene s = base;
+    for (Instance& i : s.instances) i.transform = glm::translate(glm::mat4(1.0f), glm::vec3(offset, 0.0f, 0.0f)) * i.transform;
+    if (s.camera) {
+      s.camera->eye.x += offset;
+      s.camera->target.x += offset;
+    }
+    for (Light& l : s.lights)
+      if (!l.directional) l.position.x += offset;
+    s.finalize();
+    const World w = voxelize(s, 48);
+    size_t samples = 0, missed = 0;
+    for (const Instance& inst : s.instances) {
+      const Mesh& mesh = s.meshes[inst.mesh];
+      const sh::Affine xf = sh::to_affine(inst.transform_at(0.0f));
+      for (const glm::uvec3& t : mesh.triangles) {
+        const glm::dvec3 p0(sh::transform_point(xf, mesh.positions[t.x])), p1(sh::transform_point(xf, mesh.positions[t.y])),
+            p2(sh::transform_point(xf, mesh.positions[t.z]));
+        for (const glm::dvec2 uv : {glm::dvec2(1.0 / 3.0), glm::dvec2(0.05, 0.05), glm::dvec2(0.9, 0.05), glm::dvec2(0.05, 0.9),
+                                    glm::dvec2(0.5, 0.0), glm::dvec2(0.0, 0.5)}) {
+          const glm::dvec3 p = p0 + uv.x * (p1 - p0) + uv.y * (p2 - p0);
+          const glm::dvec3 v = (p - glm::dvec3(w.origin)) / double(w.voxel_size);
+          ++samples;
+          bool in = false;  // the voxel holding it, or one within the box's hair across a face
+          for (int dz = -1; dz <= 1 && !in; ++dz)
+            for (int dy = -1; dy <= 1 && !in; ++dy)
+              for (int dx = -1; dx <= 1 && !in; ++dx) {
+                const glm::dvec3 q = v + glm::dvec3(dx, dy, dz) * 4e-5;
+                const glm::ivec3 c(glm::floor(q));
+                if (glm::all(glm::greaterThanEqual(c, glm::ivec3(0))) && glm::all(glm::lessThan(c, glm::ivec3(w.dims))))
+                  in = w.solid(c);
+              }
+          missed += in ? 0 : 1;
+        }
+      }
+    }
+    INFO("offset " << offset << ": " << missed << " of " << samples << " surface samples in no solid voxel");
+    CHECK(missed == 0);
+  }
+}
+
+// A subnormal direction component is a zero, as the grid takes it: left as it was, the portal
+// reported hits at t = inf or below 0 with NaN u, v, and the DDA another answer (an outside sweep).
+TEST_CASE("Portal: subnormal direction components are zeros, the portal and the DDA alike", "[portal][unit]") {
+  const PortalBuild& b = builtin_build();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> pos(1.0f, 30.0f), sgn(-1.0f, 1.0f);
+  size_t hits = 0;
+  for (int i = 0; i < 400; ++i) {
+    glm::vec3 d(sgn(rng), sgn(rng), sgn(rng));
+    d[i % 3] = (i & 4) ? 1e-40f : -3e-39f;  // subnormal
+    const Ray r = make_ray(glm::vec3(pos(rng), 2.0f, pos(rng)), d);
+    if (b.world.solid(glm::ivec3(glm::floor(r.org)))) continue;
+    glm::vec3 z = d;
+    z[i % 3] = 0.0f;
+    const Ray rz = make_ray(r.org, z);
+    const Hit p = trace_portal(b.packed, r), q = trace_dda(b.world, r), pz = trace_portal(b.packed, rz);
+    INFO(ray_text(r));
+    REQUIRE(std::memcmp(&p, &pz, sizeof p) == 0);  // as the zero direction
+    REQUIRE(p.instance == q.instance);
+    REQUIRE(p.triangle == q.triangle);
+    REQUIRE(hex(p.t) == hex(q.t));
+    REQUIRE(!std::isnan(p.u));
+    REQUIRE(!std::isnan(p.v));
+    hits += !is_miss(p);
+  }
+  CHECK(hits > 100);
 }
 
 TEST_CASE("Portal: rays along voxel edges and corners, axis-aligned rays, tmax", "[portal][unit]") {

@@ -157,7 +157,7 @@ VoxelRay to_voxel_ray(glm::vec3 origin, float voxel_size, const Ray& ray) {
   VoxelRay r;
   const float inv = 1.0f / voxel_size;
   r.org = (ray.org - origin) * inv;
-  r.dir = ray.dir * inv;
+  r.dir = shared::portal_direction(ray.dir * inv);
   r.tmin = ray.tmin;
   r.tmax = ray.tmax;
   return r;

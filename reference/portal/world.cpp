@@ -312,29 +312,30 @@ World load_tile_map(const std::string& path, bool require_eye) {
 std::string_view builtin_level_text() { return kBuiltinLevel; }
 World builtin_level() { return parse_tile_map(kBuiltinLevel, "builtin", true); }
 
-bool triangle_box_overlap(glm::vec3 c, glm::vec3 h, glm::vec3 a, glm::vec3 b, glm::vec3 cc) {
-  const glm::vec3 v0 = a - c, v1 = b - c, v2 = cc - c;
-  const glm::vec3 e[3] = {v1 - v0, v2 - v1, v0 - v2};
+bool triangle_box_overlap(glm::dvec3 c, glm::dvec3 h, glm::dvec3 a, glm::dvec3 b, glm::dvec3 cc) {
+  const glm::dvec3 v0 = a - c, v1 = b - c, v2 = cc - c;
+  const glm::dvec3 e[3] = {v1 - v0, v2 - v1, v0 - v2};
   // Box axes.
   for (int i = 0; i < 3; ++i) {
-    const float mn = std::min({v0[i], v1[i], v2[i]}), mx = std::max({v0[i], v1[i], v2[i]});
+    const double mn = std::min({v0[i], v1[i], v2[i]}), mx = std::max({v0[i], v1[i], v2[i]});
     if (mn > h[i] || mx < -h[i]) return false;
   }
-  // Triangle normal.
-  const glm::vec3 n = glm::cross(e[0], e[1]);
+  // Triangle normal: every vertex projected (their spread is the normal's rounding; one vertex
+  // alone let a sliver's rounded normal reject boxes it passes through: an outside sweep's find)
+  const glm::dvec3 n = glm::cross(e[0], e[1]);
   {
-    const float d = glm::dot(n, v0);
-    const float r = h.x * std::abs(n.x) + h.y * std::abs(n.y) + h.z * std::abs(n.z);
-    if (d > r || d < -r) return false;
+    const double d0 = glm::dot(n, v0), d1 = glm::dot(n, v1), d2 = glm::dot(n, v2);
+    const double r = h.x * std::abs(n.x) + h.y * std::abs(n.y) + h.z * std::abs(n.z);
+    if (std::min({d0, d1, d2}) > r || std::max({d0, d1, d2}) < -r) return false;
   }
   // Edge x box-axis cross products.
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
-      glm::vec3 axis(0.0f);
-      axis[j] = 1.0f;
-      const glm::vec3 l = glm::cross(axis, e[i]);
-      const float p0 = glm::dot(l, v0), p1 = glm::dot(l, v1), p2 = glm::dot(l, v2);
-      const float r = h.x * std::abs(l.x) + h.y * std::abs(l.y) + h.z * std::abs(l.z);
+      glm::dvec3 axis(0.0);
+      axis[j] = 1.0;
+      const glm::dvec3 l = glm::cross(axis, e[i]);
+      const double p0 = glm::dot(l, v0), p1 = glm::dot(l, v1), p2 = glm::dot(l, v2);
+      const double r = h.x * std::abs(l.x) + h.y * std::abs(l.y) + h.z * std::abs(l.z);
       if (std::min({p0, p1, p2}) > r || std::max({p0, p1, p2}) < -r) return false;
     }
   return true;
@@ -363,7 +364,14 @@ World voxelize(const Scene& scene, uint32_t resolution) {
   for (const Material& m : scene.materials) w.materials.push_back({m.name, m.diffuse, false, 1.5f, glm::vec3(1.0f)});
   if (w.materials.empty()) w.materials.push_back({"default", glm::vec3(0.8f), false, 1.5f, glm::vec3(1.0f)});
   if (w.materials.size() > shared::kPortalMaxMaterial + 1) throw Error("voxelize: more than 32767 materials");
-  const glm::vec3 half(0.5f * w.voxel_size * 1.0001f);
+  // The test in voxel units about the world's origin, in double: world-space box centres a
+  // million units from the origin rounded by up to half a voxel of a small model, whose surface
+  // then fell between the boxes (an outside sweep: a teapot at x = 1e6 lost its handle); at a
+  // scale of 1e-15 the float products underflowed and marked boxes the surface misses
+  const glm::dvec3 half(0.5 * 1.0001);
+  const glm::dvec3 origin(w.origin);
+  const double inv_size = 1.0 / double(w.voxel_size);
+  const auto local = [&](glm::vec3 p) { return (glm::dvec3(p) - origin) * inv_size; };
   for (size_t ii = 0; ii < scene.instances.size(); ++ii) {
     const Instance& inst = scene.instances[ii];
     const Mesh& mesh = scene.meshes[inst.mesh];
@@ -373,11 +381,12 @@ World voxelize(const Scene& scene, uint32_t resolution) {
       const glm::vec3 p0 = shared::transform_point(xf, mesh.positions[tri.x]);
       const glm::vec3 p1 = shared::transform_point(xf, mesh.positions[tri.y]);
       const glm::vec3 p2 = shared::transform_point(xf, mesh.positions[tri.z]);
-      const glm::vec3 lo = w.to_voxel(glm::min(p0, glm::min(p1, p2))), hi = w.to_voxel(glm::max(p0, glm::max(p1, p2)));
+      const glm::dvec3 q0 = local(p0), q1 = local(p1), q2 = local(p2);
+      const glm::dvec3 lo = glm::min(q0, glm::min(q1, q2)), hi = glm::max(q0, glm::max(q1, q2));
       glm::ivec3 vlo, vhi;
       for (int a = 0; a < 3; ++a) {
-        vlo[a] = std::clamp(int(std::floor(lo[a])) - 1, 0, int(w.dims[a]) - 1);
-        vhi[a] = std::clamp(int(std::floor(hi[a])) + 1, 0, int(w.dims[a]) - 1);
+        vlo[a] = int(std::clamp(std::floor(lo[a]) - 1.0, 0.0, double(w.dims[a]) - 1.0));
+        vhi[a] = int(std::clamp(std::floor(hi[a]) + 1.0, 0.0, double(w.dims[a]) - 1.0));
       }
       const uint16_t mat = uint16_t(t < mesh.materials.size() ? std::min<uint32_t>(mesh.materials[t], uint32_t(w.materials.size() - 1)) : 0);
       for (int z = vlo.z; z <= vhi.z; ++z)
@@ -385,8 +394,8 @@ World voxelize(const Scene& scene, uint32_t resolution) {
           for (int x = vlo.x; x <= vhi.x; ++x) {
             uint16_t& v = w.voxels[w.index(x, y, z)];
             if (v != kEmpty) continue;
-            const glm::vec3 center = w.to_world(glm::vec3(x, y, z) + 0.5f);
-            if (triangle_box_overlap(center, half, p0, p1, p2)) v = mat;
+            const glm::dvec3 center = glm::dvec3(x, y, z) + 0.5;
+            if (triangle_box_overlap(center, half, q0, q1, q2)) v = mat;
           }
     }
   }

@@ -115,7 +115,7 @@ World voxelize(const Scene& scene, uint32_t resolution = 64);
 void warn_unused_lights(const World& w);
 
 // Triangle/axis-aligned box overlap (separating axis theorem: 3 box axes, the triangle normal,
-// 9 edge cross products). Exposed for tests.
-bool triangle_box_overlap(glm::vec3 box_center, glm::vec3 box_half, glm::vec3 a, glm::vec3 b, glm::vec3 c);
+// 9 edge cross products), in double; voxelize gives it voxel units. Exposed for tests.
+bool triangle_box_overlap(glm::dvec3 box_center, glm::dvec3 box_half, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c);
 
 }  // namespace gridrt::portal

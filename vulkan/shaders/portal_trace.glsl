@@ -94,7 +94,7 @@ VoxelRay to_voxel_ray(RayRecord ray) {
   precise vec3 o = (ray.org - params.origin) * inv;
   precise vec3 d = ray.dir * inv;
   r.org = o;
-  r.dir = d;
+  r.dir = portal_direction(d);
   r.tmin = ray.tmin;
   r.tmax = ray.tmax;
   return r;
