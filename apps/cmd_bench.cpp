@@ -400,11 +400,13 @@ void embree_on_frame_rays(const BenchOptions& o, const Scene& scene, const Frame
   }
 }
 
-// The grid's memory (everything it keeps on the device, as allocated: VulkanGridTracer::memory)
-// and the frame's buffers, MiB.
+// The grid's memory (everything it keeps on the device for the trace, as allocated:
+// VulkanGridTracer::memory, and the plane buffer the watertight test reads) and the frame's
+// buffers, MiB. (Not counted: the geometry buffer, which the RT pipeline's structures are built
+// from too.)
 struct VulkanMemory {
   double grid = 0.0, skip = 0.0, spill = 0.0, frame = 0.0;  // grid: the image, or the offsets and references
-  double dirty = 0.0, total = 0.0;
+  double dirty = 0.0, planes = 0.0, total = 0.0;
   bool compact = false;
 };
 VulkanMemory vulkan_memory(const BenchOptions& o, const Scene& scene, const vulkan::VulkanGridTracer& vk,
@@ -417,7 +419,8 @@ VulkanMemory vulkan_memory(const BenchOptions& o, const Scene& scene, const vulk
   mem.skip = double(gm.skip) * mib;
   mem.spill = (vk.params().flags & shared::kGridSpill) != 0u ? double(gm.spill + gm.heads) * mib : 0.0;
   mem.dirty = double(gm.dirty) * mib;
-  mem.total = double(gm.total()) * mib;
+  mem.planes = double(vk.plane_buffer().size) * mib;
+  mem.total = double(gm.total()) * mib + mem.planes;
   const size_t frame_rays = 1 + (frame.shadows() ? scene.lights.size() : 0);  // bounce, then shadow rays
   mem.frame =
       double(o.width) * o.height * (4 + 4 + sizeof(shared::GatherTexel) + frame_rays * (sizeof(Ray) + sizeof(Hit)) + 4) /
@@ -514,9 +517,9 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
                 "lists' order %.3f ms\n",
                 m["clear"], m["insert_triangles"], m["insert_runs"], m["order"]);
   std::printf("grid memory (%s layout): %s %.1f MiB, spill list and heads %.1f MiB, skip field %.1f MiB, dirty-cell "
-              "list %.1f MiB, total %.1f MiB\n",
+              "list %.1f MiB, plane buffer %.1f MiB, total %.1f MiB\n",
               mem.compact ? "compact" : "image", mem.compact ? "offsets and references" : "image", mem.grid, mem.spill,
-              mem.skip, mem.dirty, mem.total);
+              mem.skip, mem.dirty, mem.planes, mem.total);
 }
 
 // The trace's counters (medians over the counted frames): printed, and as JSON (empty without).
@@ -664,7 +667,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   nlohmann::json j = {{"device", device}, {"clock", clock},       {"build_ms", build},
                       {"build_warm_ms", stamps ? nlohmann::json(build_warm) : nlohmann::json()}, {"rays_per_frame", rays},
                       {"mrays_per_s", t.count("trace") ? nlohmann::json(mrays) : nlohmann::json()},
-                      {"grid_mib", mem.total}, {"storage_mib", mem.grid}, {"skip_mib", mem.skip}, {"spill_mib", mem.spill}, {"frame_mib", mem.frame},
+                      {"grid_mib", mem.total}, {"storage_mib", mem.grid}, {"skip_mib", mem.skip}, {"planes_mib", mem.planes}, {"spill_mib", mem.spill}, {"frame_mib", mem.frame},
                       {"layout", mem.compact ? "compact" : "image"},
                       {"grid_cells", {gp.cells.x, gp.cells.y, gp.cells.z}}, {"capacity", gp.capacity},
                       {"spill", spill_json(spill, spill_flags)}};
@@ -732,11 +735,12 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
     }
   }
 #endif
-  // Everything the grid keeps (the image or the compact arrays, spill list, heads, skip field)
+  // Everything the grid keeps (the image or the compact arrays, spill list, heads, skip field, the
+  // plane buffer)
   if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
-    grid_mib = double(ref->stats().memory.total()) / (1 << 20);
+    grid_mib = double(ref->stats().memory.total() + ref->data().planes.size() * sizeof(shared::GridPlane)) / (1 << 20);
 #ifdef GRIDRT_HAVE_VULKAN
-  if (vk) grid_mib = double(vk->memory().total()) / (1 << 20);
+  if (vk) grid_mib = double(vk->memory().total() + vk->plane_buffer().size) / (1 << 20);
 #endif
   const AccelDump dump = tracer->dump();
   if (grid_mib == 0.0 && !dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);

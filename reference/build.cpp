@@ -468,7 +468,7 @@ void append_dirty_cell(WordBuffer& dirty, const GridParams& g, glm::uvec3 cell) 
 namespace {
 
 // One emulated geometry-shader invocation: transform the triangle, write it to the geometry
-// buffer, insert its reference into every cell of its AABB range that the cell test keeps (its
+// buffer and its plane to the plane buffer, insert its reference into every cell of its AABB range that the cell test keeps (its
 // plane passes through the cell's enlarged bounding sphere; with kGridCellBox, no separating axis).
 void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t instance,
                       uint32_t triangle, const shared::Affine& m) {
@@ -481,10 +481,13 @@ void build_invocation(GridData& grid, const Scene& scene, float time, uint32_t i
   const glm::vec3 v0 = shared::transform_point(m, mesh.positions[idx.x]);
   const glm::vec3 v1 = shared::transform_point(m, mesh.positions[idx.y]);
   const glm::vec3 v2 = shared::transform_point(m, mesh.positions[idx.z]);
-  shared::GridTriangle& out = grid.triangles[grid.instances[instance].tri_offset + triangle];
+  const uint32_t k = grid.instances[instance].tri_offset + triangle;
+  shared::GridTriangle& out = grid.triangles[k];
   out.v0 = v0;
   out.v1 = v1;
   out.v2 = v2;
+  // Its plane, for the watertight test (the plane buffer; zero-area triangles too: one rule)
+  grid.planes[k] = shared::triangle_plane(v0, v1, v2);
   // Skip zero-area triangles: no ray can hit them
   if (shared::triangle_zero_area(v0, v1, v2)) return;
   const glm::vec3 n = shared::triangle_normal(v0, v1, v2);
@@ -560,6 +563,7 @@ void scene_build(GridData& grid, const Scene& scene, float time, const GridOptio
   grid.static_triangles = plan.tables.static_triangles;
   grid.instances = std::move(plan.tables.instances);
   grid.triangles = std::move(plan.tables.triangles);
+  grid.planes.assign(grid.triangles.size(), shared::GridPlane{});
   grid.uvs = std::move(plan.tables.uvs);
   grid.materials = std::move(plan.tables.materials);
   grid.texels = std::move(plan.tables.texels);

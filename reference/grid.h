@@ -60,6 +60,7 @@ struct GridData {
   WordBuffer dirty;                              // the dirty-cell list (shared::dirty_list_words)
   std::vector<shared::GridInstance> instances;   // per instance: triangle offset, count, flags
   std::vector<shared::GridTriangle> triangles;   // world-space triangles (geometry buffer)
+  std::vector<shared::GridPlane> planes;         // per triangle its plane (the plane buffer: triangle_plane)
   std::vector<shared::GridTriangleUv> uvs;       // per triangle texture coordinates
   std::vector<shared::GridMaterial> materials;   // per material: its alpha mask in `texels`
   std::vector<uint32_t> texels;                  // alpha masks, RGBA8 packed (a << 24)
@@ -151,7 +152,7 @@ struct GridStats {
   glm::uvec3 cells{0};
   uint32_t capacity = 0;
   glm::uvec3 image_extent{0};
-  uint64_t image_bytes = 0, geometry_bytes = 0;   // the image; triangles + uvs + tables + masks
+  uint64_t image_bytes = 0, geometry_bytes = 0;   // the image; triangles + planes + uvs + tables + masks
   bool compact = false;                           // the compact layout (image_extent: its stand-in)
   bool sparse_offsets = false;                   // its offsets of the occupied cells only (kGridSparseOffsets)
   uint64_t region_cells = 0;                      // compact: the dynamic region's cells

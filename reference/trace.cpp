@@ -64,14 +64,25 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
     mailbox_put(st.mailbox, ref);
   }
   const GridInstance inst = grid.instances[ref_instance(ref)];
-  const GridTriangle tri = grid.triangles[inst.tri_offset + ref_triangle(ref)];
+  const uint k = inst.tri_offset + ref_triangle(ref);
+  const GridTriangle tri = grid.triangles[k];
   // The triangle test (Moller-Trumbore or watertight) against the elongated segment; without
-  // events to record, its code alone where its first rejections decide it (triangle_test_code)
+  // events to record, its code alone where its first rejections decide it (triangle_test_code).
+  // The watertight test reads the triangle's plane from the plane buffer where its edge functions
+  // leave it going (watertight_rest_plane): no normal made in the loop
   TriangleTest r{};
   const float best = st.has_best ? st.best_t : sh_infinity();
-  uint code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, r)
-                    : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
-                                                  best, st.surface_tol, r);
+  uint code;
+  if (g.triangle_test == kTriangleWatertight) {
+    WatertightEdges e;
+    watertight_edges(st.org, st.wray, tri.v0, tri.v1, tri.v2, e);
+    if (st.ex == nullptr && watertight_mixed(e)) code = watertight_outside_code(e);
+    else code = watertight_rest_plane(st.org, st.dir, tri.v1, tri.v2, e, grid.planes[k], t_lo, t_hi, best, st.surface_tol, r);
+  } else {
+    code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, r)
+                 : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best,
+                                      st.surface_tol, r);
+  }
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);

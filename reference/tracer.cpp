@@ -103,6 +103,7 @@ GridStats grid_stats(const GridData& grid) {
     s.region_cells = (grid.spill_heads.size() - shared::kCompactHeadsHeader) / 2;
   s.memory = grid_allocated(grid);
   s.geometry_bytes = grid.triangles.size() * sizeof(shared::GridTriangle) +
+                     grid.planes.size() * sizeof(shared::GridPlane) +
                      grid.uvs.size() * sizeof(shared::GridTriangleUv) +
                      grid.instances.size() * sizeof(shared::GridInstance) +
                      grid.materials.size() * sizeof(shared::GridMaterial) + grid.texels.size() * 4;

@@ -222,6 +222,13 @@ TEST_CASE("After animated frames, the updated image equals a fresh build at that
       INFO("time " << time << (ins == Insertion::sorted ? " sorted" : " first-empty"));
       check_invariants(scene, g, time);
       CHECK(std::memcmp(g.triangles.data(), fresh.triangles.data(), g.triangles.size() * sizeof(sh::GridTriangle)) == 0);
+      // The plane buffer: each triangle's plane as the test would make it, updated with it
+      REQUIRE(g.planes.size() == g.triangles.size());
+      CHECK(std::memcmp(g.planes.data(), fresh.planes.data(), g.planes.size() * sizeof(sh::GridPlane)) == 0);
+      for (size_t k = 0; k < g.triangles.size(); ++k) {
+        const sh::GridPlane p = sh::triangle_plane(g.triangles[k].v0, g.triangles[k].v1, g.triangles[k].v2);
+        if (std::memcmp(&p, &g.planes[k], sizeof p) != 0) FAIL("triangle " << k << ": its plane is not triangle_plane's");
+      }
       if (ins == Insertion::sorted) {
         CHECK(g.image.snapshot() == fresh.image.snapshot());
       } else {

@@ -222,6 +222,20 @@ size_t compare_triangles(const std::vector<sh::GridTriangle>& want, const std::v
   return bad;
 }
 
+// The plane buffer, bit for bit. Returns the number of differing planes.
+size_t compare_planes(const std::vector<sh::GridPlane>& want, const std::vector<sh::GridPlane>& got) {
+  REQUIRE(want.size() == got.size());
+  size_t bad = 0;
+  for (size_t i = 0; i < want.size(); ++i) {
+    const float a[4] = {want[i].n.x, want[i].n.y, want[i].n.z, want[i].scale};
+    const float b[4] = {got[i].n.x, got[i].n.y, got[i].n.z, got[i].scale};
+    for (int c = 0; c < 4; ++c)
+      if (bits(a[c]) != bits(b[c]) && ++bad <= 5)
+        UNSCOPED_INFO("plane " << i << " component " << c << ": reference " << hex(a[c]) << " vulkan " << hex(b[c]));
+  }
+  return bad;
+}
+
 // First-empty: unsaturated cells hold exactly their candidates; saturated ones `capacity` of them,
 // flagged (reference::check_cells_as_multisets). Returns the number of bad cells; counts saturated
 // cells.
@@ -250,6 +264,66 @@ GridOptions options(reference::Insertion insertion, reference::Traversal travers
 }
 
 }  // namespace
+
+// Caps (three vertices nearly on a line: the third at the rounded midpoint of the other two, moved
+// by a few ulps) make the plane's normal again from the exact edges (plane_normal_scaled): the
+// plane buffer the build writes must hold the reference's bits there too, static and dynamic, after
+// updates, and the trace that reads it the reference's hits.
+TEST_CASE("Vulkan grid: the plane buffer identical bit for bit, caps' refined normals included, through updates",
+          "[vulkan][diff][grid]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  Scene scene = gridtest::random_scene(240, 0.7f, 10.0f, 17, 60);
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> nudge(-4, 4);
+  for (Mesh& m : scene.meshes)
+    for (size_t i = 0; 3 * i + 2 < m.positions.size(); i += 2) {
+      const glm::vec3 mid = (m.positions[3 * i] + m.positions[3 * i + 1]) * 0.5f;
+      glm::vec3 v = mid;
+      for (int c = 0; c < 3; ++c)
+        for (int k = nudge(rng); k != 0; k += k > 0 ? -1 : 1) v[c] = std::nextafter(v[c], k > 0 ? INFINITY : -INFINITY);
+      m.positions[3 * i + 2] = v;
+    }
+  scene.finalize();
+  const GridOptions o = options(reference::Insertion::sorted, reference::Traversal::exact, 8);  // the watertight test
+  ReferenceGridTracer ref(o);
+  ref.build(scene, 0.0f);
+  // Caps are there: planes whose scale shrank below the unrefined cross product's rounding scale
+  size_t refined = 0;
+  for (size_t k = 0; k < ref.data().triangles.size(); ++k) {
+    const sh::GridTriangle& t = ref.data().triangles[k];
+    const sh::GridPlane& p = ref.data().planes[k];
+    const sh::GridPlane q = sh::triangle_plane(t.v0, t.v1, t.v2);
+    CHECK((bits(p.n.x) == bits(q.n.x) && bits(p.n.y) == bits(q.n.y) && bits(p.n.z) == bits(q.n.z) &&
+           bits(p.scale) == bits(q.scale)));
+    const float s = std::min({sh::plane_normal_scale(t.v1 - t.v0, t.v2 - t.v1), sh::plane_normal_scale(t.v2 - t.v1, t.v0 - t.v2),
+                              sh::plane_normal_scale(t.v0 - t.v2, t.v1 - t.v0)});
+    if (p.scale < 0.5f * s) ++refined;
+  }
+  CHECK(refined > 100);
+  const std::vector<Ray> rays = gridtest::box_rays(ref.data(), 3000, 10.0f, 23);
+  for (BuildMode mode : {BuildMode::raster, BuildMode::compute}) {
+    INFO((mode == BuildMode::raster ? "raster build" : "compute build"));
+    VulkanGridTracer vk(ctx, o, {.build = mode});
+    vk.build(scene, 0.0f);
+    CHECK(compare_planes(ref.data().planes, vk.download_planes()) == 0);
+    for (float time : {0.7f, 2.2f}) {
+      INFO("after update to " << time);
+      ReferenceGridTracer ref_t(o);
+      ref_t.build(scene, 0.0f);
+      ref_t.update(time);
+      vk.update(time);
+      CHECK(compare_planes(ref_t.data().planes, vk.download_planes()) == 0);
+      CHECK(compare_triangles(ref_t.data().triangles, vk.download_triangles()) == 0);
+      std::vector<Hit> want(rays.size()), got(rays.size());
+      ref_t.trace(rays, want);
+      vk.trace(rays, got);
+      check_hits(ctx, rays, want, got);
+      CHECK(std::count_if(want.begin(), want.end(), [](const Hit& h) { return !is_miss(h); }) > 100);
+    }
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
 
 TEST_CASE("Vulkan grid, sorted: images identical texel for texel, raster and compute builds, through updates",
           "[vulkan][diff][grid]") {

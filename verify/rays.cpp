@@ -174,7 +174,9 @@ Topology make_topology(const reference::GridData& grid) {
     for (uint32_t k = 0; k < grid.instances[i].tri_count; ++k) {
       const sh::GridTriangle& g = grid.triangles[grid.instances[i].tri_offset + k];
       const std::array<glm::vec3, 3> v{g.v0, g.v1, g.v2};
-      if (glm::cross(v[1] - v[0], v[2] - v[0]) == glm::vec3(0.0f)) continue;  // no ray hits it
+      // A zero-area triangle, as the grid decides it (exactly: a cap whose float edges are parallel
+      // has area, is inserted and is hit), is hit by no ray
+      if (sh::triangle_zero_area(v[0], v[1], v[2])) continue;
       const uint32_t index = uint32_t(t.tri.size());
       t.ref_to_index[t.instance_offset[i] + k] = index;
       t.tri.push_back(v);

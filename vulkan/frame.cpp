@@ -501,6 +501,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   set.bind(shared::kFrameBindParams, gpu.params);
   set.bind(shared::kFrameBindInstances, grid.instance_buffer());
   set.bind(shared::kFrameBindTriangles, grid.triangle_buffer());
+  set.bind(shared::kFrameBindPlanes, grid.plane_buffer());
   set.bind(shared::kFrameBindUvs, grid.uv_buffer());
   set.bind(shared::kFrameBindVisibility, gpu.visibility);
   set.bind(shared::kFrameBindGather, gpu.gather);

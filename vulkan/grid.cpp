@@ -54,6 +54,7 @@ Buffer make_buffer(Context& ctx, const std::vector<T>& data, VkBufferUsageFlags 
 
 struct VulkanGridTracer::Gpu {
   Buffer params, instances, triangles, uvs, materials, texels, build_instances, positions, indices;
+  Buffer planes;  // the plane buffer: a GridPlane per triangle, written by the build
   Buffer rays, hits, explain, dirty, no_ray_list, no_frame, build_list, spill, spill_heads;
   Buffer skip, skip_table;  // the skip field (kGridSkipEmpty); its table lives for the build only
   // The compact layout (kGridCompact): the offsets and references, and the build's temporaries
@@ -200,6 +201,7 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
                                                               VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR
                                                         : 0u;
   gpu.triangles = make_buffer(ctx, triangles, as_input);
+  gpu.planes = make_buffer(ctx, std::vector<shared::GridPlane>(std::max<size_t>(triangles.size(), 1)));
   gpu.uvs = make_buffer(ctx, uvs);
   gpu.materials = make_buffer(ctx, materials);
   gpu.texels = make_buffer(ctx, texels);
@@ -288,6 +290,7 @@ void VulkanGridTracer::create_pipelines() {
   set.bind(shared::kGridBindImage, gpu.image);
   set.bind(shared::kGridBindInstances, gpu.instances);
   set.bind(shared::kGridBindTriangles, gpu.triangles);
+  set.bind(shared::kGridBindPlanes, gpu.planes);
   set.bind(shared::kGridBindUvs, gpu.uvs);
   set.bind(shared::kGridBindMaterials, gpu.materials);
   set.bind(shared::kGridBindTexels, gpu.texels);
@@ -816,6 +819,11 @@ const Buffer& VulkanGridTracer::triangle_buffer() const {
   return gpu_->triangles;
 }
 
+const Buffer& VulkanGridTracer::plane_buffer() const {
+  if (!gpu_) throw Error("vulkan-grid: plane_buffer before build");
+  return gpu_->planes;
+}
+
 const Buffer& VulkanGridTracer::uv_buffer() const {
   if (!gpu_) throw Error("vulkan-grid: uv_buffer before build");
   return gpu_->uvs;
@@ -983,6 +991,12 @@ std::vector<shared::GridTriangle> VulkanGridTracer::download_triangles() const {
   if (!gpu_) return {};
   const uint32_t n = instances_.empty() ? 0 : instances_.back().tri_offset + instances_.back().tri_count;
   return ctx_->download<shared::GridTriangle>(gpu_->triangles, n);
+}
+
+std::vector<shared::GridPlane> VulkanGridTracer::download_planes() const {
+  if (!gpu_) return {};
+  const uint32_t n = instances_.empty() ? 0 : instances_.back().tri_offset + instances_.back().tri_count;
+  return ctx_->download<shared::GridPlane>(gpu_->planes, n);
 }
 
 }  // namespace gridrt::vulkan

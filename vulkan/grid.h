@@ -159,6 +159,8 @@ class VulkanGridTracer : public Tracer {
   std::vector<uint32_t> download_skip() const;
   // The geometry buffer as the build wrote it (for tests against GridData::triangles).
   std::vector<shared::GridTriangle> download_triangles() const;
+  // The plane buffer as the build wrote it (for tests against GridData::planes).
+  std::vector<shared::GridPlane> download_planes() const;
   // The spill list as the device holds it: the header and the stored entries (append order).
   plan::SpillDump spill() const;
   // Everything the grid keeps on the device, as allocated (plan::grid_memory's parts).
@@ -174,10 +176,11 @@ class VulkanGridTracer : public Tracer {
   // For passes of other pipelines on the grid's device data (vulkan/frame.h), valid after
   // build(): the instances (GridInstance), the geometry buffer (GridTriangle, world space as the
   // build and update wrote it; on a context with ray_tracing() also an acceleration-structure
-  // build input with a device address), the triangles' uvs (GridTriangleUv), the materials
+  // build input with a device address), the plane buffer (GridPlane), the triangles' uvs (GridTriangleUv), the materials
   // (GridMaterial) and the alpha masks' texels. A later build() makes new buffers.
   const Buffer& instance_buffer() const;
   const Buffer& triangle_buffer() const;
+  const Buffer& plane_buffer() const;
   const Buffer& uv_buffer() const;
   const Buffer& material_buffer() const;
   const Buffer& texel_buffer() const;

@@ -306,36 +306,6 @@ SH_INLINE void triangle_cell_range(SH_IN(GridParams) g, SH_IN(vec3) v0, SH_IN(ve
   hi = cell_of_local(g, fmax);
 }
 
-// Unnormalized plane normal n = cross(v1 - v0, v2 - v0).
-SH_INLINE vec3 triangle_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
-  SH_PRECISE vec3 e1 = v1 - v0;
-  SH_PRECISE vec3 e2 = v2 - v0;
-  return sh_cross(e1, e2);
-}
-
-// A zero-area triangle, never inserted (no ray can hit it): the cross product of its edges is
-// exactly zero, taken with the edges scaled by the power of two S that brings their largest
-// component into [1, 2) (exact: the same products scaled by S^2, so zero exactly where the
-// world-space cross product is, wherever that one stays in the normal range). In world units a
-// triangle with edges 4e-12 long has dot(n, n) about 1e-46, which underflows to zero: testing that
-// dropped triangles that rays hit; and n itself underflows (or is flushed, on devices that flush
-// denormals) for edges below about 1e-19, where S keeps them.
-SH_INLINE bool triangle_zero_area(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
-  SH_PRECISE vec3 e1 = v1 - v0;
-  SH_PRECISE vec3 e2 = v2 - v0;
-  vec3 a = max(abs(e1), abs(e2));
-  float m = max(max(a.x, a.y), a.z);
-  // m == 0: both edges are zero; m not finite: no finite scale (such a triangle is out of domain
-  // and refused by the loaders; it has area here, as before)
-  if (m == 0.0f) return true;
-  if (!(m <= 3.40282347e38f)) return false;
-  float s = sh_unit_scale(m);
-  SH_PRECISE vec3 f1 = e1 * s;
-  SH_PRECISE vec3 f2 = e2 * s;
-  SH_PRECISE vec3 n = sh_cross(f1, f2);
-  return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
-}
-
 // The cell test's unit: the power of two S with S * cell_size in [1, 2) (from the bits of
 // cell_size, a normal float). Scaling by S is exact, so a test evaluated in units of S^-1 (about a
 // cell) takes the decisions it takes in world units wherever those stay in the normal range, and
@@ -667,6 +637,71 @@ SH_INLINE vec3 plane_normal_scaled(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
 SH_INLINE vec3 plane_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
   float scale;
   return plane_normal_scaled(v0, v1, v2, scale);
+}
+
+// The normal of the build's cell test (the enlarged sphere's plane, the separating axes' normal):
+// plane_normal, the cross product of the triangle's two shortest edges, made again from the exact
+// edges on a cap. Not (v1 - v0) x (v2 - v0): on a needle whose apex is v0 the two long edges meet
+// at its smallest angle and their rounded cross product was 18 degrees off (0.9 by 9e-8), so that
+// the sphere test left the needle out of cells it crosses, and rays from inside a closed sphere
+// escaped between its polar needles (an outside sweep's find, 49 of 3,000).
+SH_INLINE vec3 triangle_normal(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) { return plane_normal(v0, v1, v2); }
+
+// A zero-area triangle, never inserted (no ray can hit it): the cross product of its edges is
+// exactly zero, taken with the edges scaled by the power of two S that brings their largest
+// component into [1, 2) (exact: the same products scaled by S^2, so zero exactly where the
+// world-space cross product is, wherever that one stays in the normal range). In world units a
+// triangle with edges 4e-12 long has dot(n, n) about 1e-46, which underflows to zero: testing that
+// dropped triangles that rays hit; and n itself underflows (or is flushed, on devices that flush
+// denormals) for edges below about 1e-19, where S keeps them.
+SH_INLINE bool triangle_zero_area(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  SH_PRECISE vec3 e1 = v1 - v0;
+  SH_PRECISE vec3 e2 = v2 - v0;
+  vec3 a = max(abs(e1), abs(e2));
+  float m = max(max(a.x, a.y), a.z);
+  // m == 0: both edges are zero; m not finite: no finite scale (such a triangle is out of domain
+  // and refused by the loaders; it has area here, as before)
+  if (m == 0.0f) return true;
+  if (!(m <= 3.40282347e38f)) return false;
+  float s = sh_unit_scale(m);
+  SH_PRECISE vec3 f1 = e1 * s;
+  SH_PRECISE vec3 f2 = e2 * s;
+  SH_PRECISE vec3 n = sh_cross(f1, f2);
+  if (n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) return false;
+  // The float edges are parallel (or one is zero); the exact ones may not be: a cap whose third
+  // vertex is an edge's float-rounded midpoint lies off the line by that rounding, has area, and
+  // rays the watertight test hands it across its shared edges fell through a closed mesh where it
+  // was dropped (an outside sweep's find: 86 of 4,000 rays from inside escaped). Decided on the
+  // exact edges instead: plane_normal_scaled's normal made again from them (its refinement, taken
+  // where the float one is zero), of the vertices scaled by S (exact; a vertex that S would take
+  // past float's range leaves the float decision standing). Its products drop only the edges'
+  // rounding errors' own products, a relative 2^-48 of the edges' squares.
+  SH_PRECISE vec3 w0 = v0 * s;
+  SH_PRECISE vec3 w1 = v1 * s;
+  SH_PRECISE vec3 w2 = v2 * s;
+  vec3 aw = max(max(abs(w0), abs(w1)), abs(w2));
+  if (!(max(max(aw.x, aw.y), aw.z) <= 3.40282347e38f)) return true;
+  vec3 r = plane_normal(w0, w1, w2);
+  return r.x == 0.0f && r.y == 0.0f && r.z == 0.0f;
+}
+
+
+// One triangle's plane (the plane buffer, beside the geometry buffer): plane_normal_scaled of its
+// world-space vertices, its normal and the normal's rounding scale. The build invocation that
+// writes the triangle makes it, so that a trace reads it only where a test gets past the edge
+// functions (watertight_rest_plane), and no trace loop carries the normal's code: the cap's
+// refinement in every test cost 10-15 % of the trace on the H200 (docs/BENCHMARKS.md, "The plane
+// buffer"). The same function on the same vertex bits, so the same bits as made in the test.
+struct GridPlane {
+  vec3 n;       // plane_normal_scaled's normal
+  float scale;  // its rounding scale (plane_normal_scale, or the refined normal's)
+};
+SH_INLINE GridPlane triangle_plane(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  GridPlane p;
+  float scale;
+  p.n = plane_normal_scaled(v0, v1, v2, scale);
+  p.scale = scale;
+  return p;
 }
 
 // The vertex the surface rule's plane value n . (v - org) is taken at: of A, B, C (= v0, v1, v2 -

@@ -22,8 +22,23 @@ SH_INLINE float affine_row(SH_IN(vec4) m, SH_IN(vec3) p) {
   return r;
 }
 
+// A subnormal float (below 2^-126 in magnitude) as a zero of its sign; any other as it is.
+SH_INLINE float sh_flush_subnormal(float x) {
+  uint b = floatBitsToUint(x);
+  return (b & 0x7F800000u) == 0u ? uintBitsToFloat(b & 0x80000000u) : x;
+}
+SH_INLINE vec3 sh_flush_subnormal3(SH_IN(vec3) v) {
+  return vec3(sh_flush_subnormal(v.x), sh_flush_subnormal(v.y), sh_flush_subnormal(v.z));
+}
+
+// A mesh vertex in world space. Subnormal coordinates, of the vertex and of the result, are taken
+// as zeros: a device may flush them in any stage (lavapipe's vertex and geometry stages do, its
+// compute stages do not), and the raster build's vertices then differed from the reference's and
+// the compute build's (a vertex at y = 1e-40: hit against miss; a triangle scaled by 1e-39 dropped:
+// an outside sweep). Flushed here, every backend and the oracle see the same vertex.
 SH_INLINE vec3 transform_point(SH_IN(Affine) m, SH_IN(vec3) p) {
-  return vec3(affine_row(m.row0, p), affine_row(m.row1, p), affine_row(m.row2, p));
+  vec3 q = sh_flush_subnormal3(p);
+  return sh_flush_subnormal3(vec3(affine_row(m.row0, q), affine_row(m.row1, q), affine_row(m.row2, q)));
 }
 
 SH_END

@@ -184,7 +184,8 @@ void insert_range_cells(GridParams g, uint ref, vec3 v0, vec3 v1, vec3 v2, vec3 
   }
 }
 
-// One build invocation: write the world-space triangle to the geometry buffer, insert its
+// One build invocation: write the world-space triangle to the geometry buffer and its plane to
+// the plane buffer, insert its
 // reference into every cell of its AABB range that the cell test keeps (`split`: the compute build hands ranges of more than kBuildRun cells out in runs).
 void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, bool split) {
   const GridParams g = grid_params();
@@ -193,6 +194,8 @@ void build_invocation(uint instance, uint triangle, vec3 v0, vec3 v1, vec3 v2, b
   triangles[k].v0 = v0;
   triangles[k].v1 = v1;
   triangles[k].v2 = v2;
+  // Its plane, for the watertight test (the plane buffer; zero-area triangles too: one rule)
+  planes[k] = triangle_plane(v0, v1, v2);
   // Skip zero-area triangles: no ray can hit them
   if (triangle_zero_area(v0, v1, v2)) return;
   const vec3 n = triangle_normal(v0, v1, v2);

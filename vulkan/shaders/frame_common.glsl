@@ -24,6 +24,7 @@ layout(std430, binding = kFrameBindParams) readonly buffer ParamsBuffer {
 };
 layout(std430, binding = kFrameBindInstances) readonly buffer Instances { GridInstance instances[]; };
 layout(std430, binding = kFrameBindTriangles) readonly buffer Triangles { GridTriangle triangles[]; };
+layout(std430, binding = kFrameBindPlanes) readonly buffer Planes { GridPlane planes[]; };
 layout(std430, binding = kFrameBindUvs) readonly buffer Uvs { GridTriangleUv uvs[]; };
 layout(std430, binding = kFrameBindVisibility) buffer Visibility { uint visibility[]; };  // launch ref per pixel
 layout(std430, binding = kFrameBindGather) buffer Gather { GatherTexel gather[]; };
@@ -59,11 +60,22 @@ layout(std430, binding = kFrameBindTileBins) buffer TileBins {
 // The gather's ray test of a camera ray (origin the eye, interval (tmin, inf), no surface rule):
 // the watertight test, whatever the trace's, as the CPU's gather traces it (plan::gather_options):
 // no camera ray passes between two triangles of a closed mesh, as no pixel passes between them in
-// the paper's raster pass. (Its code alone, triangle_test_code, which stops after the edge
-// functions where their signs are mixed, measured no faster on the H200: docs/BENCHMARKS.md, "The
-// gather's watertight test".)
-uint gather_ray_test(vec3 dir, GridTriangle tri, float tmin, out TriangleTest r) {
-  return watertight(fp.camera.eye, dir, tri.v0, tri.v1, tri.v2, tmin, sh_infinity(), sh_infinity(), -1.0f, r);
+// the paper's raster pass. `k`: the triangle's index in the geometry buffer, whose plane the test
+// reads from the plane buffer (watertight_rest_plane).
+uint gather_ray_test(vec3 dir, GridTriangle tri, uint k, float tmin, out TriangleTest r) {
+  WatertightEdges e;
+  watertight_edges(fp.camera.eye, watertight_ray(dir), tri.v0, tri.v1, tri.v2, e);
+  return watertight_rest_plane(fp.camera.eye, dir, tri.v1, tri.v2, e, planes[k], tmin, sh_infinity(), sh_infinity(),
+                               -1.0f, r);
+}
+// Its code alone (triangle_test_code): it stops after the edge functions where their signs are
+// mixed (`r` then undefined), and reads the plane only where it goes on.
+uint gather_ray_code(vec3 dir, GridTriangle tri, uint k, float tmin, out TriangleTest r) {
+  WatertightEdges e;
+  watertight_edges(fp.camera.eye, watertight_ray(dir), tri.v0, tri.v1, tri.v2, e);
+  if (watertight_mixed(e)) return watertight_outside_code(e);
+  return watertight_rest_plane(fp.camera.eye, dir, tri.v1, tri.v2, e, planes[k], tmin, sh_infinity(), sh_infinity(),
+                               -1.0f, r);
 }
 
 // The gather texel of a pixel whose camera ray (direction `dir`: camera_direction) has `ref` as
@@ -78,7 +90,7 @@ GatherTexel gather_texel(uint ref, vec3 dir) {
   const GridTriangle tri = triangles[k];
   // The primary hit: t of the shared triangle test, barycentrics by Cramer's rule
   TriangleTest r;
-  gather_ray_test(dir, tri, 0.0f, r);
+  gather_ray_test(dir, tri, k, 0.0f, r);
   const vec4 n = gather_normal(tri.v0, tri.v1, tri.v2, dir);
   if (r.det != 0.0f && n.w > 0.0f) {
     const float t = moller_trumbore_t(r);

@@ -137,7 +137,8 @@ SH_CONST uint kFrameBindTileList = 14u;
 SH_CONST uint kFrameBindTileDepth = 15u;  // the rasterizer's per-tile depth bound (t bits)
 SH_CONST uint kFrameBindPixelDirs = 16u;  // the rasterizer's camera_direction per pixel (vec4)
 SH_CONST uint kFrameBindTileBins = 17u;  // the rasterizer's tile lists (GatherFineHeader, counts, starts, pairs)
-SH_CONST uint kFrameBindingCount = 18u;
+SH_CONST uint kFrameBindPlanes = 18u;  // the grid's plane buffer (GridPlane per triangle)
+SH_CONST uint kFrameBindingCount = 19u;
 // Specialization-constant id of the frame passes' feature bits (kFrame* above); clear of the
 // grid's ids (grid_interface.h), which the frame's trace pipeline also sets.
 SH_CONST uint kFrameSpecFlags = 10u;

@@ -19,7 +19,7 @@ void main() {
       const uvec2 px = uvec2(gl_FragCoord.xy);
       const vec3 dir = camera_direction(c, px.x, px.y);
       TriangleTest r;
-      gather_ray_test(dir, tri, 0.0f, r);
+      gather_ray_test(dir, tri, k, 0.0f, r);
       if (r.det != 0.0f) {
         const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(c.eye, dir, moller_trumbore_t(r)));
         const vec2 uv = interpolate_uv(uvs[k].uv0, uvs[k].uv1, uvs[k].uv2, bc.x, bc.y);

@@ -22,7 +22,6 @@ void main() {
   // Zero-area triangles are never hit (the grid does not insert them, the compute gather skips
   // them), but projected they may cover a pixel centre by rounding: all three corners go outside
   // the clip volume, so the triangle is clipped away.
-  const vec3 n = triangle_normal(tri.v0, tri.v1, tri.v2);
-  if (sh_dot(n, n) == 0.0f) gl_Position = vec4(2.0f, 2.0f, 0.0f, 1.0f);
+  if (triangle_zero_area(tri.v0, tri.v1, tri.v2)) gl_Position = vec4(2.0f, 2.0f, 0.0f, 1.0f);
   out_ref = ref_pack(instance, triangle);
 }

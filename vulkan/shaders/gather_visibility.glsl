@@ -37,7 +37,7 @@ bool gather_key_along(uint ref, uint k, GridTriangle tri, vec3 dir, float tmin, 
   key = uvec2(kNoRef, 0xFFFFFFFFu);
   const CameraParams c = fp.camera;
   TriangleTest r;
-  if (gather_ray_test(dir, tri, tmin, r) != kTestAccepted) return false;
+  if (gather_ray_code(dir, tri, k, tmin, r) != kTestAccepted) return false;
   const float t = moller_trumbore_t(r);
   if ((kFrameFlags & kFrameAlpha) != 0u) {
     const FrameMaterial m = fmaterials[tri.material];

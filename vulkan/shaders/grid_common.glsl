@@ -30,6 +30,7 @@ layout(constant_id = kGridSpecTriangleTest) const uint kTriangleTest = 0u; // Gr
 layout(std140, binding = kGridBindParams) uniform ParamsBlock { GridParams params_buffer; };
 layout(std430, binding = kGridBindInstances) readonly buffer Instances { GridInstance instances[]; };
 layout(std430, binding = kGridBindTriangles) buffer Triangles { GridTriangle triangles[]; };
+layout(std430, binding = kGridBindPlanes) buffer Planes { GridPlane planes[]; };
 layout(std430, binding = kGridBindUvs) readonly buffer Uvs { GridTriangleUv uvs[]; };
 layout(std430, binding = kGridBindMaterials) readonly buffer Materials { GridMaterial materials[]; };
 layout(std430, binding = kGridBindTexels) readonly buffer Texels { uint texels[]; };

@@ -44,7 +44,8 @@ SH_CONST uint kGridBindCompactBlocks = 25u;  // the build only: the scan's block
 SH_CONST uint kGridBindGather = 26u;          // GatherTexel[] (common/shared/bounce.h)
 SH_CONST uint kGridBindFrameParams = 27u;     // FrameParams (vulkan/shaders/frame_input.h)
 SH_CONST uint kGridBindFrameMaterials = 28u;  // FrameMaterial[]
-SH_CONST uint kGridBindingCount = 29u;
+SH_CONST uint kGridBindPlanes = 29u;         // GridPlane[] (the plane buffer: one per triangle)
+SH_CONST uint kGridBindingCount = 30u;
 
 // Specialization-constant ids of the grid's shaders: the GridParams fields that shape the code.
 SH_CONST uint kGridSpecCapacity = 0u;      // GridParams::capacity
