@@ -475,10 +475,7 @@ SH_CONST float kOriginEpsilon = 9.5367431640625e-07f;  // 2^-20
 // both backends alike); a flushing device read the component as 0 while the CPU did not. Over any
 // span of the domain such a component moves the ray by less than 2^-80 of a unit, far below the
 // padding of a triangle's cells, so no cell the ray needs is left out.
-SH_INLINE float normal_or_zero(float d) { return (floatBitsToUint(d) & 0x7F800000u) == 0u ? 0.0f : d; }
-SH_INLINE vec3 traced_direction(SH_IN(vec3) dir) {
-  return vec3(normal_or_zero(dir.x), normal_or_zero(dir.y), normal_or_zero(dir.z));
-}
+SH_INLINE vec3 traced_direction(SH_IN(vec3) dir) { return normal_or_zero3(dir); }
 
 SH_INLINE float origin_tmin(SH_IN(vec3) org, SH_IN(vec3) dir, float tmin) {
   SH_PRECISE vec3 ao = abs(org);

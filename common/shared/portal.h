@@ -59,14 +59,11 @@ SH_CONST uint kPortalDivGlass = 2u;     // interior div of a glass medium (mater
 //             voxels tested (DDA)
 SH_CONST uint kPortalFaceBits = 3u;
 
-// The voxel-space direction the portal tracer steps with: a subnormal component is taken as +0,
-// as the grid's traced_direction takes it. Left subnormal it was a hit at t = inf or below 0 with
-// NaN u, v, and the CPU's and a device's records differed where the device flushes it (an outside
-// sweep).
-SH_INLINE float portal_normal_or_zero(float d) { return (floatBitsToUint(d) & 0x7F800000u) == 0u ? 0.0f : d; }
-SH_INLINE vec3 portal_direction(SH_IN(vec3) d) {
-  return vec3(portal_normal_or_zero(d.x), portal_normal_or_zero(d.y), portal_normal_or_zero(d.z));
-}
+// The voxel-space direction the portal tracer steps with: a subnormal component is taken as +0
+// (normal_or_zero), as the grid's traced_direction takes it. Left subnormal it was a hit at
+// t = inf or below 0 with NaN u, v, and the CPU's and a device's records differed where the device
+// flushes it (an outside sweep).
+SH_INLINE vec3 portal_direction(SH_IN(vec3) d) { return normal_or_zero3(d); }
 
 // Signed distance ahead of `o` to the plane `p` along an axis with direction component `d`
 // (positive: the plane is ahead). Its ratio to |d| is the parametric distance.

@@ -214,6 +214,20 @@ SH_INLINE float sh_unit_scale(float m) {
   return uintBitsToFloat((254u - max(e, 1u)) << 23u);
 }
 
+// Subnormals (below 2^-126 in magnitude, told by their exponent bits, the same on every backend),
+// which a device may flush in any stage: normal_or_zero takes one as +0 (the directions the grid
+// and the portal tracer step with: traced_direction, portal_direction), sh_flush_subnormal as a
+// zero of its sign, as a flushing device does (world-space vertices: transform_point).
+SH_INLINE float normal_or_zero(float d) { return (floatBitsToUint(d) & 0x7F800000u) == 0u ? 0.0f : d; }
+SH_INLINE vec3 normal_or_zero3(SH_IN(vec3) v) { return vec3(normal_or_zero(v.x), normal_or_zero(v.y), normal_or_zero(v.z)); }
+SH_INLINE float sh_flush_subnormal(float x) {
+  uint b = floatBitsToUint(x);
+  return (b & 0x7F800000u) == 0u ? uintBitsToFloat(b & 0x80000000u) : x;
+}
+SH_INLINE vec3 sh_flush_subnormal3(SH_IN(vec3) v) {
+  return vec3(sh_flush_subnormal(v.x), sh_flush_subnormal(v.y), sh_flush_subnormal(v.z));
+}
+
 SH_END
 
 #endif

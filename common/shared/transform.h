@@ -4,6 +4,7 @@
 #define GRIDRT_SHARED_TRANSFORM_H
 
 #include "compat.h"
+#include "rounding.h"
 
 SH_BEGIN
 
@@ -20,15 +21,6 @@ SH_INLINE float affine_row(SH_IN(vec4) m, SH_IN(vec3) p) {
   SH_PRECISE float xyz = xy + m.z * p.z;
   SH_PRECISE float r = xyz + m.w;
   return r;
-}
-
-// A subnormal float (below 2^-126 in magnitude) as a zero of its sign; any other as it is.
-SH_INLINE float sh_flush_subnormal(float x) {
-  uint b = floatBitsToUint(x);
-  return (b & 0x7F800000u) == 0u ? uintBitsToFloat(b & 0x80000000u) : x;
-}
-SH_INLINE vec3 sh_flush_subnormal3(SH_IN(vec3) v) {
-  return vec3(sh_flush_subnormal(v.x), sh_flush_subnormal(v.y), sh_flush_subnormal(v.z));
 }
 
 // A mesh vertex in world space. Subnormal coordinates, of the vertex and of the result, are taken
