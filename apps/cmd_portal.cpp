@@ -27,6 +27,17 @@ namespace gridrt::app {
 
 namespace {
 
+// Pixels the renderer ended at its iteration limit (sh::portal_pixel_iteration_limit): said, never
+// silent (their rays cycled between divs, a camera far from the world: docs/PORTAL.md "Limits")
+void warn_cut_pixels(const portal::RenderStats& s) {
+  if (s.cut_pixels == 0) return;
+  std::fprintf(stderr,
+               "warning: %llu pixel(s) drawn as background: their rays passed the renderer's iteration limit, "
+               "cycling between divs (a camera about 1e6 voxels or more from the world rounds its crossings; "
+               "docs/PORTAL.md \"Limits\")\n",
+               (unsigned long long)s.cut_pixels);
+}
+
 bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
@@ -246,6 +257,7 @@ void run_portal_render(const PortalRenderOptions& o) {
     }
 #endif
   }
+  for (const portal::RenderStats* s : {&stats, &full_stats, &flat_stats}) warn_cut_pixels(*s);
   if (o.mip_compare) {
     // Image quality of mip-mapped space against full resolution: RMSE and PSNR over the RGB
     // channels clamped to [0, 1] (as written), pixels that differ at all.
@@ -378,6 +390,7 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
                   double(st.primary_steps) / double(st.primary_rays),
                   st.shadow_rays ? double(st.shadow_steps) / double(st.shadow_rays) : 0.0,
                   (unsigned long long)st.shadow_rays);
+      warn_cut_pixels(st);
     }
   }
 #ifdef GRIDRT_HAVE_VULKAN
@@ -422,6 +435,7 @@ void run_portal_bench(const std::string& spec, uint32_t voxels, uint32_t width, 
                 1000.0 / rbest, double(st.primary_steps) / double(st.primary_rays),
                 st.shadow_rays ? double(st.shadow_steps) / double(st.shadow_rays) : 0.0,
                 (unsigned long long)st.shadow_rays);
+    warn_cut_pixels(st);
     if (fsm) fsm_image = image;
     const std::vector<glm::vec3>& ref = fsm ? cpu_image : fsm_image;
     if (ref.size() == image.size()) {
@@ -504,18 +518,21 @@ void run_portal_diff(const PortalDiffOptions& o) {
   size_t pixels = 0;
   for (size_t i = 0; i < ref_image.size(); ++i) pixels += std::memcmp(&ref_image[i], &dev_image[i], sizeof(glm::vec3)) != 0;
   const bool stats_same = ref_stats.primary_steps == dev_stats.primary_steps &&
-                          ref_stats.shadow_steps == dev_stats.shadow_steps && ref_stats.shadow_rays == dev_stats.shadow_rays;
+                          ref_stats.shadow_steps == dev_stats.shadow_steps && ref_stats.shadow_rays == dev_stats.shadow_rays &&
+                          ref_stats.cut_pixels == dev_stats.cut_pixels;
   std::printf("portal diff: %s (%s choice%s), %ux%u, portal-cpu against portal-vulkan on %s\n", name.c_str(),
               o.choice.c_str(),
               o.mip_levels > 1 ? (", " + std::to_string(o.mip_levels) + " mip levels, distance " +
                                   std::to_string(options.mip_distance)).c_str() : "",
               o.width, o.height, gpu.context().info().name.c_str());
   std::printf("  hit records: %zu of %zu identical in bits, %zu within the tolerances\n", bits, rays.size(), within);
-  std::printf("  render: %zu of %zu pixels differ in bits; steps and shadow rays %s (primary %llu / %llu, shadow %llu / "
-              "%llu)\n",
+  std::printf("  render: %zu of %zu pixels differ in bits; steps and shadow rays %s (primary steps %llu / %llu, shadow "
+              "steps %llu / %llu, shadow rays %llu / %llu)\n",
               pixels, ref_image.size(), stats_same ? "identical" : "DIFFER",
               (unsigned long long)ref_stats.primary_steps, (unsigned long long)dev_stats.primary_steps,
-              (unsigned long long)ref_stats.shadow_steps, (unsigned long long)dev_stats.shadow_steps);
+              (unsigned long long)ref_stats.shadow_steps, (unsigned long long)dev_stats.shadow_steps,
+              (unsigned long long)ref_stats.shadow_rays, (unsigned long long)dev_stats.shadow_rays);
+  warn_cut_pixels(ref_stats);
   const bool agree = within == rays.size() && stats_same && double(pixels) <= o.pixels * double(ref_image.size());
   std::printf("  %s\n", agree ? "agree" : "DIFFER");
   if (!agree) throw Differs("portal diff: portal-vulkan differs from portal-cpu (see above)");

@@ -62,11 +62,25 @@ Image3D make_texture(Context& ctx, VkFormat format, bool three_d, glm::uvec3 ext
                      const char* what) {
   const VkPhysicalDeviceLimits& lim = ctx.info().limits;
   const uint32_t max_dim = three_d ? lim.maxImageDimension3D : lim.maxImageDimension2D;
-  if (std::max({extent.x, extent.y, extent.z}) > max_dim)
+  if (std::max({extent.x, extent.y, extent.z}) > max_dim) {
+    // The remedy the texture allows: the atlas's rows trade against its width (a narrower atlas is
+    // taller: the advice was "narrower" for a too tall one, an outside sweep); the others follow
+    // the world's size alone
+    const bool atlas = std::string(what) == "atlas";
+    const std::string remedy =
+        !atlas ? "use a smaller world"
+        : extent.y > max_dim
+            ? (uint64_t(extent.x) * extent.y <= uint64_t(max_dim) * max_dim
+                   ? "give a wider atlas (--atlas-width " +
+                         std::to_string(std::min<uint64_t>(max_dim, (uint64_t(extent.x) * extent.y + max_dim - 1) / max_dim)) +
+                         " or more, at most " + std::to_string(max_dim) + ") or use a smaller world"
+                   : std::string("use a smaller world (its atlas holds more texels than a square image of that side)"))
+            : "give a narrower atlas (--atlas-width " + std::to_string(max_dim) + " or less) or use a smaller world";
     throw Error(std::string("the portal's ") + what + " (" + std::to_string(extent.x) + " x " + std::to_string(extent.y) +
                 (three_d ? " x " + std::to_string(extent.z) : std::string()) + ") exceeds " +
                 (three_d ? "maxImageDimension3D" : "maxImageDimension2D") + " (" + std::to_string(max_dim) + ") on " +
-                ctx.info().name + ": use a smaller world or a narrower atlas, or --backend portal-cpu");
+                ctx.info().name + ": " + remedy + ", or --backend portal-cpu");
+  }
   ctx.require_allocation(size, what);
   Image3D img = ctx.create_image(three_d ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D, format, extent,
                                  VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);
@@ -358,6 +372,7 @@ std::vector<glm::vec3> PortalVulkanTracer::render(const Camera& camera, const po
     s.shadow_steps += p.steps_shadow;
     s.loop_iterations += p.iterations;
     s.refractions += p.refractions;
+    s.cut_pixels += p.cut;
     s.reflections += p.reflections;
   }
   s.seconds = timings_.render_host_ms / 1000.0;

@@ -165,6 +165,19 @@ SH_INLINE uint portal_cross_index(uint a, float na, float ada, uint b, float ob,
   return h - 1u;
 }
 
+// The renderer's bound on one pixel's loop iterations (its primary ray's segments between glass
+// interfaces and its two shadow rays): a straight ray visits a box once, so a segment takes at most
+// about the divs' count, 4x that plus a walk across the fine voxels is far more than any ray needs.
+// Past it the pixel's rays are cycling (an origin ~1e7 voxels away rounds its crossings
+// inconsistently, and three divs handed a ray round at one t, forever: an outside sweep's hang)
+// and the pixel ends as background, counted (RenderStats::cut_pixels). `fine_dims`: the world's
+// voxels (an instanced world's fine ones). Clamped so that the product fits 32 bits.
+SH_INLINE uint portal_pixel_iteration_limit(uint div_count, SH_IN(uvec3) fine_dims, uint max_interfaces) {
+  const uint per_ray = 4u * min(div_count, 65536u) + 16u +
+                       4u * (min(fine_dims.x, 65536u) + min(fine_dims.y, 65536u) + min(fine_dims.z, 65536u));
+  return per_ray * (min(max_interfaces, 1024u) + 3u);
+}
+
 // The two tangent axes of axis a, lower first.
 SH_INLINE uint portal_tangent0(uint a) { return a == 0u ? 1u : 0u; }
 SH_INLINE uint portal_tangent1(uint a) { return a == 2u ? 1u : 2u; }

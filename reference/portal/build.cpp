@@ -814,11 +814,16 @@ void close_faces(PortalBuild& b, const FluxDensity& flux, const MediumGrid& medi
     admit(found);
     frontier.insert(frontier.end(), found.begin(), found.end());
   }
+  // Progress: the stored divs whose faces are visited, of the candidates (an upper bound: the line
+  // ends with "done" below 100 %); the bounded choice was silent for minutes (an outside sweep)
+  std::optional<Progress> progress;
+  if (opt.progress) progress.emplace("portal build: closing the divs' faces (of the candidate divs)", b.maximal.size());
   while (!frontier.empty()) {
     std::vector<uint32_t> next;
     parallel_for(frontier.size(), T, [&](size_t k) {
       std::vector<uint32_t> found;
       visit_faces(b.maximal[frontier[k]], false, found);
+      if (progress) progress->advance();
       if (!found.empty()) {
         std::lock_guard lock(mutex);
         next.insert(next.end(), found.begin(), found.end());

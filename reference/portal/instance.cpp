@@ -566,6 +566,7 @@ struct IPixel {
   float light = 0.0f;
   glm::vec3 color{0.0f};
   uint32_t steps_primary = 0, steps_shadow = 0, iterations = 0, shadow_rays = 0;
+  bool cut = false;  // past the iteration limit: ended as background (render.cpp end_if_cut)
 };
 
 struct IContext {
@@ -613,6 +614,7 @@ std::vector<glm::vec3> render_instanced(const PortalBuild& build, const Camera& 
   const int S = 1 << p.scale_log2;
   std::vector<glm::vec3> image(size_t(opt.width) * opt.height);
   std::vector<RenderStats> row_stats(opt.height);
+  const uint32_t limit = shared::portal_pixel_iteration_limit(p.div_count, p.fine_dims(), opt.max_interfaces);
   auto step = [&](IPixel& s) {
     ++s.iterations;
     const glm::ivec3 base = s.div >= p.top_divs ? s.tile * S : glm::ivec3(0);
@@ -669,13 +671,24 @@ std::vector<glm::vec3> render_instanced(const PortalBuild& build, const Camera& 
           s.div = st.div, s.tile = st.tile;
         }
       }
+      // Bounded as render()'s (sh::portal_pixel_iteration_limit): a pixel whose rays cycle ends as background
+      const auto end_if_cut = [&](IPixel& s) {
+        if (s.mode == kDone || s.iterations < limit) return;
+        s.color = opt.background.value_or(glm::vec3(0.0f));
+        s.mode = kDone;
+        s.cut = true;
+      };
       if (opt.state_machine) {
-        for (uint32_t x = 0; x < opt.width; ++x)
-          while (row[x].mode != kDone) step(row[x]);
+        for (uint32_t x = 0; x < opt.width; ++x) {
+          while (row[x].mode != kDone && row[x].iterations < limit) step(row[x]);
+          end_if_cut(row[x]);
+        }
       } else {
         for (uint32_t mode = kPrimary; mode <= kShadowB; ++mode)
-          for (uint32_t x = 0; x < opt.width; ++x)
-            while (row[x].mode == mode) step(row[x]);
+          for (uint32_t x = 0; x < opt.width; ++x) {
+            while (row[x].mode == mode && row[x].iterations < limit) step(row[x]);
+            end_if_cut(row[x]);
+          }
       }
       RenderStats& rs = row_stats[y];
       for (uint32_t x = 0; x < opt.width; ++x) {
@@ -686,6 +699,7 @@ std::vector<glm::vec3> render_instanced(const PortalBuild& build, const Camera& 
         rs.primary_steps += s.steps_primary;
         rs.shadow_steps += s.steps_shadow;
         rs.loop_iterations += s.iterations;
+        rs.cut_pixels += s.cut;
       }
     }
   };
@@ -696,6 +710,7 @@ std::vector<glm::vec3> render_instanced(const PortalBuild& build, const Camera& 
       stats->primary_rays += r.primary_rays, stats->shadow_rays += r.shadow_rays;
       stats->primary_steps += r.primary_steps, stats->shadow_steps += r.shadow_steps;
       stats->loop_iterations += r.loop_iterations;
+      stats->cut_pixels += r.cut_pixels;
     }
     stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }

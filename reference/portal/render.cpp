@@ -46,6 +46,7 @@ struct PixelState {
   glm::vec3 color{0.0f};
   glm::vec3 mip_acc{0.0f};     // mip-mapped space: light of the translucent coarse voxels passed (front to back)
   uint32_t steps_primary = 0, steps_shadow = 0, iterations = 0, refractions = 0, reflections = 0, shadow_rays = 0;
+  bool cut = false;            // past the iteration limit: ended as background
 };
 
 struct Context {
@@ -90,6 +91,15 @@ void begin_primary(const Context& c, PixelState& s, const Ray& ray) {
   } else {
     s.div = st.div;
     s.mode = kPrimary;
+    // A camera in glass: the ray starts in that glass (its filter from here, its surface refracts)
+    if (st.div != sh::kPortalExteriorDiv) {
+      const DivInfo d = read_div_info(p, st.div);
+      if (d.type == sh::kPortalDivGlass) {
+        s.in_glass = true;
+        s.glass = d.glass_material;
+        s.glass_entry = s.ray.org + s.ray.tmin * s.ray.dir;
+      }
+    }
   }
 }
 
@@ -152,6 +162,15 @@ void mip_surface(const Context& c, PixelState& s, uint32_t level, uint32_t axis,
   }
   s.color = s.filter * background_of(c.opt, c.build.world) + s.mip_acc;  // not reached: the coarse voxels ahead are finite
   s.mode = kDone;
+}
+
+// A pixel whose loop reached `limit` iterations unfinished: its rays cycle between divs; it ends as
+// background (sh::portal_pixel_iteration_limit).
+void end_if_cut(const Context& c, PixelState& s, uint32_t limit) {
+  if (s.mode == kDone || s.iterations < limit) return;
+  s.color = background_of(c.opt, c.build.world);
+  s.mode = kDone;
+  s.cut = true;
 }
 
 glm::vec3 pow3(glm::vec3 f, float d) { return {std::pow(f.x, d), std::pow(f.y, d), std::pow(f.z, d)}; }
@@ -274,6 +293,7 @@ std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, co
   const PackedPortal& p = build.packed;
   const unsigned threads = thread_count_or_hardware(opt.threads);
   std::atomic<uint32_t> next{0};
+  const uint32_t limit = sh::portal_pixel_iteration_limit(p.div_count, p.fine_dims(), opt.max_interfaces);
   auto work = [&] {
     std::vector<PixelState> row(opt.width);
     for (uint32_t y; (y = next.fetch_add(1)) < opt.height;) {
@@ -285,14 +305,16 @@ std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, co
         // One loop: the same step for every kind of ray, transitions at the end of each iteration.
         for (uint32_t x = 0; x < opt.width; ++x) {
           PixelState& s = row[x];
-          while (s.mode != kDone) transition(c, s, step_ray(p, s.div, s.ray));
+          while (s.mode != kDone && s.iterations < limit) transition(c, s, step_ray(p, s.div, s.ray));
+          end_if_cut(c, s, limit);
         }
       } else {
         // Three loops: every pixel's primary ray, then every first shadow ray, then every second.
         for (uint32_t mode = kPrimary; mode <= kShadowB; ++mode)
           for (uint32_t x = 0; x < opt.width; ++x) {
             PixelState& s = row[x];
-            while (s.mode == mode) transition(c, s, step_ray(p, s.div, s.ray));
+            while (s.mode == mode && s.iterations < limit) transition(c, s, step_ray(p, s.div, s.ray));
+            end_if_cut(c, s, limit);
           }
       }
       RenderStats& rs = row_stats[y];
@@ -306,6 +328,7 @@ std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, co
         rs.loop_iterations += s.iterations;
         rs.refractions += s.refractions;
         rs.reflections += s.reflections;
+        rs.cut_pixels += s.cut;
       }
     }
   };
@@ -316,6 +339,7 @@ std::vector<glm::vec3> render(const PortalBuild& build, const Camera& camera, co
       stats->primary_rays += r.primary_rays, stats->shadow_rays += r.shadow_rays;
       stats->primary_steps += r.primary_steps, stats->shadow_steps += r.shadow_steps;
       stats->loop_iterations += r.loop_iterations, stats->refractions += r.refractions, stats->reflections += r.reflections;
+      stats->cut_pixels += r.cut_pixels;
     }
     stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }

@@ -86,15 +86,27 @@ Entry enter_world(glm::uvec3 dims, const VoxelRay& r) {
   const glm::vec3 hi(dims);
   for (int a = 0; a < 3; ++a)
     if (!std::isfinite(r.org[a]) || !std::isfinite(r.dir[a])) return e;
+  // An interval that holds nothing, or starts behind the origin (the grid's ray domain rejects a
+  // negative tmin too): a miss, before any "started inside" hit at t = tmin
+  if (!(r.tmin >= 0.0f) || !(r.tmin < r.tmax)) return e;
   const glm::vec3 q = r.org + r.tmin * r.dir;
   if (q.x >= 0.0f && q.y >= 0.0f && q.z >= 0.0f && q.x <= hi.x && q.y <= hi.y && q.z <= hi.z) {
-    e.kind = Entry::kInside;
-    // The voxel the ray moves into: a point on a voxel plane belongs to the voxel ahead of it.
+    // The voxel the ray moves into: a point on a voxel plane belongs to the voxel ahead of it. On
+    // the box's face, moving out of it or along it, that voxel is outside the world: the ray is
+    // not inside (it was clamped into the boundary voxel, "inside a wall" there: an outside
+    // sweep), and the entry test below decides (a miss for a ray leaving)
+    bool ahead_inside = true;
+    glm::ivec3 v(0);
     for (int a = 0; a < 3; ++a) {
       const float c = r.dir[a] < 0.0f ? std::ceil(q[a]) - 1.0f : std::floor(q[a]);
-      e.voxel[a] = std::clamp(int(c), 0, int(dims[a]) - 1);
+      if (c < 0.0f || c >= hi[a]) ahead_inside = false;
+      else v[a] = int(c);
     }
-    return e;
+    if (ahead_inside) {
+      e.kind = Entry::kInside;
+      e.voxel = v;
+      return e;
+    }
   }
   float num = 0.0f;
   const uint32_t a = sh::portal_entry_axis(glm::vec3(0.0f), hi, r.org, r.dir, num);
@@ -462,6 +474,15 @@ Hit trace_portal(const PackedPortal& p, const Ray& ray, std::string* log) {
   if (log) {
     if (st.div == sh::kPortalExteriorDiv) *log += "start: outside the world box: exterior div 0\n";
     else *log += fmt("start: voxel (%d, %d, %d), start texel %s\n", st.voxel.x, st.voxel.y, st.voxel.z, texel_text(st.texel).c_str());
+  }
+  // A start in glass: glass is solid to this tracer (a change of medium is a surface, below), so a
+  // ray starting in it starts inside, as in a wall (the DDA's World::at holds the glass's material)
+  if (st.div != sh::kPortalExteriorDiv) {
+    const DivInfo sd = read_div_info(p, st.div);
+    if (sd.type == sh::kPortalDivGlass) {
+      if (log) *log += fmt("  div %u is glass of material %u: the ray starts inside it\n", st.div, sd.glass_material);
+      return inside_hit(p.dims, r, st.voxel, sd.glass_material);
+    }
   }
   uint32_t cur = st.div, steps = 0, texels = st.div == sh::kPortalExteriorDiv ? 0 : 1;
   const uint32_t limit = 4u * p.div_count + 16u;

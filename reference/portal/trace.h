@@ -146,6 +146,7 @@ struct RenderStats {
   uint64_t primary_steps = 0, shadow_steps = 0;  // divs visited
   uint64_t loop_iterations = 0;                  // of the FSM loop or the three loops together
   uint64_t refractions = 0, reflections = 0;     // total internal reflections
+  uint64_t cut_pixels = 0;  // pixels whose rays ran past sh::portal_pixel_iteration_limit (drawn as background)
   double seconds = 0;
 };
 

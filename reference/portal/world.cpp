@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "gridrt/common/safe_io.h"
+#include "gridrt/common/shared/grid.h"
 #include "gridrt/common/shared/portal.h"
 #include "gridrt/common/shared/transform.h"
 
@@ -356,6 +357,16 @@ World voxelize(const Scene& scene, uint32_t resolution) {
   w.name = scene.name;
   const glm::vec3 ext = b.extent();
   const float longest = std::max({ext.x, ext.y, ext.z});
+  // The grid's least extent (2^-40) for the portal's world too: a model 1e-16 across was drawn as
+  // one flat colour with exit 0 (its voxels and the camera's rays at that scale round past each
+  // other: an outside sweep)
+  if (longest > 0.0f && longest < shared::kDomainMinExtent) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.3g", double(longest));
+    throw Error("voxelize: scene '" + scene.name + "' spans only " + buf +
+                " (its box's largest side): below 2^-40 = 9.1e-13 its voxels and the camera's rays round past "
+                "each other; scale the model up");
+  }
   w.voxel_size = longest > 0.0f ? longest / float(resolution) : 1.0f;
   for (int a = 0; a < 3; ++a)
     w.dims[a] = std::clamp(uint32_t(std::ceil(ext[a] / w.voxel_size - 1e-4f)), 1u, resolution) + 2;

@@ -85,7 +85,7 @@ struct PortalPixel {
   uint refractions;
   uint reflections;
   uint shadow_rays;
-  uint pad0;
+  uint cut;          // 1: its rays ran past portal_pixel_iteration_limit, ended as background
   vec3 mip_acc;      // mip-mapped space: light of the translucent coarse voxels passed
   uint pad1;
   ivec3 tile;        // instanced subspaces: the instance tile of the current block div

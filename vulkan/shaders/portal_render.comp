@@ -133,6 +133,16 @@ void begin_primary(inout PortalPixel s, RayRecord ray) {
   } else {
     s.div = st.div;
     s.mode = kPrimary;
+    // A camera in glass: the ray starts in that glass (reference begin_primary)
+    if (st.div != kPortalExteriorDiv) {
+      const DivInfo d = read_div_info(st.div);
+      if (d.type == kPortalDivGlass) {
+        s.in_glass = 1u;
+        s.glass = d.glass_material;
+        precise vec3 e = r.org + r.tmin * r.dir;
+        s.glass_entry = e;
+      }
+    }
   }
 }
 
@@ -410,7 +420,7 @@ PortalPixel new_pixel() {
   s.refractions = 0u;
   s.reflections = 0u;
   s.shadow_rays = 0u;
-  s.pad0 = 0u;
+  s.cut = 0u;
   s.mip_acc = vec3(0.0f);
   s.pad1 = 0u;
   s.tile = ivec3(0);
@@ -432,13 +442,26 @@ void main() {
   } else {
     s = pixels[p];
   }
+  // Bounded (reference end_if_cut): a pixel whose rays cycle between divs ends as background
+  // A loop that ends with its ray unfinished was cut: by the limit, or by llvmpipe, which ends an
+  // invocation's loops after 65,535 iterations in all (docs/VULKAN.md); either way counted, never a
+  // silent black pixel
+  const uint limit = portal_pixel_iteration_limit(params.div_count, fine_dims(), rp.max_interfaces);
+  bool unfinished;
   if (pc.pass == 0u) {
     // One loop: the same step for every kind of ray, transitions at the end of each iteration.
-    while (s.mode != kDone) transition(s, step_instanced(s.div, s.tile, pixel_ray(s)));
+    while (s.mode != kDone && s.iterations < limit) transition(s, step_instanced(s.div, s.tile, pixel_ray(s)));
+    unfinished = s.mode != kDone;
   } else {
     // One of the three loops: this pass's kind of ray only.
     const uint mode = pc.pass - 1u;
-    while (s.mode == mode) transition(s, step_instanced(s.div, s.tile, pixel_ray(s)));
+    while (s.mode == mode && s.iterations < limit) transition(s, step_instanced(s.div, s.tile, pixel_ray(s)));
+    unfinished = s.mode == mode;
+  }
+  if (unfinished) {
+    s.color = rp.background;
+    s.mode = kDone;
+    s.cut = 1u;
   }
   pixels[p] = s;
 }

@@ -153,15 +153,24 @@ Entry enter_world(uvec3 dims, VoxelRay r) {
   const vec3 hi = vec3(dims);
   for (uint a = 0u; a < 3u; a++)
     if (!finite_float(r.org[a]) || !finite_float(r.dir[a])) return e;
+  // An empty interval, or one behind the origin: a miss (reference enter_world)
+  if (!(r.tmin >= 0.0f) || !(r.tmin < r.tmax)) return e;
   precise vec3 q = r.org + r.tmin * r.dir;
   if (q.x >= 0.0f && q.y >= 0.0f && q.z >= 0.0f && q.x <= hi.x && q.y <= hi.y && q.z <= hi.z) {
-    e.kind = kEntryInside;
-    // The voxel the ray moves into: a point on a voxel plane belongs to the voxel ahead of it.
+    // The voxel the ray moves into: a point on a voxel plane belongs to the voxel ahead of it; on the
+    // box's face, moving out or along it, that voxel is outside: not inside (reference enter_world)
+    bool ahead_inside = true;
+    ivec3 v = ivec3(0);
     for (uint a = 0u; a < 3u; a++) {
       const float c = r.dir[a] < 0.0f ? ceil(q[a]) - 1.0f : floor(q[a]);
-      e.voxel[a] = clamp(int(c), 0, int(dims[a]) - 1);
+      if (c < 0.0f || c >= hi[a]) ahead_inside = false;
+      else v[a] = int(c);
     }
-    return e;
+    if (ahead_inside) {
+      e.kind = kEntryInside;
+      e.voxel = v;
+      return e;
+    }
   }
   float num = 0.0f;
   const uint a = portal_entry_axis(vec3(0.0f), hi, r.org, r.dir, num);
@@ -601,6 +610,11 @@ HitRecord trace_portal(RayRecord ray) {
   emit(0u, st.div, 0u, st.texel, st.voxel, st.kind, uvec2(0u), 0.0f, 0.0f);
   if (st.kind == kStartMiss) return miss_hit(0u, 0u);
   if (st.kind == kStartInsideSolid) return inside_hit(params.dims, r, st.voxel, st.texel - kPortalWallBit);
+  // A start in glass: inside it, as in a wall (reference trace_portal)
+  if (st.div != kPortalExteriorDiv) {
+    const DivInfo sd = read_div_info(st.div);
+    if (sd.type == kPortalDivGlass) return inside_hit(params.dims, r, st.voxel, sd.glass_material);
+  }
   uint cur = st.div;
   uint steps = 0u;
   uint texels = st.div == kPortalExteriorDiv ? 0u : 1u;
