@@ -638,13 +638,16 @@ void Context::require_allocation(VkDeviceSize bytes, const char* what) const {
   if (info_.device_local_heap && bytes > info_.device_local_heap) fail("device-local heap", info_.device_local_heap);
 }
 
-Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, Memory where) {
+Buffer Context::create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, Memory where, const char* what) {
   size = std::max<VkDeviceSize>(size, 4);
   require_allocation(size, "a buffer");
   if ((usage & VK_BUFFER_USAGE_STORAGE_BUFFER_BIT) && size > info_.limits.maxStorageBufferRange)
-    throw Error("a storage buffer of " + std::to_string(size) + " bytes exceeds maxStorageBufferRange (" +
-                std::to_string(info_.limits.maxStorageBufferRange) + ") on " + info_.name +
-                ": trace fewer rays at once, use a smaller scene, or --backend cpu");
+    throw Error("a storage buffer of " + std::to_string(size) + " bytes" + (what ? std::string(" (") + what + ")" : "") +
+                " exceeds maxStorageBufferRange (" + std::to_string(info_.limits.maxStorageBufferRange) + ") on " +
+                info_.name +
+                (what ? std::string(": use fewer cells (a coarser --resolution or --cell-size) or the compact layout, "
+                                    "or --backend cpu")
+                      : std::string(": trace fewer rays at once, use a smaller scene, or --backend cpu")));
   Buffer b;
   b.device = device_;
   b.size = size;

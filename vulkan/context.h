@@ -157,7 +157,10 @@ class Context {
 
   // Buffers. Usage gets TRANSFER_SRC|TRANSFER_DST added; SHADER_DEVICE_ADDRESS usage (only with
   // ray_tracing()) allocates with the device-address flag. Throws Error on a limit.
-  Buffer create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, Memory where = Memory::Device);
+  // `what`: the buffer, for the message where a storage buffer passes maxStorageBufferRange (the
+  // advice follows from it: the grid's tables shrink with fewer cells, the ray buffers with fewer rays)
+  Buffer create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, Memory where = Memory::Device,
+                       const char* what = nullptr);
   void upload(const Buffer& dst, const void* data, size_t bytes, VkDeviceSize offset = 0);
   void download(const Buffer& src, void* data, size_t bytes, VkDeviceSize offset = 0);
   template <class T>

@@ -31,6 +31,7 @@ constexpr uint32_t kBuildPassStamps = 13;  // Gpu::build_pass_timestamps
 
 SpecConstants spec_for(const GridParams& g, bool explain) {
   SpecConstants s;
+  // kGridSpecLoopGuard: set by trace_pipeline on llvmpipe only
   s.add(shared::kGridSpecCapacity, g.capacity).add(shared::kGridSpecInsertion, g.insertion).add(shared::kGridSpecTraversal, g.traversal);
   s.add(shared::kGridSpecFlags, g.flags).add(shared::kGridSpecExplain, explain).add(shared::kGridSpecRepeats, g.repeats);
   s.add(shared::kGridSpecTriangleTest, g.triangle_test);
@@ -216,7 +217,8 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   gpu.no_frame = ctx.create_buffer(256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   gpu.dirty = ctx.create_buffer((g.flags & shared::kGridCompact) != 0u ? VkDeviceSize(shared::kWorkListHeaderWords) * 4
                                                                      : VkDeviceSize(shared::dirty_list_words(g)) * 4,
-                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT);
+                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT, Memory::Device,
+                                "the grid's dirty-cell list, 4 bytes a cell");
   // The runs of long cell ranges, both builds (build.glsl): at most 2^20 items (8 MiB)
   gpu.build_list_capacity = uint32_t(std::min<uint64_t>((dev.limits.maxStorageBufferRange - 32) / 8,
                                                         vk_.build_list_capacity ? vk_.build_list_capacity : 1u << 20));
@@ -240,9 +242,9 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
   const bool sparse = (g.flags & shared::kGridSparseOffsets) != 0u;
   const uint64_t offsets_words =
       sparse ? uint64_t(shared::compact_offsets_words(uint32_t(cells), uint32_t(plan.static_cells))) : cells + 1;
-  gpu.offsets = ctx.create_buffer(compact ? offsets_words * 4 : 16, sbu);
+  gpu.offsets = ctx.create_buffer(compact ? offsets_words * 4 : 16, sbu, Memory::Device, "the compact layout's offsets");
   gpu.refs = ctx.create_buffer(compact ? refs * 4 : 16, sbu);
-  gpu.compact_counts = ctx.create_buffer(compact ? cells * 4 : 16, sbu);
+  gpu.compact_counts = ctx.create_buffer(compact ? cells * 4 : 16, sbu, Memory::Device, "the compact build's counts, 4 bytes a cell");
   gpu.compact_pairs = ctx.create_buffer(compact ? 16 + refs * 8 : 16, sbu);
   gpu.compact_scattered = ctx.create_buffer(compact ? refs * 8 : 16, sbu);  // the references, then their cells
   gpu.compact_blocks = ctx.create_buffer(compact ? uint64_t(groups(uint32_t(cells), shared::kCompactScanLanes)) * 8 : 16, sbu);  // (references, occupied cells) per group
@@ -263,15 +265,18 @@ void VulkanGridTracer::create_resources(const plan::GridPlan& plan, const std::v
     gpu.spill_heads = make_buffer(ctx, heads);
   } else {
     gpu.spill_heads = ctx.create_buffer(spill_on ? 4 * VkDeviceSize(shared::grid_cell_count(g)) * sizeof(uint32_t) : 16,
-                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, Memory::Device,
+                                        "the spill list's heads, 16 bytes a cell");
   }
   overflow_warned_ = false;
   // The skip field: the dynamic boxes (build and update upload them), the distances (written by
   // the skip_field passes), and the summed-volume table those use during the build
   const bool skip_on = (g.flags & shared::kGridSkipEmpty) != 0u;
-  gpu.skip = ctx.create_buffer(skip_on ? VkDeviceSize(shared::skip_words(g)) * 4 : 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  gpu.skip = ctx.create_buffer(skip_on ? VkDeviceSize(shared::skip_words(g)) * 4 : 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                             Memory::Device, "the skip field");
   gpu.skip_table = ctx.create_buffer(skip_on ? VkDeviceSize(shared::skip_scratch_words(g)) * 4 : 16,
-                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT);
+                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, Memory::Device,
+                                     "the skip field's summed-volume table");
 }
 
 // The descriptor set (grid_interface.h's bindings) and the pipelines of the build and update.
@@ -552,6 +557,9 @@ const Pipeline& VulkanGridTracer::trace_pipeline(bool explain, bool list, uint32
     if (list) spec.add(shared::kGridSpecTraceList, true);
     spec.add(shared::kGridSpecTraceMode, mode);
     if (rays != shared::kTraceRaysBuffer) spec.add(shared::kGridSpecTraceRays, rays);
+    // (not the explain pipeline's: its loops count otherwise, and an explained ray of 20,000 tests
+    // ran whole; docs/VULKAN.md)
+    if (!explain && ctx_->info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE) spec.add(shared::kGridSpecLoopGuard, true);
     p = std::make_unique<Pipeline>(*ctx_, "trace.comp", gpu.set->layout(), uint32_t(sizeof(shared::TracePush)), std::move(spec));
   }
   return *p;
@@ -740,12 +748,16 @@ void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span
   uint64_t most = 0;
   const Hit* worst = nullptr;
   for (const Hit& h : hits) {
-    const uint64_t e = llvmpipe_loop_estimate(g, h.tests, h.cells);
-    if (e > most) most = e, worst = &h;
+    // The trace's own flag: its estimate with the references the mailbox skipped (kHitLoopSpent)
+    const uint64_t e = (h.flags & kHitLoopSpent) != 0u ? kLlvmpipeLoopBudget : llvmpipe_loop_estimate(g, h.tests, h.cells);
+    if (e > most || !worst) most = e, worst = &h;
+    if ((h.flags & kHitLoopSpent) != 0u) break;
   }
   if (most < kLlvmpipeLoopBudget) return;
+  const bool skipped = (worst->flags & kHitLoopSpent) != 0u && (g.flags & shared::kGridMailbox) != 0u;
   throw Error("vulkan-grid: " + std::string(what) + ": a ray made " + std::to_string(worst->tests) +
               " triangle tests over " + std::to_string(worst->cells) + " cells" +
+              (skipped ? std::string(" (and skipped references its mailbox held)") : std::string()) +
               "; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, "
               "which cuts this trace short (refused from an estimated " + std::to_string(kLlvmpipeLoopBudget) +
               " iterations): its hits cannot be trusted (cells holding too many overlapping triangles, or a ray "

@@ -23,6 +23,7 @@
 #include "gridrt/common/tracer.h"
 #include "gridrt/plan/plan.h"
 #include "gridrt/plan/records.h"
+#include "gridrt/vulkan/shaders/grid_interface.h"
 #include "gridrt/vulkan/context.h"
 #include "gridrt/vulkan/pipeline.h"
 #include "gridrt/vulkan/shaders/grid_interface.h"
@@ -86,15 +87,15 @@ struct GridTimings {
 // reaches kLlvmpipeLoopBudget (3/4 of the limit: the per-cell cost was measured on one shape of
 // walk) (`what`: the rays, for the message); elsewhere it does nothing (docs/VULKAN.md). The
 // paper traversal's segments and slots: tests + cells from 32,768 (an outside sweep: shadow rays
-// through 400 cells of 170 references each came back as misses).
-inline constexpr uint64_t kLlvmpipeLoopBudget = 49152;
-inline constexpr uint64_t kLlvmpipeIterationsPerCell = 14;
-// The estimate of a ray's loop iterations the guard compares with kLlvmpipeLoopBudget.
+// through 400 cells of 170 references each came back as misses). References the mailbox skips
+// cost iterations too but are no tests (an outside sweep: 8 skips a cell over 520 cells cut a ray
+// with 8 tests): the trace itself counts them on llvmpipe and flags the ray (kHitLoopSpent,
+// llvmpipe_loop_estimate in vulkan/shaders/grid_interface.h, the one estimate of both sides).
+using shared::kLlvmpipeLoopBudget;
+using shared::kHitLoopSpent;
 inline uint64_t llvmpipe_loop_estimate(const shared::GridParams& g, uint32_t tests, uint32_t cells) {
-  if (g.traversal != shared::kTraversalExact) return 2ull * (uint64_t(tests) + cells) * kLlvmpipeLoopBudget / 65536;
-  const bool compact = (g.flags & shared::kGridCompact) != 0u, mailbox = (g.flags & shared::kGridMailbox) != 0u;
-  const uint64_t per_test = compact ? (mailbox ? 22 : 14) : (mailbox ? 10 : 2);
-  return per_test * tests + kLlvmpipeIterationsPerCell * cells;
+  return shared::llvmpipe_loop_estimate(g.traversal == shared::kTraversalExact, (g.flags & shared::kGridCompact) != 0u,
+                                        (g.flags & shared::kGridMailbox) != 0u, tests, 0u, cells);
 }
 // The frame's gather: a screen tile's list of triangles, walked by its fine pass's workgroup (a
 // tile of about 64,000 was cut short); VulkanFrame::render refuses from this many on llvmpipe.

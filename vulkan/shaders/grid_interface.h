@@ -59,6 +59,26 @@ SH_CONST uint kGridSpecTraceList = 7u;     // trace: rays from the ray list (dis
 SH_CONST uint kGridSpecTraceMode = 8u;     // trace: which hit, kTraceClosestHit or kTraceAnyHit (shared/grid.h)
 SH_CONST uint kGridSpecTraceRays = 9u;     // trace: where an image's rays come from (kTraceRays*)
 SH_CONST uint kGridSpecOrderShared = 10u;   // spill_order.comp: entries its shared copy holds (from maxComputeSharedMemorySize)
+SH_CONST uint kGridSpecLoopGuard = 11u;     // trace: on llvmpipe, flag rays whose loops near its limit (kHitLoopSpent)
+
+// llvmpipe, Mesa's CPU driver, ends every loop of a shader invocation once its loops have run
+// 65,535 iterations in all, and says nothing (vulkan/grid.h). The trace estimates a ray's
+// iterations from what it did: tests, references the mailbox skipped (each a pass of the reference
+// loop and the mailbox's compare, counted as dear as a test) and cells (per layout, measured on
+// Mesa 22.3, vulkan/grid.h), and on llvmpipe (kGridSpecLoopGuard) sets kHitLoopSpent in the hit
+// record of a ray whose estimate reaches kLlvmpipeLoopBudget (3/4 of the limit). The host refuses a
+// trace where any ray carries it (check_loop_limit). The reference never sets the bit: it exists
+// only where the port cannot be trusted. Counts are clamped at 2^16 so that the sum fits 32 bits.
+SH_CONST uint kHitLoopSpent = 0x80000000u;
+SH_CONST uint kLlvmpipeLoopBudget = 49152u;
+SH_CONST uint kLlvmpipeIterationsPerCell = 14u;
+SH_INLINE uint llvmpipe_loop_estimate(bool exact, bool compact, bool mailbox, uint tests, uint skips, uint cells) {
+  const uint t = min(tests, 65536u), s = min(skips, 65536u), c = min(cells, 65536u);
+  // The paper traversal's segments and slots: 1.5 (tests + cells), refused from 32,768 of them
+  if (!exact) return (3u * (t + s + c)) / 2u;
+  const uint per_test = compact ? (mailbox ? 22u : 14u) : (mailbox ? 10u : 2u);
+  return per_test * (t + s) + kLlvmpipeIterationsPerCell * c;
+}
 
 // Where the trace's rays come from (kGridSpecTraceRays): the ray buffer, or (the frame's traces,
 // an image's rays in tiles) made by the trace from each pixel's gather texel, as the frame's passes

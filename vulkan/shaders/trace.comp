@@ -57,6 +57,8 @@ layout(constant_id = kGridSpecTraceMode) const uint kTraceMode = kTraceClosestHi
 // read it) and traced: the frame has no pass between the gather and the trace, and the rays are
 // not read back from memory.
 layout(constant_id = kGridSpecTraceRays) const uint kTraceRays = kTraceRaysBuffer;
+// On llvmpipe only: flag a ray whose loops near the driver's limit (kHitLoopSpent, grid_interface.h)
+layout(constant_id = kGridSpecLoopGuard) const bool kLoopGuard = false;
 layout(std430, binding = kGridBindGather) readonly buffer Gather { GatherTexel gather[]; };
 layout(std430, binding = kGridBindFrameParams) readonly buffer FrameParamsBuffer { FrameParams fp; };
 layout(std430, binding = kGridBindFrameMaterials) readonly buffer FrameMaterials { FrameMaterial fmaterials[]; };
@@ -92,6 +94,7 @@ struct TraceState {
   uint best_flags;
   uint cells;
   uint tests;
+  uint skips;       // references the mailbox skipped (counted for kLoopGuard only)
   Mailbox mailbox;  // exact traversal, kGridMailbox: the last references tested
   uint mode;        // kTraceClosestHit or kTraceAnyHit
   WatertightRay wray;  // the watertight test's per-ray part (triangle_test_code)
@@ -123,6 +126,7 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   // The mailbox: a reference tested earlier on the ray is not tested again
   if (mailbox_enabled(g)) {
     if (mailbox_holds(st.mailbox, ref)) {
+      if (kLoopGuard) st.skips += 1u;
       emit(kEvTest, kTestMailboxed, ref, step, cell, slot, vec4(0.0f), vec4(0.0f));
       return;
     }
@@ -593,6 +597,7 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   st.best_flags = 0u;
   st.cells = 0u;
   st.tests = 0u;
+  st.skips = 0u;
   if (mailbox_enabled(g)) mailbox_clear(st.mailbox);
   st.mode = mode;
   st.wray = watertight_ray(st.dir);
@@ -624,6 +629,15 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   return g.traversal == kTraversalExact ? trace_exact(g) : trace_paper(g);
 }
 
+// On llvmpipe (kLoopGuard), a ray whose estimated loop iterations reach the budget carries
+// kHitLoopSpent, and the host refuses the trace (check_loop_limit, vulkan/grid.h)
+HitRecord loop_guarded(HitRecord h) {
+  if (kLoopGuard && llvmpipe_loop_estimate(kTraversal == kTraversalExact, (kFlags & kGridCompact) != 0u,
+                                           mailbox_enabled(grid_params()), h.tests, st.skips, h.cells) >= kLlvmpipeLoopBudget)
+    h.flags |= kHitLoopSpent;
+  return h;
+}
+
 void main() {
   if ((kFlags & kGridSkipEmpty) != 0u && kTraversal == kTraversalExact) {
     for (uint w = gl_LocalInvocationIndex; w < kSkipHeaderWords; w += 64u) skip_header[w] = skip[w];
@@ -647,21 +661,21 @@ void main() {
                                 : shadow_ray(t.position, t.normal, t.launch_ref, vec3(pc.light_x, pc.light_y, pc.light_z),
                                              pc.light_directional != 0u);
       rays_out[r] = ray;
-      hits[r] = scene_trace(grid_params(), ray, kTraceMode);
+      hits[r] = loop_guarded(scene_trace(grid_params(), ray, kTraceMode));
       return;
     }
-    hits[r] = scene_trace(grid_params(), rays[r], kTraceMode);
+    hits[r] = loop_guarded(scene_trace(grid_params(), rays[r], kTraceMode));
     return;
   }
   if (kTraceList) {
     const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
     if (k >= ray_list_header.size) return;
     const uint r = ray_list[k];
-    hits[r] = scene_trace(grid_params(), rays[r], kTraceMode);
+    hits[r] = loop_guarded(scene_trace(grid_params(), rays[r], kTraceMode));
     return;
   }
   if (gl_GlobalInvocationID.x >= pc.ray_count) return;
   const uint i = pc.ray_offset + gl_GlobalInvocationID.x;
   explaining = kExplain && i == pc.explain_ray;
-  hits[i] = scene_trace(grid_params(), rays[i], kTraceMode);
+  hits[i] = loop_guarded(scene_trace(grid_params(), rays[i], kTraceMode));
 }
