@@ -1,6 +1,8 @@
 #include "apps/backends.h"
 
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <map>
 
@@ -162,7 +164,9 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
            "skip (the literal reading of visited-cell tracking) or retest (a second visit)")
       ->group(kExpert);
   cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units (at most 2^26: one cell then holds any scene)")->check(CLI::PositiveNumber)->group(kExpert);
-  cmd->add_option("--density", g.density, "Target cells per triangle for the automatic resolution")
+  cmd->add_option_function<float>(
+         "--density", [&g](float d) { g.density = d, g.density_given = true; },
+         "Target cells per triangle for the automatic resolution")
       ->check(CLI::Range(1.0e-3f, 1.0e3f))->group(kExpert);
   cmd->add_option("--max-image-dimension", o.max_image_dimension,
                   "Largest image side the grid may use (default: the Vulkan device's limit when the vulkan "
@@ -183,9 +187,10 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
            "mask per 32 cells (sparse: a quarter of the bytes, one load more per occupied cell), or auto (dense "
            "where it fits the memory budget; sparse for a finer grid only where its estimate is 5 % cheaper)")
       ->group(kExpert);
-  cmd->add_option("--max-capacity", g.max_capacity,
-                  "Largest automatic capacity (at least 4, the automatic capacity's least; --capacity N fixes a "
-                  "number of slots, up to 1024)")
+  cmd->add_option_function<uint32_t>(
+         "--max-capacity", [&g](uint32_t c) { g.max_capacity = c, g.max_capacity_given = true; },
+         "Largest automatic capacity (at least 4, the automatic capacity's least; --capacity N fixes a "
+         "number of slots, up to 1024)")
       ->check(CLI::Range(4u, 65535u))->group(kExpert);
   add_enum(cmd, "--slot-axis", g.slot_axis,
            {{"auto", GO::SlotAxis::automatic}, {"x", GO::SlotAxis::x}, {"y", GO::SlotAxis::y}, {"z", GO::SlotAxis::z}},
@@ -239,7 +244,8 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
   cmd->add_flag("--all-effects", o.all_effects,
                 "Simulate every effect (alpha keying, gap-fill) even where the scene does not call for it")
       ->group(kExpert);
-  cmd->add_option("--shuffle-seed", g.shuffle_seed, "Run build invocations in a seeded shuffled order")->group(kExpert);
+  cmd->add_option("--shuffle-seed", g.shuffle_seed, "Run build invocations in a seeded shuffled order")
+      ->check(whole_number_u64())->group(kExpert);
 }
 
 // The Vulkan backend's own ("Vulkan").
@@ -282,6 +288,23 @@ void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
   if (given("--max-capacity") && o.grid.layout == reference::GridOptions::Layout::compact)
     throw OptionsError("--max-capacity bounds the image layout's slots per cell; the compact layout (--layout compact) "
                        "has none: it does nothing (leave it out, or give --layout image)");
+  // First-empty insertion fills the image layout's slots; the compact layout's build counts and
+  // scatters without slots (an outside sweep: accepted, the arrays sorted all the same)
+  if (o.grid.insertion == reference::Insertion::first_empty && o.grid.traversal == reference::Traversal::exact &&
+      (o.grid.layout == reference::GridOptions::Layout::compact ||
+       (o.grid.layout == reference::GridOptions::Layout::automatic && !o.grid.capacity && plan::compact_enabled(o.grid))))
+    throw OptionsError("--insertion first-empty fills the image layout's slots; the exact traversal's grid here takes the "
+                       "compact layout, which has none: it does nothing (give --layout image, or leave it out)");
+  // Knobs of a part another option turned off (an outside sweep: accepted, images identical)
+  if (given("--gap-fill-distance") && !o.grid.gap_fill)
+    throw OptionsError("--gap-fill-distance places the paper traversal's gap-fill, which --gap-fill off turns off: it "
+                       "does nothing (leave one out)");
+  if (given("--skip-covered") && !o.grid.skip_empty)
+    throw OptionsError("--skip-covered reads the skip field's cover bits, which --skip-empty off leaves out: it does "
+                       "nothing (leave one out)");
+  if (given("--skip-covered") && o.grid.layout == reference::GridOptions::Layout::image)
+    throw OptionsError("--skip-covered is the compact layout's (its bits live in the skip field beside the compact "
+                       "references); --layout image has none: it does nothing (leave one out)");
   // (The exact traversal's knobs are not refused with the paper traversal: the frame's gather and
   // explain's primary rays trace the exact traversal's grid whatever the trace's, and take them.)
   if (o.grid.traversal != reference::Traversal::exact) return;
@@ -447,6 +470,17 @@ GatherBuffer reference_gather(const Scene& scene, const reference::GridOptions& 
   Progress progress("gather buffer", size_t(w) * h);
   ProgressTracer traced(tracer, progress);
   return make_gather(scene, traced, scene.frame_camera(), w, h, time);
+}
+
+CLI::Validator whole_number_u64() {
+  return CLI::Validator(
+      [](std::string& v) {
+        errno = 0;
+        const bool digits = !v.empty() && v.find_first_not_of("0123456789") == std::string::npos;
+        (void)std::strtoull(v.c_str(), nullptr, 10);
+        return digits && errno == 0 ? std::string() : std::string("must be a whole number from 0 to 18446744073709551615");
+      },
+      "0 .. 2^64-1");
 }
 
 }  // namespace gridrt::app

@@ -62,6 +62,9 @@ std::optional<reference::GridOptions::CapacityPolicy> capacity_policy_named(cons
 // --spill, --gap-fill, --self-hit, --threads) and the expert knobs in their own help group;
 // `vulkan`: the Vulkan port's (--vk-build, --fallback-cpu) too, for a verb that can run it.
 void add_backend_options(CLI::App* cmd, BackendOptions& options, bool vulkan = true);
+// A whole number from 0 to 2^64-1, as written (CLI11 wrapped a negative value and saturated an
+// overflowing one without a word: outside sweeps); for seeds.
+CLI::Validator whole_number_u64();
 // --vk-build and --fallback-cpu choose how the Vulkan backend runs: given where it does not run
 // they did nothing, without a word (an outside sweep). OptionsError (exit 2) there.
 void check_vulkan_options_apply(const CLI::App* cmd, bool vulkan_runs);

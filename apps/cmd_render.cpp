@@ -313,6 +313,12 @@ void add_render_command(CLI::App& app) {
                          " do(es) not apply (leave them out, or render with --backend cpu)");
     check_vulkan_options_apply(cmd, o->backend == "vulkan");
     check_traversal_options(cmd, o->backend_options);
+    // The CPU reference's build order: the Vulkan frame builds and renders on the device alone (it
+    // was accepted and did nothing: an outside sweep); a --view or --fallback-cpu build is the CPU's
+    if (o->backend == "vulkan" && cmd->count("--shuffle-seed") > 0 && cmd->count("--view") == 0 &&
+        !o->backend_options.fallback_cpu)
+      throw OptionsError("--shuffle-seed orders the CPU reference's build invocations; render --backend vulkan builds "
+                         "on the device: it does nothing (leave it out, or render with --backend cpu)");
     run_render(*o, scale_opt->count() > 0, rays_opt->count() > 0, given);
   });
 }

@@ -144,6 +144,7 @@ std::vector<Config> configurations(const SweepOptions& o) {
                                             " configurations; at most " + std::to_string(kMaxSweepConfigurations) +
                                             " a sweep (each builds a grid and traces every ray): shorten the lists");
   std::vector<Config> out;
+  bool dropped_enlargement = false, dropped_padding = false;  // what left configurations out
   for (const std::string& tr : o.traversal)
     for (const std::string& tt : o.triangle_test)
       for (const std::string& cap : o.capacity)
@@ -168,9 +169,15 @@ std::vector<Config> configurations(const SweepOptions& o) {
                   c.enlargement = parse_float("enlargement", en, 0.0f, 16.0f);
                   // Below 1 the plane test drops triangles at cells' corners: the paper's knob; the
                   // exact traversal refuses it (plan::choose_grid), so the sweep leaves it out there
-                  if (tr == "exact" && c.enlargement < 1.0f) continue;
+                  if (tr == "exact" && c.enlargement < 1.0f) {
+                    dropped_enlargement = true;
+                    continue;
+                  }
                   // So is an AABB padding of 0 (a triangle on a cell face left out of the cell across it)
-                  if (tr == "exact" && c.padding && !(*c.padding > 0.0f)) continue;
+                  if (tr == "exact" && c.padding && !(*c.padding > 0.0f)) {
+                    dropped_padding = true;
+                    continue;
+                  }
                   c.elongation = parse_float("elongation", o.elongation[ei], 0.0f, 16.0f);
                   c.gap_fill = o.gap_fill[gi];
                   c.spill = sp;
@@ -181,9 +188,15 @@ std::vector<Config> configurations(const SweepOptions& o) {
                   c.max_dim = uint32_t(dim);
                   if (std::find(out.begin(), out.end(), c) == out.end()) out.push_back(c);
                 }
+  // Named by what dropped them (the enlargement was named for a padding's refusal: an outside sweep)
+  if (out.empty() && dropped_padding && !dropped_enlargement)
+    throw CLI::ValidationError("--aabb-padding", "every configuration asks the exact traversal for an AABB padding "
+                                                 "of 0, which it refuses (the paper traversal's knob)");
   if (out.empty())
-    throw CLI::ValidationError("--enlargement", "every configuration asks the exact traversal for an enlargement "
-                                                "below 1, which it refuses (the paper traversal's knob)");
+    throw CLI::ValidationError(dropped_padding ? "--enlargement, --aabb-padding" : "--enlargement",
+                               std::string("every configuration asks the exact traversal for an enlargement below 1") +
+                                   (dropped_padding ? " or an AABB padding of 0" : "") +
+                                   ", which it refuses (the paper traversal's knobs)");
   return out;
 }
 
@@ -720,7 +733,10 @@ void add_sweep_command(CLI::App& app) {
       ->check(CLI::Range(0u, kMaxThreads))->group("Grid");
   // The fixed expert knobs of every configuration, grouped as on the other verbs
   constexpr const char* kExpert = "Grid (expert)";
-  cmd->add_option("--density", o->backend_options.grid.density, "Target cells per triangle")
+  cmd->add_option_function<float>(
+         "--density",
+         [o](float d) { o->backend_options.grid.density = d, o->backend_options.grid.density_given = true; },
+         "Target cells per triangle")
       ->check(CLI::Range(1.0e-3f, 1.0e3f))
       ->group(kExpert);
   cmd->add_option("--cell-visit-cost", o->backend_options.grid.cell_visit_cost,
@@ -737,7 +753,16 @@ void add_sweep_command(CLI::App& app) {
       ->expected(2)
       ->type_name("W,H")
       ->group(kExpert);
-  cmd->callback([o] { run_sweep(*o); });
+  cmd->callback([o] {
+    // A bad command line before any work (an outside sweep: the work sample was judged after the
+    // scene loaded, exit 1)
+    if (o->work_sample.size() == 2 &&
+        (o->work_sample[0] == 0 || o->work_sample[1] == 0 || uint64_t(o->work_sample[0]) * o->work_sample[1] > 256u * 144u))
+      throw CLI::ValidationError("--work-sample", std::to_string(o->work_sample[0]) + "," +
+                                                      std::to_string(o->work_sample[1]) +
+                                                      " must be at least 1,1 and at most 36864 pixels (e.g. 256,144)");
+    run_sweep(*o);
+  });
 }
 
 }  // namespace gridrt::app

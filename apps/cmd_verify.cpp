@@ -165,16 +165,7 @@ void add_verify_command(CLI::App& app) {
       ->delimiter(',');
   cmd->add_option("-n,--rays-per-family", o->rays, "Rays per family")->check(CLI::Range(size_t(1), size_t(10000000)));
   // (a negative or too large value wrapped around without a word: an outside sweep)
-  cmd->add_option("--seed", o->seed, "Seed of the ray generation")
-      ->check(CLI::Validator(
-          [](std::string& v) {
-            errno = 0;
-            const bool digits = !v.empty() && v.find_first_not_of("0123456789") == std::string::npos;
-            (void)std::strtoull(v.c_str(), nullptr, 10);
-            return digits && errno == 0 ? std::string()
-                                        : std::string("must be a whole number from 0 to 18446744073709551615");
-          },
-          "0 .. 2^64-1"));
+  cmd->add_option("--seed", o->seed, "Seed of the ray generation")->check(whole_number_u64());
   cmd->add_flag("--no-translated", o->no_translated, "Skip the run on the scene moved far from the origin");
   cmd->add_option("--offset", o->offset, "Offset X,Y,Z of the translated run (default 1e5,-5e4,7.5e4)")
       ->delimiter(',')->expected(3);

@@ -53,6 +53,12 @@ void check_frame_size(uint32_t width, uint32_t height) {
     throw Error("an image of " + std::to_string(width) + " x " + std::to_string(height) + " = " + std::to_string(pixels) +
                 " pixels exceeds the limit of " + std::to_string(frame_limits().max_pixels) +
                 " pixels (--max-pixels; each pixel takes about 100 bytes of frame buffers)");
+  // And the host's memory, before any of it is allocated: a render with a raised --max-pixels grew
+  // to 7 GB over 24 s past --max-host-mib (an outside sweep). About 256 bytes a pixel: the gather
+  // buffer, the rays and hits of a trace, the picture and its encoded copy
+  require_host_memory(pixels * 256, "an image of " + std::to_string(width) + " x " + std::to_string(height) +
+                                         " pixels (its frame buffers)",
+                      "lower --width and --height");
 }
 
 void check_output_path(const std::string& path) {

@@ -106,6 +106,10 @@ std::vector<Ray> bounce_rays(const Scene& scene, const GatherBuffer& g, uint32_t
 }
 
 bool shadows_for(ShadowMode mode, const Scene& scene) {
+  // Asked for on a scene without lights: no shadow ray to trace (an outside sweep: it ran, exit 0)
+  if (mode == ShadowMode::on && scene.lights.empty())
+    throw OptionsError("--shadows on: the scene has no lights, so there is no shadow ray to trace (leave it out, or "
+                       "give the scene a light)");
   return mode == ShadowMode::on || (mode == ShadowMode::automatic && !scene.lights.empty());
 }
 

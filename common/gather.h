@@ -58,7 +58,8 @@ inline bool is_unused(const Ray& r) { return r.tmin == 0.0f && r.tmax == 0.0f; }
 std::vector<Ray> shadow_rays(const Scene& scene, const GatherBuffer& gather);
 
 // Whether a frame traces shadow rays: on, off, or automatic = on iff the scene has lights (the
-// effects a scene calls for, Features::shadows). Both backends' frames follow it.
+// effects a scene calls for, Features::shadows). Both backends' frames follow it. on for a scene
+// without lights throws OptionsError (nothing to trace).
 enum class ShadowMode { off, on, automatic };
 bool shadows_for(ShadowMode mode, const Scene& scene);
 // Throws Error if the scene has more lights than shadow rays are traced to (kMaxShadowLights).

@@ -192,8 +192,16 @@ std::vector<double> nice_ticks(double lo, double hi, int n) {
       step = m * p;
       break;
     }
+  // By index: a step below the values' ulp (a range of a few ulps far from 0) left v where it was
   std::vector<double> out;
-  for (double v = std::ceil(lo / step - 1e-9) * step; v <= hi + step * 1e-9; v += step) out.push_back(std::abs(v) < step * 1e-9 ? 0.0 : v);
+  const double k0 = std::ceil(lo / step - 1e-9);
+  for (int i = 0; i < 64; ++i) {
+    const double v = (k0 + i) * step;
+    if (!(v <= hi + step * 1e-9)) break;
+    if (!out.empty() && v <= out.back()) continue;
+    out.push_back(std::abs(v) < step * 1e-9 ? 0.0 : v);
+  }
+  if (out.empty()) out.push_back(lo);
   return out;
 }
 

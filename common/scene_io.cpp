@@ -379,7 +379,9 @@ class SceneFileReader {
       mo.pivot = r.contains("pivot") ? get_vec3(r["pivot"], w + ".pivot") : default_pivot;
       if (!r.contains("speed")) fail(w, "needs \"speed\" (radians per second)");
       mo.angular_speed = get_number(r["speed"], w + ".speed");
-      if (glm::length(mo.axis) == 0.0f) fail(w + ".axis", "zero axis");
+      // Scaled before it is judged, as the base rotation's axis is (a length of 1e-25 underflowed
+      // to 0 in float and was called a zero axis: an outside sweep); Scene::finalize scales it too
+      if (glm::length(direction_in_range(mo.axis)) == 0.0f) fail(w + ".axis", "zero axis");
     }
     if (j.contains("path")) {
       const std::string w = where + ".path";

@@ -35,6 +35,9 @@ namespace {
 Bounds instance_animation_bounds(const Scene& scene, const Instance& inst, float time) {
   Bounds b;
   const Mesh& mesh = scene.meshes[inst.mesh];
+  // An empty mesh bounds nothing, moving or not (its empty box swept along a path read as NaN and
+  // was named "not finite", and a rotating one added its pivot: an outside sweep)
+  if (mesh.positions.empty()) return b;
   if (!inst.dynamic || !inst.motion.moves()) {
     const glm::mat4 m = inst.transform_at(time);
     for (const glm::vec3& p : mesh.positions) b.grow(glm::vec3(m * glm::vec4(p, 1.0f)));
@@ -436,6 +439,14 @@ GridOptions settle_overrides(GridOptions o, const Scene& scene) {
   // A capacity rule named on the command line (--capacity trace-cost, ...) replaces the file's
   // number too, as a number named there does
   if (!o.capacity && !o.capacity_policy_given) o.capacity = scene.grid.capacity;
+  // Knobs of a choice the file has made (outside sweeps: accepted, the grid the same)
+  if (o.density_given && (o.resolution || o.cell_size))
+    throw OptionsError("--density picks the automatic resolution; the scene file fixes the grid's size (its grid's "
+                       "resolution or cell_size): it does nothing (leave it out, or give --resolution or --cell-size)");
+  if (o.max_capacity_given && !o.capacity && compact_enabled(o))
+    throw OptionsError("--max-capacity bounds the image layout's automatic slots per cell; the grid here takes the "
+                       "compact layout (the exact traversal's default), which has none: it does nothing (leave it "
+                       "out, or give --layout image)");
   return o;
 }
 
@@ -523,7 +534,9 @@ GridParams algorithm_params(const AlgorithmOptions& o, const Scene& scene) {
 Error too_big(glm::uvec3 cells, uint32_t cap, const GridOptions& o) {
   return Error("grid: " + std::to_string(cells.x) + "x" + std::to_string(cells.y) + "x" + std::to_string(cells.z) +
                " cells of capacity " + std::to_string(cap) + " exceed the image limits (max dimension " +
-               std::to_string(o.max_image_dimension) + ", max texels " + std::to_string(o.max_texels) + ")");
+               std::to_string(o.max_image_dimension) + " (--max-image-dimension, or the device's), max texels " +
+               std::to_string(o.max_texels) + " (--memory-budget, 4 bytes a texel)): give coarser cells (--resolution, "
+               "--cell-size), a smaller --capacity, or a larger --memory-budget");
 }
 
 // `p` with the candidate's offsets (kGridSparseOffsets: the compact layout's index of occupied cells).

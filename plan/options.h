@@ -92,6 +92,7 @@ struct AlgorithmOptions {
 // resolution and capacity"), the limits it keeps within, and the overrides.
 struct PlanOptions {
   float density = 2.0f;                   // target cells per triangle
+  bool density_given = false;             // --density named: a scene file's size does not silently win
   // trace_cost (default): candidate resolutions around the density target are counted, each with
   // capacity = min(its largest cell count, what the limits allow), and the one whose estimated
   // trace cost on a sample of the frame's rays is lowest is taken (work_cost, plan/policy.h).
@@ -113,6 +114,7 @@ struct PlanOptions {
   uint32_t work_sample_rays = 4000;    // buffer, fewer once this many rays are sampled
   float capacity_percentile = 0.99f;      // percentile policy: capacity = this percentile of counts
   uint32_t min_capacity = 4, max_capacity = 1024;
+  bool max_capacity_given = false;        // --max-capacity named: refused where no slots are chosen
   // The scene axis laid along the image's x (the slots' axis): automatic = the axis with the fewest
   // cells, which leaves the most room for slots under max_image_dimension.
   enum class SlotAxis { automatic, x, y, z } slot_axis = SlotAxis::automatic;
@@ -186,6 +188,8 @@ inline GridOptions gather_options(GridOptions o) {
   o.spill = AlgorithmOptions::Spill::on;
   o.spill_capacity.reset();
   o.self_hit_offset = AlgorithmOptions{}.self_hit_offset;
+  // The trace's --max-capacity is the trace's: the gather's grid may take the compact layout
+  o.max_capacity_given = false;
   return o;
 }
 

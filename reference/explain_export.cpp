@@ -114,8 +114,16 @@ ExplainGeometry explain_geometry(const ExplainRecord& rec, const GridData& grid)
           it = tri_index.emplace(e.ref, g.triangles.size()).first;
           g.triangles.push_back(t);
         }
-        g.triangles[it->second].code = e.code;
-        g.triangles[it->second].tests += 1u;
+        // Its decisive result, not its last: a triangle accepted once (the best hit then, beaten
+        // later) stays accepted, though the next cell's retest says not-closer (it was drawn
+        // rejected: an outside sweep); the launch triangle's self-hit skips are no tests (the
+        // footer's count leaves them out)
+        ExplainGeometry::Triangle& t = g.triangles[it->second];
+        const auto rank = [](uint32_t c) {
+          return c == kTestAccepted ? 3 : c == kTestTieLost ? 2 : c == kTestAlphaKeyed ? 1 : 0;
+        };
+        if (t.tests == 0u || rank(e.code) > rank(t.code)) t.code = e.code;
+        if (e.code != kTestSelfHit) t.tests += 1u;
         break;
       }
       case kEvCandidate: g.event_t[i] = e.f0.x; break;
@@ -124,8 +132,10 @@ ExplainGeometry explain_geometry(const ExplainRecord& rec, const GridData& grid)
         g.event_t[i] = e.f0.x;
         g.hit_point = at(g, e.f0.x);
         g.gap_fill = (e.code & kHitGapFill) != 0u;
+        // A gap-fill hit is the cell's voxel, not its last reference's triangle, which the ray may
+        // miss: that triangle keeps its own test's result (it was drawn as "the hit triangle")
         auto it = tri_index.find(e.ref);
-        if (it != tri_index.end()) g.triangles[it->second].hit = true;
+        if (it != tri_index.end() && !g.gap_fill) g.triangles[it->second].hit = true;
         break;
       }
       default: break;
@@ -151,7 +161,8 @@ std::string explain_mtl() {
          "newmtl triangles_rejected\nKd 0.55 0.55 0.55\n\n"
          "newmtl triangles_accepted\nKd 0.1 0.8 0.2\n\n"
          "newmtl hit_triangle\nKd 0 1 0.3\n\n"
-         "newmtl hit_point\nKd 1 0 0\n";
+         "newmtl hit_point\nKd 1 0 0\n\n"
+         "newmtl gap_fill_point\nKd 1 0.63 0\n";
 }
 
 std::string explain_obj(const ExplainRecord& rec, const GridData& grid, const std::string& mtl_name) {
@@ -220,7 +231,10 @@ std::string explain_obj(const ExplainRecord& rec, const GridData& grid, const st
   }
   // The hit point: a small octahedron (a tenth of a cell) and a point
   if (g.hit_point) {
-    group("hit_point");
+    if (g.gap_fill)
+      os << "# a gap-fill hit: the paper traversal's voxel in a saturated cell, reported with the cell's last "
+            "reference (a false hit: the ray need not meet that triangle)\n";
+    group(g.gap_fill ? "gap_fill_point" : "hit_point");
     const float r = 0.1f * rec.params.cell_size;
     const glm::vec3 h = *g.hit_point;
     const size_t c = v(h);
@@ -289,10 +303,14 @@ std::string svg_body(const ExplainRecord& rec, const ExplainGeometry& g, const E
     for (int dim = 0; dim < 2; ++dim) {
       const int ax = dim == 0 ? pr.u : pr.v;
       const float lo = dim == 0 ? pr.lo.x : pr.lo.y, hi = lo + (dim == 0 ? world_w : world_h);
-      const float first = p.origin[ax] + std::ceil((lo - p.origin[ax]) / cs) * cs;
-      for (float w = first; w <= hi; w += cs) {
-        const float k = (w - p.origin[ax]) / cs;
-        if (k < -0.01f || k > float(p.cells[ax]) + 0.01f) continue;
+      // The grid's planes by index, 0 .. cells, that fall in the picture (a float stepped by the
+      // cell size stood still where its half-ulp passed the cell size, a picture 3e7 from the
+      // origin, and the loop never ended: an outside sweep)
+      const double k_lo = std::max(0.0, std::ceil((double(lo) - p.origin[ax]) / cs));
+      const double k_hi = std::min(double(p.cells[ax]), std::floor((double(hi) - p.origin[ax]) / cs));
+      if (!(k_lo <= k_hi)) continue;  // no plane in the picture (NaN included)
+      for (uint32_t k = uint32_t(k_lo); k <= uint32_t(k_hi); ++k) {
+        const float w = p.origin[ax] + float(k) * cs;
         glm::vec3 a(0.0f), b(0.0f);
         a[ax] = b[ax] = w;
         const int other = dim == 0 ? pr.v : pr.u;
@@ -400,11 +418,12 @@ std::string explain_svg(const ExplainRecord& rec, const GridData& grid, const Ex
                                                        {"tri tri-rejected", "triangle tested, rejected"},
                                                        {"tri tri-accepted", "triangle accepted"},
                                                        {"tri tri-hit", "the hit triangle"},
-                                                       {"hit", "hit point"}};
+                                                       {"hit", g.gap_fill ? "gap-fill hit (a voxel, no triangle)" : "hit point"}};
   float y = 0.0f;
   for (const auto& [cls, text] : items) {
     if (std::string(cls) == "hit")
-      os << "<circle class=\"hit\" cx=\"7\" cy=\"" << px(y + 6) << "\" r=\"5\"/>";
+      os << "<circle class=\"hit" << (g.gap_fill ? " hit-gap-fill" : "") << "\" cx=\"7\" cy=\"" << px(y + 6)
+         << "\" r=\"5\"/>";
     else
       os << "<rect class=\"" << cls << "\" x=\"0\" y=\"" << px(y) << "\" width=\"14\" height=\"12\"/>";
     os << "<text x=\"20\" y=\"" << px(y + 11) << "\">" << text << "</text>\n";
@@ -418,8 +437,9 @@ std::string explain_svg(const ExplainRecord& rec, const GridData& grid, const Ex
      << g.cells.size() << " cells, " << g.triangles.size() << " triangles</text>\n";
   os << "<text x=\"0\" y=\"" << px(y + 29) << "\">"
      << xml(is_miss(rec.hit) ? std::string("miss")
-                             : "hit: " + reference_text((rec.hit.instance << 16) | rec.hit.triangle,
-                                                        ExplainFormat{true, format.names}))
+                             : std::string(g.gap_fill ? "gap-fill hit (false hit) reported as " : "hit: ") +
+                                   reference_text((rec.hit.instance << 16) | rec.hit.triangle,
+                                                  ExplainFormat{true, format.names}))
      << "</text>\n";
   os << "</g>\n</svg>\n";
   return os.str();

@@ -35,7 +35,7 @@ struct ExplainGeometry {
     uint32_t ref = 0;
     glm::vec3 v[3]{};
     size_t event = 0;   // its first kEvTest
-    uint32_t code = 0;  // its last test's result (kTest*)
+    uint32_t code = 0;  // its decisive test result (kTest*): accepted once stays accepted
     uint32_t tests = 0;
     bool hit = false;   // the reported hit's triangle
   };

@@ -104,6 +104,17 @@ TEST_CASE("A folder, a FIFO or a device as the input is named as such", "[badinp
   CHECK_THAT(r2.output, Contains("a FIFO"));
   REQUIRE_THROWS_WITH(read_input_file("/dev/zero", "texture"), Contains("/dev/zero") && Contains("character device"));
   REQUIRE_THROWS_WITH(load_texture("/dev/zero"), Contains("character device"));
+  // A glTF's buffer or image URI naming a FIFO: TinyGLTF's own existence probe opened it and blocked
+  // for ever (an outside sweep); named as a FIFO now, before anything opens it
+  REQUIRE(::mkfifo((d / "buf.bin").c_str(), 0600) == 0);
+  std::ofstream(d / "fifo.gltf")
+      << R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":44,"uri":"buf.bin"}],"bufferViews":[{"buffer":0,)"
+      << R"("byteLength":36}],"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",)"
+      << R"("min":[0,0,0],"max":[1,1,0]}],"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],)"
+      << R"("nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]})";
+  const auto r3 = run_tool("convert " + (d / "fifo.gltf").string() + " -o " + (d / "y.gridscene").string());
+  CHECK(r3.exit_code == 1);
+  CHECK_THAT(r3.output, Contains("a FIFO"));
 }
 
 TEST_CASE("The input limits are options, and their messages name them", "[badinput][cli]") {
@@ -407,6 +418,22 @@ TEST_CASE("Outside sweep: options, limits and outputs refused or named where the
   }
   // --scale without --view says so
   CHECK(run_tool("render builtin:cornell --width 8 --height 8 --scale 2 -o " + (d / "s.ppm").string()).exit_code == 2);
+  // sweep: a bad work sample before any work, the option that dropped every configuration (a later
+  // sweep: exit 1 after loading, the enlargement blamed for the padding's refusal)
+  for (const char* args : {"--work-sample 0,0", "--traversal exact --aabb-padding 0 --enlargement 1.25"}) {
+    const auto r = run_tool("sweep builtin:cornell -o " + (d / "sw").string() + " " + args);
+    INFO(args << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    if (std::string(args).find("padding") != std::string::npos) CHECK_THAT(r.output, Contains("--aabb-padding"));
+  }
+  // An image whose frame buffers the host cannot hold: refused before anything is allocated
+  {
+    const auto r = run_tool("--max-host-mib 50 --max-pixels 4000000 render builtin:cornell --width 2000 --height 2000 -o " +
+                            (d / "big.ppm").string());
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Contains("frame buffers") && Contains("--max-host-mib"));
+  }
   // Scene times past 1e6 s in every verb, and frames whose times pass it
   CHECK(run_tool("stats builtin:atrium -t 1e38").exit_code == 2);
   CHECK(run_tool("explain builtin:atrium -t 2e6 --ray 0,1,0,1,0,0").exit_code == 2);

@@ -546,6 +546,31 @@ TEST_CASE("Outside sweep: the grid's overrides - the command line over the file,
   INFO(cli.output);
   CHECK(cli.exit_code == 2);
   CHECK_THAT(cli.output, Catch::Contains("--resolution and --cell-size"));
+  // --density where the file fixes the grid's size: it did nothing (an outside sweep); refused,
+  // and taken again once the command line's size replaces the file's
+  const Run density = run_tool("stats " + (d / "cs.json").string() + " --density 5");
+  INFO(density.output);
+  CHECK(density.exit_code == 2);
+  CHECK_THAT(density.output, Catch::Contains("--density"));
+  // --max-capacity where the automatic layout takes the compact one (no slots): refused; with a
+  // capacity (the image layout) or the paper traversal it bounds slots, and the frame's gather
+  // grid (the exact traversal's) does not inherit it
+  const Run compact = run_tool("stats builtin:cornell --traversal exact --max-capacity 8");
+  INFO(compact.output);
+  CHECK(compact.exit_code == 2);
+  CHECK_THAT(compact.output, Catch::Contains("compact layout"));
+  CHECK(run_tool("stats builtin:cornell --traversal exact --capacity 8 --max-capacity 16").exit_code == 0);
+  CHECK(run_tool("stats builtin:cornell --max-capacity 8").exit_code == 0);
+  CHECK(run_tool("render builtin:cornell --width 8 --height 8 --max-capacity 8 -o " + (d / "m.png").string()).exit_code == 0);
+  // --shadows on for a scene without lights (a scene file naming none; a bare mesh gets one): nothing
+  // to trace (it ran, exit 0)
+  std::ofstream(d / "dark.json") << R"({"meshes":{"t":{"file":"tri.obj"}},"instances":[{"mesh":"t"}]})";
+  const Run shadows = run_tool("render " + (d / "dark.json").string() + " --width 8 --height 8 --shadows on -o " +
+                               (d / "s.png").string());
+  INFO(shadows.output);
+  CHECK(shadows.exit_code == 2);
+  CHECK_THAT(shadows.output, Catch::Contains("no lights"));
+  CHECK(run_tool("render " + (d / "dark.json").string() + " --width 8 --height 8 -o " + (d / "s.png").string()).exit_code == 0);
 }
 
 // An outside sweep's finds: options that did nothing in the combination given, with exit 0. Each
@@ -609,6 +634,13 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         std::string("stats builtin:cornell --resolution 4,4,4 --capacity 4 --cell-visit-cost 100"),
         std::string("stats builtin:cornell --capacity no-saturation --work-sample 8,8"),
         std::string("stats builtin:cornell --traversal exact --layout compact --max-capacity 8"),
+        // Knobs another option turned off, a CPU build's order for a device's build, seeds wrapped
+        "render builtin:cornell --width 8 --height 8 --gap-fill off --gap-fill-distance 2" + out,
+        std::string("stats builtin:cornell --traversal exact --skip-empty off --skip-covered on"),
+        std::string("stats builtin:cornell --traversal exact --layout image --skip-covered off"),
+        "render builtin:cornell --width 8 --height 8 -b vulkan --shuffle-seed 3" + out,
+        std::string("stats builtin:cornell --insertion first-empty --shuffle-seed -1"),
+        std::string("stats builtin:cornell --insertion first-empty --shuffle-seed 18446744073709551616"),
         std::string("stats builtin:cornell --capacity 8 --max-capacity 7"),
         std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --gather boxes"),
         std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --counter-frames 2"),

@@ -163,8 +163,15 @@ TEST_CASE("CLI: gridrt diff - first-empty insertion on the compact layout, and -
   // An outside sweep's finds: with first-empty insertion the compact layout's arrays were read as
   // the image's texels (a crash on the teapot, false differences on one triangle); and a scene of
   // more than 8 lights could not run --gpu-frame, whose advice named a --shadows diff lacked
-  const Run first_empty =
+  // (A later sweep: the compact layout has no slots, so first-empty insertion did nothing there:
+  // refused; the image layout takes it)
+  const Run compact =
       run_tool("diff builtin:teapot --width 8 --height 8 --frames 1 --traversal exact --insertion first-empty --threads 2");
+  INFO(compact.output);
+  CHECK(compact.exit_code == 2);
+  CHECK_THAT(compact.output, Catch::Contains("compact layout"));
+  const Run first_empty = run_tool(
+      "diff builtin:teapot --width 8 --height 8 --frames 1 --traversal exact --insertion first-empty --layout image --threads 2");
   INFO(first_empty.output);
   CHECK(first_empty.exit_code == 0);
   CHECK_THAT(first_empty.output, Catch::Contains("AGREE"));
@@ -228,6 +235,31 @@ TEST_CASE("CLI: llvmpipe's loop limit - the mailbox's trace and the gather's fin
   INFO(trace.output);
   CHECK(trace.exit_code == (llvmpipe ? 1 : 0));
   if (llvmpipe) CHECK_THAT(trace.output, Catch::Contains("refused from an estimated 49152"));
+  // References the mailbox skips are no tests but cost iterations (an outside sweep): 8 long thin
+  // triangles down a tube of 1,000 cells and a wall at its end; every cell lists the 8, tested in
+  // the first and skipped in every other, so a ray makes about 10 tests over 1,000 cells, under the
+  // tests-and-cells estimate, and llvmpipe cut it at about 520 cells (t = 0 "hits", exit 0). The
+  // trace's own count of the skips now flags it: refused on llvmpipe, traced in agreement elsewhere.
+  {
+    std::ofstream f(d / "tube.obj");
+    for (int k = 0; k < 8; ++k) {
+      const double y = 0.05 + 0.1 * k;
+      f << "v 0 " << y << " 0.05\nv 1200 " << y << " 0.05\nv 1200 " << y + 0.02 << " 0.1\n";
+    }
+    f << "v 1199.5 0 0\nv 1199.5 1 0\nv 1199.5 1 1\nv 1199.5 0 1\n";
+    for (int k = 0; k < 8; ++k) f << "f " << 3 * k + 1 << " " << 3 * k + 2 << " " << 3 * k + 3 << "\n";
+    f << "f 25 26 27\nf 25 27 28\n";
+  }
+  std::ofstream(d / "tube.json") << R"({"meshes":{"t":{"file":"tube.obj"}},"instances":[{"mesh":"t"}],)"
+                                 << R"("camera":{"eye":[-3,0.5,0.6],"target":[1200,0.5,0.6],"vfov":0.02}})";
+  for (const char* layout : {"compact", "image"}) {
+    const Run tube = run_tool("diff " + (d / "tube.json").string() + " --width 4 --height 4 --frames 1 --traversal exact " +
+                              "--resolution 1000,3,3 --mailbox on --skip-empty off --layout " + layout);
+    INFO(layout << "\n" << tube.output);
+    CHECK(tube.exit_code == (llvmpipe ? 1 : 0));
+    if (llvmpipe) CHECK_THAT(tube.output, Catch::Contains("skipped references its mailbox held"));
+    else CHECK_THAT(tube.output, Catch::Contains("AGREE"));
+  }
 }
 
 TEST_CASE("CLI: llvmpipe's loop limit - a cell's spill list of 32,768 entries or more is refused, not cut", "[vulkan][cli][hardcase]") {

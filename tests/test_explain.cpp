@@ -435,3 +435,48 @@ TEST_CASE("Explain: no shadow ray is explained on a scene whose shadows the fram
   CHECK_THAT(r.output, Catch::Contains("8 at most"));
   std::filesystem::remove_all(d);
 }
+
+TEST_CASE("Explain: pictures give a triangle its decisive result, a gap-fill hit no triangle, far rays an end",
+          "[unit][explain]") {
+  // Outside sweeps: a triangle accepted (the best hit then) and retested in the next cell
+  // (not-closer) was drawn "rejected"; the launch triangle's self-hit skips counted as tests; a
+  // gap-fill voxel's reported triangle was drawn as "the hit triangle"; a far ray's grid lines
+  // never ended (a float stepped by a cell size below its half-ulp)
+  const Cornell c;
+  ExplainRecord rec = c.record();
+  size_t t = first_of(rec, sh::kEvTest);
+  REQUIRE(t != kNoEvent);
+  const uint32_t ref = rec.events[t].ref;
+  ExplainRecord edited = rec;
+  sh::ExplainEvent accepted = rec.events[t], later = rec.events[t], self = rec.events[t];
+  accepted.code = sh::kTestAccepted;
+  later.code = sh::kTestNotCloser;
+  self.code = sh::kTestSelfHit;
+  edited.events.insert(edited.events.begin() + ptrdiff_t(t), {self, accepted, later});
+  edited.events.erase(edited.events.begin() + ptrdiff_t(t) + 3);
+  const reference::ExplainGeometry g = reference::explain_geometry(edited, c.grid.data());
+  uint32_t counted = 0;  // its tests but the self-hit skip and mailboxed retests
+  for (const auto& e : edited.events)
+    counted += e.kind == sh::kEvTest && e.ref == ref && e.code != sh::kTestSelfHit && e.code != sh::kTestMailboxed;
+  bool found = false;
+  for (const auto& tri : g.triangles)
+    if (tri.ref == ref) {
+      found = true;
+      CHECK(tri.code == sh::kTestAccepted);
+      CHECK(tri.tests == counted);  // the self-hit skip is none
+      CHECK(counted >= 2u);
+    }
+  CHECK(found);
+  // A gap-fill report: the reported triangle is no hit triangle; the legend says gap-fill
+  ExplainRecord gap = rec;
+  for (auto& e : gap.events)
+    if (e.kind == sh::kEvReport) e.code |= sh::kHitGapFill, e.ref = ref;
+  const reference::ExplainGeometry gg = reference::explain_geometry(gap, c.grid.data());
+  CHECK(gg.gap_fill);
+  for (const auto& tri : gg.triangles) CHECK_FALSE(tri.hit);
+  CHECK_THAT(reference::explain_svg(gap, c.grid.data(), {true, &c.names}), Catch::Contains("gap-fill hit"));
+  CHECK_THAT(reference::explain_obj(gap, c.grid.data(), "ray.mtl"), Catch::Contains("g gap_fill_point"));
+  // A rejected ray far from the origin: its picture ends (it looped forever)
+  const ExplainRecord far = c.grid.explain_ray(plan::parse_ray("3e7,2,2,-1,0,0"));
+  CHECK_THAT(reference::explain_svg(far, c.grid.data(), {true, &c.names}), Catch::Contains("</svg>"));
+}

@@ -890,7 +890,20 @@ TEST_CASE("glTF: values TinyGLTF drops are refused by path, images no material u
       {"a material index of -2", [](nlohmann::json& j) { j["meshes"][0]["primitives"][0]["material"] = -2; },
        "meshes[0].primitives[0].material"},
       {"a string alphaCutoff", [](nlohmann::json& j) { j["materials"][0]["alphaCutoff"] = "0.5"; },
-       "materials[0].alphaCutoff"}};
+       "materials[0].alphaCutoff"},
+      // A later sweep: offsets, strides and flags of another type were read as absent or 0, and the
+      // indices came from the positions' bytes with exit 0
+      {"a string byteOffset", [](nlohmann::json& j) { j["bufferViews"][3]["byteOffset"] = "36"; },
+       "bufferViews[3].byteOffset"},
+      {"a negative byteStride", [](nlohmann::json& j) { j["bufferViews"][0]["byteStride"] = -12; },
+       "bufferViews[0].byteStride"},
+      {"a fractional accessor byteOffset", [](nlohmann::json& j) { j["accessors"][0]["byteOffset"] = 0.5; },
+       "accessors[0].byteOffset"},
+      {"a numeric normalized", [](nlohmann::json& j) { j["accessors"][2]["normalized"] = 1; }, "accessors[2].normalized"},
+      {"a count of 0", [](nlohmann::json& j) { j["accessors"][1]["count"] = 0; }, "accessors[1].count"},
+      {"a NUL in an image URI", [](nlohmann::json& j) { j["images"][0]["uri"] = std::string("a.png\0.jpg", 10); },
+       "images[0].uri"},
+      {"a %00 in an image URI", [](nlohmann::json& j) { j["images"][0]["uri"] = "a.png%00.jpg"; }, "images[0].uri"}};
   for (const Case& c : cases) {
     nlohmann::json j = base;
     c.edit(j);
@@ -1058,6 +1071,11 @@ TEST_CASE("OBJ and MTL: values tinyobjloader reads as 0 or drops are refused wit
   CHECK_THROWS_WITH(load(use, "newmtl a\nKd 1 -NaN 1\n"), Catch::Contains("m.mtl:2") && Catch::Contains("-NaN"));
   CHECK_THROWS_WITH(load("v -Inf 1 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", ""), Catch::Contains("m.obj:1"));
   CHECK_THROWS_WITH(load(std::string("v\0 0", 4) + "\n" + tri + "f 1 2 3\n", ""), Catch::Contains("NUL"));
+  // A later sweep: a colour of two or four numbers read as (r, g, 0) or its fourth dropped; a NUL in
+  // a library cut a texture's name
+  CHECK_THROWS_WITH(load(use, "newmtl a\nKd 1 0\n"), Catch::Contains("m.mtl:2") && Catch::Contains("three"));
+  CHECK_THROWS_WITH(load(use, "newmtl a\nKd 1 0 0 7\n"), Catch::Contains("m.mtl:2"));
+  CHECK_THROWS_WITH(load(use, std::string("newmtl a\nmap_Kd t.png\0x.png\n", 28)), Catch::Contains("NUL"));
   CHECK_THROWS_WITH(load(tri + "usemtl a\nf 1 2 3\nmtllib m.mtl\n", "newmtl a\nKd 1 0 0\n"),
                     Catch::Contains("m.obj:4") && Catch::Contains("before the mtllib"));
   // Read right: blanks after newmtl, a texture option line; the same material twice keeps the first

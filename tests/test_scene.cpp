@@ -2,6 +2,7 @@
 
 #include "gridrt/common/camera.h"
 #include "gridrt/common/scene.h"
+#include "gridrt/plan/plan.h"
 #include "gridrt/common/shared/grid.h"
 
 #include <algorithm>
@@ -276,4 +277,31 @@ TEST_CASE("The least extent is judged on the box over the motions, whatever the 
   s.instances.push_back(b);
   s.finalize();
   for (const float t : {0.0f, 2.5f, 10.0f}) CHECK_NOTHROW(s.require_extent(t, "grid"));
+}
+
+TEST_CASE("An empty mesh on a path bounds nothing: the grid is the other instances'", "[unit][scene][badinput]") {
+  // An outside sweep: an empty mesh's instance moving along a path (a .gridscene may hold one) was
+  // refused as "its bounds over the animation ... are not finite", a static or rotating one not
+  Scene s;
+  s.name = "empty mover";
+  Mesh m;
+  m.name = "t";
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  m.triangles = {{0u, 1u, 2u}};
+  m.materials = {0u};
+  s.meshes.push_back(m);
+  Mesh e;
+  e.name = "empty";
+  s.meshes.push_back(e);
+  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  Instance b{.name = "b", .mesh = 1, .dynamic = true};
+  b.motion.path_points = {glm::vec3(0.0f), glm::vec3(10.0f, 0.0f, 0.0f)};
+  b.motion.path_period = 10.0f;
+  s.instances.push_back(b);
+  s.finalize();
+  for (const float t : {0.0f, 2.5f}) {
+    const Bounds bb = plan::animation_bounds(s, t);
+    CHECK(bb.lo == glm::vec3(0.0f));
+    CHECK(bb.hi == glm::vec3(1.0f, 1.0f, 0.0f));
+  }
 }

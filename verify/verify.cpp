@@ -199,7 +199,7 @@ std::string to_table(const std::vector<FamilyResult>& results) {
   for (const FamilyResult& r : results)
     for (const Example& e : r.examples)
       os << "  " << r.name << " ray " << e.ray << ": " << to_string(e.verdict) << " (" << e.why << ")\n    ray  "
-         << e.ray_hex << "\n    got  " << e.got_hex << "\n    want " << e.want_hex << "\n";
+         << e.ray_hex << "\n    grid   " << e.got_hex << "\n    embree " << e.want_hex << "\n";
   return os.str();
 }
 
@@ -215,7 +215,7 @@ nlohmann::json to_json(const std::vector<FamilyResult>& results) {
     nlohmann::json ex = nlohmann::json::array();
     for (const Example& e : r.examples)
       ex.push_back({{"ray", e.ray}, {"verdict", to_string(e.verdict)}, {"why", e.why}, {"ray_bits", e.ray_hex},
-                    {"got", e.got_hex}, {"want", e.want_hex}});
+                    {"grid", e.got_hex}, {"embree", e.want_hex}});
     f["examples"] = ex;
     j.push_back(f);
   }

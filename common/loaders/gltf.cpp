@@ -346,6 +346,51 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
               fail(where + ".attributes." + a.key(), "expected an accessor index, found " + a->dump());
       }
     }
+  // Offsets, strides, counts and flags of the buffer views and accessors: TinyGLTF read a string,
+  // a negative number or a fraction there as absent or 0, and the indices came from the positions'
+  // bytes, exit 0 (an outside sweep)
+  const auto whole = [&](const nlohmann::json& o, const char* key, const std::string& where, int64_t least) {
+    if (!o.is_object() || !o.contains(key)) return;
+    const nlohmann::json& v = o[key];
+    if (!v.is_number_integer() || v.get<int64_t>() < least)
+      fail(where + "." + key, "expected an integer from " + std::to_string(least) + ", found " + v.dump());
+  };
+  if (const nlohmann::json* views = array("bufferViews"))
+    for (size_t i = 0; i < views->size(); ++i) {
+      const std::string where = "bufferViews[" + std::to_string(i) + "]";
+      index((*views)[i], "buffer", where);
+      whole((*views)[i], "byteOffset", where, 0);
+      whole((*views)[i], "byteLength", where, 1);
+      whole((*views)[i], "byteStride", where, 4);
+      whole((*views)[i], "target", where, 0);
+    }
+  // A URI's NUL (raw, or %00 once decoded) cut the name there, and the file before it was read (an
+  // outside sweep)
+  for (const char* kind : {"buffers", "images"})
+    if (const nlohmann::json* list = array(kind))
+      for (size_t i = 0; i < list->size(); ++i) {
+        const nlohmann::json& b = (*list)[i];
+        const std::string where = std::string(kind) + "[" + std::to_string(i) + "]";
+        if (std::string(kind) == "buffers") whole(b, "byteLength", where, 1);
+        if (!b.is_object() || !b.contains("uri")) continue;
+        if (!b["uri"].is_string()) fail(where + ".uri", "expected a string");
+        const std::string uri = b["uri"].get<std::string>();
+        if (uri.find('\0') != std::string::npos || uri.find("%00") != std::string::npos)
+          fail(where + ".uri", "a NUL byte (or %00) in a file name");
+      }
+  if (const nlohmann::json* accessors = array("accessors"))
+    for (size_t i = 0; i < accessors->size(); ++i) {
+      const nlohmann::json& a = (*accessors)[i];
+      const std::string where = "accessors[" + std::to_string(i) + "]";
+      index(a, "bufferView", where);
+      whole(a, "byteOffset", where, 0);
+      whole(a, "count", where, 1);
+      whole(a, "componentType", where, 0);
+      if (a.is_object() && a.contains("normalized") && !a["normalized"].is_boolean())
+        fail(where + ".normalized", "expected true or false, found " + a["normalized"].dump());
+      if (a.is_object() && a.contains("type") && !a["type"].is_string())
+        fail(where + ".type", "expected a string, found " + a["type"].dump());
+    }
   std::set<int> textures;
   if (const nlohmann::json* materials = array("materials"))
     for (size_t i = 0; i < materials->size(); ++i) {
@@ -450,6 +495,14 @@ bool load_image_checked(tinygltf::Image* image, const int index, std::string* er
   return tinygltf::LoadImageData(image, index, err, warn, req_w, req_h, bytes, size, nullptr);  // its options: none
 }
 
+// TinyGLTF's FileExists probes a path by opening it (fopen): a FIFO blocked there forever, before
+// read_external could refuse it (an outside sweep). Existence by the entry alone (stat, no open);
+// read_external then names what the entry is.
+bool file_exists_unopened(const std::string& abs_filename, void*) {
+  std::error_code ec;
+  return fs::exists(fs::path(abs_filename), ec);
+}
+
 // The model: the file read here (a regular file within the size bound), the JSON's nesting depth
 // checked before TinyGLTF's recursive parser sees it, external buffers and images read and decoded
 // only through the checked callbacks above.
@@ -466,7 +519,7 @@ tinygltf::Model parse_model(const std::string& path, std::map<int, int>& image_a
   images.model = &model;
   check_gltf_json(path, binary ? glb_json_chunk(data) : std::string_view(data), images.used);
   if (data.size() > UINT32_MAX) throw Error("cannot load glTF '" + path + "': larger than 4 GiB");
-  tinygltf::FsCallbacks fs_callbacks{&tinygltf::FileExists, &tinygltf::ExpandFilePath, &read_external, nullptr, nullptr};
+  tinygltf::FsCallbacks fs_callbacks{&file_exists_unopened, &tinygltf::ExpandFilePath, &read_external, nullptr, nullptr};
   loader.SetFsCallbacks(fs_callbacks);
   loader.SetImageLoader(&load_image_checked, &images);
   std::string base_dir = fs::path(path).parent_path().string();

@@ -281,6 +281,11 @@ std::string pad_texture_options(const std::string& path, const std::string& text
 // texture statements a file name.
 std::string scan_mtl(const std::string& path) {
   std::string text = read_file(path, "material library");
+  // A NUL byte, as in an OBJ: a map_Kd's name was cut there and the file before it opened (an
+  // outside sweep)
+  if (const size_t nul = text.find('\0'); nul != std::string::npos)
+    fail_at(path, size_t(std::count(text.begin(), text.begin() + std::ptrdiff_t(nul), '\n')) + 1,
+            "a NUL byte: a material library is a text file (UTF-8 or ASCII; UTF-16 is not read)");
   for_each_line(text, [&](size_t line, const std::vector<std::string_view>& tok) {
     const std::string_view k = tok[0];
     if (k == "Kd" || k == "Ka" || k == "Ks" || k == "Ke" || k == "Tf") {
@@ -289,6 +294,11 @@ std::string scan_mtl(const std::string& path) {
         fail_at(path, line, "'" + std::string(k) + " " + std::string(tok[1]) +
                                 "': CIE XYZ and spectral colours are not read; give r g b");
       check_numbers(path, line, tok, 1);
+      // One number (grey) or r g b: two were read as (r, g, 0) and a fourth dropped, without a word
+      // (an outside sweep)
+      if (tok.size() != 2 && tok.size() != 4)
+        fail_at(path, line, "'" + std::string(k) + "' takes one number (grey) or three (r g b), has " +
+                                std::to_string(tok.size() - 1));
     } else if (k == "Ns" || k == "Ni" || k == "d" || k == "Tr" || k == "illum") {
       check_numbers(path, line, tok, 1);
     } else if (k == "map_Kd" || k == "map_d") {

@@ -40,7 +40,7 @@ diff | all)
         grep -E "^(diff|frame|AGREE|DIFFER|spill|  first)" | tail -12
     done
     echo "== diff sibenik exact first-empty, compute build (spill on)"
-    timeout 200 gridrt diff $E/sibenik-teapots.gridscene --traversal exact --insertion first-empty --vk-build compute \
+    timeout 200 gridrt diff $E/sibenik-teapots.gridscene --traversal exact --insertion first-empty --layout image --vk-build compute \
       --width 480 --height 270 --frames 3 2>&1 | grep -E "^(diff|frame|AGREE|DIFFER|spill)" | tail -12
   } 2>&1 | tee "$out/diff.txt"
   ;;&
