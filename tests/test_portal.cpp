@@ -361,7 +361,7 @@ TEST_CASE("Portal: subnormal direction components are zeros, the portal and the 
   CHECK(hits > 100);
 }
 
-TEST_CASE("Portal: a ray starting in glass starts inside it; empty or negative intervals miss (portal and DDA alike)",
+TEST_CASE("Portal: a ray starting in glass starts inside it, empty or negative intervals miss (portal and DDA alike)",
           "[portal][unit]") {
   // Outside sweeps: the portal traced out of the glass a ray started in (naming an empty voxel,
   // face -X) where the DDA said "inside"; an interval with tmin >= tmax hit a wall at t = tmin;
