@@ -325,7 +325,17 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
 std::vector<Item> ray_items(const ExplainOptions& o, const Scene& scene, Explainer& ex) {
   std::vector<Item> items;
   std::vector<Ray> rays;
-  for (const std::string& r : o.rays) rays.push_back(plan::parse_ray(r));
+  // A --ray value is the command line's: a malformed one is exit 2 (it was 1, as a bad file is:
+  // an outside sweep); a --ray-file's stay bad input
+  for (const std::string& r : o.rays) {
+    try {
+      rays.push_back(plan::parse_ray(r));
+    } catch (const OptionsError&) {
+      throw;
+    } catch (const Error& e) {
+      throw OptionsError(std::string("--ray: ") + e.what());
+    }
+  }
   if (!o.ray_file.empty())
     for (const Ray& r : plan::read_ray_file(o.ray_file)) rays.push_back(r);
   // A launch reference names a triangle of the scene (instance << 16 | triangle)

@@ -4,7 +4,9 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <optional>
 
@@ -652,8 +654,14 @@ void add_portal_command(CLI::App& app) {
     cmd->add_option("-o,--output", *output, "The scene file (.json); the meshes are written beside it")->required();
     cmd->add_flag("--flatten", *flat, "One mesh of the flattened world instead of the blocks as instances");
     cmd->callback([=] {
-      // The output's folder checked first, as every verb's (its message named a temporary file)
+      // The output's folder checked first, as every verb's (its message named a temporary file);
+      // its extension is the command line's choice: exit 2 (it was 1: an outside sweep), any case
       check_output_path(*output);
+      std::string ext = std::filesystem::path(*output).extension().string();
+      for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+      if (ext != ".json")
+        throw OptionsError("portal export: the output (-o) must be a .json scene file (its meshes are written beside "
+                           "it), not '" + *output + "'");
       std::optional<portal::InstancedWorld> iw = load_instanced(*spec);
       if (!iw) throw Error("portal export: '" + *spec + "' is not a block map");
       const size_t triangles = portal::export_scene(*iw, *output, *flat);

@@ -641,6 +641,9 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         "render builtin:cornell --width 8 --height 8 -b vulkan --shuffle-seed 3" + out,
         std::string("stats builtin:cornell --insertion first-empty --shuffle-seed -1"),
         std::string("stats builtin:cornell --insertion first-empty --shuffle-seed 18446744073709551616"),
+        // The command line's own values: a malformed --ray, portal export's output that is no scene file
+        std::string("explain builtin:cornell --ray 0,1,3,0,0"),
+        "portal export builtin:blocks -o " + (dir / "x.obj").string(),
         std::string("stats builtin:cornell --capacity 8 --max-capacity 7"),
         std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --gather boxes"),
         std::string("bench builtin:cornell -b cpu --width 8 --height 8 --frames 1 --warmup 0 --counter-frames 2"),

@@ -319,7 +319,7 @@ TEST_CASE("Explain: the command line - any ray, ray files, kinds, brief, JSON, p
   CHECK_THAT(slurp(html), Catch::Contains("const DATA = {"));
   // Bad input: clear message, the right exit code
   const test::Run bad = run_tool("explain builtin:cornell --ray 1,2,3");
-  CHECK(bad.exit_code == 1);
+  CHECK(bad.exit_code == 2);  // the command line's value (it was 1, as a bad ray file's: an outside sweep)
   CHECK_THAT(bad.output, Catch::Contains("ox,oy,oz,dx,dy,dz"));
   CHECK(run_tool("explain builtin:cornell").exit_code == 2);
   CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,-1,0 --json").exit_code == 2);  // --json needs FILE

@@ -799,7 +799,9 @@ std::string json_vec(glm::vec3 v) {
 size_t export_scene(const InstancedWorld& iw, const std::string& json_path, bool flat) {
   namespace fs = std::filesystem;
   const fs::path jp(json_path);
-  if (jp.extension() != ".json") throw Error("portal export: the output must be a .json scene file");
+  std::string ext = jp.extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".json") throw Error("portal export: the output must be a .json scene file");
   const std::string stem = jp.stem().string();
   if (json_path.find_first_of("\"\\") != std::string::npos)
     throw Error("portal export: the output path may not contain '\"' or '\\'");
