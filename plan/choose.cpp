@@ -626,8 +626,25 @@ Error over_budget(const GridCandidate& c, const GridOptions& o, const Scene& sce
 // grid without the spill list (`spill` false: the paper traversal's) keeps `capacity` of them and
 // drops the rest: said so (the warning said every ray tests them all, where a paper grid had
 // dropped 4,098 of 5,122 and a shadow went missing: an outside sweep).
-void warn_crowded_cell(const Scene& scene, const GridCandidate& c, bool spill) {
+void warn_crowded_cell(const Scene& scene, const GridCandidate& c, bool spill, float reach) {
   if (c.max_count < kCrowdedCellReferences) return;
+  // Cells at the narrowest the domain allows at the scene's distance from the origin: finer ones are
+  // refused there, so the advice is to move the model, not to ask for cells (a dense model 1e5 from
+  // the origin alone was told of far geometry and --resolution: an outside sweep)
+  if (c.cell_size <= 2.0f * min_cell_size(reach)) {
+    static std::mutex domain_lock;
+    static std::set<std::string> domain_warned;
+    const std::lock_guard<std::mutex> hold(domain_lock);
+    if (!domain_warned.insert(scene.name).second) return;
+    std::fprintf(stderr,
+                 "gridrt: warning: grid %ux%ux%u: its densest cell holds %u references of the scene's %llu triangles; "
+                 "every ray through it tests them all. The cells (%g) are already near the narrowest the domain allows "
+                 "%g from the origin (%g: %g ulps of the coordinates there, docs/SPEC.md \"Domain\"), so finer cells "
+                 "are refused: expect slow traces, or move the model nearer the origin\n",
+                 c.cells.x, c.cells.y, c.cells.z, c.max_count, (unsigned long long)scene.triangle_count(),
+                 double(c.cell_size), double(reach), double(min_cell_size(reach)), double(kMinCellUlps));
+    return;
+  }
   static std::mutex warned_lock;
   static std::set<std::string> warned;
   const std::lock_guard<std::mutex> hold(warned_lock);
@@ -831,7 +848,11 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
                      ? choose_by_percentile(scene, time, o, g, e, cs)
                      : choose_by_candidates(scene, time, o, g, e, cs, &ch);
   if ((p.flags & shared::kGridCompact) == 0u) p.flags &= ~shared::kGridSkipCovered;
-  if (!ch.candidates.empty()) warn_crowded_cell(scene, ch.candidates[ch.chosen], (p.flags & shared::kGridSpill) != 0u);
+  if (!ch.candidates.empty()) {
+    const float reach = std::max({std::abs(b.lo.x), std::abs(b.lo.y), std::abs(b.lo.z), std::abs(b.hi.x),
+                                  std::abs(b.hi.y), std::abs(b.hi.z)});
+    warn_crowded_cell(scene, ch.candidates[ch.chosen], (p.flags & shared::kGridSpill) != 0u, reach);
+  }
   return p;
 }
 

@@ -794,6 +794,25 @@ TEST_CASE("Outside sweep: a crowded cell is warned of, and a tiny model keeps a 
   CHECK_THAT(crowded.output, Catch::Contains("densest cell holds") && Catch::Contains("expect slow traces"));
   // said once, however many grids the policy weighs
   CHECK(crowded.output.find("densest cell holds") == crowded.output.rfind("densest cell holds"));
+  CHECK_THAT(crowded.output, Catch::Contains("far geometry"));
+  // A dense model alone, 1e5 from the origin: its cells are the narrowest the domain allows there,
+  // and the warning says so (it blamed far geometry and advised --resolution, which is refused
+  // there: an outside sweep)
+  {
+    std::ofstream f(dir / "faraway.obj");
+    const int n = 65;
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) f << "v " << 1e5 + double(i) / n << " " << 0.01 * ((i + j) % 3) << " " << double(j) / n << "\n";
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const int a = 1 + j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+        f << "f " << a << " " << b << " " << d << "\nf " << a << " " << d << " " << c << "\n";
+      }
+  }
+  const Run domain = run_tool("stats " + (dir / "faraway.obj").string() + " --traversal exact");
+  INFO(domain.output);
+  CHECK(domain.exit_code == 0);
+  CHECK_THAT(domain.output, Catch::Contains("narrowest the domain allows") && Catch::Contains("nearer the origin"));
   // The same sheet alone is not crowded, at a unit's scale and at a billionth of it
   std::string cells[2], occupancy[2];
   for (const int k : {0, 1}) {
