@@ -800,6 +800,7 @@ TEST_CASE("Outside sweep: a crowded cell is warned of, and a tiny model keeps a 
   // there: an outside sweep)
   {
     std::ofstream f(dir / "faraway.obj");
+    f.precision(12);  // the coordinates' bits near 1e5
     const int n = 65;
     for (int j = 0; j <= n; ++j)
       for (int i = 0; i <= n; ++i) f << "v " << 1e5 + double(i) / n << " " << 0.01 * ((i + j) % 3) << " " << double(j) / n << "\n";
