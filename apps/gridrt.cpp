@@ -93,6 +93,20 @@ int option_values(const CLI::App& app, const std::string& name) {
   return n;
 }
 
+// Whether `name` is a comma-list option of `app` or of any of its subcommands.
+bool option_is_list(const CLI::App& app, const std::string& name) {
+  if (const CLI::Option* o = app.get_option_no_throw(name); o && o->get_delimiter() == ',') return true;
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+    if (option_is_list(*sub, name)) return true;
+  return false;
+}
+
+// A comma list with an empty item (4,,8 or a leading or trailing comma): CLI11 drops the empty
+// item, so --capacity 4,,8 ran two values without a word (an outside sweep's find).
+bool has_empty_item(const std::string& list) {
+  return list.empty() || list.front() == ',' || list.back() == ',' || list.find(",,") != std::string::npos;
+}
+
 std::pair<std::string, std::string> bad_number_argument(const CLI::App& app, int argc, char** argv) {
   const auto bad_part = [](const std::string& part) -> std::string {
     if (part.empty()) return "";
@@ -121,13 +135,23 @@ std::pair<std::string, std::string> bad_number_argument(const CLI::App& app, int
   static const std::set<std::string> paths{"-o", "--output", "--output-dir", "--slices", "--json", "--junit", "--svg",
                                            "--html", "--export", "--ray-file"};
   int values_left = 0;  // tokens still to come that are the last option's values (--pixel 3 010)
+  bool list = false;    // the last option is a comma list
+  const std::string empty_item = "a comma list may not have an empty item (4,,8, or a leading or trailing comma): write 4,8";
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     const bool option_value = values_left > 0 && a.rfind("-", 0) != 0;
     values_left = option_value ? values_left - 1 : 0;
+    if (option_value && list && a.find(',') != std::string::npos && has_empty_item(a)) return {argv[i], empty_item};
+    if (!option_value) list = false;
     if (a.size() > 1 && a[0] == '-' && a.find('=') == std::string::npos) {
       const int n = option_values(app, a);
       values_left = n > 16 ? 1 << 20 : n;  // a list option: every token up to the next option
+      list = option_is_list(app, a);
+    }
+    if (const size_t eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos &&
+                                       option_is_list(app, a.substr(0, eq))) {
+      const std::string v = a.substr(eq + 1);
+      if (v.find(',') != std::string::npos && has_empty_item(v)) return {argv[i], empty_item};
     }
     // explain --ray takes inf and nan on purpose: it shows how the tracer rejects such a ray
     if (a == "--ray" || paths.count(a)) {

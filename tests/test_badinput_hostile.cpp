@@ -83,6 +83,18 @@ TEST_CASE("Command-line numbers: NaN, infinity and values past the limits are ex
   CHECK(run_tool("explain builtin:cornell --width 10 --height 8 -p 0,0 -t0 --brief").exit_code == 0);
 }
 
+TEST_CASE("A comma list with an empty item is refused, never run with the item dropped", "[badinput][cli]") {
+  // CLI11 drops an empty item: sweep --capacity 4,,8 swept two capacities without a word
+  for (const char* args : {"sweep builtin:cornell --capacity 4,,8", "sweep builtin:cornell --capacity 4,8,",
+                           "sweep builtin:cornell --capacity=,4,8", "sweep builtin:cornell --traversal paper,,exact",
+                           "stats builtin:cornell --resolution 8,,8,8"}) {
+    const auto r = run_tool(std::string(args) + " --json /nonexistent/x.json");
+    INFO(args << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Contains("empty item"));
+  }
+}
+
 TEST_CASE("An image larger than --max-pixels is refused before any work, naming the limit", "[badinput][cli]") {
   const auto r = run_tool("render builtin:cornell --width 16384 --height 16384 -o /tmp/never.png");
   CHECK(r.exit_code == 1);
