@@ -551,3 +551,28 @@ TEST_CASE("Standard output that cannot be written is exit 1 with the reason, a c
   CHECK(pipe.exit_code == 1);  // not 141 (killed by SIGPIPE)
   CHECK_THAT(pipe.output, Contains("cannot write to standard output"));
 }
+
+TEST_CASE("Outside sweep: an OBJ face of a texture-keyed material without vt is warned about, as in glTF", "[badinput][cli]") {
+  // Such a corner reads the mask at uv (0, 0): the face is kept or cut whole by one texel, which
+  // the glTF loader said and the OBJ loader did not
+  const fs::path d = scratch("keyed-novt");
+  const std::vector<uint8_t> rgba{255, 255, 255, 0, 255, 255, 255, 255};
+  write_image_rgba8((d / "mask.png").string(), 2, 1, rgba);
+  std::ofstream(d / "m.mtl") << "newmtl leaf\nKd 1 1 1\nmap_d mask.png\nnewmtl plain\nKd 1 1 1\n";
+  const std::string head = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n";
+  std::ofstream(d / "bare.obj") << head << "usemtl leaf\nf 1 2 3\nf 2 4 3\nusemtl plain\nf 1 3 4\n";
+  std::ofstream(d / "mixed.obj") << head << "usemtl leaf\nf 1/1 2/2 3/3\nf 2/2 4 3/3\n";
+  std::ofstream(d / "full.obj") << head << "usemtl leaf\nf 1/1 2/2 3/3\nusemtl plain\nf 1 3 4\n";
+  const auto bare = run_tool("stats " + (d / "bare.obj").string());
+  INFO(bare.output);
+  CHECK(bare.exit_code == 0);
+  CHECK_THAT(bare.output, Contains("2 face(s) of material 'leaf'") && Contains("uv (0, 0)"));
+  const auto mixed = run_tool("stats " + (d / "mixed.obj").string());
+  INFO(mixed.output);
+  CHECK_THAT(mixed.output, Contains("1 face(s) of material 'leaf'"));
+  // Every keyed face with its vt, a plain material without: nothing to say
+  const auto full = run_tool("stats " + (d / "full.obj").string());
+  INFO(full.output);
+  CHECK(full.exit_code == 0);
+  CHECK_THAT(full.output, !Contains("uv (0, 0)"));
+}

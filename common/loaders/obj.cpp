@@ -570,6 +570,8 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, co
   bool all_normals = true, any_uv = false;
   std::vector<glm::vec3> normals;
   size_t fans = 0, largest_fan = 0, face = 0;
+  size_t keyed_without_uv = 0;   // faces of a texture-keyed material with a corner without vt
+  std::string keyed_material;    // the first such face's material
   uint64_t budget = kEarClipBudget;
   for (const auto& shape : shapes) {
     const auto& idx = shape.mesh.indices;
@@ -624,6 +626,13 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, co
         }
         mesh.triangles.push_back(tri);
         int mid = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
+        if (&piece == &pieces.front() && mid >= 0 && size_t(mid) < mats.size() &&
+            scene.materials[base + uint32_t(mid)].alpha_keyed())
+          for (size_t k = 0; k < corners; ++k)
+            if (idx[first + k].texcoord_index < 0) {
+              if (keyed_without_uv++ == 0) keyed_material = scene.materials[base + uint32_t(mid)].name;
+              break;
+            }
         if (mid < 0 || size_t(mid) >= mats.size()) {
           if (default_material < 0) {
             default_material = int64_t(scene.materials.size());
@@ -643,6 +652,12 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, co
     std::cerr << "warning: " << path << ": " << fans << " face(s) (the largest of " << largest_fan
               << " corners) split as fans after the ear clipping's budget of corner tests ran out: a concave face "
               "is covered wrongly so; triangulate such faces before\n";
+  // A corner without texture coordinates reads uv (0, 0): one texel keeps or cuts such a face of a
+  // keyed material whole (an outside sweep: said for glTF, not for OBJ)
+  if (keyed_without_uv)
+    std::cerr << "warning: " << path << ": " << keyed_without_uv << " face(s) of material '" << keyed_material
+              << "' (keyed with a texture) have corners without texture coordinates (vt): such a corner reads its "
+                 "texel at uv (0, 0)\n";
   if (mesh.triangles.empty()) throw Error("OBJ '" + path + "' has no faces: an empty model");
   if (all_normals) mesh.normals = std::move(normals);  // a vertex without a normal: flat shading
   if (!any_uv) mesh.uvs.clear();
