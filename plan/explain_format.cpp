@@ -603,12 +603,25 @@ nlohmann::json explain_json(const ExplainRecord& rec, const ExplainFormat& fmt) 
     if (e.kind == kEvSlot || e.kind == kEvTest || e.kind == kEvCandidate || e.kind == kEvSpilled ||
         e.kind == kEvReport || e.kind == kEvGapFill || e.kind == kEvAlpha || e.kind == kEvRay)
       j["reference"] = ref_json(e.ref, fmt);
-    // The fields by name
+    // The fields by name; null where the step computed nothing (the record holds 0 there): a test
+    // never made (the launch triangle, a mailboxed reference) has no values, and the reported t
+    // (f1.w) exists only where the geometry accepted the triangle (an outside sweep: the viewer
+    // showed t = 0 for rejected tests)
     json named = json::object();
     const std::vector<EventField> fields = event_fields(e.kind, exact);
     const float fl[8] = {e.f0.x, e.f0.y, e.f0.z, e.f0.w, e.f1.x, e.f1.y, e.f1.z, e.f1.w};
+    bool computed[8] = {true, true, true, true, true, true, true, true};
+    if (e.kind == kEvTest) {
+      const bool tested = e.code != kTestSelfHit && e.code != kTestMailboxed;
+      const bool t_known = e.code == kTestAccepted || e.code == kTestOriginPlane || e.code == kTestAlphaKeyed ||
+                           e.code == kTestTieLost;
+      for (bool& c : computed) c = tested;
+      computed[7] = t_known;
+      j["computed"] = json::array();
+      for (bool c : computed) j["computed"].push_back(c);
+    }
     for (size_t k = 6; k < fields.size(); ++k)
-      if (*fields[k].name) named[fields[k].name] = jnum(fl[k - 6]);
+      if (*fields[k].name) named[fields[k].name] = computed[k - 6] ? jnum(fl[k - 6]) : json(nullptr);
     j["fields"] = named;
     json field_names = json::array();
     for (const EventField& f : fields) field_names.push_back(f.name);

@@ -155,12 +155,24 @@ TEST_CASE("Explain: full text numbers every event, brief folds empty cells, JSON
   // JSON: every event with its raw fields, names and bits
   const nlohmann::json j = plan::explain_json(rec, {false, &names});
   REQUIRE(j["events"].size() == rec.events.size());
+  int rejected = 0;
   for (size_t i = 0; i < rec.events.size(); ++i) {
     const auto& e = j["events"][i];
     CHECK(e["kind"] == rec.events[i].kind);
     CHECK(e["kind_name"] == plan::event_kind_name(rec.events[i].kind));
     CHECK(e["f1_hex"][3] == reference::hex(rec.events[i].f1.w));
+    // A test's reported t only where the geometry accepted the triangle; null (never a 0 shown as
+    // a distance) where it was rejected
+    if (rec.events[i].kind == sh::kEvTest) {
+      const uint32_t code = rec.events[i].code;
+      const bool t_known = code == sh::kTestAccepted || code == sh::kTestAlphaKeyed || code == sh::kTestTieLost ||
+                           code == sh::kTestOriginPlane;
+      CHECK(e["computed"][7] == t_known);
+      CHECK(e["fields"]["t"].is_null() == !t_known);
+      rejected += t_known ? 0 : 1;
+    }
   }
+  CHECK(rejected > 0);
   CHECK(j["hit"]["reference"]["name"] == "wall");
   CHECK(j["hit"]["tests"] == rec.hit.tests);
 }
