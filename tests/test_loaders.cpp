@@ -729,6 +729,23 @@ TEST_CASE("OBJ: map options with fewer numbers keep their texture, a float overf
     CHECK_THROWS_WITH(load_obj(write_text(d / "big.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 1e39 0\nf 1/1 2/1 3/1\n"), s, cache),
                       Catch::Contains("big.obj:4") && Catch::Contains("beyond a float's range"));
   }
+  // A corner with an empty index where the format has none ("1/", "/1", "1/2/") or a fourth index
+  // is named as such (it was told as "zero value for face index"); v//vn stays a corner
+  for (const std::string corner : {"1/", "1/1/", "/1", "1/1/1/1", "1///1"}) {
+    INFO(corner);
+    Scene s;
+    TextureCache cache;
+    CHECK_THROWS_WITH(load_obj(write_text(d / "c.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf " + corner +
+                                                           " 2 3\n"), s, cache),
+                      Catch::Contains("c.obj:6") && Catch::Contains("corner '" + corner + "'"));
+  }
+  for (const std::string face : {"1//1 2//1 3//1", "1/1 2/1 3/1", "1/1/1 2/1/1 3/1/1", "1 2 3"}) {
+    INFO(face);
+    Scene s;
+    TextureCache cache;
+    CHECK(load_obj(write_text(d / "c.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf " + face + "\n"), s, cache)
+              .size() == 1);
+  }
 }
 
 // An outside sweep's find: "rotate": [r0, r1] applied r1 to the object first, where SCENE_FORMAT.md

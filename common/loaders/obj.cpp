@@ -173,6 +173,12 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
                                 std::to_string(input_limits().max_face_vertices));
       for (size_t i = 1; i < tok.size(); ++i) {
         std::string_view t = tok[i];
+        // A corner is v, v/vt, v//vn or v/vt/vn: an empty index elsewhere ("1/", "1/2/", "/2") or a
+        // fourth one was told as "zero value for face index" (an outside sweep)
+        const size_t slashes = size_t(std::count(t.begin(), t.end(), '/'));
+        if (slashes > 2 || t.front() == '/' || t.back() == '/')
+          fail_at(path, line, "face: corner '" + std::string(tok[i]) +
+                                  "' is none of v, v/vt, v//vn, v/vt/vn (an index left empty, or more than three)");
         for (int slot = 0; slot < 3 && !t.empty(); ++slot) {
           const size_t slash = t.find('/');
           const std::string_view part = t.substr(0, slash);
