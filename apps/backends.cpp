@@ -258,7 +258,7 @@ void add_vulkan_options(CLI::App* cmd, BackendOptions& o) {
 
 }  // namespace
 
-void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
+void check_traversal_options(const CLI::App* cmd, const BackendOptions& o, bool trace_grid_only) {
   const auto given = [&](const char* name) { return cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0; };
   // Knobs of a part that does not run (outside sweeps: each was accepted and did nothing)
   if (given("--spill-capacity") && !plan::spill_enabled(o.grid))
@@ -274,12 +274,13 @@ void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
   if (given("--density") && (given("--resolution") || given("--cell-size")))
     throw OptionsError("--density picks the automatic resolution, which --resolution or --cell-size fixes here: it does "
                        "nothing (leave one out)");
-  const bool fixed = given("--resolution") && o.grid.capacity.has_value();
+  // One candidate where the cells or the capacity are fixed (choose_by_candidates): nothing to weigh
+  const bool fixed = given("--resolution") || given("--cell-size") || o.grid.capacity.has_value();
   for (const char* name : {"--work-sample", "--cell-visit-cost", "--saturation-cost"}) {
     if (!given(name)) continue;
     if (fixed)
-      throw OptionsError(std::string(name) + " weighs the trace-cost policy's candidates; --resolution and --capacity N "
-                         "leave none to weigh: it does nothing (leave it out)");
+      throw OptionsError(std::string(name) + " weighs the trace-cost policy's candidates; --resolution, --cell-size or "
+                         "--capacity N leaves one candidate, none to weigh: it does nothing (leave it out)");
     if (o.grid.capacity_policy != reference::GridOptions::CapacityPolicy::trace_cost)
       throw OptionsError(std::string(name) + " weighs the trace-cost policy's candidates (--capacity auto or "
                          "trace-cost); --capacity no-saturation or percentile does not weigh them: it does nothing");
@@ -295,6 +296,15 @@ void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
        (o.grid.layout == reference::GridOptions::Layout::automatic && !o.grid.capacity && plan::compact_enabled(o.grid))))
     throw OptionsError("--insertion first-empty fills the image layout's slots; the exact traversal's grid here takes the "
                        "compact layout, which has none: it does nothing (give --layout image, or leave it out)");
+  // The image's slot axis on the compact layout, which has no image (an outside sweep: accepted,
+  // the grid the same)
+  const bool compact_layout =
+      o.grid.layout == reference::GridOptions::Layout::compact ||
+      (o.grid.layout == reference::GridOptions::Layout::automatic && o.grid.traversal == reference::Traversal::exact &&
+       !o.grid.capacity && plan::compact_enabled(o.grid));
+  if (given("--slot-axis") && compact_layout)
+    throw OptionsError("--slot-axis lays the scene along the image layout's slot axis; the compact layout (the exact "
+                       "traversal's default) has no image: it does nothing (give --layout image, or leave it out)");
   // Knobs of a part another option turned off (an outside sweep: accepted, images identical)
   if (given("--gap-fill-distance") && !o.grid.gap_fill)
     throw OptionsError("--gap-fill-distance places the paper traversal's gap-fill, which --gap-fill off turns off: it "
@@ -305,8 +315,21 @@ void check_traversal_options(const CLI::App* cmd, const BackendOptions& o) {
   if (given("--skip-covered") && o.grid.layout == reference::GridOptions::Layout::image)
     throw OptionsError("--skip-covered is the compact layout's (its bits live in the skip field beside the compact "
                        "references); --layout image has none: it does nothing (leave one out)");
-  // (The exact traversal's knobs are not refused with the paper traversal: the frame's gather and
-  // explain's primary rays trace the exact traversal's grid whatever the trace's, and take them.)
+  // The mailbox needs sorted insertion (an outside review: accepted with first-empty, tests the same)
+  if (given("--mailbox") && o.grid.mailbox && o.grid.traversal == reference::Traversal::exact &&
+      o.grid.insertion == reference::Insertion::first_empty)
+    throw OptionsError("--mailbox on skips references by their sorted order in a cell, which --insertion first-empty "
+                       "does not keep: it does nothing (leave one out)");
+  // The exact traversal's knobs with the paper traversal: refused where the verb builds no grid
+  // but the trace's (stats, verify: an outside review found them accepted, the output the same);
+  // elsewhere the frame's gather and explain's primary rays trace the exact traversal's grid
+  // whatever the trace's, and take them.
+  if (trace_grid_only && o.grid.traversal != reference::Traversal::exact)
+    for (const char* name : {"--mailbox", "--skip-empty", "--skip-covered"})
+      if (given(name))
+        throw OptionsError(std::string(name) + " is a knob of the exact traversal; with the paper traversal (this "
+                           "verb's default, or --traversal paper) it does nothing (leave it out, or give --traversal "
+                           "exact)");
   if (o.grid.traversal != reference::Traversal::exact) return;
   for (const char* name : {"--gap-fill", "--revisit", "--elongation", "--gap-fill-distance"})
     if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)

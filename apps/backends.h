@@ -70,8 +70,9 @@ CLI::Validator whole_number_u64();
 void check_vulkan_options_apply(const CLI::App* cmd, bool vulkan_runs);
 // The paper traversal's knobs (--gap-fill, --revisit, --elongation, --gap-fill-distance) with
 // --traversal exact did nothing, without a word (an outside sweep): OptionsError. (The exact
-// traversal's own knobs stay with the paper's: they shape the frame's gather grid.)
-void check_traversal_options(const CLI::App* cmd, const BackendOptions& options);
+// traversal's own knobs stay with the paper's: they shape the frame's gather grid, except where
+// `trace_grid_only`: a verb that builds no grid but the trace's refuses them too.)
+void check_traversal_options(const CLI::App* cmd, const BackendOptions& options, bool trace_grid_only = false);
 // The grid verbs' positional scene: a scene file, a mesh, a .gridscene or builtin:NAME (empty:
 // the embedded atrium).
 CLI::Option* add_scene_argument(CLI::App* cmd, std::string& scene);

@@ -1031,6 +1031,29 @@ void add_bench_command(CLI::App& app) {
     for (const char* name : {"--gather", "--compact-rays", "--build-passes", "--counter-frames"})
       if (cmd->count(name) > 0 && std::find(o->backends.begin(), o->backends.end(), "vulkan") == o->backends.end())
         throw OptionsError(std::string(name) + " is a knob of the Vulkan frame: it needs --backend vulkan");
+    // ... nor with rays of a fixed kind, which every backend, vulkan included, traces as a list
+    // without the frame (an outside sweep: accepted, nothing changed)
+    if (o->rays != "glossy" && o->rays != "auto") {
+      for (const char* name : {"--gather", "--compact-rays", "--counter-frames", "--back-to-back", "--rtx"})
+        if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
+          throw OptionsError(std::string(name) + " is a knob of the frame, which traces its glossy bounce rays; --rays " +
+                             o->rays + " traces a fixed list of rays without it: it does nothing (leave it out, or "
+                             "give --rays glossy)");
+    }
+    // Embree alone traces its own BVH: the grid's options did nothing there (render refuses them;
+    // bench ran without a word: an outside sweep)
+    const auto has = [&](const char* b) { return std::find(o->backends.begin(), o->backends.end(), b) != o->backends.end(); };
+    if (!o->backends.empty() && !has("cpu") && !has("vulkan")) {
+      std::string grid_given;
+      for (const CLI::Option* opt : cmd->get_options()) {
+        const std::string& g = opt->get_group();
+        if (opt->count() > 0 && (g == "Grid" || g == "Grid (expert)") && opt->get_name() != "--threads")
+          grid_given += (grid_given.empty() ? "" : ", ") + opt->get_name();
+      }
+      if (!grid_given.empty())
+        throw OptionsError("bench --backend embree times Embree's own structure: " + grid_given +
+                           " do(es) not apply (leave them out, or add --backend cpu or vulkan)");
+    }
     // A fallback filed the CPU's times under "vulkan", in the table and the JSON (an outside sweep)
     if (cmd->get_option_no_throw("--fallback-cpu") != nullptr && cmd->count("--fallback-cpu") > 0)
       throw OptionsError("--fallback-cpu does not apply to bench: its figures are filed by backend; time the CPU "

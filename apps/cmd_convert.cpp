@@ -18,7 +18,8 @@ void add_convert_command(CLI::App& app) {
     check_output_path(*output);
     std::string lower = *output;
     for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (!lower.ends_with(".gridscene")) throw Error("convert writes .gridscene files, not '" + *output + "'");
+    // The command line's error, as every -o name a verb cannot write (exit 2)
+    if (!lower.ends_with(".gridscene")) throw OptionsError("convert writes .gridscene files, not '" + *output + "'");
     const Scene s = load_scene_or_default(*scene);
     save_scene_binary(s, *output);
     std::fprintf(stderr, "wrote %s: %llu triangles, %zu instances, %zu textures\n", output->c_str(),

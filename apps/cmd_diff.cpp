@@ -100,7 +100,12 @@ std::string explain_command(const DiffOptions& o, uint32_t x, uint32_t y, bool p
   }
   // A later frame's bounce: its glossy directions are seeded by the frame's number
   if (!primary && frame > 0) os << " --frame " << frame;
-  os << o.explain_flags << " --backend vulkan" << (primary ? " --primary" : "");
+  os << o.explain_flags;
+  // explain --primary traces the gather's grid unless a traversal is given: the diff's primary
+  // rays are its own traversal's (the command pointed at another trace: an outside sweep)
+  if (primary && o.explain_flags.find("--traversal") == std::string::npos)
+    os << " --traversal " << (o.backend_options.grid.traversal == reference::Traversal::exact ? "exact" : "paper");
+  os << " --backend vulkan" << (primary ? " --primary" : "");
   return os.str();
 }
 
@@ -168,7 +173,10 @@ class DiffRun {
 // arrays (offsets and ordered runs) do not depend on the insertion's order: word for word.
 void DiffRun::diff_images(uint32_t frame, float time) {
   const sh::GridParams& g = ref_->params();
-  const std::string name = "frame " + std::to_string(frame) + ": grid image";
+  // The compact layout keeps no image: its dump is its arrays (said in the image's words before:
+  // an outside sweep)
+  const bool compact = (g.flags & sh::kGridCompact) != 0u;
+  const std::string name = "frame " + std::to_string(frame) + (compact ? ": compact arrays" : ": grid image");
   if (grid_.insertion == reference::Insertion::sorted || (g.flags & sh::kGridCompact) != 0u) {
     const AccelDump want = ref_->dump();
     AccelDump got = gpu_->dump();
@@ -182,10 +190,24 @@ void DiffRun::diff_images(uint32_t frame, float time) {
     }
     const reference::TexelDiff d = reference::compare_texels(want, got);
     char line[256];
-    std::snprintf(line, sizeof line, "grid image %ux%ux%u: %zu of %zu texels differ", want.extent.x, want.extent.y,
-                  want.extent.z, d.differing.size(), d.texels);
+    if (compact)
+      std::snprintf(line, sizeof line, "compact arrays (cell offsets and ordered references): %zu of %zu words differ",
+                    d.differing.size(), d.texels);
+    else
+      std::snprintf(line, sizeof line, "grid image %ux%ux%u: %zu of %zu texels differ", want.extent.x, want.extent.y,
+                    want.extent.z, d.differing.size(), d.texels);
     std::printf("frame %u: %s\n", frame, line);
     if (d.differing.empty()) return check(name, true, line);
+    if (compact) {
+      const size_t i = d.differing.front();
+      char f[256];
+      std::snprintf(f, sizeof f, "first: word %zu of the arrays: reference 0x%08x, vulkan 0x%08x", i, want.texels[i],
+                    got.texels[i]);
+      std::printf("  %s\n", f);
+      check(name, false, line, f);
+      first(FirstDifference{.what = "texel", .frame = frame, .text = f});
+      return;
+    }
     const size_t i = d.differing.front();
     const uint32_t tx = uint32_t(i % want.extent.x), ty = uint32_t((i / want.extent.x) % want.extent.y),
                    tz = uint32_t(i / (size_t(want.extent.x) * want.extent.y));
@@ -263,9 +285,13 @@ void DiffRun::diff_spill(uint32_t frame) {
                            want.header.capacity == got.header.capacity;
   // An overflowing list keeps on each side the entries that arrived first: only its counts compare
   const bool ok = same_counts && (!on || !sorted || d.same() || want.overflow());
-  std::string line = std::string("spill list ") + (on ? "on" : "off (counted only)") + ": " +
-                     std::to_string(want.header.count) + " references found no slot (" +
-                     std::to_string(want.header.static_count) + " static); reference " +
+  const bool compact = (ref_->params().flags & sh::kGridCompact) != 0u;
+  std::string line = (compact ? std::string("spill list (the compact layout's dynamic references): ") +
+                                    std::to_string(want.header.count - want.header.static_count) + " dynamic, " +
+                                    std::to_string(want.header.static_count) + " static; reference "
+                              : std::string("spill list ") + (on ? "on" : "off (counted only)") + ": " +
+                                    std::to_string(want.header.count) + " references found no slot (" +
+                                    std::to_string(want.header.static_count) + " static); reference ") +
                      std::to_string(want.header.count) + ", vulkan " + std::to_string(got.header.count) + "; " +
                      std::to_string(want.stored()) + " stored of " + std::to_string(want.header.capacity);
   if (on && sorted)

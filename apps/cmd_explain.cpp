@@ -53,6 +53,7 @@ struct ExplainOptions {
   uint32_t width = 960, height = 540;
   float time = 0.0f;
   uint32_t frame = 0;
+  bool frame_given = false;  // --frame on the command line
   BackendOptions backend_options;
   std::vector<uint32_t> pixel;
   std::string kind = "auto";
@@ -248,6 +249,11 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
   }
   std::string kind = o.primary ? "primary" : o.kind;
   if (kind == "auto") kind = is_unused(bounces[p]) ? "primary" : "bounce";
+  // The pixel has no glossy bounce: its ray is the primary one, which --frame does not change (it
+  // was accepted without a word: an outside sweep), as --kind primary refuses it
+  if (kind == "primary" && o.kind == "auto" && !o.primary && o.frame_given)
+    throw OptionsError("--frame seeds the glossy bounce's random numbers; pixel " + std::to_string(x) + "," +
+                       std::to_string(y) + " has no glossy bounce (its ray is the primary one): it does nothing (leave it out)");
   std::vector<Item> items;
   if (kind == "primary") {
     Item it;
@@ -429,7 +435,9 @@ void write_pictures(const ExplainOptions& o, size_t i, size_t count, const refer
 constexpr size_t kMaxKeptEvents = 200000;
 
 void run_explain(const ExplainOptions& options) {
-  check_frame_size(options.width, options.height);
+  // Only where a pixel's ray is explained: --ray and --ray-file make no image (a low --max-pixels
+  // refused them for the default size, which they refuse to be given: an outside sweep)
+  if (!options.pixel.empty()) check_frame_size(options.width, options.height);
   ExplainOptions o = options;
   const bool vulkan = o.backend == "vulkan";
 #ifndef GRIDRT_HAVE_VULKAN
@@ -580,6 +588,7 @@ void add_explain_command(CLI::App& app) {
     check_vulkan_options_apply(cmd, o->backend == "vulkan");
     check_traversal_options(cmd, o->backend_options);
     // The frame number seeds only the glossy bounce's random numbers
+    o->frame_given = cmd->count("--frame") > 0;
     if (cmd->count("--frame") > 0 && (o->primary || o->kind == "primary" || o->kind == "shadow"))
       throw CLI::ValidationError("--frame", "seeds the glossy bounce's random numbers: it does not change a " +
                                                 std::string(o->kind == "shadow" ? "shadow" : "primary") +

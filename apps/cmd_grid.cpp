@@ -169,7 +169,10 @@ void run_stats(const StatsOptions& o) {
     throw OptionsError("--pixel draws its camera ray into --slices' pictures: give --slices FOLDER too");
   // The folder checked before the build and the report, as every output (it was checked after)
   if (!o.slices.empty()) check_slices_folder(o.slices);
-  check_frame_size(o.width, o.height);
+  // Only where a gather buffer is made (--measure, --pixel): plain stats made none, yet a low
+  // --max-pixels refused them, and the options that size it are refused without those (an
+  // outside sweep)
+  if (o.measure || !o.ray_pixel.empty()) check_frame_size(o.width, o.height);
   const Scene scene = load_scene_or_default(o.scene);
   const reference::GridOptions go = grid_options_for(o.backend_options, scene);
   reference::ReferenceGridTracer ref(go);
@@ -221,7 +224,7 @@ void add_grid_commands(CLI::App& app) {
                     "visits and its samples")
         ->delimiter(',')->expected(2)->type_name("X,Y");
     cmd->callback([o, cmd, repeat_opt, axis_opt] {
-      check_traversal_options(cmd, o->backend_options);
+      check_traversal_options(cmd, o->backend_options, /*trace_grid_only=*/true);
       // Each did nothing without its verb's option, without a word (an outside sweep)
       if (repeat_opt->count() > 0 && !o->measure)
         throw OptionsError("--repeat times --measure's traces: give --measure, or leave --repeat out");

@@ -8,7 +8,9 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <iostream>
 #include <optional>
+#include <sstream>
 
 #include "apps/commands.h"
 #include "gridrt/common/camera.h"
@@ -38,6 +40,19 @@ void warn_cut_pixels(const portal::RenderStats& s) {
                "cycling between divs (a camera about 1e6 voxels or more from the world rounds its crossings; "
                "docs/PORTAL.md \"Limits\")\n",
                (unsigned long long)s.cut_pixels);
+}
+
+// A camera inside a solid voxel: every primary ray starts in a wall, and the picture is that wall's
+// colour (builtin:cornell's eye lies 0.05 from its front wall, inside that wall's voxel at the
+// default --voxels: a flat picture with exit 0, an outside sweep). Said, with what to change.
+void warn_camera_in_wall(const portal::PortalBuild& build, const Camera& camera, uint32_t width, uint32_t height) {
+  const Ray r = camera_ray(camera, width, height, width / 2, height / 2);
+  const Hit h = portal::trace_portal(build.packed, r);
+  if (is_miss(h) || (h.triangle & ((1u << shared::kPortalFaceBits) - 1u)) != shared::kPortalFaceInside) return;
+  std::fprintf(stderr,
+               "warning: the camera lies inside a solid voxel (voxels of %g units): the primary rays start in a wall "
+               "and the picture shows the wall's colour; give more --voxels (thinner walls) or move the eye\n",
+               double(build.packed.voxel_size));
 }
 
 bool ends_with(const std::string& s, const std::string& suffix) {
@@ -145,7 +160,15 @@ portal::PortalOptions portal_options(const std::string& div_choice, uint32_t atl
 }
 
 // The camera of `spec` (a block map's own, not flattened).
+// (Its load's warnings are the build's, said there: this extra load printed them twice or three
+// times with --mip-levels, an outside sweep; the world's loaders warn on std::cerr.)
 Camera world_camera(const std::string& spec, uint32_t voxels) {
+  std::ostringstream quiet;
+  std::streambuf* const was = std::cerr.rdbuf(quiet.rdbuf());
+  struct Restore {
+    std::streambuf* buf;
+    ~Restore() { std::cerr.rdbuf(buf); }
+  } restore{was};
   if (std::optional<portal::InstancedWorld> iw = load_instanced(spec)) return iw->top.camera;
   return load_world(spec, voxels).camera;
 }
@@ -207,6 +230,7 @@ void run_portal_render(const PortalRenderOptions& o) {
   const Camera camera = bw.camera;
   portal::PortalBuild build = std::move(bw.build);
   const double build_s = bw.seconds;
+  warn_camera_in_wall(build, camera, o.width, o.height);
   // --flat-compare: the flattened world, built and rendered on the same backend.
   std::optional<portal::PortalBuild> flat;
   double flat_build_s = 0;
@@ -488,6 +512,7 @@ void run_portal_diff(const PortalDiffOptions& o) {
   BuiltWorld bw = build_world(o.spec, o.voxels, options, o.flatten);
   const Camera camera = bw.camera;
   portal::PortalBuild build = std::move(bw.build);
+  warn_camera_in_wall(build, camera, o.width, o.height);
   const std::string name = build.world.name;
   const std::vector<Ray> rays = camera_rays(camera, o.width, o.height);
   std::vector<Hit> ref(rays.size()), dev(rays.size());
@@ -558,7 +583,7 @@ void add_portal_command(CLI::App& app) {
     add_image_size(cmd, o->width, o->height, "");
     cmd->add_flag("--separate-loops", o->separate_loops, "Three loops (primary, shadow 1, shadow 2), not the state machine");
     cmd->add_option("--backend,-b", o->backend, "Tracer: " + portal_backends());
-    cmd->add_option("-o,--output", o->output, "Image file");
+    cmd->add_option("-o,--output", o->output, "Image file")->capture_default_str();
     add_choice(cmd, "--view", o->view, {"shaded", "divs", "dda"},
                     "What the picture shows: shaded (the render), or per pixel with a colour bar: divs (divs the "
                     "portal traversal visits per camera ray) or dda (voxels an exact voxel DDA steps through)");

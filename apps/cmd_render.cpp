@@ -165,7 +165,13 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
     return;
   }
   check_output_path(o.output);
-  check_image_extension(o.output);
+  // An -o name of no image format the tool writes: the command line's error (exit 2), as convert's
+  // and portal export's (an outside sweep found 1 here, 2 there)
+  try {
+    check_image_extension(o.output);
+  } catch (const Error& e) {
+    throw OptionsError(e.what());
+  }
   const Scene scene = load_scene_or_default(o.scene);
   // Every frame's file checked before the first is written, once the inputs are known (a later
   // frame over a texture this run read was refused after the earlier frames had replaced theirs:
@@ -195,6 +201,20 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
   const std::string backend = o.backend.empty() ? backend_names().front() : o.backend;
   const bool shadows = shadows_for(o.shadows, scene);
   if (shadows) check_shadow_lights(scene);
+  // No bounce and no shadow rays: only the primary rays, which the gather traces on its own grid
+  // (plan::gather_options: the exact traversal, the watertight test, every reference kept). The
+  // trace's own knobs were accepted and the image the same in bits (an outside sweep).
+  if (o.no_bounce && !shadows && backend != "embree") {
+    std::string idle;
+    for (const char* name : {"--traversal", "--triangle-test", "--enlargement", "--spill", "--spill-capacity",
+                             "--self-hit-offset", "--max-capacity", "--elongation", "--revisit", "--gap-fill",
+                             "--gap-fill-distance"})
+      if (std::find(given.begin(), given.end(), name) != given.end()) idle += (idle.empty() ? "" : ", ") + std::string(name);
+    if (!idle.empty())
+      throw OptionsError("with --no-bounce and no shadow rays only the primary rays are traced, on the gather's grid "
+                         "(the exact traversal, the watertight test, every reference kept): " + idle +
+                         " shape(s) only the trace's and do(es) nothing here (leave them out)");
+  }
   std::unique_ptr<Tracer> tracer = make_backend(backend, o.backend_options, scene);
   // The paper rasterizes its gather buffer: primary visibility is exact, only the bounce goes
   // through the paper's segments (and may meet gap-fill voxels). A grid backend in paper mode
@@ -284,7 +304,8 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--fps", o->fps, "Frames per second of --frames")->check(CLI::Range(1.0e-3f, 1.0e6f));
   add_shadows_option(cmd, o->shadows);
   cmd->add_flag("--no-bounce", o->no_bounce, "Primary rays only, no glossy bounce");
-  cmd->add_option("-o,--output", o->output, "Image file: .png, .jpg, .exr, .hdr, .tif (OpenImageIO), .ppm, .pfm");
+  cmd->add_option("-o,--output", o->output, "Image file: .png, .jpg, .exr, .hdr, .tif (OpenImageIO), .ppm, .pfm")
+      ->capture_default_str();
   add_choice(cmd, "--view", o->view, view_names(),
                   "What the picture shows: shaded (the render), or per pixel with a colour bar or legend: cells "
                   "(visited), tests (references tested), saturation (saturated cells visited), gap-fill (a gap-fill "

@@ -143,6 +143,15 @@ std::vector<Config> configurations(const SweepOptions& o) {
     throw CLI::ValidationError("sweep", "the knob lists make " + std::to_string(product) +
                                             " configurations; at most " + std::to_string(kMaxSweepConfigurations) +
                                             " a sweep (each builds a grid and traces every ray): shorten the lists");
+  // The paper traversal's knobs with the exact traversal alone: its configurations take the first
+  // value and the others were dropped without a word (an outside sweep)
+  if (std::find(o.traversal.begin(), o.traversal.end(), "paper") == o.traversal.end())
+    for (const auto& [name, n] : {std::pair{"--elongation", o.elongation.size()}, std::pair{"--revisit", o.repeats.size()},
+                                  std::pair{"--gap-fill", o.gap_fill.size()}})
+      if (n > 1)
+        throw CLI::ValidationError(name, "is a knob of the paper traversal's segments and gap-fill; with --traversal "
+                                         "exact alone its values make no configurations of their own (add paper to "
+                                         "--traversal, or give one value)");
   std::vector<Config> out;
   bool dropped_enlargement = false, dropped_padding = false;  // what left configurations out
   for (const std::string& tr : o.traversal)
@@ -705,7 +714,8 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("scenes", o->scenes, "Scene files, meshes or builtin:NAME")->required();
   cmd->add_option("--backend,-b", o->backends, "Backends: cpu, vulkan (comma separated)")->delimiter(',');
   add_image_size(cmd, o->width, o->height, "of the gather buffer");
-  cmd->add_option("-o,--output-dir", o->out, "Output folder, not a file (per scene: NAME.csv, NAME.md, NAME.png)");
+  cmd->add_option("-o,--output-dir", o->out, "Output folder, not a file (per scene: NAME.csv, NAME.md, NAME.png)")
+      ->capture_default_str();
   cmd->add_option("--rays", o->rays,
                   "The rays swept: auto (the frame's glossy bounce rays, else diffuse bounces), glossy, primary, "
                   "diffuse, or a verify family (random, surface, edge, ...); about WIDTH x HEIGHT of them");

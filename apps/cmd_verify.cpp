@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cerrno>
+#include <cmath>
 #include <cstdlib>
 #include <memory>
 
@@ -39,9 +40,23 @@ void run_verify(const VerifyCliOptions& o) {
   vo.family.seed = o.seed;
   vo.translated = !o.no_translated;
   if (!o.offset.empty()) vo.offset = glm::vec3(o.offset[0], o.offset[1], o.offset[2]);
+  // The ray domain's origins lie within 2^24 of the world's: an offset past it moves every ray
+  // out (it was told as a scene too small for a float's step there: an outside sweep)
+  for (const float c : o.offset)
+    if (!(std::fabs(c) <= 16777216.0f))
+      throw OptionsError("--offset: " + [&] {
+                           char b[32];
+                           std::snprintf(b, sizeof b, "%g", double(c));
+                           return std::string(b);
+                         }() + " lies beyond 2^24 (16777216) from the origin, outside the ray "
+                         "domain's origins (docs/SPEC.md \"Domain\"): give a smaller offset");
   if (!o.families.empty()) {
     vo.families.clear();
-    for (const std::string& f : o.families) {
+    for (size_t k = 0; k < o.families.size(); ++k) {
+      const std::string& f = o.families[k];
+      // A family named twice ran twice and counted its rays twice in the total (an outside sweep)
+      if (std::find(o.families.begin(), o.families.begin() + std::ptrdiff_t(k), f) != o.families.begin() + std::ptrdiff_t(k))
+        throw OptionsError("--families names '" + f + "' twice: name each family once");
       if (f == "translated") {
         vo.translated = true;
         continue;
@@ -174,7 +189,7 @@ void add_verify_command(CLI::App& app) {
   add_backend_options(cmd, o->backend_options);
   cmd->callback([o, cmd] {
     check_vulkan_options_apply(cmd, o->backend == "vulkan");
-    check_traversal_options(cmd, o->backend_options);
+    check_traversal_options(cmd, o->backend_options, /*trace_grid_only=*/true);
     run_verify(*o);
   });
 }

@@ -335,10 +335,10 @@ Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alph
   if (format_name == "bmp") {
     // OpenImageIO decodes an RLE BMP whole in open(), before its size can be checked (381 MB for
     // a 152-byte file: an outside fuzz): the header's size first (BITMAPINFOHEADER and later)
-    std::string head(26, '\0');
+    std::string head(34, '\0');
     std::ifstream f(path, std::ios::binary);
     f.read(head.data(), std::streamsize(head.size()));
-    if (f.gcount() == std::streamsize(head.size())) {
+    if (f.gcount() >= 26) {
       const auto i32 = [&](size_t k) {
         return int32_t(uint32_t(uint8_t(head[k])) | uint32_t(uint8_t(head[k + 1])) << 8 |
                        uint32_t(uint8_t(head[k + 2])) << 16 | uint32_t(uint8_t(head[k + 3])) << 24);
@@ -351,6 +351,24 @@ Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alph
         throw Error("cannot load texture '" + path + "': its header declares " + std::to_string(bw) + " x " +
                     std::to_string(bh) + " pixels, more than the limit of " +
                     std::to_string(input_limits().max_texture_pixels) + " pixels (--max-texture-pixels)");
+      // The compression (BITMAPINFOHEADER and later): OpenImageIO reads one it does not know
+      // (JPEG, PNG, CMYK, any number) as uncompressed pixels, a texture of noise with exit 0 (an
+      // outside sweep). Read: none, RLE8 at 8 bits, RLE4 at 4, bit fields at 16 or 32.
+      if (!core && f.gcount() == std::streamsize(head.size())) {
+        const uint32_t compression = uint32_t(i32(30));
+        const uint64_t bpp = u16(28);
+        const bool known = compression == 0 || (compression == 1 && bpp == 8) || (compression == 2 && bpp == 4) ||
+                           (compression == 3 && (bpp == 16 || bpp == 32));
+        if (!known) {
+          static const char* names[] = {"none", "RLE8", "RLE4", "bit fields", "JPEG", "PNG", "alpha bit fields"};
+          const std::string name = compression < std::size(names) ? std::string(" (") + names[compression] + ")"
+                                   : compression >= 11 && compression <= 13 ? std::string(" (CMYK)")
+                                                                            : std::string();
+          throw Error("cannot load texture '" + path + "': BMP compression " + std::to_string(compression) + name +
+                      " at " + std::to_string(bpp) + " bits a pixel is not read (none, RLE8 at 8 bits, RLE4 at 4, "
+                      "bit fields at 16 or 32 are): convert it to PNG");
+        }
+      }
     }
   }
   auto in = OIIO::ImageInput::create(format_name);

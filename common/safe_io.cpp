@@ -80,26 +80,32 @@ uint64_t host_memory_available() {
   return room;
 }
 
-void require_host_memory(uint64_t bytes, const std::string& what, const std::string& advice) {
-  const uint64_t room = host_memory_available();
-  if (bytes <= room) return;
-  const auto mib = [](uint64_t b) { return std::to_string((b + (1u << 20) - 1) >> 20); };
-  const auto rss = read_number("/proc/self/status", "VmRSS:", 1024);
-  throw Error(what + " need about " + mib(bytes) + " MiB of host memory, more than the " + mib(room) +
-              " MiB available" + (rss ? " (this process holds " + mib(*rss) + " MiB already)" : "") + " (" + advice +
-              "; --max-host-mib)");
-}
-
-namespace {
-
 // A size for a message: whole MiB from 16 MiB up, below that in bytes too, so that a file just
 // over a small limit does not read "1 MiB, more than the limit of 1 MiB" (an outside sweep's find)
-std::string mib(uint64_t bytes) {
+static std::string mib(uint64_t bytes) {
   // Below a MiB, the bytes alone (a 2,418-byte file "held 1 MiB": an outside sweep)
   if (bytes < (uint64_t(1) << 20)) return std::to_string(bytes) + " bytes";
   const std::string whole = std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB";
   return bytes >= (uint64_t(16) << 20) ? whole : whole + " (" + std::to_string(bytes) + " bytes)";
 }
+
+void require_host_memory(uint64_t bytes, const std::string& what, const std::string& advice) {
+  const uint64_t room = host_memory_available();
+  if (bytes <= room) return;
+  const auto rss = read_number("/proc/self/status", "VmRSS:", 1024);
+  // Sizes below 16 MiB with their bytes ("1 MiB, more than the 0 MiB available": an outside sweep),
+  // the option named once
+  throw Error(what + " need about " + mib(bytes) + " of host memory, more than the " + mib(room) + " left" +
+              (input_limits().max_host_bytes ? " of --max-host-mib's " + mib(input_limits().max_host_bytes) +
+                                                   " (what the grids and textures planned so far take counts)"
+                                             : std::string()) +
+              (rss ? " (this process holds " + mib(*rss) + ")" : "") + " (" + advice +
+              (advice.find("--max-host-mib") == std::string::npos && !input_limits().max_host_bytes ? "; --max-host-mib"
+                                                                                                    : "") +
+              ")");
+}
+
+namespace {
 
 // Opens `path` for reading after checking it is a regular file within the size bound; returns
 // the descriptor (the caller closes it) and the size.

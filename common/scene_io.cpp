@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include <unistd.h>
+#include <zlib.h>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
@@ -669,6 +670,8 @@ void transfer_scene(A& a, S& s) {
 
 }  // namespace
 
+std::string json_first_duplicate_key(const std::string& text) { return first_duplicate_key(text); }
+
 std::string real_scenes_dir() {
   // A relative value is the working folder's, as any path an environment variable names (it was
   // read against the scene file's folder)
@@ -753,26 +756,55 @@ Scene load_scene(std::string_view spec) {
   return s;
 }
 
+// CRC-32 (zlib's) of `n` bytes at `p`.
+static uint32_t crc32_of(const char* p, size_t n) {
+  uLong crc = crc32(0L, Z_NULL, 0);
+  while (n > 0) {
+    const uInt chunk = uInt(std::min<size_t>(n, size_t(1) << 30));
+    crc = crc32(crc, reinterpret_cast<const Bytef*>(p), chunk);
+    p += chunk;
+    n -= chunk;
+  }
+  return uint32_t(crc);
+}
+
 void save_scene_binary(const Scene& s, const std::string& path) {
   Writer w;
   w.out.append(kMagic, 8);
   w.pod(kSceneBinaryVersion);
   transfer_scene(w, s);
   w.out.append(kEndMagic, 8);
+  // The checksum of everything before it: a damaged payload (a vertex, a texel) read back as
+  // another scene without a word (an outside sweep flipped each byte of a cache: over half loaded)
+  w.pod(crc32_of(w.out.data(), w.out.size()));
 
   // Temp file beside the target, checked, synced, then renamed: never a half-written cache.
   write_file_atomically(path, "scene cache", w.out);
 }
 
 Scene load_scene_binary(const std::string& path) {
-  const std::string data = read_text(path, "scene cache");
+  std::string data = read_text(path, "scene cache");
+  {
+    Reader head(data, path);
+    head.need(8, "the magic number");
+    if (std::memcmp(head.at(), kMagic, 8) != 0) head.fail("not a .gridscene file (wrong magic number)");
+    head.skip(8);
+    const uint32_t version = head.pod<uint32_t>("the version");
+    if (version != 1 && version != kSceneBinaryVersion)
+      head.fail("version " + std::to_string(version) + ", this build reads versions 1 and " +
+                std::to_string(kSceneBinaryVersion) + " (convert the scene again)");
+    // Version 2: the CRC-32 of every byte before its last four, checked before anything is read
+    if (version == 2) {
+      if (data.size() < 8 + 4 + 8 + 4) head.fail("truncated: no room for the end marker and the checksum");
+      uint32_t stored;
+      std::memcpy(&stored, data.data() + data.size() - 4, 4);
+      data.resize(data.size() - 4);
+      if (crc32_of(data.data(), data.size()) != stored)
+        head.fail("checksum mismatch: the file is damaged (convert the scene again)");
+    }
+  }
   Reader r(data, path);
-  r.need(8, "the magic number");
-  if (std::memcmp(r.at(), kMagic, 8) != 0) r.fail("not a .gridscene file (wrong magic number)");
-  r.skip(8);
-  const uint32_t version = r.pod<uint32_t>("the version");
-  if (version != kSceneBinaryVersion)
-    r.fail("version " + std::to_string(version) + ", this build reads version " + std::to_string(kSceneBinaryVersion));
+  r.skip(12);  // the magic number and the version, read above
   Scene s;
   transfer_scene(r, s);
   r.need(8, "the end marker");

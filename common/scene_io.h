@@ -31,7 +31,12 @@ std::string real_scenes_dir();
 // Binary scene cache (.gridscene): a versioned little-endian dump of a finalized scene,
 // textures included, loadable without OpenImageIO. save writes atomically (temp file + rename).
 // load checks every size before it reads: a corrupt or truncated file is an Error, never a crash.
-inline constexpr uint32_t kSceneBinaryVersion = 1;
+// The path of the first key given twice in one object of the JSON `text` ("nodes[].translation"),
+// empty if none (the parsers keep the last without a word).
+std::string json_first_duplicate_key(const std::string& text);
+
+// Version 2 ends with a CRC-32 of every byte before it; version 1 (no checksum) is still read.
+inline constexpr uint32_t kSceneBinaryVersion = 2;
 void save_scene_binary(const Scene& scene, const std::string& path);
 Scene load_scene_binary(const std::string& path);
 

@@ -209,7 +209,7 @@ std::vector<EventField> event_fields(uint32_t kind, bool exact) {
                    "tmax"});
     case kEvSetup:
       return make({"kind", "traversal", "", "", "", "meets grid", "seg_t", "t_start", "t_end", "t_lo",
-                   "launch_normal.x", "launch_normal.y", "launch_normal.z", ""});
+                   "launch_normal.x", "launch_normal.y", "launch_normal.z", "t_base"});
     case kEvCell:
       if (exact)
         return make({"kind", "", "", "step", "cell", "", "entry.x", "entry.y", "entry.z", "t entry", "t entry",

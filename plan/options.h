@@ -63,7 +63,7 @@ struct AlgorithmOptions {
   // neighbour's run across it (tested there: the hit cannot change; only the test count drops).
   // Needs the compact layout and the skip field (the cover bits follow its distances).
   bool skip_covered = true;
-  // The build's cell test (docs/SPEC.md "Cell test"): sphere, the paper's (the triangle's plane
+  // The build's cell test (docs/SPEC.md "Scene build", *Separating axes*): sphere, the paper's (the triangle's plane
   // through the cell's enlarged bounding sphere, within its AABB's cell range); box, that and the
   // separating-axis test against the padded cell box (kGridCellBox: fewer references); automatic:
   // box for the exact traversal, sphere for the paper's.

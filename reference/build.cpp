@@ -332,39 +332,56 @@ plan::GridMemory grid_allocated(const GridData& grid) {
   return m;
 }
 
-// The order pass, one invocation per entry of [first, stored): walk the entry's arrival list for
-// the smallest larger reference (its successor in ascending order) and link to it; the entry
-// with no smaller reference becomes the list's head. References in a list are distinct (a
-// triangle visits a cell once), so every entry finds its own place whatever the arrival order:
-// the lists the trace walks are the same on every backend. After the build's static pass with
-// first = 0, after every dynamic pass with first = static_count.
+// The order pass: every entry of [first, stored) links to the smallest larger reference of its
+// arrival list (its successor in ascending order); the entry with no smaller reference becomes
+// the list's head. References in a list are distinct (a triangle visits a cell once), so every
+// entry finds its own place whatever the arrival order: the lists the trace walks are the same on
+// every backend. After the build's static pass with first = 0, after every dynamic pass with
+// first = static_count.
+// The shader (spill_order.comp) gives each entry an invocation that walks its list for that
+// successor: k^2 steps for a list of k entries, in parallel. Here each list is sorted once, the
+// same links in k log k (the walk took minutes on a cell of 2,000 copies of one triangle under a
+// fixed capacity: an outside sweep); entries before `first` keep their links, and the head moves
+// only to an entry of this pass, as there.
 void spill_order(GridData& grid, const GridOptions& o, uint32_t first) {
   const GridParams& g = grid.params;
   const uint32_t stored = std::min(grid.spill_header.count, grid.spill_header.capacity);
   if ((g.flags & shared::kGridSpill) == 0u || first >= stored) return;
-  run_invocations(stored - first, thread_count(o), std::nullopt, [&](uint32_t invocation) {
-    const uint32_t i = first + invocation;
-    const shared::SpillEntry e = grid.spill[i];
-    const bool dynamic = e.ref >= g.comparison_offset;
-    uint32_t head = shared::spill_head_index(e.cell, dynamic), arrival = shared::spill_arrival_index(e.cell, dynamic);
-    if ((g.flags & shared::kGridCompact) != 0u) {
-      const glm::uvec3 lo(grid.spill_heads[0], grid.spill_heads[1], grid.spill_heads[2]);
-      const glm::uvec3 hi(grid.spill_heads[4], grid.spill_heads[5], grid.spill_heads[6]);
-      const glm::uvec3 cell = shared::cell_of_linear_index(g, e.cell);
-      if (!shared::region_contains(cell, lo, hi)) return;
-      head = shared::compact_head_index(shared::region_index(cell, lo, hi));
-      arrival = shared::compact_arrival_index(shared::region_index(cell, lo, hi));
+  // The lists this pass's entries arrived in: (arrival index, head index), each once
+  std::vector<std::pair<uint32_t, uint32_t>> lists;
+  {
+    std::vector<std::pair<uint32_t, uint32_t>> all;
+    all.reserve(stored - first);
+    for (uint32_t i = first; i < stored; ++i) {
+      const shared::SpillEntry e = grid.spill[i];
+      const bool dynamic = e.ref >= g.comparison_offset;
+      uint32_t head = shared::spill_head_index(e.cell, dynamic), arrival = shared::spill_arrival_index(e.cell, dynamic);
+      if ((g.flags & shared::kGridCompact) != 0u) {
+        const glm::uvec3 lo(grid.spill_heads[0], grid.spill_heads[1], grid.spill_heads[2]);
+        const glm::uvec3 hi(grid.spill_heads[4], grid.spill_heads[5], grid.spill_heads[6]);
+        const glm::uvec3 cell = shared::cell_of_linear_index(g, e.cell);
+        if (!shared::region_contains(cell, lo, hi)) continue;
+        head = shared::compact_head_index(shared::region_index(cell, lo, hi));
+        arrival = shared::compact_arrival_index(shared::region_index(cell, lo, hi));
+      }
+      all.emplace_back(arrival, head);
     }
-    uint32_t next = shared::kSpillEnd, next_ref = kBlank;
-    bool smallest = true;
-    for (uint32_t j = grid.spill_heads[arrival]; j != shared::kSpillEnd; j = grid.spill[j].arrival) {
-      const uint32_t r = grid.spill[j].ref;
-      if (r < e.ref) smallest = false;
-      if (r > e.ref && r < next_ref) next = j, next_ref = r;
-    }
-    grid.spill[i].next = next;
-    if (smallest) grid.spill_heads[head] = i;
-  }, 64);
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    lists = std::move(all);
+  }
+  run_invocations(uint32_t(lists.size()), thread_count(o), std::nullopt, [&](uint32_t l) {
+    const auto [arrival, head] = lists[l];
+    std::vector<std::pair<uint32_t, uint32_t>> entries;  // (reference, entry)
+    for (uint32_t j = grid.spill_heads[arrival]; j != shared::kSpillEnd; j = grid.spill[j].arrival)
+      entries.emplace_back(grid.spill[j].ref, j);
+    std::sort(entries.begin(), entries.end());
+    for (size_t k = 0; k < entries.size(); ++k)
+      if (entries[k].second >= first && entries[k].second < stored)
+        grid.spill[entries[k].second].next = k + 1 < entries.size() ? entries[k + 1].second : shared::kSpillEnd;
+    if (!entries.empty() && entries.front().second >= first && entries.front().second < stored)
+      grid.spill_heads[head] = entries.front().second;
+  });
 }
 
 // The first slot of `cell` holding a value >= `bound`, where the slots holding smaller values are

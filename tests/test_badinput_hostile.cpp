@@ -286,7 +286,11 @@ TEST_CASE("A grid the host cannot hold is refused at once, with its size and the
     INFO(traversal << ": " << s.output);
     CHECK(s.exit_code == 1);
     // (what the process already holds counts against the limit: less than 16 MiB is left)
-    CHECK_THAT(s.output, Contains("160x160x160 cells need about") && Contains("MiB available (this process holds"));
+    CHECK_THAT(s.output, Contains("160x160x160 cells need about") && Contains(" left of --max-host-mib's 16 MiB") &&
+                             Contains("(this process holds"));
+    // the option named once, sizes below 16 MiB with their bytes
+    const std::string out = s.output;
+    CHECK(out.find("--max-host-mib", out.find("--max-host-mib's") + 1) == std::string::npos);
   }
   // The same grid within the limit is built
   const auto ok = run_tool("--max-host-mib 2000 stats builtin:atrium --traversal exact --memory-budget 100000 "
@@ -575,4 +579,36 @@ TEST_CASE("Outside sweep: an OBJ face of a texture-keyed material without vt is 
   INFO(full.output);
   CHECK(full.exit_code == 0);
   CHECK_THAT(full.output, !Contains("uv (0, 0)"));
+}
+
+TEST_CASE("Outside sweep: options that do nothing here and command-line mistakes are exit 2, naming the option",
+          "[badinput][cli]") {
+  for (const auto& [args, says] : std::vector<std::pair<std::string, std::string>>{
+           // the exact traversal's knobs where the verb builds only the paper traversal's grid
+           {"stats builtin:cornell --mailbox on", "--mailbox"},
+           {"stats builtin:cornell --skip-empty off", "--skip-empty"},
+           {"verify builtin:cornell -n 4 --skip-covered off", "--skip-covered"},
+           {"stats builtin:cornell --traversal exact --layout image --insertion first-empty --mailbox on",
+            "first-empty"},
+           // the trace-cost policy's knobs where one size is fixed: one candidate, nothing weighed
+           {"stats builtin:cornell --capacity 8 --cell-visit-cost 3", "--cell-visit-cost"},
+           {"stats builtin:cornell --cell-size 0.2 --saturation-cost 10", "--saturation-cost"},
+           {"stats builtin:cornell --resolution 8,8,8 --work-sample 8,8", "--work-sample"},
+           // Embree alone times its own structure
+           {"bench builtin:cornell --width 8 --height 8 --frames 1 -b embree --capacity 4", "--capacity"},
+           // a family twice, an offset out of the ray domain
+           {"verify builtin:cornell -n 4 --families camera,camera", "twice"},
+           {"verify builtin:cornell -n 4 --offset 3e7,0,0", "2^24"},
+           // an output name the verb cannot write
+           {"render builtin:cornell --width 8 --height 8 -o /tmp/gridrt-never.txt", "cannot write image"},
+           {"convert builtin:cornell -o /tmp/gridrt-never.json", ".gridscene"}}) {
+    const auto r = run_tool(args);
+    INFO(args << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Contains(says));
+  }
+  // --max-pixels judges only the images a verb makes: stats without --measure and explain --ray make none
+  CHECK(run_tool("--max-pixels 10 stats builtin:cornell").exit_code == 0);
+  CHECK(run_tool("--max-pixels 10 explain builtin:cornell --ray 0.5,0.5,0.5,1,0,0 --brief").exit_code == 0);
+  CHECK(run_tool("--max-pixels 10 stats builtin:cornell --measure").exit_code == 1);
 }

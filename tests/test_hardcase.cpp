@@ -886,6 +886,45 @@ TEST_CASE("hardcase: triangles 4e-12 across (dot(n, n) underflows) are inserted,
   }
 }
 
+TEST_CASE("hardcase: a triangle 1e-20 across (a subnormal determinant) is no hit at t = inf, the same on every device",
+          "[hardcase][vulkan]") {
+  // An outside review's find: |det| of such a triangle met from a unit away is about 1e-40,
+  // subnormal; its reciprocal overflowed and the hit came back at t = inf (NaN barycentrics). A
+  // subnormal determinant is built of subnormal products, which devices may flush (lavapipe's
+  // compute stages gave another t): it is taken as parallel on every backend (sh_zero_or_subnormal),
+  // so the ray misses it, as Embree's does
+  std::vector<std::array<glm::vec3, 3>> tris{{glm::vec3(0.0f), glm::vec3(1e-20f, 0, 0), glm::vec3(0, 1e-20f, 0)},
+                                             {glm::vec3(-1.0f), glm::vec3(-1, -0.999f, -1), glm::vec3(-0.999f, -1, -1)}};
+  const Scene scene = scene_of({mesh_of(tris, "tiny")});
+  const std::vector<Ray> rays{ray({3e-21f, 3e-21f, 1.0f}, {0, 0, -1}), ray({2.5e-21f, 5e-21f, 0.5f}, {0, 0, -1}),
+                              ray({-0.9997f, -0.9997f, 1.0f}, {0, 0, -1})};
+  for (const Mode& m : kModes) {
+    INFO(m.name);
+    const std::vector<Hit> h = trace(scene, options_for(m), rays);
+    CHECK(is_miss(h[0]));
+    CHECK(is_miss(h[1]));
+    expect_hit(rays[2], h[2], 0, 1, 2.0f);  // the ordinary triangle beside it
+  }
+  // The shared functions: a subnormal determinant is parallel; past 2^126 the reported t is the
+  // correctly rounded quotient (the reciprocal would be subnormal)
+  CHECK(sh::sh_zero_or_subnormal(1e-40f));
+  CHECK(sh::sh_zero_or_subnormal(-0.0f));
+  CHECK_FALSE(sh::sh_zero_or_subnormal(1.17549435e-38f));
+  CHECK_FALSE(sh::sh_zero_or_subnormal(std::numeric_limits<float>::quiet_NaN()));
+  for (const float det : {1e38f, -2e38f}) {
+    sh::TriangleTest r{};
+    r.det = det;
+    r.t_det = std::abs(det) * 0.3f;
+    INFO(det);
+    CHECK(sh::moller_trumbore_t(r) == float(double(r.t_det) / std::abs(double(det))));
+  }
+  // Cramer's barycentrics of a triangle whose projected determinant is subnormal: finite, inside
+  const glm::vec2 bc = sh::cramer_barycentrics(glm::vec3(0.0f), glm::vec3(1e-20f, 0, 0), glm::vec3(0, 1e-20f, 0),
+                                               glm::vec3(3e-21f, 3e-21f, 0));
+  CHECK(std::abs(bc.x - 0.3f) < 1e-3f);
+  CHECK(std::abs(bc.y - 0.3f) < 1e-3f);
+}
+
 // Closed meshes an outside sweep found leaking rays from inside, each from a float decision of the
 // build on a thin triangle (data/fixtures):
 // - closed_tetra_cap.obj: a tetrahedron whose face is split at M, the float-rounded midpoint of an

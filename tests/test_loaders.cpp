@@ -277,6 +277,32 @@ TEST_CASE("glTF triangle strips and fans: every triangle, one winding - points a
                     Catch::Contains("primitive 0: mode 7 is not a glTF primitive mode"));
   CHECK_THROWS_WITH(load_gltf(write_text(d / "short.gltf", gltf_with_primitives({{5, {0, 1}}})), bad, cache),
                     Catch::Contains("a triangle strip of 2 vertices (at least 3)"));
+  // Primitives sharing one index accessor: the triangles they make are held to --max-triangles from
+  // the accessors' counts, before any is read (2,000 primitives of a 3,000-index accessor asked
+  // for gigabytes of a 2 MB file before the limit refused the scene: an outside sweep)
+  {
+    nlohmann::json j = nlohmann::json::parse(gltf_with_primitives({{4, std::vector<uint16_t>(3000, 0)}}));
+    const nlohmann::json prim = j["meshes"][0]["primitives"][0];
+    for (int k = 1; k < 2000; ++k) j["meshes"][0]["primitives"].push_back(prim);
+    const uint64_t before = input_limits().max_triangles;
+    input_limits().max_triangles = 10000;
+    Scene many;
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "shared.gltf", j.dump()), many, cache),
+                      Catch::Contains("primitives[10]") && Catch::Contains("--max-triangles"));
+    input_limits().max_triangles = before;
+    CHECK(many.meshes.empty());
+  }
+  // A key given twice in one object: refused by its path (TinyGLTF kept the last, a node moved)
+  {
+    nlohmann::json j = nlohmann::json::parse(gltf_with_primitives({{4, {0, 1, 2}}}));
+    std::string text = j.dump();
+    const std::string node = "{\"mesh\":0}";
+    REQUIRE(text.find(node) != std::string::npos);
+    text.replace(text.find(node), node.size(), "{\"mesh\":0,\"translation\":[0,0,0],\"translation\":[5,0,0]}");
+    Scene twice;
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "twice.gltf", text), twice, cache),
+                      Catch::Contains("translation") && Catch::Contains("given twice"));
+  }
 }
 
 TEST_CASE("Image output: PPM and PFM by hand, PNG and EXR through OpenImageIO, read back", "[unit][image]") {
@@ -716,6 +742,15 @@ TEST_CASE("OBJ: map options with fewer numbers keep their texture, a float overf
     REQUIRE(s.materials.size() == 1);
     CHECK(s.materials[0].diffuse_texture >= 0);
   }
+  // Options with no file name after them (the texture was dropped without a word)
+  for (const std::string line : {"map_Kd -clamp on", "map_Kd -o 1", "map_d -blendu off", "map_Kd -s 1 2 3 -bm 2"}) {
+    INFO(line);
+    write_text(d / "o.mtl", "newmtl m\nKd 1 1 1\n" + line + "\n");
+    Scene s;
+    TextureCache cache;
+    CHECK_THROWS_WITH(load_obj(write_text(d / "o.obj", obj), s, cache),
+                      Catch::Contains("o.mtl:3") && Catch::Contains("no file name after its options"));
+  }
   {
     write_text(d / "o.mtl", "newmtl m\nKd 1 1 1\nmap_Kd -s t.png\n");
     Scene s;
@@ -746,6 +781,34 @@ TEST_CASE("OBJ: map options with fewer numbers keep their texture, a float overf
     CHECK(load_obj(write_text(d / "c.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf " + face + "\n"), s, cache)
               .size() == 1);
   }
+}
+
+// An outside sweep's find: newmtl took its whole rest of line as the name, usemtl its first word
+// (tinyobjloader), so "usemtl my mat" took material "my" without a word, and "wire 008" could not
+// be used at all. Both read the whole rest now; a comment after a usemtl's name still finds it.
+TEST_CASE("OBJ: material names with blanks and '#' are one name in newmtl and usemtl alike", "[unit][loaders][badinput]") {
+  const fs::path d = temp_dir();
+  write_text(d / "n.mtl", "newmtl my\nKd 0 1 0\nnewmtl my mat\nKd 1 0 0\nnewmtl Material #25\nKd 0 0 1\n"
+                          "newmtl wire\t008\nKd 0.5 0.5 0.5\nnewmtl leaf\nKd 0.25 0.25 0.25\n");
+  const std::string verts = "mtllib n.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  const auto diffuse_of = [&](const std::string& use) {
+    Scene s;
+    TextureCache cache;
+    load_obj(write_text(d / "n.obj", verts + "usemtl " + use + "\nf 1 2 3\n"), s, cache);
+    REQUIRE(s.meshes.size() == 1);
+    const Material& m = s.materials[s.meshes[0].materials[0]];
+    return std::pair{m.name, m.diffuse};
+  };
+  CHECK(diffuse_of("my mat") == std::pair{std::string("my mat"), glm::vec3(1, 0, 0)});
+  CHECK(diffuse_of("my") == std::pair{std::string("my"), glm::vec3(0, 1, 0)});
+  CHECK(diffuse_of("Material #25") == std::pair{std::string("Material #25"), glm::vec3(0, 0, 1)});
+  CHECK(diffuse_of("wire\t008  ").first == "wire\t008");
+  CHECK(diffuse_of("leaf # the leaves").first == "leaf");
+  // A name no library defines is refused with its whole text
+  Scene s;
+  TextureCache cache;
+  CHECK_THROWS_WITH(load_obj(write_text(d / "n.obj", verts + "usemtl my other\nf 1 2 3\n"), s, cache),
+                    Catch::Contains("n.obj:5") && Catch::Contains("usemtl 'my other'"));
 }
 
 // An outside sweep's find: "rotate": [r0, r1] applied r1 to the object first, where SCENE_FORMAT.md
@@ -1043,6 +1106,27 @@ TEST_CASE("Textures: alpha read apart from the colour, a TIFF cut short refused,
     std::ofstream((dir / "mapped.tga").string(), std::ios::binary) << mapped;
     CHECK_THROWS_WITH(load_texture((dir / "mapped.tga").string(), AlphaSource::kImage, nullptr),
                       Catch::Contains("colour-mapped TGA"));
+    // BMP: uncompressed 24 bits loads; a compression OpenImageIO does not know (PNG, JPEG, CMYK,
+    // any number) is refused (it read the bytes as pixels: a texture of noise, an outside sweep)
+    std::string bmp = "BM";
+    const auto put32 = [&](uint32_t v) { for (int k = 0; k < 4; ++k) bmp += char((v >> (8 * k)) & 0xFFu); };
+    const auto put16 = [&](uint32_t v) { for (int k = 0; k < 2; ++k) bmp += char((v >> (8 * k)) & 0xFFu); };
+    put32(54 + 16); put32(0); put32(54);                           // file size, reserved, pixel offset
+    put32(40); put32(2); put32(2); put16(1); put16(24); put32(0);  // header, 2 x 2, 24 bits, BI_RGB
+    put32(16); put32(2835); put32(2835); put32(0); put32(0);
+    for (int row = 0; row < 2; ++row) bmp += std::string("\x00\x00\xff\x00\x00\xff\x00\x00", 8);  // red, padded
+    std::ofstream((dir / "plain.bmp").string(), std::ios::binary) << bmp;
+    const Texture plain = load_texture((dir / "plain.bmp").string(), AlphaSource::kImage, nullptr);
+    CHECK(plain.width == 2);
+    CHECK(plain.rgba[0] == 255);
+    for (const uint32_t compression : {4u, 5u, 12u, 99u}) {
+      std::string odd = bmp;
+      odd[30] = char(compression);
+      std::ofstream((dir / "odd.bmp").string(), std::ios::binary) << odd;
+      INFO(compression);
+      CHECK_THROWS_WITH(load_texture((dir / "odd.bmp").string(), AlphaSource::kImage, nullptr),
+                        Catch::Contains("BMP compression " + std::to_string(compression)) && Catch::Contains("convert it to PNG"));
+    }
   }
   // A TIFF cut short: its missing strips were decoded black without an error (an outside sweep)
   {
@@ -1243,4 +1327,26 @@ TEST_CASE("OBJ: a face of n corners gives n - 2 triangles covering it exactly, w
     }
   }
   fs::remove_all(dir);
+}
+
+// An outside sweep's find: a texture made from a file (its alpha from its first channel) was
+// keyed "<path>#alpha-from-first-channel", which a file may be named: that file took the copy
+TEST_CASE("Textures: a file named like another texture's derived key is its own texture", "[unit][loaders]") {
+  if (!have_image_library()) return;
+  const fs::path d = temp_dir();
+  write_image_rgba8((d / "t.png").string(), 1, 1, std::vector<uint8_t>{200, 200, 200, 255}, false);
+  write_image_rgba8((d / "u.png").string(), 1, 1, std::vector<uint8_t>{10, 20, 30, 255}, false);
+  fs::rename(d / "u.png", d / "t.png#alpha-from-first-channel");
+  write_text(d / "k.mtl", "newmtl a\nKd 1 1 1\nmap_d t.png\nnewmtl b\nKd 1 1 1\nmap_Kd t.png#alpha-from-first-channel\n");
+  Scene s;
+  TextureCache cache;
+  load_obj(write_text(d / "k.obj", "mtllib k.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl a\nf 1/1 2/1 3/1\n"
+                                   "usemtl b\nf 1/1 2/1 3/1\n"),
+           s, cache);
+  REQUIRE(s.materials.size() == 2);
+  REQUIRE(s.materials[1].diffuse_texture >= 0);
+  CHECK(s.materials[1].diffuse_texture != s.materials[0].alpha_texture);
+  const Texture& b = s.textures[size_t(s.materials[1].diffuse_texture)];
+  CHECK(b.rgba[0] == 10);
+  CHECK(b.rgba[2] == 30);
 }

@@ -364,6 +364,29 @@ TEST_CASE("A small triangle beside a huge one: no ray far from the small one hit
   }
 }
 
+TEST_CASE("Coincident triangles (copies of one, half of them reversed): judged as one, no wrong answer", "[verify][grid]") {
+  // The referee tests one of each group of coincident triangles at each moved origin (it tested
+  // every copy: seconds a ray on 3,000 copies, an outside sweep); the answers stay the copies'
+  Scene s;
+  s.name = "coincident";
+  Mesh m;
+  m.name = "copies";
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0.3f}, {-2, -2, -1}, {3, -2, -1}, {-2, 3, -1}};
+  for (uint32_t k = 0; k < 200; ++k) m.triangles.push_back(k % 2 ? glm::uvec3(0, 2, 1) : glm::uvec3(0, 1, 2));
+  m.triangles.push_back({3, 4, 5});
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes.push_back(std::move(m));
+  s.instances.push_back(Instance{.name = "copies", .mesh = 0});
+  s.finalize();
+  reference::GridOptions go;
+  go.traversal = reference::Traversal::exact;
+  for (const FamilyResult& r : run(s, go, 60, false)) {
+    INFO(r.name << ":\n" << to_table({r}));
+    CHECK(r.count(Verdict::crack) == 0);
+    CHECK(r.count(Verdict::grid_wrong) == 0);
+  }
+}
+
 TEST_CASE("Exact traversal at its defaults on meshes nobody tuned for: no crack, no wrong answer, every family",
           "[verify][grid]") {
   // The needle's silhouette edges are where a ray only touches the surface: a ray aimed exactly at

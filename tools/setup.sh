@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 preset=${1:-release}
 pkgs=(build-essential cmake ninja-build pkg-config
-      libglm-dev libembree-dev libgmp-dev libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers
+      libglm-dev libembree-dev libgmp-dev zlib1g-dev libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers
       vulkan-tools glslang-tools spirv-tools catch2 libopenimageio-dev openimageio-tools
       libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libcli11-dev libbenchmark-dev
       fonts-dejavu-core

@@ -1,6 +1,8 @@
 #include "verify/referee.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -267,6 +269,26 @@ bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got, uint32_t ex
       const auto& t = topo_.tri[near[i]];
       refused[i] = sh::origin_on_plane(ray.org, t[0], t[1], t[2]) ? 1 : 0;
     }
+  // Coincident triangles (the same three vertices as traced, in any order) give the same exact
+  // test: one of each group is tested (a scene of 3,000 copies of one triangle tested every copy
+  // at every offset, seconds a ray: an outside sweep). A group counts where one of its members
+  // may be hit (not the launch triangle, not refused by the surface rule).
+  std::vector<size_t> rep(near.size());
+  std::vector<char> usable(near.size(), 0);  // per representative: some member may be hit
+  {
+    std::map<std::array<uint32_t, 9>, size_t> first_of;
+    for (size_t i = 0; i < near.size(); ++i) {
+      std::array<std::array<uint32_t, 3>, 3> v;
+      for (int c = 0; c < 3; ++c)
+        for (int a = 0; a < 3; ++a) v[size_t(c)][size_t(a)] = std::bit_cast<uint32_t>(traced[i][c][a]);
+      std::sort(v.begin(), v.end());
+      std::array<uint32_t, 9> key;
+      for (size_t c = 0; c < 3; ++c)
+        for (size_t a = 0; a < 3; ++a) key[3 * c + a] = v[c][a];
+      rep[i] = first_of.emplace(key, i).first->second;
+      if (topo_.ref[near[i]] != ray.launch_ref && !refused[i]) usable[rep[i]] = 1;
+    }
+  }
   // The triangles by 2D bin, for the per-offset tests
   constexpr int kBins = 16;
   std::vector<std::vector<size_t>> bins(kBins * kBins);
@@ -299,15 +321,17 @@ bool Referee::exact_for_moved_origin(const Ray& ray, const Hit& got, uint32_t ex
     ExactTest best, g;
     size_t best_i = SIZE_MAX;
     for (size_t i : bins[size_t(bin_of(q.y) * kBins + bin_of(q.x))]) {
-      if (!may_contain(i, q)) continue;
+      if (rep[i] != i || !may_contain(i, q)) continue;
       const ExactTest x = exact_test_from(org, ray.dir, t_lo, ray.tmax, traced[i][0], traced[i][1], traced[i][2]);
-      if (!x.hit || topo_.ref[near[i]] == ray.launch_ref) continue;
-      if (refused[i]) continue;  // the surface rule, decided on the ray as given
-      if (i == gi) g = x;
+      if (!x.hit) continue;
+      // got's own triangle, where it may be hit (the launch triangle and the surface rule's
+      // refusals, decided on the ray as given, are not)
+      if (!miss && rep[gi] == i && topo_.ref[near[gi]] != ray.launch_ref && !refused[gi]) g = x;
+      if (!usable[i]) continue;
       if (!best.hit || compare_t(x, best) < 0) best = x, best_i = i;
     }
     if (miss) return !best.hit;
-    return best.hit && g.hit && (best_i == gi || (g.t - best.t) * glm::length(dd) <= delta);
+    return best.hit && g.hit && (best_i == rep[gi] || (g.t - best.t) * glm::length(dd) <= delta);
   };
   // Where the answer can change within the disc: the answer's own edges, and the outline of the
   // surfaces as seen along the ray (edges of one triangle, of more than two, or between a front and

@@ -165,9 +165,12 @@ std::vector<FamilyResult> verify_scene(const Scene& scene_in, const reference::G
   const Scene scene = without_alpha(scene_in);
   if (o.translated)  // before any family runs, not after minutes of them
     if (const std::string problem = translated_problem(scene, o.offset, &grid_options); !problem.empty())
-      throw Error("verify: the translated run: moved by (" + std::to_string(o.offset.x) + ", " +
-                  std::to_string(o.offset.y) + ", " + std::to_string(o.offset.z) + "), " + problem +
+    {
+      char moved[96];
+      std::snprintf(moved, sizeof moved, "(%g, %g, %g)", double(o.offset.x), double(o.offset.y), double(o.offset.z));
+      throw Error("verify: the translated run: moved by " + std::string(moved) + ", " + problem +
                   " (the scene is too small for a float's step there: a smaller --offset, or --no-translated)");
+    }
   std::vector<FamilyResult> out = run_all(scene, grid_options, make, o, o.families);
   if (o.translated) {
     const Scene moved = translated(scene, o.offset);

@@ -20,6 +20,7 @@
 
 #include "gridrt/common/loaders/loaders.h"
 #include "gridrt/common/safe_io.h"
+#include "gridrt/common/scene_io.h"
 
 namespace gridrt {
 namespace fs = std::filesystem;
@@ -300,6 +301,10 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
   const auto fail = [&](const std::string& where, const std::string& what) {
     throw Error("cannot load glTF '" + path + "': " + where + ": " + what);
   };
+  // A key given twice in one object: TinyGLTF keeps the last without a word (a node's second
+  // "translation" moved it: an outside sweep), as the scene files refuse it
+  if (const std::string dup = json_first_duplicate_key(std::string(text)); !dup.empty())
+    fail(dup, "the key is given twice in its object (the last would win without a word)");
   const auto numbers = [&](const nlohmann::json& o, const char* key, size_t n, const std::string& where) {
     if (!o.contains(key)) return;
     const nlohmann::json& a = o[key];
@@ -622,7 +627,9 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
       if (pbr.baseColorTexture.texCoord != 0)
         std::cerr << "warning: " << path << ": material '" << mat.name << "' uses TEXCOORD_"
                   << pbr.baseColorTexture.texCoord << "; only TEXCOORD_0 is read\n";
-      const std::string key = path + "#image" + std::to_string(image);
+      // (Keys of textures made from a file hold a NUL, which no file name can: a texture file
+      // named like another's key, "<model>#image0", took that texture, an outside sweep)
+      const std::string key = path + std::string(1, '\0') + "image" + std::to_string(image);
       mat.diffuse_texture = textures.get_or_add(scene, key, [&] { return image_texture(c, image); });
       if (gm.alphaMode == "MASK") {
         const float cutoff = float(gm.alphaCutoff);
@@ -632,7 +639,7 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
           // Bake factor and cutoff into a copy, so that alpha.h's fixed cutoff (128) applies.
           // Keyed by the two floats' exact values (6 digits made 0.5019606 and 0.5019612 one key)
           std::ostringstream k;
-          k << key << "#mask" << std::hexfloat << cutoff << "x" << factor_alpha;
+          k << key << '\0' << "mask" << std::hexfloat << cutoff << "x" << factor_alpha;
           const int32_t src = mat.diffuse_texture;
           mat.alpha_texture = textures.get_or_add(scene, k.str(), [&] {
             require_host_memory(scene.textures[size_t(src)].rgba.size(),
@@ -653,7 +660,7 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
     // MASK without a texture: the factor's alpha alone decides (glTF 2.0: alpha = the factor's),
     // the whole material kept or cut. Cut: a 1x1 mask of alpha 0 (every uv reads it)
     if (pbr.baseColorTexture.index < 0 && gm.alphaMode == "MASK" && factor_alpha < float(gm.alphaCutoff)) {
-      mat.alpha_texture = textures.get_or_add(scene, path + "#cut", [&] {
+      mat.alpha_texture = textures.get_or_add(scene, path + std::string(1, '\0') + "cut", [&] {
         Texture t;
         t.path = path + "#cut";
         t.width = t.height = 1;
@@ -670,6 +677,37 @@ void add_materials(const Ctx& c, Scene& scene, TextureCache& textures) {
 // one "default" material, added on first use.
 // Returns the primitives left out (points and lines), "" if none: "mode 1", "modes 0, 1".
 std::string add_meshes(const Ctx& c, Scene& scene, uint32_t material_base) {
+  // The triangles and vertices every primitive will add, from its accessors' counts, against the
+  // limits before any is read: primitives may share one accessor, so the file's size bounds
+  // nothing (a 2 MB file of 2,000 primitives naming one index accessor asked for tens of GB
+  // before --max-triangles refused the scene: an outside sweep)
+  {
+    uint64_t triangles = 0, vertices = 0;
+    const auto count_of = [&](int accessor) -> uint64_t {
+      return accessor >= 0 && size_t(accessor) < c.model.accessors.size() ? uint64_t(c.model.accessors[size_t(accessor)].count)
+                                                                           : 0;
+    };
+    for (size_t mi = 0; mi < c.model.meshes.size(); ++mi)
+      for (size_t pi = 0; pi < c.model.meshes[mi].primitives.size(); ++pi) {
+        const tinygltf::Primitive& prim = c.model.meshes[mi].primitives[pi];
+        const int mode = prim.mode == -1 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+        if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
+          continue;
+        const auto pos = prim.attributes.find("POSITION");
+        const uint64_t n_vertices = pos == prim.attributes.end() ? 0 : count_of(pos->second);
+        const uint64_t n = prim.indices >= 0 ? count_of(prim.indices) : n_vertices;
+        vertices = std::min<uint64_t>(vertices + n_vertices, uint64_t(1) << 62);
+        triangles = std::min<uint64_t>(triangles + (mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : n >= 3 ? n - 2 : 0),
+                                       uint64_t(1) << 62);
+        const std::string where = "meshes[" + std::to_string(mi) + "].primitives[" + std::to_string(pi) + "]";
+        if (triangles > input_limits().max_triangles)
+          c.fail(where + ": the primitives so far make " + std::to_string(triangles) + " triangles, more than the limit of " +
+                 std::to_string(input_limits().max_triangles) + " (--max-triangles)");
+        if (vertices > input_limits().max_vertices)
+          c.fail(where + ": the primitives so far make " + std::to_string(vertices) + " vertices, more than the limit of " +
+                 std::to_string(input_limits().max_vertices));
+      }
+  }
   std::vector<int> left_out;
   int64_t default_material = -1;
   for (size_t mi = 0; mi < c.model.meshes.size(); ++mi) {

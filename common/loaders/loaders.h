@@ -18,7 +18,9 @@
 
 namespace gridrt {
 
-// Textures of one scene, by key (the file's canonical path plus how its alpha was taken).
+// Textures of one scene, by key: a file's canonical path, or for a texture made from one (its alpha
+// from the first channel, a glTF image, a baked mask) that path, a NUL and how it was made, so
+// that no file's name can spell another's key.
 class TextureCache {
  public:
   // Index into scene.textures of the file at `path`, loading it on first use.

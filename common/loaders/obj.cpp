@@ -30,7 +30,9 @@ int32_t TextureCache::load(Scene& scene, const std::string& path, AlphaSource al
   // A file with an alpha channel gives the same texture for both alpha sources: store it once,
   // under the plain key.
   const std::string plain = canon.string();
-  const std::string first = plain + "#alpha-from-first-channel";
+  // (A NUL in the derived key, which no file name holds: a texture file named
+  // "t.png#alpha-from-first-channel" took t.png's alpha copy, an outside sweep)
+  const std::string first = plain + std::string(1, '\0') + "alpha-from-first-channel";
   if (auto it = index_.find(plain); it != index_.end() && (alpha == AlphaSource::kImage || alpha_channel_[plain]))
     return it->second;
   if (auto it = index_.find(first); it != index_.end() && alpha == AlphaSource::kFirstChannel) return it->second;
@@ -80,6 +82,35 @@ void for_each_line(const std::string& text, Fn fn) {
     auto tokens = split_ws(line);
     if (!tokens.empty()) fn(number, tokens);
   }
+}
+
+// A material's name in a newmtl or usemtl statement: the rest of the line after the keyword (its
+// first token `first`, a view into `text`), blanks at its ends dropped, blanks and '#' inside
+// kept ("wire 008", "Material #25": 3ds Max and SketchUp write such names). tinyobjloader took
+// newmtl's whole rest but only usemtl's first word, so such a name could not be used, or a
+// material named by its first word was taken without a word (an outside sweep).
+std::string material_name_rest(const std::string& text, std::string_view first) {
+  const size_t begin = size_t(first.data() - text.data());
+  size_t end = text.find('\n', begin);
+  if (end == std::string::npos) end = text.size();
+  std::string_view rest(text.data() + begin, end - begin);
+  while (!rest.empty() && std::isspace(static_cast<unsigned char>(rest.back()))) rest.remove_suffix(1);
+  return std::string(rest);
+}
+
+// A name as handed to tinyobjloader, whose usemtl reads one word: its blanks as control
+// characters no name holds after the checks (a tab as 0x1E, any other blank as 0x1F), and back.
+std::string name_for_tinyobj(std::string name) {
+  for (char& c : name)
+    if (c == '\t') c = '\x1e';
+    else if (std::isspace(static_cast<unsigned char>(c))) c = '\x1f';
+  return name;
+}
+std::string name_from_tinyobj(std::string name) {
+  for (char& c : name)
+    if (c == '\x1e') c = '\t';
+    else if (c == '\x1f') c = ' ';
+  return name;
 }
 
 // A number that overflows a double parses as +-inf (and is then rejected as non-finite); one
@@ -198,7 +229,7 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
       for (size_t i = 1; i < tok.size(); ++i) scan.mtllibs.emplace_back(std::string(tok[i]), line);
     } else if (k == "usemtl") {
       if (tok.size() < 2) fail_at(path, line, "usemtl without a material name");
-      std::string name(tok[1]);
+      std::string name = material_name_rest(text, tok[1]);
       if (used.insert(name).second) scan.usemtls.emplace_back(name, line);
     }
   });
@@ -269,7 +300,7 @@ std::string pad_texture_options(const std::string& path, const std::string& text
       std::string_view rest = line.substr(size_t(tok[0].data() + tok[0].size() - line.data()));
       while (!rest.empty() && std::isspace(static_cast<unsigned char>(rest.front()))) rest.remove_prefix(1);
       while (!rest.empty() && std::isspace(static_cast<unsigned char>(rest.back()))) rest.remove_suffix(1);
-      rewritten = std::string(tok[0]) + " " + std::string(rest);
+      rewritten = std::string(tok[0]) + " " + name_for_tinyobj(std::string(rest));  // one word, as usemtl's
       padded = true;
     }
     if (padded) {
@@ -309,6 +340,25 @@ std::string scan_mtl(const std::string& path) {
       check_numbers(path, line, tok, 1);
     } else if (k == "map_Kd" || k == "map_d") {
       if (tok.size() < 2) fail_at(path, line, std::string(k) + " without a file name");
+      // Options and their values with nothing after them: no file name (map_Kd -clamp on dropped
+      // its texture without a word, map_Kd -o 1 was told of a missing number: an outside sweep)
+      size_t i = 1;
+      double v;
+      while (i < tok.size()) {
+        const std::string_view o = tok[i];
+        const bool word = o == "-blendu" || o == "-blendv" || o == "-boost" || o == "-texres" || o == "-clamp" ||
+                          o == "-bm" || o == "-imfchan" || o == "-type" || o == "-colorspace" || o == "-cc";
+        const size_t numbers = (o == "-o" || o == "-s" || o == "-t") ? 3 : o == "-mm" ? 2 : 0;
+        if (word) {
+          i += 2;
+        } else if (numbers) {
+          ++i;
+          for (size_t n = 0; n < numbers && i < tok.size() && parse_float(tok[i], v); ++n) ++i;
+        } else {
+          break;
+        }
+      }
+      if (i >= tok.size()) fail_at(path, line, std::string(k) + ": no file name after its options");
     }
   });
   return pad_texture_options(path, text);
@@ -451,6 +501,32 @@ std::string cut_number_line_comments(const std::string& text) {
   return out;
 }
 
+// The text with every usemtl's name (its whole rest of line, `resolved` to the material it names)
+// written as one word for tinyobjloader (name_for_tinyobj); line numbers stay.
+std::string write_usemtl_names(const std::string& text, const std::map<std::string, std::string>& resolved) {
+  std::string out;
+  out.reserve(text.size());
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    const std::string_view line(text.data() + start, end - start);
+    const size_t k = line.find_first_not_of(" \t");
+    const std::string_view rest = k == std::string_view::npos ? std::string_view() : line.substr(k);
+    if (rest.size() > 7 && rest.substr(0, 6) == "usemtl" && std::isspace(static_cast<unsigned char>(rest[6]))) {
+      const size_t n = rest.find_first_not_of(" \t\r", 6);
+      const std::string name = n == std::string_view::npos ? std::string() : material_name_rest(text, rest.substr(n));
+      const auto it = resolved.find(name);
+      out += "usemtl " + name_for_tinyobj(it != resolved.end() ? it->second : name);
+    } else {
+      out.append(line);
+    }
+    if (end < text.size()) out.push_back('\n');
+    start = end + 1;
+  }
+  return out;
+}
+
 // The file parsed by tinyobjloader after the checks of what it lets pass (numbers, indices,
 // material libraries and names), from the same normalized text the checks read (the libraries'
 // text is handed to it for every mtllib statement); every usemtl names a material of the libraries.
@@ -476,14 +552,28 @@ tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& fac
     const size_t lib_line = line;  // (a structured binding: clang captures none)
     for_each_line(lib, [&](size_t mline, const std::vector<std::string_view>& tok) {
       if (tok[0] != "newmtl" || tok.size() < 2) return;
-      std::string m(tok[1]);  // the whole name ("a b" and "a c" are two)
-      for (size_t i = 2; i < tok.size(); ++i) m += " " + std::string(tok[i]);
+      // the whole name ("a b" and "a c" are two), as written for tinyobjloader
+      const std::string m = name_from_tinyobj(material_name_rest(lib, tok[1]));
       if (!defined.emplace(m, std::pair{lib_line, mtl.string()}).second)
         std::cerr << "warning: " << mtl.string() << ":" << mline << ": material '" << m << "' is defined again (first in "
                   << defined[m].second << "): the first definition is used\n";
     });
     mtl_text += lib;
     mtl_text += "\n";
+  }
+  // A usemtl's name is its whole rest of line; where no material has that name but one has the
+  // part before a '#' (a comment after the name), that one
+  std::map<std::string, std::string> resolved;
+  for (auto& [name, line] : scan.usemtls) {
+    std::string use = name;
+    if (!defined.count(use))
+      if (const size_t hash = use.find('#'); hash != std::string::npos) {
+        std::string cut = use.substr(0, hash);
+        while (!cut.empty() && std::isspace(static_cast<unsigned char>(cut.back()))) cut.pop_back();
+        if (defined.count(cut)) use = cut;
+      }
+    resolved[name] = use;
+    name = use;
   }
   // A material used before the mtllib of its library was dropped, with a warning the file
   // contradicts (an outside sweep)
@@ -496,7 +586,8 @@ tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& fac
   config.triangulate = false;  // triangulate_face: every face of n vertices gives n - 2 triangles
   config.vertex_color = false;
   tinyobj::ObjReader file_reader;
-  if (!file_reader.ParseFromString(cut_number_line_comments(text), mtl_text, config) || !file_reader.Error().empty()) {
+  if (!file_reader.ParseFromString(write_usemtl_names(cut_number_line_comments(text), resolved), mtl_text, config) ||
+      !file_reader.Error().empty()) {
     std::string err = file_reader.Error();
     while (!err.empty() && err.back() == '\n') err.pop_back();
     throw Error("cannot load OBJ '" + path + "': " + (err.empty() ? "tinyobjloader failed" : err));
@@ -504,7 +595,7 @@ tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& fac
 
   // Every usemtl must name a material of the libraries.
   std::set<std::string> names;
-  for (const auto& m : file_reader.GetMaterials()) names.insert(m.name);
+  for (const auto& m : file_reader.GetMaterials()) names.insert(name_from_tinyobj(m.name));
   for (const auto& [name, line] : scan.usemtls)
     if (!names.count(name)) fail_at(path, line, "usemtl '" + name + "': no such material in the material libraries");
 
@@ -548,10 +639,10 @@ void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const std::
                                          std::tuple{"map_d", &m.alpha_texname, &m.alpha_texopt}})
       if (!name->empty())
         if (const std::string ignored = ignored_texture_options(*opt); !ignored.empty())
-          std::cerr << "warning: " << path << ": material '" << m.name << "': " << key << "'s " << ignored
+          std::cerr << "warning: " << path << ": material '" << name_from_tinyobj(m.name) << "': " << key << "'s " << ignored
                     << " not applied: the texture is read whole and repeats\n";
     Material mat;
-    mat.name = m.name;
+    mat.name = name_from_tinyobj(m.name);
     mat.diffuse = glm::vec3(float(m.diffuse[0]), float(m.diffuse[1]), float(m.diffuse[2]));
     mat.opacity = float(m.dissolve);
     if (!m.diffuse_texname.empty() && used[k])

@@ -1,5 +1,5 @@
 // explain.h: the events a traced ray leaves when it is explained, as fixed-size records that the
-// reference (plan/explain.cpp) and the Vulkan trace shader (into a storage buffer) write alike,
+// reference (reference/trace.cpp) and the Vulkan trace shader (into a storage buffer) write alike,
 // in the same order. Field meanings per kind are listed at each kind; unused fields are 0.
 #ifndef GRIDRT_SHARED_EXPLAIN_H
 #define GRIDRT_SHARED_EXPLAIN_H
@@ -12,7 +12,9 @@ SH_BEGIN
 SH_CONST uint kEvRay = 1u;        // f0 = (org, tmin), f1 = (dir, tmax), ref = launch_ref
 SH_CONST uint kEvRejected = 2u;   // the ray has NaN/inf values or a zero direction
 SH_CONST uint kEvSetup = 3u;      // code = traversal, f0 = (seg_t, t_start, t_end, t_lo),
-                                  // f1 = launch normal (xyz); slot = 1 if the ray meets the grid
+                                  // f1 = (launch normal xyz, t_base: the ray's origin moved
+                                  // along it by t_base, docs/SPEC.md "Far origins"); slot = 1
+                                  // if the ray meets the grid
 SH_CONST uint kEvCell = 4u;       // a cell is visited: step, cell; paper: code = further
                                   // segments merged into this visit, f0 = (midpoint of the
                                   // visit's segments xyz, its t), f1 = (segment begin, end,

@@ -39,7 +39,7 @@ SH_CONST uint kGridSkipEmpty = 16u;        // exact traversal: the DDA jumps ove
                                            // cells (the skip field, docs/SPEC.md "Empty-space skipping")
 SH_CONST uint kGridCellBox = 32u;          // build: a cell takes a triangle only if the separating-axis
                                            // test finds no axis between the triangle and the padded cell
-                                           // box too (triangle_overlaps_cell; docs/SPEC.md "Cell test")
+                                           // box too (triangle_overlaps_cell; docs/SPEC.md "Scene build", *Separating axes*)
 SH_CONST uint kGridCompact = 64u;          // the compact layout (docs/SPEC.md "Compact layout"): static
                                            // references in one array ordered per cell (offsets, refs),
                                            // dynamic ones only in the spill list's dynamic lists, whose
@@ -54,7 +54,7 @@ SH_CONST uint kGridMailbox = 128u;         // exact traversal: a reference teste
                                            // the last kMailboxSize tested) is not tested again; the paper
                                            // traversal and first-empty insertion ignore it (docs/SPEC.md "Mailbox")
 // Bits 8-9: the scene axis laid along the image's x, the axis that carries the slots (0 x, 1 y,
-// 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis"). The
+// 2 z; choose_grid puts the axis with the fewest cells there, docs/SPEC.md "Slot axis and limits"). The
 // image swaps that axis with x; every other axis keeps its place.
 SH_CONST uint kGridSlotAxisShift = 8u;
 SH_CONST uint kGridSlotAxisMask = 0x300u;
@@ -334,7 +334,7 @@ SH_INLINE bool plane_intersects_enlarged_sphere(SH_IN(vec3) v0, SH_IN(vec3) n, S
   return lhs <= rhs;
 }
 
-// ---- Build: the separating-axis test (kGridCellBox; docs/SPEC.md "Cell test") ----
+// ---- Build: the separating-axis test (kGridCellBox; docs/SPEC.md "Scene build", *Separating axes*) ----
 // Akenine-Moller's triangle/box overlap test, in cell units (grid_local, the coordinates the cell
 // range is made of) around the cell's centre m = cell + 0.5 (exact), the box's half edge
 // h = 0.5 + aabb_padding + 8 u M / cell_size (u = 2^-24, M the grid corners' largest |coordinate|:
@@ -663,7 +663,10 @@ SH_INLINE bool triangle_zero_area(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2
   float s = sh_unit_scale(m);
   SH_PRECISE vec3 f1 = e1 * s;
   SH_PRECISE vec3 f2 = e2 * s;
-  SH_PRECISE vec3 n = sh_cross(f1, f2);
+  // (A subnormal component counts as zero, on every device: lavapipe's geometry stage flushed
+  // one of a needle whose edges differ in length by 1e25, took it for zero-area and left it out of
+  // the raster build, where the reference kept it: an outside sweep)
+  SH_PRECISE vec3 n = sh_flush_subnormal3(sh_cross(f1, f2));
   if (n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) return false;
   // The float edges are parallel (or one is zero); the exact ones may not be: a cap whose third
   // vertex is an edge's float-rounded midpoint lies off the line by that rounding, has area, and
@@ -678,7 +681,7 @@ SH_INLINE bool triangle_zero_area(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2
   SH_PRECISE vec3 w2 = v2 * s;
   vec3 aw = max(max(abs(w0), abs(w1)), abs(w2));
   if (!(max(max(aw.x, aw.y), aw.z) <= 3.40282347e38f)) return true;
-  vec3 r = plane_normal(w0, w1, w2);
+  vec3 r = sh_flush_subnormal3(plane_normal(w0, w1, w2));
   return r.x == 0.0f && r.y == 0.0f && r.z == 0.0f;
 }
 
@@ -729,14 +732,15 @@ SH_INLINE vec3 plane_anchor(SH_IN(vec3) A, SH_IN(vec3) B, SH_IN(vec3) C) {
 // sliver's edge, leaving nearly in its neighbour's plane, met that neighbour (through the origin)
 // at 1.5 to 3.2 times the epsilon on cones of 64 to 1000 slivers. So for a ray launched from a
 // surface, a candidate is also refused when the face's plane passes within tol of the origin:
-// |n . (org - v0)| <= tol |n|_1 (the 1-norm: a distance between tol and sqrt(3) tol, no square
-// root), tol = kOriginEpsilon * max(largest |org| component, largest |org - v0| component): 8
-// ulps of the origin's coordinates (where the launch point was rounded) or of org - v0's, whichever
-// is larger (the plane value's own rounding, n's few ulps times |org - v0|, scales with the
-// latter: a long needle's face launched from near the world's origin, its v0 a thousand times
-// farther away, passed its own launch point by more than 8 ulps of the origin), n = plane_normal
-// (the two shortest edges' cross product: on a sliver the apex's two edges are nearly parallel
-// and their cross product too rounded to tell). A ray from a point of a plane meets the plane
+// |n . P| <= tol * scale, P = the face's vertex nearest the origin less the origin (plane_anchor),
+// scale = |a|_1 |b|_1 of the cross product n = a x b (plane_normal_scale: the normal's rounding
+// scale, at least |n|_1), tol = kOriginEpsilon * max(largest |org| component, largest |P|
+// component): 8 ulps of the origin's coordinates (where the launch point was rounded) or of P's,
+// whichever is larger (the plane value's own rounding, n's few ulps times |P|, scales with the
+// latter: a long needle's face launched from near the world's origin, its vertices a thousand
+// times farther away, passed its own launch point by more than 8 ulps of the origin), n =
+// plane_normal_scaled (the two shortest edges' cross product: on a sliver the apex's two edges
+// are nearly parallel and their cross product too rounded to tell). A ray from a point of a plane meets the plane
 // only at t = 0 or lies in it, so no hit is lost but one within that plane's rounding. Every
 // product stays finite in the 2^24 domain; a zero-area face (n = 0) is refused, as det == 0
 // already does.

@@ -230,7 +230,7 @@ SH_INLINE void gather_frustum_extend(SH_IN(vec3) q, float near_plane, float roun
   SH_PRECISE float rz = sh_rcp(max(q.z, near_plane));
   SH_PRECISE float sx = q.x * rz;
   SH_PRECISE float sy = q.y * rz;
-  const vec2 p = vec2(sx * px + cx, cy - sy * py);
+  SH_PRECISE vec2 p = vec2(sx * px + cx, cy - sy * py);
   SH_PRECISE float s = (1.0f + abs(sx)) + abs(sy);
   SH_PRECISE float e = ((rounding * m) * rz) * s;
   SH_PRECISE vec2 r = vec2(e * px, e * py);

@@ -220,6 +220,12 @@ SH_INLINE float sh_unit_scale(float m) {
 // zero of its sign, as a flushing device does (world-space vertices: transform_point).
 SH_INLINE float normal_or_zero(float d) { return (floatBitsToUint(d) & 0x7F800000u) == 0u ? 0.0f : d; }
 SH_INLINE vec3 normal_or_zero3(SH_IN(vec3) v) { return vec3(normal_or_zero(v.x), normal_or_zero(v.y), normal_or_zero(v.z)); }
+// Whether x is a zero or a subnormal (its exponent bits all zero; NaN and inf are not). A triangle
+// test's determinant there is taken as zero: built of subnormal products, which devices may flush
+// (lavapipe's compute stages did for a triangle 1e-20 across: another t than the reference's),
+// it decides nothing on every device alike (docs/SPEC.md "Moller-Trumbore").
+SH_INLINE bool sh_zero_or_subnormal(float x) { return (floatBitsToUint(x) & 0x7F800000u) == 0u; }
+
 SH_INLINE float sh_flush_subnormal(float x) {
   uint b = floatBitsToUint(x);
   return (b & 0x7F800000u) == 0u ? uintBitsToFloat(b & 0x80000000u) : x;

@@ -1,5 +1,5 @@
 // shadow.h: the frame's shadow rays, written once for the CPU (common/gather.cpp, shadow_rays) and
-// the GPU (vulkan/shaders/shadow.comp), so that both make the same rays bit for bit where division
+// the GPU (the frame's trace makes them: trace.comp), so that both make the same rays bit for bit where division
 // and square root are correctly rounded (compat.h rules; docs/SPEC.md, "Shadow rays"):
 //  - one ray per gather texel and light, from the gather position (no offset: the trace never
 //    accepts the launch triangle, kGridExcludeLaunchRef), launch normal and reference the texel's
@@ -9,8 +9,9 @@
 //  - the empty ray (tmin = tmax = 0: every trace answers a miss, and shading leaves the light
 //    out) where the texel has no surface, the light is at the texel, or the light is behind the
 //    surface (dot(normal, dir) <= 0)
-// The ray is occluded iff its trace reports a hit (the closest one, gap-fill included): "any hit"
-// read off the grid's closest-hit trace, the same rule on both backends.
+// The ray is occluded iff its trace reports a hit (gap-fill included), traced as an any-hit ray
+// (kTraceAnyHit: the trace ends at the first accepted candidate; docs/SPEC.md "Any hit"), the
+// same rule on both backends.
 #ifndef GRIDRT_SHARED_SHADOW_H
 #define GRIDRT_SHARED_SHADOW_H
 

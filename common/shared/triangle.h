@@ -18,7 +18,7 @@ SH_BEGIN
 // Outcome of one triangle test (TriangleTest::code, ExplainEvent::code of a test event). The
 // first failing condition, in this order, names the outcome.
 SH_CONST uint kTestAccepted = 0u;    // inside, within the bounds, not farther than the best hit
-SH_CONST uint kTestParallel = 1u;    // det == 0: ray parallel to the plane (or a zero-area triangle)
+SH_CONST uint kTestParallel = 1u;    // det zero or subnormal: ray parallel to the plane (or a zero-area triangle)
 SH_CONST uint kTestOutsideU = 2u;    // u * det < 0: beyond edge v0-v2
 SH_CONST uint kTestOutsideV = 3u;    // v * det < 0: beyond edge v0-v1
 SH_CONST uint kTestOutsideUV = 4u;   // (u + v) * det > |det|: beyond edge v1-v2
@@ -117,7 +117,7 @@ SH_INLINE uint moller_trumbore_rest(SH_IN(vec3) dir, SH_IN(MollerFirst) m, float
   r.hi_det = hi;
   r.best_det = best;
   // Decisions: + - * and comparisons only
-  if (det == 0.0f) r.code = kTestParallel;
+  if (sh_zero_or_subnormal(det)) r.code = kTestParallel;
   else if (u < 0.0f) r.code = kTestOutsideU;
   else if (v < 0.0f) r.code = kTestOutsideV;
   else if (uv > ad) r.code = kTestOutsideUV;
@@ -405,7 +405,7 @@ SH_INLINE uint watertight_rest_plane(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec
   if (mixed && u < 0.0f) r.code = kTestOutsideU;
   else if (mixed && v < 0.0f) r.code = kTestOutsideV;
   else if (mixed) r.code = kTestOutsideUV;
-  else if (det == 0.0f || D == 0.0f) r.code = kTestParallel;
+  else if (sh_zero_or_subnormal(det) || sh_zero_or_subnormal(D)) r.code = kTestParallel;
   else if (t <= lo) r.code = kTestBehind;
   else if (t >= hi) r.code = kTestBeyond;
   else if (t > best) r.code = kTestNotCloser;
@@ -442,7 +442,7 @@ SH_INLINE uint triangle_test(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN
 // after its edge functions when they have mixed signs, Moller-Trumbore after its determinant and
 // u when det is 0 or u < 0 (else each goes on from where it stopped). The same operations in the same order up to there, so the same code;
 // for a trace that records no events (the trace shader but for its explain ray), where most tests
-// miss and skip the plane's cross and dot products. tests/test_rounding.cpp holds it to
+// miss and skip the plane's cross and dot products. tests/test_triangle_code.cpp holds it to
 // triangle_test()'s code and record on every case of its corpus.
 // `w`: watertight_ray(dir), made once per ray by the caller (the same values as made here).
 SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(WatertightRay) w,
@@ -459,16 +459,22 @@ SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, 
   }
   MollerFirst m;
   moller_trumbore_first(org, dir, v0, v1, v2, m);
-  if (m.det == 0.0f || m.u < 0.0f) {
-    r.code = m.det == 0.0f ? kTestParallel : kTestOutsideU;
+  if (sh_zero_or_subnormal(m.det) || m.u < 0.0f) {
+    r.code = sh_zero_or_subnormal(m.det) ? kTestParallel : kTestOutsideU;
     return r.code;
   }
   return moller_trumbore_rest(dir, m, t_lo, t_hi, best_t, r);
 }
 
-// The reported distance of an accepted test: t_det * (1 / |det|), the one division.
+// The reported distance of an accepted test: t_det * (1 / |det|), a correctly rounded reciprocal
+// and a product (within 2 ulps of T / |det| below: docs/SPEC.md "The not closer bound"). Where
+// |det| is above 2^126 the reciprocal would lose its bits as a subnormal: there the quotient
+// itself, correctly rounded. (A subnormal |det| is no accepted test: kTestParallel. Where one
+// reached here, the reciprocal overflowed: a triangle of edges 1e-20 at distance 1 was reported
+// at t = inf, an outside review; the quotient keeps such a call finite.)
 SH_INLINE float moller_trumbore_t(SH_IN(TriangleTest) r) {
   SH_PRECISE float ad = abs(r.det);
+  if (!(ad >= uintBitsToFloat(0x00800000u) && ad <= uintBitsToFloat(0x7E800000u))) return sh_div(r.t_det, ad);
   SH_PRECISE float inv = sh_rcp(ad);
   SH_PRECISE float t = r.t_det * inv;
   return t;
@@ -524,13 +530,17 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
   SH_PRECISE float ab1 = a.y * b.x;
   SH_PRECISE float denom = ab0 - ab1;
   if (denom == 0.0f) return vec2(0.0f);
-  SH_PRECISE float inv = sh_rcp(denom);
   SH_PRECISE float cb0 = c.x * b.y;
   SH_PRECISE float cb1 = c.y * b.x;
   SH_PRECISE float n1 = cb0 - cb1;
   SH_PRECISE float ac0 = a.x * c.y;
   SH_PRECISE float ac1 = a.y * c.x;
   SH_PRECISE float n2 = ac0 - ac1;
+  // A denominator outside [2^-126, 2^126] (edges below about 1e-19): its reciprocal would
+  // overflow or be subnormal, so the two quotients themselves
+  SH_PRECISE float ad = abs(denom);
+  if (!(ad >= uintBitsToFloat(0x00800000u) && ad <= uintBitsToFloat(0x7E800000u))) return clamp_barycentrics(sh_div(n1, denom), sh_div(n2, denom));
+  SH_PRECISE float inv = sh_rcp(denom);
   SH_PRECISE float w1 = n1 * inv;
   SH_PRECISE float w2 = n2 * inv;
   return clamp_barycentrics(w1, w2);
