@@ -906,7 +906,8 @@ TEST_CASE("hardcase: a triangle 1e-20 across (a subnormal determinant) is no hit
     expect_hit(rays[2], h[2], 0, 1, 2.0f);  // the ordinary triangle beside it
   }
   // The shared functions: a subnormal determinant is parallel; past 2^126 the reported t is the
-  // correctly rounded quotient (the reciprocal would be subnormal)
+  // reciprocal's product with both scaled by 2^-64 (the reciprocal of |det| itself would be
+  // subnormal): within 2 ulps of the quotient, as every reported t
   CHECK(sh::sh_zero_or_subnormal(1e-40f));
   CHECK(sh::sh_zero_or_subnormal(-0.0f));
   CHECK_FALSE(sh::sh_zero_or_subnormal(1.17549435e-38f));
@@ -916,7 +917,18 @@ TEST_CASE("hardcase: a triangle 1e-20 across (a subnormal determinant) is no hit
     r.det = det;
     r.t_det = std::abs(det) * 0.3f;
     INFO(det);
-    CHECK(sh::moller_trumbore_t(r) == float(double(r.t_det) / std::abs(double(det))));
+    const float t = sh::moller_trumbore_t(r);
+    const float scaled = (r.t_det * 0x1p-64f) * (1.0f / (std::abs(det) * 0x1p-64f));
+    CHECK(t == scaled);
+    const double exact = double(r.t_det) / std::abs(double(det));
+    CHECK(std::abs(double(t) - exact) <= 2.0 * (double(std::nextafter(float(exact), INFINITY)) - double(float(exact))));
+  }
+  // A quotient below 2^-188 (the scaled numerator subnormal): 0, as the correctly rounded one
+  {
+    sh::TriangleTest r{};
+    r.det = 3e38f;
+    r.t_det = 1e-25f;
+    CHECK(sh::moller_trumbore_t(r) == 0.0f);
   }
   // Cramer's barycentrics of a triangle whose projected determinant is subnormal: finite, inside
   const glm::vec2 bc = sh::cramer_barycentrics(glm::vec3(0.0f), glm::vec3(1e-20f, 0, 0), glm::vec3(0, 1e-20f, 0),

@@ -466,17 +466,32 @@ SH_INLINE uint triangle_test_code(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, 
   return moller_trumbore_rest(dir, m, t_lo, t_hi, best_t, r);
 }
 
+// A power of two that brings |d| into [2^-126, 2^126], where its reciprocal is a normal float:
+// 2^-64 above 2^126, 2^64 below 2^-126 (a subnormal, exact when scaled), else 1. A quotient n / d
+// is then taken as (n s) * (1 / (d s)): both scalings exact but where n s underflows, and there
+// the quotient is below 2^-188 (n s < 2^-126 with 1 / (d s) <= 2^-62), which rounds to 0 either
+// way, on a device that flushes subnormals or not.
+SH_INLINE float sh_reciprocal_scale(float ad) {
+  return ad > uintBitsToFloat(0x7E800000u) ? 5.42101086242752217e-20f
+                                           : (ad < uintBitsToFloat(0x00800000u) ? 18446744073709551616.0f : 1.0f);
+}
+
 // The reported distance of an accepted test: t_det * (1 / |det|), a correctly rounded reciprocal
 // and a product (within 2 ulps of T / |det| below: docs/SPEC.md "The not closer bound"). Where
-// |det| is above 2^126 the reciprocal would lose its bits as a subnormal: there the quotient
-// itself, correctly rounded. (A subnormal |det| is no accepted test: kTestParallel. Where one
-// reached here, the reciprocal overflowed: a triangle of edges 1e-20 at distance 1 was reported
-// at t = inf, an outside review; the quotient keeps such a call finite.)
+// |det| is above 2^126 the reciprocal would lose its bits as a subnormal: there both are scaled by
+// 2^-64 first (sh_reciprocal_scale: exact), the same two roundings. (A subnormal |det| is no
+// accepted test: kTestParallel. Where one reached here unscaled, the reciprocal overflowed: a
+// triangle of edges 1e-20 at distance 1 was reported at t = inf, an outside review.) One
+// reciprocal in the code, not a second division for the rare case: the trace's loop inlines it,
+// and a second correctly rounded division there made the trace 3 to 11 % slower on the H200
+// (docs/BENCHMARKS.md "One division in the trace's loop").
 SH_INLINE float moller_trumbore_t(SH_IN(TriangleTest) r) {
   SH_PRECISE float ad = abs(r.det);
-  if (!(ad >= uintBitsToFloat(0x00800000u) && ad <= uintBitsToFloat(0x7E800000u))) return sh_div(r.t_det, ad);
-  SH_PRECISE float inv = sh_rcp(ad);
-  SH_PRECISE float t = r.t_det * inv;
+  float s = sh_reciprocal_scale(ad);
+  SH_PRECISE float ds = ad * s;
+  SH_PRECISE float ts = r.t_det * s;
+  SH_PRECISE float inv = sh_rcp(ds);
+  SH_PRECISE float t = ts * inv;
   return t;
 }
 
@@ -537,12 +552,14 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
   SH_PRECISE float ac1 = a.y * c.x;
   SH_PRECISE float n2 = ac0 - ac1;
   // A denominator outside [2^-126, 2^126] (edges below about 1e-19): its reciprocal would
-  // overflow or be subnormal, so the two quotients themselves
-  SH_PRECISE float ad = abs(denom);
-  if (!(ad >= uintBitsToFloat(0x00800000u) && ad <= uintBitsToFloat(0x7E800000u))) return clamp_barycentrics(sh_div(n1, denom), sh_div(n2, denom));
-  SH_PRECISE float inv = sh_rcp(denom);
-  SH_PRECISE float w1 = n1 * inv;
-  SH_PRECISE float w2 = n2 * inv;
+  // overflow or be subnormal, so the three are scaled into range first (sh_reciprocal_scale)
+  float s = sh_reciprocal_scale(abs(denom));
+  SH_PRECISE float ds = denom * s;
+  SH_PRECISE float n1s = n1 * s;
+  SH_PRECISE float n2s = n2 * s;
+  SH_PRECISE float inv = sh_rcp(ds);
+  SH_PRECISE float w1 = n1s * inv;
+  SH_PRECISE float w2 = n2s * inv;
   return clamp_barycentrics(w1, w2);
 }
 
