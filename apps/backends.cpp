@@ -163,7 +163,7 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
            "paper traversal: consecutive samples in one cell: merge (one visit over their segments, the default), "
            "skip (the literal reading of visited-cell tracking) or retest (a second visit)")
       ->group(kExpert);
-  cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units (at most 2^26: one cell then holds any scene)")->check(CLI::PositiveNumber)->group(kExpert);
+  cmd->add_option("--cell-size", g.cell_size, "Cell edge in world units (at most 2^26: one cell then holds any scene)")->check(positive_number())->group(kExpert);
   cmd->add_option_function<float>(
          "--density", [&g](float d) { g.density = d, g.density_given = true; },
          "Target cells per triangle for the automatic resolution")
@@ -505,5 +505,22 @@ CLI::Validator whole_number_u64() {
       },
       "0 .. 2^64-1");
 }
+
+namespace {
+CLI::Validator number_at_least_zero(bool strictly) {
+  return CLI::Validator(
+      [strictly](std::string& v) {
+        char* stop = nullptr;
+        const double x = std::strtod(v.c_str(), &stop);
+        const bool number = stop && stop != v.c_str() && *stop == '\0';
+        if (number && (strictly ? x > 0.0 : x >= 0.0)) return std::string();
+        return std::string(strictly ? "must be a number above 0" : "must be a number at or above 0") + ", not " + v;
+      },
+      strictly ? "> 0" : ">= 0");
+}
+}  // namespace
+
+CLI::Validator positive_number() { return number_at_least_zero(true); }
+CLI::Validator non_negative_number() { return number_at_least_zero(false); }
 
 }  // namespace gridrt::app

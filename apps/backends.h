@@ -65,6 +65,10 @@ void add_backend_options(CLI::App* cmd, BackendOptions& options, bool vulkan = t
 // A whole number from 0 to 2^64-1, as written (CLI11 wrapped a negative value and saturated an
 // overflowing one without a word: outside sweeps); for seeds.
 CLI::Validator whole_number_u64();
+// A number above 0, or at or above 0 (CLI11's own checks print the range's end, DBL_MAX, in all
+// its 309 digits: an outside sweep).
+CLI::Validator positive_number();
+CLI::Validator non_negative_number();
 // --vk-build and --fallback-cpu choose how the Vulkan backend runs: given where it does not run
 // they did nothing, without a word (an outside sweep). OptionsError (exit 2) there.
 void check_vulkan_options_apply(const CLI::App* cmd, bool vulkan_runs);

@@ -837,7 +837,7 @@ void add_diff_command(CLI::App& app) {
                   "Allow t of otherwise identical hits to differ by this many ulps (drivers whose division is "
                   "not correctly rounded; default 0: bit for bit)");
   cmd->add_option("--uv-tolerance", o->abs_uv, "Allow u and v of otherwise identical hits to differ by this much")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_flag("--gpu-frame", o->gpu_frame,
                 "Also run the GPU frame's own passes (gather, bounce, trace) and compare its bounce rays "
                 "and hits, bit for bit, with the reference's from the same gather");

@@ -114,6 +114,9 @@ std::pair<std::string, std::string> bad_number_argument(const CLI::App& app, int
     const double v = std::strtod(part.c_str(), &stop);
     if (stop && *stop == '\0' && stop != part.c_str() && !(std::isfinite(v) && std::fabs(v) <= 3.4e38))
       return "numbers on the command line must be finite (no nan, inf or overflow)";
+    if (stop && *stop == '\0' && stop != part.c_str() && v != 0.0 && std::fabs(v) < 1.17549435e-38)
+      return "numbers on the command line must be 0 or at least 1.2e-38 in magnitude (smaller ones are no normal "
+             "single-precision number: they would be read as 0 or a subnormal)";
     const size_t d = (part[0] == '+' || part[0] == '-') ? 1 : 0;
     if (part.size() > d + 1 && part[d] == '0' &&
         part.find_first_not_of("0123456789", d) == std::string::npos)

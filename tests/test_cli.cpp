@@ -874,6 +874,22 @@ TEST_CASE("Outside sweep: names that look like numbers, a scene name that is not
     CHECK_FALSE(fs::exists(dir / "w.ppm"));
     CHECK(density.exit_code == 2);
     CHECK(density.output.find("must be finite") != std::string::npos);
+    // A number too small for a normal single-precision float was read as 0 and refused as "not
+    // positive" by a later check, naming the gather's grid; a negative cell size's message printed
+    // DBL_MAX in its 309 digits (an outside sweep)
+    const Run tiny = run_tool("stats builtin:cornell --cell-size 1e-50");
+    INFO(tiny.output);
+    CHECK(tiny.exit_code == 2);
+    CHECK(tiny.output.find("'1e-50'") != std::string::npos);
+    CHECK(tiny.output.find("1.2e-38") != std::string::npos);
+    const Run negative = run_tool("stats builtin:cornell --cell-size -1");
+    INFO(negative.output);
+    CHECK(negative.exit_code == 2);
+    CHECK(negative.output.find("must be a number above 0, not -1") != std::string::npos);
+    CHECK(negative.output.find("17976931348623157") == std::string::npos);
+    const Run zero_ok = run_tool("stats builtin:cornell --aabb-padding 0");
+    INFO(zero_ok.output);
+    CHECK(zero_ok.exit_code == 0);  // 0 itself is a number the command line takes
     CHECK(pixel.exit_code == 2);  // an option's second value too
     CHECK(glued.exit_code == 0);
     CHECK(fs::exists(fs::current_path() / "007" / "builtin-cornell.csv"));
