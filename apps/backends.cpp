@@ -315,6 +315,10 @@ void check_traversal_options(const CLI::App* cmd, const BackendOptions& o, bool 
   if (given("--skip-covered") && o.grid.layout == reference::GridOptions::Layout::image)
     throw OptionsError("--skip-covered is the compact layout's (its bits live in the skip field beside the compact "
                        "references); --layout image has none: it does nothing (leave one out)");
+  if (given("--skip-covered") && o.grid.traversal == reference::Traversal::exact && !compact_layout &&
+      o.grid.layout != reference::GridOptions::Layout::image)
+    throw OptionsError("--skip-covered is the compact layout's, and --capacity N lays the exact traversal's grid out "
+                       "as the image, which has no cover bits: it does nothing (leave one out)");
   // The mailbox needs sorted insertion (an outside review: accepted with first-empty, tests the same)
   if (given("--mailbox") && o.grid.mailbox && o.grid.traversal == reference::Traversal::exact &&
       o.grid.insertion == reference::Insertion::first_empty)

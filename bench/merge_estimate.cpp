@@ -23,7 +23,9 @@
 // skip field, equal to the reference trace's counters), this program's walk of the same grid
 // unmerged (a cross-check: the plain DDA's cells), and per factor the irregular grid's cells
 // (count, and their references per triangle) and per ray cells and tests, with
-// tests + C cells, the policy's cost, beside the chosen grid's.
+// tests + C cells, the policy's cost, beside the chosen grid's; and the bytes a GPU layout would
+// keep, with a dense map of the virtual cells or a two-level one (per chosen-grid cell one entry,
+// or f^3 where its virtual cells belong to more than one merged cell).
 #include <algorithm>
 #include <chrono>
 #include <array>
@@ -238,6 +240,24 @@ class IrregularGrid {
   double mib() const {
     return (4.0 * double(map_.size()) + 28.0 * double(cells_.size()) + 4.0 * double(refs_stored())) / 1048576.0;
   }
+  // The same with a two-level map (Perard-Gayot et al.'s): per top cell of f^3 virtual cells (the
+  // chosen grid's), 4 bytes, the one cell they all belong to or the start of f^3 entries of 4 bytes
+  double two_level_mib(uint32_t f) const {
+    const uvec3 top = g_.cells / f;
+    uint64_t mixed = 0;
+    for (uint32_t z = 0; z < top.z; ++z)
+      for (uint32_t y = 0; y < top.y; ++y)
+        for (uint32_t x = 0; x < top.x; ++x) {
+          const uint32_t first = map_[index(uvec3(x, y, z) * f)];
+          bool same = true;
+          for (uint32_t k = 0; k < f * f * f && same; ++k)
+            same = map_[index(uvec3(x, y, z) * f + uvec3(k % f, (k / f) % f, k / (f * f)))] == first;
+          mixed += same ? 0u : 1u;
+        }
+    const double top_cells = double(top.x) * top.y * top.z;
+    return (4.0 * top_cells + 4.0 * double(f * f * f) * double(mixed) + 28.0 * double(cells_.size()) +
+            4.0 * double(refs_stored())) / 1048576.0;
+  }
   uint64_t refs_stored() const {
     uint64_t r = 0;
     for (const Cell& c : cells_) r += c.count;
@@ -289,7 +309,7 @@ int main(int argc, char** argv) {
                 sample.rays.size(), sample.bounce ? "bounce" : "camera");
     const double rays = double(sample.rays.size());
     const double uni_cost = chosen.work.tests + visit_cost * chosen.work.cells;
-    std::printf("| grid | cells | refs stored | refs per triangle | cells per ray | tests per ray | tests + %.1f cells | vs chosen | hit triangle offered %% | MiB (dense map) |\n",
+    std::printf("| grid | cells | refs stored | refs per triangle | cells per ray | tests per ray | tests + %.1f cells | vs chosen | hit triangle offered %% | MiB (dense map / two-level map) |\n",
                 visit_cost);
     std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
     std::printf("| uniform %ux%ux%u, skip field (the policy's estimate) | %llu | - | - | %.2f | %.2f | %.2f | 1.000 | - | %.1f (all the grid keeps) |\n",
@@ -374,10 +394,10 @@ int main(int argc, char** argv) {
       const uint64_t stored = grid.refs_stored();
       const double cost = (tests + visit_cost * cells) / rays;
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::printf("| irregular over %ux%ux%u (merged, expand %s; %.1f s) | %zu | %llu | %.2f | %.2f | %.2f | %.2f | %.3f | %.2f | %.1f |\n",
+      std::printf("| irregular over %ux%ux%u (merged, expand %s; %.1f s) | %zu | %llu | %.2f | %.2f | %.2f | %.2f | %.3f | %.2f | %.1f / %.1f |\n",
                   g.cells.x, g.cells.y, g.cells.z, expand.c_str(), s, grid.cell_count(), (unsigned long long)stored,
                   double(stored) / double(triangles), cells / rays, tests / rays, cost, cost / uni_cost,
-                  100.0 * double(offered) / double(std::max<size_t>(hits, 1)), grid.mib());
+                  100.0 * double(offered) / double(std::max<size_t>(hits, 1)), grid.mib(), grid.two_level_mib(f));
       std::fflush(stdout);
     }
   }

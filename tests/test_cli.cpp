@@ -638,6 +638,7 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         "render builtin:cornell --width 8 --height 8 --gap-fill off --gap-fill-distance 2" + out,
         std::string("stats builtin:cornell --traversal exact --skip-empty off --skip-covered on"),
         std::string("stats builtin:cornell --traversal exact --layout image --skip-covered off"),
+        std::string("stats builtin:cornell --traversal exact --capacity 4 --skip-covered on"),
         "render builtin:cornell --width 8 --height 8 -b vulkan --shuffle-seed 3" + out,
         std::string("stats builtin:cornell --insertion first-empty --shuffle-seed -1"),
         std::string("stats builtin:cornell --insertion first-empty --shuffle-seed 18446744073709551616"),
@@ -671,6 +672,8 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
   CHECK(run_tool("explain builtin:cornell --ray 2.78,2.74,2.79,0,0,-1 --brief").exit_code == 0);
   CHECK(run_tool("stats builtin:cornell --traversal exact --cell-test sphere --enlargement 2").exit_code == 0);
   CHECK(run_tool("stats builtin:cornell --traversal exact --spill-capacity 4096").exit_code == 0);
+  CHECK(run_tool("stats builtin:cornell --traversal exact --capacity 4").exit_code == 0);
+  CHECK(run_tool("stats builtin:cornell --traversal exact --skip-covered on").exit_code == 0);
 }
 
 // Outside sweeps' finds: a block map with an empty block exported a scene no verb could load (its
