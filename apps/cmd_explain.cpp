@@ -587,6 +587,14 @@ void add_explain_command(CLI::App& app) {
                                                    "record beside the reference's, and needs a Vulkan device)");
     check_vulkan_options_apply(cmd, o->backend == "vulkan");
     check_traversal_options(cmd, o->backend_options);
+    // A primary ray is explained on the gather's grid, the exact traversal's, unless --traversal
+    // names one: the paper traversal's knobs did nothing there, without a word (an outside sweep)
+    if ((o->primary || o->kind == "primary") && cmd->count("--traversal") == 0)
+      for (const char* name : {"--gap-fill", "--revisit", "--elongation", "--gap-fill-distance"})
+        if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
+          throw CLI::ValidationError(name, "is a knob of the paper traversal; --kind primary explains the ray on the "
+                                           "gather's grid, the exact traversal's: it does nothing (leave it out, or "
+                                           "give --traversal paper)");
     // The frame number seeds only the glossy bounce's random numbers
     o->frame_given = cmd->count("--frame") > 0;
     if (cmd->count("--frame") > 0 && (o->primary || o->kind == "primary" || o->kind == "shadow"))

@@ -639,6 +639,7 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
         std::string("stats builtin:cornell --traversal exact --skip-empty off --skip-covered on"),
         std::string("stats builtin:cornell --traversal exact --layout image --skip-covered off"),
         std::string("stats builtin:cornell --traversal exact --capacity 4 --skip-covered on"),
+        std::string("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --kind primary --elongation 0.5"),
         "render builtin:cornell --width 8 --height 8 -b vulkan --shuffle-seed 3" + out,
         std::string("stats builtin:cornell --insertion first-empty --shuffle-seed -1"),
         std::string("stats builtin:cornell --insertion first-empty --shuffle-seed 18446744073709551616"),
@@ -674,6 +675,8 @@ TEST_CASE("Outside sweep: options that would do nothing are refused (exit 2)", "
   CHECK(run_tool("stats builtin:cornell --traversal exact --spill-capacity 4096").exit_code == 0);
   CHECK(run_tool("stats builtin:cornell --traversal exact --capacity 4").exit_code == 0);
   CHECK(run_tool("stats builtin:cornell --traversal exact --skip-covered on").exit_code == 0);
+  CHECK(run_tool("explain builtin:cornell --width 8 --height 8 --pixel 4,4 --kind primary --traversal paper "
+                 "--elongation 0.5 --brief").exit_code == 0);
 }
 
 // Outside sweeps' finds: a block map with an empty block exported a scene no verb could load (its
