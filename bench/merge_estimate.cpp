@@ -312,7 +312,7 @@ int main(int argc, char** argv) {
     std::printf("| grid | cells | refs stored | refs per triangle | cells per ray | tests per ray | tests + %.1f cells | vs chosen | hit triangle offered %% | MiB (dense map / two-level map) |\n",
                 visit_cost);
     std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
-    std::printf("| uniform %ux%ux%u, skip field (the policy's estimate) | %llu | - | - | %.2f | %.2f | %.2f | 1.000 | - | %.1f (all the grid keeps) |\n",
+    std::printf("| uniform %ux%ux%u, skip field (the policy's estimate) | %llu | - | - | %.2f | %.2f | %.2f | 1.000 | - | %.1f (the budget's measure: no plane buffer) |\n",
                 g0.cells.x, g0.cells.y, g0.cells.z, (unsigned long long)(uint64_t(g0.cells.x) * g0.cells.y * g0.cells.z),
                 chosen.work.cells, chosen.work.tests, uni_cost, double(chosen.memory) / 1048576.0);
     // Triangle ids: per instance its first id
