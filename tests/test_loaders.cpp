@@ -697,6 +697,33 @@ TEST_CASE("glTF: an image's buffer view past its buffer, an unknown alphaMode, a
     TextureCache cache;
     CHECK_THROWS_WITH(load_gltf(write_text(d / "v3.gltf", text), s, cache), Catch::Contains("asset.version is '3.0'"));
   }
+  // asset.minVersion above 2.0, and the extensions' lists given as one name: read as absent before
+  for (const auto& [insert, why] : std::vector<std::pair<std::string, std::string>>{
+           {R"("minVersion":"3.0",)", "asset.minVersion: is \"3.0\""},
+           {R"("minVersion":"2.1",)", "asset.minVersion: is \"2.1\""}}) {
+    std::string text = gltf_with_primitives({{4, {0, 1, 2}}});
+    text.replace(text.find("\"version\""), 0, insert);
+    Scene s;
+    TextureCache cache;
+    INFO(text.substr(0, 120));
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "minv.gltf", text), s, cache), Catch::Contains(why));
+  }
+  {
+    std::string text = gltf_with_primitives({{4, {0, 1, 2}}});
+    text.replace(text.find("\"version\""), 0, R"("minVersion":"2.0",)");
+    Scene s;
+    TextureCache cache;
+    CHECK_NOTHROW(load_gltf(write_text(d / "minv20.gltf", text), s, cache));
+  }
+  for (const std::string list : {R"("EXT_meshopt_compression")", R"(["KHR_mesh_quantization", 3])"}) {
+    std::string text = gltf_with_primitives({{4, {0, 1, 2}}});
+    text.insert(text.find('{') + 1, "\"extensionsRequired\":" + list + ",");
+    Scene s;
+    TextureCache cache;
+    INFO(text.substr(0, 120));
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "ext.gltf", text), s, cache),
+                      Catch::Contains("extensionsRequired: expected an array of extension names"));
+  }
 }
 
 // An outside sweep's find: 16 materials keying with one 4096^2 mask made 16 copies of it in the

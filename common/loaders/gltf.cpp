@@ -305,6 +305,25 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
   // "translation" moved it: an outside sweep), as the scene files refuse it
   if (const std::string dup = json_first_duplicate_key(std::string(text)); !dup.empty())
     fail(dup, "the key is given twice in its object (the last would win without a word)");
+  // The extensions a file requires or uses, as arrays of names: given as one string, TinyGLTF
+  // read none, and a required extension this loader does not implement went unrefused (an
+  // outside sweep)
+  if (j.is_object())
+    for (const char* key : {"extensionsRequired", "extensionsUsed"})
+      if (j.contains(key)) {
+        const nlohmann::json& a = j[key];
+        bool names = a.is_array();
+        for (size_t i = 0; names && i < a.size(); ++i) names = a[i].is_string();
+        if (!names) fail(key, "expected an array of extension names, found " + a.dump().substr(0, 64));
+      }
+  // asset.minVersion: the least version a reader must implement; this loader reads glTF 2.0, and
+  // a file that asks for more ("3.0", "2.1") was read as if it did not (an outside sweep)
+  if (j.is_object() && j.contains("asset") && j["asset"].is_object() && j["asset"].contains("minVersion")) {
+    const nlohmann::json& m = j["asset"]["minVersion"];
+    if (!m.is_string() || m.get<std::string>() != "2.0")
+      fail("asset.minVersion", "is " + m.dump().substr(0, 32) + "; gridrt reads glTF 2.0 (a file asking for a later "
+                               "version needs a reader of it)");
+  }
   const auto numbers = [&](const nlohmann::json& o, const char* key, size_t n, const std::string& where) {
     if (!o.contains(key)) return;
     const nlohmann::json& a = o[key];
