@@ -477,33 +477,11 @@ struct TripleHash {
   }
 };
 
-// The text with a `#` comment cut from every line of numbers (v, vt, vn, f, l, p): the checks read
-// it so, and tinyobjloader's face parser failed on the `#` of `f 1 2 3 # a note` (a review's find).
-// Other lines are kept whole (a texture's file name may hold a `#`); line numbers stay.
-std::string cut_number_line_comments(const std::string& text) {
-  std::string out;
-  out.reserve(text.size());
-  size_t start = 0;
-  while (start < text.size()) {
-    size_t end = text.find('\n', start);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line(text.data() + start, end - start);
-    const size_t k = line.find_first_not_of(" \t");
-    const std::string_view rest = k == std::string_view::npos ? std::string_view() : line.substr(k);
-    const size_t word_end = rest.find_first_of(" \t");
-    const std::string_view word = rest.substr(0, word_end);
-    if (word == "v" || word == "vt" || word == "vn" || word == "f" || word == "l" || word == "p")
-      if (const size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
-    out.append(line);
-    if (end < text.size()) out.push_back('\n');
-    start = end + 1;
-  }
-  return out;
-}
-
-// The text with every usemtl's name (its whole rest of line, `resolved` to the material it names)
-// written as one word for tinyobjloader (name_for_tinyobj); line numbers stay.
-std::string write_usemtl_names(const std::string& text, const std::map<std::string, std::string>& resolved) {
+// The text rewritten line by line: `f(line, rest, out)` appends each line's replacement to `out`
+// (`rest`: the line from its first character that is not a blank or a tab); the line breaks, and
+// so the line numbers, stay.
+template <class F>
+std::string rewrite_lines(const std::string& text, F&& f) {
   std::string out;
   out.reserve(text.size());
   size_t start = 0;
@@ -512,7 +490,29 @@ std::string write_usemtl_names(const std::string& text, const std::map<std::stri
     if (end == std::string::npos) end = text.size();
     const std::string_view line(text.data() + start, end - start);
     const size_t k = line.find_first_not_of(" \t");
-    const std::string_view rest = k == std::string_view::npos ? std::string_view() : line.substr(k);
+    f(line, k == std::string_view::npos ? std::string_view() : line.substr(k), out);
+    if (end < text.size()) out.push_back('\n');
+    start = end + 1;
+  }
+  return out;
+}
+
+// The text with a `#` comment cut from every line of numbers (v, vt, vn, f, l, p): the checks read
+// it so, and tinyobjloader's face parser failed on the `#` of `f 1 2 3 # a note` (a review's find).
+// Other lines are kept whole (a texture's file name may hold a `#`); line numbers stay.
+std::string cut_number_line_comments(const std::string& text) {
+  return rewrite_lines(text, [](std::string_view line, std::string_view rest, std::string& out) {
+    const std::string_view word = rest.substr(0, rest.find_first_of(" \t"));
+    if (word == "v" || word == "vt" || word == "vn" || word == "f" || word == "l" || word == "p")
+      if (const size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+    out.append(line);
+  });
+}
+
+// The text with every usemtl's name (its whole rest of line, `resolved` to the material it names)
+// written as one word for tinyobjloader (name_for_tinyobj); line numbers stay.
+std::string write_usemtl_names(const std::string& text, const std::map<std::string, std::string>& resolved) {
+  return rewrite_lines(text, [&](std::string_view line, std::string_view rest, std::string& out) {
     if (rest.size() > 7 && rest.substr(0, 6) == "usemtl" && std::isspace(static_cast<unsigned char>(rest[6]))) {
       const size_t n = rest.find_first_not_of(" \t\r", 6);
       const std::string name = n == std::string_view::npos ? std::string() : material_name_rest(text, rest.substr(n));
@@ -521,10 +521,7 @@ std::string write_usemtl_names(const std::string& text, const std::map<std::stri
     } else {
       out.append(line);
     }
-    if (end < text.size()) out.push_back('\n');
-    start = end + 1;
-  }
-  return out;
+  });
 }
 
 // The file parsed by tinyobjloader after the checks of what it lets pass (numbers, indices,
