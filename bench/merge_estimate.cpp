@@ -4,7 +4,8 @@
 // policy chose for the exact traversal. Nothing here is built for the GPU and no triangle is
 // tested: like the policy's estimate_work (plan/policy.h), a walk counts its visits up to the
 // point where the ray's true hit (found by the sample's own exact trace) would be reported.
-//   gridrt_merge_estimate [--factors 1,2] [--visit-cost C] [--expand subset|empty|off] [--threads N] SCENE...
+//   gridrt_merge_estimate [--factors 1,2] [--visit-cost C] [--expand subset|empty|off] [--merge on|off]
+//                         [--threads N] SCENE...
 // Per scene and factor f, the virtual grid is the chosen grid's box in f times its cells per
 // axis; each cell holds the triangles the build's cell test gives it. Then:
 //   merge   along x, y, z in turn, a cell and its neighbour across its upper face (the same
@@ -142,13 +143,15 @@ class IrregularGrid {
   }
 
   // A cell's references hold those of every cell of the slab beyond face (axis, side)
-  bool slab_covered(const Cell& c, int axis, bool upper, bool empty_only) const {
+  // `chain`: a slab cell counts as held only where its references lie in its neighbour's towards
+  // the box (a cover bit's relation; the box's cells lie in the cell's by induction).
+  bool slab_covered(const Cell& c, int axis, bool upper, bool empty_only, bool chain, uint32_t max_extent) const {
     uvec3 lo = c.elo, hi = c.ehi;
     if (upper) {
-      if (c.ehi[axis] + 1 >= g_.cells[axis]) return false;
+      if (c.ehi[axis] + 1 >= g_.cells[axis] || c.ehi[axis] - c.hi[axis] >= max_extent) return false;
       lo[axis] = hi[axis] = c.ehi[axis] + 1;
     } else {
-      if (c.elo[axis] == 0) return false;
+      if (c.elo[axis] == 0 || c.lo[axis] - c.elo[axis] >= max_extent) return false;
       lo[axis] = hi[axis] = c.elo[axis] - 1;
     }
     const auto begin = pool_.begin() + c.first, end = begin + c.count;
@@ -161,6 +164,15 @@ class IrregularGrid {
           last = o;
           const Cell& n = cells_[o];
           if (n.count > c.count || (empty_only && n.count > 0)) return false;
+          if (chain && n.count > 0) {
+            uvec3 in{x, y, z};
+            in[axis] = upper ? in[axis] - 1 : in[axis] + 1;
+            const Cell& m = cells_[map_[index(in)]];
+            if (!std::includes(pool_.begin() + m.first, pool_.begin() + m.first + m.count, pool_.begin() + n.first,
+                               pool_.begin() + n.first + n.count))
+              return false;
+            continue;
+          }
           if (!std::includes(begin, end, pool_.begin() + n.first, pool_.begin() + n.first + n.count)) return false;
         }
     return true;
@@ -168,13 +180,13 @@ class IrregularGrid {
 
   // `empty_only`: grow only over empty cells (the skip field's kind of step), not over cells whose
   // references the cell holds.
-  void expand(bool empty_only) {
+  void expand(bool empty_only, bool chain, uint32_t max_extent) {
     for (Cell& c : cells_)
       for (bool grew = true; grew;) {
         grew = false;
         for (int axis = 0; axis < 3; ++axis) {
-          if (slab_covered(c, axis, true, empty_only)) c.ehi[axis] += 1, grew = true;
-          if (slab_covered(c, axis, false, empty_only)) c.elo[axis] -= 1, grew = true;
+          if (slab_covered(c, axis, true, empty_only, chain, max_extent)) c.ehi[axis] += 1, grew = true;
+          if (slab_covered(c, axis, false, empty_only, chain, max_extent)) c.elo[axis] -= 1, grew = true;
         }
       }
   }
@@ -280,6 +292,7 @@ int main(int argc, char** argv) {
   std::vector<uint32_t> factors{1, 2};
   float visit_cost = plan::kExactCellVisitCost;
   std::string expand = "subset";
+  std::string merge = "on";
   std::vector<std::string> scenes;
   CLI::App app("gridrt_merge_estimate: cells and tests per ray of an irregular grid (merged cells) against the chosen uniform grid");
   app.add_option("scenes", scenes, "Scenes: builtin:NAME, a scene file or a mesh")->required();
@@ -289,7 +302,11 @@ int main(int argc, char** argv) {
   app.add_option("--visit-cost", visit_cost, "A cell visit's cost in tests (merge rule and cost column)")
       ->check(CLI::Range(0.0f, 100.0f));
   app.add_option("--expand", expand, "Exit boxes grown over cells whose references the cell holds, over empty cells only, or not")
-      ->check(CLI::IsMember({"subset", "empty", "off"}));
+      ->check(CLI::IsMember({"subset", "chain", "empty", "off"}));
+  uint32_t max_extent = 1u << 30;
+  app.add_option("--max-extent", max_extent, "An exit box's most cells beyond its cell on each side");
+  app.add_option("--merge", merge, "Cells merged by the cost rule, or kept as the virtual grid's (off: exit boxes on a uniform grid)")
+      ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--threads", o.threads, "CPU threads for the grid choice (0: all)");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -388,14 +405,14 @@ int main(int argc, char** argv) {
                     g.cells.y, g.cells.z, grid.cell_count(), (unsigned long long)stored, double(stored) / double(triangles),
                     cells / rays, tests / rays, cost, cost / uni_cost, 100.0 * double(offered) / double(std::max<size_t>(hits, 1)), grid.mib());
       }
-      grid.merge();
-      if (expand != "off") grid.expand(expand == "empty");
+      if (merge == "on") grid.merge();
+      if (expand != "off") grid.expand(expand == "empty", expand == "chain", max_extent);
       walk_all(cells, tests, offered);
       const uint64_t stored = grid.refs_stored();
       const double cost = (tests + visit_cost * cells) / rays;
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::printf("| irregular over %ux%ux%u (merged, expand %s; %.1f s) | %zu | %llu | %.2f | %.2f | %.2f | %.2f | %.3f | %.2f | %.1f / %.1f |\n",
-                  g.cells.x, g.cells.y, g.cells.z, expand.c_str(), s, grid.cell_count(), (unsigned long long)stored,
+      std::printf("| irregular over %ux%ux%u (merge %s, expand %s; %.1f s) | %zu | %llu | %.2f | %.2f | %.2f | %.2f | %.3f | %.2f | %.1f / %.1f |\n",
+                  g.cells.x, g.cells.y, g.cells.z, merge.c_str(), expand.c_str(), s, grid.cell_count(), (unsigned long long)stored,
                   double(stored) / double(triangles), cells / rays, tests / rays, cost, cost / uni_cost,
                   100.0 * double(offered) / double(std::max<size_t>(hits, 1)), grid.mib(), grid.two_level_mib(f));
       std::fflush(stdout);
