@@ -259,6 +259,54 @@ std::string texture_format(const std::string& path) {
               "TIFF, WebP, PNM and PFM: told by its first bytes, TGA by its extension)");
 }
 
+// A PNM's header (P1-P6: magic, width, height and, but for P1 and P4, the largest value; blanks and
+// '#' comments between): a largest value outside 1..65535 is refused. OpenImageIO read a maxval of
+// 0 or 70000 as a texture of some colour without a word (an outside sweep).
+void check_pnm_header(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::string head(512, '\0');
+  f.read(head.data(), std::streamsize(head.size()));
+  head.resize(size_t(f.gcount()));
+  if (head.size() < 2 || head[0] != 'P' || head[1] < '1' || head[1] > '6') return;  // the reader's to refuse
+  const bool has_max = head[1] != '1' && head[1] != '4';
+  size_t k = 2;
+  std::vector<std::string> fields;
+  while (fields.size() < (has_max ? 3u : 2u) && k < head.size()) {
+    const char c = head[k];
+    if (c == '#') {
+      while (k < head.size() && head[k] != '\n' && head[k] != '\r') ++k;
+    } else if (std::isspace(static_cast<unsigned char>(c))) {
+      ++k;
+    } else {
+      std::string field;
+      while (k < head.size() && !std::isspace(static_cast<unsigned char>(head[k])) && head[k] != '#') field += head[k++];
+      fields.push_back(field);
+    }
+  }
+  if (!has_max || fields.size() < 3) return;
+  const std::string& m = fields[2];
+  const bool digits = !m.empty() && m.size() <= 9 && std::all_of(m.begin(), m.end(), [](char c) { return c >= '0' && c <= '9'; });
+  const long maxval = digits ? std::stol(m) : -1;
+  if (maxval < 1 || maxval > 65535)
+    throw Error("cannot load texture '" + path + "': its PNM header's largest value is '" + m +
+                "', outside 1..65535 (a damaged file)");
+}
+
+// EXIF/TIFF orientation (1-8): the stored texel that display texel (x, y) shows, for a stored
+// image of w x h (orientations 5-8 display it h x w).
+void oriented_source(int orientation, uint32_t w, uint32_t h, uint32_t x, uint32_t y, uint32_t& sx, uint32_t& sy) {
+  switch (orientation) {
+    case 2: sx = w - 1 - x; sy = y; break;          // mirrored left-right
+    case 3: sx = w - 1 - x; sy = h - 1 - y; break;  // turned 180 degrees
+    case 4: sx = x; sy = h - 1 - y; break;          // mirrored top-bottom
+    case 5: sx = y; sy = x; break;                  // transposed
+    case 6: sx = y; sy = h - 1 - x; break;          // turned 90 degrees clockwise to display
+    case 7: sx = w - 1 - y; sy = h - 1 - x; break;  // transversed
+    case 8: sx = w - 1 - y; sy = x; break;          // turned 90 degrees counter-clockwise to display
+    default: sx = x; sy = y; break;
+  }
+}
+
 void check_jpeg_end(const std::string& path) {
   // The markers walked from the start: segments skipped by their lengths, entropy-coded data
   // scanned for the next marker (FF 00 is a stuffed byte, FF D0-D7 a restart) until the
@@ -332,6 +380,7 @@ Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alph
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
   const std::string format_name = texture_format(path);
+  if (format_name == "pnm") check_pnm_header(path);
   if (format_name == "bmp") {
     // OpenImageIO decodes an RLE BMP whole in open(), before its size can be checked (381 MB for
     // a 152-byte file: an outside fuzz): the header's size first (BITMAPINFOHEADER and later)
@@ -430,21 +479,44 @@ Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alph
   // sweeps). Not JPEG: libjpeg's warnings arrive the same way on files that decode whole (stray
   // bytes between segments); its truncation is found by the end marker below.
   const std::string format = in->format_name();
-  if (std::string late = in->geterror(); !late.empty() && format != "jpeg")
+  std::string late = in->geterror();
+  // libjpeg's "premature end of data segment" (scan data cut short, an end marker after it) and
+  // "Premature end of JPEG file" are missing texels read as grey (an outside sweep): refused
+  std::string lower = late;
+  for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (!late.empty() && (format != "jpeg" || lower.find("premature end") != std::string::npos))
     failed(late + " (the reader decoded what it could and reported this: a truncated or corrupt file)");
+  // Where the file says its texels are stored (EXIF/TIFF Orientation 2-8), they are laid out as
+  // it is displayed, as image viewers and the tools that painted it show it (read as stored, a
+  // camera's portrait photo lay on its side)
+  const int orientation = spec.get_int_attribute("Orientation", 1);
+  // A TIFF alpha that the reader does not call unassociated is associated (colour premultiplied by
+  // alpha, ExtraSamples 1): the colour is divided by it, so that a texel's colour means the same as
+  // a PNG's (a premultiplied TIFF drew its soft edges dark)
+  const bool premultiplied = a >= 0 && format == "tiff" &&
+                             spec.get_int_attribute("oiio:UnassociatedAlpha", 0) != 1;
   in->close();
   // libjpeg calls missing scan lines a warning and OpenImageIO returns them grey without an
   // error: a JPEG must end with its end-of-image marker (FF D9), trailing blanks aside
   if (format == "jpeg") check_jpeg_end(path);
+  const bool turned = orientation >= 5 && orientation <= 8;
+  const uint32_t sw = tex.width, sh = tex.height;
+  if (turned) std::swap(tex.width, tex.height);
   tex.rgba.resize(n * 4);
-  for (size_t i = 0; i < n; ++i) {
-    const uint8_t* p = px.data() + i * size_t(colour);
-    uint8_t* q = tex.rgba.data() + i * 4;
-    if (nch >= 3) { q[0] = p[0]; q[1] = p[1]; q[2] = p[2]; }
-    else { q[0] = q[1] = q[2] = p[0]; }
-    q[3] = a < 0 ? 255 : a >= colour ? alpha_px[i] : p[a];
-    if (q[3] < 255) tex.has_alpha = true;
-  }
+  for (uint32_t y = 0; y < tex.height; ++y)
+    for (uint32_t x = 0; x < tex.width; ++x) {
+      uint32_t sx = x, sy = y;
+      oriented_source(orientation, sw, sh, x, y, sx, sy);
+      const size_t i = size_t(sy) * sw + sx;
+      const uint8_t* p = px.data() + i * size_t(colour);
+      uint8_t* q = tex.rgba.data() + (size_t(y) * tex.width + x) * 4;
+      if (nch >= 3) { q[0] = p[0]; q[1] = p[1]; q[2] = p[2]; }
+      else { q[0] = q[1] = q[2] = p[0]; }
+      q[3] = a < 0 ? 255 : a >= colour ? alpha_px[i] : p[a];
+      if (premultiplied && q[3] != 0 && q[3] != 255)
+        for (int c = 0; c < 3; ++c) q[c] = uint8_t(std::min(255u, (uint32_t(q[c]) * 255u + q[3] / 2u) / q[3]));
+      if (q[3] < 255) tex.has_alpha = true;
+    }
   return tex;
 }
 }  // namespace

@@ -926,3 +926,19 @@ TEST_CASE("Outside sweep: names that look like numbers, a scene name that is not
   }
   fs::remove_all(dir);
 }
+
+TEST_CASE("Outside sweep: an OBJ's free-form curves and surfaces are named as not read", "[cli][loaders]") {
+  const fs::path dir = scratch("freeform");
+  fs::create_directories(dir);
+  std::ofstream(dir / "curves.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\ncstype bspline\ndeg 2\n"
+                                       "curv 0.0 1.0 1 2 3\nparm u 0 0 0 1 1 1\nend\nsurf 0 1 0 1 1 2 3 4\nend\n";
+  std::ofstream(dir / "plain.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  const Run curves = run_tool("stats " + (dir / "curves.obj").string());
+  INFO(curves.output);
+  CHECK(curves.exit_code == 0);
+  CHECK(curves.output.find("curves.obj:6: free-form geometry (2 curve(s) and surface(s)") != std::string::npos);
+  const Run plain = run_tool("stats " + (dir / "plain.obj").string());
+  INFO(plain.output);
+  CHECK(plain.exit_code == 0);
+  CHECK(plain.output.find("free-form") == std::string::npos);
+}

@@ -1058,6 +1058,158 @@ TEST_CASE("Textures: a truncated JPEG is refused, one with bytes after its end m
   CHECK_NOTHROW(load_texture((dir / "stray.jpg").string(), AlphaSource::kImage, nullptr));
   CHECK_THROWS_WITH(load_texture((dir / "cut.jpg").string(), AlphaSource::kImage, nullptr),
                     Catch::Contains("truncated"));
+  // Cut in its scan data and given an end marker after the cut: libjpeg calls the missing lines
+  // "premature end of data segment" and OpenImageIO drew them grey (an outside sweep)
+  std::ofstream((dir / "cut_marked.jpg").string(), std::ios::binary) << bytes.substr(0, bytes.size() * 3 / 4) << "\xff\xd9";
+  CHECK_THROWS_WITH(load_texture((dir / "cut_marked.jpg").string(), AlphaSource::kImage, nullptr),
+                    Catch::Contains("cut_marked.jpg") && Catch::Contains("truncated or corrupt"));
+  std::filesystem::remove_all(dir);
+}
+
+namespace {
+// A baseline TIFF by hand (little-endian, uncompressed RGB or RGBA in one strip), with an
+// Orientation tag and, for 4 channels, ExtraSamples: 1 associated alpha, 2 unassociated.
+void write_tiff(const std::string& path, uint32_t w, uint32_t h, const std::vector<uint8_t>& px, uint32_t channels,
+                uint16_t orientation, uint16_t extra) {
+  std::string out;
+  const auto u16 = [&](uint32_t v) { out += char(v & 0xFF); out += char((v >> 8) & 0xFF); };
+  const auto u32 = [&](uint32_t v) { u16(v & 0xFFFF); u16(v >> 16); };
+  out = "II";
+  u16(42);
+  u32(8);  // the directory right after the header
+  struct Tag { uint16_t id, type; uint32_t count, value; };
+  const uint32_t entries = channels == 4 ? 11u : 10u;
+  const uint32_t dir_size = 2 + 12 * entries + 4;
+  const uint32_t bits_at = 8 + dir_size, data_at = bits_at + 2 * channels;
+  std::vector<Tag> tags = {{256, 4, 1, w}, {257, 4, 1, h}, {258, 3, channels, bits_at}, {259, 3, 1, 1}, {262, 3, 1, 2},
+                           {273, 4, 1, data_at}, {274, 3, 1, orientation}, {277, 3, 1, channels}, {278, 4, 1, h},
+                           {279, 4, 1, uint32_t(px.size())}};
+  if (channels == 4) tags.push_back({338, 3, 1, extra});
+  u16(uint32_t(tags.size()));
+  for (const Tag& t : tags) {
+    u16(t.id);
+    u16(t.type);
+    u32(t.count);
+    if (t.type == 3 && t.count == 1) u16(t.value), u16(0);
+    else u32(t.value);
+  }
+  u32(0);
+  for (uint32_t c = 0; c < channels; ++c) u16(8);
+  out.append(reinterpret_cast<const char*>(px.data()), px.size());
+  std::ofstream(path, std::ios::binary) << out;
+}
+}  // namespace
+
+TEST_CASE("Textures: EXIF/TIFF orientation applied, a premultiplied TIFF's colour divided, a PNM's maxval checked",
+          "[unit][loaders][badinput]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO");
+    return;
+  }
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("gridrt_texture_orient_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  // A 3 x 2 image of distinct texels: texel (x, y) has red 10 x + 1, green 10 y + 1
+  const uint32_t w = 3, h = 2;
+  std::vector<uint8_t> px;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) px.insert(px.end(), {uint8_t(10 * x + 1), uint8_t(10 * y + 1), 7});
+  // Where the stored texel (sx, sy) is displayed, per orientation (the EXIF/TIFF definitions: the
+  // stored first row is the displayed top, right, bottom or left; the first column the left, top,
+  // right or bottom), for a displayed image of dw x dh
+  const auto displayed_at = [&](uint16_t o, uint32_t sx, uint32_t sy) -> glm::uvec2 {
+    switch (o) {
+      case 1: return {sx, sy};
+      case 2: return {w - 1 - sx, sy};
+      case 3: return {w - 1 - sx, h - 1 - sy};
+      case 4: return {sx, h - 1 - sy};
+      case 5: return {sy, sx};            // first row left, first column top
+      case 6: return {h - 1 - sy, sx};    // first row right, first column top
+      case 7: return {h - 1 - sy, w - 1 - sx};  // first row right, first column bottom
+      default: return {sy, w - 1 - sx};   // 8: first row left, first column bottom
+    }
+  };
+  for (uint16_t o = 1; o <= 8; ++o) {
+    INFO("orientation " << o);
+    const std::string path = (dir / ("o" + std::to_string(o) + ".tif")).string();
+    write_tiff(path, w, h, px, 3, o, 0);
+    const Texture t = load_texture(path, AlphaSource::kImage, nullptr);
+    const uint32_t dw = o >= 5 ? h : w, dh = o >= 5 ? w : h;
+    REQUIRE(t.width == dw);
+    REQUIRE(t.height == dh);
+    for (uint32_t sy = 0; sy < h; ++sy)
+      for (uint32_t sx = 0; sx < w; ++sx) {
+        const glm::uvec2 d = displayed_at(o, sx, sy);
+        INFO("stored texel (" << sx << ", " << sy << ") displayed at (" << d.x << ", " << d.y << ")");
+        const size_t k = (size_t(d.y) * dw + d.x) * 4;
+        CHECK(int(t.rgba[k]) == int(10 * sx + 1));
+        CHECK(int(t.rgba[k + 1]) == int(10 * sy + 1));
+      }
+  }
+  // Associated alpha (ExtraSamples 1): colour premultiplied in the file, divided back; unassociated
+  // (2) read as stored
+  const std::vector<uint8_t> texels = {100, 50, 0, 128, 200, 100, 50, 255, 0, 0, 0, 0};
+  for (const uint16_t extra : {uint16_t(1), uint16_t(2)}) {
+    INFO("ExtraSamples " << extra);
+    const std::string path = (dir / ("alpha" + std::to_string(extra) + ".tif")).string();
+    write_tiff(path, 3, 1, texels, 4, 1, extra);
+    const Texture t = load_texture(path, AlphaSource::kImage, nullptr);
+    REQUIRE(t.width == 3);
+    const std::vector<uint8_t> want = extra == 1 ? std::vector<uint8_t>{199, 100, 0, 128, 200, 100, 50, 255, 0, 0, 0, 0}
+                                                 : texels;
+    CHECK(t.rgba == want);
+  }
+  // PNM: a largest value of 0 or above 65535 refused by name; 255 and 65535 load
+  for (const auto& [name, header, ok] : {std::tuple{"max0.ppm", "P6\n1 1\n0\n", false},
+                                         std::tuple{"max70000.ppm", "P6\n1 1\n70000\n", false},
+                                         std::tuple{"maxneg.pgm", "P5 1 1 -5\n", false},
+                                         std::tuple{"comment.ppm", "P6\n# made by hand\n1 1 # size\n255\n", true},
+                                         std::tuple{"max65535.pgm", "P5\n1 1\n65535\n", true}}) {
+    INFO(name);
+    const std::string path = (dir / name).string();
+    std::ofstream(path, std::ios::binary) << header << std::string(6, '\x40');
+    if (ok) CHECK_NOTHROW(load_texture(path, AlphaSource::kImage, nullptr));
+    else CHECK_THROWS_WITH(load_texture(path, AlphaSource::kImage, nullptr), Catch::Contains(name) && Catch::Contains("1..65535"));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("OBJ: a texture named in an MTL of another folder is read beside that MTL first, else beside the OBJ",
+          "[unit][loaders]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO");
+    return;
+  }
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("gridrt_mtl_folder_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir / "materials");
+  const auto png = [&](const std::filesystem::path& p, uint8_t r, uint8_t g, uint8_t b) {
+    std::vector<uint8_t> rgba = {r, g, b, 255};
+    write_image_rgba8(p.string(), 1, 1, rgba, false);
+  };
+  png(dir / "beside_obj.png", 0, 255, 0);
+  png(dir / "both.png", 0, 255, 0);
+  png(dir / "materials" / "both.png", 0, 0, 255);
+  std::ofstream(dir / "materials" / "lib.mtl") << "newmtl a\nKd 1 1 1\nmap_Kd both.png\nnewmtl b\nKd 1 1 1\nmap_Kd beside_obj.png\n";
+  std::ofstream(dir / "m.obj") << "mtllib materials/lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                  "usemtl a\nf 1/1 2/2 3/3\nusemtl b\nf 1/1 3/3 2/2\n";
+  Scene s;
+  TextureCache cache;
+  load_obj((dir / "m.obj").string(), s, cache);
+  REQUIRE(s.materials.size() == 2);
+  REQUIRE(s.materials[0].diffuse_texture >= 0);
+  REQUIRE(s.materials[1].diffuse_texture >= 0);
+  const Texture& a = s.textures[size_t(s.materials[0].diffuse_texture)];
+  const Texture& b = s.textures[size_t(s.materials[1].diffuse_texture)];
+  // "both.png" beside the MTL (blue), not the OBJ's of the same name (green)
+  CHECK(a.rgba == std::vector<uint8_t>{0, 0, 255, 255});
+  // A name only the OBJ's folder holds: read there
+  CHECK(b.rgba == std::vector<uint8_t>{0, 255, 0, 255});
+  // Neither: the error names the path beside the MTL
+  std::ofstream(dir / "materials" / "lib.mtl") << "newmtl a\nKd 1 1 1\nmap_Kd nowhere.png\nnewmtl b\nKd 1 1 1\n";
+  Scene s2;
+  TextureCache cache2;
+  CHECK_THROWS_WITH(load_obj((dir / "m.obj").string(), s2, cache2), Catch::Contains("materials/nowhere.png"));
   std::filesystem::remove_all(dir);
 }
 

@@ -169,6 +169,10 @@ struct ObjScan {
   // Each face's corners in file order: tinyobjloader keeps a face's count in a byte (a face of
   // 1,024 corners read as 0), so the mesh takes them from here
   std::vector<uint32_t> face_corners;
+  // Free-form geometry (cstype, curv, curv2, surf and their parameter statements), which this
+  // loader does not evaluate: the first such line, and the curves and surfaces
+  size_t free_form_line = 0;
+  size_t free_form = 0;
 };
 
 // tinyobjloader reads a malformed number as 0 and only warns about out-of-range indices (with
@@ -224,6 +228,9 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
           if (idx > max_index[slot]) { max_index[slot] = idx; max_line[slot] = line; }
         }
       }
+    } else if (k == "curv" || k == "curv2" || k == "surf" || k == "cstype") {
+      if (scan.free_form_line == 0) scan.free_form_line = line;
+      scan.free_form += k == "cstype" ? 0u : 1u;
     } else if (k == "mtllib") {
       if (tok.size() < 2) fail_at(path, line, "mtllib without a file name");
       for (size_t i = 1; i < tok.size(); ++i) scan.mtllibs.emplace_back(std::string(tok[i]), line);
@@ -233,6 +240,11 @@ ObjScan scan_obj(const std::string& path, const std::string& text) {
       if (used.insert(name).second) scan.usemtls.emplace_back(name, line);
     }
   });
+  // Free-form curves and surfaces were dropped without a word (an outside sweep): said, as the
+  // polygons are all that is drawn
+  if (scan.free_form_line != 0)
+    std::cerr << "warning: " << path << ":" << scan.free_form_line << ": free-form geometry (" << scan.free_form
+              << " curve(s) and surface(s), cstype/curv/surf) is not read: only the polygon faces (f) are drawn\n";
   for (int s = 0; s < 3; ++s)
     if (max_index[s] > counts[s])
       fail_at(path, max_line[s], "face: " + std::string(kinds[s]) + " index " + std::to_string(max_index[s]) +
@@ -368,6 +380,18 @@ std::string texture_path(const fs::path& dir, std::string name) {
   for (char& c : name)
     if (c == '\\') c = '/';
   return (dir / name).string();
+}
+
+// A material's texture named by a relative path: beside the library that defines the material
+// (as a relative path in any file means), else beside the OBJ (where exporters that write both
+// into one folder, and tinyobjloader, look), else the library's path, for the error to name. An
+// MTL in a subfolder with its textures beside it drew the OBJ folder's file of the same name, or
+// failed to find one (an outside sweep).
+std::string material_texture_path(const fs::path& library_dir, const fs::path& obj_dir, const std::string& name) {
+  const std::string beside_library = texture_path(library_dir, name);
+  if (why_missing(beside_library).empty() || library_dir == obj_dir) return beside_library;
+  const std::string beside_obj = texture_path(obj_dir, name);
+  return why_missing(beside_obj).empty() ? beside_obj : beside_library;
 }
 
 // ---- Polygons to triangles ----
@@ -527,7 +551,8 @@ std::string write_usemtl_names(const std::string& text, const std::map<std::stri
 // The file parsed by tinyobjloader after the checks of what it lets pass (numbers, indices,
 // material libraries and names), from the same normalized text the checks read (the libraries'
 // text is handed to it for every mtllib statement); every usemtl names a material of the libraries.
-tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& face_corners) {
+tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& face_corners,
+                             std::map<std::string, std::string>& library_of) {
   const std::string text = read_file(path, "OBJ file");
   ObjScan scan = scan_obj(path, text);
   face_corners = std::move(scan.face_corners);
@@ -599,6 +624,7 @@ tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& fac
   std::istringstream warnings(file_reader.Warning());
   for (std::string w; std::getline(warnings, w);)
     if (!w.empty()) std::cerr << "warning: " << path << ": " << w << "\n";
+  for (const auto& [name, where] : defined) library_of[name] = where.second;
   return file_reader;
 }
 
@@ -629,9 +655,12 @@ std::string ignored_texture_options(const tinyobj::texture_option_t& t) {
 // material): a library's materials no face names keep their place and colour, and decode nothing
 // (ten unused 8192 x 8192 textures took 3 GB for one untextured triangle: an outside sweep).
 void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const std::vector<bool>& used,
-                       const fs::path& dir, Scene& scene, TextureCache& textures, const std::string& path) {
+                       const std::map<std::string, std::string>& library_of, const fs::path& obj_dir, Scene& scene,
+                       TextureCache& textures, const std::string& path) {
   for (size_t k = 0; k < mats.size(); ++k) {
     const tinyobj::material_t& m = mats[k];
+    const auto lib = library_of.find(name_from_tinyobj(m.name));
+    const fs::path dir = lib != library_of.end() ? fs::path(lib->second).parent_path() : obj_dir;
     for (const auto& [key, name, opt] : {std::tuple{"map_Kd", &m.diffuse_texname, &m.diffuse_texopt},
                                          std::tuple{"map_d", &m.alpha_texname, &m.alpha_texopt}})
       if (!name->empty())
@@ -643,9 +672,9 @@ void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const std::
     mat.diffuse = glm::vec3(float(m.diffuse[0]), float(m.diffuse[1]), float(m.diffuse[2]));
     mat.opacity = float(m.dissolve);
     if (!m.diffuse_texname.empty() && used[k])
-      mat.diffuse_texture = textures.load(scene, texture_path(dir, m.diffuse_texname), AlphaSource::kImage);
+      mat.diffuse_texture = textures.load(scene, material_texture_path(dir, obj_dir, m.diffuse_texname), AlphaSource::kImage);
     if (!m.alpha_texname.empty() && used[k])
-      mat.alpha_texture = textures.load(scene, texture_path(dir, m.alpha_texname), AlphaSource::kFirstChannel);
+      mat.alpha_texture = textures.load(scene, material_texture_path(dir, obj_dir, m.alpha_texname), AlphaSource::kFirstChannel);
     scene.materials.push_back(std::move(mat));
   }
 }
@@ -768,13 +797,14 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, co
 
 std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCache& textures) {
   std::vector<uint32_t> face_corners;
-  const tinyobj::ObjReader file_reader = parse_obj(path, face_corners);
+  std::map<std::string, std::string> library_of;  // material name -> the library that defines it
+  const tinyobj::ObjReader file_reader = parse_obj(path, face_corners, library_of);
   const uint32_t base = uint32_t(scene.materials.size());
   std::vector<bool> used(file_reader.GetMaterials().size(), false);
   for (const auto& shape : file_reader.GetShapes())
     for (const int id : shape.mesh.material_ids)
       if (id >= 0 && size_t(id) < used.size()) used[size_t(id)] = true;
-  add_obj_materials(file_reader.GetMaterials(), used, fs::path(path).parent_path(), scene, textures, path);
+  add_obj_materials(file_reader.GetMaterials(), used, library_of, fs::path(path).parent_path(), scene, textures, path);
   Mesh mesh = obj_mesh(path, file_reader, face_corners, base, scene);
   Instance inst;
   inst.name = mesh.name;
