@@ -1174,7 +1174,7 @@ TEST_CASE("Textures: EXIF/TIFF orientation applied, a premultiplied TIFF's colou
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("OBJ: a texture named in an MTL of another folder is read beside that MTL first, else beside the OBJ",
+TEST_CASE("OBJ: a texture named in an MTL of another folder is read beside that MTL first, else beside the OBJ - no Kd is grey",
           "[unit][loaders]") {
   if (!have_image_library()) {
     WARN("skipped: this build has no OpenImageIO");
@@ -1205,6 +1205,27 @@ TEST_CASE("OBJ: a texture named in an MTL of another folder is read beside that 
   CHECK(a.rgba == std::vector<uint8_t>{0, 0, 255, 255});
   // A name only the OBJ's folder holds: read there
   CHECK(b.rgba == std::vector<uint8_t>{0, 255, 0, 255});
+  // A material without Kd is the grey 0.6, with a texture (tinyobjloader's default) or without one
+  // (tinyobjloader's black drew it black); a Kd given is kept, each definition's its own
+  std::ofstream(dir / "materials" / "kd.mtl") << "newmtl tex\nmap_Kd both.png\nnewmtl plain\nd 1\nnewmtl set\nKd 0.2 0.3 0.4\n"
+                                                  "newmtl twice\nd 1\nnewmtl twice\nKd 0.5 0.5 0.5\n";
+  std::ofstream(dir / "kd.obj") << "mtllib materials/kd.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                   "usemtl tex\nf 1/1 2/2 3/3\nusemtl plain\nf 1 3 2\nusemtl set\nf 1 2 3\nusemtl twice\nf 1 3 2\n";
+  {
+    Scene k;
+    TextureCache kc;
+    load_obj((dir / "kd.obj").string(), k, kc);
+    // (tinyobjloader lists both definitions of "twice"; faces take the first)
+    REQUIRE(k.materials.size() == 5);
+    CHECK(k.materials[0].diffuse == glm::vec3(0.6f));
+    CHECK(k.materials[0].diffuse_texture >= 0);
+    CHECK(k.materials[1].diffuse == glm::vec3(0.6f));
+    CHECK(k.materials[2].diffuse == glm::vec3(0.2f, 0.3f, 0.4f));
+    CHECK(k.materials[3].diffuse == glm::vec3(0.6f));
+    CHECK(k.materials[4].diffuse == glm::vec3(0.5f));
+    REQUIRE(k.meshes.size() == 1);
+    CHECK(k.meshes[0].materials == std::vector<uint32_t>{0, 1, 2, 3});
+  }
   // Neither: the error names the path beside the MTL
   std::ofstream(dir / "materials" / "lib.mtl") << "newmtl a\nKd 1 1 1\nmap_Kd nowhere.png\nnewmtl b\nKd 1 1 1\n";
   Scene s2;

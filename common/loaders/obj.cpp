@@ -552,7 +552,7 @@ std::string write_usemtl_names(const std::string& text, const std::map<std::stri
 // material libraries and names), from the same normalized text the checks read (the libraries'
 // text is handed to it for every mtllib statement); every usemtl names a material of the libraries.
 tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& face_corners,
-                             std::map<std::string, std::string>& library_of) {
+                             std::map<std::string, std::string>& library_of, std::vector<bool>& with_kd) {
   const std::string text = read_file(path, "OBJ file");
   ObjScan scan = scan_obj(path, text);
   face_corners = std::move(scan.face_corners);
@@ -573,7 +573,9 @@ tinyobj::ObjReader parse_obj(const std::string& path, std::vector<uint32_t>& fac
     const std::string lib = scan_mtl(mtl.string());
     const size_t lib_line = line;  // (a structured binding: clang captures none)
     for_each_line(lib, [&](size_t mline, const std::vector<std::string_view>& tok) {
+      if (tok[0] == "Kd" && !with_kd.empty()) with_kd.back() = true;
       if (tok[0] != "newmtl" || tok.size() < 2) return;
+      with_kd.push_back(false);  // per material in the order tinyobjloader lists them
       // the whole name ("a b" and "a c" are two), as written for tinyobjloader
       const std::string m = name_from_tinyobj(material_name_rest(lib, tok[1]));
       if (!defined.emplace(m, std::pair{lib_line, mtl.string()}).second)
@@ -655,8 +657,8 @@ std::string ignored_texture_options(const tinyobj::texture_option_t& t) {
 // material): a library's materials no face names keep their place and colour, and decode nothing
 // (ten unused 8192 x 8192 textures took 3 GB for one untextured triangle: an outside sweep).
 void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const std::vector<bool>& used,
-                       const std::map<std::string, std::string>& library_of, const fs::path& obj_dir, Scene& scene,
-                       TextureCache& textures, const std::string& path) {
+                       const std::map<std::string, std::string>& library_of, const std::vector<bool>& with_kd,
+                       const fs::path& obj_dir, Scene& scene, TextureCache& textures, const std::string& path) {
   for (size_t k = 0; k < mats.size(); ++k) {
     const tinyobj::material_t& m = mats[k];
     const auto lib = library_of.find(name_from_tinyobj(m.name));
@@ -670,6 +672,15 @@ void add_obj_materials(const std::vector<tinyobj::material_t>& mats, const std::
     Material mat;
     mat.name = name_from_tinyobj(m.name);
     mat.diffuse = glm::vec3(float(m.diffuse[0]), float(m.diffuse[1]), float(m.diffuse[2]));
+    // A material without Kd: tinyobjloader gives one with a map_Kd the grey 0.6 (its "decent
+    // default", which ons-reborn's 72 materials take), one without a texture black (an outside
+    // sweep: drawn black without a word). Both take 0.6 now, the second with a warning
+    if (k < with_kd.size() && !with_kd[k] && m.diffuse_texname.empty()) {
+      mat.diffuse = glm::vec3(0.6f);
+      if (used[k])
+        std::cerr << "warning: " << path << ": material '" << mat.name
+                  << "' has neither Kd nor map_Kd: drawn grey (Kd 0.6 0.6 0.6, the default a map_Kd alone gets)\n";
+    }
     mat.opacity = float(m.dissolve);
     if (!m.diffuse_texname.empty() && used[k])
       mat.diffuse_texture = textures.load(scene, material_texture_path(dir, obj_dir, m.diffuse_texname), AlphaSource::kImage);
@@ -798,13 +809,15 @@ Mesh obj_mesh(const std::string& path, const tinyobj::ObjReader& file_reader, co
 std::vector<Instance> load_obj(const std::string& path, Scene& scene, TextureCache& textures) {
   std::vector<uint32_t> face_corners;
   std::map<std::string, std::string> library_of;  // material name -> the library that defines it
-  const tinyobj::ObjReader file_reader = parse_obj(path, face_corners, library_of);
+  std::vector<bool> with_kd;                      // per material, whether its definition has a Kd line
+  const tinyobj::ObjReader file_reader = parse_obj(path, face_corners, library_of, with_kd);
   const uint32_t base = uint32_t(scene.materials.size());
   std::vector<bool> used(file_reader.GetMaterials().size(), false);
   for (const auto& shape : file_reader.GetShapes())
     for (const int id : shape.mesh.material_ids)
       if (id >= 0 && size_t(id) < used.size()) used[size_t(id)] = true;
-  add_obj_materials(file_reader.GetMaterials(), used, library_of, fs::path(path).parent_path(), scene, textures, path);
+  add_obj_materials(file_reader.GetMaterials(), used, library_of, with_kd, fs::path(path).parent_path(), scene, textures,
+                    path);
   Mesh mesh = obj_mesh(path, file_reader, face_corners, base, scene);
   Instance inst;
   inst.name = mesh.name;
