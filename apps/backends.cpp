@@ -179,7 +179,8 @@ void add_expert_options(CLI::App* cmd, BackendOptions& o) {
            g.memory_budget = uint64_t(mib * 1024.0 * 1024.0);
          },
          "The grid's memory in MiB: the image layout's largest image (default 1024), the compact layout's whole "
-         "grid (default 320 bytes per scene triangle, at least 4)")
+         "grid (default 320 bytes per scene triangle, at least 4); it bounds each grid the verb builds, the CPU "
+         "frame's gather grid (the exact traversal's, for the primary rays) too")
       ->check(CLI::Range(0.001, 1.0e6))->group(kExpert);
   add_enum(cmd, "--offsets", g.offsets,
            {{"auto", GO::Offsets::automatic}, {"dense", GO::Offsets::dense}, {"sparse", GO::Offsets::sparse}},

@@ -168,17 +168,20 @@ namespace {
 Scene untuned_mesh(const std::string& name) {
   std::ostringstream obj;
   obj.precision(9);
-  if (name == "sphere") {
+  if (name == "sphere" || name == "tinysphere") {
+    // "tinysphere": radius 1e-6 at the origin
     const int n = 16, m = 32;
-    const glm::dvec3 c(3.0e3, -2.0e3, 1.0e3);
-    obj << "v " << c.x << ' ' << c.y + 2.0 << ' ' << c.z << '\n';
+    const bool tiny = name == "tinysphere";
+    const glm::dvec3 c = tiny ? glm::dvec3(0.0) : glm::dvec3(3.0e3, -2.0e3, 1.0e3);
+    const double rad = tiny ? 1e-6 : 2.0;
+    obj << "v " << c.x << ' ' << c.y + rad << ' ' << c.z << '\n';
     for (int i = 1; i < n; ++i)
       for (int j = 0; j < m; ++j) {
         const double th = M_PI * i / n, ph = 2.0 * M_PI * j / m;
-        obj << "v " << c.x + 2.0 * std::sin(th) * std::cos(ph) << ' ' << c.y + 2.0 * std::cos(th) << ' '
-            << c.z + 2.0 * std::sin(th) * std::sin(ph) << '\n';
+        obj << "v " << c.x + rad * std::sin(th) * std::cos(ph) << ' ' << c.y + rad * std::cos(th) << ' '
+            << c.z + rad * std::sin(th) * std::sin(ph) << '\n';
       }
-    obj << "v " << c.x << ' ' << c.y - 2.0 << ' ' << c.z << '\n';
+    obj << "v " << c.x << ' ' << c.y - rad << ' ' << c.z << '\n';
     const auto v = [&](int i, int j) { return 2 + (i - 1) * m + (j % m); };  // 1-based
     const int last = 2 + (n - 1) * m;
     for (int j = 0; j < m; ++j) obj << "f 1 " << v(1, j + 1) << ' ' << v(1, j) << '\n';
@@ -401,6 +404,25 @@ TEST_CASE("Exact traversal at its defaults on meshes nobody tuned for: no crack,
       CHECK(r.count(Verdict::grid_wrong) == 0);
       CHECK(r.max_ulps <= kTBoundUlps);
       CHECK(r.nan_t == 0);
+    }
+  }
+}
+
+TEST_CASE("A sphere 1e-6 across: the aimed, grazing and other families judge rays, no crack, no wrong answer",
+          "[verify][grid]") {
+  // Their directions were the scene's size, below the domain's least (2^-20): every edge, vertex
+  // and graze ray lay outside it and those families judged nothing (an outside sweep); now
+  // lengthened by a power of two, the same lines
+  reference::GridOptions go;
+  go.traversal = reference::Traversal::exact;
+  for (const FamilyResult& r : run(untuned_mesh("tinysphere"), go, 200, false)) {
+    INFO(r.name << ":\n" << to_table({r}));
+    CHECK(r.count(Verdict::crack) == 0);
+    CHECK(r.count(Verdict::grid_wrong) == 0);
+    CHECK(r.max_ulps <= kTBoundUlps);
+    if (r.name == "edge" || r.name == "vertex" || r.name == "graze" || r.name == "random" || r.name == "camera") {
+      CHECK(r.rays > 100);
+      CHECK(r.outside == 0);
     }
   }
 }

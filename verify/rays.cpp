@@ -89,6 +89,21 @@ bool passes_exactly(glm::vec3 o, glm::vec3 d, int k, glm::vec3 a, glm::vec3 b, b
 // A ray through `target` (a vertex) or through the midpoint of a-b (midpoint), exactly: the
 // origin is drawn near it, the direction computed in double and kept only where the identity
 // holds exactly (o + d == v, or o + 2d == a + b).
+// A ray whose direction is shorter than the domain's least (its largest component below 2^-20,
+// shared::ray_domain) lengthened by a power of two, exactly (the same line; tmin and tmax shrunk by
+// it, exactly too), so that it is traced: the families that aim at a feature's point, graze a face
+// or head for a centroid made directions about the scene's size, and on a scene under 1e-5 units
+// every such ray lay outside the domain and those families judged nothing (an outside sweep).
+Ray scaled_into_domain(Ray r) {
+  const float m = std::max({std::abs(r.dir.x), std::abs(r.dir.y), std::abs(r.dir.z)});
+  if (!(m > 0.0f) || !std::isfinite(m) || m >= sh::kDomainMinDirection) return r;
+  const int k = std::ilogb(sh::kDomainMinDirection) - std::ilogb(m) + 1;  // m 2^k in [2^-20, 2^-18)
+  r.dir = glm::vec3(std::ldexp(r.dir.x, k), std::ldexp(r.dir.y, k), std::ldexp(r.dir.z, k));
+  r.tmin = std::ldexp(r.tmin, -k);
+  r.tmax = std::ldexp(r.tmax, -k);
+  return r;
+}
+
 bool aim_exactly(Rng& rng, glm::vec3 a, glm::vec3 b, bool midpoint, float scale, Ray& out) {
   for (int attempt = 0; attempt < 24; ++attempt) {
     const float r = scale * float(std::exp2(-12.0 * rng.uniform()));
@@ -100,7 +115,7 @@ bool aim_exactly(Rng& rng, glm::vec3 a, glm::vec3 b, bool midpoint, float scale,
     const glm::vec3 d = glm::vec3((target - glm::dvec3(o)) / double(k));
     if (!(finite3(o) && finite3(d)) || d == glm::vec3(0.0f)) continue;
     if (!passes_exactly(o, d, k, a, b, midpoint)) continue;
-    out = make_ray(o, d);
+    out = scaled_into_domain(make_ray(o, d));
     return true;
   }
   return false;
@@ -414,7 +429,7 @@ struct FamilyMaker {
       }
       d[a] = rng.uniform() < 0.5 ? -0.0f : 0.0f;
       if (d == glm::vec3(0.0f)) d[(a + 1) % 3] = 1.0f;
-      push(make_ray(o, d));
+      push(scaled_into_domain(make_ray(o, d)));
     }
   }
 
@@ -466,7 +481,7 @@ struct FamilyMaker {
       const float len = glm::length(t[1] - t[0]) * float(0.1 + rng.uniform());
       const float h = len * float(std::exp2(-4.0 - 16.0 * rng.uniform())) * (rng.uniform() < 0.5 ? 1.0f : -1.0f);
       const glm::vec3 o = q + tg * len + nrm * h;
-      push(make_ray(o, q - o));
+      push(scaled_into_domain(make_ray(o, q - o)));
     }
   }
 
