@@ -12,6 +12,7 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <optional>
 
 #include <unistd.h>
 
@@ -67,6 +68,18 @@ size_t count_named(const Scene& s, const std::string& prefix) {
   size_t n = 0;
   for (const Material& m : s.materials) n += m.name.rfind(prefix, 0) == 0;
   return n;
+}
+
+// A fresh scratch folder for a texture test, or none (with a warning) where this build has no
+// OpenImageIO to read textures.
+std::optional<fs::path> texture_scratch(const std::string& name) {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO");
+    return std::nullopt;
+  }
+  const fs::path dir = fs::temp_directory_path() / ("gridrt_" + name + "_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  return dir;
 }
 
 }  // namespace
@@ -1102,13 +1115,9 @@ void write_tiff(const std::string& path, uint32_t w, uint32_t h, const std::vect
 
 TEST_CASE("Textures: EXIF/TIFF orientation applied, a premultiplied TIFF's colour divided, a PNM's maxval checked",
           "[unit][loaders][badinput]") {
-  if (!have_image_library()) {
-    WARN("skipped: this build has no OpenImageIO");
-    return;
-  }
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("gridrt_texture_orient_" + std::to_string(getpid()));
-  std::filesystem::create_directories(dir);
+  const auto scratch = texture_scratch("texture_orient");
+  if (!scratch) return;
+  const std::filesystem::path& dir = *scratch;
   // A 3 x 2 image of distinct texels: texel (x, y) has red 10 x + 1, green 10 y + 1
   const uint32_t w = 3, h = 2;
   std::vector<uint8_t> px;
@@ -1236,13 +1245,9 @@ TEST_CASE("OBJ: a texture named in an MTL of another folder is read beside that 
 
 TEST_CASE("Textures: alpha read apart from the colour, a TIFF cut short refused, the host's memory checked first",
           "[unit][loaders][badinput]") {
-  if (!have_image_library()) {
-    WARN("skipped: this build has no OpenImageIO");
-    return;
-  }
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("gridrt_texture_reads_" + std::to_string(getpid()));
-  std::filesystem::create_directories(dir);
+  const auto scratch = texture_scratch("texture_reads");
+  if (!scratch) return;
+  const std::filesystem::path& dir = *scratch;
   const uint32_t w = 96, h = 80;
   std::vector<uint8_t> rgba(size_t(w) * h * 4);
   for (size_t i = 0; i < size_t(w) * h; ++i) {
