@@ -259,37 +259,80 @@ std::string texture_format(const std::string& path) {
               "TIFF, WebP, PNM and PFM: told by its first bytes, TGA by its extension)");
 }
 
-// A PNM's header (P1-P6: magic, width, height and, but for P1 and P4, the largest value; blanks and
-// '#' comments between): a largest value outside 1..65535 is refused. OpenImageIO read a maxval of
-// 0 or 70000 as a texture of some colour without a word (an outside sweep).
-void check_pnm_header(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::string head(512, '\0');
-  f.read(head.data(), std::streamsize(head.size()));
-  head.resize(size_t(f.gcount()));
-  if (head.size() < 2 || head[0] != 'P' || head[1] < '1' || head[1] > '6') return;  // the reader's to refuse
-  const bool has_max = head[1] != '1' && head[1] != '4';
+// A PNM (P1-P6: magic, width, height and, but for P1 and P4, the largest value; blanks and '#'
+// comments between; then the samples). Refused: a largest value outside 1..65535, and a sample
+// above it or not a number (a plain PNM's "-5" read as 251, "300" under 255 clamped; a raw PNM's
+// byte above a largest value below 255 scaled past white): OpenImageIO read such files as textures
+// of some colour without a word (an outside sweep). The count of samples is its reader's to check.
+void check_pnm(const std::string& path) {
+  const std::string data = read_input_file(path, "texture");
+  if (data.size() < 2 || data[0] != 'P' || data[1] < '1' || data[1] > '6') return;  // the reader's to refuse
+  const char kind = data[1];
+  const bool has_max = kind != '1' && kind != '4';
+  const auto fail = [&](const std::string& why) {
+    throw Error("cannot load texture '" + path + "': " + why + " (a damaged file)");
+  };
   size_t k = 2;
-  std::vector<std::string> fields;
-  while (fields.size() < (has_max ? 3u : 2u) && k < head.size()) {
-    const char c = head[k];
-    if (c == '#') {
-      while (k < head.size() && head[k] != '\n' && head[k] != '\r') ++k;
-    } else if (std::isspace(static_cast<unsigned char>(c))) {
-      ++k;
-    } else {
-      std::string field;
-      while (k < head.size() && !std::isspace(static_cast<unsigned char>(head[k])) && head[k] != '#') field += head[k++];
-      fields.push_back(field);
+  // The next token (digits or not), blanks and comments skipped; "" at the end
+  const auto token = [&]() {
+    for (;;) {
+      while (k < data.size() && std::isspace(static_cast<unsigned char>(data[k]))) ++k;
+      if (k < data.size() && data[k] == '#') {
+        while (k < data.size() && data[k] != '\n' && data[k] != '\r') ++k;
+        continue;
+      }
+      break;
     }
+    const size_t from = k;
+    while (k < data.size() && !std::isspace(static_cast<unsigned char>(data[k])) && data[k] != '#') ++k;
+    return std::string_view(data).substr(from, k - from);
+  };
+  const auto number = [](std::string_view t) -> long {
+    if (t.empty() || t.size() > 9 || !std::all_of(t.begin(), t.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      return -1;
+    return std::stol(std::string(t));
+  };
+  token();  // width
+  token();  // height
+  long maxval = 1;
+  if (has_max) {
+    const std::string_view m = token();
+    maxval = number(m);
+    if (maxval < 1 || maxval > 65535)
+      fail("its PNM header's largest value is '" + std::string(m) + "', outside 1..65535");
   }
-  if (!has_max || fields.size() < 3) return;
-  const std::string& m = fields[2];
-  const bool digits = !m.empty() && m.size() <= 9 && std::all_of(m.begin(), m.end(), [](char c) { return c >= '0' && c <= '9'; });
-  const long maxval = digits ? std::stol(m) : -1;
-  if (maxval < 1 || maxval > 65535)
-    throw Error("cannot load texture '" + path + "': its PNM header's largest value is '" + m +
-                "', outside 1..65535 (a damaged file)");
+  if (kind == '4') return;  // raw bits: every value is one
+  if (kind == '1') {
+    // Plain bits: each '0' or '1' is a sample, blanks and comments between
+    for (; k < data.size(); ++k) {
+      const char c = data[k];
+      if (c == '#') {
+        while (k < data.size() && data[k] != '\n' && data[k] != '\r') ++k;
+      } else if (!std::isspace(static_cast<unsigned char>(c)) && c != '0' && c != '1') {
+        fail(std::string("its plain PBM holds '") + c + "' where a sample is 0 or 1");
+      }
+    }
+    return;
+  }
+  if (kind == '2' || kind == '3') {
+    for (std::string_view t = token(); !t.empty(); t = token()) {
+      const long v = number(t);
+      if (v < 0 || v > maxval)
+        fail("its plain PNM holds the sample '" + std::string(t) + "', not a number in 0.." + std::to_string(maxval));
+    }
+    return;
+  }
+  // Raw samples (P5, P6) after one blank: a byte each below 256, else two, most significant first
+  k += 1;
+  if (maxval == 255 || maxval == 65535) return;
+  const size_t step = maxval < 256 ? 1 : 2;
+  for (size_t i = k; i + step <= data.size(); i += step) {
+    const long v = step == 1 ? long(static_cast<unsigned char>(data[i]))
+                             : long(static_cast<unsigned char>(data[i])) << 8 | static_cast<unsigned char>(data[i + 1]);
+    if (v > maxval)
+      fail("its raw PNM holds the sample " + std::to_string(v) + " at byte " + std::to_string(i) + ", above its largest value " +
+           std::to_string(maxval));
+  }
 }
 
 // EXIF/TIFF orientation (1-8): the stored texel that display texel (x, y) shows, for a stored
@@ -380,7 +423,7 @@ Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alph
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
   const std::string format_name = texture_format(path);
-  if (format_name == "pnm") check_pnm_header(path);
+  if (format_name == "pnm") check_pnm(path);
   if (format_name == "bmp") {
     // OpenImageIO decodes an RLE BMP whole in open(), before its size can be checked (381 MB for
     // a 152-byte file: an outside fuzz): the header's size first (BITMAPINFOHEADER and later)

@@ -1168,17 +1168,25 @@ TEST_CASE("Textures: EXIF/TIFF orientation applied, a premultiplied TIFF's colou
                                                  : texels;
     CHECK(t.rgba == want);
   }
-  // PNM: a largest value of 0 or above 65535 refused by name; 255 and 65535 load
-  for (const auto& [name, header, ok] : {std::tuple{"max0.ppm", "P6\n1 1\n0\n", false},
-                                         std::tuple{"max70000.ppm", "P6\n1 1\n70000\n", false},
-                                         std::tuple{"maxneg.pgm", "P5 1 1 -5\n", false},
-                                         std::tuple{"comment.ppm", "P6\n# made by hand\n1 1 # size\n255\n", true},
-                                         std::tuple{"max65535.pgm", "P5\n1 1\n65535\n", true}}) {
+  // PNM: a largest value of 0 or above 65535, and a sample above it or not a number, refused by
+  // name (OpenImageIO read "-5" as 251 and clamped 300); a file within them loads
+  for (const auto& [name, text, ok, why] :
+       {std::tuple{"max0.ppm", "P6\n1 1\n0\n@@@@@@", false, "1..65535"},
+        std::tuple{"max70000.ppm", "P6\n1 1\n70000\n@@@@@@", false, "1..65535"},
+        std::tuple{"maxneg.pgm", "P5 1 1 -5\n@@", false, "1..65535"},
+        std::tuple{"comment.ppm", "P6\n# made by hand\n1 1 # size\n255\n@@@", true, ""},
+        std::tuple{"max65535.pgm", "P5\n1 1\n65535\n@@", true, ""},
+        std::tuple{"plain.ppm", "P3\n2 1\n255\n# a comment\n255 0 0  0 17 255\n", true, ""},
+        std::tuple{"plain_neg.pgm", "P2\n2 1\n255\n-5 20\n", false, "'-5', not a number in 0..255"},
+        std::tuple{"plain_over.ppm", "P3\n2 1\n255\n300 0 0  0 1 0\n", false, "'300', not a number in 0..255"},
+        std::tuple{"plain_bits.pbm", "P1\n3 1\n0 1 2\n", false, "'2' where a sample is 0 or 1"},
+        std::tuple{"raw_over.pgm", "P5\n2 1\n100\n\x32\xc8", false, "the sample 200 at byte"},
+        std::tuple{"raw_within.pgm", "P5\n2 1\n100\n\x32\x64", true, ""}}) {
     INFO(name);
     const std::string path = (dir / name).string();
-    std::ofstream(path, std::ios::binary) << header << std::string(6, '\x40');
+    std::ofstream(path, std::ios::binary) << text;
     if (ok) CHECK_NOTHROW(load_texture(path, AlphaSource::kImage, nullptr));
-    else CHECK_THROWS_WITH(load_texture(path, AlphaSource::kImage, nullptr), Catch::Contains(name) && Catch::Contains("1..65535"));
+    else CHECK_THROWS_WITH(load_texture(path, AlphaSource::kImage, nullptr), Catch::Contains(name) && Catch::Contains(why));
   }
   std::filesystem::remove_all(dir);
 }
