@@ -536,7 +536,8 @@ Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alph
   // A TIFF alpha that the reader does not call unassociated is associated (colour premultiplied by
   // alpha, ExtraSamples 1): the colour is divided by it, so that a texel's colour means the same as
   // a PNG's (a premultiplied TIFF drew its soft edges dark)
-  const bool premultiplied = a >= 0 && format == "tiff" &&
+  // (only where the file names that channel alpha: ExtraSamples 0, "unspecified", is data as stored)
+  const bool premultiplied = a >= 0 && a == spec.alpha_channel && format == "tiff" &&
                              spec.get_int_attribute("oiio:UnassociatedAlpha", 0) != 1;
   in->close();
   // libjpeg calls missing scan lines a warning and OpenImageIO returns them grey without an

@@ -1156,9 +1156,9 @@ TEST_CASE("Textures: EXIF/TIFF orientation applied, a premultiplied TIFF's colou
       }
   }
   // Associated alpha (ExtraSamples 1): colour premultiplied in the file, divided back; unassociated
-  // (2) read as stored
+  // (2) and unspecified (0: a fourth channel not named alpha) read as stored
   const std::vector<uint8_t> texels = {100, 50, 0, 128, 200, 100, 50, 255, 0, 0, 0, 0};
-  for (const uint16_t extra : {uint16_t(1), uint16_t(2)}) {
+  for (const uint16_t extra : {uint16_t(0), uint16_t(1), uint16_t(2)}) {
     INFO("ExtraSamples " << extra);
     const std::string path = (dir / ("alpha" + std::to_string(extra) + ".tif")).string();
     write_tiff(path, 3, 1, texels, 4, 1, extra);
