@@ -1,7 +1,8 @@
 // test_raster.cpp: the compute gather's rasterizer bounds (common/shared/raster.h) are
 // conservative: every pixel the gather's ray test (either triangle test: Moller-Trumbore or the
 // watertight one, plan::gather_options) accepts passes the pixel test and the tile and
-// bin tests of every rectangle holding it, and its t is not below the triangle's depth bound, on
+// bin tests of every rectangle holding it, and its t is not below the triangle's depth bound nor
+// its depth plane's bound over the pixel, its tile or its bin, on
 // adversarial triangles (sub-pixel, huge, behind the camera, edge-on, slivers, far away, vertices on
 // pixel centres and tile edges); and they do reject: most pixels far from a triangle fail them.
 #include <catch2/catch.hpp>
@@ -21,6 +22,9 @@ namespace {
 struct Counts {
   size_t triangles = 0, set_up = 0, accepted = 0, missed = 0, rejected_pixels = 0, rejected_tiles = 0;
   size_t pixel_fail = 0, tile_fail = 0, bin_fail = 0, depth_fail = 0;
+  // The depth plane's bound over the pixel's 8x8 tile and 32x32 bin (raster_tile_t_lo): accepted
+  // pixels whose t is below it, and those where it is above the triangle's own t_lo by 1 % or more
+  size_t tile_depth_fail = 0, tile_depth_tighter = 0;
   // The gather's box (gather_box): accepted pixels outside it (edge box: any; frustum box: any
   // whose hit lies beyond the near plane), and accepted pixels whose hit is nearer than the near
   // plane, which a frustum box leaves out by its rule and the edge box holds
@@ -37,9 +41,10 @@ constexpr float kNear = 1.0e-5f;
 void check_triangle(uint32_t which, const shared::CameraParams& c, const glm::vec3& v0, const glm::vec3& v1,
                     const glm::vec3& v2, Counts& n) {
   glm::vec3 e0, e1, e2;
+  glm::vec4 depth;
   float t_lo = 0.0f;
   ++n.triangles;
-  n.set_up += shared::raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo);
+  n.set_up += shared::raster_setup_depth(c, v0, v1, v2, e0, e1, e2, t_lo, depth);
   // The gather's box; it holds every accepted pixel whose hit lies beyond the near plane, and
   // every accepted pixel where the edge functions give it (set up, crossing the near plane)
   glm::uvec4 box(0u);
@@ -72,7 +77,15 @@ void check_triangle(uint32_t which, const shared::CameraParams& c, const glm::ve
         n.pixel_fail += !pixel || !single;
         n.tile_fail += !tile;
         n.bin_fail += !bin;
-        n.depth_fail += !(shared::moller_trumbore_t(r) >= t_lo);
+        const float t = shared::moller_trumbore_t(r);
+        n.depth_fail += !(t >= t_lo);
+        const float tile_lo = shared::raster_tile_t_lo(depth, t_lo, tx, ty, std::min(tx + 7, c.width - 1),
+                                                       std::min(ty + 7, c.height - 1));
+        const float bin_lo = shared::raster_tile_t_lo(depth, t_lo, bx, by, std::min(bx + 31, c.width - 1),
+                                                      std::min(by + 31, c.height - 1));
+        const float pixel_lo = shared::raster_tile_t_lo(depth, t_lo, x, y, x, y);
+        n.tile_depth_fail += !(t >= tile_lo) || !(t >= bin_lo) || !(t >= pixel_lo);
+        n.tile_depth_tighter += tile_lo >= 1.01f * t_lo;
         const bool in_box = boxed && x >= box.x && x <= box.z && y >= box.y && y <= box.w;
         const float depth = glm::dot(shared::moller_trumbore_t(r) * dir, c.forward);
         const bool near = depth < kNear;
@@ -219,7 +232,11 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
   CHECK(n.tile_fail == 0);
   CHECK(n.bin_fail == 0);
   CHECK(n.depth_fail == 0);
+  CHECK(n.tile_depth_fail == 0);
   CHECK(n.accepted > 10000);
+  // The depth plane's bound is the tighter one for many accepted pixels (triangles seen at an angle)
+  INFO(n.tile_depth_tighter << " accepted pixels whose tile's depth-plane bound is 1 % or more above t_lo");
+  CHECK(n.tile_depth_tighter >= n.accepted / 10);
   // The gather's box holds every pixel the test accepts, hits within the near plane included
   // where the edge functions give the box; the near-eye families reach such hits
   CHECK(n.box_fail == 0);
@@ -230,7 +247,7 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
                           << e.within_near_boxed << " of them in the box; " << e.bound_needed
                           << " beyond it outside the frustum box without its rounding bound; " << e.within_near_edge
                           << " nearer than the near plane held by an edge box");
-    CHECK(e.pixel_fail + e.tile_fail + e.bin_fail + e.depth_fail == 0);
+    CHECK(e.pixel_fail + e.tile_fail + e.bin_fail + e.depth_fail + e.tile_depth_fail == 0);
     CHECK(e.box_fail == 0);
     CHECK(e.accepted > 10000);
     CHECK(e.within_near_boxed >= 100);
@@ -245,9 +262,12 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
   glm::vec3 e0, e1, e2;
   float t_lo = 1.0f;
   const shared::CameraParams c = camera_params(Camera{}, 64, 48);
-  CHECK_FALSE(shared::raster_setup(c, glm::vec3(0.0f), glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(NAN, 0.0f, 0.0f), e0, e1, e2, t_lo));
+  glm::vec4 depth(1.0f);
+  CHECK_FALSE(shared::raster_setup_depth(c, glm::vec3(0.0f), glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(NAN, 0.0f, 0.0f), e0, e1,
+                                         e2, t_lo, depth));
   CHECK(shared::raster_pixel_may_hit(e0, e1, e2, 3, 4));
   CHECK(t_lo == 0.0f);
+  CHECK(shared::raster_tile_t_lo(depth, t_lo, 0, 0, 7, 7) == 0.0f);
   // the eye in the triangle's plane
   CHECK_FALSE(shared::raster_setup(c, c.eye + glm::vec3(-1, 0, -1), c.eye + glm::vec3(1, 0, -1), c.eye + glm::vec3(0, 0, -3),
                                    e0, e1, e2, t_lo));

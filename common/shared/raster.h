@@ -11,6 +11,10 @@
 //    magnitude (the ray test's rounding is below about 2^-19 of it), and a lower bound of the ray
 //    test's t over the whole triangle; false (no rejection, t bound 0) where those bounds do not
 //    hold: the eye within a hair of the triangle's plane, float range exceeded or underflowed.
+//    raster_setup_depth gives also the triangle's depth plane: the inverse of a lower bound of t
+//    as an affine function over pixel indices.
+//  - raster_tile_t_lo: the depth plane's lower bound of t over a pixel rectangle (an 8x8 tile):
+//    above the triangle's own wherever the plane is farther there than at its nearest vertex.
 //  - raster_pixel_may_hit: all three edge functions >= 0 at the pixel (the ray test may accept).
 //  - raster_rect_may_hit: for each edge, its largest value over a pixel rectangle (a corner)
 //    is >= 0 (some pixel of the rectangle may be accepted).
@@ -53,13 +57,17 @@ SH_INLINE vec3 raster_edge(SH_IN(CameraParams) c, SH_IN(vec3) n, float sigma, fl
 // exact arithmetic the ray test's edge conditions: the watertight test's U, V, W >= 0, as
 // Moller-Trumbore's (u + v) <= det, u >= 0 and v >= 0); t_lo: a lower bound of the ray test's
 // t at every pixel it accepts. Returns false where the bounds are not guaranteed: then every edge
-// is (0, 0, 1) (keeps every pixel) and t_lo is 0.
-SH_INLINE bool raster_setup(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
-                            SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2, SH_OUT(float) t_lo) {
+// is (0, 0, 1) (keeps every pixel) and t_lo is 0. `depth`: the depth plane (a, b, c, k): at every
+// pixel (x, y) of a rectangle where the test accepts, t >= k / P with P the largest value of
+// a x + b y + c over the rectangle (raster_tile_t_lo); (0, 0, 1, 0) where no bound is given.
+SH_INLINE bool raster_setup_depth(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+                                  SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2, SH_OUT(float) t_lo,
+                                  SH_OUT(vec4) depth) {
   e0 = vec3(0.0f, 0.0f, 1.0f);
   e1 = e0;
   e2 = e0;
   t_lo = 0.0f;
+  depth = vec4(0.0f, 0.0f, 1.0f, 0.0f);
   SH_PRECISE vec3 q0 = v0 - c.eye;
   SH_PRECISE vec3 q1 = v1 - c.eye;
   SH_PRECISE vec3 q2 = v2 - c.eye;
@@ -92,7 +100,22 @@ SH_INLINE bool raster_setup(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(vec3) v
   SH_PRECISE float keep = (1.0f - 0.0009765625f) - rel;       // 1 - 2^-10 - rel
   SH_PRECISE float t_bound = z_lo * keep;
   t_lo = z_lo > 0.0f && keep > 0.0f ? t_bound : 0.0f;
+  // The depth plane: at an accepted pixel t = |q0 . n| |d| / |d . n| along the unit direction
+  // d / |d| (|d| >= 1), and sigma (d . n) = |d . n| there, an affine function of the pixel indices
+  // like the edges'. Its slack, 2^-13 L^2 Dmax, covers the rounding of n (a few eps L^2 per
+  // component, whatever the triangle's area), of the function, and of the pixel's unit direction;
+  // the numerator takes the test's relative rounding rel and the margin as t_lo does.
+  SH_PRECISE float slack_n = (0.0001220703125f * (l * l)) * dmax;  // 2^-13
+  SH_PRECISE float k = abs(qn) * keep;
+  if (keep > 0.0f) depth = vec4(raster_edge(c, n, sigma, slack_n), k);
   return true;
+}
+
+// raster_setup_depth without the depth plane.
+SH_INLINE bool raster_setup(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+                            SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2, SH_OUT(float) t_lo) {
+  vec4 depth;
+  return raster_setup_depth(c, v0, v1, v2, e0, e1, e2, t_lo, depth);
 }
 
 SH_INLINE float raster_edge_at(SH_IN(vec3) e, float x, float y) {
@@ -112,6 +135,17 @@ SH_INLINE bool raster_pixel_may_hit(SH_IN(vec3) e0, SH_IN(vec3) e1, SH_IN(vec3) 
 // An edge's largest value over the pixels [x0, x1] x [y0, y1] (an affine function: at a corner).
 SH_INLINE float raster_edge_max(SH_IN(vec3) e, uint x0, uint y0, uint x1, uint y1) {
   return raster_edge_at(e, float(e.x > 0.0f ? x1 : x0), float(e.y > 0.0f ? y1 : y0));
+}
+
+// A lower bound of the ray test's t at every pixel of [x0, x1] x [y0, y1] it accepts: the larger
+// of the triangle's t_lo and the depth plane's k / P (P its largest value over the rectangle, at a
+// corner; every accepted pixel has its sigma (d . n) <= P). A plain division: its rounding, and a
+// GPU's, are far within the margin of 2^-10 in k. P <= 0 (no pixel there can be accepted) or no
+// plane: t_lo.
+SH_INLINE float raster_tile_t_lo(SH_IN(vec4) depth, float t_lo, uint x0, uint y0, uint x1, uint y1) {
+  const float p = raster_edge_max(vec3(depth.x, depth.y, depth.z), x0, y0, x1, y1);
+  const float t = depth.w / p;
+  return p > 0.0f && t > t_lo ? t : t_lo;
 }
 
 // Whether the ray test may accept some pixel of [x0, x1] x [y0, y1] (inclusive).

@@ -62,6 +62,7 @@ struct GatherRasterTriangle {
   uint box_hi;      // x1 | y1 << 16
   uint index;       // its index in the geometry buffer
   uint pad0;
+  vec4 depth;       // the depth plane (raster_setup_depth): raster_tile_t_lo's bound over a tile
 };
 
 // The rasterizer's tile lists (gather_pairs.comp, gather_scan.comp, gather_fine.comp): per 8x8-pixel
@@ -177,7 +178,7 @@ static_assert(sizeof(gridrt::shared::FrameParams) == 112, "std430 layout of Fram
 static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
 static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");
-static_assert(sizeof(gridrt::shared::GatherRasterTriangle) == 64, "std430 layout of GatherRasterTriangle");
+static_assert(sizeof(gridrt::shared::GatherRasterTriangle) == 80, "std430 layout of GatherRasterTriangle");
 static_assert(sizeof(gridrt::shared::GatherBinPush) == 16, "layout of GatherBinPush");
 static_assert(sizeof(gridrt::shared::GatherFineHeader) == 32, "std430 layout of GatherFineHeader");
 static_assert(sizeof(gridrt::shared::GatherFinePush) == 16, "layout of GatherFinePush");

@@ -1,8 +1,8 @@
 #version 460
 // gather_bin.comp: the compute gather's first pass (gather_visibility.glsl), one invocation per
 // triangle of the geometry buffer: its screen box (common/shared/raster.h gather_box); a box of at
-// most 16 pixels is tested here, a larger one is set up once (raster_setup: edge functions and a
-// depth bound) and appended to the list of large triangles with its count of work items, the 32x32-pixel bins
+// most 16 pixels is tested here, a larger one is set up once (raster_setup_depth: edge functions, a
+// depth bound and a depth plane) and appended to the list of large triangles with its count of work items, the 32x32-pixel bins
 // of the screen its box touches (with kFrameGatherBoxes: the 8x8-pixel tiles of its box). One
 // 64-bit atomic per subgroup gives each its list index and its first item; the item pass finds an
 // item's triangle by binary search, so no invocation writes its items one by one.
@@ -64,7 +64,8 @@ void bin_triangle() {
     g.edge0 = vec3(0.0f, 0.0f, 1.0f);
     g.edge1 = g.edge0;
     g.edge2 = g.edge0;
-    if (!boxes) raster_setup(c, tri.v0, tri.v1, tri.v2, g.edge0, g.edge1, g.edge2, g.t_lo);
+    g.depth = vec4(0.0f, 0.0f, 1.0f, 0.0f);
+    if (!boxes) raster_setup_depth(c, tri.v0, tri.v1, tri.v2, g.edge0, g.edge1, g.edge2, g.t_lo, g.depth);
     g.ref = ref;
     g.first = base.x + items_before;
     g.box_lo = box.x | (box.y << 16u);

@@ -6,11 +6,12 @@
 // triangles (gather_pairs.comp; no list when the pairs overflowed: the item pass, gather_raster.comp,
 // left the large triangles' keys too); then the pixel's gather texel from it (gather_texel, as
 // gather_resolve.comp would). The list is taken in batches of 64 pairs, each
-// batch ranked by its triangles' lower t bounds, nearest first (the keys fall early and the depth
-// test below culls more). Per triangle:
-//   depth  the batch's rest is skipped by a whole subgroup when the triangle's lower t bound
-//          (raster_setup) exceeds the largest t of the subgroup's keys: it would have a larger t
-//          than every one, and so would every triangle after it in the batch
+// batch ranked by its triangles' lower t bounds over the tile, nearest first (the keys fall early
+// and the depth test below culls more). Per triangle:
+//   depth  the batch's rest is skipped by a whole subgroup when the triangle's lower t bound over
+//          the tile (raster_tile_t_lo: its depth plane's at the tile, at least its t_lo) exceeds
+//          the largest t of the subgroup's keys: it would have a larger t than every one, and so
+//          would every triangle after it in the batch
 //   pixel  the edge functions at the pixel (raster_pixel_may_hit), then the gather's ray test along
 //          the pixel's camera_direction (gather_dirs.comp); an accepted hit lowers the key
 // The skips only leave out pairs the ray test rejects or that cannot win, and the minimum does not
@@ -28,8 +29,9 @@ layout(push_constant) uniform Push { GatherFinePush pc; };
 
 // A tile's list is taken in batches of one pair per invocation
 const uint kFineBatch = 64u;
-shared uint s_bound[kFineBatch];  // the batch's depth bounds (t_lo bits)
-shared uint s_order[kFineBatch];  // the batch's triangles, nearest bound first
+shared uint s_bound[kFineBatch];   // the batch's depth bounds over the tile (t bits)
+shared uint s_order[kFineBatch];   // the batch's triangles, nearest bound first
+shared uint s_sorted[kFineBatch];  // their bounds, in that order
 
 void main() {
   const CameraParams c = fp.camera;
@@ -39,6 +41,9 @@ void main() {
   const uvec2 px = uvec2(tile % tiles_x, tile / tiles_x) * kGatherTileSize + gl_LocalInvocationID.xy;
   const bool on = px.x < c.width && px.y < c.height;
   const uint p = px.y * c.width + px.x;
+  // The tile's pixels within the screen (the depth bounds' rectangle)
+  const uvec2 t0 = uvec2(tile % tiles_x, tile / tiles_x) * kGatherTileSize;
+  const uvec2 t1 = min(t0 + (kGatherTileSize - 1u), uvec2(c.width, c.height) - 1u);
   uint64_t key = on ? gather_keys64[p] : 0ul;  // off the screen: t 0, never raises the depth
   const vec4 dir = on ? pixel_dirs[p] : vec4(0.0f);
   // The tile's list (none when the pairs overflowed: the item pass, before, left the keys)
@@ -57,7 +62,7 @@ void main() {
     uint index = 0u, bound = 0u;
     if (lid < n) {
       index = tile_words[2u * pc.tiles + base + lid];
-      bound = floatBitsToUint(tile_tris[index].t_lo);
+      bound = floatBitsToUint(raster_tile_t_lo(tile_tris[index].depth, tile_tris[index].t_lo, t0.x, t0.y, t1.x, t1.y));
       s_bound[lid] = bound;
     }
     barrier();
@@ -68,14 +73,15 @@ void main() {
         rank += other < bound || (other == bound && j < lid) ? 1u : 0u;
       }
       s_order[rank] = index;
+      s_sorted[rank] = bound;
     }
     barrier();
     for (uint j = 0u; j < n; ++j) {
-      const GatherRasterTriangle g = tile_tris[s_order[j]];
       // Depth: a triangle whose bound exceeds the subgroup's largest t wins no pixel of the
       // subgroup, and neither does any after it in the batch (their bounds are no smaller, the
       // depth no larger): the subgroup leaves the batch together (it stays converged)
-      if (floatBitsToUint(g.t_lo) > depth) break;
+      if (s_sorted[j] > depth) break;
+      const GatherRasterTriangle g = tile_tris[s_order[j]];
       bool lowered = false;
       if (on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
         uvec2 k;

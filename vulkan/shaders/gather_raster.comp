@@ -7,7 +7,8 @@
 //   bin    the bin's pixels within the triangle's box, rejected as a whole when an edge function
 //          is negative on all of them (raster_rect_may_hit)
 //   tile   per 8x8 tile of those, the same rejection; then depth culling: the tile is skipped when
-//          the triangle's lower t bound exceeds the tile's depth bound (no pixel of the tile holds
+//          the triangle's lower t bound over the tile's pixels it tests (raster_tile_t_lo: its
+//          depth plane's there, at least its t_lo) exceeds the tile's depth bound (no pixel holds
 //          a key with a larger t, so the triangle wins none of them)
 //   pixel  the edge functions at the pixel (raster_pixel_may_hit), then the gather's ray test
 //          along the pixel's camera_direction (computed once per frame by gather_dirs.comp), an
@@ -53,7 +54,6 @@ void main() {
   if (!raster_rect_may_hit(g.edge0, g.edge1, g.edge2, rx0, ry0, rx1, ry1)) return;
   const uint k = g.index;
   const GridTriangle tri = triangles[k];
-  const uint t_lo = floatBitsToUint(g.t_lo);
   const uint tiles_x = (c.width + kGatherTileSize - 1u) / kGatherTileSize;
   const uint lid = gl_LocalInvocationIndex;
   for (uint ty = ry0 / kGatherTileSize; ty <= ry1 / kGatherTileSize; ++ty)
@@ -70,7 +70,7 @@ void main() {
       }
       barrier();
       const uint depth = s_depth;
-      if (t_lo <= depth) {
+      if (floatBitsToUint(raster_tile_t_lo(g.depth, g.t_lo, qx0, qy0, qx1, qy1)) <= depth) {
         // The whole tile (within the screen) is in the box: its depth bound may be lowered
         const bool whole = qx0 == sx0 && qy0 == sy0 && qx1 == sx1 && qy1 == sy1;
         const uvec2 px = uvec2(sx0, sy0) + gl_LocalInvocationID.xy;
