@@ -350,12 +350,11 @@ void oriented_source(int orientation, uint32_t w, uint32_t h, uint32_t x, uint32
   }
 }
 
-void check_jpeg_end(const std::string& path) {
+void check_jpeg_end(const std::string& path, std::string_view data) {
   // The markers walked from the start: segments skipped by their lengths, entropy-coded data
   // scanned for the next marker (FF 00 is a stuffed byte, FF D0-D7 a restart) until the
   // end-of-image marker FF D9. Bytes after it are allowed (cameras append data there); a file
   // that ends first is truncated. An embedded thumbnail lies inside an APP segment: skipped whole.
-  const std::string data = read_input_file(path, "texture");
   const auto byte = [&](size_t k) { return static_cast<unsigned char>(data[k]); };
   const auto truncated = [&] {
     throw Error("cannot load texture '" + path + "': its JPEG data ends before the end-of-image marker (a truncated file)");
@@ -388,8 +387,85 @@ void check_jpeg_end(const std::string& path) {
 #ifdef GRIDRT_WITH_OIIO
 namespace {
 Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alpha_channel);
+
+// Whether an error a reader reported after a read that returned success means missing or damaged
+// pixels. A reader may decode what it can and report the rest while returning success: a TIFF cut
+// short read its missing strips as black texels, a DDS its missing blocks (outside sweeps). Not
+// JPEG in general: libjpeg's warnings arrive the same way on files that decode whole (stray bytes
+// between segments); but its "premature end of data segment" (scan data cut short, an end marker
+// after it) and "Premature end of JPEG file" are missing texels read as grey (an outside sweep).
+bool reported_damage(const std::string& format, const std::string& late) {
+  if (late.empty()) return false;
+  std::string lower = late;
+  for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return format != "jpeg" || lower.find("premature end") != std::string::npos;
 }
+}  // namespace
 #endif
+
+DecodedImage decode_image(const std::string& name, const unsigned char* bytes, size_t size) {
+#ifdef GRIDRT_WITH_OIIO
+  const auto fail = [&](const std::string& why) { throw Error(name + ": " + why); };
+  const std::string_view data(reinterpret_cast<const char*>(bytes), bytes ? size : 0);
+  const std::string format = data.substr(0, 8) == std::string_view("\x89PNG\r\n\x1a\n", 8) ? "png"
+                             : data.substr(0, 3) == "\xff\xd8\xff"                         ? "jpeg"
+                                                                                          : "";
+  if (format.empty()) fail("not a PNG or JPEG (told by its first bytes)");
+  try {
+    OIIO::Filesystem::IOMemReader proxy(bytes, size);
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    auto in = OIIO::ImageInput::create(format);
+    if (!in || !in->supports("ioproxy")) fail("this build's OpenImageIO cannot read " + format + " from memory");
+    if (!in->set_ioproxy(&proxy)) fail("this build's OpenImageIO cannot read " + format + " from memory");
+    OIIO::ImageSpec opened;
+    if (!in->open(name, opened, config)) {
+      const std::string why = in->geterror();
+      fail(why.empty() ? "it does not open as the " + format + " its first bytes name" : why);
+    }
+    const OIIO::ImageSpec& spec = in->spec();
+    const int nch = spec.nchannels;
+    if (spec.width <= 0 || spec.height <= 0 || nch <= 0 || spec.depth > 1) fail("not a 2D image with channels");
+    if (nch > 4) fail(std::to_string(nch) + " channels (a PNG or JPEG texture has 1 to 4)");
+    const uint64_t declared = uint64_t(spec.width) * uint64_t(spec.height);
+    if (declared > input_limits().max_texture_pixels)
+      fail("its header declares " + std::to_string(spec.width) + " x " + std::to_string(spec.height) +
+           " pixels, more than the limit of " + std::to_string(input_limits().max_texture_pixels) +
+           " pixels (--max-texture-pixels)");
+    DecodedImage out;
+    out.width = uint32_t(spec.width);
+    out.height = uint32_t(spec.height);
+    out.channels = nch;
+    out.bits = spec.format.size() >= 2 ? 16 : 8;
+    const size_t n = size_t(declared) * size_t(nch) * size_t(out.bits / 8);
+    require_host_memory(uint64_t(n), name + " (" + std::to_string(out.width) + " x " + std::to_string(out.height) +
+                                          " pixels, decoded)",
+                        "lower --max-texture-pixels, or use smaller textures");
+    out.data.resize(n);
+    const OIIO::TypeDesc type = out.bits == 16 ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
+    const auto damaged = [&](const std::string& why) {
+      fail((why.empty() ? std::string("its pixels do not decode") : why) + " (a truncated or corrupt image)");
+    };
+    if (!in->read_image(0, 0, 0, nch, type, out.data.data())) damaged(in->geterror());
+    const std::string late = in->geterror();
+    if (reported_damage(in->format_name(), late)) damaged(late);
+    in->close();
+    if (format == "jpeg") check_jpeg_end(name, data);
+    return out;
+  } catch (const Error&) {
+    throw;
+  } catch (const std::bad_alloc&) {
+    throw;
+  } catch (const std::exception& e) {
+    fail(std::string("its reader failed (") + e.what() + "): a damaged image");
+  }
+  return {};
+#else
+  (void)bytes;
+  (void)size;
+  throw Error(name + ": this build has no OpenImageIO (GRIDRT_WITH_OIIO off) to decode it");
+#endif
+}
 
 Texture load_texture(const std::string& path, AlphaSource alpha, bool* alpha_channel) {
 #ifdef GRIDRT_WITH_OIIO
@@ -523,11 +599,7 @@ Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alph
   // bytes between segments); its truncation is found by the end marker below.
   const std::string format = in->format_name();
   std::string late = in->geterror();
-  // libjpeg's "premature end of data segment" (scan data cut short, an end marker after it) and
-  // "Premature end of JPEG file" are missing texels read as grey (an outside sweep): refused
-  std::string lower = late;
-  for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
-  if (!late.empty() && (format != "jpeg" || lower.find("premature end") != std::string::npos))
+  if (reported_damage(format, late))
     failed(late + " (the reader decoded what it could and reported this: a truncated or corrupt file)");
   // Where the file says its texels are stored (EXIF/TIFF Orientation 2-8), they are laid out as
   // it is displayed, as image viewers and the tools that painted it show it (read as stored, a
@@ -542,7 +614,7 @@ Texture load_texture_oiio(const std::string& path, AlphaSource alpha, bool* alph
   in->close();
   // libjpeg calls missing scan lines a warning and OpenImageIO returns them grey without an
   // error: a JPEG must end with its end-of-image marker (FF D9), trailing blanks aside
-  if (format == "jpeg") check_jpeg_end(path);
+  if (format == "jpeg") check_jpeg_end(path, read_input_file(path, "texture"));
   const bool turned = orientation >= 5 && orientation <= 8;
   const uint32_t sw = tex.width, sh = tex.height;
   if (turned) std::swap(tex.width, tex.height);

@@ -33,6 +33,19 @@ enum class AlphaSource {
 Texture load_texture(const std::string& path, AlphaSource alpha = AlphaSource::kImage,
                      bool* alpha_channel = nullptr);
 
+// An encoded PNG or JPEG in memory (a glTF's image), decoded with load_texture's checks: the
+// format by its first bytes, the header's size against the pixel limit before the pixels are
+// allocated, truncated or corrupt data refused (a JPEG must reach its end-of-image marker, a
+// PNG's checksums must hold). The pixels as stored: no orientation applied, alpha unassociated as
+// PNG stores it, `bits` 8 or 16 (16-bit samples in the host's byte order), `channels` 1 to 4 a
+// pixel. `name` names the image in messages. Throws Error; without OpenImageIO it always does.
+struct DecodedImage {
+  uint32_t width = 0, height = 0;
+  int channels = 0, bits = 0;
+  std::vector<uint8_t> data;
+};
+DecodedImage decode_image(const std::string& name, const unsigned char* bytes, size_t size);
+
 // Linear radiance -> sRGB-encoded 8-bit (NaN -> 0, clamped to [0, 1] first).
 uint8_t linear_to_srgb8(float linear);
 

@@ -1023,7 +1023,24 @@ TEST_CASE("glTF: values TinyGLTF drops are refused by path, images no material u
       {"a count of 0", [](nlohmann::json& j) { j["accessors"][1]["count"] = 0; }, "accessors[1].count"},
       {"a NUL in an image URI", [](nlohmann::json& j) { j["images"][0]["uri"] = std::string("a.png\0.jpg", 10); },
        "images[0].uri"},
-      {"a %00 in an image URI", [](nlohmann::json& j) { j["images"][0]["uri"] = "a.png%00.jpg"; }, "images[0].uri"}};
+      {"a %00 in an image URI", [](nlohmann::json& j) { j["images"][0]["uri"] = "a.png%00.jpg"; }, "images[0].uri"},
+      // A later sweep: an index of 2^32 or more was read modulo 2^32 (scene 4294967297 chose scene
+      // 1, POSITION 4294967298 accessor 2), a string or a fraction as absent
+      {"a scene index past 2^32", [](nlohmann::json& j) { j["scene"] = 4294967296ull; }, "scene"},
+      {"a string scene", [](nlohmann::json& j) { j["scene"] = "0"; }, "scene"},
+      {"a scene's node past 2^32", [](nlohmann::json& j) { j["scenes"][0]["nodes"] = {4294967296ull}; },
+       "scenes[0].nodes"},
+      {"a fractional scene node", [](nlohmann::json& j) { j["scenes"][0]["nodes"] = {0.5}; }, "scenes[0].nodes"},
+      {"a POSITION past 2^32",
+       [](nlohmann::json& j) { j["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 4294967296ull; },
+       "attributes.POSITION"},
+      {"a sampler past 2^32", [](nlohmann::json& j) { j["textures"][0]["sampler"] = 4294967296ull; },
+       "textures[0].sampler"},
+      {"a texCoord past 2^32",
+       [](nlohmann::json& j) { j["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"] = 4294967296ull; },
+       "baseColorTexture.texCoord"},
+      {"an image's buffer view past 2^32", [](nlohmann::json& j) { j["images"][0]["bufferView"] = 4294967296ull; },
+       "images[0].bufferView"}};
   for (const Case& c : cases) {
     nlohmann::json j = base;
     c.edit(j);
@@ -1077,6 +1094,60 @@ TEST_CASE("Textures: a truncated JPEG is refused, one with bytes after its end m
   CHECK_THROWS_WITH(load_texture((dir / "cut_marked.jpg").string(), AlphaSource::kImage, nullptr),
                     Catch::Contains("cut_marked.jpg") && Catch::Contains("truncated or corrupt"));
   std::filesystem::remove_all(dir);
+}
+
+// An outside sweep's find: a glTF's images went through TinyGLTF's decoder (stb_image), which read
+// a JPEG cut short as filler texels, a header claiming 8000 x 8000 as 64 megapixels of filler, and a
+// PNG failing its checksum, all with exit 0, where the OBJ's textures refused the same files.
+TEST_CASE("glTF images: a truncated JPEG, an overstated JPEG header and a PNG failing its checksum are refused",
+          "[unit][loaders][badinput]") {
+  if (!have_image_library()) {
+    WARN("skipped: this build has no OpenImageIO");
+    return;
+  }
+  const fs::path d = temp_dir();
+  std::vector<glm::vec3> rgb(64 * 64);
+  for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = glm::vec3(float(i % 64) / 63.0f, float(i / 64) / 63.0f, 0.5f);
+  write_image((d / "whole.jpg").string(), 64, 64, rgb);
+  write_image((d / "whole.png").string(), 64, 64, rgb);
+  const std::string jpeg = read_input_file((d / "whole.jpg").string(), "texture");
+  const std::string png = read_input_file((d / "whole.png").string(), "texture");
+  std::ofstream((d / "cut_marked.jpg").string(), std::ios::binary) << jpeg.substr(0, jpeg.size() * 3 / 4) << "\xff\xd9";
+  // The frame header's height and width (SOF0: FF C0, length, precision, height, width) as 8000
+  std::string big = jpeg;
+  const size_t sof = big.find("\xff\xc0");
+  REQUIRE(sof != std::string::npos);
+  big[sof + 5] = big[sof + 7] = char(8000 >> 8);
+  big[sof + 6] = big[sof + 8] = char(8000 & 0xFF);
+  std::ofstream((d / "big.jpg").string(), std::ios::binary) << big;
+  // A byte of the first IDAT chunk's data changed: its CRC fails
+  std::string crc = png;
+  const size_t idat = crc.find("IDAT");
+  REQUIRE(idat != std::string::npos);
+  crc[idat + 8] = char(crc[idat + 8] ^ 0x5A);
+  std::ofstream((d / "crc.png").string(), std::ios::binary) << crc;
+  const std::string mask = R"({"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}})";
+  for (const char* name : {"cut_marked.jpg", "big.jpg", "crc.png"}) {
+    INFO(name);
+    Scene s;
+    TextureCache cache;
+    CHECK_THROWS_WITH(load_gltf(write_text(d / "bad.gltf", gltf_textured(glm::vec2(0.5f), {mask}, name)), s, cache),
+                      Catch::Contains("image 0") && Catch::Contains(name));
+  }
+  // The intact files load with the texels the OBJ's textures get
+  for (const char* name : {"whole.jpg", "whole.png"}) {
+    INFO(name);
+    Scene s;
+    TextureCache cache;
+    load_gltf(write_text(d / "good.gltf", gltf_textured(glm::vec2(0.5f), {mask}, name)), s, cache);
+    REQUIRE(s.materials.size() == 1);
+    REQUIRE(s.materials[0].diffuse_texture >= 0);
+    const Texture& t = s.textures[size_t(s.materials[0].diffuse_texture)];
+    const Texture ref = load_texture((d / name).string(), AlphaSource::kImage, nullptr);
+    REQUIRE(t.width == ref.width);
+    REQUIRE(t.height == ref.height);
+    CHECK(t.rgba == ref.rgba);
+  }
 }
 
 namespace {

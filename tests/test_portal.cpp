@@ -673,6 +673,13 @@ TEST_CASE("Portal: bad input is a clear Error", "[portal][unit][badinput]") {
   CHECK_THAT(msg([] { parse_tile_map("size 3 1 1\nsize 4 1 1\nmap\n1E1\n", "two"); }),
              Catch::Contains("two:2: 'size' given twice"));
   CHECK_THAT(msg([] { parse_tile_map("size 3 1 1\nbogus\nmap\n1E1\n"); }), Catch::Contains("unknown keyword"));
+  // A glass filter or a colour above 1 amplifies light: a filter of 3e38 drew +inf pixels with exit
+  // 0 (an outside sweep); 1 itself is a colour
+  CHECK_THAT(msg([] { parse_tile_map("size 3 1 1\nmaterial g x 3e38 3e38 3e38 glass 1.5\nmap\n1Eg\n", "f"); }),
+             Catch::Contains("f:2: material colour must be within [0, 1]"));
+  CHECK_THAT(msg([] { parse_tile_map("size 3 1 1\nmaterial w x 0.5 1.01 0.5\nmap\n1Ew\n", "w"); }),
+             Catch::Contains("w:2: material colour must be within [0, 1]"));
+  CHECK_NOTHROW(parse_tile_map("size 3 1 1\nmaterial w x 1 1 0\nmap\n1Ew\n", "w"));
   World big;
   big.name = "big";
   big.dims = {256, 1, 1};

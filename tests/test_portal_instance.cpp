@@ -185,6 +185,8 @@ TEST_CASE("Portal instancing: bad block maps are clear errors", "[portal][instan
   CHECK_THAT(err("scale 4\nsize 5 5 1\nblock a\nbox 0 0 0 4 4 4 1\n" + rows), Catch::Contains("unknown keyword"));
   CHECK_THAT(err(head + "map\nAAAAA\nA.Z.A\nA.E.A\nA...A\nAAAAA\n"), Catch::Contains("unknown character 'Z'"));
   CHECK_THAT(err(head + "map\nAAAAA\nA...A\n"), Catch::Contains("expected 5 map rows"));
+  CHECK_THAT(err("scale 4\nsize 5 5 1\nmaterial m x 2 0 0\nblock a\nbox 0 0 0 4 4 4 1\nend\ntile A a\n" + rows),
+             Catch::Contains("material colour must be within [0, 1]"));
   CHECK_THAT(err("scale 16\nsize 255 255 20\nblock a\nend\ntile A a\nmap\n"), Catch::Contains("2^29"));
   CHECK_THAT(err("scale 4\nsize 256 5 1\n"), Catch::Contains("255 tiles"));
   CHECK_THAT(err("scale 4\nsize 5 5 1\n" + rows), Catch::Contains("no blocks"));

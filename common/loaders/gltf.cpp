@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
+#include "gridrt/common/image_io.h"
 #include "gridrt/common/loaders/loaders.h"
 #include "gridrt/common/safe_io.h"
 #include "gridrt/common/scene_io.h"
@@ -340,6 +341,23 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
   const auto array = [&](const char* key) -> const nlohmann::json* {
     return j.is_object() && j.contains(key) && j[key].is_array() ? &j[key] : nullptr;
   };
+  // An index is an integer from 0 below 2^31 wherever the file gives one: TinyGLTF reads a larger
+  // one modulo 2^32 ("scene": 4294967297 chose scene 1, "POSITION": 4294967298 accessor 2) and a
+  // string or a fraction as absent (scene 0), without a word (an outside sweep)
+  const auto is_index = [](const nlohmann::json& v) {
+    return v.is_number_integer() && v.get<int64_t>() >= 0 && v.get<int64_t>() <= INT32_MAX;
+  };
+  if (j.is_object() && j.contains("scene") && !is_index(j["scene"]))
+    fail("scene", "expected an index (an integer from 0), found " + j["scene"].dump().substr(0, 64));
+  if (const nlohmann::json* scenes = array("scenes"))
+    for (size_t i = 0; i < scenes->size(); ++i) {
+      const nlohmann::json& s = (*scenes)[i];
+      if (!s.is_object() || !s.contains("nodes")) continue;
+      const std::string where = "scenes[" + std::to_string(i) + "].nodes";
+      if (!s["nodes"].is_array()) fail(where, "expected an array of node indices");
+      for (const nlohmann::json& n : s["nodes"])
+        if (!is_index(n)) fail(where, "expected an array of node indices, found " + n.dump().substr(0, 64));
+    }
   if (const nlohmann::json* nodes = array("nodes"))
     for (size_t i = 0; i < nodes->size(); ++i) {
       const nlohmann::json& n = (*nodes)[i];
@@ -353,7 +371,7 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
       if (n.contains("children")) {
         if (!n["children"].is_array()) fail(where + ".children", "expected an array of indices");
         for (const nlohmann::json& c : n["children"])
-          if (!c.is_number_integer() || c.get<int64_t>() < 0) fail(where + ".children", "expected an array of indices");
+          if (!is_index(c)) fail(where + ".children", "expected an array of indices, found " + c.dump().substr(0, 64));
       }
     }
   if (const nlohmann::json* meshes = array("meshes"))
@@ -366,8 +384,7 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
         for (const char* key : {"material", "indices", "mode"}) index(p, key, where);
         if (p.is_object() && p.contains("attributes") && p["attributes"].is_object())
           for (auto a = p["attributes"].begin(); a != p["attributes"].end(); ++a)
-            if (!a->is_number_integer() || a->get<int64_t>() < 0)
-              fail(where + ".attributes." + a.key(), "expected an accessor index, found " + a->dump());
+            if (!is_index(*a)) fail(where + ".attributes." + a.key(), "expected an accessor index, found " + a->dump());
       }
     }
   // Offsets, strides, counts and flags of the buffer views and accessors: TinyGLTF read a string,
@@ -396,6 +413,7 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
         const nlohmann::json& b = (*list)[i];
         const std::string where = std::string(kind) + "[" + std::to_string(i) + "]";
         if (std::string(kind) == "buffers") whole(b, "byteLength", where, 1);
+        else index(b, "bufferView", where);
         if (!b.is_object() || !b.contains("uri")) continue;
         if (!b["uri"].is_string()) fail(where + ".uri", "expected a string");
         const std::string uri = b["uri"].get<std::string>();
@@ -428,6 +446,7 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
         numbers(pbr, "baseColorFactor", 4, where + ".pbrMetallicRoughness");
         if (pbr.contains("baseColorTexture")) {
           index(pbr["baseColorTexture"], "index", where + ".pbrMetallicRoughness.baseColorTexture");
+          index(pbr["baseColorTexture"], "texCoord", where + ".pbrMetallicRoughness.baseColorTexture");
           if (pbr["baseColorTexture"].is_object() && pbr["baseColorTexture"].contains("index"))
             textures.insert(pbr["baseColorTexture"]["index"].get<int>());
         }
@@ -436,6 +455,7 @@ void check_gltf_json(const std::string& path, std::string_view text, std::set<in
   if (const nlohmann::json* texs = array("textures"))
     for (size_t t = 0; t < texs->size(); ++t) {
       index((*texs)[t], "source", "textures[" + std::to_string(t) + "]");
+      index((*texs)[t], "sampler", "textures[" + std::to_string(t) + "]");
       if (textures.count(int(t)) && (*texs)[t].is_object() && (*texs)[t].contains("source"))
         used.insert((*texs)[t]["source"].get<int>());
     }
@@ -516,7 +536,27 @@ bool load_image_checked(tinygltf::Image* image, const int index, std::string* er
   require_host_memory(w * h * 12, "glTF image " + std::to_string(index) + " (" + std::to_string(w) + " x " +
                                       std::to_string(h) + " pixels, decoded)",
                       "lower --max-texture-pixels, or use smaller textures");
-  return tinygltf::LoadImageData(image, index, err, warn, req_w, req_h, bytes, size, nullptr);  // its options: none
+  // Decoded as the OBJ's textures are (image_io.h decode_image): TinyGLTF's decoder (stb_image)
+  // read a JPEG cut short as texels of filler, one whose header claimed 8000 x 8000 as 64
+  // megapixels of it, and a PNG whose data fails its checksum, all without a word (an outside
+  // sweep). A build without OpenImageIO (the GPU machine's, which loads .gridscene caches) keeps
+  // TinyGLTF's decoder.
+  if (!have_image_library())
+    return tinygltf::LoadImageData(image, index, err, warn, req_w, req_h, bytes, size, nullptr);  // its options: none
+  try {
+    const std::string name = "image " + std::to_string(index) + (image->uri.empty() ? "" : " ('" + image->uri + "')");
+    DecodedImage d = decode_image(name, bytes, size_t(size));
+    image->width = int(d.width);
+    image->height = int(d.height);
+    image->component = d.channels;
+    image->bits = d.bits;
+    image->pixel_type = d.bits == 16 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    image->image = std::move(d.data);
+    return true;
+  } catch (const Error& e) {
+    if (err) *err += std::string(e.what()) + "\n";
+    return false;
+  }
 }
 
 // TinyGLTF's FileExists probes a path by opening it (fopen): a FIFO blocked there forever, before

@@ -251,8 +251,9 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
       std::string c, mname, opt;
       float r, g, b;
       if (!(ls >> c >> mname >> r >> g >> b) || c.size() != 1) fail(name, lineno, "expected 'material CHAR NAME R G B'");
-      if (!std::isfinite(r) || !std::isfinite(g) || !std::isfinite(b) || r < 0.0f || g < 0.0f || b < 0.0f)
-        fail(name, lineno, "material colour must be finite and not negative");
+      // Within [0, 1], a reflectance (as tile maps' colours: world.cpp)
+      if (!(r >= 0.0f && r <= 1.0f && g >= 0.0f && g <= 1.0f && b >= 0.0f && b <= 1.0f))
+        fail(name, lineno, "material colour must be within [0, 1] (a reflectance)");
       if (ls >> opt) fail(name, lineno, "glass is not supported in block maps");
       if (reserved(c[0])) fail(name, lineno, "'" + c + "' is reserved");
       if (tiles.count(c[0])) fail(name, lineno, "'" + c + "' is a tile's character");

@@ -153,8 +153,10 @@ void parse_material(std::istringstream& ls, const std::string& name, size_t line
   float r, g, b;
   if (!(ls >> c >> mname >> r >> g >> b) || c.size() != 1)
     fail(name, lineno, "expected 'material CHAR NAME R G B [glass IOR]'");
-  if (!std::isfinite(r) || !std::isfinite(g) || !std::isfinite(b) || r < 0.0f || g < 0.0f || b < 0.0f)
-    fail(name, lineno, "material colour must be finite and not negative");
+  // A colour is a reflectance, and a glass's its transmittance per voxel: within [0, 1]. Above 1
+  // it amplifies light (a glass filter of 3e38 made its pixels +inf, exit 0: an outside sweep)
+  if (!(r >= 0.0f && r <= 1.0f && g >= 0.0f && g <= 1.0f && b >= 0.0f && b <= 1.0f))
+    fail(name, lineno, "material colour must be within [0, 1] (a reflectance, or glass's transmittance per voxel)");
   if (c[0] == '.' || c[0] == 'E' || c[0] == 'L' || c[0] == ' ') fail(name, lineno, "'" + c + "' is reserved");
   WallMaterial m{mname, glm::vec3(r, g, b), false, 1.5f, glm::vec3(1.0f)};
   std::string opt;
