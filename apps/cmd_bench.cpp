@@ -869,6 +869,7 @@ void run_bench(const BenchOptions& options) {
   }
   resolve_image_limit(o.backend_options, std::find(o.backends.begin(), o.backends.end(), "vulkan") != o.backends.end());
   const Scene scene = load_scene_or_default(o.scene);
+  if (!o.json.empty()) check_output_allowed(o.json, "JSON report");  // not over an input: refused now, not after
   // A backend named twice is timed once (the report keeps one entry a backend)
   std::vector<std::string> backends;
   for (const std::string& b : o.backends)

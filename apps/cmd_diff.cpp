@@ -708,6 +708,9 @@ int DiffRun::run() {
   DiffOptions o = o_;
   resolve_image_limit(o.backend_options, true);
   scene_ = load_scene_or_default(o.scene);
+  // A report over a file the scene read is refused now, not after the whole diff (an outside sweep)
+  if (!o_.json_path.empty()) check_output_allowed(o_.json_path, "JSON report");
+  if (!o_.junit_path.empty()) check_output_allowed(o_.junit_path, "JUnit report");
   grid_ = grid_options_for(o.backend_options, scene_);
   vulkan::ContextOptions co = vulkan::ContextOptions::from_env();
   co.validation = o.validation != "off";

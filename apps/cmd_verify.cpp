@@ -89,6 +89,7 @@ void run_verify(const VerifyCliOptions& o) {
     throw OptionsError("--offset moves the translated run's scene, which is off here (--no-translated, or --families "
                        "without translated): leave it out");
   const Scene scene = load_scene_or_default(o.scene);
+  if (!o.json.empty()) check_output_allowed(o.json, "JSON report");  // not over an input: refused now, not after
   // The translated run by default only where the moved scene is still a scene; asked for by name,
   // verify_scene refuses it with the reason.
   BackendOptions bo = o.backend_options;

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string_view>
 #include <system_error>
 
@@ -264,8 +265,34 @@ std::string texture_format(const std::string& path) {
 // above it or not a number (a plain PNM's "-5" read as 251, "300" under 255 clamped; a raw PNM's
 // byte above a largest value below 255 scaled past white): OpenImageIO read such files as textures
 // of some colour without a word (an outside sweep). The count of samples is its reader's to check.
+// A PFM (PF colour, Pf grey: magic, width, height, scale, one blank, then 32-bit floats whose byte
+// order the scale's sign gives) whose samples are not all finite is refused: OpenImageIO read NaN
+// as 0 and infinity as white into the 8-bit texture without a word (an outside sweep). The count
+// of samples is its reader's to check.
+void check_pfm(const std::string& path, const std::string& data) {
+  const bool colour = data[1] == 'F';
+  std::istringstream head(data.substr(0, std::min<size_t>(data.size(), 256)));
+  std::string magic;
+  long w = 0, h = 0;
+  double scale = 0.0;
+  if (!(head >> magic >> w >> h >> scale) || w <= 0 || h <= 0 || !std::isfinite(scale) || scale == 0.0) return;
+  const std::streamoff at = head.tellg();
+  if (at < 0) return;
+  const size_t from = size_t(at) + 1;  // the one blank after the scale
+  const bool little = scale < 0.0;
+  const uint64_t samples = uint64_t(w) * uint64_t(h) * (colour ? 3u : 1u);
+  for (uint64_t i = 0; i < samples && from + 4 * i + 4 <= data.size(); ++i) {
+    const auto b = [&](size_t k) { return uint32_t(static_cast<unsigned char>(data[from + 4 * i + k])); };
+    const uint32_t bits = little ? (b(0) | b(1) << 8 | b(2) << 16 | b(3) << 24) : (b(3) | b(2) << 8 | b(1) << 16 | b(0) << 24);
+    if ((bits & 0x7F800000u) == 0x7F800000u)
+      throw Error("cannot load texture '" + path + "': its PFM holds " + ((bits & 0x007FFFFFu) ? "NaN" : "an infinity") +
+                  " at sample " + std::to_string(i) + " (texels must be finite numbers)");
+  }
+}
+
 void check_pnm(const std::string& path) {
   const std::string data = read_input_file(path, "texture");
+  if (data.size() >= 2 && data[0] == 'P' && (data[1] == 'F' || data[1] == 'f')) return check_pfm(path, data);
   if (data.size() < 2 || data[0] != 'P' || data[1] < '1' || data[1] > '6') return;  // the reader's to refuse
   const char kind = data[1];
   const bool has_max = kind != '1' && kind != '4';

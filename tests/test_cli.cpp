@@ -464,6 +464,15 @@ TEST_CASE("CLI: explain writes /dev/stdout after its report, and refuses outputs
                                    (d / "tex.obj").string());
   INFO(verify_over.output);
   CHECK(verify_over.exit_code == 1);
+  // diff's reports: refused as soon as the scene is read, not after the whole diff (an outside sweep)
+  for (const char* report : {"--junit", "--json"}) {
+    const Run diff_over = run_tool("diff " + (d / "tex.obj").string() + " --width 8 --height 6 " + report + " " +
+                                   (d / "tex.mtl").string());
+    INFO(diff_over.output);
+    CHECK(diff_over.exit_code == 1);
+    CHECK_THAT(diff_over.output, Catch::Contains("an output may not replace an input"));
+    CHECK_THAT(diff_over.output, !Catch::Contains("AGREE") && !Catch::Contains("DIFFER"));
+  }
   // Untouched
   std::ifstream tri(obj);
   const std::string mesh((std::istreambuf_iterator<char>(tri)), {});

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -1258,6 +1259,29 @@ TEST_CASE("Textures: EXIF/TIFF orientation applied, a premultiplied TIFF's colou
     std::ofstream(path, std::ios::binary) << text;
     if (ok) CHECK_NOTHROW(load_texture(path, AlphaSource::kImage, nullptr));
     else CHECK_THROWS_WITH(load_texture(path, AlphaSource::kImage, nullptr), Catch::Contains(name) && Catch::Contains(why));
+  }
+  // A PFM's samples must be finite: NaN was read as 0 and infinity as white (an outside sweep);
+  // either byte order (the scale's sign), grey and colour
+  const auto pfm = [](const char* magic, float scale, const std::vector<float>& v) {
+    std::string s = std::string(magic) + "\n" + std::to_string(v.size() / (magic[1] == 'F' ? 3 : 1)) + " 1\n" +
+                    (scale < 0 ? "-1.0" : "1.0") + "\n";
+    for (float f : v) {
+      uint32_t bits;
+      std::memcpy(&bits, &f, 4);
+      for (int k = 0; k < 4; ++k) s += char(scale < 0 ? (bits >> (8 * k)) & 0xFF : (bits >> (8 * (3 - k))) & 0xFF);
+    }
+    return s;
+  };
+  for (const auto& [name, text, ok] :
+       {std::tuple{"fine.pfm", pfm("PF", -1.0f, {0.25f, 0.5f, 1.0f}), true},
+        std::tuple{"fine_big_endian.pfm", pfm("Pf", 1.0f, {0.25f, 0.75f}), true},
+        std::tuple{"nan.pfm", pfm("PF", -1.0f, {0.25f, NAN, 1.0f}), false},
+        std::tuple{"inf_big_endian.pfm", pfm("Pf", 1.0f, {0.25f, INFINITY}), false}}) {
+    INFO(name);
+    const std::string path = (dir / name).string();
+    std::ofstream(path, std::ios::binary) << text;
+    if (ok) CHECK_NOTHROW(load_texture(path, AlphaSource::kImage, nullptr));
+    else CHECK_THROWS_WITH(load_texture(path, AlphaSource::kImage, nullptr), Catch::Contains(name) && Catch::Contains("finite"));
   }
   std::filesystem::remove_all(dir);
 }
