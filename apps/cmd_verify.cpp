@@ -162,6 +162,18 @@ void run_verify(const VerifyCliOptions& o) {
     std::fflush(stdout);
     std::exit(3);
   }
+  // A family asked for by name that judged no ray checked nothing the user asked for: an error, not
+  // an OK with a note (an outside sweep: `--families edge,translated --offset 3e6,0,0` on a cube,
+  // whose moved copy is a scene, judged no translated ray and said OK)
+  std::string named_idle;
+  for (const std::string& n : idle)
+    if (std::find(o.families.begin(), o.families.end(), n) != o.families.end())
+      named_idle += (named_idle.empty() ? "" : ", ") + n;
+  if (!named_idle.empty()) {
+    std::fflush(stdout);
+    throw Error("verify: asked for by name, judged no ray (none made, or all outside the domain): " + named_idle +
+                "; nothing of it was checked (another scene, --offset or --seed, or leave it out)");
+  }
   std::printf("verify: %s%s\n", failures ? "differences reported (paper traversal)" : "OK: no wrong answer, no crack",
               !failures && !idle.empty() ? " (on the families that judged rays)" : "");
 }

@@ -68,7 +68,8 @@ glm::vec3 unit_normal(const std::array<glm::vec3, 3>& t) {
 
 bool finite3(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-// Whether o + k d == target exactly (k = 1 or 2), in integers (the floats scaled by 2^175).
+// Whether k (o + d) == target exactly (k = 1: the vertex; k = 2: a + b, twice the edge's midpoint),
+// in integers (the floats scaled by 2^175).
 mpz_class scaled(float f) {
   if (f == 0.0f) return 0;
   int e = 0;
@@ -79,7 +80,7 @@ mpz_class scaled(float f) {
 }
 bool passes_exactly(glm::vec3 o, glm::vec3 d, int k, glm::vec3 a, glm::vec3 b, bool midpoint) {
   for (int i = 0; i < 3; ++i) {
-    const mpz_class lhs = scaled(o[i]) + k * scaled(d[i]);
+    const mpz_class lhs = k * (scaled(o[i]) + scaled(d[i]));
     const mpz_class rhs = midpoint ? scaled(a[i]) + scaled(b[i]) : scaled(a[i]);
     if (lhs != rhs) return false;
   }
@@ -88,7 +89,10 @@ bool passes_exactly(glm::vec3 o, glm::vec3 d, int k, glm::vec3 a, glm::vec3 b, b
 
 // A ray through `target` (a vertex) or through the midpoint of a-b (midpoint), exactly: the
 // origin is drawn near it, the direction computed in double and kept only where the identity
-// holds exactly (o + d == v, or o + 2d == a + b).
+// holds exactly (o + d == v, or 2 (o + d) == a + b: o + d is the midpoint). (The identity was
+// o + 2d == a + b, which puts a + b, not the midpoint, on the ray: the edge family's rays passed
+// through no edge, and found no tie in a thousand; an outside sweep saw the directions, about
+// (a + b) / 4, leave the domain on a scene moved 2^21 away.)
 // A ray whose direction is shorter than the domain's least (its largest component below 2^-20,
 // shared::ray_domain) lengthened by a power of two, exactly (the same line; tmin and tmax shrunk by
 // it, exactly too), so that it is traced: the families that aim at a feature's point, graze a face
@@ -106,13 +110,22 @@ Ray scaled_into_domain(Ray r) {
 
 bool aim_exactly(Rng& rng, glm::vec3 a, glm::vec3 b, bool midpoint, float scale, Ray& out) {
   for (int attempt = 0; attempt < 24; ++attempt) {
-    const float r = scale * float(std::exp2(-12.0 * rng.uniform()));
     const glm::vec3 dir0 = rng.sphere();
     const glm::dvec3 target = midpoint ? (glm::dvec3(a) + glm::dvec3(b)) : glm::dvec3(a);
     const int k = midpoint ? 2 : 1;
+    // The origin at least 2^-16 of the point's largest coordinate from it, 16 times the origin
+    // epsilon (shared::origin_tmin): nearer, the point lies inside the ray's epsilon and no tracer
+    // reaches it (far from the origin two rays in three of the scene-sized draws did)
+    const double reach = std::max({std::abs(target.x), std::abs(target.y), std::abs(target.z)}) / double(k);
+    const float r = std::max(scale * float(std::exp2(-12.0 * rng.uniform())), float(std::ldexp(reach, -16)));
     // origin: target / k' - dir * r, rounded; then d = (target - o) / k in double, rounded
-    const glm::vec3 o = glm::vec3((midpoint ? target * 0.5 : target) - glm::dvec3(dir0) * double(r));
-    const glm::vec3 d = glm::vec3((target - glm::dvec3(o)) / double(k));
+    // (o read back through memory: GCC 12 at -O2 computed d below from the double before its
+    // rounding to float, so the identity failed on most draws and those that passed were not the
+    // floats traced)
+    const glm::vec3 o0 = glm::vec3((midpoint ? target * 0.5 : target) - glm::dvec3(dir0) * double(r));
+    volatile float stored[3] = {o0.x, o0.y, o0.z};
+    const glm::vec3 o(stored[0], stored[1], stored[2]);
+    const glm::vec3 d = glm::vec3(target / double(k) - glm::dvec3(o));
     if (!(finite3(o) && finite3(d)) || d == glm::vec3(0.0f)) continue;
     if (!passes_exactly(o, d, k, a, b, midpoint)) continue;
     out = scaled_into_domain(make_ray(o, d));

@@ -139,13 +139,14 @@ SH_INLINE float raster_edge_max(SH_IN(vec3) e, uint x0, uint y0, uint x1, uint y
 
 // A lower bound of the ray test's t at every pixel of [x0, x1] x [y0, y1] it accepts: the larger
 // of the triangle's t_lo and the depth plane's k / P (P its largest value over the rectangle, at a
-// corner; every accepted pixel has its sigma (d . n) <= P). A plain division: its rounding, and a
-// GPU's, are far within the margin of 2^-10 in k. P <= 0 (no pixel there can be accepted) or no
-// plane: t_lo.
+// corner; every accepted pixel has its sigma (d . n) <= P). The division is sh_div, as all the
+// shared math's (the same bound on both sides; its rounding is far within the margin of 2^-10 in
+// k). P <= 0 (no pixel there can be accepted) or no plane: t_lo.
 SH_INLINE float raster_tile_t_lo(SH_IN(vec4) depth, float t_lo, uint x0, uint y0, uint x1, uint y1) {
   const float p = raster_edge_max(vec3(depth.x, depth.y, depth.z), x0, y0, x1, y1);
-  const float t = depth.w / p;
-  return p > 0.0f && t > t_lo ? t : t_lo;
+  if (!(p > 0.0f)) return t_lo;
+  const float t = sh_div(depth.w, p);
+  return t > t_lo ? t : t_lo;
 }
 
 // Whether the ray test may accept some pixel of [x0, x1] x [y0, y1] (inclusive).
