@@ -14,6 +14,18 @@ CameraFrame camera_frame(const Camera& camera) {
   const glm::vec3 r = glm::cross(f.forward, camera.up);
   if (!(glm::length(r) > 1e-6f * glm::length(camera.up))) throw Error("camera: up is parallel to the view direction");
   f.right = glm::normalize(r);
+  // An up within a few degrees of the view direction: the float cross product's rounding, relative
+  // to its small length, turned `right` off the perpendicular (forward . right 0.057 with up 1e-6
+  // rad off the view): every bound of the GPU gather that takes the pixel directions' frame as
+  // orthonormal (the screen box, the depth plane) then left out pixels the ray test accepts (an
+  // outside sweep). There `right` is made in double and made perpendicular to the float forward;
+  // other cameras keep the float frame they always had.
+  if (glm::length(r) < 0.0625f * glm::length(camera.up)) {
+    const glm::dvec3 fw(f.forward);
+    glm::dvec3 rd = glm::cross(fw, glm::dvec3(camera.up));
+    rd -= glm::dot(rd, fw) / glm::dot(fw, fw) * fw;
+    f.right = glm::vec3(glm::normalize(rd));
+  }
   f.up = glm::cross(f.right, f.forward);
   if (!(camera.vfov_degrees > 0.0f && camera.vfov_degrees < 180.0f))
     throw Error("camera: vertical field of view must lie in (0, 180) degrees");

@@ -113,11 +113,20 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
   auto rvec = [&] { return glm::vec3(u(rng), u(rng), u(rng)); };
   Counts n, near_eye;  // near_eye: the two near-eye families
   const uint32_t sizes[2][2] = {{64, 48}, {45, 37}};  // a multiple of the tile, and neither of tile nor bin
-  for (int cam = 0; cam < 24; ++cam) {
+  // Cameras 24..29: up within 1e-6 to 1e-3 rad of the view direction, narrow fields of view among
+  // them (an outside sweep: the float frame's right was 0.057 off the perpendicular there, and
+  // the screen box and the depth plane left out accepted pixels)
+  for (int cam = 0; cam < 30; ++cam) {
     Camera camera;
     camera.eye = 5.0f * rvec();
     camera.target = camera.eye + glm::vec3(u(rng), 0.3f * u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 0.01f);
     camera.vfov_degrees = 20.0f + 100.0f * (0.5f + 0.5f * u(rng));
+    if (cam >= 24) {
+      const glm::vec3 view = glm::normalize(camera.target - camera.eye);
+      const glm::vec3 side = glm::normalize(glm::cross(view, glm::vec3(0.3f, 1.0f, 0.2f)));
+      camera.up = view + std::pow(10.0f, -6.0f + float(cam - 24) * 0.6f) * side;
+      if (cam % 2) camera.vfov_degrees = 0.5f + 3.5f * (0.5f + 0.5f * u(rng));
+    }
     const uint32_t w = sizes[cam % 2][0], h = sizes[cam % 2][1];
     const shared::CameraParams c = camera_params(camera, w, h);
     const glm::vec3 eye = c.eye, f = c.forward, r = c.right, up = c.up;
@@ -271,6 +280,49 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
   // the eye in the triangle's plane
   CHECK_FALSE(shared::raster_setup(c, c.eye + glm::vec3(-1, 0, -1), c.eye + glm::vec3(1, 0, -1), c.eye + glm::vec3(0, 0, -3),
                                    e0, e1, e2, t_lo));
+}
+
+// An outside sweep's cameras: up within about 1e-6 and 1e-4 rad of the view direction. The float
+// frame's right was 0.057 and 5e-4 off the perpendicular, so the screen box (which projects with
+// the frame as if orthonormal) lay up to 29 pixels beside the pixels the test accepts, and the
+// depth plane's |d| >= 1 failed (its tile bound above the winning triangle's t): the GPU gather
+// lost those pixels. camera_frame now makes such a frame's right in double, perpendicular.
+TEST_CASE("Gather rasterizer: a camera whose up nearly follows its view keeps every accepted pixel in its bounds",
+          "[unit][gather]") {
+  struct Case {
+    Camera camera;
+    uint32_t w, h;
+    std::vector<glm::vec3> v;  // triangles, three vertices each
+  };
+  Camera skew;
+  skew.eye = glm::vec3(0.0f);
+  skew.target = glm::vec3(0.785459936f, -0.722745419f, 0.783881724f);
+  skew.up = glm::vec3(0.93749404f, -0.862640262f, 0.935608327f);
+  skew.vfov_degrees = 4.0f;
+  Camera mild;
+  mild.eye = glm::vec3(0.0f);
+  mild.target = glm::vec3(-0.760544777f, -0.660571456f, 0.761186421f);
+  mild.up = glm::vec3(-0.965892434f, -0.839051783f, 0.966607451f);
+  mild.vfov_degrees = 0.5f;
+  const std::vector<Case> cases = {
+      {skew, 129, 37,
+       {{3.51678864f, -6.72757339f, 7.16742311f}, {7.19936248f, -6.70132019f, 3.5016407f}, {7.07720551f, -2.94376454f, 7.08854093f},
+        {-35.4776313f, -49.436714f, -0.0969786288f}, {45.1094912f, 38.3439456f, 14.0547523f}, {6.53714901f, -6.66984167f, 4.1459999f},
+        {5.90070037f, -5.53817993f, 5.87454664f}, {5.94858205f, -5.48022457f, 5.88060458f}, {5.88713946f, -5.48451723f, 5.93815289f}}},
+      {mild, 97, 120,
+       {{-6.02500585f, -5.23221769f, 6.02687337f}, {-6.02268471f, -5.2333095f, 6.02824523f}, {-6.02390486f, -5.23053796f, 6.02943139f}}}};
+  for (const Case& k : cases) {
+    const shared::CameraParams c = camera_params(k.camera, k.w, k.h);
+    INFO("forward . right " << glm::dot(c.forward, c.right) << ", forward . up " << glm::dot(c.forward, c.up));
+    CHECK(std::abs(glm::dot(c.forward, c.right)) < 1.0e-6f);
+    Counts n;
+    for (size_t t = 0; t + 2 < k.v.size(); t += 3) check_triangle(shared::kTriangleWatertight, c, k.v[t], k.v[t + 1], k.v[t + 2], n);
+    INFO(n.accepted << " accepted pixels");
+    CHECK(n.accepted > 0);
+    CHECK(n.box_fail == 0);
+    CHECK(n.depth_fail + n.tile_depth_fail == 0);
+    CHECK(n.pixel_fail + n.tile_fail + n.bin_fail == 0);
+  }
 }
 
 // gather_frustum_box projects a triangle inside every clip plane as it is, without clipping: the

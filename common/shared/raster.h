@@ -139,11 +139,17 @@ SH_INLINE float raster_edge_max(SH_IN(vec3) e, uint x0, uint y0, uint x1, uint y
 
 // A lower bound of the ray test's t at every pixel of [x0, x1] x [y0, y1] it accepts: the larger
 // of the triangle's t_lo and the depth plane's k / P (P its largest value over the rectangle, at a
-// corner; every accepted pixel has its sigma (d . n) <= P). The division is sh_div, as all the
-// shared math's (the same bound on both sides; its rounding is far within the margin of 2^-10 in
-// k). P <= 0 (no pixel there can be accepted) or no plane: t_lo.
+// corner; every accepted pixel has its sigma (d . n) <= P). P <= 0 (no pixel there can be
+// accepted) or no plane: t_lo. The division is sh_div here, as all the shared math's; the
+// shaders take the same bound with GLSL's division (frame_common.glsl raster_tile_t_lo_fast: a
+// bound, not a result, and a correctly rounded division cost more than the culling saved, "The
+// depth plane's bound per tile" in docs/BENCHMARKS.md), whose error of a few ulps is far within
+// the margin of 2^-10 in k.
+SH_INLINE float raster_tile_p(SH_IN(vec4) depth, uint x0, uint y0, uint x1, uint y1) {
+  return raster_edge_max(vec3(depth.x, depth.y, depth.z), x0, y0, x1, y1);
+}
 SH_INLINE float raster_tile_t_lo(SH_IN(vec4) depth, float t_lo, uint x0, uint y0, uint x1, uint y1) {
-  const float p = raster_edge_max(vec3(depth.x, depth.y, depth.z), x0, y0, x1, y1);
+  const float p = raster_tile_p(depth, x0, y0, x1, y1);
   if (!(p > 0.0f)) return t_lo;
   const float t = sh_div(depth.w, p);
   return t > t_lo ? t : t_lo;

@@ -62,7 +62,7 @@ void main() {
     uint index = 0u, bound = 0u;
     if (lid < n) {
       index = tile_words[2u * pc.tiles + base + lid];
-      bound = floatBitsToUint(raster_tile_t_lo(tile_tris[index].depth, tile_tris[index].t_lo, t0.x, t0.y, t1.x, t1.y));
+      bound = floatBitsToUint(raster_tile_t_lo_fast(tile_tris[index].depth, tile_tris[index].t_lo, t0.x, t0.y, t1.x, t1.y));
       s_bound[lid] = bound;
     }
     barrier();

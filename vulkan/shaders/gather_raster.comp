@@ -70,7 +70,7 @@ void main() {
       }
       barrier();
       const uint depth = s_depth;
-      if (floatBitsToUint(raster_tile_t_lo(g.depth, g.t_lo, qx0, qy0, qx1, qy1)) <= depth) {
+      if (floatBitsToUint(raster_tile_t_lo_fast(g.depth, g.t_lo, qx0, qy0, qx1, qy1)) <= depth) {
         // The whole tile (within the screen) is in the box: its depth bound may be lowered
         const bool whole = qx0 == sx0 && qy0 == sy0 && qx1 == sx1 && qy1 == sy1;
         const uvec2 px = uvec2(sx0, sy0) + gl_LocalInvocationID.xy;

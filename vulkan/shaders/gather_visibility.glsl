@@ -17,6 +17,16 @@
 #include "frame_common.glsl"
 #include "gridrt/common/shared/raster.h"
 
+// raster_tile_t_lo with GLSL's division (a few ulps, far within the depth plane's margin of 2^-10:
+// docs/SPEC.md "Depth plane"): the fine pass takes it for every pair of a tile's list, where the
+// correctly rounded sh_div cost more than the culling saved.
+float raster_tile_t_lo_fast(vec4 depth, float t_lo, uint x0, uint y0, uint x1, uint y1) {
+  const float p = raster_tile_p(depth, x0, y0, x1, y1);
+  if (!(p > 0.0f)) return t_lo;
+  const float t = depth.w / p;
+  return t > t_lo ? t : t_lo;
+}
+
 // The instance holding geometry-buffer triangle `k`: the last whose offset is <= k (build.comp).
 uint gather_instance_of(uint k, uint instance_count) {
   uint lo = 0u;
