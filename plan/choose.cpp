@@ -494,8 +494,9 @@ float target_cell_size(const Scene& scene, const GridOptions& o, const Bounds& b
   const float reach = std::max({std::abs(b.lo.x), std::abs(b.lo.y), std::abs(b.lo.z), std::abs(b.hi.x),
                                 std::abs(b.hi.y), std::abs(b.hi.z)});
   if (!(reach <= shared::kDomainMaxCoordinate))
-    throw Error("grid: the scene reaches " + gnum(reach) + " from the origin; the domain ends at 2^24 = " +
-                gnum(shared::kDomainMaxCoordinate) + " (move it nearer the origin or scale it down)");
+    throw Error("grid: the scene's grid box (its bounds padded by 1e-3 of their largest side) reaches " + gnum(reach) +
+                " from the origin; the domain ends at 2^24 = " + gnum(shared::kDomainMaxCoordinate) +
+                " (move it nearer the origin or scale it down)");
   if (cs > kMaxCellSize)
     throw Error("grid: cells of " + gnum(cs) + " are wider than the domain allows (at most 2^26 = " +
                 gnum(kMaxCellSize) + ", four times its reach: one such cell holds any scene)");
