@@ -749,8 +749,7 @@ TEST_CASE("Exact referee: a miss within rounding of a T-junction's open edge is 
 
 // An outside sweep's find: the edge family's identity was o + 2d == a + b, which put a + b, not the
 // edge's midpoint, on the ray: its rays passed through no edge (a thousand on the atrium, no tie),
-// and on a scene moved 2^21 away their directions, about (a + b) / 4, left the domain. And GCC
-// computed d from the origin before its rounding to float, so the identity failed on most draws.
+// and on a scene moved 2^21 away their directions, about (a + b) / 4, left the domain.
 // Now every edge ray meets two triangles exactly on their shared boundary at one t, and every
 // vertex ray two or more, wherever the ray reaches the point beyond its origin epsilon.
 TEST_CASE("The edge and vertex families' rays pass exactly through a shared edge or vertex, here and far away",

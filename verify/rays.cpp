@@ -119,9 +119,10 @@ bool aim_exactly(Rng& rng, glm::vec3 a, glm::vec3 b, bool midpoint, float scale,
     const double reach = std::max({std::abs(target.x), std::abs(target.y), std::abs(target.z)}) / double(k);
     const float r = std::max(scale * float(std::exp2(-12.0 * rng.uniform())), float(std::ldexp(reach, -16)));
     // origin: target / k' - dir * r, rounded; then d = (target - o) / k in double, rounded
-    // (o read back through memory: GCC 12 at -O2 computed d below from the double before its
-    // rounding to float, so the identity failed on most draws and those that passed were not the
-    // floats traced)
+    // (o read back through memory: in one build GCC 12 at -O2 was seen computing d below from the
+    // double before its rounding to float, a debug print of o.x showing 52 bits, and the identity
+    // failed on most draws; the build of this code rounds first either way, and the cause was not
+    // found, so the floats traced are made explicit)
     const glm::vec3 o0 = glm::vec3((midpoint ? target * 0.5 : target) - glm::dvec3(dir0) * double(r));
     volatile float stored[3] = {o0.x, o0.y, o0.z};
     const glm::vec3 o(stored[0], stored[1], stored[2]);
