@@ -51,6 +51,8 @@ struct BenchOptions {
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
   std::string rays = "auto";       // the traced rays: auto, glossy (the frame's), or a kind (rays_of_kind)
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
+  std::string gather_lists = "buckets";  // vulkan, compute gather: the tile lists' passes
+  std::optional<uint32_t> gather_bucket;  // vulkan, buckets: a tile's room in pairs
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
   ShadowMode shadows = ShadowMode::automatic;  // shadow rays to the lights (auto: iff the scene has some)
   uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
@@ -484,6 +486,10 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
   std::printf("%s (after the last frame's update)\n\n", spill_line.c_str());
   const std::string pair_text =
       frame.gather_mode() != vulkan::GatherMode::compute ? ""
+      : pairs.buckets ? ", " + std::to_string(pairs.pairs) + " tile pairs in buckets of " +
+                            std::to_string(pairs.bucket) + ", " +
+                            std::to_string(pairs.past) + " past them (" + std::to_string(pairs.past_in_place) +
+                            " rasterized by the pairs pass, the rest by the past pass), fine pass"
       : pairs.overflow ? ", " + std::to_string(pairs.pairs) + " tile pairs over the capacity " +
                              std::to_string(pairs.capacity) + ": the item pass ran"
                        : ", " + std::to_string(pairs.pairs) + " tile pairs, fine pass";
@@ -507,7 +513,11 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
                 m["first_static_order"], m["first_build_skip"], m["first_skip_fill"],
                 m["first_skip_table_z"], m["first_skip_table_y"], m["first_skip_table_x"], m["first_skip_bricks"],
                 m["first_skip_cells"], m["first_build_dynamic"]);
-  if (frame.gather_mode() == vulkan::GatherMode::compute && stamps)
+  if (frame.gather_mode() == vulkan::GatherMode::compute && stamps && pairs.buckets)
+    std::printf("gather passes: starting pass (keys, depth bounds, list counts, pixel rays) %.3f, bin %.3f, pairs "
+                "(buckets) %.3f, past %.3f, fine (with its resolve) %.3f ms\n",
+                m["gather_dirs"], m["bin"] - m["gather_dirs"], m["gather_count"], m["gather_scan"], m["gather_fine"]);
+  else if (frame.gather_mode() == vulkan::GatherMode::compute && stamps)
     std::printf("gather passes: starting pass (keys, depth bounds, list counts, pixel rays) %.3f, bin %.3f, count %.3f, "
                 "scan %.3f, scatter %.3f, fine (with its resolve) %.3f ms\n",
                 m["gather_dirs"], m["bin"] - m["gather_dirs"], m["gather_count"], m["gather_scan"], m["gather_scatter"],
@@ -559,6 +569,8 @@ vulkan::FrameOptions frame_options(const BenchOptions& o, const Scene& scene) {
   fo.gather = o.gather == "raster"  ? vulkan::GatherMode::raster
               : o.gather == "boxes" ? vulkan::GatherMode::boxes
                                     : vulkan::GatherMode::compute;
+  fo.gather_lists = o.gather_lists == "scan" ? vulkan::GatherLists::scan : vulkan::GatherLists::buckets;
+  fo.gather_bucket_capacity = o.gather_bucket;
   fo.compact_rays = o.compact_rays;
   fo.shadows = shadows_for(o.shadows, scene);
   return fo;
@@ -691,6 +703,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   j["gather_tiles_frame0"] = gather_tiles;
   j["gather_pairs_frame0"] = run.gather_pairs.pairs;
   j["gather_pairs_overflow"] = run.gather_pairs.overflow;
+  j["gather_lists"] = run.gather_pairs.buckets ? "buckets" : "scan";
+  j["gather_pairs_past_buckets"] = run.gather_pairs.past;
   j["compact_rays"] = o.compact_rays;
   j["shadows"] = frame.shadows();
   j["shadow_rays_per_frame"] = shadow_used;
@@ -1009,6 +1023,13 @@ void add_bench_command(CLI::App& app) {
                   "Vulkan: the frame's gather: compute (the CPU gather's ray test through a rasterizer's bins, tiles "
                   "and depth culling; needs 64-bit buffer atomics), boxes (the same test on every pixel of each "
                   "triangle's box) or raster (the paper's raster pass)");
+  add_choice(cmd, "--gather-lists", o->gather_lists, {"buckets", "scan"},
+             "Vulkan, compute gather: the rasterizer's tile lists written in one pass to a bucket per 8x8-pixel "
+             "tile (a pair past its bucket rasterized there), or counted, scanned and scattered");
+  cmd->add_option("--gather-bucket", o->gather_bucket,
+                  "Vulkan, compute gather with --gather-lists buckets: the pairs a tile's bucket holds (default " +
+                      std::to_string(vulkan::kGatherBucketDefault) + "; the pairs past it are rasterized by the past pass)")
+      ->check(CLI::Range(0u, 1u << 20));
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");
@@ -1029,13 +1050,16 @@ void add_bench_command(CLI::App& app) {
       throw OptionsError("--back-to-back times the Vulkan frame recorded several times a submission: it needs "
                          "--backend vulkan");
     // The Vulkan frame's own knobs did nothing on the other backends (an outside sweep)
-    for (const char* name : {"--gather", "--compact-rays", "--build-passes", "--counter-frames"})
+    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--build-passes", "--counter-frames"})
       if (cmd->count(name) > 0 && std::find(o->backends.begin(), o->backends.end(), "vulkan") == o->backends.end())
         throw OptionsError(std::string(name) + " is a knob of the Vulkan frame: it needs --backend vulkan");
+    if (cmd->count("--gather-bucket") > 0 && (o->gather_lists == "scan" || o->gather != "compute"))
+      throw OptionsError("--gather-bucket sizes the compute gather's buckets: it needs --gather compute and "
+                         "--gather-lists buckets (the defaults)");
     // ... nor with rays of a fixed kind, which every backend, vulkan included, traces as a list
     // without the frame (an outside sweep: accepted, nothing changed)
     if (o->rays != "glossy" && o->rays != "auto") {
-      for (const char* name : {"--gather", "--compact-rays", "--counter-frames", "--back-to-back", "--rtx"})
+      for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--counter-frames", "--back-to-back", "--rtx"})
         if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
           throw OptionsError(std::string(name) + " is a knob of the frame, which traces its glossy bounce rays; --rays " +
                              o->rays + " traces a fixed list of rays without it: it does nothing (leave it out, or "

@@ -34,6 +34,7 @@ using namespace gridrt::test;
 namespace fs = std::filesystem;
 using gridrt::vulkan::FrameOptions;
 using gridrt::vulkan::GatherMode;
+using gridrt::vulkan::GatherLists;
 using gridrt::vulkan::GatherPairs;
 using gridrt::vulkan::VulkanFrame;
 using gridrt::vulkan::VulkanGridTracer;
@@ -631,7 +632,7 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
     scenes.emplace_back("sibenik-teapots", load_scene(std::string(GRIDRT_DATA_DIR) + "/scenes/sibenik-teapots.json"));
   else if (std::getenv("CI"))
     FAIL("the real scenes folder '" << dir << "' is missing, and CI must test with it");
-  size_t valid = 0, scenes_checked = 0, pairs = 0;
+  size_t valid = 0, scenes_checked = 0, pairs = 0, past_one = 0, kept_one = 0, listed_one = 0, in_place = 0;
   for (const auto& [name, scene] : scenes) {
     GridOptions o;
     o.threads = 2;
@@ -641,31 +642,53 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
     if (name == "rasterizer") sizes.emplace_back(809, 701);  // 8976 screen tiles: three of the scan's blocks
     for (const glm::uvec2 size : sizes) {
       INFO(name << " at " << size.x << "x" << size.y);
-      VulkanFrame raster(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false});
+      // The tile lists counted, scanned and scattered
+      VulkanFrame raster(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
+                                                 .gather_lists = GatherLists::scan});
       VulkanFrame boxes(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
                                                 .gather = GatherMode::boxes});
-      // The tile lists without room for a pair: the item pass instead of the fine pass
+      // The same without room for a pair: the item pass instead of the fine pass
       VulkanFrame items(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
-                                                .gather_pair_capacity = 0});
+                                                .gather_lists = GatherLists::scan, .gather_pair_capacity = 0});
+      // The tile lists in buckets (the default): room for all; for one pair a tile (the rest to
+      // the past pass); for none, the past pass's list room for 3 (the rest rasterized by the
+      // pairs pass)
+      VulkanFrame buckets(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false});
+      VulkanFrame bucket1(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
+                                                  .gather_bucket_capacity = 1});
+      VulkanFrame bucket0(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
+                                                  .gather_bucket_capacity = 0, .gather_past_capacity = 3});
       REQUIRE(raster.gather_mode() == GatherMode::compute);
       REQUIRE(boxes.gather_mode() == GatherMode::boxes);
-      raster.render(0);
-      boxes.render(0);
-      items.render(0);
+      for (VulkanFrame* f : {&raster, &boxes, &items, &buckets, &bucket1, &bucket0}) f->render(0);
       const GatherPairs fine_pairs = raster.download_gather_pairs(), item_pairs = items.download_gather_pairs();
       CHECK_FALSE(fine_pairs.overflow);
       CHECK(fine_pairs.pairs <= fine_pairs.capacity);
       CHECK(item_pairs.pairs == fine_pairs.pairs);
       CHECK(item_pairs.overflow == (item_pairs.pairs > 0));
+      const GatherPairs b64 = buckets.download_gather_pairs(), b1 = bucket1.download_gather_pairs(),
+                        b0 = bucket0.download_gather_pairs();
+      CHECK(b64.buckets);
+      CHECK(b64.bucket == 64u);
+      for (const GatherPairs* q : {&b64, &b1, &b0}) CHECK(q->pairs == fine_pairs.pairs);
+      CHECK(b0.past == b0.pairs);
+      CHECK(b0.past_in_place == (b0.pairs > 3 ? b0.pairs - 3 : 0));
+      CHECK(b1.past <= b1.pairs);
+      CHECK(b1.past_in_place <= b1.past);
+      listed_one += b1.past - b1.past_in_place;
+      in_place += b0.past_in_place;
+      for (const GatherPairs* q : {&b64, &b1, &b0}) CHECK(q->past_counted == q->past);
+      past_one += b1.past;
+      kept_one += b1.pairs - b1.past;
       pairs += fine_pairs.pairs;
       const GatherBuffer b = boxes.download_gather();
-      std::vector<const VulkanFrame*> frames{&raster, &items};
+      std::vector<const VulkanFrame*> frames{&raster, &items, &buckets, &bucket1, &bucket0};
       // The scan in two workgroups for three blocks: the first scans a run of two (the carry
       // between blocks), the second sums the counts before its block
       std::optional<VulkanFrame> two_runs;
       if (size.x * size.y > 4096 * 64 * 2) {
         two_runs.emplace(vk, scene, FrameOptions{.width = size.x, .height = size.y, .bounce = false, .shadows = false,
-                                                .gather_scan_groups = 2});
+                                                .gather_lists = GatherLists::scan, .gather_scan_groups = 2});
         two_runs->render(0);
         CHECK(two_runs->download_gather_pairs().pairs == fine_pairs.pairs);
         frames.push_back(&*two_runs);
@@ -678,7 +701,8 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
           const bool same = a.launch_ref[p] == b.launch_ref[p] && bits(a.hit[p].t) == bits(b.hit[p].t) &&
                             same_vec(a.position[p], b.position[p]) && same_vec(a.normal[p], b.normal[p]);
           if (!same && ++differ <= 3)
-            UNSCOPED_INFO((f == &items ? "item pass" : f == &raster ? "fine pass" : "fine pass, scan runs of two blocks")
+            UNSCOPED_INFO((f == &items ? "item pass" : f == &raster ? "fine pass" : f == &buckets ? "buckets"
+                          : f == &bucket1 ? "buckets of one" : f == &bucket0 ? "buckets of none" : "fine pass, scan runs of two blocks")
                           << ", pixel " << p << ": rasterizer " << hex(a.launch_ref[p]) << " t " << a.hit[p].t
                           << ", boxes " << hex(b.launch_ref[p]) << " t " << b.hit[p].t);
         }
@@ -689,6 +713,10 @@ TEST_CASE("Vulkan frame: the gather's rasterizer leaves every pixel as testing e
   }
   CHECK(valid > 0);
   CHECK(pairs > 0);  // the fine pass had work
+  CHECK(past_one > 0);  // buckets of one pair: some tiles had more, rasterized by the pairs pass,
+  CHECK(kept_one > 0);  // and the fine pass read the others
+  CHECK(listed_one > 0);  // the past pass had pairs to take
+  CHECK(in_place > 0);    // and so had the pairs pass, past the past pass's room
   CHECK(scenes_checked >= 4);
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

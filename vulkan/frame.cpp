@@ -93,11 +93,11 @@ struct VulkanFrame::Gpu {
   Context* ctx = nullptr;
   Buffer params, visibility, gather, materials, texels, lights, rays, hits, image, ray_list, keys, tiles, tile_depth, pixel_dirs;
   Buffer tile_bins;  // the rasterizer's tile lists (GatherFineHeader, counts, starts, pairs)
-  uint32_t screen_tiles = 0, pair_capacity = 0;
+  uint32_t screen_tiles = 0, pair_capacity = 0, past_capacity = 0;
   Image2D color, depth;
   std::unique_ptr<Descriptors> set, ray_list_set;
   std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, dirs;
-  std::unique_ptr<Pipeline> pairs, scan, fine;  // the rasterizer's tile lists and fine pass
+  std::unique_ptr<Pipeline> pairs, scan, past, fine;  // the rasterizer's tile lists and fine pass
   std::unique_ptr<Timestamps> timestamps;
   // The raster gather
   VkPipelineLayout layout = VK_NULL_HANDLE;
@@ -463,18 +463,29 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     // The tile lists: room for options.gather_pair_capacity pairs (more: the frame's item pass
     // runs instead of the fine pass), within the device's buffer range
     gpu.screen_tiles = uint32_t(screen_tiles);
-    uint64_t capacity = 0;
+    uint64_t capacity = 0, words = 0;
     if (gather_ == GatherMode::compute) {
       const uint64_t range = ctx.info().limits.maxStorageBufferRange;
-      const uint64_t fixed = sizeof(shared::GatherFineHeader) + 2 * screen_tiles * 4;
-      capacity = options_.gather_pair_capacity.value_or(64 * screen_tiles + 4 * tris);
-      capacity = std::min<uint64_t>(capacity, range > fixed ? (range - fixed) / 4 : 0);
-      capacity = std::min<uint64_t>(capacity, UINT32_MAX);
+      if (options_.gather_lists == GatherLists::buckets) {
+        // Counts, a bucket per tile, then the list of pairs past their buckets (two words each)
+        const uint64_t fixed = sizeof(shared::GatherFineHeader) + screen_tiles * 4;
+        capacity = options_.gather_bucket_capacity.value_or(kGatherBucketDefault);
+        uint64_t past = options_.gather_past_capacity.value_or(kGatherPastPerTile * screen_tiles);
+        const uint64_t room = range > fixed ? (range - fixed) / 4 : 0;
+        capacity = std::min<uint64_t>(capacity, room / 2 / screen_tiles);
+        past = std::min<uint64_t>({past, (room - capacity * screen_tiles) / 2, UINT32_MAX});
+        gpu.past_capacity = uint32_t(past);
+        words = screen_tiles + screen_tiles * capacity + 2 * past;
+      } else {
+        const uint64_t fixed = sizeof(shared::GatherFineHeader) + 2 * screen_tiles * 4;
+        capacity = options_.gather_pair_capacity.value_or(64 * screen_tiles + 4 * tris);
+        capacity = std::min<uint64_t>(capacity, range > fixed ? (range - fixed) / 4 : 0);
+        capacity = std::min<uint64_t>(capacity, UINT32_MAX);
+        words = 2 * screen_tiles + capacity;
+      }
     }
     gpu.pair_capacity = uint32_t(capacity);
-    gpu.tile_bins = ctx.create_buffer(sizeof(shared::GatherFineHeader) +
-                                          (gather_ == GatherMode::compute ? 2 * screen_tiles * 4 + capacity * 4 : 0),
-                                      list_usage);
+    gpu.tile_bins = ctx.create_buffer(sizeof(shared::GatherFineHeader) + words * 4, list_usage);
   } else {
     gpu.tile_bins = ctx.create_buffer(sizeof(shared::GatherFineHeader), list_usage);
     gpu.pixel_dirs = ctx.create_buffer(16, sb);
@@ -546,6 +557,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
       const uint32_t fine_push = uint32_t(sizeof(shared::GatherFinePush));
       gpu.pairs = std::make_unique<Pipeline>(ctx, "gather_pairs.comp", set.layout(), fine_push, spec());
       gpu.scan = std::make_unique<Pipeline>(ctx, "gather_scan.comp", set.layout(), fine_push, spec());
+      gpu.past = std::make_unique<Pipeline>(ctx, "gather_past.comp", set.layout(), fine_push, spec());
       gpu.fine = std::make_unique<Pipeline>(ctx, "gather_fine.comp", set.layout(), fine_push, spec());
     }
   } else {
@@ -608,6 +620,26 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           // written, then one workgroup per screen tile; where the pairs overflowed, the item
           // pass instead (the scan chose which of the two indirect dispatches has workgroups)
           shared::GatherFinePush fine_push{gpu.screen_tiles, gpu.pair_capacity, 0u, 0u};
+          if (options_.gather_lists == GatherLists::buckets) {
+            // Buckets: the pairs written in one pass (those past a tile's bucket rasterized there),
+            // then the fine pass; no scan, no item pass
+            fine_push.scatter = 2u;
+            fine_push.past_capacity = gpu.past_capacity;
+            gpu.pairs->bind(cb, s);
+            gpu.pairs->push(cb, fine_push);
+            vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
+            gather_barrier(cb);
+            if (timed) gpu.timestamps->write(cb, 10);
+            // The pairs past their buckets: a fixed number of workgroups takes the list in turns
+            if (gpu.past_capacity > 0) {
+              gpu.past->bind(cb, s);
+              gpu.past->push(cb, fine_push);
+              vkCmdDispatch(cb, std::clamp(std::min(gpu.past_capacity, kGatherPastGroups), 1u, max_groups_x), 1, 1);
+              gather_barrier(cb);
+            }
+            if (timed)
+              for (uint32_t q : {11u, 12u}) gpu.timestamps->write(cb, q);
+          } else {
           gpu.pairs->bind(cb, s);
           gpu.pairs->push(cb, fine_push);
           vkCmdDispatchIndirect(cb, gpu.tile_bins.buffer, offsetof(shared::GatherFineHeader, items_x));
@@ -630,6 +662,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           vkCmdDispatchIndirect(cb, gpu.tiles.buffer, 0);
           gather_barrier(cb);
           if (timed) gpu.timestamps->write(cb, 12);
+          }
           // Then one workgroup per tile: its list, and the resolve of its pixels
           const glm::uvec3 tile_groups = shared::work_list_groups(gpu.screen_tiles, 1u, max_groups_x);
           gpu.fine->bind(cb, s);
@@ -759,10 +792,15 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     if (shadows_) check_loop_limit(ctx, grid_.params(), download_shadow_hits(), "the frame's shadow rays");
     if (gpu_->fine) {
       const size_t header = sizeof(shared::GatherFineHeader) / 4, tiles = gpu_->screen_tiles;
-      const std::vector<uint32_t> words = ctx.download<uint32_t>(gpu_->tile_bins, header + 2 * tiles);
+      const bool buckets = options_.gather_lists == GatherLists::buckets;
+      const std::vector<uint32_t> words = ctx.download<uint32_t>(gpu_->tile_bins, header + (buckets ? 1 : 2) * tiles);
       const auto head = ctx.download<shared::GatherFineHeader>(gpu_->tile_bins, 1)[0];
       uint32_t most = 0;
-      for (size_t t = 0; head.overflow == 0u && t < tiles; ++t) {
+      if (buckets) {
+        // The counts: a tile's list is its bucket, up to its capacity
+        for (size_t t = 0; t < tiles; ++t) most = std::max(most, std::min(words[header + t], gpu_->pair_capacity));
+      }
+      for (size_t t = 0; !buckets && head.overflow == 0u && t < tiles; ++t) {
         const uint32_t begin = words[header + tiles + t];
         const uint32_t end = t + 1 < tiles ? words[header + tiles + t + 1] : head.pairs;
         most = std::max(most, end >= begin ? end - begin : 0u);
@@ -842,8 +880,29 @@ std::vector<uint32_t> VulkanFrame::download_visibility() const {
 
 GatherPairs VulkanFrame::download_gather_pairs() const {
   if (!gpu_->fine) return {};
+  if (options_.gather_lists == GatherLists::buckets) {
+    // The counts after the header: the pairs each tile was offered
+    const size_t words = (sizeof(shared::GatherFineHeader) / 4) + gpu_->screen_tiles;
+    const std::vector<uint32_t> w = grid_.context().download<uint32_t>(gpu_->tile_bins, words);
+    GatherPairs p;
+    p.buckets = true;
+    p.bucket = gpu_->pair_capacity;
+    p.capacity = uint64_t(gpu_->pair_capacity) * gpu_->screen_tiles;
+    for (size_t t = sizeof(shared::GatherFineHeader) / 4; t < words; ++t) {
+      p.pairs += w[t];
+      p.past += w[t] > gpu_->pair_capacity ? w[t] - gpu_->pair_capacity : 0u;
+    }
+    p.overflow = p.past > 0;
+    p.past_counted = w[0 + offsetof(shared::GatherFineHeader, pairs) / 4];
+    p.past_in_place = p.past_counted > gpu_->past_capacity ? p.past_counted - gpu_->past_capacity : 0;
+    return p;
+  }
   const auto h = grid_.context().download<shared::GatherFineHeader>(gpu_->tile_bins, 1)[0];
-  return {h.pairs, gpu_->pair_capacity, h.overflow != 0};
+  GatherPairs p;
+  p.pairs = h.pairs;
+  p.capacity = gpu_->pair_capacity;
+  p.overflow = h.overflow != 0;
+  return p;
 }
 
 uint32_t VulkanFrame::download_gather_tiles() const {

@@ -79,6 +79,12 @@ enum class GatherMode {
   raster,   // the paper's raster pass
 };
 
+// The compute gather's tile lists (FrameOptions::gather_lists)
+enum class GatherLists { buckets, scan };
+// Buckets: a tile's room by default (pairs), the list of pairs past their buckets' room by default
+// (pairs per tile), and the workgroups that take that list in turns (gather_past.comp)
+inline constexpr uint32_t kGatherBucketDefault = 64, kGatherPastPerTile = 16, kGatherPastGroups = 4096;
+
 // The frame's near plane, the scene's extent (its bounds' diagonal at time 0) x 1e-6: the raster
 // gather's clip plane, and the compute gather's where a triangle's box needs it (the header comment).
 float frame_near_plane(const Scene& scene);
@@ -91,11 +97,22 @@ struct FrameOptions {
   // scene without lights compiles no shadow pass either way (shadows_for, common/gather.h)
   bool shadows = true;
   GatherMode gather = GatherMode::compute;  // compute falls back to raster without int64 atomics
+  // The tile lists' passes: buckets (each 8x8-pixel tile's pairs written in one pass to a bucket of
+  // its own, gather_bucket_capacity words; a pair past it listed for the past pass, which
+  // rasterizes it a workgroup a pair) or scan (counted, scanned, then scattered into one array of
+  // gather_pair_capacity pairs; the item pass where they overflow). The keys are the same (tests
+  // hold both to the box gather).
+  GatherLists gather_lists = GatherLists::buckets;
   // The compute gather's tile lists: room for this many (tile, large triangle) pairs; automatic
   // (unset): 64 per 8x8-pixel screen tile and 4 per triangle, within the device's buffer range. A
   // frame with more runs the item pass instead of the fine pass, with the same keys (slower;
   // download_gather_pairs tells).
   std::optional<uint64_t> gather_pair_capacity;
+  // Buckets: a tile's room in pairs (unset: kGatherBucketDefault, within the device's buffer
+  // range); the pairs past their buckets the past pass takes (unset: kGatherPastPerTile a tile;
+  // more are rasterized one by one by the pairs pass)
+  std::optional<uint32_t> gather_bucket_capacity;
+  std::optional<uint64_t> gather_past_capacity;
   // Workgroups of the tile lists' scan (gather_scan.comp; unset: one per 4096 tiles, at most 64),
   // each scanning a run of consecutive blocks; fewer make longer runs (tests set it).
   std::optional<uint32_t> gather_scan_groups;
@@ -106,9 +123,15 @@ struct FrameOptions {
 
 // The compute gather's tile lists of the last render (GatherMode::compute; zeros otherwise).
 struct GatherPairs {
-  uint32_t pairs = 0;     // (8x8-pixel screen tile, large triangle) pairs
-  uint32_t capacity = 0;  // pairs the lists hold
-  bool overflow = false;  // pairs > capacity: the item pass ran instead of the fine pass
+  uint64_t pairs = 0;     // (8x8-pixel screen tile, large triangle) pairs
+  uint64_t capacity = 0;  // pairs the lists hold (buckets: over all tiles)
+  bool overflow = false;  // scan: pairs > capacity, the item pass ran instead of the fine pass;
+                          // buckets: some tile's pairs past its bucket, rasterized by the pairs pass
+  uint64_t past = 0;      // buckets: the pairs past their tiles' buckets (from the counts)
+  uint64_t past_counted = 0;  // buckets: the same as the pairs pass counted them
+  uint64_t past_in_place = 0; // buckets: those past the past pass's room, rasterized by the pairs pass
+  bool buckets = false;
+  uint32_t bucket = 0;    // buckets: a tile's room in pairs
 };
 
 class VulkanFrame {

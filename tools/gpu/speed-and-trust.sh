@@ -18,7 +18,8 @@
 #   bench   per scene (and the untuned bunny's primary rays and the atrium), in one run on the same
 #           rays: the baseline binary and this one at their defaults, each beside the RT pipeline
 #   gather  per scene (and the built-in atrium), the baseline binary (and gridrt-A, gridrt-V1, ...:
-#           intermediate builds, when staged) and this one at their defaults: the frame's passes,
+#           intermediate builds, when staged; none with NOBASE=1) and this one at its defaults, or with
+#           each of VARIANTS' '|'-separated argument sets in turns, ROUNDS times: the frame's passes,
 #           the gather's split, its work items and tile pairs, the shadow pass (PART=frame: the same)
 #   build   the first static build (device timestamps), every staged binary in turns, 3 rounds; then
 #           this binary's every pass (--build-passes)
@@ -156,9 +157,20 @@ gather | frame)
         case $f in *.xz) continue ;; esac  # pack.sh's compressed copy, unpacked beside it
         [ -f "$f" ] && chmod +x "$f" && bins+=("$f")
       done
-      for bin in "${bins[@]}" gridrt; do
+      [ -n "${NOBASE:-}" ] && bins=()
+      for bin in "${bins[@]}"; do
         echo "== bench $s: $bin"
         timeout 90 "$bin" bench "$X" $B 2>&1 | grep -E "$sel" | cut -c1-400
+      done
+      # This binary with each of VARIANTS' '|'-separated argument sets (default: none), in turns
+      IFS='|' read -r -a variants <<<"${VARIANTS:-}"
+      [ ${#variants[@]} -eq 0 ] && variants=("")
+      for round in $(seq "${ROUNDS:-1}"); do
+        for v in "${variants[@]}"; do
+          echo "== bench $s: gridrt $v (round $round)"
+          # shellcheck disable=SC2086
+          timeout 90 gridrt bench "$X" $B $v 2>&1 | grep -E "$sel" | cut -c1-400
+        done
       done
     done
   } 2>&1 | tee "$out/${PART}.txt"

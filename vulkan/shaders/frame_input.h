@@ -69,7 +69,11 @@ struct GatherRasterTriangle {
 // screen tile the large triangles that may cover it. This header, then `tiles` words of counts
 // (the scatter counts them down to 0), `tiles` words of starts (a tile's list ends where the
 // next one starts, the last at `pairs`), then the pairs' words (a triangle's index in the list of
-// large triangles), `capacity` of them.
+// large triangles), `capacity` of them. With buckets (GatherFinePush.scatter 2): `tiles` words of
+// counts (the pairs the tile was offered, its bucket filled up to `capacity`), then per tile its
+// bucket of `capacity` words, then the pairs past their buckets (gather_past.comp), two words each
+// (the tile, the triangle), `past_capacity` of them; the header's `pairs` counts those (the
+// starting pass clears it), `overflow` is not written.
 struct GatherFineHeader {
   uint items_x;     // VkDispatchIndirectCommand of the count and scatter passes: 64 work items
   uint items_y;     //   (32x32-pixel bins) per workgroup (written by the dispatch step)
@@ -84,9 +88,10 @@ struct GatherFineHeader {
 // Push constants of gather_pairs.comp, gather_scan.comp and gather_fine.comp.
 struct GatherFinePush {
   uint tiles;         // 8x8-pixel screen tiles
-  uint capacity;      // pair words after the counts and starts
-  uint scatter;       // gather_pairs.comp: 0 counts the pairs, 1 writes them
-  uint pad0;
+  uint capacity;      // pair words after the counts and starts; with buckets, a tile's bucket
+  uint scatter;       // gather_pairs.comp: 0 counts the pairs, 1 writes them, 2 writes them to
+                      // buckets of `capacity` words a tile (gather_fine.comp: 2 reads buckets)
+  uint past_capacity; // with buckets: the pairs past their buckets the past pass can take
 };
 
 // Pixels of a side of the rasterizer's bins (its work items) and tiles (its depth culling).

@@ -7,7 +7,7 @@
 //                rounded divisions and square root are the costliest part of a pixel's test). The
 //                same functions, the same bits.
 //   clean state  the pixel's key "nothing" (all ones); per screen tile its depth bound unknown
-//                (all ones) and its tile list's count 0. (The fills of kFrameGatherBoxes, here in
+//                (all ones) and its tile list's count 0; with buckets, the count of pairs past them 0. (The fills of kFrameGatherBoxes, here in
 //                the pass that writes the pixels anyway: one pass and no fill commands.)
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
@@ -23,6 +23,7 @@ void main() {
     const uint tile = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     tile_depth[tile] = 0xFFFFFFFFu;
     tile_words[tile] = 0u;
+    if (tile == 0u) fine_header.pairs = 0u;  // with buckets: the pairs past them
   }
   if (px.x >= c.width || px.y >= c.height) return;
   const uint p = px.y * c.width + px.x;

@@ -4,7 +4,8 @@
 // dispatched directly, one invocation per pixel, which keeps its key in a register: the key the
 // bin pass left (small triangles' atomics), then the minimum over the tile's list of large
 // triangles (gather_pairs.comp; no list when the pairs overflowed: the item pass, gather_raster.comp,
-// left the large triangles' keys too); then the pixel's gather texel from it (gather_texel, as
+// left the large triangles' keys too; with buckets, the pairs pass rasterized the pairs past a
+// tile's bucket); then the pixel's gather texel from it (gather_texel, as
 // gather_resolve.comp would). The list is taken in batches of 64 pairs, each
 // batch ranked by its triangles' lower t bounds over the tile, nearest first (the keys fall early
 // and the depth test below culls more). Per triangle:
@@ -46,10 +47,17 @@ void main() {
   const uvec2 t1 = min(t0 + (kGatherTileSize - 1u), uvec2(c.width, c.height) - 1u);
   uint64_t key = on ? gather_keys64[p] : 0ul;  // off the screen: t 0, never raises the depth
   const vec4 dir = on ? pixel_dirs[p] : vec4(0.0f);
-  // The tile's list (none when the pairs overflowed: the item pass, before, left the keys)
-  const bool listed = fine_header.overflow == 0u;
-  const uint begin = listed ? tile_words[pc.tiles + tile] : 0u;
-  const uint end = !listed ? 0u : tile + 1u < pc.tiles ? tile_words[pc.tiles + tile + 1u] : fine_header.pairs;
+  // The tile's list, as words of tile_words: with buckets (pc.scatter 2) its bucket up to its
+  // count or capacity (the pairs past it were rasterized by the pairs pass); else from its start to
+  // the next tile's (none when the pairs overflowed: the item pass, before, left the keys)
+  uint begin = 0u, end = 0u;
+  if (pc.scatter == 2u) {
+    begin = pc.tiles + tile * pc.capacity;
+    end = begin + min(tile_words[tile], pc.capacity);
+  } else if (fine_header.overflow == 0u) {
+    begin = 2u * pc.tiles + tile_words[pc.tiles + tile];
+    end = 2u * pc.tiles + (tile + 1u < pc.tiles ? tile_words[pc.tiles + tile + 1u] : fine_header.pairs);
+  }
   const uint lid = gl_LocalInvocationIndex;
   // The subgroup's largest t (keys only decrease: a bound of every later key), taken again only
   // after a triangle that lowered some lane's key: the same value as taking it before every
@@ -61,7 +69,7 @@ void main() {
     const uint n = min(kFineBatch, end - base);
     uint index = 0u, bound = 0u;
     if (lid < n) {
-      index = tile_words[2u * pc.tiles + base + lid];
+      index = tile_words[base + lid];
       bound = floatBitsToUint(raster_tile_t_lo_fast(tile_tris[index].depth, tile_tris[index].t_lo, t0.x, t0.y, t1.x, t1.y));
       s_bound[lid] = bound;
     }
