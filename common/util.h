@@ -1,5 +1,5 @@
-// util.h: small utilities every layer uses: wall-clock milliseconds and seconds, and the distance
-// of two floats in units in the last place.
+// util.h: small utilities every layer uses: wall-clock milliseconds and seconds, a file's word made
+// printable for a message, and the distance of two floats in units in the last place.
 #pragma once
 
 #include <algorithm>
@@ -7,8 +7,29 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <string>
+#include <string_view>
 
 namespace gridrt {
+
+// A file's word for a message: printable ASCII kept, any other byte (a NUL, a control, UTF-8 or
+// binary junk) and the backslash as \xNN, at most `max` bytes of `s` shown ("..." after them).
+inline std::string printable(std::string_view s, size_t max = 32) {
+  std::string out;
+  for (size_t i = 0; i < s.size() && i < max; ++i) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if (c >= 0x20 && c < 0x7F && c != '\\') {
+      out.push_back(char(c));
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02X", unsigned(c));
+      out += buf;
+    }
+  }
+  if (s.size() > max) out += "...";
+  return out;
+}
 
 // Milliseconds since `t0` on the steady clock.
 inline double ms_since(std::chrono::steady_clock::time_point t0) {

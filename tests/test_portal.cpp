@@ -408,6 +408,25 @@ TEST_CASE("Portal: a ray starting in glass starts inside it, empty or negative i
     const Hit p = trace_portal(b.packed, in), d = trace_dda(b.world, in);
     CHECK(std::memcmp(&p, &d, sizeof p) == 0);
   }
+  // Along the world box's face from outside, parallel to it: on a lower face the ray runs in the
+  // boundary voxels (walls here: a hit), on an upper face in the voxels beyond the box (a miss; the
+  // entry took the upper plane for the box's own: an outside sweep)
+  for (int a : {0, 2}) {
+    const int b2 = 2 - a;  // the axis the ray moves along, from 2 voxels before the box
+    for (bool upper : {false, true}) {
+      glm::vec3 o(0.0f, float(w.dims.y) * 0.5f + 0.25f, 0.0f);
+      o[a] = upper ? float(w.dims[a]) : 0.0f;
+      o[b2] = -2.0f;
+      glm::vec3 d(0.0f);
+      d[b2] = 1.0f;
+      const Ray r = make_ray(w.to_world(o), d);
+      INFO(ray_text(r) << (upper ? ", upper face" : ", lower face"));
+      REQUIRE(hex(to_voxel_ray(b.packed.origin, b.packed.voxel_size, r).org[a]) == hex(o[a]));
+      const Hit p = trace_portal(b.packed, r), q = trace_dda(b.world, r);
+      CHECK(is_miss(p) == upper);
+      CHECK(std::memcmp(&p, &q, sizeof p) == 0);
+    }
+  }
   // A camera in the glass: every primary ray leaves it through a surface (none did)
   Camera cam = w.camera;
   for (int z = 0; z < int(w.dims.z); ++z)
@@ -659,6 +678,16 @@ TEST_CASE("Portal: bad input is a clear Error", "[portal][unit][badinput]") {
   CHECK_THAT(msg([] { parse_tile_map(std::string("size 3 2 1\nmap\n1E1\n1\0" "1\n", 23)); }),
              Catch::Contains("unknown character byte 0x00 at column 2"));
   CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1E1\n1\t1\n"); }), Catch::Contains("byte 0x09 at column 2"));
+  // A header word or keyword of such bytes is shown escaped, whole (a NUL after the size cut the
+  // message at the quote; binary junk as a keyword went to the terminal raw: an outside sweep)
+  {
+    const std::string nul = msg([] { parse_tile_map(std::string("size 3 2 1\0junk\nmap\n1E1\n111\n", 28)); });
+    CHECK_THAT(nul, Catch::Contains("unexpected '\\x00junk' after"));
+    const std::string junk = msg([] { parse_tile_map("\x01\x9b[2J\xff\n"); });
+    CHECK_THAT(junk, Catch::Contains("unknown keyword '\\x01\\x9B[2J\\xFF'"));
+    for (const std::string* m : {&nul, &junk})
+      for (const char c : *m) CHECK((static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7F));
+  }
   CHECK_THAT(msg([] { parse_tile_map("size 3 2 1\nmap\n1.1\n111\n"); }), Catch::Contains("no eye"));
   CHECK_NOTHROW(parse_tile_map("size 3 2 1\nmap\n1.1\n111\n", "x", false));
   CHECK_THAT(msg([] { parse_tile_map("size 300 2 1\nmap\n"); }), Catch::Contains("255"));

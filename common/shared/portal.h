@@ -111,7 +111,9 @@ SH_INLINE uint portal_entry_axis(SH_IN(vec3) lo, SH_IN(vec3) hi, SH_IN(vec3) org
   float bd = 0.0f;
   for (uint a = 0u; a < 3u; a++) {
     if (dir[a] == 0.0f) {
-      if (org[a] < lo[a] || org[a] > hi[a]) { num = 0.0f; return 3u; }
+      // In the box's slab of this axis: a point on its upper plane belongs to the voxel above (the
+      // start voxel's rule: floor for dir >= 0), outside the box
+      if (org[a] < lo[a] || org[a] >= hi[a]) { num = 0.0f; return 3u; }
       continue;
     }
     float n = portal_ahead(dir[a] > 0.0f ? lo[a] : hi[a], org[a], dir[a]);

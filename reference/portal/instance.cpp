@@ -1,6 +1,7 @@
 // instance.cpp: block maps, flatten, the instanced build and renderer (instance.h).
 #include "gridrt/reference/portal/instance.h"
 
+#include "gridrt/common/util.h"
 #include <algorithm>
 #include <iostream>
 #include <atomic>
@@ -101,7 +102,7 @@ BBBBBBBBBBBBBBBBBBBBBBBBBBBB
 // A line's end: nothing but blanks after what it holds (trailing junk was ignored)
 void expect_line_end(std::istringstream& ls, const std::string& name, size_t lineno, const std::string& what) {
   std::string extra;
-  if (ls >> extra) fail(name, lineno, "unexpected '" + extra.substr(0, 32) + "' after " + what);
+  if (ls >> extra) fail(name, lineno, "unexpected '" + printable(extra) + "' after " + what);
 }
 
 bool reserved(char c) { return c == '.' || c == 'E' || c == 'L' || c == ' '; }
@@ -218,7 +219,7 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
         defs.back().boxes.push_back({lineno, glm::ivec3(int(v[0]), int(v[1]), int(v[2])),
                                      glm::ivec3(int(v[3]), int(v[4]), int(v[5])), c[0]});
       } else {
-        fail(name, lineno, "unknown keyword '" + key + "' in block '" + defs.back().name + "' (box or end)");
+        fail(name, lineno, "unknown keyword '" + printable(key) + "' in block '" + printable(defs.back().name) + "' (box or end)");
       }
       continue;
     }
@@ -288,10 +289,10 @@ InstancedWorld parse_block_map(std::string_view text, const std::string& name, b
       expect_line_end(ls, name, lineno, "'map'");
       in_map = true;
     } else {
-      fail(name, lineno, "unknown keyword '" + key + "'");
+      fail(name, lineno, "unknown keyword '" + printable(key) + "'");
     }
   }
-  if (in_block) fail(name, 0, "block '" + defs.back().name + "' has no 'end'");
+  if (in_block) fail(name, 0, "block '" + printable(defs.back().name) + "' has no 'end'");
   if (!have_scale) fail(name, 0, "no 'scale' line");
   if (!have_size) fail(name, 0, "no 'size' line (empty world)");
   if (!in_map) fail(name, 0, "no 'map' section");

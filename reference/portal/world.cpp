@@ -1,6 +1,7 @@
 // world.cpp: tile maps, the built-in level and voxelized meshes (world.h).
 #include "gridrt/reference/portal/world.h"
 
+#include "gridrt/common/util.h"
 #include <algorithm>
 #include <iostream>
 #include <cctype>
@@ -126,7 +127,7 @@ struct TileMapText {
 // up to the junk and the rest ignored)
 void expect_line_end(std::istringstream& ls, const std::string& name, size_t lineno, const std::string& what) {
   std::string extra;
-  if (ls >> extra) fail(name, lineno, "unexpected '" + extra.substr(0, 32) + "' after " + what);
+  if (ls >> extra) fail(name, lineno, "unexpected '" + printable(extra) + "' after " + what);
 }
 
 void parse_size(std::istringstream& ls, const std::string& name, size_t lineno, TileMapText& t) {
@@ -210,7 +211,7 @@ TileMapText read_tile_map(std::string_view text, const std::string& name, World&
       expect_line_end(ls, name, lineno, "'map'");  // trailing text was ignored (an outside sweep)
       in_map = true;
     } else {
-      fail(name, lineno, "unknown keyword '" + key + "'");
+      fail(name, lineno, "unknown keyword '" + printable(key) + "'");
     }
   }
   if (!have_size) fail(name, 0, "no 'size' line (empty world)");
