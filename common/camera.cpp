@@ -7,12 +7,20 @@
 namespace gridrt {
 
 CameraFrame camera_frame(const Camera& camera) {
-  const glm::vec3 view = camera.target - camera.eye;
+  // The view and up directions scaled by a power of two into a range where their lengths neither
+  // underflow nor overflow (direction_in_range: exact, the same directions; vectors whose largest
+  // component lies in [2^-20, 2^20] keep their bits). An up of 1e-22 (dot(up, up) subnormal) gave a
+  // frame of a few bits and a wrong picture with exit 0 (an outside sweep).
+  const glm::vec3 view = direction_in_range(camera.target - camera.eye);
+  const glm::vec3 up = direction_in_range(camera.up);
+  if (!std::isfinite(view.x) || !std::isfinite(view.y) || !std::isfinite(view.z))
+    throw Error("camera: eye and target are too far apart (their difference overflows single precision)");
   if (!(glm::length(view) > 0.0f)) throw Error("camera: eye and target coincide");
+  if (!(glm::length(up) > 0.0f)) throw Error("camera: up is zero");
   CameraFrame f;
   f.forward = glm::normalize(view);
-  const glm::vec3 r = glm::cross(f.forward, camera.up);
-  if (!(glm::length(r) > 1e-6f * glm::length(camera.up))) throw Error("camera: up is parallel to the view direction");
+  const glm::vec3 r = glm::cross(f.forward, up);
+  if (!(glm::length(r) > 1e-6f * glm::length(up))) throw Error("camera: up is parallel to the view direction");
   f.right = glm::normalize(r);
   // An up within a few degrees of the view direction: the float cross product's rounding, relative
   // to its small length, turned `right` off the perpendicular (forward . right 0.057 with up 1e-6
@@ -20,9 +28,9 @@ CameraFrame camera_frame(const Camera& camera) {
   // orthonormal (the screen box, the depth plane) then left out pixels the ray test accepts (an
   // outside sweep). There `right` is made in double and made perpendicular to the float forward;
   // other cameras keep the float frame they always had.
-  if (glm::length(r) < 0.0625f * glm::length(camera.up)) {
+  if (glm::length(r) < 0.0625f * glm::length(up)) {
     const glm::dvec3 fw(f.forward);
-    glm::dvec3 rd = glm::cross(fw, glm::dvec3(camera.up));
+    glm::dvec3 rd = glm::cross(fw, glm::dvec3(up));
     rd -= glm::dot(rd, fw) / glm::dot(fw, fw) * fw;
     f.right = glm::vec3(glm::normalize(rd));
   }

@@ -239,28 +239,32 @@ void validate_camera(const Scene& s) {
               "(docs/SPEC.md, \"Domain\"; move it nearer the origin or give the scene a camera), and the camera " +
               "framed around it";
   }
-  if (!finite(c.eye) || !finite(c.target) || !finite(c.up) ||
-      !(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
-    throw Error("scene '" + s.name + "': " + whose + " has non-finite values or a field of view outside (0, 180)");
+  if (!finite(c.eye) || !finite(c.target) || !finite(c.up) || !std::isfinite(c.vfov_degrees))
+    throw Error("scene '" + s.name + "': " + whose + " has non-finite values");
+  if (!(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f)) {
+    // As read, in single precision (179.9999999 is 180 there: it was refused as "outside (0, 180)")
+    char v[32];
+    std::snprintf(v, sizeof v, "%.9g", double(c.vfov_degrees));
+    throw Error("scene '" + s.name + "': " + whose + ": its field of view, " + v +
+                " degrees in single precision, lies outside (0, 180)");
+  }
   if (c.eye == c.target) throw Error("scene '" + s.name + "': " + whose + ": eye equals its target");
   // Every primary ray starts at the eye: beyond the ray domain's origin limit each one would be
   // rejected (docs/SPEC.md, "Domain"), a picture of nothing. (frame_camera keeps its eye inside.)
   if (!(std::max({std::abs(c.eye.x), std::abs(c.eye.y), std::abs(c.eye.z)}) <= shared::kDomainMaxCoordinate))
     throw Error("scene '" + s.name + "': " + whose + ": the eye lies beyond 2^24 from the origin, outside the ray " +
                 "domain (docs/SPEC.md, \"Domain\"): every primary ray would be rejected; move it nearer");
-  if (!std::isfinite(glm::length(c.target - c.eye)))
-    throw Error("scene '" + s.name + "': " + whose + ": eye and target are too far apart (their distance overflows " +
+  // The view and up directions as the camera frame takes them (camera_frame: scaled by a power of
+  // two into range, so any finite length but zero gives its direction; 1e-30 and 1e20 were refused
+  // as underflowing or overflowing, and 1e-22 gave a wrong frame: an outside sweep)
+  const glm::vec3 view = direction_in_range(c.target - c.eye), up = direction_in_range(c.up);
+  if (!finite(view))
+    throw Error("scene '" + s.name + "': " + whose + ": eye and target are too far apart (their difference overflows " +
                 "single precision)");
-  if (!std::isfinite(glm::length(c.up)))
-    throw Error("scene '" + s.name + "': " + whose + ": up is too long (its length overflows single precision)");
-  if (!(glm::length(c.target - c.eye) > 0.0f))
-    throw Error("scene '" + s.name + "': " + whose + ": eye and target are too close to give a view direction (their " +
-                "distance underflows single precision)");
-  if (!(glm::length(c.up) > 0.0f))
-    throw Error("scene '" + s.name + "': " + whose + ": up is zero or too short (its length underflows single precision)");
-  const glm::vec3 forward = glm::normalize(c.target - c.eye);  // as the camera frame takes it
-  if (!(glm::length(glm::cross(forward, c.up)) > 1e-6f * glm::length(c.up)))
-    throw Error("scene '" + s.name + "': " + whose + ": up is zero or parallel to the view direction");
+  if (!(glm::length(up) > 0.0f)) throw Error("scene '" + s.name + "': " + whose + ": up is zero");
+  const glm::vec3 forward = glm::normalize(view);
+  if (!(glm::length(glm::cross(forward, up)) > 1e-6f * glm::length(up)))
+    throw Error("scene '" + s.name + "': " + whose + ": up is parallel to the view direction");
 }
 
 // Lights, background and the scene's grid overrides

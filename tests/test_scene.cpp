@@ -187,6 +187,47 @@ TEST_CASE("A scene's camera whose up is parallel to its view is refused when the
   CHECK_THROWS_WITH(s.finalize(), Catch::Contains("parallel"));
 }
 
+// An outside sweep: an up of 1e-22 (dot(up, up) subnormal) gave a frame of a few bits, a wrong
+// picture with exit 0; 1e-30 and 1e20 were refused as underflowing or overflowing, and a view
+// direction 1e-22 long likewise. Any finite, non-zero length now gives its direction's frame, in
+// the bits of the same direction at unit scale (the vectors are scaled by powers of two).
+TEST_CASE("A camera's up and view of any finite length give the frame of their direction", "[unit][scene][badinput]") {
+  const Camera unit{.eye = {0, 5, 15}, .target = {0, 1, 0}, .up = {0.3f, 1.0f, 0.2f}};
+  const CameraFrame f0 = camera_frame(unit);
+  for (const float k : {0x1p-74f, 0x1p-100f, 0x1p-120f, 0x1p-20f, 0x1p20f, 0x1p66f, 0x1p100f}) {
+    INFO("scale " << k);
+    Camera c = unit;
+    c.up = unit.up * k;  // exact: a power of two, within the normal range for these components
+    const CameraFrame f = camera_frame(c);
+    CHECK(f.forward == f0.forward);
+    CHECK(f.right == f0.right);
+    CHECK(f.up == f0.up);
+    // The view 2^k times shorter or longer, from an eye at the origin
+    Camera v{.eye = {0, 0, 0}, .target = (unit.target - unit.eye), .up = unit.up};
+    const CameraFrame g0 = camera_frame(v);
+    v.target = v.target * k;
+    const CameraFrame g = camera_frame(v);
+    CHECK(g.forward == g0.forward);
+    CHECK(g.right == g0.right);
+    // The scene accepts it as the frame takes it
+    Scene s;
+    s.name = "cam";
+    s.meshes.push_back(strip(2));
+    s.instances.push_back(Instance{.name = "a", .mesh = 0});
+    s.camera = c;
+    CHECK_NOTHROW(s.finalize());
+  }
+  // Zero stays refused, by name; a field of view that is 180 in single precision says so
+  Scene s;
+  s.name = "cam";
+  s.meshes.push_back(strip(2));
+  s.instances.push_back(Instance{.name = "a", .mesh = 0});
+  s.camera = Camera{.eye = {0, 5, 15}, .target = {0, 1, 0}, .up = {0, 0, 0}};
+  CHECK_THROWS_WITH(Scene(s).finalize(), Catch::Contains("up is zero"));
+  s.camera = Camera{.eye = {0, 5, 15}, .target = {0, 1, 0}, .up = {0, 1, 0}, .vfov_degrees = float(179.9999999)};
+  CHECK_THROWS_WITH(Scene(s).finalize(), Catch::Contains("180 degrees in single precision, lies outside (0, 180)"));
+}
+
 #include "gridrt/common/shared/shadow.h"
 
 // An outside sweep's finds: a point light 2e6 away made shadow rays every trace rejects (the
