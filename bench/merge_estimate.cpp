@@ -4,8 +4,8 @@
 // policy chose for the exact traversal. Nothing here is built for the GPU and no triangle is
 // tested: like the policy's estimate_work (plan/policy.h), a walk counts its visits up to the
 // point where the ray's true hit (found by the sample's own exact trace) would be reported.
-//   gridrt_merge_estimate [--factors 1,2] [--visit-cost C] [--expand subset|empty|off] [--merge on|off]
-//                         [--threads N] SCENE...
+//   gridrt_merge_estimate [--factors 1,2] [--visit-cost C] [--expand subset|empty|off]
+//                         [--merge on|off|subdivide] [--threshold T] [--threads N] SCENE...
 // Per scene and factor f, the virtual grid is the chosen grid's box in f times its cells per
 // axis; each cell holds the triangles the build's cell test gives it. Then:
 //   merge   along x, y, z in turn, a cell and its neighbour across its upper face (the same
@@ -13,6 +13,8 @@
 //           area(m) (C + N(m)) <= area(a) (C + N(a)) + area(b) (C + N(b)), C the visit cost in
 //           tests (the policy's 1.6 for the exact traversal), N a cell's references; until no
 //           pair merges
+//   (--merge subdivide instead: a two-level grid, each chosen-grid cell one cell unless the union
+//   of its f^3 virtual cells' references holds more than T; then those f^3 cells stay)
 //   expand  each cell's exit box grows over a neighbouring slab of virtual cells while every cell
 //           of the slab holds only references the cell holds (an empty one: none), one face at a
 //           time (+x, -x, +y, -y, +z, -z) until no face grows: a ray leaving the box has tested
@@ -131,6 +133,50 @@ class IrregularGrid {
       }
     }
     // The live cells, renumbered
+    std::vector<uint32_t> renum(cells_.size(), ~0u);
+    std::vector<Cell> kept;
+    for (uint32_t i = 0; i < cells_.size(); ++i)
+      if (cells_[i].count != ~0u) {
+        renum[i] = uint32_t(kept.size());
+        kept.push_back(cells_[i]);
+      }
+    for (uint32_t& m : map_) m = renum[m];
+    cells_ = std::move(kept);
+  }
+
+  // Two levels (Kalojanov et al.'s, "Two-Level Grids for Ray Tracing on GPUs", with the resolution
+  // per top cell 1 or f): each block of f^3 virtual cells (a chosen-grid cell) becomes one cell
+  // holding the union of their references, unless that union holds more than `threshold`
+  // references: then its f^3 cells stay.
+  void subdivide(uint32_t f, uint32_t threshold) {
+    const uvec3 top = g_.cells / f;
+    std::vector<uint32_t> u, w;
+    for (uint32_t z = 0; z < top.z; ++z)
+      for (uint32_t y = 0; y < top.y; ++y)
+        for (uint32_t x = 0; x < top.x; ++x) {
+          const uvec3 lo = uvec3(x, y, z) * f;
+          u.clear();
+          for (uint32_t k = 0; k < f * f * f; ++k) {
+            const Cell& c = cells_[map_[index(lo + uvec3(k % f, (k / f) % f, k / (f * f)))]];
+            w.clear();
+            std::set_union(u.begin(), u.end(), pool_.begin() + c.first, pool_.begin() + c.first + c.count,
+                           std::back_inserter(w));
+            u.swap(w);
+          }
+          if (u.size() > threshold) continue;
+          const uint32_t a = map_[index(lo)];
+          Cell& ca = cells_[a];
+          ca.lo = ca.elo = lo;
+          ca.hi = ca.ehi = lo + uvec3(f - 1);
+          ca.first = uint32_t(pool_.size());
+          ca.count = uint32_t(u.size());
+          pool_.insert(pool_.end(), u.begin(), u.end());
+          for (uint32_t k = 0; k < f * f * f; ++k) {
+            const size_t i = index(lo + uvec3(k % f, (k / f) % f, k / (f * f)));
+            if (map_[i] != a) cells_[map_[i]].count = ~0u;
+            map_[i] = a;
+          }
+        }
     std::vector<uint32_t> renum(cells_.size(), ~0u);
     std::vector<Cell> kept;
     for (uint32_t i = 0; i < cells_.size(); ++i)
@@ -306,7 +352,9 @@ int main(int argc, char** argv) {
   uint32_t max_extent = 1u << 30;
   app.add_option("--max-extent", max_extent, "An exit box's most cells beyond its cell on each side");
   app.add_option("--merge", merge, "Cells merged by the cost rule, or kept as the virtual grid's (off: exit boxes on a uniform grid)")
-      ->check(CLI::IsMember({"on", "off"}));
+      ->check(CLI::IsMember({"on", "off", "subdivide"}));
+  uint32_t threshold = 8;
+  app.add_option("--threshold", threshold, "--merge subdivide: a chosen-grid cell holding more references is kept as f^3 cells");
   app.add_option("--threads", o.threads, "CPU threads for the grid choice (0: all)");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -406,6 +454,7 @@ int main(int argc, char** argv) {
                     cells / rays, tests / rays, cost, cost / uni_cost, 100.0 * double(offered) / double(std::max<size_t>(hits, 1)), grid.mib());
       }
       if (merge == "on") grid.merge();
+      if (merge == "subdivide" && f > 1) grid.subdivide(f, threshold);
       if (expand != "off") grid.expand(expand == "empty", expand == "chain", max_extent);
       walk_all(cells, tests, offered);
       const uint64_t stored = grid.refs_stored();

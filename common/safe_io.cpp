@@ -95,7 +95,9 @@ void require_host_memory(uint64_t bytes, const std::string& what, const std::str
   const auto rss = read_number("/proc/self/status", "VmRSS:", 1024);
   // Sizes below 16 MiB with their bytes ("1 MiB, more than the 0 MiB available": an outside sweep),
   // the option named once
-  throw Error(what + " need about " + mib(bytes) + " of host memory, more than the " + mib(room) + " left" +
+  // None left: say so ("more than the 0 bytes left" puzzled a reader: an outside sweep)
+  throw Error(what + " need about " + mib(bytes) + " of host memory, " +
+              (room > 0 ? "more than the " + mib(room) + " left" : std::string("and none is left")) +
               (input_limits().max_host_bytes ? " of --max-host-mib's " + mib(input_limits().max_host_bytes) +
                                                    " (what the grids and textures planned so far take counts)"
                                              : std::string()) +

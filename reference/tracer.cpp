@@ -57,7 +57,7 @@ AccelDump ReferenceGridTracer::dump() const {
   // A copy of the grid's arrays (diff, bench, sweep): checked before it is made
   const bool compact = (grid_.params.flags & shared::kGridCompact) != 0u;
   require_host_memory(4 * (compact ? uint64_t(grid_.offsets.size()) + grid_.refs.size() : uint64_t(grid_.image.size())),
-                      "a copy of the grid's " + std::string(compact ? "arrays" : "image"), "use a coarser grid");
+                      "copies of the grid's " + std::string(compact ? "arrays" : "image"), "use a coarser grid");
   if (compact) {
     // The compact layout: the offsets (the index of occupied cells' runs), then the references (as many as the last offset
     // says: the array's one-word stand-in of a grid without any is left out), as one row
