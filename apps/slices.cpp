@@ -52,7 +52,9 @@ struct SlicePanels {
   bool any_moving = false;
   uint32_t largest = 0;  // the fullest cell's references
   uint32_t scale = 1;    // the colour bar's top: the capacity, or the fullest cell (compact)
-  uint64_t empty = 0, saturated_static = 0, saturated_dynamic = 0;
+  // Saturated cells by kind, as `stats` counts them (a cell saturated by both counts in both; it
+  // is drawn red), and those of both kinds
+  uint64_t empty = 0, saturated_static = 0, saturated_dynamic = 0, saturated_both = 0;
 };
 
 SlicePanels colour_cells(const reference::GridData& grid, const SliceLayout& l) {
@@ -98,8 +100,12 @@ SlicePanels colour_cells(const reference::GridData& grid, const SliceLayout& l) 
         glm::vec3 c = n == 0 ? plot::colors::light_grey
                              : plot::viridis(scale > 1 ? std::min(1.0f, float(n - 1) / float(scale - 1)) : 1.0f);
         if (n == 0) ++p.empty;
+        // The title counted a cell saturated by both as static only: 15 dynamic where `stats`
+        // said 17 (a reviewer's find); now both count it, and the title says how many are both
         if (status & sh::kStatusStatic) c = plot::colors::red, ++p.saturated_static;
-        else if (status & sh::kStatusDynamic) c = plot::colors::magenta, ++p.saturated_dynamic;
+        else if (status & sh::kStatusDynamic) c = plot::colors::magenta;
+        if (status & sh::kStatusDynamic) ++p.saturated_dynamic;
+        if ((status & sh::kStatusStatic) && (status & sh::kStatusDynamic)) ++p.saturated_both;
         p.colour[s][size_t(nv - 1 - j) * nu + i] = c;  // v up
       }
   return p;
@@ -173,11 +179,13 @@ void write_slices(const reference::ReferenceGridTracer& ref, const std::string& 
   c.text(pad, 22, t, plot::colors::black, 16, plot::Align::left, true);
   const std::string layout = (g.flags & sh::kGridCompact) != 0u ? std::string("compact layout")
                                                                    : "cells of " + std::to_string(g.capacity) + " slots";
+  const std::string both =
+      panels.saturated_both ? " (" + std::to_string(panels.saturated_both) + " both, red)" : std::string();
   std::snprintf(t, sizeof t,
-                "%s: %ux%ux%u %s; %llu empty, %llu saturated (static), %llu (dynamic); fullest %u; "
+                "%s: %ux%ux%u %s; %llu empty, %llu saturated (static), %llu (dynamic)%s; fullest %u; "
                 "panels: %c right, %c up",
                 scene_name.c_str(), g.cells.x, g.cells.y, g.cells.z, layout.c_str(), (unsigned long long)panels.empty,
-                (unsigned long long)panels.saturated_static, (unsigned long long)panels.saturated_dynamic,
+                (unsigned long long)panels.saturated_static, (unsigned long long)panels.saturated_dynamic, both.c_str(),
                 panels.largest, names[l.u], names[l.v]);
   c.text(pad, 41, t, plot::colors::dark_grey, 12);
   for (uint32_t s = 0; s < l.ns; ++s) {

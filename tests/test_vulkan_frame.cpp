@@ -984,3 +984,53 @@ TEST_CASE("Vulkan frame: an eye far for the grid is refused, not rendered with t
   CHECK(gather_differences(cpu, frame.download_gather(), "near eye", [](size_t) { return false; }) == 0);
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
+
+// A screen tile listing 16,400 triangles: with the scan's lists the fine pass would walk them all,
+// which llvmpipe's loop limit cuts (refused there, by name); in buckets the fine pass walks 64 and
+// the rest go to the past pass and the pairs pass, and the gather is the reference's on any device.
+TEST_CASE("Vulkan frame: a crowded tile's gather, in buckets or refused on llvmpipe with the scan's lists",
+          "[vulkan][frame][gather][hardcase]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  if (!ctx.info().buffer_int64_atomics || !ctx.info().subgroup_arithmetic_ballot) {
+    WARN("skipped: the device has no 64-bit buffer atomics (no compute gather)");
+    return;
+  }
+  Scene s;
+  s.name = "stack";
+  Mesh m;
+  m.name = "stack";
+  for (uint32_t i = 0; i < 8200; ++i) {
+    const float z = -1.0f - float(i) * 0.001f;
+    const uint32_t b = uint32_t(m.positions.size());
+    m.positions.insert(m.positions.end(), {{-10, -10, z}, {10, -10, z}, {10, 10, z}, {-10, 10, z}});
+    m.triangles.push_back({b, b + 1, b + 2});
+    m.triangles.push_back({b, b + 2, b + 3});
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "stack", .mesh = 0});
+  s.camera = Camera{.eye = {0, 0, 1}, .target = {0, 0, -1}};
+  s.finalize();
+  GridOptions o;
+  o.threads = 2;
+  VulkanGridTracer vk(ctx, o);
+  vk.build(s, 0.0f);
+  const GatherBuffer cpu = cpu_gather(s, s.frame_camera(), 8, 8);
+  VulkanFrame buckets(vk, s, FrameOptions{.width = 8, .height = 8, .bounce = false, .shadows = false});
+  buckets.render(0);
+  const GatherPairs p = buckets.download_gather_pairs();
+  CHECK(p.pairs == 16400u);
+  CHECK(p.past == 16400u - 64u);
+  CHECK(p.past_in_place == 16400u - 64u - vulkan::kGatherPastPerTile);
+  CHECK(gather_differences(cpu, buckets.download_gather(), "a crowded tile", [](size_t) { return false; }) == 0);
+  VulkanFrame scan(vk, s, FrameOptions{.width = 8, .height = 8, .bounce = false, .shadows = false,
+                                       .gather_lists = GatherLists::scan});
+  if (bit_exact_device(ctx)) {
+    CHECK_THROWS_WITH(scan.render(0), Catch::Contains("fine pass"));
+  } else {
+    scan.render(0);
+    CHECK(gather_differences(cpu, scan.download_gather(), "a crowded tile, scan", [](size_t) { return false; }) == 0);
+  }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
