@@ -97,8 +97,9 @@ inline uint64_t llvmpipe_loop_estimate(const shared::GridParams& g, uint32_t tes
   return shared::llvmpipe_loop_estimate(g.traversal == shared::kTraversalExact, (g.flags & shared::kGridCompact) != 0u,
                                         (g.flags & shared::kGridMailbox) != 0u, tests, 0u, cells);
 }
-// The frame's gather: a screen tile's list of triangles, walked by its fine pass's workgroup (a
-// tile of about 64,000 was cut short); VulkanFrame::render refuses from this many on llvmpipe.
+// The frame's gather with the scan's lists: a screen tile's list of triangles, walked by its fine
+// pass's workgroup (a tile of about 64,000 was cut short); VulkanFrame::render refuses from this
+// many on llvmpipe. (In buckets the fine pass walks at most a bucket's room.)
 inline constexpr uint32_t kLlvmpipeTilePairLimit = 16384;
 // The spill list's order pass and walk: a cell listing 65,535 entries or more is cut (70,000
 // triangles in one cell of capacity 1); after_insert refuses, on llvmpipe, a cell listing this many.
