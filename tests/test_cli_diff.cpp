@@ -210,7 +210,7 @@ TEST_CASE("CLI: gridrt diff - first-empty insertion on the compact layout, and -
   }
 }
 
-TEST_CASE("CLI: llvmpipe's loop limit - the mailbox's trace is refused, not wrong; a crowded tile's gather is right",
+TEST_CASE("CLI: llvmpipe's loop limit - the mailbox's trace is refused, not wrong - a crowded tile's gather is right",
           "[vulkan][cli][hardcase]") {
   // An outside sweep's finds: with the mailbox the trace was cut near 2,980 tests, under the guard's
   // 4,096; a screen tile listing 64,000 triangles cut the fine pass; both exited 0 with a wrong
