@@ -1034,3 +1034,63 @@ TEST_CASE("Vulkan frame: a crowded tile's gather, in buckets or refused on llvmp
   }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
+
+// An outside sweep: a triangle in a plane 1e-4 beside the eye, along the view (it crosses the near
+// plane without bounds: its screen box is the frustum's, clipped), listed for a tile its box only
+// partly covers. The fine pass tested every pixel of the tile and took hits nearer than the near
+// plane outside the box (16 of 1,024 pixels, a seam along the tile's edge), where the box gather,
+// the item pass and the past pass test the box alone. Every compute path is held to the boxes'.
+TEST_CASE("Vulkan frame: the fine pass tests a triangle only within its screen box (a triangle beside the eye)",
+          "[vulkan][diff][frame][gather]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  if (!ctx.info().buffer_int64_atomics || !ctx.info().subgroup_arithmetic_ballot) {
+    WARN("skipped: the device has no 64-bit buffer atomics (no compute gather)");
+    return;
+  }
+  size_t differ_all = 0, valid = 0;
+  for (const float offset : {1e-4f, 3e-4f, 5e-5f}) {
+    Scene s;
+    s.name = "hair";
+    Mesh m;
+    m.name = "hair";
+    m.positions = {{offset, -3, 0},  {offset, 3, 0},    {offset, 0, -5},  {-20, -20, -10}, {20, -20, -10},
+                   {20, 20, -10},    {-20, 20, -10},    {0, 0, 1000},     {1, 0, 1000},    {0, 1, 1000}};
+    m.triangles = {{0u, 1u, 2u}, {3u, 4u, 5u}, {3u, 5u, 6u}, {7u, 8u, 9u}};
+    m.materials.assign(m.triangles.size(), 0u);
+    s.meshes.push_back(m);
+    s.instances.push_back(Instance{.name = "hair", .mesh = 0});
+    s.camera = Camera{.eye = {0, 0, 0}, .target = {0, 0, -1}, .vfov_degrees = 40.0f};
+    s.finalize();
+    GridOptions o;
+    o.threads = 2;
+    VulkanGridTracer vk(ctx, o);
+    vk.build(s, 0.0f);
+    for (const glm::uvec2 size : {glm::uvec2(64, 16), glm::uvec2(61, 13)}) {
+      INFO("offset " << offset << ", " << size.x << "x" << size.y);
+      const FrameOptions base{.width = size.x, .height = size.y, .bounce = false, .shadows = false};
+      FrameOptions boxes_o = base, scan_o = base, past_o = base;
+      boxes_o.gather = GatherMode::boxes;
+      scan_o.gather_lists = GatherLists::scan;
+      past_o.gather_bucket_capacity = 0;  // every pair to the past pass
+      VulkanFrame boxes(vk, s, boxes_o), buckets(vk, s, base), scan(vk, s, scan_o), past(vk, s, past_o);
+      for (VulkanFrame* f : {&boxes, &buckets, &scan, &past}) f->render(0);
+      const GatherBuffer b = boxes.download_gather();
+      for (const VulkanFrame* f : {&buckets, &scan, &past}) {
+        const GatherBuffer a = f->download_gather();
+        size_t differ = 0;
+        for (size_t p = 0; p < a.size(); ++p) {
+          valid += a.valid[p];
+          const bool same = a.launch_ref[p] == b.launch_ref[p] && bits(a.hit[p].t) == bits(b.hit[p].t);
+          if (!same && ++differ <= 2)
+            UNSCOPED_INFO("pixel " << p << ": rasterizer " << hex(a.launch_ref[p]) << " t " << a.hit[p].t << ", boxes "
+                                   << hex(b.launch_ref[p]) << " t " << b.hit[p].t);
+        }
+        CHECK(differ == 0);
+        differ_all += differ;
+      }
+    }
+  }
+  CHECK(valid > 0);
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}

@@ -13,7 +13,8 @@
 //          the tile (raster_tile_t_lo: its depth plane's at the tile, at least its t_lo) exceeds
 //          the largest t of the subgroup's keys: it would have a larger t than every one, and so
 //          would every triangle after it in the batch
-//   pixel  the edge functions at the pixel (raster_pixel_may_hit), then the gather's ray test along
+//   pixel  within the triangle's screen box, the edge functions at the pixel (raster_pixel_may_hit),
+//          then the gather's ray test along
 //          the pixel's camera_direction (gather_dirs.comp); an accepted hit lowers the key
 // The skips only leave out pairs the ray test rejects or that cannot win, and the minimum does not
 // depend on the order: the keys end as gather_tiles.comp leaves them (docs/SPEC.md "The
@@ -91,7 +92,12 @@ void main() {
       if (s_sorted[j] > depth) break;
       const GatherRasterTriangle g = tile_tris[s_order[j]];
       bool lowered = false;
-      if (on && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
+      // Within the triangle's screen box only, as every other pass: a triangle crossing the near
+      // plane without bounds has edge functions that accept pixels outside its box, whose hits lie
+      // nearer than the near plane (an outside sweep: 16 pixels of a listed tile took them)
+      const bool in_box = px.x >= (g.box_lo & 0xFFFFu) && px.x <= (g.box_hi & 0xFFFFu) &&
+                          px.y >= (g.box_lo >> 16u) && px.y <= (g.box_hi >> 16u);
+      if (on && in_box && raster_pixel_may_hit(g.edge0, g.edge1, g.edge2, px.x, px.y)) {
         uvec2 k;
         if (gather_key_along(g.ref, g.index, triangles[g.index], dir.xyz, dir.w, k) && packUint2x32(k) < key) {
           key = packUint2x32(k);

@@ -30,6 +30,11 @@ void main() {
   const uint x0 = tile_tris[lo].box_lo & 0xFFFFu, y0 = tile_tris[lo].box_lo >> 16u;
   const uint across = ((tile_tris[lo].box_hi & 0xFFFFu) - x0) / 8u + 1u;
   const uvec2 px = uvec2(x0 + 8u * (t % across), y0 + 8u * (t / across)) + gl_LocalInvocationID.xy;
+  // Within the box (its last column and row of tiles reach past it) and the screen: a triangle
+  // crossing the near plane without bounds has hits outside its box nearer than the near plane,
+  // which no pass of the gather takes (an outside sweep: the box gather took them here, the fine
+  // pass at other pixels)
+  if (px.x > (tile_tris[lo].box_hi & 0xFFFFu) || px.y > (tile_tris[lo].box_hi >> 16u)) return;
   if (px.x >= c.width || px.y >= c.height) return;
   const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
   uvec2 key;
