@@ -229,20 +229,15 @@ void validate_geometry(const Scene& s) {
 void validate_camera(const Scene& s) {
   const Camera c = s.frame_camera();
   // A framed camera fails for geometry far past the ray domain (its eye is kept inside): say so
-  const std::string whose = s.camera ? "camera" : "the camera framed around the geometry";
+  std::string whose = s.camera ? "camera" : "the camera framed around the geometry";
   if (!s.camera) {
     const Bounds b = s.bounds(0.0f);
     const float reach = std::max({std::abs(b.lo.x), std::abs(b.lo.y), std::abs(b.lo.z), std::abs(b.hi.x),
                                   std::abs(b.hi.y), std::abs(b.hi.z)});
-    // Refused here, by name: no grid holds it either (the camera checks below once failed on it
-    // by chance, and no longer do: any finite view direction gives a frame)
-    if (!(reach <= shared::kDomainMaxCoordinate)) {
-      char r[32];
-      std::snprintf(r, sizeof r, "%.6g", double(reach));
-      throw Error("scene '" + s.name + "': the geometry reaches " + r + " from the origin, beyond the ray domain's " +
-                  "2^24 (docs/SPEC.md, \"Domain\"): no grid holds it and no camera can be framed around it; move it " +
-                  "nearer the origin or scale it down");
-    }
+    if (!(reach <= shared::kDomainMaxCoordinate))
+      whose = "the geometry reaches " + std::to_string(reach) + " from the origin, beyond the ray domain's 2^24 " +
+              "(docs/SPEC.md, \"Domain\"; move it nearer the origin or give the scene a camera), and the camera " +
+              "framed around it";
   }
   if (!finite(c.eye) || !finite(c.target) || !finite(c.up) || !std::isfinite(c.vfov_degrees))
     throw Error("scene '" + s.name + "': " + whose + " has non-finite values");
