@@ -258,6 +258,11 @@ void validate_camera(const Scene& s) {
   // two into range, so any finite length but zero gives its direction; 1e-30 and 1e20 were refused
   // as underflowing or overflowing, and 1e-22 gave a wrong frame: an outside sweep)
   const glm::vec3 view = direction_in_range(c.target - c.eye), up = direction_in_range(c.up);
+  // The camera framed around geometry whose distance overflows: refused with the geometry's reach
+  // named (a model 1e38 away: its automatic light overflows too, and its cache would not load back)
+  if (!s.camera && !std::isfinite(glm::length(c.target - c.eye)))
+    throw Error("scene '" + s.name + "': " + whose + ": eye and target are too far apart (their distance overflows " +
+                "single precision)");
   if (!finite(view))
     throw Error("scene '" + s.name + "': " + whose + ": eye and target are too far apart (their difference overflows " +
                 "single precision)");
