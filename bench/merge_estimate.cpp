@@ -132,7 +132,11 @@ class IrregularGrid {
         std::erase_if(live, [&](uint32_t a) { return cells_[a].count == ~0u; });
       }
     }
-    // The live cells, renumbered
+    drop_gone();
+  }
+
+  // The live cells (count not ~0u), renumbered in the map
+  void drop_gone() {
     std::vector<uint32_t> renum(cells_.size(), ~0u);
     std::vector<Cell> kept;
     for (uint32_t i = 0; i < cells_.size(); ++i)
@@ -177,15 +181,7 @@ class IrregularGrid {
             map_[i] = a;
           }
         }
-    std::vector<uint32_t> renum(cells_.size(), ~0u);
-    std::vector<Cell> kept;
-    for (uint32_t i = 0; i < cells_.size(); ++i)
-      if (cells_[i].count != ~0u) {
-        renum[i] = uint32_t(kept.size());
-        kept.push_back(cells_[i]);
-      }
-    for (uint32_t& m : map_) m = renum[m];
-    cells_ = std::move(kept);
+    drop_gone();
   }
 
   // A cell's references hold those of every cell of the slab beyond face (axis, side)
