@@ -147,7 +147,7 @@ gather | frame)
   # The compute gather's screen box (common/shared/raster.h gather_box) against the baseline's:
   # per scene, the baseline binary and this one at their defaults, one after the other
   B="--backend vulkan --traversal exact --vk-build compute --frames 30 --warmup 5"
-  sel='^\| [0-9]|^gather split|^gather passes|^update passes|^shadow pass|^back to back|error'
+  sel='^\| [0-9]|^\| (grid|rtx)|^agree|^grid memory|^gather split|^gather passes|^update passes|^shadow pass|^back to back|error'
   {
     for s in "${scenes[@]}" builtin:atrium; do
       X=$E/$s.gridscene
