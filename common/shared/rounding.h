@@ -99,10 +99,13 @@ SH_INLINE float sh_div_correct(float a, float b, float q0) {
   // The exact remainder R = A 2^s - Q B, modulo 2^32 (exact while |R| < 2^31: |Q - A 2^s / B| <= 65)
   int R = int((A << s) - Q * B);
 
-  // Round to nearest: move Q by round(R / B) units, so that |R| <= B / 2
+  // Round to nearest: move Q by round(R / B) units, so that |R| <= B / 2. k = floor((r2 + B) / 2B)
+  // by comparisons where it is at most 3 (the device's quotient within 2.5 ulps: always), by the
+  // integer division only beyond (a GPU has no integer divider: some 30 instructions)
   uint r2 = R < 0 ? uint(-R) * 2u : uint(R) * 2u;
   if (r2 > B) {
-    uint k = (r2 + B) / (2u * B);
+    uint k = r2 < 3u * B ? 1u : (r2 < 5u * B ? 2u : 3u);
+    if (r2 >= 7u * B) k = (r2 + B) / (2u * B);
     if (R > 0) {
       Q = Q + k;
       R = R - int(k * B);
@@ -180,7 +183,9 @@ SH_INLINE float sh_sqrt_correct(float a, float s0) {
   // round(R / 2S) units, then at most one unit.
   uint ar = R < 0 ? uint(-R) : uint(R);
   if (ar > S) {
-    uint k = (ar + S) / (2u * S);
+    // k = floor((ar + S) / 2S), by comparisons up to 3 (as in the division)
+    uint k = ar < 3u * S ? 1u : (ar < 5u * S ? 2u : 3u);
+    if (ar >= 7u * S) k = (ar + S) / (2u * S);
     S = R > 0 ? S + k : S - k;
     R = int((A << t) - S * S);
   }

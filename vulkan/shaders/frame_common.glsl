@@ -78,22 +78,21 @@ uint gather_ray_code(vec3 dir, GridTriangle tri, uint k, float tmin, out Triangl
                                -1.0f, r);
 }
 
-// The gather texel of a pixel whose camera ray (direction `dir`: camera_direction) has `ref` as
-// its visible triangle (kNoRef: none): the ray meets that triangle where the gather's ray test
-// (gather_ray_test) puts it, so position, normal, uv and material are computed exactly as
-// common/gather.cpp computes them from a traced primary hit (make_gather).
-GatherTexel gather_texel(uint ref, vec3 dir) {
+// The gather texel of a pixel whose camera ray (direction `dir`: camera_direction) meets `ref`, its
+// visible triangle (kNoRef: none), at `t`: the t of the gather's ray test (gather_ray_test), so
+// position, normal, uv and material are computed exactly as common/gather.cpp computes them from a
+// traced primary hit (make_gather). The compute gather's key carries that t (its high word: the
+// test that gave the key made it, and a test's t does not depend on its interval, which decides
+// only whether it accepts), so its resolve does not test the triangle again.
+GatherTexel gather_texel_at(uint ref, vec3 dir, float t) {
   const CameraParams c = fp.camera;
   GatherTexel g = GatherTexel(vec3(0.0f), 0xFFFFFFFFu, vec3(0.0f), kNoRef, vec2(0.0f), 0.0f, 0u);
   if (ref == kNoRef) return g;
   const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
   const GridTriangle tri = triangles[k];
-  // The primary hit: t of the shared triangle test, barycentrics by Cramer's rule
-  TriangleTest r;
-  gather_ray_test(dir, tri, k, 0.0f, r);
+  // Barycentrics by Cramer's rule at the hit point
   const vec4 n = gather_normal(tri.v0, tri.v1, tri.v2, dir);
-  if (r.det != 0.0f && n.w > 0.0f) {
-    const float t = moller_trumbore_t(r);
+  if (n.w > 0.0f) {
     const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(c.eye, dir, t));
     g.position = surface_point(tri.v0, tri.v1, tri.v2, bc);
     g.material = tri.material;
@@ -103,6 +102,17 @@ GatherTexel gather_texel(uint ref, vec3 dir) {
     g.t = t;
   }
   return g;
+}
+
+// The same for a visible triangle alone (the raster pass's visibility buffer): t from the gather's
+// ray test of it (no surface where its determinant is 0: the test never accepted it).
+GatherTexel gather_texel(uint ref, vec3 dir) {
+  if (ref == kNoRef) return GatherTexel(vec3(0.0f), 0xFFFFFFFFu, vec3(0.0f), kNoRef, vec2(0.0f), 0.0f, 0u);
+  const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
+  TriangleTest r;
+  gather_ray_test(dir, triangles[k], k, 0.0f, r);
+  if (r.det == 0.0f) return GatherTexel(vec3(0.0f), 0xFFFFFFFFu, vec3(0.0f), kNoRef, vec2(0.0f), 0.0f, 0u);
+  return gather_texel_at(ref, dir, moller_trumbore_t(r));
 }
 
 #endif

@@ -5,7 +5,7 @@
 // bin pass left (small triangles' atomics), then the minimum over the tile's list of large
 // triangles (gather_pairs.comp; no list when the pairs overflowed: the item pass, gather_raster.comp,
 // left the large triangles' keys too; with buckets, the pairs pass rasterized the pairs past a
-// tile's bucket); then the pixel's gather texel from it (gather_texel, as
+// tile's bucket); then the pixel's gather texel from it (gather_texel_at, at the key's t, as
 // gather_resolve.comp would). The list is taken in batches of 64 pairs, each
 // batch ranked by its triangles' lower t bounds over the tile, nearest first (the keys fall early
 // and the depth test below culls more). Per triangle:
@@ -108,11 +108,11 @@ void main() {
     }
     barrier();  // the batch's order is read before the next batch rewrites it
   }
-  // The resolve, here: the gather texel along the same direction (gather_resolve.comp does not run
-  // with the rasterizer)
+  // The resolve, here: the gather texel along the same direction at the key's t (gather_resolve.comp
+  // does not run with the rasterizer)
   if (on) {
-    const uint ref = unpackUint2x32(key).x;
-    visibility[p] = ref;
-    gather[p] = gather_texel(ref, dir.xyz);
+    const uvec2 k = unpackUint2x32(key);
+    visibility[p] = k.x;
+    gather[p] = gather_texel_at(k.x, dir.xyz, uintBitsToFloat(k.y));
   }
 }

@@ -14,12 +14,13 @@ void main() {
   const uvec2 px = gl_GlobalInvocationID.xy;
   if (px.x >= c.width || px.y >= c.height) return;
   const uint p = px.y * c.width + px.x;
-  uint ref;
   if ((kFrameFlags & kFrameComputeGather) != 0u) {
-    ref = gather_keys[2u * p];  // the key's low word; untouched keys are all ones: kNoRef
+    // The key: its low word the triangle (untouched keys are all ones: kNoRef), its high word the t
+    // of the test that gave it
+    const uint ref = gather_keys[2u * p];
     visibility[p] = ref;
-  } else {
-    ref = visibility[p];
+    gather[p] = gather_texel_at(ref, camera_direction(c, px.x, px.y), uintBitsToFloat(gather_keys[2u * p + 1u]));
+    return;
   }
-  gather[p] = gather_texel(ref, camera_direction(c, px.x, px.y));
+  gather[p] = gather_texel(visibility[p], camera_direction(c, px.x, px.y));
 }
