@@ -459,7 +459,8 @@ std::unique_ptr<Tracer> make_backend(const std::string& name, const BackendOptio
   }
 #endif
 #ifdef GRIDRT_HAVE_EMBREE
-  if (name == "embree") return std::make_unique<EmbreeTracer>();
+  // --threads bounds Embree's threads too (it was taken and ignored: an outside sweep)
+  if (name == "embree") return std::make_unique<EmbreeTracer>(reference::thread_count(o.grid));
 #endif
   throw OptionsError("unknown backend '" + name + "' (this build has: " + backend_list() + ")");
 }

@@ -52,6 +52,7 @@ struct BenchOptions {
   std::string rays = "auto";       // the traced rays: auto, glossy (the frame's), or a kind (rays_of_kind)
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
   std::string gather_lists = "buckets";  // vulkan, compute gather: the tile lists' passes
+  std::vector<std::string> frame_knobs;  // the frame's own options given (refused where --rays auto finds no frame)
   std::optional<uint32_t> gather_bucket;  // vulkan, buckets: a tile's room in pairs
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
   ShadowMode shadows = ShadowMode::automatic;  // shadow rays to the lights (auto: iff the scene has some)
@@ -389,7 +390,7 @@ void embree_on_frame_rays(const BenchOptions& o, const Scene& scene, const Frame
     const double ms = median(times), agree_pct = agreement_percent(last_rays, last_hits, embree_hits);
     size_t gap = 0;
     for (size_t i : index) gap += (last_hits[i].flags & shared::kHitGapFill) != 0;
-    const unsigned threads = std::thread::hardware_concurrency();
+    const unsigned threads = reference::thread_count(o.backend_options.grid);
     std::printf("embree on the same bounce rays (CPU, %u threads; the last frame, t = %.3f): %zu rays in %.2f ms (median of 3), "
                 "%.1f Mrays/s; the GPU grid agrees on %.3f %% (same instance and triangle, or both miss; %zu gap-fill hits); "
                 "embree build + update %.0f ms\n\n",
@@ -730,7 +731,8 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
                        std::vector<std::string>& notes, std::vector<std::string>& shadow_notes) {
   std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
   PhaseTimes times;
-  std::string device = "CPU, " + std::to_string(std::thread::hardware_concurrency()) + " threads";
+  // The threads it runs with (--threads; the machine's were printed whatever was asked: an outside sweep)
+  std::string device = "CPU, " + std::to_string(reference::thread_count(o.backend_options.grid)) + " threads";
   double grid_mib = 0.0;
   auto t0 = std::chrono::steady_clock::now();
   tracer->build(scene, 0.0f);
@@ -904,6 +906,12 @@ void run_bench(const BenchOptions& options) {
   const std::string kind = frame_rays ? "glossy bounce" : (o.rays == "auto" ? "diffuse" : o.rays);
   if (o.rtx && !frame_rays)
     throw Error("--rtx traces the frame's glossy bounce rays: it needs --rays glossy (or auto) on a scene with a glossy material");
+  // --rays auto on a scene without a glossy material traces diffuse rays as a list, without the
+  // frame: the frame's options do nothing there (an outside sweep: accepted, as --rays diffuse is not)
+  if (!frame_rays && !o.frame_knobs.empty())
+    throw OptionsError(o.frame_knobs.front() + " is a knob of the frame, which traces its glossy bounce rays; " + scene.name +
+                       " has no glossy material, so --rays auto traces a fixed list of diffuse rays without it: it "
+                       "does nothing (leave it out)");
   const bool with_vulkan = frame_rays && std::find(backends.begin(), backends.end(), "vulkan") != backends.end();
   auto on_cpu_rays = [&](const std::string& b) { return b != "vulkan" ? !(with_vulkan && b == "embree") : !frame_rays; };
   const bool cpu_rays = std::any_of(backends.begin(), backends.end(), on_cpu_rays);
@@ -1056,6 +1064,13 @@ void add_bench_command(CLI::App& app) {
     if (cmd->count("--gather-bucket") > 0 && (o->gather_lists == "scan" || o->gather != "compute"))
       throw OptionsError("--gather-bucket sizes the compute gather's buckets: it needs --gather compute and "
                          "--gather-lists buckets (the defaults)");
+    // The tile lists are the compute gather's (an outside sweep: accepted with the others, nothing changed)
+    if (cmd->count("--gather-lists") > 0 && o->gather != "compute")
+      throw OptionsError("--gather-lists chooses the compute gather's tile lists; --gather " + o->gather +
+                         " has none: it does nothing (leave one out)");
+    o->frame_knobs.clear();
+    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--counter-frames", "--back-to-back"})
+      if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0) o->frame_knobs.push_back(name);
     // ... nor with rays of a fixed kind, which every backend, vulkan included, traces as a list
     // without the frame (an outside sweep: accepted, nothing changed)
     if (o->rays != "glossy" && o->rays != "auto") {

@@ -221,7 +221,7 @@ std::vector<Item> pixel_items(const ExplainOptions& o, const Scene& scene, Expla
   const size_t p = size_t(y) * o.width + x;
   const Traversal frame_t = ex.options().traversal;
   char where[128];
-  std::snprintf(where, sizeof where, "pixel %u,%u of %ux%u at t = %g", x, y, o.width, o.height, double(o.time));
+  std::snprintf(where, sizeof where, "pixel %u,%u of %ux%u at t = %.9g", x, y, o.width, o.height, double(o.time));
   // Which traversal and grid the frame uses
   std::vector<std::string> frame_words;
   frame_words.push_back("the frame (gridrt render, CPU): primary rays (the gather buffer) by the exact traversal on " +
@@ -418,9 +418,18 @@ void write_pictures(const ExplainOptions& o, size_t i, size_t count, const refer
     // Both checked before either is written: a refused OBJ left its .mtl replaced (an outside sweep)
     check_output_allowed(path, "OBJ");
     if (!o.svg.empty()) check_output_allowed(numbered(o.svg, i, count), "SVG");
-    write_file_atomically(mtl.string(), "OBJ materials", reference::explain_mtl());
-    write_file_atomically(path, "OBJ", reference::explain_obj(want, data, mtl.filename().string()));
-    written.push_back(path + " (and " + mtl.string() + ")");
+    // An OBJ streamed to a FIFO or a character device (/dev/stdout) has no folder of its own: no
+    // .mtl is written beside it (an outside sweep: /dev/null.mtl was made in /dev), and it names none
+    std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    if (!ec && (std::filesystem::is_character_file(st) || std::filesystem::is_fifo(st))) {
+      write_file_atomically(path, "OBJ", reference::explain_obj(want, data, ""));
+      written.push_back(path + " (a stream: without its materials, no .mtl beside it)");
+    } else {
+      write_file_atomically(mtl.string(), "OBJ materials", reference::explain_mtl());
+      write_file_atomically(path, "OBJ", reference::explain_obj(want, data, mtl.filename().string()));
+      written.push_back(path + " (and " + mtl.string() + ")");
+    }
   }
   if (!o.svg.empty()) {
     const std::string path = numbered(o.svg, i, count);

@@ -173,6 +173,10 @@ void run_stats(const StatsOptions& o) {
   // --max-pixels refused them, and the options that size it are refused without those (an
   // outside sweep)
   if (o.measure || !o.ray_pixel.empty()) check_frame_size(o.width, o.height);
+  // The pixel checked before the build (it was, after the whole report: an outside sweep)
+  if (!o.ray_pixel.empty() && (o.ray_pixel[0] >= o.width || o.ray_pixel[1] >= o.height))
+    throw OptionsError("--pixel " + std::to_string(o.ray_pixel[0]) + "," + std::to_string(o.ray_pixel[1]) +
+                       " lies outside the " + std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
   const Scene scene = load_scene_or_default(o.scene);
   const reference::GridOptions go = grid_options_for(o.backend_options, scene);
   reference::ReferenceGridTracer ref(go);
@@ -185,9 +189,6 @@ void run_stats(const StatsOptions& o) {
     std::string ray_name;
     if (!o.ray_pixel.empty()) {
       const uint32_t x = o.ray_pixel[0], y = o.ray_pixel[1];
-      if (x >= o.width || y >= o.height)
-        throw OptionsError("--pixel " + std::to_string(x) + "," + std::to_string(y) + " lies outside the " +
-                    std::to_string(o.width) + "x" + std::to_string(o.height) + " image");
       ray = ref.explain_ray(camera_ray(scene.frame_camera(), o.width, o.height, x, y));
       ray_name = "camera ray of pixel " + std::to_string(x) + "," + std::to_string(y) + " of " +
                  std::to_string(o.width) + "x" + std::to_string(o.height);

@@ -214,7 +214,13 @@ std::string build_size_text(const portal::PortalBuild& b) {
 void run_portal_render(const PortalRenderOptions& o) {
   check_frame_size(o.width, o.height);
   check_output_path(o.output);
-  check_image_extension(o.output);
+  // An -o name of no image format: the command line's error (exit 2), as render's (an outside
+  // sweep found 1 here, 2 there)
+  try {
+    check_image_extension(o.output);
+  } catch (const Error& e) {
+    throw OptionsError(e.what());
+  }
   check_portal_backend(o.backend);
   if (o.flat_compare && o.flatten) throw Error("--flat-compare renders both: leave out --flatten");
   const bool instanced = load_instanced(o.scene).has_value();
@@ -676,7 +682,9 @@ void add_portal_command(CLI::App& app) {
         "export", "A block map as a triangle scene for the grid: a .json scene beside its .obj meshes (instances of the blocks)");
     cmd->add_option("world", *spec, "A block map: builtin:blocks, gen-blocks:WxDxH[:SEED] or a .map starting with 'scale'")
         ->required();
-    cmd->add_option("-o,--output", *output, "The scene file (.json); the meshes are written beside it")->required();
+    cmd->add_option("-o,--output", *output,
+                    "The scene file (.json); its meshes (NAME_*.obj) and materials (NAME.mtl) are written beside it, "
+                    "replacing files of those names")->required();
     cmd->add_flag("--flatten", *flat, "One mesh of the flattened world instead of the blocks as instances");
     cmd->callback([=] {
       // The output's folder checked first, as every verb's (its message named a temporary file);
@@ -690,8 +698,12 @@ void add_portal_command(CLI::App& app) {
       std::optional<portal::InstancedWorld> iw = load_instanced(*spec);
       if (!iw) throw Error("portal export: '" + *spec + "' is not a block map");
       const size_t triangles = portal::export_scene(*iw, *output, *flat);
-      std::printf("%s: %zu triangles%s -> %s\n", iw->top.name.c_str(), triangles,
-                  *flat ? " (flattened, one mesh)" : " (blocks placed by instances)", output->c_str());
+      // The files beside it named too (an outside sweep: an existing NAME.mtl was replaced unsaid)
+      const std::filesystem::path out(*output);
+      const std::string stem = (out.parent_path() / out.stem()).string();
+      std::printf("%s: %zu triangles%s -> %s (with %s.mtl and the meshes %s_*.obj beside it)\n", iw->top.name.c_str(),
+                  triangles, *flat ? " (flattened, one mesh)" : " (blocks placed by instances)", output->c_str(),
+                  stem.c_str(), stem.c_str());
     });
   }
 #ifdef GRIDRT_HAVE_VULKAN

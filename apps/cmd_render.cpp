@@ -121,9 +121,13 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
     if (o.no_bounce)
       throw CLI::ValidationError("--no-bounce", "a --view figure picks its rays with --rays (bounce or primary): "
                                                 "give --rays primary, and leave --no-bounce out");
-    // The figure is --scale times the image along each side: its pixels count against --max-pixels
-    // too (about 40 bytes each)
-    const uint64_t figure = uint64_t(o.width) * o.height * uint64_t(o.scale) * uint64_t(o.scale);
+    // The figure is --scale times the image along each side, with its title above and its colour bar
+    // and legend beside (at most 500 pixels wider and 60 higher than the image, and at least 1200 by
+    // 600 for the title and the bar, plot.cpp
+    // draw_image_figure): its pixels count against --max-pixels too (about 40 bytes each; the image
+    // alone was counted, and a figure 2.1 times the limit was written: an outside sweep)
+    const uint64_t figure = std::max<uint64_t>(uint64_t(o.width) * uint64_t(o.scale) + 500, 1200) *
+                            std::max<uint64_t>(uint64_t(o.height) * uint64_t(o.scale) + 60, 600);
     if (figure > frame_limits().max_pixels)
       throw Error("--view with --scale " + std::to_string(o.scale) + ": a figure of " + std::to_string(figure) +
                   " pixels exceeds the limit of " + std::to_string(frame_limits().max_pixels) +

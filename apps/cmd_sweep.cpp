@@ -763,7 +763,14 @@ void add_sweep_command(CLI::App& app) {
       ->expected(2)
       ->type_name("W,H")
       ->group(kExpert);
-  cmd->callback([o] {
+  cmd->callback([o, cmd] {
+    // The paper traversal's knobs with the exact traversal alone, even one value each: its CSV rows
+    // recorded the value as if it applied (an outside sweep; render refuses them too)
+    if (std::find(o->traversal.begin(), o->traversal.end(), "paper") == o->traversal.end())
+      for (const char* name : {"--elongation", "--revisit", "--gap-fill"})
+        if (cmd->count(name) > 0)
+          throw OptionsError(std::string(name) + " is a knob of the paper traversal's segments and gap-fill; with "
+                             "--traversal exact alone it does nothing (add paper to --traversal, or leave it out)");
     // A bad command line before any work (an outside sweep: the work sample was judged after the
     // scene loaded, exit 1)
     if (o->work_sample.size() == 2 &&

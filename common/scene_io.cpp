@@ -22,6 +22,7 @@
 #include "gridrt/common/builtin/builtin.h"
 #include "gridrt/common/loaders/loaders.h"
 #include "gridrt/common/safe_io.h"
+#include "gridrt/common/util.h"
 
 #ifndef GRIDRT_DEFAULT_SCENES
 #define GRIDRT_DEFAULT_SCENES "../shared/data/scenes"
@@ -119,7 +120,7 @@ class SceneFileReader {
     } catch (const json::parse_error& e) {
       // nlohmann gives the byte position (1-based, just past the offending character).
       const size_t at = std::min(e.byte > 0 ? e.byte - 1 : 0, text.size());
-      throw Error(where(at) + ": JSON syntax error: " + e.what());
+      throw Error(where(at) + ": JSON syntax error: " + printable_message(e.what()));
     }
     // A key given twice in one object: the parser keeps the last without a word (a second
     // "motion" pasted into an instance), so a second pass over the text names the first

@@ -15,6 +15,9 @@ namespace gridrt {
 
 // A file's word for a message: printable ASCII kept, any other byte (a NUL, a control, UTF-8 or
 // binary junk) and the backslash as \xNN, at most `max` bytes of `s` shown ("..." after them).
+// A library's message that may quote the file's bytes (a JSON parser's "last read: '...'"): as
+// printable, with line breaks and tabs kept, up to `max` bytes.
+inline std::string printable_message(std::string_view s, size_t max = 4096);
 inline std::string printable(std::string_view s, size_t max = 32) {
   std::string out;
   for (size_t i = 0; i < s.size() && i < max; ++i) {
@@ -25,6 +28,19 @@ inline std::string printable(std::string_view s, size_t max = 32) {
       char buf[8];
       std::snprintf(buf, sizeof buf, "\\x%02X", unsigned(c));
       out += buf;
+    }
+  }
+  if (s.size() > max) out += "...";
+  return out;
+}
+inline std::string printable_message(std::string_view s, size_t max) {
+  std::string out;
+  size_t start = 0;
+  for (size_t i = 0; i <= s.size() && i <= max; ++i) {  // runs between line breaks and tabs
+    if (i == s.size() || i == max || s[i] == '\n' || s[i] == '\t') {
+      out += printable(s.substr(start, i - start), i - start);
+      if (i < s.size() && i < max) out.push_back(s[i]);
+      start = i + 1;
     }
   }
   if (s.size() > max) out += "...";

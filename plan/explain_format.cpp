@@ -82,6 +82,22 @@ bool rejected(const ExplainRecord& rec) {
   return false;
 }
 
+// A name for the text: control bytes (a line break, an escape) as \xNN, UTF-8 and the rest kept.
+std::string control_escaped(const std::string& s) {
+  std::string out;
+  for (const char ch : s) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c >= 0x20 && c != 0x7F) {
+      out.push_back(ch);
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02X", unsigned(c));
+      out += buf;
+    }
+  }
+  return out;
+}
+
 const char* miss_reason(uint32_t code) {
   switch (code) {
     case kMissOutsideGrid: return "the ray does not meet the grid box within [tmin, tmax]";
@@ -90,6 +106,20 @@ const char* miss_reason(uint32_t code) {
     case kMissStepLimit: return "the step limit (GridParams::max_segments) was reached";
     default: return "?";
   }
+}
+
+// A miss's reason; a ray whose interval is empty (tmin >= tmax: valid, and met by nothing) says so,
+// where "does not meet the grid box" misled (an outside sweep: the ray did meet it).
+std::string miss_text(const ExplainRecord& rec, uint32_t code) {
+  if (code == kMissOutsideGrid)
+    for (const ExplainEvent& e : rec.events)
+      if (e.kind == kEvRay && !(e.f0.w < e.f1.w)) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "the ray's interval is empty (tmin %.9g >= tmax %.9g): nothing can be hit",
+                      double(e.f0.w), double(e.f1.w));
+        return buf;
+      }
+  return miss_reason(code);
 }
 
 bool is_exact(const ExplainRecord& rec) { return rec.params.traversal == kTraversalExact; }
@@ -257,7 +287,9 @@ std::string reference_text(uint32_t ref, const ExplainFormat& fmt) {
   const uint32_t inst = ref_instance(ref);
   std::string s = "instance " + u32(inst);
   if (fmt.names && inst < fmt.names->instances.size() && !fmt.names->instances[inst].empty())
-    s += " \"" + fmt.names->instances[inst] + "\"";
+    // Escaped as map words are (a name with a line break printed raw broke the text's lines: an
+    // outside sweep; JSON, HTML and CSV escape it themselves)
+    s += " \"" + control_escaped(fmt.names->instances[inst]) + "\"";
   s += ", triangle " + u32(ref_triangle(ref));
   return fmt.brief ? s : hex_u32(ref) + " (" + s + ")";
 }
@@ -408,7 +440,7 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
       line();
       break;
     case kEvMiss:
-      os << "MISS: " << (rejected(rec) ? "the ray was rejected (above), never traced" : miss_reason(e.code));
+      os << "MISS: " << (rejected(rec) ? "the ray was rejected (above), never traced" : miss_text(rec, e.code));
       line();
       break;
     default:
@@ -486,7 +518,7 @@ std::string event_summary(const ExplainRecord& rec, size_t i, const ExplainForma
          << ((e.code & kHitGapFill) ? ", GAP-FILL" : "") << ((e.code & kHitBackFace) ? ", back face" : "");
       break;
     case kEvMiss:
-      os << "MISS: " << (rejected(rec) ? "the ray was rejected, never traced" : miss_reason(e.code));
+      os << "MISS: " << (rejected(rec) ? "the ray was rejected, never traced" : miss_text(rec, e.code));
       break;
     default: os << "? event kind " << e.kind;
   }

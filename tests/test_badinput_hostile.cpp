@@ -286,7 +286,7 @@ TEST_CASE("A grid the host cannot hold is refused at once, with its size and the
     INFO(traversal << ": " << s.output);
     CHECK(s.exit_code == 1);
     // (what the process already holds counts against the limit: less than 16 MiB is left)
-    CHECK_THAT(s.output, Contains("160x160x160 cells need about") && Contains(" left of --max-host-mib's 16 MiB") &&
+    CHECK_THAT(s.output, Contains("160x160x160 cells need about") && Contains(" left of --max-host-mib's 16.00 MiB") &&
                              Contains("(this process holds"));
     // the option named once, sizes below 16 MiB with their bytes
     const std::string out = s.output;

@@ -755,9 +755,19 @@ void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span
   }
   if (most < kLlvmpipeLoopBudget) return;
   const bool skipped = (worst->flags & kHitLoopSpent) != 0u && (g.flags & shared::kGridMailbox) != 0u;
+  // The estimate itself and its weights (the tests and cells alone did not say why 4,679 tests were
+  // refused against 49,152 iterations: an outside sweep)
+  const bool exact = g.traversal == shared::kTraversalExact, compact = (g.flags & shared::kGridCompact) != 0u;
+  const uint32_t per_test =
+      !exact ? 0u : (compact ? ((g.flags & shared::kGridMailbox) != 0u ? 22u : 14u) : ((g.flags & shared::kGridMailbox) != 0u ? 10u : 2u));
+  const std::string weights = exact ? std::to_string(per_test) + " loop iterations a test and " +
+                                          std::to_string(shared::kLlvmpipeIterationsPerCell) + " a cell"
+                                    : std::string("1.5 loop iterations a test or a cell");
   throw Error("vulkan-grid: " + std::string(what) + ": a ray made " + std::to_string(worst->tests) +
               " triangle tests over " + std::to_string(worst->cells) + " cells" +
               (skipped ? std::string(" (and skipped references its mailbox held)") : std::string()) +
+              ((worst->flags & kHitLoopSpent) != 0u ? ", at least " : ", about ") + std::to_string(most) +
+              " loop iterations (" + weights + " in this grid's trace)" +
               "; llvmpipe (a CPU Vulkan driver) ends a shader's loops after 65,535 iterations in all, "
               "which cuts this trace short (refused from an estimated " + std::to_string(kLlvmpipeLoopBudget) +
               " iterations): its hits cannot be trusted (cells holding too many overlapping triangles, or a ray "

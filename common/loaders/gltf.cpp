@@ -22,6 +22,7 @@
 #include "gridrt/common/loaders/loaders.h"
 #include "gridrt/common/safe_io.h"
 #include "gridrt/common/scene_io.h"
+#include "gridrt/common/util.h"
 
 namespace gridrt {
 namespace fs = std::filesystem;
@@ -600,7 +601,7 @@ tinygltf::Model parse_model(const std::string& path, std::map<int, int>& image_a
   }
   if (!ok || !err.empty()) {
     while (!err.empty() && err.back() == '\n') err.pop_back();
-    throw Error("cannot load glTF '" + path + "': " + (err.empty() ? std::string("TinyGLTF failed") : err));
+    throw Error("cannot load glTF '" + path + "': " + (err.empty() ? std::string("TinyGLTF failed") : printable_message(err)));
   }
   // glTF 2.x only: the spec asks a loader to refuse another major version ("3.0" was read as 2.0:
   // an outside sweep)

@@ -1,0 +1,164 @@
+// test_cli_messages.cpp: options that do nothing in the combination given are refused with the
+// command line's exit code, messages say what happened (sizes, times, empty intervals, the
+// llvmpipe estimate, names with control bytes, non-UTF-8 bytes of a file), and outputs go only
+// where they were asked to: an outside sweep's finds, each seen wrong before its fix.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "tests/run_tool.h"
+
+namespace fs = std::filesystem;
+using Catch::Contains;
+using gridrt::test::Run;
+using gridrt::test::run_tool;
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / "gridrt_test_cli_messages";
+  fs::create_directories(dir);
+  return dir / name;
+}
+
+void write(const fs::path& p, const std::string& text) {
+  std::ofstream f(p, std::ios::binary);
+  f << text;
+}
+
+}  // namespace
+
+TEST_CASE("CLI: bench refuses the frame's options where no frame runs, and --gather-lists without the compute gather",
+          "[cli][bench][vulkan]") {
+  const std::string base = "bench builtin:cornell --width 8 --height 8 --frames 1 --warmup 0 --backend vulkan ";
+  // The Cornell box has no glossy material: --rays auto traces a list of diffuse rays, no frame
+  for (const char* knob : {"--compact-rays", "--gather raster", "--gather-lists scan", "--back-to-back 2"}) {
+    const Run r = run_tool(base + knob);
+    INFO(knob << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Contains("has no glossy material") && Contains("does nothing"));
+  }
+  const Run lists = run_tool(base + "--gather boxes --gather-lists scan");
+  INFO(lists.output);
+  CHECK(lists.exit_code == 2);
+  CHECK_THAT(lists.output, Contains("--gather-lists") && Contains("--gather boxes has none"));
+}
+
+TEST_CASE("CLI: bench prints the threads it runs with", "[cli][bench]") {
+  const Run r = run_tool("bench builtin:cornell --width 8 --height 8 --frames 1 --warmup 0 --backend cpu --threads 1");
+  INFO(r.output);
+  REQUIRE(r.exit_code == 0);
+  CHECK_THAT(r.output, Contains("| CPU, 1 threads |"));
+}
+
+TEST_CASE("CLI: sweep refuses a paper traversal's knob with the exact traversal alone, one value too", "[cli][sweep]") {
+  for (const char* knob : {"--revisit skip", "--gap-fill off", "--elongation 3"}) {
+    const Run r = run_tool("sweep builtin:cornell -o " + scratch("sweep").string() +
+                           " --width 8 --height 8 --traversal exact " + knob);
+    INFO(knob << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Contains("knob of the paper traversal"));
+  }
+}
+
+TEST_CASE("CLI: explain names an empty interval, the scene time in full and control bytes of names", "[cli][explain]") {
+  // tmin 5 > tmax 1: the ray meets the box, but nothing can be hit
+  const Run empty = run_tool("explain builtin:cornell --ray 1,1,1,0,0,1,5,1 --brief");
+  INFO(empty.output);
+  REQUIRE(empty.exit_code == 0);
+  CHECK_THAT(empty.output, Contains("interval is empty (tmin 5 >= tmax 1)"));
+  CHECK_THAT(empty.output, !Contains("does not meet the grid box"));
+  // The time as given, not to 6 digits
+  const Run t = run_tool("explain " + std::string(GRIDRT_DATA_DIR) + "/scenes/teapot.json -t 123456.7 --width 8 --height 8 -p 4,4 --brief");
+  INFO(t.output);
+  REQUIRE(t.exit_code == 0);
+  CHECK_THAT(t.output, Contains("t = 123456.703"));
+  // An instance named with a line break and an escape: one line each, escaped
+  const fs::path scene = scratch("names.json");
+  write(scene, R"({"meshes": {"m": {"builtin": "teapot"}},
+                   "instances": [{"name": "two\nlines\u001b[31m", "mesh": "m"}]})");
+  const Run n = run_tool("explain " + scene.string() + " --width 16 --height 16 -p 8,8");
+  INFO(n.output);
+  REQUIRE(n.exit_code == 0);
+  CHECK_THAT(n.output, Contains("\"two\\x0Alines\\x1B[31m\""));
+  CHECK_THAT(n.output, !Contains("two\nlines"));
+}
+
+TEST_CASE("CLI: explain --export to a character device writes no materials file beside it", "[cli][explain]") {
+  const bool before = fs::exists("/dev/null.mtl");
+  const Run r = run_tool("explain builtin:cornell --width 40 --height 30 -p 20,15 --brief --export /dev/null");
+  INFO(r.output);
+  const bool made = !before && fs::exists("/dev/null.mtl");
+  if (made) fs::remove("/dev/null.mtl");  // what the old code did: do not leave it behind
+  CHECK(r.exit_code == 0);
+  CHECK_FALSE(made);
+  CHECK_THAT(r.output, Contains("a stream: without its materials"));
+}
+
+TEST_CASE("CLI: stats --slices checks its pixel before the build", "[cli][stats]") {
+  const fs::path dir = scratch("slices");
+  fs::create_directories(dir);
+  const Run r = run_tool("stats builtin:cornell --slices " + dir.string() + " -p 50,50 --width 10 --height 10");
+  INFO(r.output);
+  CHECK(r.exit_code == 2);
+  CHECK_THAT(r.output, Contains("lies outside the 10x10 image"));
+  CHECK_THAT(r.output, !Contains("triangles in"));  // no report printed before the refusal
+}
+
+TEST_CASE("CLI: sizes in limit messages to two decimals, with their bytes", "[cli][limits]") {
+  // A 1,600,024-byte OBJ (1.53 MiB) over --max-input-mib 1
+  const fs::path obj = scratch("big.obj");
+  {
+    std::ofstream f(obj, std::ios::binary);
+    f << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    const std::string pad(1600024 - 32, '#');
+    f << pad << "\n";
+  }
+  const Run r = run_tool("--max-input-mib 1 stats " + obj.string());
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("1.53 MiB (" + std::to_string(fs::file_size(obj)) + " bytes)"));
+}
+
+TEST_CASE("CLI: a glTF parser's message shows the file's non-ASCII bytes escaped", "[cli][gltf]") {
+  const fs::path g = scratch("bad.gltf");
+  write(g, std::string("{\"asset\": \x8F\xFE") + "}");
+  const Run r = run_tool("stats " + g.string());
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  bool raw = false;
+  for (const char c : r.output) raw = raw || static_cast<unsigned char>(c) >= 0x80;
+  CHECK_FALSE(raw);
+  CHECK_THAT(r.output, Contains("\\x8F"));
+}
+
+TEST_CASE("CLI: render --view counts the figure's title, bar and legend against --max-pixels", "[cli][render]") {
+  const Run r = run_tool("render builtin:cornell --view cells --scale 16 --width 16384 --height 1 -o " +
+                         scratch("wide.png").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("exceeds the limit") && Contains("--max-pixels"));
+  CHECK_FALSE(fs::exists(scratch("wide.png")));
+}
+
+TEST_CASE("CLI: portal render's output without an image extension is the command line's error, as render's",
+          "[cli][portal]") {
+  const Run grid = run_tool("render builtin:cornell --width 8 --height 8 -o " + scratch("noext").string());
+  const Run portal = run_tool("portal render builtin:level --width 8 --height 8 -o " + scratch("noext").string());
+  INFO(grid.output << "\n" << portal.output);
+  CHECK(grid.exit_code == 2);
+  CHECK(portal.exit_code == 2);
+  CHECK_THAT(portal.output, Contains("no file extension"));
+}
+
+TEST_CASE("CLI: portal export names the materials and meshes it writes beside the scene", "[cli][portal]") {
+  const fs::path out = scratch("exported.json");
+  const Run r = run_tool("portal export builtin:blocks -o " + out.string());
+  INFO(r.output);
+  REQUIRE(r.exit_code == 0);
+  const std::string stem = (out.parent_path() / out.stem()).string();
+  CHECK_THAT(r.output, Contains(stem + ".mtl") && Contains(stem + "_*.obj"));
+  CHECK(fs::exists(stem + ".mtl"));
+}
