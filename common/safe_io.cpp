@@ -80,15 +80,15 @@ uint64_t host_memory_available() {
   return room;
 }
 
-// A size for a message: MiB to two decimals and the bytes, so that a file just over a small limit
-// does not read "1 MiB, more than the limit of 1 MiB" (an outside sweep's find), nor a 1.53 MiB
-// file "2 MiB" (another: whole MiB were rounded up)
+// A size for a message: MiB to two decimals (a 1.53 MiB file read "2 MiB": whole MiB were rounded
+// up, an outside sweep), below 16 MiB with the bytes too, so that a file just over a small limit
+// does not read "1 MiB, more than the limit of 1 MiB" (another)
 static std::string mib(uint64_t bytes) {
   // Below a MiB, the bytes alone (a 2,418-byte file "held 1 MiB": an outside sweep)
   if (bytes < (uint64_t(1) << 20)) return std::to_string(bytes) + " bytes";
   char buf[48];
   std::snprintf(buf, sizeof buf, "%.2f MiB", double(bytes) / double(uint64_t(1) << 20));
-  return std::string(buf) + " (" + std::to_string(bytes) + " bytes)";
+  return bytes >= (uint64_t(16) << 20) ? std::string(buf) : std::string(buf) + " (" + std::to_string(bytes) + " bytes)";
 }
 
 void require_host_memory(uint64_t bytes, const std::string& what, const std::string& advice) {

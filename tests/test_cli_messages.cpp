@@ -135,6 +135,7 @@ TEST_CASE("CLI: a glTF parser's message shows the file's non-ASCII bytes escaped
 }
 
 TEST_CASE("CLI: render --view counts the figure's title, bar and legend against --max-pixels", "[cli][render]") {
+  fs::remove(scratch("wide.png"));
   const Run r = run_tool("render builtin:cornell --view cells --scale 16 --width 16384 --height 1 -o " +
                          scratch("wide.png").string());
   INFO(r.output);
