@@ -213,14 +213,7 @@ std::string build_size_text(const portal::PortalBuild& b) {
 
 void run_portal_render(const PortalRenderOptions& o) {
   check_frame_size(o.width, o.height);
-  check_output_path(o.output);
-  // An -o name of no image format: the command line's error (exit 2), as render's (an outside
-  // sweep found 1 here, 2 there)
-  try {
-    check_image_extension(o.output);
-  } catch (const Error& e) {
-    throw OptionsError(e.what());
-  }
+  check_image_output(o.output);
   check_portal_backend(o.backend);
   if (o.flat_compare && o.flatten) throw Error("--flat-compare renders both: leave out --flatten");
   const bool instanced = load_instanced(o.scene).has_value();

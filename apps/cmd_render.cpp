@@ -168,14 +168,7 @@ void run_render(const RenderOptions& options, bool scale_given, bool rays_given,
     run_portal_render(p);
     return;
   }
-  check_output_path(o.output);
-  // An -o name of no image format the tool writes: the command line's error (exit 2), as convert's
-  // and portal export's (an outside sweep found 1 here, 2 there)
-  try {
-    check_image_extension(o.output);
-  } catch (const Error& e) {
-    throw OptionsError(e.what());
-  }
+  check_image_output(o.output);
   const Scene scene = load_scene_or_default(o.scene);
   // Every frame's file checked before the first is written, once the inputs are known (a later
   // frame over a texture this run read was refused after the earlier frames had replaced theirs:

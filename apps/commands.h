@@ -76,6 +76,10 @@ Scene load_scene_or_default(const std::string& spec);
 // Error unless the folder of `path` exists and `path` is not a folder (checked before hours of
 // work, not after).
 void check_output_path(const std::string& path);
+// check_output_path for an image, and its extension one of a format the tool writes: a name of no
+// such format is the command line's error (OptionsError, exit 2) on every verb (render said 2 and
+// portal render 1: an outside sweep).
+void check_image_output(const std::string& path);
 
 // The frame-buffer limit (--max-pixels): width x height of any image a verb renders or gathers.
 struct FrameLimits {

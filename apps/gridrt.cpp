@@ -23,6 +23,7 @@
 #include "apps/backends.h"
 #include "apps/commands.h"
 #include "gridrt/common/builtin/builtin.h"
+#include "gridrt/common/image_io.h"
 #include "gridrt/common/scene.h"
 #include "gridrt/common/safe_io.h"
 #include "gridrt/common/scene_io.h"
@@ -72,6 +73,15 @@ void check_output_path(const std::string& path) {
                                      : "folder '" + dir.string() + "' does not exist"));
   }
   if (is_folder(p.string())) throw Error("cannot write '" + path + "': it is a folder");
+}
+
+void check_image_output(const std::string& path) {
+  check_output_path(path);
+  try {
+    check_image_extension(path);
+  } catch (const Error& e) {
+    throw OptionsError(e.what());
+  }
 }
 
 namespace {

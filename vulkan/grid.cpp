@@ -757,9 +757,9 @@ void check_loop_limit(const Context& ctx, const shared::GridParams& g, std::span
   const bool skipped = (worst->flags & kHitLoopSpent) != 0u && (g.flags & shared::kGridMailbox) != 0u;
   // The estimate itself and its weights (the tests and cells alone did not say why 4,679 tests were
   // refused against 49,152 iterations: an outside sweep)
-  const bool exact = g.traversal == shared::kTraversalExact, compact = (g.flags & shared::kGridCompact) != 0u;
-  const uint32_t per_test =
-      !exact ? 0u : (compact ? ((g.flags & shared::kGridMailbox) != 0u ? 22u : 14u) : ((g.flags & shared::kGridMailbox) != 0u ? 10u : 2u));
+  const bool exact = g.traversal == shared::kTraversalExact;
+  const uint32_t per_test = shared::llvmpipe_iterations_per_test((g.flags & shared::kGridCompact) != 0u,
+                                                                 (g.flags & shared::kGridMailbox) != 0u);
   const std::string weights = exact ? std::to_string(per_test) + " loop iterations a test and " +
                                           std::to_string(shared::kLlvmpipeIterationsPerCell) + " a cell"
                                     : std::string("1.5 loop iterations a test or a cell");

@@ -72,12 +72,15 @@ SH_CONST uint kGridSpecLoopGuard = 11u;     // trace: on llvmpipe, flag rays who
 SH_CONST uint kHitLoopSpent = 0x80000000u;
 SH_CONST uint kLlvmpipeLoopBudget = 49152u;
 SH_CONST uint kLlvmpipeIterationsPerCell = 14u;
+// The exact traversal's loop iterations per test (the paper's: 1.5 per test or cell, below)
+SH_INLINE uint llvmpipe_iterations_per_test(bool compact, bool mailbox) {
+  return compact ? (mailbox ? 22u : 14u) : (mailbox ? 10u : 2u);
+}
 SH_INLINE uint llvmpipe_loop_estimate(bool exact, bool compact, bool mailbox, uint tests, uint skips, uint cells) {
   const uint t = min(tests, 65536u), s = min(skips, 65536u), c = min(cells, 65536u);
   // The paper traversal's segments and slots: 1.5 (tests + cells), refused from 32,768 of them
   if (!exact) return (3u * (t + s + c)) / 2u;
-  const uint per_test = compact ? (mailbox ? 22u : 14u) : (mailbox ? 10u : 2u);
-  return per_test * (t + s) + kLlvmpipeIterationsPerCell * c;
+  return llvmpipe_iterations_per_test(compact, mailbox) * (t + s) + kLlvmpipeIterationsPerCell * c;
 }
 
 // Where the trace's rays come from (kGridSpecTraceRays): the ray buffer, or (the frame's traces,
