@@ -163,3 +163,16 @@ TEST_CASE("CLI: portal export names the materials and meshes it writes beside th
   CHECK_THAT(r.output, Contains(stem + ".mtl") && Contains(stem + "_*.obj"));
   CHECK(fs::exists(stem + ".mtl"));
 }
+
+TEST_CASE("CLI: the portal build's arrays are checked against --max-host-mib before they are made", "[cli][portal][limits]") {
+  const Run r = run_tool("--max-host-mib 100 portal render builtin:cornell --voxels 200 --width 8 --height 8 -o " +
+                         scratch("portal.png").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 1);
+  CHECK_THAT(r.output, Contains("the portal build's arrays for") && Contains("--max-host-mib"));
+  // A world within the limit is built
+  const Run small = run_tool("--max-host-mib 100 portal render builtin:cornell --voxels 32 --width 8 --height 8 -o " +
+                             scratch("portal.png").string());
+  INFO(small.output);
+  CHECK(small.exit_code == 0);
+}

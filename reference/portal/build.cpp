@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "gridrt/common/progress.h"
+#include "gridrt/common/safe_io.h"
 #include "gridrt/common/util.h"
 
 namespace gridrt::portal {
@@ -1184,6 +1185,14 @@ PortalBuild build_portal(World world, const PortalOptions& opt) {
     throw Error("portal build: div-info texture width " + std::to_string(opt.info_width) + " must be a positive multiple of 8");
   if (opt.atlas_width < 1 || opt.atlas_width > 65536)
     throw Error("portal build: atlas width " + std::to_string(opt.atlas_width) + " outside 1 .. 65536 (16-bit atlas coordinates)");
+  // The build's arrays, checked against the host's memory (--max-host-mib too) before they are
+  // made: about 80-90 bytes a voxel at their peak on the Cornell box at 128^3 and 200^3 voxels
+  // (316 and 782 MB resident, about 150 of them the program's), so 112 a voxel (an outside sweep:
+  // `--max-host-mib 1` did not bound it)
+  require_host_memory(uint64_t(world.voxel_count()) * 112u,
+                      "the portal build's arrays for " + std::to_string(world.dims.x) + "x" + std::to_string(world.dims.y) +
+                          "x" + std::to_string(world.dims.z) + " voxels",
+                      "fewer --voxels, or a smaller map");
   const auto t_start = Clock::now();
   const unsigned T = thread_count(opt.threads);
   PortalBuild b;
