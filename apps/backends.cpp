@@ -303,6 +303,13 @@ void check_traversal_options(const CLI::App* cmd, const BackendOptions& o, bool 
       o.grid.layout == reference::GridOptions::Layout::compact ||
       (o.grid.layout == reference::GridOptions::Layout::automatic && o.grid.traversal == reference::Traversal::exact &&
        !o.grid.capacity && plan::compact_enabled(o.grid));
+  // (The percentile policy sizes its capacity within the image limits whatever the layout: there
+  // the limit can refuse a grid, and it is taken.)
+  if (given("--max-image-dimension") && compact_layout &&
+      o.grid.capacity_policy == reference::GridOptions::CapacityPolicy::trace_cost)
+    throw OptionsError("--max-image-dimension bounds the image layout's 3D image; the compact layout that the "
+                       "trace-cost policy gives the exact traversal has no image: it does nothing (give --layout "
+                       "image, or leave it out)");
   if (given("--slot-axis") && compact_layout)
     throw OptionsError("--slot-axis lays the scene along the image layout's slot axis; the compact layout (the exact "
                        "traversal's default) has no image: it does nothing (give --layout image, or leave it out)");

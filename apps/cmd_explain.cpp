@@ -595,7 +595,9 @@ void add_explain_command(CLI::App& app) {
       throw CLI::ValidationError("--fallback-cpu", "does not apply to explain (--backend vulkan shows the shader's own "
                                                    "record beside the reference's, and needs a Vulkan device)");
     check_vulkan_options_apply(cmd, o->backend == "vulkan");
-    check_traversal_options(cmd, o->backend_options);
+    // --ray and --ray-file trace the options' grid alone (a pixel's ray also has the gather's, the
+    // exact traversal's): there the exact traversal's knobs with the paper traversal do nothing
+    check_traversal_options(cmd, o->backend_options, /*trace_grid_only=*/o->pixel.empty());
     // A primary ray is explained on the gather's grid, the exact traversal's, unless --traversal
     // names one: the paper traversal's knobs did nothing there, without a word (an outside sweep)
     if ((o->primary || o->kind == "primary") && cmd->count("--traversal") == 0)

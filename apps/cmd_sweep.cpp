@@ -310,6 +310,7 @@ struct Row {
   // Differing rays by cause (reference::classify_difference; CPU rows only), and the measured work
   std::array<size_t, 9> why{};
   float padding = 0.0f;  // the AABB padding the grid was built with
+  bool compact = false;  // the compact layout: no image (with the trace-cost policy, max_dim "-")
   reference::WorkEstimate work;
 };
 
@@ -419,7 +420,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
       const Config& c = r.config;
       csv << r.index << "," << csv_field(title) << "," << r.backend << "," << c.traversal << "," << c.triangle_test << ","
           << c.capacity << "," << c.enlargement << "," << r.padding << "," << c.elongation << "," << c.repeats << ","
-          << c.gap_fill << "," << (r.spill_on ? "on" : "off") << "," << c.launch << "," << c.max_dim << "," << r.grid
+          << c.gap_fill << "," << (r.spill_on ? "on" : "off") << "," << c.launch << "," << (r.compact && (c.capacity == "auto" || c.capacity == "trace-cost") ? std::string("-") : std::to_string(c.max_dim)) << "," << r.grid
           << "," << r.capacity << "," << r.saturated << "," << r.spill_stored << "," << r.spill_overflow << ","
           << r.acc.rays << "," << r.acc.differ << "," << r.acc.ties << "," << r.acc.max_tie_ulps << "," << r.acc.holes
           << "," << r.acc.false_hits << ","
@@ -508,7 +509,7 @@ std::vector<Ray> sweep_rays(const SweepOptions& o, const Scene& scene, EmbreeTra
 // One configuration on one backend: build, update, trace (median of --repeat), the grid's figures
 // and the accuracy against Embree's hits `want`. False (with a message) where the build refuses it.
 bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ray>& rays, const std::vector<Hit>& want,
-                 const std::string& backend, const Config& c, Row& row) {
+                 const std::string& backend, const Config& c, Row& row, std::string& why_skipped) {
   row.config = c;
   row.backend = backend;
   const BackendOptions bo = backend_options_for(o, c);
@@ -521,6 +522,7 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
     row.build_ms = ms_since(t0);
   } catch (const Error& e) {
     std::fprintf(stderr, "gridrt sweep: %s, %s: skipped: %s\n", scene.name.c_str(), c.label().c_str(), e.what());
+    why_skipped = e.what();
     return false;
   }
   t0 = std::chrono::steady_clock::now();
@@ -548,6 +550,7 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
     row.capacity = s.capacity;
     row.grid = std::to_string(s.cells.x) + "x" + std::to_string(s.cells.y) + "x" + std::to_string(s.cells.z);
     row.padding = ref->params().aabb_padding;
+    row.compact = (ref->params().flags & shared::kGridCompact) != 0u;
   }
 #ifdef GRIDRT_HAVE_VULKAN
   if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get())) {
@@ -566,6 +569,7 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
     // dump is the offsets and references: reading it as an image ran past it, an outside sweep's
     // crash) and no saturated cell
     const shared::GridParams& built = vk->params();
+    row.compact = (built.flags & shared::kGridCompact) != 0u;
     if ((built.flags & shared::kGridCompact) == 0u && dump.kind == "grid")
       for (uint32_t z = 0; z < built.cells.z; ++z)
         for (uint32_t y = 0; y < built.cells.y; ++y)
@@ -637,12 +641,15 @@ void run_sweep(const SweepOptions& o) {
                 (unsigned long long)scene.triangle_count(), rays.size(), kind.c_str(), embree_ms);
 
     std::vector<Row> rows;
+    std::vector<std::string> skipped;  // configurations the build refused, with why (the tables say so)
     Progress progress("sweep " + scene.name, configs.size() * backends.size());
     for (const std::string& backend : backends)
       for (const Config& c : configs) {
         Row row;
         row.index = rows.size();
-        if (!measure_row(o, scene, rays, want, backend, c, row)) {
+        std::string why;
+        if (!measure_row(o, scene, rays, want, backend, c, row, why)) {
+          skipped.push_back(backend + ", " + c.label() + ": " + why);
           progress.advance();
           continue;
         }
@@ -669,6 +676,13 @@ void run_sweep(const SweepOptions& o) {
            << fmt(embree_ms, 1) << " ms on " << std::thread::hardware_concurrency()
            << " hardware threads. agree = same triangle or both miss; ties = differing rays whose t is within "
            << kTieUlps << " ulps of Embree's; dt = |t - t_embree| over same-triangle hits; times: medians, host clock.";
+    // Configurations the build refused are not rows: the table says how many and why (an outside
+    // sweep: 12 configurations, 10 rows, and only stderr said so)
+    if (!skipped.empty()) {
+      header << "\n\n" << skipped.size() << " of " << configs.size() * backends.size()
+             << " configurations skipped (not in the table or the CSV):";
+      for (const std::string& s : skipped) header << "\n- " << s;
+    }
     std::printf("%s\n", header.str().c_str());
     // The three files checked before any is written: a refused plot left the tables replaced
     for (const char* ext : {".csv", ".md", ".png"}) check_output_allowed(o.out + "/" + stem + ext, "sweep output");

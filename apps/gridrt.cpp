@@ -53,7 +53,7 @@ void check_frame_size(uint32_t width, uint32_t height) {
   if (pixels > frame_limits().max_pixels)
     throw Error("an image of " + std::to_string(width) + " x " + std::to_string(height) + " = " + std::to_string(pixels) +
                 " pixels exceeds the limit of " + std::to_string(frame_limits().max_pixels) +
-                " pixels (--max-pixels; each pixel takes about 100 bytes of frame buffers)");
+                " pixels (--max-pixels; each pixel takes up to about 256 bytes of host memory for the frame's buffers)");
   // And the host's memory, before any of it is allocated: a render with a raised --max-pixels grew
   // to 7 GB over 24 s past --max-host-mib (an outside sweep). About 256 bytes a pixel: the gather
   // buffer, the rays and hits of a trace, the picture and its encoded copy
@@ -284,6 +284,13 @@ int main(int argc, char** argv) {
     return stdout_status();
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);  // prints help, version or the parse error
+    // A pair option (X,Y or W,H) takes the word after it when its comma form gave fewer than its
+    // count: "-p 1,1 SCENE" read SCENE as a third coordinate, and CLI11's message said only "At
+    // Most 2 required but received 3" (an outside sweep)
+    if (dynamic_cast<const CLI::ArgumentMismatch*>(&e) != nullptr &&
+        std::string(e.what()).find("received") != std::string::npos)
+      std::fprintf(stderr, "gridrt: a pair option (X,Y or W,H) also takes the word after it: give the scene (or any "
+                           "positional) before it, or another option between them\n");
     return code == 0 ? stdout_status() : 2;
   } catch (const app::Differs& e) {
     std::fprintf(stderr, "gridrt: %s\n", e.what());

@@ -334,7 +334,7 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
       os << "setup: one cell edge = " << num(e.f0.x, fmt) << " in t; t_start " << num(e.f0.y, fmt) << ", t_end "
          << num(e.f0.z, fmt) << ", hits need t > " << num(e.f0.w, fmt);
       line();
-      os << "  launch normal " << vec(glm::vec3(e.f1), fmt) << (e.slot ? "" : "; the ray misses the grid box");
+      os << "  launch normal " << vec(glm::vec3(e.f1), fmt) << (e.slot ? "" : "; no part of the ray's interval (tmin, tmax) lies in the grid box");
       line();
       if (e.f1.w > 0.0f) {
         // docs/SPEC.md "Far origins"
@@ -469,7 +469,7 @@ std::string event_summary(const ExplainRecord& rec, size_t i, const ExplainForma
         os << "setup: a cell edge is " << num(e.f0.x, fmt) << " in t; the grid box from t " << num(e.f0.y, fmt)
            << " to " << num(e.f0.z, fmt) << "; hits need t > " << num(e.f0.w, fmt);
       else
-        os << "setup: the ray misses the grid box";
+        os << "setup: no part of the ray's interval (tmin, tmax) lies in the grid box";
       // A far origin: the t above are from the moved origin (docs/SPEC.md "Far origins")
       if (e.f1.w > 0.0f) os << " (far origin: moved along the ray by t " << num(e.f1.w, fmt) << ", t from there)";
       break;

@@ -70,6 +70,8 @@ TEST_CASE("CLI: explain names an empty interval, the scene time in full and cont
   REQUIRE(empty.exit_code == 0);
   CHECK_THAT(empty.output, Contains("interval is empty (tmin 5 >= tmax 1)"));
   CHECK_THAT(empty.output, !Contains("does not meet the grid box"));
+  CHECK_THAT(empty.output, !Contains("misses the grid box"));  // its setup step too (a later sweep)
+  CHECK_THAT(empty.output, Contains("no part of the ray's interval (tmin, tmax) lies in the grid box"));
   // The time as given, not to 6 digits
   const Run t = run_tool("explain " + std::string(GRIDRT_DATA_DIR) + "/scenes/teapot.json -t 123456.7 --width 8 --height 8 -p 4,4 --brief");
   INFO(t.output);
@@ -175,4 +177,55 @@ TEST_CASE("CLI: the portal build's arrays are checked against --max-host-mib bef
                              scratch("portal.png").string());
   INFO(small.output);
   CHECK(small.exit_code == 0);
+}
+
+TEST_CASE("CLI: explain --ray refuses the exact traversal's knobs with the paper traversal, as stats does",
+          "[cli][explain]") {
+  // --ray traces the options' grid alone: the knob changed no byte of the account
+  for (const char* knob : {"--skip-empty off", "--mailbox on", "--skip-covered off"}) {
+    const Run r = run_tool("explain builtin:teapot --traversal paper --ray 0,0.3,3,0,0,-1 --brief " + std::string(knob));
+    INFO(knob << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Contains("knob of the exact traversal"));
+  }
+  // The same ray with the exact traversal takes them
+  CHECK(run_tool("explain builtin:teapot --traversal exact --ray 0,0.3,3,0,0,-1 --brief --skip-empty off").exit_code == 0);
+}
+
+TEST_CASE("CLI: --max-image-dimension on the compact layout is refused, and sweep's CSV says it does not apply",
+          "[cli][grid][sweep]") {
+  // The compact layout has no image: the grid was the same with the limit at 2
+  const Run r = run_tool("stats builtin:teapot --traversal exact --max-image-dimension 2");
+  INFO(r.output);
+  CHECK(r.exit_code == 2);
+  CHECK_THAT(r.output, Contains("--max-image-dimension bounds the image layout's 3D image"));
+  CHECK(run_tool("stats builtin:teapot --traversal exact --layout image --max-image-dimension 4096").exit_code == 0);
+  // sweep: a compact row's max_dim is "-", and the configurations the build refused are listed
+  // in the table (12 configurations, 10 rows, and only stderr said why)
+  const fs::path dir = scratch("sweep-dim");
+  fs::remove_all(dir);
+  const Run s = run_tool("sweep builtin:cornell -o " + dir.string() +
+                         " --width 8 --height 8 --traversal exact --capacity auto,percentile --max-image-dimension 2,4096");
+  INFO(s.output);
+  REQUIRE(s.exit_code == 0);
+  std::ifstream csv(dir / "builtin-cornell.csv");
+  std::string line, text;
+  std::getline(csv, line);  // the header
+  size_t rows = 0, dash = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    dash += line.find(",-,") != std::string::npos;
+  }
+  CHECK(rows >= 2);
+  CHECK(dash >= 1);  // the compact rows (auto)
+  std::ifstream md(dir / "builtin-cornell.md");
+  text.assign(std::istreambuf_iterator<char>(md), {});
+  if (rows < 4) CHECK_THAT(text, Contains("configurations skipped (not in the table or the CSV)"));
+}
+
+TEST_CASE("CLI: a pair option that takes the scene after it says so", "[cli][explain]") {
+  const Run r = run_tool("explain -p 1,1 builtin:cornell");
+  INFO(r.output);
+  CHECK(r.exit_code == 2);
+  CHECK_THAT(r.output, Contains("give the scene (or any positional) before it"));
 }
