@@ -87,8 +87,8 @@ void check_triangle(uint32_t which, const shared::CameraParams& c, const glm::ve
         n.tile_depth_fail += !(t >= tile_lo) || !(t >= bin_lo) || !(t >= pixel_lo);
         n.tile_depth_tighter += tile_lo >= 1.01f * t_lo;
         const bool in_box = boxed && x >= box.x && x <= box.z && y >= box.y && y <= box.w;
-        const float depth = glm::dot(shared::moller_trumbore_t(r) * dir, c.forward);
-        const bool near = depth < kNear;
+        const float view_depth = glm::dot(shared::moller_trumbore_t(r) * dir, c.forward);
+        const bool near = view_depth < kNear;
         n.within_near += near;
         n.within_near_boxed += near && in_box;
         n.within_near_edge += near && in_box && edge_box;
