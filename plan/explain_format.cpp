@@ -704,7 +704,10 @@ Ray parse_ray(const std::string& text) {
     char* end = nullptr;
     errno = 0;
     const float f = std::strtof(s.c_str(), &end);  // decimal, C99 hex (0x1.8p+1), inf, nan
-    if (s.empty() || *end != '\0' || (errno == ERANGE && std::isinf(f)))
+    if (!s.empty() && *end == '\0' && errno == ERANGE && std::isinf(f))
+      throw Error("value " + std::to_string(i + 1) + " of the ray, " + quoted(s) +
+                  ", is beyond a float's range (largest 3.40282347e+38; give inf for an infinity)");
+    if (s.empty() || *end != '\0')
       throw Error("value " + std::to_string(i + 1) + " of the ray, " + quoted(s) + ", is not a float");
     return f;
   };

@@ -229,3 +229,11 @@ TEST_CASE("CLI: a pair option that takes the scene after it says so", "[cli][exp
   CHECK(r.exit_code == 2);
   CHECK_THAT(r.output, Contains("give the scene (or any positional) before it"));
 }
+
+TEST_CASE("CLI: a ray's value beyond a float's range is named so, not as something else than a number", "[cli][explain]") {
+  const Run r = run_tool("explain builtin:cornell --ray 0,1,2,0,0,1e39 --brief");
+  INFO(r.output);
+  CHECK(r.exit_code != 0);
+  CHECK_THAT(r.output, Contains("is beyond a float's range"));
+  CHECK_THAT(run_tool("explain builtin:cornell --ray 0,1,2,0,0,x1 --brief").output, Contains("is not a float"));
+}
