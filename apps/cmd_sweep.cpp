@@ -310,7 +310,9 @@ struct Row {
   // Differing rays by cause (reference::classify_difference; CPU rows only), and the measured work
   std::array<size_t, 9> why{};
   float padding = 0.0f;  // the AABB padding the grid was built with
-  bool compact = false;  // the compact layout: no image (with the trace-cost policy, max_dim "-")
+  // Whether --max-image-dimension shaped the grid: not on the compact layout the trace-cost policy
+  // chose (no image, and no limit weighed: max_dim "-"), as the other verbs refuse it there
+  bool image_limit = true;
   reference::WorkEstimate work;
 };
 
@@ -420,7 +422,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
       const Config& c = r.config;
       csv << r.index << "," << csv_field(title) << "," << r.backend << "," << c.traversal << "," << c.triangle_test << ","
           << c.capacity << "," << c.enlargement << "," << r.padding << "," << c.elongation << "," << c.repeats << ","
-          << c.gap_fill << "," << (r.spill_on ? "on" : "off") << "," << c.launch << "," << (r.compact && (c.capacity == "auto" || c.capacity == "trace-cost") ? std::string("-") : std::to_string(c.max_dim)) << "," << r.grid
+          << c.gap_fill << "," << (r.spill_on ? "on" : "off") << "," << c.launch << "," << (r.image_limit ? std::to_string(c.max_dim) : std::string("-")) << "," << r.grid
           << "," << r.capacity << "," << r.saturated << "," << r.spill_stored << "," << r.spill_overflow << ","
           << r.acc.rays << "," << r.acc.differ << "," << r.acc.ties << "," << r.acc.max_tie_ulps << "," << r.acc.holes
           << "," << r.acc.false_hits << ","
@@ -506,6 +508,12 @@ std::vector<Ray> sweep_rays(const SweepOptions& o, const Scene& scene, EmbreeTra
   return rays;
 }
 
+// A grid of the compact layout chosen by the trace-cost policy: no image, no image limit weighed.
+bool compact_by_trace_cost(const shared::GridParams& built, const reference::GridOptions& go) {
+  return (built.flags & shared::kGridCompact) != 0u &&
+         go.capacity_policy == reference::GridOptions::CapacityPolicy::trace_cost;
+}
+
 // One configuration on one backend: build, update, trace (median of --repeat), the grid's figures
 // and the accuracy against Embree's hits `want`. False (with a message) where the build refuses it.
 bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ray>& rays, const std::vector<Hit>& want,
@@ -550,7 +558,7 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
     row.capacity = s.capacity;
     row.grid = std::to_string(s.cells.x) + "x" + std::to_string(s.cells.y) + "x" + std::to_string(s.cells.z);
     row.padding = ref->params().aabb_padding;
-    row.compact = (ref->params().flags & shared::kGridCompact) != 0u;
+    row.image_limit = !compact_by_trace_cost(ref->params(), go);
   }
 #ifdef GRIDRT_HAVE_VULKAN
   if (auto* vk = dynamic_cast<vulkan::VulkanGridTracer*>(tracer.get())) {
@@ -569,7 +577,7 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
     // dump is the offsets and references: reading it as an image ran past it, an outside sweep's
     // crash) and no saturated cell
     const shared::GridParams& built = vk->params();
-    row.compact = (built.flags & shared::kGridCompact) != 0u;
+    row.image_limit = !compact_by_trace_cost(built, go);
     if ((built.flags & shared::kGridCompact) == 0u && dump.kind == "grid")
       for (uint32_t z = 0; z < built.cells.z; ++z)
         for (uint32_t y = 0; y < built.cells.y; ++y)
