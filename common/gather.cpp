@@ -64,11 +64,13 @@ GatherBuffer make_gather(const Scene& scene, Tracer& tracer, const Camera& camer
     const glm::vec4 nrm = shared::gather_normal(a, b, c, r.dir);
     if (!(nrm.w > 0.0f)) continue;
     g.valid[p] = 1;
-    // On the triangle at the hit's weights (shared/triangle.h surface_point), not eye + t * dir
-    g.position[p] = shared::surface_point(a, b, c, shared::cramer_barycentrics(a, b, c, shared::point_at(r.org, r.dir, h.t)));
+    // On the triangle at the camera ray's weights (shared/triangle.h gather_barycentrics, as the
+    // GPU's resolve makes them; surface_point), not eye + t * dir
+    const glm::vec2 bc = shared::gather_barycentrics(a, b, c, r.org, r.dir);
+    g.position[p] = shared::surface_point(a, b, c, bc);
     g.normal[p] = glm::vec3(nrm);
     g.material[p] = mesh.materials.empty() ? 0u : mesh.materials[h.triangle];
-    if (!mesh.uvs.empty()) g.uv[p] = shared::interpolate_uv(mesh.uvs[t[0]], mesh.uvs[t[1]], mesh.uvs[t[2]], h.u, h.v);
+    if (!mesh.uvs.empty()) g.uv[p] = shared::interpolate_uv(mesh.uvs[t[0]], mesh.uvs[t[1]], mesh.uvs[t[2]], bc.x, bc.y);
     g.launch_ref[p] = (h.instance << 16) | h.triangle;
   }
   return g;

@@ -393,7 +393,7 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
       break;
     case kEvCandidate:
       os << "      new best hit: t " << num(e.f0.x, fmt) << ", barycentrics (" << num(e.f0.y, fmt) << ", "
-         << num(e.f0.z, fmt) << ") by Cramer's rule (clamped into the triangle)";
+         << num(e.f0.z, fmt) << "), the test's own weights (clamped into the triangle)";
       line();
       break;
     case kEvStatus:

@@ -133,7 +133,7 @@ class SampleCaster : public Tracer {
             kTestAccepted)
           continue;
         const float th = moller_trumbore_t(r);
-        const vec2 bc = cramer_barycentrics(v[0], v[1], v[2], point_at(ray.org, ray.dir, th));
+        const vec2 bc = triangle_barycentrics(g_.triangle_test, ray.org, ray.dir, watertight_ray(ray.dir), v[0], v[1], v[2]);
         if (!alpha_keeps_hit(i, t, bc.x, bc.y)) continue;
         if (!(th < best || (th == best && ref < best_ref))) continue;
         best = th;

@@ -73,23 +73,27 @@ void test_reference(const GridData& grid, TraceState& st, uint ref, uint step, u
   TriangleTest r{};
   const float best = st.has_best ? st.best_t : sh_infinity();
   uint code;
+  float weights_det = 0.0f;  // what the test's weights u_det, v_det are scaled by (test_barycentrics)
   if (g.triangle_test == kTriangleWatertight) {
     WatertightEdges e;
     watertight_edges(st.org, st.wray, tri.v0, tri.v1, tri.v2, e);
     if (st.ex == nullptr && watertight_mixed(e)) code = watertight_outside_code(e);
     else code = watertight_rest_plane(st.org, st.dir, tri.v1, tri.v2, e, grid.planes[k], t_lo, t_hi, best, st.surface_tol, r);
+    weights_det = abs(e.det);
   } else {
     code = st.ex ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, r)
                  : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best,
                                       st.surface_tol, r);
+    weights_det = abs(r.det);
   }
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
   if (code == kTestAccepted || (st.ex != nullptr && code == kTestOriginPlane)) {  // the refused one's t: for its event
-    // Barycentrics by Cramer's rule at the hit point, clamped into the triangle
+    // Barycentrics: the test's own weights, clamped into the triangle (test_barycentrics; what
+    // triangle_barycentrics makes again from the ray and the triangle)
     t = moller_trumbore_t(r);
-    bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
+    bc = test_barycentrics(r.u_det, r.v_det, weights_det);
     // The surface rule: a ray launched from a surface hits no face whose plane passes through its
     // origin (within 8 ulps); the watertight test decided it above, from its own plane values
     if (code == kTestAccepted && g.triangle_test != kTriangleWatertight && st.launch_ref != kNoRef &&

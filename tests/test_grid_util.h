@@ -213,6 +213,60 @@ inline Scene turning_wall_scene(uint32_t split = 1) {
   return s;
 }
 
+// A 16 x 16 checkerboard alpha mask (texel (x, y) opaque where x + y is even; row 0 at v = 1) on a
+// quad 0.25 wide (texels 0.0156 units), instance 1, over a wall 2 units below it, instance 0, all at
+// `offset`; the quad's corner at `offset` itself, uv (0, 0) there and (1, 1) at offset + (0.25,
+// 0.25, 0). The camera looks down at the quad from 2 units above. A grid of 8 cells a side has
+// cells 2 units wide: at 1e5 more than 64 ulps of the coordinates, so no origin is moved
+// (docs/SPEC.md "Far origins") and the GPU frame takes the eye.
+constexpr uint32_t kFarAlphaTexels = 16;
+inline Scene far_alpha_scene(glm::dvec3 offset) {
+  const auto at = [&](double x, double y, double z) { return glm::vec3(offset + glm::dvec3(x, y, z)); };
+  Scene scene;
+  scene.name = "far-alpha";
+  Texture tex;
+  tex.width = tex.height = kFarAlphaTexels;
+  tex.has_alpha = true;
+  for (uint32_t y = 0; y < kFarAlphaTexels; ++y)
+    for (uint32_t x = 0; x < kFarAlphaTexels; ++x)
+      tex.rgba.insert(tex.rgba.end(), {255, 255, 255, uint8_t((x + y) % 2 == 0 ? 255 : 0)});
+  scene.textures.push_back(tex);
+  scene.materials = {Material{.name = "wall"}, Material{.name = "mask", .alpha_texture = 0}};
+  Mesh wall;
+  wall.name = "wall";
+  wall.positions = {at(-8, -8, -2), at(8, -8, -2), at(8, 8, -2), at(-8, 8, -2)};
+  wall.triangles = {{0, 1, 2}, {0, 2, 3}};
+  wall.materials = {0u, 0u};
+  Mesh leaf;
+  leaf.name = "leaf";
+  leaf.positions = {at(0, 0, 0), at(0.25, 0, 0), at(0.25, 0.25, 0), at(0, 0.25, 0)};
+  leaf.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  leaf.triangles = {{0, 1, 2}, {0, 2, 3}};
+  leaf.materials = {1u, 1u};
+  scene.meshes = {wall, leaf};
+  scene.instances = {Instance{.name = "wall", .mesh = 0}, Instance{.name = "leaf", .mesh = 1}};
+  scene.camera = Camera{.eye = at(0.125, 0.125, 2.0), .target = at(0.125, 0.125, 0.0), .up = {0, 1, 0}, .vfov_degrees = 9.0f};
+  scene.finalize();
+  return scene;
+}
+
+// The instance a ray meets in far_alpha_scene: its exact meeting with the quad's plane (double
+// precision, from the float ray and the float quad) on an opaque texel gives the quad (1), on a
+// cut one or off the quad the wall (0); -1 where the meeting lies within 1 % of a texel of a
+// texel's edge, or the ray does not go down.
+inline int far_alpha_truth(const Scene& scene, const Ray& r) {
+  const glm::dvec3 lo(scene.meshes[1].positions[0]), hi(scene.meshes[1].positions[2]);
+  const glm::dvec3 od(r.org), dd(r.dir);
+  if (!(dd.z < 0.0)) return -1;
+  const double t = (lo.z - od.z) / dd.z;
+  const double u = (od.x + t * dd.x - lo.x) / (hi.x - lo.x), v = (od.y + t * dd.y - lo.y) / (hi.y - lo.y);
+  const double xs = u * kFarAlphaTexels, ys = (1.0 - v) * kFarAlphaTexels;
+  const auto near_edge = [](double s) { return std::abs(s - std::round(s)) < 0.01; };
+  if (near_edge(xs) || near_edge(ys)) return -1;
+  if (!(u > 0.0 && u < 1.0 && v > 0.0 && v < 1.0)) return 0;
+  return (int(xs) + int(ys)) % 2 == 0 ? 1 : 0;
+}
+
 // The image layout's case of the same: a static slab of 6 large parallel quads in the cell layer
 // z in [0, 0.25) (every cell of it saturated at capacity 4: the list's static entries), and a
 // wall of 8 x 4 unit quads parallel to it on a path from z = 1.125 (empty cells, a few references

@@ -345,8 +345,7 @@ Scene triangles_scene(const char* name, const std::vector<std::array<glm::vec3, 
 
 // The CPU's gather of `scene` by `camera`: primary rays through the exact traversal with the
 // gather's triangle test, the watertight one (plan::gather_options, as gridrt bench and diff make it).
-GatherBuffer cpu_gather(const Scene& scene, const Camera& camera, uint32_t w, uint32_t h) {
-  GridOptions o;
+GatherBuffer cpu_gather(const Scene& scene, const Camera& camera, uint32_t w, uint32_t h, GridOptions o = {}) {
   o.threads = 2;
   ReferenceGridTracer tracer(plan::gather_options(o));
   tracer.build(scene, 0.0f);
@@ -362,7 +361,8 @@ size_t gather_differences(const GatherBuffer& cpu, const GatherBuffer& gpu, cons
     if (skip(p)) continue;
     const bool same = cpu.launch_ref[p] == gpu.launch_ref[p] && cpu.valid[p] == gpu.valid[p] &&
                       (!cpu.valid[p] || (bits(cpu.hit[p].t) == bits(gpu.hit[p].t) &&
-                                         same_vec(cpu.position[p], gpu.position[p]) && same_vec(cpu.normal[p], gpu.normal[p])));
+                                         same_vec(cpu.position[p], gpu.position[p]) && same_vec(cpu.normal[p], gpu.normal[p]) &&
+                                         std::memcmp(&cpu.uv[p], &gpu.uv[p], sizeof cpu.uv[p]) == 0));
     if (!same && ++differ <= 3)
       WARN(label << " pixel " << p << ": cpu " << hex(cpu.launch_ref[p]) << (cpu.valid[p] ? "" : " (none)") << " t "
                  << cpu.hit[p].t << ", gpu " << hex(gpu.launch_ref[p]) << (gpu.valid[p] ? "" : " (none)") << " t "
@@ -524,6 +524,50 @@ TEST_CASE("Vulkan frame: the compute gather agrees with the CPU's on triangles p
                     << " nearer than it (left out where the frustum boxes the triangle)");
   CHECK(differ == 0);
   CHECK(near_eye >= 300);
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+// Alpha keying 1e5 from the origin (tests/test_grid_util.h, far_alpha_scene): the CPU's gather keys
+// each camera ray's mask at the triangle test's own weights, so every pixel whose exact meeting
+// with the quad lies clear of a texel edge sees the instance the mask's texel gives; each GPU
+// gather (raster, compute, boxes) is the CPU's in bits, uv included.
+TEST_CASE("Vulkan frame: alpha keying 1e5 from the origin: every gather sees the texel each pixel's ray meets",
+          "[vulkan][diff][frame][gather]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const Scene scene = gridtest::far_alpha_scene(glm::dvec3(1e5, -2e4, 7e4));
+  GridOptions o;
+  o.threads = 2;
+  o.resolution = glm::uvec3(8, 8, 8);
+  const uint32_t w = 96, h = 64;
+  const Camera camera = scene.frame_camera();
+  const GatherBuffer cpu = cpu_gather(scene, camera, w, h, o);
+  size_t judged = 0, wrong = 0, keyed = 0;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const size_t p = size_t(y) * w + x;
+      const int truth = gridtest::far_alpha_truth(scene, camera_ray(camera, w, h, x, y));
+      if (truth < 0) continue;
+      judged += 1;
+      keyed += truth == 0 && cpu.hit[p].instance == 0u;
+      if (!cpu.valid[p] || cpu.hit[p].instance != uint32_t(truth)) {
+        if (++wrong <= 3) WARN("pixel (" << x << ", " << y << ") sees instance " << cpu.hit[p].instance << ", the mask says " << truth);
+      }
+    }
+  INFO(judged << " pixels judged, " << keyed << " through a cut texel");
+  CHECK(wrong == 0u);
+  CHECK(judged > w * h * 3 / 4);
+  CHECK(keyed > w * h / 4);
+  VulkanGridTracer vk(ctx, o);
+  vk.build(scene, 0.0f);
+  for (const GatherMode mode : {GatherMode::raster, GatherMode::compute, GatherMode::boxes}) {
+    VulkanFrame frame(vk, scene, FrameOptions{.width = w, .height = h, .bounce = false, .shadows = false, .gather = mode});
+    if (frame.gather_mode() != mode) continue;  // no compute gather on this device
+    const std::string label = mode == GatherMode::raster ? "raster gather" : (mode == GatherMode::compute ? "compute gather" : "boxes gather");
+    INFO(label);
+    frame.render(0);
+    CHECK(gather_differences(cpu, frame.download_gather(), label, [](size_t) { return false; }) == 0);
+  }
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 

@@ -5,7 +5,9 @@
 //  - watertight: Woop, Benthin and Wald 2013 ("Watertight ray/triangle intersection", JCGT 2(1)),
 //    with the shear scaled by the ray's dominant direction component instead of divided by it, so
 //    that it needs no division at all (see the function).
-//  - cramer_barycentrics: Ericson 2004 (Real-Time Collision Detection, 3.4), one division.
+//  - triangle_barycentrics: a hit's weights, the test's own (u, v or V, W over the determinant).
+//  - cramer_barycentrics: Ericson 2004 (Real-Time Collision Detection, 3.4), one division: the
+//    weights of a point that is no test's hit (a gap-fill sample).
 #ifndef GRIDRT_SHARED_TRIANGLE_H
 #define GRIDRT_SHARED_TRIANGLE_H
 
@@ -561,6 +563,78 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
   SH_PRECISE float w1 = n1s * inv;
   SH_PRECISE float w2 = n2s * inv;
   return clamp_barycentrics(w1, w2);
+}
+
+// ---- A hit's barycentrics: the triangle test's own weights ----
+// The weights (of v1, of v2) of an accepted hit are those its test decided inside on: Moller-
+// Trumbore's u and v over its |det|, the watertight test's V and W over |U + V + W| (the edge
+// functions; each times the determinant's sign). Their quotients are taken with one correctly
+// rounded reciprocal (sh_reciprocal_scale keeps it normal, as in moller_trumbore_t) and clamped
+// into the triangle (clamp_barycentrics: the two roundings can put u + v an ulp past 1).
+// Not Cramer's rule at the hit point (cramer_barycentrics of org + t dir): that point rounds to
+// the ulps of its coordinates, 0.008 units at 1e5 from the origin, and an alpha mask's edge was
+// decided at a point off the ray (keyed quads moved to 1e5: 16 of 1,296 pixels differed from
+// Embree's, which keys on its own test's u and v; docs/ACCURACY.md "Alpha keying far from the
+// origin"). The test's weights are made from the vertices relative to the origin (org - v0, the
+// sheared v - org), so they do not depend on where the ray and the triangle lie. Cramer's rule
+// stays for points that are no test's hit (a gap-fill hit's sample point).
+SH_INLINE vec2 test_barycentrics(float u_det, float v_det, float ad) {
+  float s = sh_reciprocal_scale(ad);
+  SH_PRECISE float ds = ad * s;
+  SH_PRECISE float us = u_det * s;
+  SH_PRECISE float vs = v_det * s;
+  SH_PRECISE float inv = sh_rcp(ds);
+  SH_PRECISE float w1 = us * inv;
+  SH_PRECISE float w2 = vs * inv;
+  return clamp_barycentrics(w1, w2);
+}
+
+// Moller-Trumbore's weights of the ray and triangle: the same operations in the same order as
+// moller_trumbore_first and moller_trumbore_rest, so the same u, v and det as the test made.
+SH_INLINE vec2 moller_trumbore_barycentrics(SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                                            SH_IN(vec3) v2) {
+  MollerFirst m;
+  moller_trumbore_first(org, dir, v0, v1, v2, m);
+  SH_PRECISE vec3 s = m.s;
+  SH_PRECISE vec3 e1 = m.e1;
+  vec3 q = sh_cross(s, e1);
+  SH_PRECISE float ad = m.det * m.sgn;
+  SH_PRECISE float v = sh_dot(dir, q) * m.sgn;
+  return test_barycentrics(m.u, v, ad);
+}
+
+// The watertight test's weights (watertight_edges of the same ray, `w` its watertight_ray): V and
+// W over U + V + W, each times the sign of that sum, as watertight_rest_plane records them.
+SH_INLINE vec2 watertight_barycentrics(SH_IN(vec3) org, SH_IN(WatertightRay) w, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                                       SH_IN(vec3) v2) {
+  WatertightEdges e;
+  watertight_edges(org, w, v0, v1, v2, e);
+  SH_PRECISE float sdet = e.det < 0.0f ? -1.0f : 1.0f;
+  SH_PRECISE float ad = e.det * sdet;
+  SH_PRECISE float u = e.V * sdet;
+  SH_PRECISE float v = e.W * sdet;
+  return test_barycentrics(u, v, ad);
+}
+
+// The weights of the test GridParams::triangle_test names (`w`: watertight_ray(dir)). Made again
+// after the test rather than carried out of it, so that a trace keeps no registers for them
+// through its loop: the same inputs, the same operations, the same bits (tests/
+// test_triangle_code.cpp holds them to the test's record).
+SH_INLINE vec2 triangle_barycentrics(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(WatertightRay) w,
+                                     SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
+  if (which == kTriangleWatertight) return watertight_barycentrics(org, w, v0, v1, v2);
+  return moller_trumbore_barycentrics(org, dir, v0, v1, v2);
+}
+
+// The gather's weights of a pixel's visible triangle (its position and uv): Moller-Trumbore's of the
+// camera ray, made the same way by the CPU's gather (common/gather.cpp) and the GPU's resolve. Not
+// the gather test's own (the watertight test's, which keys the alpha mask): the resolve makes them
+// again for every pixel, and the watertight test's edge functions (the permutation, the exact
+// re-test of zeros) cost the compute gather 0.008 ms a frame on the H200 where these cost about
+// what Cramer's rule at the hit point did (docs/BENCHMARKS.md, "A hit's barycentrics: the test's
+// own weights"). Both are made from the vertices relative to the eye.
+SH_INLINE vec2 gather_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, SH_IN(vec3) eye, SH_IN(vec3) dir) {
+  return moller_trumbore_barycentrics(eye, dir, v0, v1, v2);
 }
 
 // The point of the triangle at barycentrics `bc` (the weights of v1 and v2): v0 + u e0 + v e1, its

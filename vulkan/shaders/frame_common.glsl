@@ -69,10 +69,13 @@ uint gather_ray_test(vec3 dir, GridTriangle tri, uint k, float tmin, out Triangl
                                -1.0f, r);
 }
 // Its code alone (triangle_test_code): it stops after the edge functions where their signs are
-// mixed (`r` then undefined), and reads the plane only where it goes on.
-uint gather_ray_code(vec3 dir, GridTriangle tri, uint k, float tmin, out TriangleTest r) {
+// mixed (`r` then undefined), and reads the plane only where it goes on. `weights_det`: what the
+// test's weights r.u_det and r.v_det are scaled by, |U + V + W| (test_barycentrics), so that the
+// alpha key takes the test's own weights without making the edge functions again.
+uint gather_ray_code(vec3 dir, GridTriangle tri, uint k, float tmin, out TriangleTest r, out float weights_det) {
   WatertightEdges e;
   watertight_edges(fp.camera.eye, watertight_ray(dir), tri.v0, tri.v1, tri.v2, e);
+  weights_det = abs(e.det);
   if (watertight_mixed(e)) return watertight_outside_code(e);
   return watertight_rest_plane(fp.camera.eye, dir, tri.v1, tri.v2, e, planes[k], tmin, sh_infinity(), sh_infinity(),
                                -1.0f, r);
@@ -90,10 +93,11 @@ GatherTexel gather_texel_at(uint ref, vec3 dir, float t) {
   if (ref == kNoRef) return g;
   const uint k = instances[ref_instance(ref)].tri_offset + ref_triangle(ref);
   const GridTriangle tri = triangles[k];
-  // Barycentrics by Cramer's rule at the hit point
+  // Barycentrics: the camera ray's Moller-Trumbore weights (gather_barycentrics), as the CPU's
+  // gather makes them
   const vec4 n = gather_normal(tri.v0, tri.v1, tri.v2, dir);
   if (n.w > 0.0f) {
-    const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(c.eye, dir, t));
+    const vec2 bc = gather_barycentrics(tri.v0, tri.v1, tri.v2, c.eye, dir);
     g.position = surface_point(tri.v0, tri.v1, tri.v2, bc);
     g.material = tri.material;
     g.normal = n.xyz;

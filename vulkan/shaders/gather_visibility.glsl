@@ -47,12 +47,13 @@ bool gather_key_along(uint ref, uint k, GridTriangle tri, vec3 dir, float tmin, 
   key = uvec2(kNoRef, 0xFFFFFFFFu);
   const CameraParams c = fp.camera;
   TriangleTest r;
-  if (gather_ray_code(dir, tri, k, tmin, r) != kTestAccepted) return false;
+  float weights_det;
+  if (gather_ray_code(dir, tri, k, tmin, r, weights_det) != kTestAccepted) return false;
   const float t = moller_trumbore_t(r);
   if ((kFrameFlags & kFrameAlpha) != 0u) {
     const FrameMaterial m = fmaterials[tri.material];
     if (m.alpha_width != 0u) {
-      const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(c.eye, dir, t));
+      const vec2 bc = test_barycentrics(r.u_det, r.v_det, weights_det);  // the test's own weights
       const vec2 uv = interpolate_uv(uvs[k].uv0, uvs[k].uv1, uvs[k].uv2, bc.x, bc.y);
       const uvec2 xy = alpha_texel_coords(uv, m.alpha_width, m.alpha_height);
       if (!alpha_keeps(texel_alpha(diffuse_texels[m.alpha_offset + xy.y * m.alpha_width + xy.x]))) return false;

@@ -142,24 +142,28 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   TriangleTest r;
   const float best = st.has_best ? st.best_t : sh_infinity();
   uint code;
+  float weights_det = 0.0f;  // what the test's weights u_det, v_det are scaled by (test_barycentrics)
   if (g.triangle_test == kTriangleWatertight) {
     WatertightEdges e;
     watertight_edges(st.org, st.wray, tri.v0, tri.v1, tri.v2, e);
     if (!kExplain && watertight_mixed(e)) code = watertight_outside_code(e);
     else code = watertight_rest_plane(st.org, st.dir, tri.v1, tri.v2, e, planes[k], t_lo, t_hi, best, st.surface_tol, r);
+    weights_det = abs(e.det);
   } else {
     code = kExplain ? triangle_test(g.triangle_test, st.org, st.dir, tri.v0, tri.v1, tri.v2, t_lo, t_hi, best, st.surface_tol, r)
                     : triangle_test_code(g.triangle_test, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2, t_lo, t_hi,
                                          best, st.surface_tol, r);
+    weights_det = abs(r.det);
   }
   st.tests += 1u;
   float t = 0.0f;
   vec2 bc = vec2(0.0f);
   if (code == kTestAccepted || (kExplain && code == kTestOriginPlane)) {  // the refused one's t: for its event
-    // Barycentrics by Cramer's rule at the hit point (without events to record, only where alpha
-    // keying reads them: report() makes them for the hit it reports, from the same inputs)
+    // Barycentrics: the test's own weights (test_barycentrics; without events to record, only
+    // where alpha keying reads them: report() makes them again for the hit it reports,
+    // triangle_barycentrics, from the same inputs: the same bits)
     t = moller_trumbore_t(r);
-    if (kExplain) bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
+    if (kExplain) bc = test_barycentrics(r.u_det, r.v_det, weights_det);
     // The surface rule: a ray launched from a surface hits no face whose plane passes through its
     // origin (within 8 ulps); the watertight test decided it above, from its own plane values
     if (code == kTestAccepted && g.triangle_test != kTriangleWatertight && st.launch_ref != kNoRef &&
@@ -169,7 +173,7 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
     if (code == kTestAccepted && (g.flags & kGridAlphaKeying) != 0u && (inst.flags & kInstanceAlphaKeyed) != 0u) {
       const GridMaterial mat = materials[tri.material];
       if (mat.alpha_width != 0u) {
-        if (!kExplain) bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, t));
+        if (!kExplain) bc = test_barycentrics(r.u_det, r.v_det, weights_det);
         const GridTriangleUv tuv = uvs[inst.tri_offset + ref_triangle(ref)];
         const vec2 uv = interpolate_uv(tuv.uv0, tuv.uv1, tuv.uv2, bc.x, bc.y);
         const uvec2 xy = alpha_texel_coords(uv, mat.alpha_width, mat.alpha_height);
@@ -295,12 +299,12 @@ void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_
 
 HitRecord report(uint step) {
   // Without events to record, the reported hit's barycentrics are made here (test_reference
-  // leaves them out): Cramer's rule at the same point of the same triangle, so the same values.
+  // leaves them out): the test's own weights of the same ray and triangle, so the same values.
   // A gap-fill hit keeps those gap_fill made at its sample point.
   if (!kExplain && (st.best_flags & kHitGapFill) == 0u) {
     const GridInstance inst = instances[ref_instance(st.best_ref)];
     const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(st.best_ref)];
-    const vec2 bc = cramer_barycentrics(tri.v0, tri.v1, tri.v2, point_at(st.org, st.dir, st.best_t));
+    const vec2 bc = triangle_barycentrics(kTriangleTest, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2);
     st.best_u = bc.x;
     st.best_v = bc.y;
   }
