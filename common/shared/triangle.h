@@ -497,6 +497,34 @@ SH_INLINE float moller_trumbore_t(SH_IN(TriangleTest) r) {
   return t;
 }
 
+// Weights (of v1, of v2) clamped into the triangle by comparisons only (a NaN weight becomes 0),
+// the same bits on every device: u = min(max(w1, 0), 1), v = min(max(w2, 0), 1 - u).
+SH_INLINE vec2 clamp_barycentrics(float w1, float w2) {
+  SH_PRECISE float u = w1 > 0.0f ? w1 : 0.0f;
+  u = u < 1.0f ? u : 1.0f;
+  SH_PRECISE float v = w2 > 0.0f ? w2 : 0.0f;
+  SH_PRECISE float room = 1.0f - u;
+  v = v < room ? v : room;
+  return vec2(u, v);
+}
+
+// Two weights over their determinant, (a / d, b / d) clamped into the triangle
+// (clamp_barycentrics: the two roundings can put their sum an ulp past 1), with one correctly
+// rounded reciprocal. A determinant outside [2^-126, 2^126] (edges below about 1e-19): its
+// reciprocal would overflow or be subnormal, so the three are scaled into range first
+// (sh_reciprocal_scale, by a power of two: exact). `d` of either sign: the quotients are the same
+// bits as of (-a, -b, -d).
+SH_INLINE vec2 barycentric_quotients(float a, float b, float d) {
+  float s = sh_reciprocal_scale(abs(d));
+  SH_PRECISE float ds = d * s;
+  SH_PRECISE float sa = a * s;
+  SH_PRECISE float sb = b * s;
+  SH_PRECISE float inv = sh_rcp(ds);
+  SH_PRECISE float w1 = sa * inv;
+  SH_PRECISE float w2 = sb * inv;
+  return clamp_barycentrics(w1, w2);
+}
+
 // Barycentric weights (of v1, of v2) of point p by Cramer's rule in the plane the triangle
 // projects onto largest: with e0 = v1 - v0, e1 = v2 - v0, e2 = p - v0 and n = e0 x e1, the two
 // coordinates (i, j) other than n's largest component (ties: x, then y), det(a, b) = a_i b_j -
@@ -513,17 +541,6 @@ SH_INLINE float moller_trumbore_t(SH_IN(TriangleTest) r) {
 // its fourth powers of the edges underflowed below edges of 3e-10 (weights (1, 0): alpha masks
 // ignored). The projected determinants are products of two edges: no cancellation beyond the
 // triangle's own (n's component is exact on the strip), no underflow above edges of 1e-19.
-SH_INLINE vec2 clamp_barycentrics(float w1, float w2) {
-  // Comparisons only (a NaN weight becomes 0), the same bits on every device:
-  // u = min(max(w1, 0), 1), v = min(max(w2, 0), 1 - u).
-  SH_PRECISE float u = w1 > 0.0f ? w1 : 0.0f;
-  u = u < 1.0f ? u : 1.0f;
-  SH_PRECISE float v = w2 > 0.0f ? w2 : 0.0f;
-  SH_PRECISE float room = 1.0f - u;
-  v = v < room ? v : room;
-  return vec2(u, v);
-}
-
 SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2, SH_IN(vec3) p) {
   SH_PRECISE vec3 e0 = v1 - v0;
   SH_PRECISE vec3 e1 = v2 - v0;
@@ -553,16 +570,7 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
   SH_PRECISE float ac0 = a.x * c.y;
   SH_PRECISE float ac1 = a.y * c.x;
   SH_PRECISE float n2 = ac0 - ac1;
-  // A denominator outside [2^-126, 2^126] (edges below about 1e-19): its reciprocal would
-  // overflow or be subnormal, so the three are scaled into range first (sh_reciprocal_scale)
-  float s = sh_reciprocal_scale(abs(denom));
-  SH_PRECISE float ds = denom * s;
-  SH_PRECISE float n1s = n1 * s;
-  SH_PRECISE float n2s = n2 * s;
-  SH_PRECISE float inv = sh_rcp(ds);
-  SH_PRECISE float w1 = n1s * inv;
-  SH_PRECISE float w2 = n2s * inv;
-  return clamp_barycentrics(w1, w2);
+  return barycentric_quotients(n1, n2, denom);
 }
 
 // ---- A hit's barycentrics: the triangle test's own weights ----
@@ -578,16 +586,7 @@ SH_INLINE vec2 cramer_barycentrics(SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v
 // origin"). The test's weights are made from the vertices relative to the origin (org - v0, the
 // sheared v - org), so they do not depend on where the ray and the triangle lie. Cramer's rule
 // stays for points that are no test's hit (a gap-fill hit's sample point).
-SH_INLINE vec2 test_barycentrics(float u_det, float v_det, float ad) {
-  float s = sh_reciprocal_scale(ad);
-  SH_PRECISE float ds = ad * s;
-  SH_PRECISE float us = u_det * s;
-  SH_PRECISE float vs = v_det * s;
-  SH_PRECISE float inv = sh_rcp(ds);
-  SH_PRECISE float w1 = us * inv;
-  SH_PRECISE float w2 = vs * inv;
-  return clamp_barycentrics(w1, w2);
-}
+SH_INLINE vec2 test_barycentrics(float u_det, float v_det, float ad) { return barycentric_quotients(u_det, v_det, ad); }
 
 // Moller-Trumbore's weights of the ray and triangle: the same operations in the same order as
 // moller_trumbore_first and moller_trumbore_rest, so the same u, v and det as the test made.
@@ -616,10 +615,10 @@ SH_INLINE vec2 watertight_barycentrics(SH_IN(vec3) org, SH_IN(WatertightRay) w, 
   return test_barycentrics(u, v, ad);
 }
 
-// The weights of the test GridParams::triangle_test names (`w`: watertight_ray(dir)). Made again
-// after the test rather than carried out of it, so that a trace keeps no registers for them
-// through its loop: the same inputs, the same operations, the same bits (tests/
-// test_triangle_code.cpp holds them to the test's record).
+// The weights of the test GridParams::triangle_test names (`w`: watertight_ray(dir)), made again
+// after the test from the ray and the triangle: the same inputs, the same operations, the same
+// bits as the test's record (tests/test_triangle_code.cpp holds them to it). The trace-cost
+// policy's estimator takes them; the trace divides the weights its test recorded instead.
 SH_INLINE vec2 triangle_barycentrics(uint which, SH_IN(vec3) org, SH_IN(vec3) dir, SH_IN(WatertightRay) w,
                                      SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2) {
   if (which == kTriangleWatertight) return watertight_barycentrics(org, w, v0, v1, v2);
