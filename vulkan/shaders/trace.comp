@@ -5,8 +5,8 @@
 // writes the same events as the reference's explain into the explain buffer. Where the shader
 // departs from it, without explain and for speed only (the same hits in bits): the exact
 // traversal over the compact layout runs trace_exact_flat, trace_exact's walk as one loop (the
-// same tests in the same order); the reported hit's barycentrics are made once in report(), not
-// at every candidate; and the frame's traces make each pixel's bounce or shadow ray themselves
+// same tests in the same order); the reported hit's barycentrics are divided once in report(),
+// from the best candidate's recorded weights, not at every candidate; and the frame's traces make each pixel's bounce or shadow ray themselves
 // from the gather buffer (kTraceRays).
 #extension GL_GOOGLE_include_directive : require
 #include "grid_common.glsl"
@@ -89,8 +89,9 @@ struct TraceState {
   bool has_best;
   float best_t;
   uint best_ref;
-  float best_u;
-  float best_v;
+  float best_u;     // the best hit's weights; without events to record, the test's u_det and
+  float best_v;     // v_det until report() divides them by best_det (test_barycentrics)
+  float best_det;
   uint best_flags;
   uint cells;
   uint tests;
@@ -160,8 +161,8 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   vec2 bc = vec2(0.0f);
   if (code == kTestAccepted || (kExplain && code == kTestOriginPlane)) {  // the refused one's t: for its event
     // Barycentrics: the test's own weights (test_barycentrics; without events to record, only
-    // where alpha keying reads them: report() makes them again for the hit it reports,
-    // triangle_barycentrics, from the same inputs: the same bits)
+    // where alpha keying reads them: a new best keeps u_det, v_det and their determinant, and
+    // report() divides them once, for the hit it reports: the same operations, the same bits)
     t = moller_trumbore_t(r);
     if (kExplain) bc = test_barycentrics(r.u_det, r.v_det, weights_det);
     // The surface rule: a ray launched from a surface hits no face whose plane passes through its
@@ -197,9 +198,13 @@ void test_reference(GridParams g, uint ref, uint step, uvec3 cell, uint slot, fl
   st.has_best = true;
   st.best_t = t;
   st.best_ref = ref;
-  if (kExplain) {  // else report() makes them
+  if (kExplain) {
     st.best_u = bc.x;
     st.best_v = bc.y;
+  } else {  // report() divides them
+    st.best_u = r.u_det;
+    st.best_v = r.v_det;
+    st.best_det = weights_det;
   }
   st.best_flags = r.det < 0.0f ? kHitBackFace : 0u;
 }
@@ -298,13 +303,14 @@ void test_compact_cell(GridParams g, uvec3 cell, uint step, float t_lo, float t_
 }
 
 HitRecord report(uint step) {
-  // Without events to record, the reported hit's barycentrics are made here (test_reference
-  // leaves them out): the test's own weights of the same ray and triangle, so the same values.
-  // A gap-fill hit keeps those gap_fill made at its sample point.
+  // Without events to record, the reported hit's barycentrics are made here from the weights its
+  // test recorded (test_reference kept u_det, v_det and their determinant): the same quotients as
+  // at the candidate. (Made again from the ray and the triangle instead, the watertight test's
+  // edge functions once a ray, the H200's trace was 2.4-6.7 % slower: docs/BENCHMARKS.md "A hit's
+  // barycentrics carried out of the loop".) A gap-fill hit keeps those gap_fill made at its
+  // sample point.
   if (!kExplain && (st.best_flags & kHitGapFill) == 0u) {
-    const GridInstance inst = instances[ref_instance(st.best_ref)];
-    const GridTriangle tri = triangles[inst.tri_offset + ref_triangle(st.best_ref)];
-    const vec2 bc = triangle_barycentrics(kTriangleTest, st.org, st.dir, st.wray, tri.v0, tri.v1, tri.v2);
+    const vec2 bc = test_barycentrics(st.best_u, st.best_v, st.best_det);
     st.best_u = bc.x;
     st.best_v = bc.y;
   }
@@ -598,6 +604,7 @@ HitRecord scene_trace(GridParams g, RayRecord ray, uint mode) {
   st.best_ref = kBlank;
   st.best_u = 0.0f;
   st.best_v = 0.0f;
+  st.best_det = 0.0f;
   st.best_flags = 0u;
   st.cells = 0u;
   st.tests = 0u;
