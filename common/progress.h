@@ -1,5 +1,6 @@
 // progress.h: a progress line for long work. Silent for work that ends within a second; then one
-// line on stderr, rewritten in place on a terminal, at most every second elsewhere (CI logs).
+// line on stderr, rewritten in place on a terminal, at most every second elsewhere (CI logs). A
+// total of 0: work of unknown length, counted in steps (no share, no estimate of the rest).
 #pragma once
 
 #include <atomic>
@@ -16,7 +17,7 @@ namespace gridrt {
 class Progress {
  public:
   Progress(std::string label, uint64_t total)
-      : label_(std::move(label)), total_(total ? total : 1), start_(Clock::now()), last_(start_),
+      : label_(std::move(label)), total_(total), start_(Clock::now()), last_(start_),
         tty_(isatty(fileno(stderr)) != 0) {}
   ~Progress() { finish(); }
   Progress(const Progress&) = delete;
@@ -46,9 +47,12 @@ class Progress {
   using Clock = std::chrono::steady_clock;
   void print(uint64_t done, Clock::time_point now, bool final) {
     const double secs = std::chrono::duration<double>(now - start_).count();
-    const double frac = double(done > total_ ? total_ : done) / double(total_);
+    const double frac = total_ ? double(done > total_ ? total_ : done) / double(total_) : 0.0;
     if (final)
       std::fprintf(stderr, "%s%s: done in %.1f s%s\n", tty_ ? "\r" : "", label_.c_str(), secs, tty_ ? "\033[K" : "");
+    else if (total_ == 0)
+      std::fprintf(stderr, "%s%s: %llu so far (%.1f s)%s", tty_ ? "\r" : "", label_.c_str(),
+                   (unsigned long long)done, secs, tty_ ? "\033[K" : "\n");
     else {
       const double eta = frac > 0.0 ? secs / frac - secs : 0.0;
       std::fprintf(stderr, "%s%s: %5.1f%% (%.1f s, ~%.0f s left)%s", tty_ ? "\r" : "", label_.c_str(),

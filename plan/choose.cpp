@@ -8,6 +8,7 @@
 
 #include "gridrt/common/invocations.h"
 #include "gridrt/common/parallel.h"
+#include "gridrt/common/progress.h"
 #include "gridrt/common/safe_io.h"
 #include "gridrt/common/shared/transform.h"
 #include "gridrt/plan/plan.h"
@@ -734,10 +735,16 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   if (by_cost) {
     const size_t per_pad = size_t(coarsest - finest + 1);
     std::vector<GridCandidate> all(per_pad * paddings.size());
+    // A line on stderr where the weighing takes over a second (a scene of many large or
+    // overlapping triangles: each candidate's trial count tests up to kRangeCellsPerTriangle cells
+    // a triangle)
+    Progress progress("grid: weighing " + std::to_string(all.size()) + " candidate grids", all.size());
     run_invocations(uint32_t(all.size()), thread_count(o), std::nullopt, [&](uint32_t k) {
       GridParams gk = g;
       all[k] = weigh_j(finest + int(k % per_pad), paddings[k / per_pad], gk);
+      progress.advance();
     }, 1);
+    progress.finish();
     for (const GridCandidate& c : all) {
       if (c.fits) ch.candidates.push_back(c);
       ch.over_bound += c.over_bound ? 1u : 0u;
@@ -762,11 +769,15 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   }
   // Nothing fits yet (tiny image limits): coarser cells until something does
   std::optional<GridCandidate> coarsest_unfit;  // the last of those that did not fit either
-  for (int j = coarsest + 1; !done && ch.candidates.empty() && j < coarsest + 80; ++j) {
-    if (cs_over) break;
-    const GridCandidate c = weigh_j(j, paddings[0], g);
-    if (c.fits) ch.candidates.push_back(c);
-    else coarsest_unfit = c;
+  {
+    Progress progress("grid: coarser candidates weighed (none fits yet)", 0);
+    for (int j = coarsest + 1; !done && ch.candidates.empty() && j < coarsest + 80; ++j) {
+      if (cs_over) break;
+      const GridCandidate c = weigh_j(j, paddings[0], g);
+      if (c.fits) ch.candidates.push_back(c);
+      else coarsest_unfit = c;
+      progress.advance();
+    }
   }
   // Where the last grid tried was left out for the host's memory, that is what to name
   if (ch.candidates.empty()) {

@@ -48,6 +48,13 @@ inline constexpr double kSparseOffsetsMargin = 0.95;
 // finer candidates' trials and builds quadratic (docs/SPEC.md "The work bound").
 inline constexpr uint64_t kRangeCellsPerTriangle = 256;
 inline constexpr uint64_t kRangeCellsFloor = uint64_t(1) << 22;
+// The trace-cost policy's ray sample (work_sample) casts its rays in strided chunks of about
+// kSampleChunk rays until one trace's triangle tests pass kSampleTestBudget (plan/policy.cpp,
+// SampleCaster::trace_within): a scene whose rays each test thousands of triangles is sampled by
+// fewer rays, spread over the whole image, rather than for minutes. The frames of this project's
+// scenes test under a million; none reaches it.
+inline constexpr size_t kSampleChunk = 256;
+inline constexpr uint64_t kSampleTestBudget = uint64_t(1) << 23;
 uint64_t range_cells_budget(uint64_t scene_triangles);
 // The cells of every triangle's AABB range on grid `g` (triangle_cell_range), summed over the
 // scene's instances at `time`; zero-area triangles (never inserted) count none. O(triangles).

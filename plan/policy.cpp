@@ -4,6 +4,7 @@
 #include <bit>
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <optional>
 
 #include "gridrt/common/camera.h"
@@ -12,6 +13,7 @@
 #include "gridrt/common/shared/transform.h"
 #include "gridrt/common/shared/triangle.h"
 #include "gridrt/common/invocations.h"
+#include "gridrt/common/progress.h"
 
 namespace gridrt::plan {
 
@@ -37,8 +39,10 @@ void for_each_placed_triangle(const Scene& scene, size_t instance, float time, c
 }
 
 void for_each_triangle_cell(const Scene& scene, size_t instance, float time, const GridParams& g,
-                            const std::function<void(uint32_t, size_t)>& f) {
+                            const std::function<void(uint32_t, size_t)>& f,
+                            const std::function<void(const PlacedTriangle&)>& before) {
   for_each_placed_triangle(scene, instance, time, g, [&](const PlacedTriangle& p) {
+    if (before) before(p);
     for (uint32_t z = p.lo.z; z <= p.hi.z; ++z)
       for (uint32_t y = p.lo.y; y <= p.hi.y; ++y)
         for (uint32_t x = p.lo.x; x <= p.hi.x; ++x)
@@ -72,22 +76,63 @@ class SampleCaster : public Tracer {
                          transform_point(m, mesh.positions[t.z])});
     }
     const size_t ncells = size_t(g_.cells.x) * g_.cells.y * g_.cells.z;
+    // Two passes over the triangles' AABB range cells (at most the work bound's): a line on stderr
+    // where they take over a second (large or overlapping triangles)
+    Progress progress("grid: the policy's sample grid", 2 * std::max<uint64_t>(1, range_cells(scene, time, g_)));
+    uint64_t tested = 0;
+    const auto tick = [&](const PlacedTriangle& p) {
+      tested += uint64_t(p.hi.x - p.lo.x + 1) * (p.hi.y - p.lo.y + 1) * (p.hi.z - p.lo.z + 1);
+      if (tested >= 65536) {
+        progress.advance(tested);
+        tested = 0;
+      }
+    };
     first_.assign(ncells + 1, 0u);
     for (size_t i = 0; i < scene.instances.size(); ++i)
-      for_each_triangle_cell(scene, i, time, g_, [&](uint32_t, size_t c) { ++first_[c + 1]; });
+      for_each_triangle_cell(scene, i, time, g_, [&](uint32_t, size_t c) { ++first_[c + 1]; }, tick);
     for (size_t c = 0; c < ncells; ++c) first_[c + 1] += first_[c];
     refs_.assign(first_[ncells], kBlank);
     std::vector<uint32_t> fill(first_.begin(), first_.end() - 1);
     for (size_t i = 0; i < scene.instances.size(); ++i)
       for_each_triangle_cell(scene, i, time, g_,
-                             [&](uint32_t t, size_t c) { refs_[fill[c]++] = ref_pack(uint32_t(i), t); });
+                             [&](uint32_t t, size_t c) { refs_[fill[c]++] = ref_pack(uint32_t(i), t); }, tick);
+    progress.finish();
   }
 
   const std::array<vec3, 3>& triangle(uint32_t instance, uint32_t t) const { return tris_[offset_[instance] + t]; }
 
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override {
-    run_invocations(uint32_t(rays.size()), thread_count(o_), std::nullopt,
-                    [&](uint32_t i) { hits[i] = cast(rays[i]); }, 64);
+  // Every ray, within the sample's work bound (trace_within); the rays past it are misses.
+  void trace(std::span<const Ray> rays, std::span<Hit> hits) override { trace_within(rays, hits); }
+
+  // The rays in strided chunks (chunk k: rays k, k + K, k + 2K, ..., K chunks of about
+  // kSampleChunk), chunk after chunk, until the triangle tests of a call pass kSampleTestBudget:
+  // whatever the scene, a sample costs about that many tests at most (3,000 copies of one
+  // triangle in a cell made every sample ray test them all: minutes before the grid was chosen,
+  // an outside sweep). Any prefix of the chunks is spread over the whole ray list (the whole
+  // image for a gather), and the prefix depends on the counts alone, not on the threads' timing.
+  // Returns which rays were cast; the others' hits are misses.
+  std::vector<uint8_t> trace_within(std::span<const Ray> rays, std::span<Hit> hits) {
+    const size_t n = rays.size();
+    std::vector<uint8_t> cast_flags(n, 0);
+    Hit miss{};
+    miss.t = sh_infinity();
+    miss.instance = kNoInstance;
+    std::fill(hits.begin(), hits.end(), miss);
+    const size_t chunks = (n + kSampleChunk - 1) / kSampleChunk;
+    uint64_t tests = 0;
+    for (size_t k = 0; k < chunks && tests <= kSampleTestBudget; ++k) {
+      const uint32_t count = uint32_t((n - k + chunks - 1) / chunks);  // rays k, k + chunks, ... below n
+      std::atomic<uint64_t> chunk_tests{0};
+      run_invocations(count, thread_count(o_), std::nullopt, [&](uint32_t j) {
+        const size_t i = k + size_t(j) * chunks;
+        uint64_t t = 0;
+        hits[i] = cast(rays[i], t);
+        cast_flags[i] = 1;
+        chunk_tests.fetch_add(t, std::memory_order_relaxed);
+      }, 16);
+      tests += chunk_tests.load();
+    }
+    return cast_flags;
   }
 
  private:
@@ -105,7 +150,7 @@ class SampleCaster : public Tracer {
     return alpha_keeps(tex.rgba[4 * (size_t(xy.y) * tex.width + xy.x) + 3]);
   }
 
-  Hit cast(const Ray& given) const {
+  Hit cast(const Ray& given, uint64_t& tests) const {
     Ray ray = given;
     ray.dir = traced_direction(given.dir);  // as scene_trace walks it
     Hit h{};
@@ -129,6 +174,7 @@ class SampleCaster : public Tracer {
         const std::array<vec3, 3>& v = tris_[offset_[i] + t];
         TriangleTest r;
         const float stol = ray.launch_ref != kNoRef ? surface_rule_tol(ray.org) : -1.0f;  // the surface rule
+        ++tests;
         if (triangle_test(g_.triangle_test, ray.org, ray.dir, v[0], v[1], v[2], rs.t_lo, ray.tmax, best, stol, r) !=
             kTestAccepted)
           continue;
@@ -184,7 +230,18 @@ WorkSample work_sample(const Scene& scene, float time, const GridParams& base, c
     s.rays = camera_rays(camera, w, h);
   }
   std::vector<Hit> hits(s.rays.size());
-  caster.trace(s.rays, hits);
+  const std::vector<uint8_t> cast = caster.trace_within(s.rays, hits);
+  // Only the rays cast within the work bound (all of them but in scenes where a ray tests
+  // thousands of triangles)
+  size_t kept = 0;
+  for (size_t i = 0; i < s.rays.size(); ++i)
+    if (cast[i]) {
+      s.rays[kept] = s.rays[i];
+      hits[kept] = hits[i];
+      ++kept;
+    }
+  s.rays.resize(kept);
+  hits.resize(kept);
   s.t_end.resize(hits.size());
   s.hit.resize(hits.size());
   s.launch.resize(hits.size());

@@ -27,9 +27,11 @@ void for_each_placed_triangle(const Scene& scene, size_t instance, float time, c
 
 // Calls f(triangle, cell index) for every cell the build would insert that triangle of instance
 // `instance` into at `time` (its AABB cell range, the plane vs enlarged-sphere test; no capacity).
-// Cell index: (z * cells.y + y) * cells.x + x.
+// Cell index: (z * cells.y + y) * cells.x + x. `before`, where given, is called with each
+// triangle before its cells (a progress count).
 void for_each_triangle_cell(const Scene& scene, size_t instance, float time, const shared::GridParams& g,
-                            const std::function<void(uint32_t, size_t)>& f);
+                            const std::function<void(uint32_t, size_t)>& f,
+                            const std::function<void(const PlacedTriangle&)>& before = {});
 
 // The cells a traversal visits along a ray, in order, as trace_paper and trace_exact step (the
 // functions of shared/grid.h), without testing anything: f(cell, k, last, t_report, tested) per

@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "gridrt/common/invocations.h"
+#include "gridrt/common/progress.h"
 #include "gridrt/common/safe_io.h"
 #include "gridrt/common/shared/transform.h"
 #include "gridrt/reference/grid.h"
@@ -545,6 +546,7 @@ void insert_instances(GridData& grid, const Scene& scene, float time, const Grid
   for (uint32_t i = first; i < last; ++i) affine[i - first] = shared::to_affine(scene.instances[i].transform_at(time));
   const uint32_t t0 = grid.instances[first].tri_offset;
   const uint32_t t1 = grid.instances[last - 1].tri_offset + grid.instances[last - 1].tri_count;
+  Progress progress("grid build: triangles inserted", t1 - t0);  // a line where it takes over a second
   run_invocations(
       t1 - t0, thread_count(o), o.shuffle_seed,
       [&](uint32_t invocation) {
@@ -555,8 +557,10 @@ void insert_instances(GridData& grid, const Scene& scene, float time, const Grid
         const uint32_t instance = uint32_t(it - grid.instances.begin()) - 1;
         build_invocation(grid, scene, time, instance, global - grid.instances[instance].tri_offset,
                          affine[instance - first]);
+        progress.advance();
       },
       16);
+  progress.finish();
 }
 
 }  // namespace

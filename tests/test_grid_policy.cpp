@@ -369,3 +369,65 @@ TEST_CASE("grid: cells wider than the domain, an exact traversal below the cell'
   CHECK_THROWS_WITH(reference::choose_grid(scene, 0.0f, go),
                     Catch::Contains("over its memory budget") && Catch::Contains("--memory-budget"));
 }
+
+TEST_CASE("trace-cost policy: copies of one triangle are sampled within the work bound, the same on any thread count",
+          "[grid][policy][hardcase]") {
+  // 12,000 copies of one triangle: every sample ray through it tests them all (an outside sweep's
+  // 300,000 copies went minutes without a word before the grid was chosen). The sample stops
+  // casting after the chunk whose tests pass plan::kSampleTestBudget: fewer rays, spread over the
+  // image, the same ones on any thread count, and each still ends where Embree's does.
+  constexpr uint32_t kCopies = 12000;
+  Scene s;
+  s.name = "copies";
+  Mesh m;
+  m.name = "copies";
+  m.positions = {{0.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}};
+  for (uint32_t i = 0; i < kCopies; ++i) m.triangles.push_back({0u, 1u, 2u});
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "", .mesh = 0});
+  s.finalize();
+  GridOptions one;
+  one.traversal = Traversal::exact;
+  one.threads = 1;
+  GridOptions two = one;
+  two.threads = 2;
+  const GridChoice a = choose(s, one), b = choose(s, two);
+  const reference::WorkSample& sa = a.sample;
+  const uint32_t full = one.work_sample_width * one.work_sample_height;  // the camera rays (no glossy material)
+  REQUIRE_FALSE(sa.bounce);
+  INFO(sa.rays.size() << " of " << full << " camera rays sampled");
+  CHECK(sa.rays.size() > 0u);
+  CHECK(sa.rays.size() < full);
+  // A kept ray that hits the triangle tested every copy (they share its cells): those tests alone
+  // stay within the bound and one chunk past it
+  uint64_t hits = 0;
+  for (const float t : sa.t_end) hits += std::isfinite(t);
+  CHECK(hits > 0u);
+  CHECK(hits * kCopies <= plan::kSampleTestBudget + uint64_t(kCopies) * (plan::kSampleChunk + 1));
+  // The rays spread over the image: some in its first and some in its last row
+  const std::vector<Ray> all = camera_rays(s.frame_camera(), one.work_sample_width, one.work_sample_height);
+  size_t first_row = 0, last_row = 0;
+  for (const Ray& r : sa.rays)
+    for (uint32_t x = 0; x < one.work_sample_width; ++x) {
+      first_row += std::memcmp(&r, &all[x], sizeof r) == 0;
+      last_row += std::memcmp(&r, &all[all.size() - 1 - x], sizeof r) == 0;
+    }
+  CHECK(first_row > 0u);
+  CHECK(last_row > 0u);
+  // The same sample on any thread count
+  REQUIRE(b.sample.rays.size() == sa.rays.size());
+  CHECK(std::memcmp(b.sample.rays.data(), sa.rays.data(), sa.rays.size() * sizeof(Ray)) == 0);
+  CHECK(std::memcmp(b.sample.t_end.data(), sa.t_end.data(), sa.t_end.size() * sizeof(float)) == 0);
+  // And each kept ray ends where Embree's does
+  EmbreeTracer embree(2);
+  embree.build(s, 0.0f);
+  std::vector<Hit> want(sa.rays.size());
+  embree.trace(sa.rays, want);
+  size_t same = 0;
+  for (size_t i = 0; i < sa.rays.size(); ++i) {
+    const bool miss = !std::isfinite(sa.t_end[i]);
+    same += miss == is_miss(want[i]) && (miss || reference::ulp_distance(sa.t_end[i], want[i].t) <= 64);
+  }
+  CHECK(same == sa.rays.size());
+}
