@@ -753,6 +753,9 @@ Scene load_scene_any(std::string_view spec) {
 
 Scene load_scene(std::string_view spec) {
   Scene s = load_scene_any(spec);
+  // The name every message and report prints: its control bytes (a scene file's "name", a cache's,
+  // a file name with a line break or an escape sequence) as \xNN, so that none reaches a terminal
+  s.name = control_escaped(s.name);
   warn_unrendered_opacity(s, std::string(spec));
   return s;
 }

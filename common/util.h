@@ -33,6 +33,22 @@ inline std::string printable(std::string_view s, size_t max = 32) {
   if (s.size() > max) out += "...";
   return out;
 }
+// A name for a terminal: control bytes (a line break, an escape sequence's ESC) as \xNN, UTF-8
+// and the rest kept (the same text again unchanged: it holds no control byte).
+inline std::string control_escaped(std::string_view s) {
+  std::string out;
+  for (const char ch : s) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c >= 0x20 && c != 0x7F) {
+      out.push_back(ch);
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02X", unsigned(c));
+      out += buf;
+    }
+  }
+  return out;
+}
 inline std::string printable_message(std::string_view s, size_t max) {
   std::string out;
   size_t start = 0;

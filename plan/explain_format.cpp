@@ -2,6 +2,8 @@
 // side by side (plan/explain_format.h).
 #include "gridrt/plan/explain_format.h"
 
+#include "gridrt/common/util.h"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -80,22 +82,6 @@ bool rejected(const ExplainRecord& rec) {
   for (const ExplainEvent& e : rec.events)
     if (e.kind == kEvRejected) return true;
   return false;
-}
-
-// A name for the text: control bytes (a line break, an escape) as \xNN, UTF-8 and the rest kept.
-std::string control_escaped(const std::string& s) {
-  std::string out;
-  for (const char ch : s) {
-    const unsigned char c = static_cast<unsigned char>(ch);
-    if (c >= 0x20 && c != 0x7F) {
-      out.push_back(ch);
-    } else {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02X", unsigned(c));
-      out += buf;
-    }
-  }
-  return out;
 }
 
 const char* miss_reason(uint32_t code) {

@@ -239,3 +239,45 @@ TEST_CASE("CLI: a ray's value beyond a float's range is named so, not as somethi
   CHECK_THAT(r.output, Contains("is beyond a float's range"));
   CHECK_THAT(run_tool("explain builtin:cornell --ray 0,1,2,0,0,x1 --brief").output, Contains("is not a float"));
 }
+
+TEST_CASE("CLI: a scene's name with control bytes, verify's rays over the host budget, a glTF link loop, a generated "
+          "level's seed past 32 bits",
+          "[cli][badinput]") {
+  // A scene's "name" with an escape sequence and a line break went to the terminal raw
+  const fs::path tri = scratch("name_tri.obj");
+  write(tri, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const fs::path scene = scratch("name_ctrl.json");
+  write(scene, "{\"name\": \"a\\u001b[31mred\\n../etc\", \"meshes\": {\"t\": {\"file\": \"" + tri.filename().string() +
+                   "\"}}, \"instances\": [{\"mesh\": \"t\"}]}");
+  const Run named = run_tool("stats " + scene.string());
+  INFO(named.output);
+  CHECK(named.exit_code == 0);
+  CHECK_THAT(named.output, Contains("a\\x1B[31mred\\x0A../etc"));
+  CHECK(named.output.find('\x1b') == std::string::npos);
+  // verify's rays are checked against --max-host-mib before they are made (-n 10,000,000 took 2.1 GB)
+  const Run rays = run_tool("verify " + tri.string() + " -n 10000000 --families degenerate --max-host-mib 300");
+  INFO(rays.output);
+  CHECK(rays.exit_code == 1);
+  CHECK_THAT(rays.output, Contains("10000000 rays a family") && Contains("lower -n"));
+  // A glTF buffer that is a loop of symbolic links: named, not "File not found"
+  const fs::path a = scratch("loop_a.bin"), b = scratch("loop_b.bin");
+  fs::remove(a);
+  fs::remove(b);
+  fs::create_symlink(b.filename(), a);
+  fs::create_symlink(a.filename(), b);
+  const fs::path gltf = scratch("loop.gltf");
+  write(gltf, R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "loop_a.bin", "byteLength": 36}],
+    "bufferViews": [{"buffer": 0, "byteLength": 36}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}]})");
+  const Run loop = run_tool("stats " + gltf.string());
+  INFO(loop.output);
+  CHECK(loop.exit_code == 1);
+  CHECK_THAT(loop.output, Contains("symbolic links"));
+  // A generated level's seed past 32 bits: the message says what a number may be
+  const Run seed = run_tool("portal render gen:5x5x1:99999999999999999999999 --width 8 --height 8 -o " +
+                            scratch("seed.png").string());
+  INFO(seed.output);
+  CHECK(seed.exit_code == 1);
+  CHECK_THAT(seed.output, Contains("at most 4294967295"));
+}

@@ -5,9 +5,10 @@ Names say what the replay driver (tests/fuzz/replay.cpp) expects:
   bad_*  must give a clean Error (exit 1 from the tool),
   ok_*   must load,
   other  (fuzzer finds, random corruption): a clean Error or a load, never a crash.
-Run from the repository root: python3 tools/make_badinput_corpus.py
+Run: python3 tools/make_badinput_corpus.py [OUT]   (OUT: tests/corpus by default)
 (it writes its cases over their files and keeps the corpus's other files, made by hand).
 """
+import argparse
 import base64
 import json
 import os
@@ -307,6 +308,10 @@ def map_cases():
 
 
 if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", nargs="?", default=ROOT,
+                        help="the corpus folder (default: this checkout's tests/corpus)")
+    ROOT = parser.parse_args().out
     # Each case's file is written over; the corpus's other files (cases made by hand: the
     # bad_requires_*.gltf from a real model, the block maps) are kept, not removed
     obj_cases()

@@ -562,10 +562,13 @@ bool load_image_checked(tinygltf::Image* image, const int index, std::string* er
 
 // TinyGLTF's FileExists probes a path by opening it (fopen): a FIFO blocked there forever, before
 // read_external could refuse it (an outside sweep). Existence by the entry alone (stat, no open);
-// read_external then names what the entry is.
+// read_external then names what the entry is. An entry whose existence cannot be told (a loop of
+// symbolic links, a folder without search permission) is taken as there, so that read_external
+// names the error rather than TinyGLTF's "File not found" (an outside sweep).
 bool file_exists_unopened(const std::string& abs_filename, void*) {
   std::error_code ec;
-  return fs::exists(fs::path(abs_filename), ec);
+  const bool exists = fs::exists(fs::path(abs_filename), ec);
+  return exists || (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory);
 }
 
 // The model: the file read here (a regular file within the size bound), the JSON's nesting depth

@@ -421,7 +421,8 @@ std::string generated_blocks_text(uint32_t width, uint32_t depth, uint32_t heigh
 InstancedWorld generated_blocks_spec(const std::string& spec) {
   uint32_t w = 0, d = 0, h = 0, seed = 1;
   if (!parse_generated_spec(spec, "gen-blocks:", w, d, h, seed))
-    throw Error("generated block level '" + spec + "': expected gen-blocks:WIDTHxDEPTHxHEIGHT[:SEED] (tiles)");
+    throw Error("generated block level '" + spec + "': expected gen-blocks:WIDTHxDEPTHxHEIGHT[:SEED] (tiles; "
+                "each a whole number of at most 4294967295)");
   if (w < 5 || d < 5 || h < 1 || w > kMaxWorldAxis || d > kMaxWorldAxis || h + 2 > kMaxWorldAxis)
     throw Error("generated block level '" + spec + "': width and depth 5 .. 255 tiles, height 1 .. 253 tiles");
   return parse_block_map(generated_blocks_text(w, d, h, seed), spec, true);

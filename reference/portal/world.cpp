@@ -533,7 +533,8 @@ World generated_level_spec(const std::string& spec) {
   // gen:WxDxH or gen:WxDxH:SEED
   uint32_t w = 0, d = 0, h = 0, seed = 1;
   if (!parse_generated_spec(spec, "gen:", w, d, h, seed))
-    throw Error("generated level '" + spec + "': expected gen:WIDTHxDEPTHxHEIGHT[:SEED] (tiles, tiles, voxels)");
+    throw Error("generated level '" + spec + "': expected gen:WIDTHxDEPTHxHEIGHT[:SEED] (tiles, tiles, voxels; "
+                "each a whole number of at most 4294967295)");
   return generated_level(w, d, h, seed);
 }
 
