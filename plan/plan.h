@@ -51,8 +51,8 @@ inline constexpr uint64_t kRangeCellsFloor = uint64_t(1) << 22;
 // The trace-cost policy's ray sample (work_sample) casts its rays in strided chunks of about
 // kSampleChunk rays until one trace's triangle tests pass kSampleTestBudget (plan/policy.cpp,
 // SampleCaster::trace_within): a scene whose rays each test thousands of triangles is sampled by
-// fewer rays, spread over the whole image, rather than for minutes. The frames of this project's
-// scenes test under a million; none reaches it.
+// fewer rays, spread over the whole image, rather than for minutes. The grids chosen for this
+// project's scenes are the same with it (docs/SPEC.md "The ray sample").
 inline constexpr size_t kSampleChunk = 256;
 inline constexpr uint64_t kSampleTestBudget = uint64_t(1) << 23;
 uint64_t range_cells_budget(uint64_t scene_triangles);

@@ -106,9 +106,9 @@ class SampleCaster : public Tracer {
 
   // The rays in strided chunks (chunk k: rays k, k + K, k + 2K, ..., K chunks of about
   // kSampleChunk), chunk after chunk, until the triangle tests of a call pass kSampleTestBudget:
-  // whatever the scene, a sample costs about that many tests at most (3,000 copies of one
-  // triangle in a cell made every sample ray test them all: minutes before the grid was chosen,
-  // an outside sweep). Any prefix of the chunks is spread over the whole ray list (the whole
+  // whatever the scene, a sample costs about that many tests at most (300,000 copies of one
+  // triangle made every sample ray test them all: minutes before the grid was chosen, without a
+  // word; an outside sweep). Any prefix of the chunks is spread over the whole ray list (the whole
   // image for a gather), and the prefix depends on the counts alone, not on the threads' timing.
   // Returns which rays were cast; the others' hits are misses.
   std::vector<uint8_t> trace_within(std::span<const Ray> rays, std::span<Hit> hits) {
