@@ -44,19 +44,19 @@ void check_triangle(uint32_t which, const shared::CameraParams& c, const glm::ve
   glm::vec4 depth;
   float t_lo = 0.0f;
   ++n.triangles;
-  n.set_up += shared::raster_setup_depth(c, v0, v1, v2, e0, e1, e2, t_lo, depth);
+  n.set_up += shared::raster_setup_depth(c, shared::raster_camera(c), v0, v1, v2, e0, e1, e2, t_lo, depth);
   // The gather's box; it holds every accepted pixel whose hit lies beyond the near plane, and
   // every accepted pixel where the edge functions give it (set up, crossing the near plane)
   glm::uvec4 box(0u);
-  const bool boxed = shared::gather_box(c, kNear, v0, v1, v2, box);
+  const bool boxed = shared::gather_box(c, shared::raster_camera(c), kNear, v0, v1, v2, box);
   const glm::vec3 q0 = shared::gather_camera_space(c, v0), q1 = shared::gather_camera_space(c, v1),
                   q2 = shared::gather_camera_space(c, v2);
   glm::vec3 b0, b1, b2;
   float b_lo = 0.0f;
-  const bool edge_box = std::min({q0.z, q1.z, q2.z}) < kNear && shared::raster_setup(c, v0, v1, v2, b0, b1, b2, b_lo);
+  const bool edge_box = std::min({q0.z, q1.z, q2.z}) < kNear && shared::raster_setup(c, shared::raster_camera(c), v0, v1, v2, b0, b1, b2, b_lo);
   n.frustum_boxes += !edge_box;
   glm::uvec4 box0(0u);
-  const bool boxed0 = !edge_box && shared::gather_frustum_box(c, kNear, q0, q1, q2, 0.0f, box0);
+  const bool boxed0 = !edge_box && shared::gather_frustum_box(c, shared::raster_camera(c), kNear, q0, q1, q2, 0.0f, box0);
   for (uint32_t y = 0; y < c.height; ++y)
     for (uint32_t x = 0; x < c.width; ++x) {
       const glm::vec3 dir = shared::camera_direction(c, x, y);
@@ -272,13 +272,13 @@ TEST_CASE("Gather rasterizer: its bin, tile and pixel tests keep every pixel the
   float t_lo = 1.0f;
   const shared::CameraParams c = camera_params(Camera{}, 64, 48);
   glm::vec4 depth(1.0f);
-  CHECK_FALSE(shared::raster_setup_depth(c, glm::vec3(0.0f), glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(NAN, 0.0f, 0.0f), e0, e1,
+  CHECK_FALSE(shared::raster_setup_depth(c, shared::raster_camera(c), glm::vec3(0.0f), glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(NAN, 0.0f, 0.0f), e0, e1,
                                          e2, t_lo, depth));
   CHECK(shared::raster_pixel_may_hit(e0, e1, e2, 3, 4));
   CHECK(t_lo == 0.0f);
   CHECK(shared::raster_tile_t_lo(depth, t_lo, 0, 0, 7, 7) == 0.0f);
   // the eye in the triangle's plane
-  CHECK_FALSE(shared::raster_setup(c, c.eye + glm::vec3(-1, 0, -1), c.eye + glm::vec3(1, 0, -1), c.eye + glm::vec3(0, 0, -3),
+  CHECK_FALSE(shared::raster_setup(c, shared::raster_camera(c), c.eye + glm::vec3(-1, 0, -1), c.eye + glm::vec3(1, 0, -1), c.eye + glm::vec3(0, 0, -3),
                                    e0, e1, e2, t_lo));
 }
 
@@ -347,7 +347,7 @@ TEST_CASE("Gather frustum box: a triangle inside every plane gets the box its cl
       };
       const glm::vec3 q0 = vertex(), q1 = vertex(), q2 = vertex();
       glm::uvec4 box(0u);
-      const bool got = shared::gather_frustum_box(c, kNear, q0, q1, q2, shared::kGatherFrustumRounding, box);
+      const bool got = shared::gather_frustum_box(c, shared::raster_camera(c), kNear, q0, q1, q2, shared::kGatherFrustumRounding, box);
       // The polygon path, every plane clipped
       const float tx = c.tan_half_fov * c.aspect;
       const float kx = tx * (1.0f + shared::sh_div(4.0f, float(c.width)));

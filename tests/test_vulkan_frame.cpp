@@ -474,8 +474,8 @@ TEST_CASE("Vulkan frame: the compute gather agrees with the CPU's on triangles p
     const glm::vec3 q0 = shared::gather_camera_space(c, v0), q1 = shared::gather_camera_space(c, v1),
                     q2 = shared::gather_camera_space(c, v2);
     // The frustum box's cases (gather_box): wholly beyond the near plane, or no bounds from the set-up
-    if (std::min({q0.z, q1.z, q2.z}) < near_plane && shared::raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo)) continue;
-    const bool boxed0 = shared::gather_frustum_box(c, near_plane, q0, q1, q2, 0.0f, box0);
+    if (std::min({q0.z, q1.z, q2.z}) < near_plane && shared::raster_setup(c, shared::raster_camera(c), v0, v1, v2, e0, e1, e2, t_lo)) continue;
+    const bool boxed0 = shared::gather_frustum_box(c, shared::raster_camera(c), near_plane, q0, q1, q2, 0.0f, box0);
     size_t outside = 0;
     for (uint32_t y = 0; y < size.y; ++y)
       for (uint32_t x = 0; x < size.x; ++x) {

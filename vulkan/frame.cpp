@@ -271,6 +271,7 @@ shared::FrameParams frame_params(const Scene& scene, const shared::CameraParams&
   fp.near_plane = frame_near_plane(scene);
   fp.frame = 0;
   fp.material_count = uint32_t(scene.materials.size());
+  fp.raster = shared::raster_camera(camera);
   return fp;
 }
 

@@ -76,7 +76,10 @@ SH_INLINE vec3 camera_direction(SH_IN(CameraParams) c, uint x, uint y) {
 // triangle has no area (then the pixel has no surface). The cross product is normalized in units
 // that bring its largest component into [1, 2) (sh_unit_scale: the same bits wherever dot(n, n)
 // stays in the normal range), so that a triangle whose dot(n, n) would underflow (edges about
-// 4e-12) or overflow (about 1e10) still has its normal.
+// 4e-12) or overflow (about 1e10) still has its normal. Divided by its length through one
+// reciprocal, as sh_normalize (within about 1.5 ulps of the quotients; three correctly rounded
+// divisions per pixel cost the compute gather's fine pass more: docs/BENCHMARKS.md, "The bin pass's
+// camera constants once, the gather normal by one reciprocal").
 SH_INLINE vec4 gather_normal(SH_IN(vec3) a, SH_IN(vec3) b, SH_IN(vec3) c, SH_IN(vec3) dir) {
   SH_PRECISE vec3 e1 = b - a;
   SH_PRECISE vec3 e2 = c - a;
@@ -88,7 +91,8 @@ SH_INLINE vec4 gather_normal(SH_IN(vec3) a, SH_IN(vec3) b, SH_IN(vec3) c, SH_IN(
   SH_PRECISE float dd = sh_dot(n, n);
   SH_PRECISE float len = sh_sqrt(dd);
   if (!(len > 0.0f)) return vec4(0.0f);
-  SH_PRECISE vec3 u = vec3(sh_div(n.x, len), sh_div(n.y, len), sh_div(n.z, len));
+  SH_PRECISE float inv = sh_rcp(len);
+  SH_PRECISE vec3 u = n * inv;
   if (sh_dot(u, dir) > 0.0f) u = -u;  // facing the viewer
   return vec4(u, 1.0f);
 }

@@ -27,6 +27,50 @@
 
 SH_BEGIN
 
+// The camera's constants of the bounds below, the same for every triangle of a frame: made once by
+// raster_camera (the GPU frame reads them from its parameters, FrameParams::raster, which the host
+// makes with this function: the same bits as the CPU's).
+struct RasterCamera {
+  float gx;    // 2 tan aspect / width: sx from one pixel index to the next
+  float gy;    // 2 tan / height: sy likewise
+  float ox;    // sx(0), the first column's
+  float oy;    // sy(0), the first row's
+  float kx;    // the frustum's sides, widened by two pixels (tangent units)
+  float ky;
+  float px;    // pixels per tangent unit
+  float py;
+  float cx;    // the pixel indices of the view's centre
+  float cy;
+  float dmax;  // 1 + tan aspect + tan: a bound of a pixel direction's |d|_1 in camera units
+  float pad0;
+};
+
+SH_INLINE RasterCamera raster_camera(SH_IN(CameraParams) c) {
+  RasterCamera rc;
+  SH_PRECISE float tx = c.tan_half_fov * c.aspect;
+  SH_PRECISE float ty = c.tan_half_fov;
+  rc.gx = sh_div(2.0f * tx, float(c.width));
+  rc.gy = sh_div(2.0f * ty, float(c.height));
+  SH_PRECISE float ox = 0.5f * rc.gx - tx;
+  SH_PRECISE float oy = ty - 0.5f * rc.gy;
+  rc.ox = ox;
+  rc.oy = oy;
+  SH_PRECISE float kx = tx * (1.0f + sh_div(4.0f, float(c.width)));
+  SH_PRECISE float ky = ty * (1.0f + sh_div(4.0f, float(c.height)));
+  rc.kx = kx;
+  rc.ky = ky;
+  rc.px = sh_div(0.5f * float(c.width), tx);
+  rc.py = sh_div(0.5f * float(c.height), ty);
+  SH_PRECISE float cx = 0.5f * float(c.width) - 0.5f;
+  SH_PRECISE float cy = 0.5f * float(c.height) - 0.5f;
+  rc.cx = cx;
+  rc.cy = cy;
+  SH_PRECISE float dmax = (1.0f + tx) + ty;
+  rc.dmax = dmax;
+  rc.pad0 = 0.0f;
+  return rc;
+}
+
 // |v|_1, an upper bound of |v| (no square root needed).
 SH_INLINE float raster_norm1(SH_IN(vec3) v) {
   SH_PRECISE float s = abs(v.x) + abs(v.y);
@@ -37,13 +81,9 @@ SH_INLINE float raster_norm1(SH_IN(vec3) v) {
 // One edge function over pixel indices (x, y): sigma * dot(n, d(x, y)) with
 // d(x, y) = forward + sx(x) right + sy(y) up the unnormalized ray direction of camera_direction,
 // sx = ((2x + 1) / width - 1) tan aspect, sy = (1 - (2y + 1) / height) tan; plus `slack`.
-SH_INLINE vec3 raster_edge(SH_IN(CameraParams) c, SH_IN(vec3) n, float sigma, float slack) {
-  SH_PRECISE float tx = c.tan_half_fov * c.aspect;
-  SH_PRECISE float ty = c.tan_half_fov;
-  SH_PRECISE float gx = sh_div(2.0f * tx, float(c.width));
-  SH_PRECISE float gy = sh_div(2.0f * ty, float(c.height));
-  SH_PRECISE float ox = 0.5f * gx - tx;  // sx(0)
-  SH_PRECISE float oy = ty - 0.5f * gy;  // sy(0)
+// gx, gy, ox, oy: raster_camera's.
+SH_INLINE vec3 raster_edge(SH_IN(CameraParams) c, SH_IN(RasterCamera) rc, SH_IN(vec3) n, float sigma, float slack) {
+  const float gx = rc.gx, gy = rc.gy, ox = rc.ox, oy = rc.oy;
   SH_PRECISE float nf = sh_dot(n, c.forward);
   SH_PRECISE float nr = sh_dot(n, c.right) * sigma;
   SH_PRECISE float nu = sh_dot(n, c.up) * sigma;
@@ -60,7 +100,7 @@ SH_INLINE vec3 raster_edge(SH_IN(CameraParams) c, SH_IN(vec3) n, float sigma, fl
 // is (0, 0, 1) (keeps every pixel) and t_lo is 0. `depth`: the depth plane (a, b, c, k): at every
 // pixel (x, y) of a rectangle where the test accepts, t >= k / P with P the largest value of
 // a x + b y + c over the rectangle (raster_tile_t_lo); (0, 0, 1, 0) where no bound is given.
-SH_INLINE bool raster_setup_depth(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+SH_INLINE bool raster_setup_depth(SH_IN(CameraParams) c, SH_IN(RasterCamera) rc, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
                                   SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2, SH_OUT(float) t_lo,
                                   SH_OUT(vec4) depth) {
   e0 = vec3(0.0f, 0.0f, 1.0f);
@@ -87,11 +127,11 @@ SH_INLINE bool raster_setup_depth(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(v
   // The eye's side, reliable: |q0 . n| far above the test's rounding of t det (about 10 eps M L^2)
   if (!(abs(qn) > 0.0000152587890625f * mll)) return false;  // 2^-16
   SH_PRECISE float sigma = qn < 0.0f ? -1.0f : 1.0f;
-  SH_PRECISE float dmax = (1.0f + c.tan_half_fov * c.aspect) + c.tan_half_fov;
+  const float dmax = rc.dmax;
   SH_PRECISE float slack = (0.0001220703125f * ml) * dmax;  // 2^-13
-  e0 = raster_edge(c, sh_cross(q1, d12), sigma, slack);
-  e1 = raster_edge(c, sh_cross(q2, d20), sigma, slack);
-  e2 = raster_edge(c, sh_cross(q0, d01), sigma, slack);
+  e0 = raster_edge(c, rc, sh_cross(q1, d12), sigma, slack);
+  e1 = raster_edge(c, rc, sh_cross(q2, d20), sigma, slack);
+  e2 = raster_edge(c, rc, sh_cross(q0, d01), sigma, slack);
   // t >= the nearest vertex depth along forward (t >= z at the hit), less the rounding of z, of
   // the test's t (relative: 2^-17 (M + L) L^2 / |q0 . n|, at most 1/2 here) and a margin of 2^-10
   SH_PRECISE float z = min(sh_dot(q0, c.forward), min(sh_dot(q1, c.forward), sh_dot(q2, c.forward)));
@@ -107,15 +147,15 @@ SH_INLINE bool raster_setup_depth(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(v
   // the numerator takes the test's relative rounding rel and the margin as t_lo does.
   SH_PRECISE float slack_n = (0.0001220703125f * (l * l)) * dmax;  // 2^-13
   SH_PRECISE float k = abs(qn) * keep;
-  if (keep > 0.0f) depth = vec4(raster_edge(c, n, sigma, slack_n), k);
+  if (keep > 0.0f) depth = vec4(raster_edge(c, rc, n, sigma, slack_n), k);
   return true;
 }
 
 // raster_setup_depth without the depth plane.
-SH_INLINE bool raster_setup(SH_IN(CameraParams) c, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
-                            SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2, SH_OUT(float) t_lo) {
+SH_INLINE bool raster_setup(SH_IN(CameraParams) c, SH_IN(RasterCamera) rc, SH_IN(vec3) v0, SH_IN(vec3) v1,
+                            SH_IN(vec3) v2, SH_OUT(vec3) e0, SH_OUT(vec3) e1, SH_OUT(vec3) e2, SH_OUT(float) t_lo) {
   vec4 depth;
-  return raster_setup_depth(c, v0, v1, v2, e0, e1, e2, t_lo, depth);
+  return raster_setup_depth(c, rc, v0, v1, v2, e0, e1, e2, t_lo, depth);
 }
 
 SH_INLINE float raster_edge_at(SH_IN(vec3) e, float x, float y) {
@@ -279,13 +319,11 @@ SH_INLINE void gather_frustum_extend(SH_IN(vec3) q, float near_plane, float roun
   hi = max(hi, p + r);
 }
 
-SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) q0, SH_IN(vec3) q1,
-                                  SH_IN(vec3) q2, float rounding, SH_OUT(uvec4) box) {
+SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, SH_IN(RasterCamera) rc, float near_plane, SH_IN(vec3) q0,
+                                  SH_IN(vec3) q1, SH_IN(vec3) q2, float rounding, SH_OUT(uvec4) box) {
   box = uvec4(0u);
   SH_PRECISE float m = max(raster_norm1(q0), max(raster_norm1(q1), raster_norm1(q2)));
-  SH_PRECISE float tx = c.tan_half_fov * c.aspect;
-  SH_PRECISE float kx = tx * (1.0f + sh_div(4.0f, float(c.width)));
-  SH_PRECISE float ky = c.tan_half_fov * (1.0f + sh_div(4.0f, float(c.height)));
+  const float kx = rc.kx, ky = rc.ky;
   // The clip planes: near, then the four sides widened by two pixels
   const vec4 near = vec4(0.0f, 0.0f, 1.0f, -near_plane);
   const vec4 left = vec4(1.0f, 0.0f, kx, 0.0f);
@@ -293,10 +331,7 @@ SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN
   const vec4 bottom = vec4(0.0f, 1.0f, ky, 0.0f);
   const vec4 top = vec4(0.0f, -1.0f, ky, 0.0f);
   // Pixels per tangent unit, and the pixel indices of the view's centre
-  SH_PRECISE float px = sh_div(0.5f * float(c.width), tx);
-  SH_PRECISE float py = sh_div(0.5f * float(c.height), c.tan_half_fov);
-  SH_PRECISE float cx = 0.5f * float(c.width) - 0.5f;
-  SH_PRECISE float cy = 0.5f * float(c.height) - 0.5f;
+  const float px = rc.px, py = rc.py, cx = rc.cx, cy = rc.cy;
   vec2 lo = vec2(3.0e38f), hi = vec2(-3.0e38f);
   // A triangle with every vertex on the kept side of every plane is its own clipped polygon
   // (each clip keeps its vertices, in order): projected as it is, without the polygon (most
@@ -339,7 +374,7 @@ SH_INLINE bool gather_frustum_box(SH_IN(CameraParams) c, float near_plane, SH_IN
 //  - crossing the near plane: the edge functions' box, every accepted pixel at any depth; where
 //    raster_setup gives no bounds (the eye within a hair of the plane) the frustum box, which
 //    leaves out the hits nearer than the near plane.
-SH_INLINE bool gather_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
+SH_INLINE bool gather_box(SH_IN(CameraParams) c, SH_IN(RasterCamera) rc, float near_plane, SH_IN(vec3) v0, SH_IN(vec3) v1, SH_IN(vec3) v2,
                           SH_OUT(uvec4) box) {
   box = uvec4(0u);
   const vec3 q0 = gather_camera_space(c, v0);
@@ -348,11 +383,11 @@ SH_INLINE bool gather_box(SH_IN(CameraParams) c, float near_plane, SH_IN(vec3) v
   SH_PRECISE float m = max(raster_norm1(q0), max(raster_norm1(q1), raster_norm1(q2)));
   if (max(q0.z, max(q1.z, q2.z)) < -0.00000095367431640625f * m) return false;  // 2^-20
   if (min(q0.z, min(q1.z, q2.z)) >= near_plane)
-    return gather_frustum_box(c, near_plane, q0, q1, q2, kGatherFrustumRounding, box);
+    return gather_frustum_box(c, rc, near_plane, q0, q1, q2, kGatherFrustumRounding, box);
   vec3 e0, e1, e2;
   float t_lo;
-  if (raster_setup(c, v0, v1, v2, e0, e1, e2, t_lo)) return gather_edge_box(c, e0, e1, e2, box);
-  return gather_frustum_box(c, near_plane, q0, q1, q2, kGatherFrustumRounding, box);
+  if (raster_setup(c, rc, v0, v1, v2, e0, e1, e2, t_lo)) return gather_edge_box(c, e0, e1, e2, box);
+  return gather_frustum_box(c, rc, near_plane, q0, q1, q2, kGatherFrustumRounding, box);
 }
 
 SH_END

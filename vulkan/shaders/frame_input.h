@@ -6,6 +6,7 @@
 
 #include "gridrt/common/shared/compat.h"
 #include "gridrt/common/shared/bounce.h"
+#include "gridrt/common/shared/raster.h"
 #include "gridrt/common/shared/records.h"
 #include "gridrt/common/shared/shadow.h"
 
@@ -33,6 +34,7 @@ struct FrameParams {
   uint pad0;
   uint pad1;
   uint pad2;
+  RasterCamera raster;   // the rasterizer's camera constants (raster_camera: made once, by the host)
 };
 
 // The compute gather's list of large triangles (gather_bin.comp appends; gather_raster.comp, or
@@ -179,7 +181,7 @@ SH_INLINE RayRecord frame_bounce_ray(SH_IN(CameraParams) c, uint frame, SH_IN(Ga
 SH_END
 
 #ifdef __cplusplus
-static_assert(sizeof(gridrt::shared::FrameParams) == 112, "std430 layout of FrameParams");
+static_assert(sizeof(gridrt::shared::FrameParams) == 160, "std430 layout of FrameParams");
 static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
 static_assert(sizeof(gridrt::shared::GatherTileHeader) == 32, "std430 layout of GatherTileHeader");

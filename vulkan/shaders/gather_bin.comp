@@ -28,6 +28,7 @@ layout(push_constant) uniform Push { GatherBinPush pc; };
 // The triangle of this invocation: its box, then its test here or its record in the list
 void bin_triangle() {
   const CameraParams c = fp.camera;
+  const RasterCamera rc = fp.raster;  // made once by the host (the same bits as raster_camera here)
   const bool boxes = (kFrameFlags & kFrameGatherBoxes) != 0u;
   const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
   uint items = 0u;
@@ -40,7 +41,7 @@ void bin_triangle() {
     ref = ref_pack(instance, k - instances[instance].tri_offset);
     tri = triangles[k];
     // Zero-area triangles are never hit (the grid does not insert them)
-    if (!triangle_zero_area(tri.v0, tri.v1, tri.v2) && gather_box(c, fp.near_plane, tri.v0, tri.v1, tri.v2, box)) {
+    if (!triangle_zero_area(tri.v0, tri.v1, tri.v2) && gather_box(c, rc, fp.near_plane, tri.v0, tri.v1, tri.v2, box)) {
       here = (box.z - box.x + 1u) * (box.w - box.y + 1u) <= 16u;
       if (!here) {
         if (boxes)
@@ -65,7 +66,7 @@ void bin_triangle() {
     g.edge1 = g.edge0;
     g.edge2 = g.edge0;
     g.depth = vec4(0.0f, 0.0f, 1.0f, 0.0f);
-    if (!boxes) raster_setup_depth(c, tri.v0, tri.v1, tri.v2, g.edge0, g.edge1, g.edge2, g.t_lo, g.depth);
+    if (!boxes) raster_setup_depth(c, rc, tri.v0, tri.v1, tri.v2, g.edge0, g.edge1, g.edge2, g.t_lo, g.depth);
     g.ref = ref;
     g.first = base.x + items_before;
     g.box_lo = box.x | (box.y << 16u);
