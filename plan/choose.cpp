@@ -328,6 +328,12 @@ uint32_t capacity_allowed(glm::uvec3 cells, uint32_t axis, const GridOptions& o)
 // Weigh one resolution: count, then the capacity that drops nothing if the limits allow it.
 // `counts_out` (may be null) receives the trial's counts.
 // `range_bounded`: an automatic resolution, held to the work bound (range_cells_budget).
+// The shared code counts and indexes a grid's cells in 32 bits (grid_cell_count, cell_linear_index,
+// the compact offsets): a grid of 2^31 cells or more is never made (an outside sweep: 4096x4096x256
+// cells wrapped to 0 and the plan wrote past its occupancy map after taking 17 GB).
+constexpr uint64_t kMaxGridCells = uint64_t(1) << 31;
+bool too_many_cells(glm::uvec3 cells) { return uint64_t(cells.x) * cells.y * cells.z >= kMaxGridCells; }
+
 GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm::uvec3 cells,
                     std::optional<uint32_t> cap_over, const GridOptions& o, bool range_bounded,
                     TrialCounts* counts_out = nullptr) {
@@ -335,6 +341,7 @@ GridCandidate weigh(const Scene& scene, float time, GridParams& g, float cs, glm
   c.cell_size = cs;
   c.aabb_padding = g.aabb_padding;
   c.cells = cells;
+  if (too_many_cells(cells)) return c;  // c.fits false: not a candidate
   c.slot_axis = slot_axis_for(cells, o);
   const bool compact = (g.flags & shared::kGridCompact) != 0u;
   const uint32_t allowed = capacity_allowed(cells, c.slot_axis, o);
@@ -684,6 +691,10 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   GridChoice& ch = choice ? *choice : local;
   ch = GridChoice{};
   if (res && !cs_over) {
+    if (too_many_cells(*res))
+      throw Error("grid: " + std::to_string(res->x) + "x" + std::to_string(res->y) + "x" + std::to_string(res->z) +
+                  " cells are " + std::to_string(uint64_t(res->x) * res->y * res->z) +
+                  ", more than a grid may have (under 2^31 = 2147483648): give coarser cells (--resolution, --cell-size)");
     const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o, false);
     if (!c.fits && (g.flags & shared::kGridCompact) != 0u) throw over_budget(c, o, scene);
     if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity), o);

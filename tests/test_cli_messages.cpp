@@ -281,3 +281,14 @@ TEST_CASE("CLI: a scene's name with control bytes, verify's rays over the host b
   CHECK(seed.exit_code == 1);
   CHECK_THAT(seed.output, Contains("at most 4294967295"));
 }
+
+TEST_CASE("CLI: a grid of 2^31 cells or more is refused before anything is allocated", "[cli][badinput]") {
+  // 4096x4096x256 cells (2^32) wrapped to 0 in the 32-bit cell count: the plan took 17 GB, then
+  // wrote past its occupancy map (an outside sweep)
+  for (const char* res : {"4096,4096,256", "16384,16384,8"}) {
+    const Run r = run_tool(std::string("stats builtin:cornell --traversal exact --memory-budget 100000 --resolution ") + res);
+    INFO(r.output);
+    CHECK(r.exit_code != 0);
+    CHECK_THAT(r.output, Contains("more than a grid may have"));
+  }
+}
