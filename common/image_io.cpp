@@ -110,6 +110,43 @@ void write_oiio(const std::string& path, uint32_t width, uint32_t height, int ch
 
 bool is_float_format(const std::string& ext) { return ext == ".pfm" || ext == ".exr" || ext == ".hdr"; }
 
+#ifdef GRIDRT_WITH_OIIO
+// The format's writer takes a picture's three channels: a 2 x 2 probe is encoded the way the
+// picture will be (to memory, or to a file of its own in the temporary folder where the writer
+// takes no I/O proxy), so that a format that cannot hold colour is refused before the render, not
+// after it (Zfile, one channel only, failed only once the frame was made: an outside sweep).
+void probe_writer(const std::string& path, const std::string& ext) {
+  auto out = OIIO::ImageOutput::create(ext.substr(1));
+  const OIIO::TypeDesc type = is_float_format(ext) ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8;
+  const OIIO::ImageSpec spec(2, 2, 3, type);
+  const std::vector<float> pixels(2 * 2 * 3, 0.5f);
+  const std::vector<uint8_t> bytes(2 * 2 * 3, 128);
+  const void* data = type == OIIO::TypeDesc::FLOAT ? static_cast<const void*>(pixels.data()) : bytes.data();
+  bool ok = false;
+  std::string why;
+  if (out && out->supports("ioproxy")) {
+    std::vector<unsigned char> buffer;
+    OIIO::Filesystem::IOVecOutput proxy(buffer);
+    ok = out->set_ioproxy(&proxy) && out->open(path, spec) && out->write_image(type, data) && out->close();
+    why = out->geterror();
+  } else if (out) {
+    std::error_code ec;
+    fs::path dir = fs::temp_directory_path(ec);
+    if (ec) dir = "/tmp";
+    const fs::path probe = dir / ("gridrt-" + std::to_string(::getpid()) + "-probe" + ext);
+    ok = out->open(probe.string(), spec) && out->write_image(type, data) && out->close();
+    why = out->geterror();
+    out.reset();
+    fs::remove(probe, ec);
+  }
+  (void)OIIO::geterror();
+  if (!ok)
+    throw Error("cannot write image '" + path + "': OpenImageIO's '" + ext.substr(1) +
+                "' writer does not take a colour picture" + (why.empty() ? std::string() : " (" + why + ")") +
+                "; use .png, .exr, .ppm, ...");
+}
+#endif
+
 void check_extension(const std::string& path, const std::string& ext) {
   if (ext == ".ppm" || ext == ".pfm") return;
 #ifdef GRIDRT_WITH_OIIO
@@ -117,8 +154,14 @@ void check_extension(const std::string& path, const std::string& ext) {
   // OpenImageIO's pseudo-formats write no file: "term" draws on the terminal, "null" nothing
   if (ext == ".term" || ext == ".null" || ext == ".nullimage")
     throw Error("cannot write image '" + path + "': '" + ext + "' writes no image file (use .png, .exr, .ppm, ...)");
+  // OpenImageIO's PNM writer writes a colour picture as P6 whatever the name: a '.pgm' or '.pbm'
+  // file held colour (an outside sweep). Grey levels or one bit a pixel would be another picture
+  if (ext == ".pgm" || ext == ".pbm")
+    throw Error("cannot write image '" + path + "': '" + ext + "' holds " +
+                (ext == ".pgm" ? "grey levels" : "one bit a pixel") + " and the picture is colour (use .ppm or .png)");
   if (!OIIO::ImageOutput::create(path))
     throw Error("cannot write image '" + path + "': OpenImageIO knows no format for '" + ext + "'");
+  probe_writer(path, ext);
 #else
   throw Error("cannot write image '" + path + "': unknown extension '" + ext +
               "' (this build has no OpenImageIO: use .ppm or .pfm)");

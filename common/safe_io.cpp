@@ -373,6 +373,13 @@ int own_descriptor(const std::string& path) {
   return -1;
 }
 
+// A file's permission bits as `ls` and chmod take them: "0444".
+std::string octal_mode(mode_t mode) {
+  char text[8];
+  std::snprintf(text, sizeof text, "%04o", unsigned(mode & 07777));
+  return text;
+}
+
 OutputTarget resolve_output(const std::string& path, const std::string& what) {
   const std::string head = "cannot write " + what + " '" + path + "': ";
   if (const int fd = own_descriptor(path); fd >= 0) {
@@ -383,6 +390,12 @@ OutputTarget resolve_output(const std::string& path, const std::string& what) {
   if (::stat(path.c_str(), &st) == 0) {  // what the path leads to, links followed
     if (S_ISFIFO(st.st_mode) || S_ISCHR(st.st_mode)) return {path, true};  // opened through the links
     if (S_ISREG(st.st_mode)) {
+      // A file nobody may write is not replaced, though the rename needs only its folder's
+      // permission: a read-only (0444) output was replaced, its mode kept (an outside sweep). The
+      // mode's bits are read as well as access(): as root access() allows every file
+      if ((st.st_mode & 0222) == 0 || ::access(path.c_str(), W_OK) != 0)
+        throw Error(head + "it is read-only (mode " + octal_mode(st.st_mode) +
+                    "): an output replaces only a file it may write (chmod u+w it, or name another file)");
       struct stat lst {};
       if (::lstat(path.c_str(), &lst) != 0 || !S_ISLNK(lst.st_mode)) return {path, false};
       char* real = ::realpath(path.c_str(), nullptr);  // the file the links lead to is replaced

@@ -745,6 +745,32 @@ TEST_CASE("Outside sweep: outputs - a frame linked to another, permissions kept,
   fs::permissions(priv, fs::perms::owner_read | fs::perms::owner_write);
   CHECK(run_tool("render builtin:cornell --width 8 --height 8 -o " + priv.string()).exit_code == 0);
   CHECK(fs::status(priv).permissions() == (fs::perms::owner_read | fs::perms::owner_write));
+  // A file nobody may write is refused before the render and kept as it was (it was replaced: the
+  // rename needs only the folder's permission), root or not
+  const fs::path locked = dir / "locked.png";
+  std::ofstream(locked) << "old";
+  fs::permissions(locked, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  const Run ro = run_tool("render builtin:cornell --width 8 --height 8 -o " + locked.string());
+  INFO(ro.output);
+  CHECK(ro.exit_code == 1);
+  CHECK_THAT(ro.output, Catch::Contains("read-only (mode 0444)"));
+  CHECK_THAT(ro.output, !Catch::Contains("traced"));  // refused before any frame was made
+  {
+    std::ifstream kept(locked);
+    std::string first;
+    std::getline(kept, first);
+    CHECK(first == "old");
+  }
+  // Grey and bitmap netpbm names held a colour P6 picture; a one-channel format (Zfile) failed
+  // only after the render: each refused at once, nothing written
+  for (const char* name : {"x.pgm", "x.pbm", "x.zfile"}) {
+    const Run g = run_tool(std::string("render builtin:cornell --width 8 --height 8 -o ") + (dir / name).string());
+    INFO(name << ": " << g.output);
+    CHECK(g.exit_code == 2);
+    CHECK_THAT(g.output, Catch::Contains("cannot write image"));
+    CHECK_THAT(g.output, !Catch::Contains("traced"));
+    CHECK_FALSE(fs::exists(dir / name));
+  }
   // OpenImageIO's terminal and null writers write no file
   const Run t = run_tool("render builtin:cornell --width 8 --height 8 -o " + (dir / "x.term").string());
   CHECK(t.exit_code == 2);  // an -o name of no image file: the command line's
