@@ -163,6 +163,7 @@ struct GridCandidate {
   uint64_t saturated_cells = 0;  // cells with count > capacity
   uint64_t texels = 0;
   uint64_t memory = 0;           // compact layout: grid_memory's total (the budget's measure)
+  bool memory_at_least = false;  // compact layout: the trial stopped once over the budget; `memory` a lower bound
   bool sparse_offsets = false;   // compact layout: the offsets of the occupied cells only (kGridSparseOffsets)
   uint64_t range_cells = 0;      // the triangles' AABB range cells, summed (range_cells)
   bool over_bound = false;       // range_cells over the work bound: not counted, not a candidate

@@ -56,6 +56,7 @@ struct TrialCounts {
   std::vector<uint32_t> fixed;              // (z * cells.y + y) * cells.x + x
   glm::uvec3 box_lo{0}, box_size{0};        // the moving instances' box of cells
   std::vector<uint32_t> moving_now, moving_max;  // per box cell, x fastest
+  bool over_limit = false;  // the static references passed the trial's limit: the counts are incomplete
 
   // The count at the build's time, and the largest over the animation, of one cell.
   uint32_t now(glm::uvec3 c) const { return at(c, moving_now); }

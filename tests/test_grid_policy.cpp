@@ -431,3 +431,57 @@ TEST_CASE("trace-cost policy: copies of one triangle are sampled within the work
   }
   CHECK(same == sa.rays.size());
 }
+
+TEST_CASE("grid: a compact candidate's trial stops once its references pass the memory budget, its memory a lower bound",
+          "[grid][policy][badinput]") {
+  // The count stops where the references alone put the grid over the budget (copies of one
+  // triangle spent tens of seconds counting candidates the budget then refused: an outside sweep);
+  // the refusal names what was counted, "at least", between the budget and the whole grid's memory
+  // 20,000 copies of one triangle over about 100 cells each: the references are nearly all of the
+  // grid's memory, so a budget of a fifth of it is above the cells' own and the trial stops
+  Scene scene;
+  scene.name = "copies";
+  Mesh m;
+  m.name = "copies";
+  m.positions = {{0.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}};
+  for (uint32_t i = 0; i < 20000; ++i) m.triangles.push_back({0u, 1u, 2u});
+  m.materials.assign(m.triangles.size(), 0u);
+  scene.meshes.push_back(m);
+  scene.instances.push_back(Instance{.name = "", .mesh = 0});
+  scene.finalize();
+  GridOptions go;
+  go.threads = 2;
+  go.traversal = Traversal::exact;
+  go.cell_size = 0.07f;
+  go.memory_budget = uint64_t(1) << 40;
+  GridChoice whole;
+  reference::choose_grid(scene, 0.0f, go, &whole);
+  REQUIRE(whole.candidates.size() == 1);
+  const GridCandidate& c = whole.candidates[0];
+  CHECK_FALSE(c.memory_at_least);
+  INFO(c.cells.x << "x" << c.cells.y << "x" << c.cells.z << " cells, " << c.memory << " bytes");
+  const uint64_t budget = c.memory / 5;  // above the cells' own memory, below the references'
+
+  go.memory_budget = budget;
+  std::string message;
+  try {
+    reference::choose_grid(scene, 0.0f, go);
+  } catch (const Error& e) {
+    message = e.what();
+  }
+  INFO(message);
+  const size_t at = message.find("take at least ");
+  REQUIRE(at != std::string::npos);
+  const double mib = std::stod(message.substr(at + std::strlen("take at least ")));
+  const double budget_mib = double(budget) / double(1u << 20), whole_mib = double(c.memory) / double(1u << 20);
+  CHECK(mib >= budget_mib - 0.05);  // over the budget (one decimal printed)
+  CHECK(mib <= whole_mib + 0.05);   // and no more than the whole count's
+  CHECK(mib < whole_mib - 0.05);    // stopped early: the whole count's is well above it
+  // Within the budget, the choice is the whole count's
+  go.memory_budget = c.memory;
+  GridChoice fits;
+  const sh::GridParams g = reference::choose_grid(scene, 0.0f, go, &fits);
+  REQUIRE(fits.candidates.size() == 1);
+  CHECK(g.cells == c.cells);
+  CHECK(fits.candidates[0].memory == c.memory);
+}
