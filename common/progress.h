@@ -16,9 +16,10 @@ namespace gridrt {
 
 class Progress {
  public:
-  Progress(std::string label, uint64_t total)
+  // `timer`: work with nothing to count (a wait on the device): the line gives the seconds only.
+  Progress(std::string label, uint64_t total, bool timer = false)
       : label_(std::move(label)), total_(total), start_(Clock::now()), last_(start_),
-        tty_(isatty(fileno(stderr)) != 0) {}
+        tty_(isatty(fileno(stderr)) != 0), timer_(timer) {}
   ~Progress() { finish(); }
   Progress(const Progress&) = delete;
   Progress& operator=(const Progress&) = delete;
@@ -50,6 +51,8 @@ class Progress {
     const double frac = total_ ? double(done > total_ ? total_ : done) / double(total_) : 0.0;
     if (final)
       std::fprintf(stderr, "%s%s: done in %.1f s%s\n", tty_ ? "\r" : "", label_.c_str(), secs, tty_ ? "\033[K" : "");
+    else if (timer_)
+      std::fprintf(stderr, "%s%s: %.0f s so far%s", tty_ ? "\r" : "", label_.c_str(), secs, tty_ ? "\033[K" : "\n");
     else if (total_ == 0)
       std::fprintf(stderr, "%s%s: %llu so far (%.1f s)%s", tty_ ? "\r" : "", label_.c_str(),
                    (unsigned long long)done, secs, tty_ ? "\033[K" : "\n");
@@ -68,6 +71,7 @@ class Progress {
   std::atomic<Clock::time_point> last_tick_{Clock::time_point{}};
   std::mutex mutex_;
   bool tty_;
+  bool timer_;
   bool finished_ = false;
 };
 

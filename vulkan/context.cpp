@@ -1,6 +1,8 @@
 // context.cpp: instance, device, submission, buffers and 3D images (see context.h).
 #include "gridrt/vulkan/context.h"
 
+#include "gridrt/common/progress.h"
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -582,7 +584,15 @@ void Context::submit(const std::function<void(VkCommandBuffer)>& record) {
   si.pCommandBuffers = &cb;
   GRIDRT_VK_CHECK(vkResetFences(device_, 1, &fence_));
   GRIDRT_VK_CHECK(vkQueueSubmit(queue_, 1, &si, fence_));
-  GRIDRT_VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
+  // Waited on a second at a time, with a line on stderr past the first: one submission (a whole
+  // frame of a large scene on lavapipe: a minute or more) had no progress line
+  Progress progress("vulkan: " + info_.name + " at work on one submission", 0, true);
+  for (;;) {
+    const VkResult r = vkWaitForFences(device_, 1, &fence_, VK_TRUE, 1000000000ull);
+    if (r == VK_SUCCESS) break;
+    if (r != VK_TIMEOUT) GRIDRT_VK_CHECK(r);
+    progress.advance();
+  }
 }
 
 uint32_t Context::memory_type(uint32_t type_bits, VkMemoryPropertyFlags required, VkMemoryPropertyFlags avoid) const {
