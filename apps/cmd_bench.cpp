@@ -723,11 +723,48 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
 }
 #endif
 
+// The CPU's gather buffer of each timed frame, by the exact traversal of the reference grid, as
+// the GPU frame makes its own: at the frame's time (frame_time(0, f + 1, fps)) where instances
+// move, so that the frame's bounce and shadow rays leave the surfaces where they are when the grid
+// is traced (made once at time 0, the CPU's rows traced frame 0's rays against every later frame's
+// grid, off surfaces that had moved: an outside sweep); one gather for a scene that does not move.
+// The last one made is kept (each backend walks the frames in order).
+class FrameGathers {
+ public:
+  FrameGathers(const BenchOptions& o, const Scene& scene, reference::ReferenceGridTracer& tracer)
+      : o_(o), scene_(scene), tracer_(tracer), moves_(scene.has_dynamic()) {}
+
+  const GatherBuffer& at(uint32_t f) {
+    if (!moves_) f = 0;
+    if (made_ && f == frame_) return gather_;
+    const float time = frame_time(0.0f, f + 1, o_.fps);
+    if (!built_) tracer_.build(scene_, time);
+    else tracer_.update(time);
+    built_ = true;
+    Progress progress("gather buffer (CPU reference, exact)", size_t(o_.width) * o_.height);
+    ProgressTracer traced(tracer_, progress);
+    gather_ = make_gather(scene_, traced, scene_.frame_camera(), o_.width, o_.height, time);
+    made_ = true;
+    frame_ = f;
+    return gather_;
+  }
+
+ private:
+  const BenchOptions& o_;
+  const Scene& scene_;
+  reference::ReferenceGridTracer& tracer_;
+  bool moves_;
+  bool built_ = false, made_ = false;
+  uint32_t frame_ = 0;
+  GatherBuffer gather_;
+};
+
 // One backend that traces on the CPU's rays: its build, then per frame the update and the trace
-// of the bounce rays off `gather` (and of the `shadow` rays): a table row, notes, JSON.
-void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::string& name, const GatherBuffer& gather,
-                       bool frame_rays, const std::vector<Ray>& given, size_t bounce_count,
-                       const std::vector<Ray>& shadow, nlohmann::json& out,
+// of the frame's bounce rays (and its shadow rays, with `shadows`) off its gather: a table row,
+// notes, JSON.
+void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::string& name, FrameGathers& gathers,
+                       bool frame_rays, const std::vector<Ray>& given, size_t bounce_count, bool shadows,
+                       nlohmann::json& out,
                        std::vector<std::string>& notes, std::vector<std::string>& shadow_notes) {
   std::unique_ptr<Tracer> tracer = make_backend(name, o.backend_options, scene);
   PhaseTimes times;
@@ -761,11 +798,14 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
   const AccelDump dump = tracer->dump();
   if (grid_mib == 0.0 && !dump.texels.empty()) grid_mib = double(dump.texels.size()) * 4.0 / (1 << 20);
 
-  std::vector<Hit> hits, shadow_hits(shadow.size());
+  std::vector<Hit> hits, shadow_hits;
   std::vector<double> shadow_ms;
+  std::vector<Ray> rays, shadow;  // the frame's; after the loop, the last frame's
   for (uint32_t f = 0; f < o.warmup + o.frames; ++f) {
     const float time = frame_time(0.0f, f + 1, o.fps);
-    const std::vector<Ray> rays = frame_rays ? bounce_rays(scene, gather, f) : given;
+    rays = frame_rays ? bounce_rays(scene, gathers.at(f), f) : given;
+    if (frame_rays && shadows) shadow = shadow_rays(scene, gathers.at(f));
+    shadow_hits.resize(shadow.size());
     hits.resize(rays.size());
     t0 = std::chrono::steady_clock::now();
     tracer->update(time);
@@ -818,7 +858,6 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
   // The grid's per-ray counters (the hit records' cells and tests) over the last frame's rays
   nlohmann::json counters_json;
   if (grid) {
-    const std::vector<Ray> rays = frame_rays ? bounce_rays(scene, gather, o.warmup + o.frames - 1) : given;
     std::vector<uint32_t> cells, tests;
     for (size_t i = 0; i < rays.size() && i < hits.size(); ++i)
       if (!is_unused(rays[i])) {
@@ -892,7 +931,8 @@ void run_bench(const BenchOptions& options) {
     if (std::find(backends.begin(), backends.end(), b) == backends.end()) backends.push_back(b);
   if (backends.empty()) backends.push_back(backend_names().front());
 
-  // The gather buffer, once, by the exact traversal of the reference grid (CPU), for the
+  // The gather buffer of each frame (FrameGathers: one for a scene that does not move), by the
+  // exact traversal of the reference grid (CPU), for the
   // backends that trace on the CPU (the vulkan backend makes its own, every frame, on the GPU).
   // (with the vulkan backend, embree traces the GPU frame's own bounce rays instead)
   // --rays: the frame's glossy bounce rays (glossy; auto on a scene with a glossy material), or one
@@ -916,7 +956,6 @@ void run_bench(const BenchOptions& options) {
   auto on_cpu_rays = [&](const std::string& b) { return b != "vulkan" ? !(with_vulkan && b == "embree") : !frame_rays; };
   const bool cpu_rays = std::any_of(backends.begin(), backends.end(), on_cpu_rays);
   reference::ReferenceGridTracer gather_tracer(plan::gather_options(grid_options_for(o.backend_options, scene)));
-  GatherBuffer gather;
   size_t bounce_count = 0;
   std::vector<Ray> given;  // the fixed rays of a kind (not frame_rays)
   if (!frame_rays) {
@@ -939,24 +978,19 @@ void run_bench(const BenchOptions& options) {
     bounce_count = given.size();
 #endif
   }
+  FrameGathers gathers(o, scene, gather_tracer);
   if (cpu_rays && frame_rays) {
-    gather_tracer.build(scene, 0.0f);
-    Progress progress("gather buffer (CPU reference, exact)", size_t(o.width) * o.height);
-    ProgressTracer traced(gather_tracer, progress);
-    gather = make_gather(scene, traced, scene.frame_camera(), o.width, o.height, 0.0f);
-    const std::vector<Ray> r = bounce_rays(scene, gather, 0);
+    const std::vector<Ray> r = bounce_rays(scene, gathers.at(0), 0);
     bounce_count = size_t(std::count_if(r.begin(), r.end(), [](const Ray& ray) { return !is_unused(ray); }));
   }
-  // The gather's shadow rays (the same each frame), traced after the bounce as their own phase
+  // The gather's shadow rays (each frame's), traced after the bounce as their own phase
   const bool shadows = shadows_for(o.shadows, scene);
   // The shadow rays come from the frame's gather: rays of another kind have none (--shadows on
   // with them did nothing, the header said "shadows yes": an outside sweep)
   if (o.shadows == ShadowMode::on && !frame_rays)
     throw OptionsError("--shadows on traces the frame's shadow rays, from its gather: --rays " + o.rays +
                        " has no gather (give --rays glossy, on a scene with glossy materials, or leave --shadows out)");
-  std::vector<Ray> shadow;
-  if (cpu_rays && frame_rays && shadows) shadow = shadow_rays(scene, gather);
-  else if (shadows) check_shadow_lights(scene);
+  if (shadows && !(cpu_rays && frame_rays)) check_shadow_lights(scene);
   std::printf("bench: %s, %llu triangles, %zu instances (%zu dynamic), %ux%u, %s %s rays per frame, "
               "%u frames after %u warm-up\n",
               scene.name.c_str(), (unsigned long long)scene.triangle_count(), scene.instances.size(),
@@ -986,7 +1020,8 @@ void run_bench(const BenchOptions& options) {
     }
 #endif
     if (on_cpu_rays(name))
-      bench_cpu_backend(o, scene, name, gather, frame_rays, given, bounce_count, shadow, out, notes, shadow_notes);
+      bench_cpu_backend(o, scene, name, gathers, frame_rays, given, bounce_count, cpu_rays && frame_rays && shadows, out,
+                        notes, shadow_notes);
   }
   if (!notes.empty()) std::printf("\n");
   for (const std::string& n : notes) std::printf("%s (after the last frame's update)\n", n.c_str());

@@ -12,6 +12,11 @@
 #include "gridrt/plan/options.h"
 #include "gridrt/reference/grid.h"
 #include "tests/test_grid_util.h"
+#include "tests/run_tool.h"
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 
 using namespace gridrt;
 
@@ -267,4 +272,30 @@ TEST_CASE("The atrium renders: every pixel shaded, the bounce sees the scene", "
   }
   CHECK(valid > g.size() / 2);
   CHECK(bounced > 100);
+}
+
+TEST_CASE("bench: the CPU's rows trace each frame's own rays, from a gather at the frame's time", "[cli][gather]") {
+  // The CPU's gather was made once at time 0 and every timed frame traced its rays against a grid
+  // whose instances had moved (an outside sweep: 6 shadow rays where the frame had 7)
+  const Scene s = make_builtin("atrium");
+  const auto count_at = [&](float time, bool shadow) {
+    reference::ReferenceGridTracer tracer(plan::gather_options(reference::GridOptions{}));
+    tracer.build(s, time);
+    const GatherBuffer g = make_gather(s, tracer, s.frame_camera(), 64, 36, time);
+    const std::vector<Ray> rays = shadow ? shadow_rays(s, g) : bounce_rays(s, g, 0);
+    return size_t(std::count_if(rays.begin(), rays.end(), [](const Ray& r) { return !is_unused(r); }));
+  };
+  // frames 0, 1, 2 at 1, 2, 3 s (--fps 1): the last one's shadow rays are reported
+  const size_t last = count_at(3.0f, true), first = count_at(1.0f, false);
+  REQUIRE(last != count_at(0.0f, true));  // the frames differ, so the count says which gather was used
+  const std::filesystem::path json = std::filesystem::temp_directory_path() / "gridrt-bench-frame-gathers.json";
+  const gridrt::test::Run r = gridrt::test::run_tool("bench builtin:atrium --backend cpu --width 64 --height 36 --frames 3 --warmup 0 --fps 1 --json " +
+                         json.string());
+  INFO(r.output);
+  REQUIRE(r.exit_code == 0);
+  std::ifstream in(json);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  CHECK(j["backends"]["cpu"]["shadow_rays"].get<size_t>() == last);
+  CHECK(j["rays_per_frame"].get<size_t>() == first);
+  std::filesystem::remove(json);
 }
