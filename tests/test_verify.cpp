@@ -790,3 +790,53 @@ TEST_CASE("The edge and vertex families' rays pass exactly through a shared edge
     }
   }
 }
+
+TEST_CASE("Faces 1 ulp apart met by grazing rays: ordered within their conditioning, judged near; faces far apart "
+          "are not", "[verify][grid]") {
+  // Two closed tetrahedra x, y, z >= 0, x + y + z <= s, s 1 ulp apart in float, and a third at
+  // s = 1.5. A grazing ray meets the two slanted faces at t's closer than its condition number
+  // (1e3 to 1e4) lets any float test order: the grid computed one t for both and the tie rule
+  // took the lower reference, which `verify` failed as wrong (an outside sweep: 5 of 3,000 graze
+  // rays, exit 3). Such answers are near; a face well apart from the closest is still wrong.
+  Scene s;
+  s.name = "layers";
+  Mesh m;
+  m.name = "layers";
+  for (const float sz : {1.0000298f, 1.0000299f, 1.5f}) {
+    const uint32_t b = uint32_t(m.positions.size());
+    m.positions.insert(m.positions.end(), {{0, 0, 0}, {sz, 0, 0}, {0, sz, 0}, {0, 0, sz}});
+    for (const glm::uvec3 f : {glm::uvec3(0, 2, 1), glm::uvec3(0, 1, 3), glm::uvec3(0, 3, 2), glm::uvec3(1, 2, 3)})
+      m.triangles.push_back(f + b);
+  }
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes.push_back(std::move(m));
+  s.instances.push_back(Instance{.name = "layers", .mesh = 0});
+  s.finalize();
+  Rig rig(s);
+  VerifyOptions vo;
+  vo.family.rays = 3000;
+  vo.family.seed = 1;
+  const FamilyResult r = verify_family(Family::graze, rig.scene, rig.grid, rig.grid.data(), rig.topo, rig.embree, vo);
+  INFO(to_table({r}));
+  CHECK(r.count(Verdict::grid_wrong) == 0);
+  CHECK(r.count(Verdict::crack) == 0);
+  CHECK(r.count(Verdict::near) > 0);
+  // A ray from outside through the slanted faces, well conditioned: it meets the outer (s = 1.5)
+  // face first; the innermost one reported instead is wrong, not near
+  const glm::vec3 target(0.2f, 0.3f, 0.4f);  // inside all three
+  const glm::vec3 o(2.0f, 2.0f, 2.0f);
+  const Ray ry = ray(o, target - o);
+  std::vector<Hit> got(1);
+  rig.grid.trace(std::vector<Ray>{ry}, got);
+  REQUIRE(!is_miss(got[0]));
+  REQUIRE(got[0].triangle == 11);  // the third tetrahedron's slanted face
+  Hit inner = got[0];
+  inner.triangle = 3;  // the first tetrahedron's
+  const auto& tri = rig.topo.tri[rig.topo.index_of(sh::ref_pack(0, 3))];
+  const ExactTest e = exact_test(ry, tri[0], tri[1], tri[2]);
+  REQUIRE(e.hit);
+  inner.t = float(e.t);
+  const Judgement j = rig.referee.judge(ry, inner, got[0], {});
+  INFO(j.why);
+  CHECK(j.verdict == Verdict::grid_wrong);
+}

@@ -130,6 +130,17 @@ float exact_t_float(const ExactTest& a) {
   return best;
 }
 
+double condition_number(const Ray& ray, const std::array<glm::vec3, 3>& t, double exact_t) {
+  const glm::dvec3 n = glm::cross(glm::dvec3(t[1]) - glm::dvec3(t[0]), glm::dvec3(t[2]) - glm::dvec3(t[0]));
+  const glm::dvec3 d(ray.dir);
+  const double nn = glm::length(n), dd = glm::length(d);
+  const double td = exact_t * dd;
+  const double cosv = nn > 0.0 && dd > 0.0 ? std::abs(glm::dot(n, d)) / (nn * dd) : 0.0;
+  if (!(td > 0.0 && cosv > 0.0)) return std::numeric_limits<double>::infinity();
+  const double vm = std::max({glm::length(glm::dvec3(t[0])), glm::length(glm::dvec3(t[1])), glm::length(glm::dvec3(t[2]))});
+  return (glm::length(glm::dvec3(ray.org)) + vm + td) / (td * cosv);
+}
+
 const char* to_string(Verdict v) {
   switch (v) {
     case Verdict::agree: return "agree";
@@ -488,11 +499,33 @@ Judgement Referee::judge(const Ray& ray, const Hit& got, const Hit& want, const 
     const ExactTest e = test(ray, ref_of(h));
     return e.hit && compare_t(e, best) == 0;
   };
+  std::string near_why = "the same point within rounding, on another triangle";
   const auto near = [&](const Hit& h) {
     if (is_miss(h) || !best.hit || (h.flags & sh::kHitGapFill)) return false;
     const ExactTest e = test(ray, ref_of(h));
     if (!e.parallel && e.margin >= -kNearMargin && std::abs(e.plane_t - best.t) <= kNearT * std::abs(best.t))
       return true;
+    // Two faces met at t's closer than their conditioning lets any float test order: rounding
+    // the inputs by u moves an exact t by about kappa u t (kappa the ray's condition number on
+    // that triangle, as for the t bound), so faces whose exact t's differ by less than
+    // kNearKappa u (kappa_a + kappa_b) t come out of a float test in either order, or at one t
+    // (faces 1 ulp apart met by a grazing ray: kappa 1e3 to 1e4, the grid's t the same in bits
+    // for both, the tie rule taking the lower reference: an outside sweep's find)
+    if (e.hit) {
+      const size_t kg = topo_.index_of(ref_of(h)), kb = topo_.index_of(best_ref);
+      if (kg != SIZE_MAX && kb != SIZE_MAX) {
+        const double kappa = condition_number(ray, topo_.tri[kg], e.t) + condition_number(ray, topo_.tri[kb], best.t);
+        if (std::abs(e.t - best.t) <= kNearKappa * 0x1p-24 * kappa * std::abs(best.t)) {
+          char why[200];
+          std::snprintf(why, sizeof why,
+                        "another face at a t within its conditioning of the exact closest (kappa %.3g + %.3g): no "
+                        "float test orders them", condition_number(ray, topo_.tri[kg], e.t),
+                        condition_number(ray, topo_.tri[kb], best.t));
+          near_why = why;
+          return true;
+        }
+      }
+    }
     // Within the rounding of the ray's inputs: float tests form v - org, which is rounded to the
     // ulps of the larger coordinate; the answer is the same point when its triangle passes within
     // kNearUlps of those ulps of the exact hit point, at a t as close
@@ -515,7 +548,7 @@ Judgement Referee::judge(const Ray& ray, const Hit& got, const Hit& want, const 
     j.why = "Embree's answer is not the exact closest hit";
   } else if (near(got)) {
     j.verdict = Verdict::near;
-    j.why = "the same point within rounding, on another triangle";
+    j.why = near_why;
   } else {
     bool farther = is_miss(got);
     if (!farther && !(got.flags & sh::kHitGapFill)) {

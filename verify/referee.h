@@ -9,6 +9,7 @@
 // triangles aimed at, and those sharing a vertex with any of them).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -50,7 +51,9 @@ enum class Verdict {
   near,           // one answer is the same point within rounding, on another triangle: its
                   // triangle is met within kNearMargin of its boundary (or hit exactly) at a t
                   // within kNearT (relative) of the exact closest, or passes within kNearUlps of
-                  // the exact hit point (not wrong: float tests cannot tell them apart)
+                  // the exact hit point, or is hit at an exact t within kNearKappa u (kappa_a +
+                  // kappa_b) t of the closest, the two faces' conditioning (not wrong: float
+                  // tests cannot tell them apart)
   embree_wrong,   // the tracer is exactly right, Embree is not
   grid_wrong,     // the tracer is wrong (and it is no crack), or rejects what the domain accepts
                   // or the reverse, or reports a NaN t
@@ -119,6 +122,12 @@ class Referee {
 // ulps of the float t, where the condition number kappa = (|org| + max |v_i| + t |dir|) /
 // (t |dir| |cos|) is at most kWellConditioned; there the exact traversal's t is within kTBoundUlps.
 inline constexpr double kWellConditioned = 100.0;
+// kappa of a ray's hit at `t` on triangle `tri` (infinity where the triangle or the direction is
+// degenerate, or t <= 0).
+double condition_number(const Ray& ray, const std::array<glm::vec3, 3>& tri, double t);
+// The "near" verdict for two faces met at t's within their conditioning: |t_a - t_b| <=
+// kNearKappa u (kappa_a + kappa_b) t, u = 2^-24 (docs/ACCURACY.md, "The referee's verdicts").
+inline constexpr double kNearKappa = 4.0;
 inline constexpr uint32_t kTBoundUlps = 32;
 // The "near" verdict's tolerances: barycentric margin and relative t.
 inline constexpr double kNearMargin = 1.0e-5;

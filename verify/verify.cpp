@@ -37,14 +37,7 @@ void parallel_for(size_t n, unsigned threads, const std::function<void(size_t)>&
 // at the hit point, the origin's and the direction's rounding likewise): kappa is the problem's
 // condition number, whatever the triangle's shape.
 bool well_conditioned(const Ray& r, const std::array<glm::vec3, 3>& t, double exact_t) {
-  const glm::dvec3 n = glm::cross(glm::dvec3(t[1]) - glm::dvec3(t[0]), glm::dvec3(t[2]) - glm::dvec3(t[0]));
-  const glm::dvec3 d(r.dir);
-  const double nn = glm::length(n), dd = glm::length(d);
-  if (!(nn > 0.0 && dd > 0.0 && exact_t > 0.0)) return false;
-  const double cosv = std::abs(glm::dot(n, d)) / (nn * dd);
-  const double vm = std::max({glm::length(glm::dvec3(t[0])), glm::length(glm::dvec3(t[1])), glm::length(glm::dvec3(t[2]))});
-  const double td = exact_t * dd;
-  return glm::length(glm::dvec3(r.org)) + vm + td <= kWellConditioned * td * cosv;
+  return condition_number(r, t, exact_t) <= kWellConditioned;
 }
 
 }  // namespace
