@@ -3,12 +3,16 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <cstdio>
+#include <mutex>
+#include <set>
 #include <sstream>
 
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "gridrt/common/safe_io.h"
 #include "gridrt/common/shared/grid.h"
+#include "gridrt/common/util.h"
 
 namespace gridrt {
 
@@ -409,6 +413,36 @@ void Scene::require_extent(float time, const std::string& who) const {
                 " (its box's largest side): below 2^-40 = 9.1e-13 the triangle tests' products of three "
                 "coordinates leave float's normal range and hits are lost (docs/SPEC.md, \"Domain\"); scale it up");
   }
+  // The same floor for each triangle, in a scene of any size: a closed cube 1e-18 across inside a
+  // box 2 units across was passed through, and one 1e-15 across hit at a t 4e-4 off (an outside
+  // sweep: the tests' products scale with the triangle's size squared, whatever the scene's box).
+  // A warning, once a scene: the rest of the scene is traced as the domain promises
+  uint64_t tiny = 0;
+  float smallest = 0.0f;
+  for (const Instance& inst : instances) {
+    const glm::mat4 m = inst.transform_at(time);
+    const Mesh& mesh = meshes[inst.mesh];
+    for (const glm::uvec3& t : mesh.triangles) {
+      const glm::vec3 a(m * glm::vec4(mesh.positions[t.x], 1.0f)), b(m * glm::vec4(mesh.positions[t.y], 1.0f)),
+          c(m * glm::vec4(mesh.positions[t.z], 1.0f));
+      if (shared::triangle_zero_area(a, b, c)) continue;
+      const float longest = std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
+      if (!(longest < shared::kDomainMinExtent)) continue;
+      smallest = tiny == 0 ? longest : std::min(smallest, longest);
+      ++tiny;
+    }
+  }
+  if (tiny == 0) return;
+  static std::mutex lock;
+  static std::set<std::string> warned;
+  const std::lock_guard<std::mutex> hold(lock);
+  if (!warned.insert(name).second) return;
+  std::fprintf(stderr,
+               "gridrt: warning: scene '%s': %llu triangle(s) have every side below 2^-40 = 9.1e-13 (the smallest %g "
+               "across): the triangle tests' products for them leave float's normal range, so hits on them can be "
+               "lost or land at a wrong t (docs/ACCURACY.md, \"Triangles below the domain's floor\"); scale the "
+               "model up\n",
+               control_escaped(name).c_str(), (unsigned long long)tiny, double(smallest));
 }
 
 Camera Scene::frame_camera() const {

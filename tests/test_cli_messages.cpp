@@ -292,3 +292,32 @@ TEST_CASE("CLI: a grid of 2^31 cells or more is refused before anything is alloc
     CHECK_THAT(r.output, Contains("more than a grid may have"));
   }
 }
+
+TEST_CASE("CLI: triangles below the domain's floor in a scene of ordinary size are named in a warning", "[cli][badinput]") {
+  // A closed cube 1e-18 across inside a box 2 units across: the scene's box passed the 2^-40
+  // floor, and a ray through the cube passed through it without a word (an outside sweep); a
+  // cube 1e-12 across is within the floor and draws no warning
+  for (const double side : {1e-18, 1e-12}) {
+    const fs::path obj = scratch(side < 1e-15 ? "tiny18.obj" : "tiny12.obj");
+    std::ofstream f(obj);
+    f << "v -1 -1 -1\nv 1 -1 -1\nv -1 1 -1\n";  // a triangle of the box: the scene is 2 across
+    for (int k = 0; k < 8; ++k)
+      f << "v " << (k & 1 ? side : 0.0) << " " << (k & 2 ? side : 0.0) << " " << (k & 4 ? side : 0.0) << "\n";
+    f << "f 1 2 3\n";
+    // the cube's 12 triangles (vertices 4..11)
+    const int q[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
+    for (const auto& s : q) {
+      f << "f " << 4 + s[0] << " " << 4 + s[1] << " " << 4 + s[2] << "\n";
+      f << "f " << 4 + s[0] << " " << 4 + s[2] << " " << 4 + s[3] << "\n";
+    }
+    f.close();
+    const Run r = run_tool("stats " + obj.string() + " --traversal exact");
+    INFO(r.output);
+    CHECK(r.exit_code == 0);
+    if (side < 1e-15) {
+      CHECK_THAT(r.output, Contains("12 triangle(s) have every side below 2^-40"));
+    } else {
+      CHECK_THAT(r.output, !Contains("below 2^-40"));
+    }
+  }
+}
