@@ -361,8 +361,14 @@ std::vector<std::string> event_lines(const ExplainRecord& rec, size_t i, const E
         os << "      det " << num(e.f0.x, fmt) << (e.f0.x < 0.0f ? " (back face)" : "") << ", u*|det| "
            << num(e.f0.y, fmt) << ", v*|det| " << num(e.f0.z, fmt);
         line();
-        os << "      t*|det| " << num(e.f0.w, fmt) << " against t_lo*|det| " << num(e.f1.x, fmt) << ", t_hi*|det| "
-           << num(e.f1.y, fmt) << ", best*|det| " << num(e.f1.z, fmt);
+        // A bound times |det| where det is 0 and the bound infinite (tmax, or no best yet) is
+        // inf * 0: NaN, which no comparison passes. Said so, with its bits, not as "-nan"
+        const auto bound = [&](float v) {
+          if (!std::isnan(v)) return num(v, fmt);
+          return std::string("NaN (inf x |det| 0)") + (fmt.brief ? std::string() : " [" + hex(v) + "]");
+        };
+        os << "      t*|det| " << num(e.f0.w, fmt) << " against t_lo*|det| " << bound(e.f1.x) << ", t_hi*|det| "
+           << bound(e.f1.y) << ", best*|det| " << bound(e.f1.z);
         line();
       }
       if (e.code == kTestAccepted || e.code == kTestAlphaKeyed || e.code == kTestTieLost || e.code == kTestOriginPlane) {
