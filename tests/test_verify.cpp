@@ -791,7 +791,7 @@ TEST_CASE("The edge and vertex families' rays pass exactly through a shared edge
   }
 }
 
-TEST_CASE("Faces 1 ulp apart met by grazing rays: ordered within their conditioning, judged near; faces far apart "
+TEST_CASE("Faces 1 ulp apart met by grazing rays: ordered within their conditioning, judged near - faces far apart "
           "are not", "[verify][grid]") {
   // Two closed tetrahedra x, y, z >= 0, x + y + z <= s, s 1 ulp apart in float, and a third at
   // s = 1.5. A grazing ray meets the two slanted faces at t's closer than its condition number
