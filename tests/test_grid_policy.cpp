@@ -24,6 +24,21 @@ using reference::WorkEstimate;
 
 namespace {
 
+// `n` copies of one right triangle of unit legs, one static instance.
+Scene copies_of_one_triangle(uint32_t n) {
+  Scene s;
+  s.name = "copies";
+  Mesh m;
+  m.name = "copies";
+  m.positions = {{0.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}};
+  for (uint32_t i = 0; i < n; ++i) m.triangles.push_back({0u, 1u, 2u});
+  m.materials.assign(m.triangles.size(), 0u);
+  s.meshes.push_back(m);
+  s.instances.push_back(Instance{.name = "", .mesh = 0});
+  s.finalize();
+  return s;
+}
+
 // The chosen candidate of the trace-cost policy, and the choice.
 GridChoice choose(const Scene& scene, const GridOptions& o) {
   GridChoice choice;
@@ -377,16 +392,7 @@ TEST_CASE("trace-cost policy: copies of one triangle are sampled within the work
   // casting after the chunk whose tests pass plan::kSampleTestBudget: fewer rays, spread over the
   // image, the same ones on any thread count, and each still ends where Embree's does.
   constexpr uint32_t kCopies = 12000;
-  Scene s;
-  s.name = "copies";
-  Mesh m;
-  m.name = "copies";
-  m.positions = {{0.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}};
-  for (uint32_t i = 0; i < kCopies; ++i) m.triangles.push_back({0u, 1u, 2u});
-  m.materials.assign(m.triangles.size(), 0u);
-  s.meshes.push_back(m);
-  s.instances.push_back(Instance{.name = "", .mesh = 0});
-  s.finalize();
+  const Scene s = copies_of_one_triangle(kCopies);
   GridOptions one;
   one.traversal = Traversal::exact;
   one.threads = 1;
@@ -439,16 +445,7 @@ TEST_CASE("grid: a compact candidate's trial stops once its references pass the 
   // the refusal names what was counted, "at least", between the budget and the whole grid's memory
   // 20,000 copies of one triangle over about 100 cells each: the references are nearly all of the
   // grid's memory, so a budget of a fifth of it is above the cells' own and the trial stops
-  Scene scene;
-  scene.name = "copies";
-  Mesh m;
-  m.name = "copies";
-  m.positions = {{0.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}};
-  for (uint32_t i = 0; i < 20000; ++i) m.triangles.push_back({0u, 1u, 2u});
-  m.materials.assign(m.triangles.size(), 0u);
-  scene.meshes.push_back(m);
-  scene.instances.push_back(Instance{.name = "", .mesh = 0});
-  scene.finalize();
+  const Scene scene = copies_of_one_triangle(20000);
   GridOptions go;
   go.threads = 2;
   go.traversal = Traversal::exact;
