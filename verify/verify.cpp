@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "gridrt/common/embree/embree_tracer.h"
+#include "gridrt/common/progress.h"
 #include "gridrt/common/shared/grid.h"
 #include "gridrt/reference/compare.h"
 
@@ -56,9 +57,14 @@ FamilyResult verify_rays(const std::string& name, const FamilyRays& fr, Tracer& 
   Referee referee(grid, topo, embree);
   std::vector<Judgement> judged(fr.rays.size());
   std::vector<uint32_t> ulps(fr.rays.size(), UINT32_MAX), ulps_e(fr.rays.size(), UINT32_MAX);
+  // A line on stderr past a second: the exact referee takes up to about a second a ray where
+  // thousands of triangles meet at a point (a cone of 2,000 slivers: minutes without a word, an
+  // outside sweep)
+  Progress progress("verify: " + name + " rays judged exactly", fr.rays.size());
   parallel_for(fr.rays.size(), o.threads, [&](size_t i) {
     const Ray& r = fr.rays[i];
     judged[i] = referee.judge(r, got[i], want[i], fr.aimed[i]);
+    progress.advance();
     // t against the exact t of the same triangle (well-conditioned exact hits)
     const auto ulps_of = [&](const Hit& h) -> uint32_t {
       if (is_miss(h) || (h.flags & (sh::kHitGapFill | sh::kHitRejected))) return UINT32_MAX;
@@ -71,6 +77,7 @@ FamilyResult verify_rays(const std::string& name, const FamilyRays& fr, Tracer& 
     ulps[i] = ulps_of(got[i]);
     ulps_e[i] = ulps_of(want[i]);
   });
+  progress.finish();
   double sum = 0.0;
   for (size_t i = 0; i < fr.rays.size(); ++i) {
     const Ray& r = fr.rays[i];
