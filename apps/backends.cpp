@@ -34,7 +34,7 @@ CLI::Option* add_enum(CLI::App* cmd, const std::string& name, E& value, const st
 
 constexpr const char* kGrid = "Grid";
 constexpr const char* kExpert = "Grid (expert)";
-constexpr uint64_t kMaxWorkSamplePixels = 256 * 144;  // the trace-cost sample, traced once per candidate
+using plan::kMaxWorkSamplePixels;
 
 std::string choice_type(const std::vector<std::string>& names) {
   std::string type;

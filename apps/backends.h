@@ -23,7 +23,7 @@ struct VulkanGridOptions;
 namespace gridrt::app {
 
 // --threads: at most this many (a large number made threads until the system refused one)
-inline constexpr unsigned kMaxThreads = 1024;
+using plan::kMaxThreads;
 
 struct BackendOptions {
   reference::GridOptions grid;   // the grid's knobs, shared by cpu and vulkan
@@ -109,10 +109,11 @@ class ProgressTracer : public Tracer {
  public:
   ProgressTracer(Tracer& inner, Progress& progress) : inner_(inner), progress_(progress) {}
   std::string name() const override { return inner_.name(); }
-  void build(const Scene& scene, float time) override { inner_.build(scene, time); }
-  void update(float time) override { inner_.update(time); }
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override { chunked(&Tracer::trace, rays, hits); }
-  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override {
+  bool built() const override { return inner_.built(); }
+  void build_scene(const Scene& scene, float time) override { inner_.build(scene, time); }
+  void update_to(float time) override { inner_.update(time); }
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override { chunked(&Tracer::trace, rays, hits); }
+  void trace_occlusion(std::span<const Ray> rays, std::span<Hit> hits) override {
     chunked(&Tracer::trace_any, rays, hits);
   }
   AccelDump dump() const override { return inner_.dump(); }
@@ -140,10 +141,11 @@ class OneRayTracer : public Tracer {
  public:
   OneRayTracer(Tracer& inner, size_t index) : inner_(inner), index_(index) {}
   std::string name() const override { return inner_.name(); }
-  void build(const Scene& scene, float time) override { inner_.build(scene, time); }
-  void update(float time) override { inner_.update(time); }
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override { one(&Tracer::trace, rays, hits); }
-  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override { one(&Tracer::trace_any, rays, hits); }
+  bool built() const override { return inner_.built(); }
+  void build_scene(const Scene& scene, float time) override { inner_.build(scene, time); }
+  void update_to(float time) override { inner_.update(time); }
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override { one(&Tracer::trace, rays, hits); }
+  void trace_occlusion(std::span<const Ray> rays, std::span<Hit> hits) override { one(&Tracer::trace_any, rays, hits); }
 
  private:
   using TraceFn = void (Tracer::*)(std::span<const Ray>, std::span<Hit>);

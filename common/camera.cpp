@@ -11,6 +11,9 @@ CameraFrame camera_frame(const Camera& camera) {
   // underflow nor overflow (direction_in_range: exact, the same directions; vectors whose largest
   // component lies in [2^-20, 2^20] keep their bits). An up of 1e-22 (dot(up, up) subnormal) gave a
   // frame of a few bits and a wrong picture with exit 0 (an outside sweep).
+  const auto finite3 = [](glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
+  if (!finite3(camera.eye) || !finite3(camera.target) || !finite3(camera.up))
+    throw Error("camera: its eye, target or up is not finite (NaN or inf)");
   const glm::vec3 view = direction_in_range(camera.target - camera.eye);
   const glm::vec3 up = direction_in_range(camera.up);
   if (!std::isfinite(view.x) || !std::isfinite(view.y) || !std::isfinite(view.z))

@@ -338,6 +338,24 @@ void Scene::finalize() {
   validate_meshes(*this);
   validate_textures_materials_instances(*this);
   split_large_meshes(*this);
+  validate();
+}
+
+void Scene::validate() const {
+  if (materials.empty() && !meshes.empty())
+    throw Error("scene '" + name + "' has no material (finalize gives it a default one)");
+  validate_meshes(*this);
+  validate_textures_materials_instances(*this);
+  // What finalize makes of a valid scene: meshes within the 16-bit triangle field, static instances first
+  for (const Mesh& m : meshes)
+    if (m.triangle_count() > kMaxTrianglesPerMesh)
+      throw Error("scene '" + name + "', mesh '" + m.name + "' has " + std::to_string(m.triangle_count()) +
+                  " triangles, more than a mesh may hold (" + std::to_string(kMaxTrianglesPerMesh) +
+                  "): Scene::finalize splits it");
+  for (size_t i = 1; i < instances.size(); ++i)
+    if (instances[i - 1].dynamic && !instances[i].dynamic)
+      throw Error("scene '" + name + "', instance '" + instances[i].name +
+                  "' is static after a dynamic one: Scene::finalize orders them static first");
   validate_geometry(*this);
   validate_camera(*this);
   validate_lights_and_grid(*this);

@@ -152,6 +152,10 @@ struct Scene {
   // instances static-first, check every limit and every number (NaN/inf coordinates, indices
   // out of range, empty scene). Throws Error with a message naming what is wrong.
   void finalize();
+  // The checks of finalize, changing nothing: every tracer's build runs them (Tracer::build), so
+  // a scene made in code and never finalized, or changed since, is refused naming the rule it
+  // breaks (meshes unsplit or instances out of order included) instead of read out of bounds.
+  void validate() const;
 
   uint32_t static_instance_count() const;
   bool has_dynamic() const;          // some instance is dynamic and moves

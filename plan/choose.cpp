@@ -2,6 +2,7 @@
 // and the trace's flags.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <mutex>
 #include <set>
@@ -462,6 +463,45 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& o) {
   return choose_grid(scene, time, o, nullptr);
 }
 
+void check_options(const GridOptions& o) {
+  // `what` (the field, and the option that sets it) within [lo, hi]; NaN lies outside every range
+  const auto within = [](double v, double lo, double hi, const char* what) {
+    if (!(v >= lo && v <= hi))
+      throw OptionsError("grid options: " + std::string(what) + " is " + gnum(v) + ", outside [" + gnum(lo) + ", " +
+                         gnum(hi) + "]");
+  };
+  // (a capacity above max_capacity is refused by choose_grid, naming both; the automatic capacity of
+  // an image layout may reach 65,535 with --max-capacity, and `grid --measure` builds it back)
+  if (o.capacity) within(*o.capacity, 1, 65535, "capacity (--capacity, at most --max-capacity)");
+  if (o.resolution)
+    for (int a = 0; a < 3; ++a) within((*o.resolution)[a], 1, 16384, "a resolution's cells per axis (--resolution)");
+  if (o.cell_size) within(*o.cell_size, std::numeric_limits<float>::min(), std::numeric_limits<float>::max(), "cell_size (--cell-size)");
+  within(o.density, 1e-3, 1e3, "density (--density)");
+  within(o.max_capacity, 4, 65535, "max_capacity (--max-capacity)");
+  within(o.min_capacity, 1, o.max_capacity, "min_capacity (1 to max_capacity)");
+  within(o.max_image_dimension, 2, 65536, "max_image_dimension (--max-image-dimension)");
+  within(double(o.max_texels), 1, double(uint64_t(1) << 48), "max_texels (--memory-budget)");
+  if (o.memory_budget) within(double(*o.memory_budget), 1, double(uint64_t(1) << 50), "memory_budget (--memory-budget)");
+  within(o.sphere_enlargement, 0, 16, "sphere_enlargement (--enlargement)");
+  if (o.aabb_padding) within(*o.aabb_padding, 0, 16, "aabb_padding (--aabb-padding)");
+  within(o.paper_padding, 0, 16, "paper_padding");
+  within(o.elongation, 0, 16, "elongation (--elongation)");
+  within(o.gap_fill_distance, 0, 1e6, "gap_fill_distance (--gap-fill-distance)");
+  within(o.self_hit_offset, 0, 1e6, "self_hit_offset (--self-hit-offset)");
+  if (o.spill_capacity) within(*o.spill_capacity, 0, 1u << 28, "spill_capacity (--spill-capacity)");
+  if (o.cell_visit_cost) within(*o.cell_visit_cost, 0, 1e6, "cell_visit_cost (--cell-visit-cost)");
+  within(o.saturation_cost, 0, 1e12, "saturation_cost (--saturation-cost)");
+  within(o.capacity_percentile, 1e-6, 1, "capacity_percentile (above 0, at most 1)");
+  within(o.work_sample_width, 1, 4096, "work_sample_width (--work-sample)");
+  within(o.work_sample_height, 1, 4096, "work_sample_height (--work-sample)");
+  within(double(o.work_sample_width) * o.work_sample_height, 1, double(kMaxWorkSamplePixels),
+         "work_sample_width x work_sample_height (--work-sample)");
+  within(o.work_sample_frames, 1, 64, "work_sample_frames");
+  within(o.work_sample_rays, 1, 1 << 20, "work_sample_rays");
+  within(o.capacity_time_samples, 1, 1024, "capacity_time_samples");
+  within(o.threads, 0, kMaxThreads, "threads (--threads)");
+}
+
 GridOptions settle_overrides(GridOptions o, const Scene& scene) {
   // The command line over the scene file, the grid's size as one choice: a resolution or a cell
   // size given there replaces the file's (either); both given at one level are refused, where
@@ -719,10 +759,6 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
   GridChoice& ch = choice ? *choice : local;
   ch = GridChoice{};
   if (res && !cs_over) {
-    if (too_many_cells(*res))
-      throw Error("grid: " + std::to_string(res->x) + "x" + std::to_string(res->y) + "x" + std::to_string(res->z) +
-                  " cells are " + std::to_string(uint64_t(res->x) * res->y * res->z) +
-                  ", more than a grid may have (under 2^31 = 2147483648): give coarser cells (--resolution, --cell-size)");
     const GridCandidate c = weigh(scene, time, g, cs, *res, cap_over, o, false);
     if (!c.fits && (g.flags & shared::kGridCompact) != 0u) throw over_budget(c, o, scene);
     if (!c.fits) throw too_big(*res, cap_over.value_or(o.min_capacity), o);
@@ -859,6 +895,7 @@ GridParams choose_by_candidates(const Scene& scene, float time, const GridOption
 }  // namespace
 
 GridParams choose_grid(const Scene& scene, float time, const GridOptions& options, GridChoice* choice) {
+  check_options(options);
   const GridOptions o = settle_overrides(options, scene);
   // A capacity asked for above the largest allowed: named (the image's limits are not the cause)
   if (o.capacity && *o.capacity > o.max_capacity) {
@@ -893,6 +930,18 @@ GridParams choose_grid(const Scene& scene, float time, const GridOptions& option
   g.origin = b.lo;
   // Covered cells' bits live in the skip field's bytes of occupied cells (shared/grid.h, skip_byte):
   // they cost no memory, and come with the compact layout wherever it is chosen
+  // Fixed cells past the grid's index range, named as such, whatever the policy (a cell size that
+  // gave them was reported as "at least 0.0 MiB, over the memory budget": an outside test; the
+  // percentile policy counted them). Counted in double: cells_for clamps each axis.
+  if (o.cell_size || o.resolution) {
+    const glm::dvec3 n = o.cell_size ? glm::ceil(glm::dvec3(e) / double(cs)) : glm::dvec3(*o.resolution);
+    if (n.x * n.y * n.z >= double(kMaxGridCells)) {
+      char count[96];
+      std::snprintf(count, sizeof count, "%.0fx%.0fx%.0f cells are %.4g", n.x, n.y, n.z, n.x * n.y * n.z);
+      throw Error("grid: " + std::string(count) +
+                  ", more than a grid may have (under 2^31 = 2147483648): give coarser cells (--resolution, --cell-size)");
+    }
+  }
   GridChoice local;
   GridChoice& ch = choice ? *choice : local;
   GridParams p = o.capacity_policy == GridOptions::CapacityPolicy::percentile && !o.capacity

@@ -151,6 +151,15 @@ struct EmulationOptions {
 
 struct GridOptions : AlgorithmOptions, PlanOptions, EmulationOptions {};
 
+inline constexpr unsigned kMaxThreads = 1024;
+inline constexpr uint64_t kMaxWorkSamplePixels = 256 * 144;  // the trace-cost sample, traced once per candidate
+
+// Every number of `o` within the range the command line allows for it (apps/backends.cpp), else
+// OptionsError naming the field: choose_grid checks it first, so a program that sets GridOptions
+// itself gets the command line's rules (a capacity of 0 built a grid in which every ray missed;
+// a negative elongation, a paper trace that found nothing).
+void check_options(const GridOptions& o);
+
 // The options with every override settled: the resolution, capacity and cell size of `o` where
 // set, else the scene's (Scene::grid). (The command line's --resolution and image limit are
 // written into GridOptions by the tool before this.)

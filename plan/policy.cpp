@@ -61,9 +61,10 @@ class SampleCaster : public Tracer {
  public:
   SampleCaster(const GridParams& g, const GridOptions& o) : g_(g), o_(o) {}
   std::string name() const override { return "policy-sample"; }
-  void update(float) override {}
+  bool built() const override { return scene_ != nullptr; }
+  void update_to(float) override {}
 
-  void build(const Scene& scene, float time) override {
+  void build_scene(const Scene& scene, float time) override {
     scene_ = &scene;
     offset_.clear();
     tris_.clear();
@@ -102,7 +103,7 @@ class SampleCaster : public Tracer {
   const std::array<vec3, 3>& triangle(uint32_t instance, uint32_t t) const { return tris_[offset_[instance] + t]; }
 
   // Every ray, within the sample's work bound (trace_within); the rays past it are misses.
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override { trace_within(rays, hits); }
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override { trace_within(rays, hits); }
 
   // The rays in strided chunks (chunk k: rays k, k + K, k + 2K, ..., K chunks of about
   // kSampleChunk), chunk after chunk, until the triangle tests of a call pass kSampleTestBudget:
@@ -216,7 +217,8 @@ WorkSample work_sample(const Scene& scene, float time, const GridParams& base, c
   GridParams g = base;
   g.traversal = kTraversalExact;
   SampleCaster caster(g, o);
-  caster.build(scene, time);
+  // Its own step: the scene and time were checked by the grid's build (Tracer::build), once
+  caster.build_scene(scene, time);
   const Camera camera = scene.frame_camera();
   const uint32_t w = std::max(1u, o.work_sample_width), h = std::max(1u, o.work_sample_height);
   const GatherBuffer gather = make_gather(scene, caster, camera, w, h, time);

@@ -124,6 +124,9 @@ bool cell_occupied(const GridData& grid, glm::uvec3 cell);
 // A cell's references in order (the slots up to the first blank, or its compact run: static only)
 // and its status texel (compact: 0, no cell saturates).
 std::vector<uint32_t> cell_references(const GridData& grid, glm::uvec3 cell);
+// Every reference the trace tests in `cell`: cell_references, then the spilled ones it walks there
+// (a saturated cell's lists with the spill list on; the compact layout's dynamic region list)
+std::vector<uint32_t> cell_traced_references(const GridData& grid, glm::uvec3 cell);
 uint32_t cell_status(const GridData& grid, glm::uvec3 cell);
 // Everything the grid keeps, as allocated (plan::grid_memory's parts).
 plan::GridMemory grid_allocated(const GridData& grid);
@@ -188,10 +191,10 @@ class ReferenceGridTracer : public Tracer {
  public:
   explicit ReferenceGridTracer(GridOptions options = {});
   std::string name() const override { return "reference-grid"; }
-  void build(const Scene& scene, float time) override;
-  void update(float time) override;
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
-  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void build_scene(const Scene& scene, float time) override;
+  void update_to(float time) override;
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void trace_occlusion(std::span<const Ray> rays, std::span<Hit> hits) override;
   AccelDump dump() const override;
 
   ExplainRecord explain_ray(const Ray& ray, uint32_t mode = shared::kTraceClosestHit) const;

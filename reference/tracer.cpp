@@ -14,17 +14,22 @@ namespace gridrt::reference {
 
 ReferenceGridTracer::ReferenceGridTracer(GridOptions options) : options_(std::move(options)) {}
 
-void ReferenceGridTracer::build(const Scene& scene, float time) {
+void ReferenceGridTracer::build_scene(const Scene& scene, float time) {
   const auto t0 = std::chrono::steady_clock::now();
+  scene_ = nullptr;  // until the grid is whole (a build that throws leaves the tracer unbuilt: Tracer::build)
+  try {
+    scene_build(grid_, scene, time, options_);
+  } catch (...) {
+    grid_ = GridData{};  // as before any build: stats and dump see an empty grid, not a half-made one
+    throw;
+  }
   scene_ = &scene;
-  scene_build(grid_, scene, time, options_);
   build_ms_ = ms_since(t0);
   overflow_warned_ = false;
   warn_spill_overflow(spill_counts(grid_), name(), overflow_warned_);
 }
 
-void ReferenceGridTracer::update(float time) {
-  if (!scene_) throw Error("reference-grid: update before build");
+void ReferenceGridTracer::update_to(float time) {
   const auto t0 = std::chrono::steady_clock::now();
   scene_update(grid_, *scene_, time, options_);
   // The spill list's forecast fell short at this time: grow it and insert again (plan::spill_growth)
@@ -37,17 +42,15 @@ void ReferenceGridTracer::update(float time) {
 }
 
 
-void ReferenceGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
+void ReferenceGridTracer::trace_closest(std::span<const Ray> rays, std::span<Hit> hits) {
   run_trace(rays, hits, shared::kTraceClosestHit);
 }
 
-void ReferenceGridTracer::trace_any(std::span<const Ray> rays, std::span<Hit> hits) {
+void ReferenceGridTracer::trace_occlusion(std::span<const Ray> rays, std::span<Hit> hits) {
   run_trace(rays, hits, shared::kTraceAnyHit);
 }
 
 void ReferenceGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits, uint32_t mode) const {
-  if (hits.size() != rays.size()) throw Error("reference-grid: hits.size() != rays.size()");
-  if (!scene_) throw Error("reference-grid: trace before build");
   run_invocations(uint32_t(rays.size()), thread_count(options_), std::nullopt,
                   [&](uint32_t i) { hits[i] = scene_trace(grid_, rays[i], nullptr, mode); }, 64);
 }
@@ -75,7 +78,7 @@ AccelDump ReferenceGridTracer::dump() const {
 }
 
 ExplainRecord ReferenceGridTracer::explain_ray(const Ray& ray, uint32_t mode) const {
-  if (!scene_) throw Error("reference-grid: explain before build");
+  if (!built()) throw Error("reference-grid: explain before a build (or after a build that failed)");
   ExplainRecord rec;
   rec.hit = scene_trace(grid_, ray, &rec, mode);
   return rec;

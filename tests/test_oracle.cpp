@@ -378,3 +378,9 @@ TEST_CASE("Oracle throughput on the atrium", "[.bench]") {
   for (const glm::vec3& c : img)
     for (int k = 0; k < 3; ++k) ppm.put(char(uint8_t(std::lround(std::sqrt(c[k]) * 255.0f))));
 }
+
+#include "tests/tracer_contract.h"
+
+TEST_CASE("Library: Embree keeps the Tracer contract - failed builds, times, unfinalized scenes", "[unit][oracle]") {
+  gridtest::check_contract([] { return std::make_unique<EmbreeTracer>(); });
+}

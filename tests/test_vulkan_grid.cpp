@@ -22,6 +22,7 @@
 #include "tests/run_tool.h"
 #include "tests/vulkan_test_util.h"
 #include "gridrt/vulkan/grid.h"
+#include "gridrt/vulkan/frame.h"
 
 using namespace gridrt;
 using namespace gridrt::test;
@@ -865,5 +866,40 @@ TEST_CASE("Vulkan grid: the surface rule on rays launched from a fan of slivers,
     const uint32_t neighbour = (sh::ref_triangle(rays[i].launch_ref) + 1u) % kSlivers;
     if (!is_miss(want[i])) CHECK_FALSE((want[i].triangle == neighbour && want[i].t < 1e-4f));
   }
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
+#include "tests/tracer_contract.h"
+
+TEST_CASE("Library: the Vulkan grid keeps the Tracer contract - failed builds, times, unfinalized scenes", "[vulkan]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  reference::GridOptions o;
+  o.traversal = reference::Traversal::exact;
+  o.threads = 2;
+  gridtest::check_contract([&ctx, o] { return std::make_unique<vulkan::VulkanGridTracer>(ctx, o); });
+  // A frame renders only on the build it was made on: a new build makes new buffers (the frame
+  // rendered from the freed ones: a crash in the driver), a failed one leaves none
+  const Scene good = gridtest::random_scene(300, 0.6f, 10.0f, 5);
+  VulkanGridTracer grid(ctx, o);
+  vulkan::FrameOptions fo;
+  fo.width = 16, fo.height = 12;
+  REQUIRE_THROWS_WITH(vulkan::VulkanFrame(grid, good, fo), Catch::Contains("not built"));
+  grid.build(good, 0.0f);
+  {
+    vulkan::VulkanFrame frame(grid, good, fo);
+    frame.render(0);
+    grid.build(good, 0.0f);
+    REQUIRE_THROWS_WITH(frame.render(0), Catch::Contains("built again"));
+  }
+  {
+    vulkan::VulkanFrame frame(grid, good, fo);
+    frame.render(0);
+    REQUIRE_THROWS_AS(grid.build(gridtest::refused_scene(), 0.0f), Error);
+    REQUIRE_THROWS_WITH(frame.render(0), Catch::Contains("not built"));
+  }
+  fo.width = 4294967295u, fo.height = 1u;
+  grid.build(good, 0.0f);
+  REQUIRE_THROWS_WITH(vulkan::VulkanFrame(grid, good, fo), Catch::Contains("more than 65536"));
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }

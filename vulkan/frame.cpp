@@ -383,10 +383,16 @@ static void check_gather_eye(const glm::vec3& eye, const shared::GridParams& g) 
 }
 
 VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOptions options)
-    : grid_(grid), scene_(scene), options_(options) {
+    : grid_(grid), grid_generation_(grid.build_generation()), scene_(scene), options_(options) {
   Context& ctx = grid.context();
   const uint32_t w = options_.width, h = options_.height;
+  if (!grid.built()) throw Error("vulkan frame: its grid is not built (build it from the scene first)");
   if (w == 0 || h == 0) throw Error("vulkan frame: image size must be at least 1 x 1");
+  // Each side within 65,536 pixels before the host makes its per-column and per-row steps (a width
+  // of 2^32 - 1 died of std::bad_alloc); the device's limits then bound the rest, named
+  if (w > 65536u || h > 65536u)
+    throw Error("vulkan frame: " + std::to_string(w) + " x " + std::to_string(h) +
+                " pixels: a side of more than 65536 pixels");
   bounce_ = options_.bounce && scene.has_glossy();
   shadows_ = options_.shadows && !scene.lights.empty();
   if (shadows_) check_shadow_lights(scene);
@@ -571,6 +577,12 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
 
 void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
+  if (!grid_.built())
+    throw Error("vulkan frame: its grid is not built now (a build or an update of it failed): build it again and make "
+                "a new frame");
+  if (grid_.build_generation() != grid_generation_)
+    throw Error("vulkan frame: its grid was built again after this frame was made (the frame holds the old build's "
+                "buffers): make a new frame");
   Context& ctx = grid_.context();
   Gpu& gpu = *gpu_;
   const uint32_t w = options_.width, h = options_.height;

@@ -136,7 +136,9 @@ struct GatherPairs {
 
 class VulkanFrame {
  public:
-  // `grid` must be built from `scene`; both outlive the frame.
+  // `grid` must be built from `scene`; both outlive the frame. A frame renders only while its grid
+  // stays built and is not built again (a new build makes new buffers: make a new frame then);
+  // render() refuses, naming which, where the grid was built again or a build or update failed.
   VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOptions options = {});
   ~VulkanFrame();
   VulkanFrame(const VulkanFrame&) = delete;
@@ -179,6 +181,7 @@ class VulkanFrame {
  private:
   struct Gpu;
   VulkanGridTracer& grid_;
+  uint64_t grid_generation_ = 0;  // the grid's build this frame's buffers were bound to
   const Scene& scene_;
   FrameOptions options_;
   bool bounce_ = true;

@@ -109,24 +109,32 @@ std::string VulkanGridTracer::name() const {
 
 // ---- Scene build (paper 2.1) ----
 
-void VulkanGridTracer::build(const Scene& scene, float time) {
+void VulkanGridTracer::build_scene(const Scene& scene, float time) {
   check_device();
   gpu_.reset();
   scene_ = &scene;
   build_time_ = time;
-  const plan::GridPlan plan = make_plan(scene, time);
-  std::vector<glm::vec4> positions;
-  std::vector<uint32_t> indices;
-  make_build_input(scene, time, positions, indices);
-  create_resources(plan, positions, indices);
-  if ((params_.flags & shared::kGridSkipEmpty) != 0u) {
-    const std::vector<uint32_t> boxes = plan::skip_box_words(scene, time, params_);
-    ctx_->upload(gpu_->skip, boxes.data(), boxes.size() * sizeof(uint32_t));
+  try {
+    const plan::GridPlan plan = make_plan(scene, time);
+    std::vector<glm::vec4> positions;
+    std::vector<uint32_t> indices;
+    make_build_input(scene, time, positions, indices);
+    create_resources(plan, positions, indices);
+    if ((params_.flags & shared::kGridSkipEmpty) != 0u) {
+      const std::vector<uint32_t> boxes = plan::skip_box_words(scene, time, params_);
+      ctx_->upload(gpu_->skip, boxes.data(), boxes.size() * sizeof(uint32_t));
+    }
+    check_build_ranges(scene, time, 0);
+    create_pipelines();
+    record_build(uint32_t(scene.instances.size()));
+    after_insert();
+    ++build_generation_;
+  } catch (...) {
+    // As before any build (Tracer::build): no half-made grid for the frame's or the dump's calls
+    gpu_.reset();
+    scene_ = nullptr;
+    throw;
   }
-  check_build_ranges(scene, time, 0);
-  create_pipelines();
-  record_build(uint32_t(scene.instances.size()));
-  after_insert();
 }
 
 // The device can run the grid: its storage buffers per stage, and for the raster build geometry
@@ -618,8 +626,7 @@ void VulkanGridTracer::upload_transforms(float time, uint32_t first, uint32_t la
                  first * sizeof(shared::BuildInstance));
 }
 
-void VulkanGridTracer::update(float time) {
-  if (!scene_ || !gpu_) throw Error("vulkan-grid: update before build");
+void VulkanGridTracer::update_to(float time) {
   if (static_instances_ == uint32_t(scene_->instances.size())) return;
   update_insert(time);
   // The spill list's forecast fell short at this time: grow it and insert again (plan::spill_growth)
@@ -803,15 +810,16 @@ void VulkanGridTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hits,
   if (!explain) check_loop_limit(ctx, params_, hits, "trace");
 }
 
-void VulkanGridTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
+void VulkanGridTracer::trace_closest(std::span<const Ray> rays, std::span<Hit> hits) {
   run_trace(rays, hits, shared::kNoExplain, shared::kTraceClosestHit);
 }
 
-void VulkanGridTracer::trace_any(std::span<const Ray> rays, std::span<Hit> hits) {
+void VulkanGridTracer::trace_occlusion(std::span<const Ray> rays, std::span<Hit> hits) {
   run_trace(rays, hits, shared::kNoExplain, shared::kTraceAnyHit);
 }
 
 plan::ExplainRecord VulkanGridTracer::explain_ray(std::span<const Ray> rays, uint32_t index, uint32_t mode) {
+  if (!built()) throw Error("vulkan-grid: explain before a build (or after a build that failed)");
   if (index >= rays.size()) throw Error("vulkan-grid: explain index out of range");
   std::vector<Hit> hits(rays.size());
   run_trace(rays, hits, index, mode);

@@ -138,10 +138,10 @@ class VulkanGridTracer : public Tracer {
   ~VulkanGridTracer() override;
 
   std::string name() const override;
-  void build(const Scene& scene, float time) override;
-  void update(float time) override;
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
-  void trace_any(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void build_scene(const Scene& scene, float time) override;
+  void update_to(float time) override;
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void trace_occlusion(std::span<const Ray> rays, std::span<Hit> hits) override;
   AccelDump dump() const override;
 
   // Traces `rays` and records the events of rays[index], as the reference's explain_ray does
@@ -173,6 +173,9 @@ class VulkanGridTracer : public Tracer {
   const shared::GridParams& params() const { return params_; }
   const plan::GridOptions& options() const { return options_; }
   float build_time() const { return build_time_; }  // the scene time of the last build
+  // Counts the builds that succeeded: each makes new buffers, which a VulkanFrame made before it
+  // no longer holds (it refuses to render then)
+  uint64_t build_generation() const { return build_generation_; }
   const GridTimings& timings() const { return timings_; }
 
   // For passes of other pipelines on the grid's device data (vulkan/frame.h), valid after
@@ -260,6 +263,7 @@ class VulkanGridTracer : public Tracer {
   plan::GridOptions options_;
   VulkanGridOptions vk_;
   float build_time_ = 0.0f;
+  uint64_t build_generation_ = 0;
   const Scene* scene_ = nullptr;
   shared::GridParams params_{};
   uint32_t requested_flags_ = 0;  // params_.flags as choose_grid chose them

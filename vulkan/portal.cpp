@@ -156,11 +156,13 @@ PortalVulkanTracer::PortalVulkanTracer(portal::PortalBuild build, portal::Portal
     : owned_(portal_context()), ctx_(owned_.get()), resolution_(0), options_(options),
       build_(std::make_unique<portal::PortalBuild>(std::move(build))) {
   upload();
+  set_built();
 }
 
 PortalVulkanTracer::PortalVulkanTracer(Context& ctx, portal::PortalBuild build)
     : ctx_(&ctx), resolution_(0), build_(std::make_unique<portal::PortalBuild>(std::move(build))) {
   upload();
+  set_built();
 }
 
 PortalVulkanTracer::~PortalVulkanTracer() {
@@ -172,10 +174,18 @@ const portal::PortalBuild& PortalVulkanTracer::portal() const {
   return *build_;
 }
 
-void PortalVulkanTracer::build(const Scene& scene, float) {
-  build_ = std::make_unique<portal::PortalBuild>(
-      portal::build_portal(portal::voxelize(scene, resolution_ ? resolution_ : 64), options_));
-  upload();
+void PortalVulkanTracer::build_scene(const Scene& scene, float) {
+  build_.reset();
+  gpu_.reset();
+  try {
+    build_ = std::make_unique<portal::PortalBuild>(
+        portal::build_portal(portal::voxelize(scene, resolution_ ? resolution_ : 64), options_));
+    upload();
+  } catch (...) {
+    build_.reset();  // as before any build (Tracer::build)
+    gpu_.reset();
+    throw;
+  }
 }
 
 // The packed textures, as the reference holds them (PackedPortal), to the device.
@@ -270,7 +280,7 @@ void PortalVulkanTracer::run_trace(std::span<const Ray> rays, std::span<Hit> hit
   ctx.download(gpu.hits, hits.data(), hits.size_bytes());
 }
 
-void PortalVulkanTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) { run_trace(rays, hits, kPortalNoExplain); }
+void PortalVulkanTracer::trace_closest(std::span<const Ray> rays, std::span<Hit> hits) { run_trace(rays, hits, kPortalNoExplain); }
 
 AccelDump PortalVulkanTracer::dump() const {
   if (!gpu_) return {};

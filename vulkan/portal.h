@@ -50,9 +50,9 @@ class PortalVulkanTracer final : public Tracer {
   ~PortalVulkanTracer() override;
 
   std::string name() const override { return "portal-vulkan"; }
-  void build(const Scene& scene, float time) override;  // voxelize at `resolution`, build, upload
-  void update(float) override {}
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void build_scene(const Scene& scene, float time) override;  // voxelize at `resolution`, build, upload
+  void update_to(float) override {}
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override;
   AccelDump dump() const override;  // kind "portal": the atlas texels read back from the device
 
   // Renders as reference/portal's render() does (options.threads is ignored). Linear RGB, row 0

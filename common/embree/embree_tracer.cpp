@@ -124,7 +124,8 @@ struct EmbreeTracer::Impl {
   ~Impl() { release(); }
 
   void release() {
-    for (RTCGeometry g : geometries) rtcReleaseGeometry(g);
+    for (RTCGeometry g : geometries)
+      if (g) rtcReleaseGeometry(g);  // (a build that failed made only some)
     geometries.clear();
     if (rtc_scene) rtcReleaseScene(rtc_scene);
     rtc_scene = nullptr;
@@ -214,51 +215,55 @@ EmbreeTracer::~EmbreeTracer() {
   rtcReleaseDevice(impl_->device);
 }
 
-void EmbreeTracer::build(const Scene& scene, float time) {
-  scene.require_extent(time, "embree");
+void EmbreeTracer::build_scene(const Scene& scene, float time) {
   Impl& d = *impl_;
   d.release();
   d.scene = &scene;
-  d.rtc_scene = rtcNewScene(d.device);
-  rtcSetSceneFlags(d.rtc_scene, RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
-                                              (scene.has_dynamic() ? RTC_SCENE_FLAG_DYNAMIC : 0)));
-  const size_t n = scene.instances.size();
-  d.geometries.assign(n, nullptr);
-  d.data.assign(n, GeometryData{});
-  d.world.assign(n, {});
-  for (uint32_t i = 0; i < n; ++i) {
-    const Instance& inst = scene.instances[i];
-    const Mesh& mesh = scene.meshes[inst.mesh];
-    RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    d.geometries[i] = g;
-    rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                            std::max<size_t>(mesh.positions.size(), 1));
-    auto* idx = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                3 * sizeof(uint32_t), mesh.triangles.size()));
-    d.check();
-    for (size_t t = 0; t < mesh.triangles.size(); ++t)
-      for (int k = 0; k < 3; ++k) idx[3 * t + k] = mesh.triangles[t][k];
-    d.transform(i, time);
-    d.data[i] = GeometryData{&scene, &mesh};
-    bool alpha = false;
-    for (uint32_t m : mesh.materials) alpha = alpha || scene.materials[m].alpha_keyed();
-    if (alpha) {
-      rtcSetGeometryUserData(g, &d.data[i]);
-      rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+  try {
+    scene.require_extent(time, "embree");
+    d.rtc_scene = rtcNewScene(d.device);
+    rtcSetSceneFlags(d.rtc_scene, RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
+                                                (scene.has_dynamic() ? RTC_SCENE_FLAG_DYNAMIC : 0)));
+    const size_t n = scene.instances.size();
+    d.geometries.assign(n, nullptr);
+    d.data.assign(n, GeometryData{});
+    d.world.assign(n, {});
+    for (uint32_t i = 0; i < n; ++i) {
+      const Instance& inst = scene.instances[i];
+      const Mesh& mesh = scene.meshes[inst.mesh];
+      RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      d.geometries[i] = g;
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                              std::max<size_t>(mesh.positions.size(), 1));
+      auto* idx = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                  3 * sizeof(uint32_t), mesh.triangles.size()));
+      d.check();
+      for (size_t t = 0; t < mesh.triangles.size(); ++t)
+        for (int k = 0; k < 3; ++k) idx[3 * t + k] = mesh.triangles[t][k];
+      d.transform(i, time);
+      d.data[i] = GeometryData{&scene, &mesh};
+      bool alpha = false;
+      for (uint32_t m : mesh.materials) alpha = alpha || scene.materials[m].alpha_keyed();
+      if (alpha) {
+        rtcSetGeometryUserData(g, &d.data[i]);
+        rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+      }
+      if (inst.dynamic) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(d.rtc_scene, g, i);
+      d.check();
     }
-    if (inst.dynamic) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
-    rtcCommitGeometry(g);
-    rtcAttachGeometryByID(d.rtc_scene, g, i);
+    rtcCommitScene(d.rtc_scene);
     d.check();
+  } catch (...) {
+    d.release();  // as before any build (Tracer::build)
+    throw;
   }
-  rtcCommitScene(d.rtc_scene);
-  d.check();
   d.scene = &scene;
 }
 
-void EmbreeTracer::update(float time) {
+void EmbreeTracer::update_to(float time) {
   Impl& d = *impl_;
-  if (!d.rtc_scene) throw Error("EmbreeTracer::update before build");
   for (uint32_t i = 0; i < d.scene->instances.size(); ++i) {
     if (!d.scene->instances[i].dynamic) continue;
     d.transform(i, time);
@@ -301,9 +306,7 @@ Hit EmbreeTracer::trace_one(const Ray& ray) const {
   return impl_->trace_one(ray);
 }
 
-void EmbreeTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
-  if (!impl_->rtc_scene) throw Error("EmbreeTracer::trace before build");
-  if (hits.size() != rays.size()) throw Error("EmbreeTracer::trace: hits.size() != rays.size()");
+void EmbreeTracer::trace_closest(std::span<const Ray> rays, std::span<Hit> hits) {
   constexpr size_t kBlock = 1024;
   const size_t blocks = (rays.size() + kBlock - 1) / kBlock;
   std::atomic<size_t> next{0};

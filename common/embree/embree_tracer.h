@@ -46,9 +46,9 @@ class EmbreeTracer : public Tracer {
   EmbreeTracer& operator=(const EmbreeTracer&) = delete;
 
   std::string name() const override { return "embree"; }
-  void build(const Scene& scene, float time) override;
-  void update(float time) override;
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void build_scene(const Scene& scene, float time) override;
+  void update_to(float time) override;
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override;
 
   // Closest hit of one ray, on the calling thread.
   Hit trace_one(const Ray& ray) const;

@@ -654,18 +654,21 @@ std::string explain_portal(const PackedPortal& p, const World& w, const Ray& ray
 PortalTracer::PortalTracer(uint32_t resolution, PortalOptions options) : resolution_(resolution), options_(options) {}
 PortalTracer::PortalTracer(World world, PortalOptions options) : resolution_(0), options_(options) {
   build_ = std::make_unique<PortalBuild>(build_portal(std::move(world), options_));
+  set_built();
 }
 PortalTracer::PortalTracer(PortalBuild build, PortalOptions options)
-    : resolution_(0), options_(options), build_(std::make_unique<PortalBuild>(std::move(build))) {}
-void PortalTracer::build(const Scene& scene, float) {
+    : resolution_(0), options_(options), build_(std::make_unique<PortalBuild>(std::move(build))) {
+  set_built();
+}
+void PortalTracer::build_scene(const Scene& scene, float) {
+  build_.reset();  // a build that throws leaves the tracer unbuilt (Tracer::build)
   build_ = std::make_unique<PortalBuild>(build_portal(voxelize(scene, resolution_ ? resolution_ : 64), options_));
 }
 const PortalBuild& PortalTracer::portal() const {
   if (!build_) throw Error("portal-cpu: not built");
   return *build_;
 }
-void PortalTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
-  if (rays.size() != hits.size()) throw Error("portal-cpu: rays and hits differ in size");
+void PortalTracer::trace_closest(std::span<const Ray> rays, std::span<Hit> hits) {
   const PackedPortal& p = portal().packed;
   const size_t chunk = 4096;
   parallel_rows((rays.size() + chunk - 1) / chunk, options_.threads, [&](size_t c) {
@@ -674,6 +677,7 @@ void PortalTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
 }
 AccelDump PortalTracer::dump() const {
   AccelDump d;
+  if (!build_) return d;  // not built: no atlas, as every tracer's dump
   d.kind = "portal";
   const PackedPortal& p = portal().packed;
   d.extent = glm::uvec3(p.atlas_width, p.atlas_height, 1);
@@ -682,13 +686,15 @@ AccelDump PortalTracer::dump() const {
 }
 std::string PortalTracer::explain(const Ray& ray) const { return explain_portal(portal().packed, portal().world, ray); }
 
-void VoxelDdaTracer::build(const Scene& scene, float) { world_ = voxelize(scene, resolution_ ? resolution_ : 64); }
+void VoxelDdaTracer::build_scene(const Scene& scene, float) {
+  world_.reset();  // a build that throws leaves the tracer unbuilt (Tracer::build)
+  world_ = voxelize(scene, resolution_ ? resolution_ : 64);
+}
 const World& VoxelDdaTracer::world() const {
   if (!world_) throw Error("voxel-dda: not built");
   return *world_;
 }
-void VoxelDdaTracer::trace(std::span<const Ray> rays, std::span<Hit> hits) {
-  if (rays.size() != hits.size()) throw Error("voxel-dda: rays and hits differ in size");
+void VoxelDdaTracer::trace_closest(std::span<const Ray> rays, std::span<Hit> hits) {
   const World& w = world();
   const size_t chunk = 4096;
   parallel_rows((rays.size() + chunk - 1) / chunk, 0, [&](size_t c) {

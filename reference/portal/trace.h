@@ -96,9 +96,9 @@ class PortalTracer final : public Tracer {
   explicit PortalTracer(World world, PortalOptions options = {});
   explicit PortalTracer(PortalBuild build, PortalOptions options = {});  // an existing build
   std::string name() const override { return "portal-cpu"; }
-  void build(const Scene& scene, float time) override;
-  void update(float) override {}
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void build_scene(const Scene& scene, float time) override;
+  void update_to(float) override {}
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override;
   AccelDump dump() const override;  // kind "portal": the atlas texels (extent atlas w x h x 1)
   const PortalBuild& portal() const;
   std::string explain(const Ray& ray) const;
@@ -112,11 +112,14 @@ class PortalTracer final : public Tracer {
 class VoxelDdaTracer final : public Tracer {
  public:
   explicit VoxelDdaTracer(uint32_t resolution = 64) : resolution_(resolution) {}
-  explicit VoxelDdaTracer(World world) : resolution_(0), world_(std::move(world)) { world_->validate(); }
+  explicit VoxelDdaTracer(World world) : resolution_(0), world_(std::move(world)) {
+    world_->validate();
+    set_built();
+  }
   std::string name() const override { return "voxel-dda"; }
-  void build(const Scene& scene, float time) override;
-  void update(float) override {}
-  void trace(std::span<const Ray> rays, std::span<Hit> hits) override;
+  void build_scene(const Scene& scene, float time) override;
+  void update_to(float) override {}
+  void trace_closest(std::span<const Ray> rays, std::span<Hit> hits) override;
   const World& world() const;
 
  private:

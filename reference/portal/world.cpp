@@ -352,6 +352,7 @@ void warn_unused_lights(const World& w) {
 }
 
 World voxelize(const Scene& scene, uint32_t resolution) {
+  scene.validate();  // a scene made in code: its indices and coordinates checked before they are read
   if (resolution < 1 || resolution > kMaxWorldAxis - 2)
     throw Error("voxelize: resolution " + std::to_string(resolution) + " outside 1 .. 253 (8-bit div format)");
   const Bounds b = scene.bounds(0.0f);
