@@ -260,8 +260,9 @@ struct Accuracy {
   double agree() const { return rays ? 100.0 * double(rays - differ) / double(rays) : 100.0; }
 };
 
-// A differing ray is a tie when both hit, at distances within kTieUlps of each other.
-constexpr uint32_t kTieUlps = 64;
+// A differing ray is a tie when both hit, at distances within kTieUlps of each other (the one
+// definition, classify_difference's too).
+using reference::kTieUlps;
 
 Accuracy accuracy(std::span<const Hit> want, std::span<const Hit> got) {
   Accuracy a;

@@ -29,7 +29,9 @@ void warn_spill_overflow(const SpillDump& spill, const std::string& who, bool& w
   warned = true;
   std::fprintf(stderr,
                "gridrt: warning: %s: the spill list overflowed: %u references found no slot, %u fit the list, "
-               "%u were lost (holes are possible in saturated cells); raise --spill-capacity\n",
+               "%u were lost: rays can pass through their triangles in the cells that lost them (the image layout's "
+               "saturated cells; in the compact layout, the dynamic instances' cells, none of them saturated); raise "
+               "--spill-capacity\n",
                who.c_str(), spill.header.count, spill.header.capacity, spill.overflow());
 }
 

@@ -322,6 +322,30 @@ std::vector<uint32_t> cell_references(const GridData& grid, glm::uvec3 cell) {
   return out;
 }
 
+std::vector<uint32_t> cell_traced_references(const GridData& grid, glm::uvec3 cell) {
+  const GridParams& g = grid.params;
+  std::vector<uint32_t> out = cell_references(grid, cell);
+  if ((g.flags & shared::kGridSpill) == 0u || grid.spill_heads.empty()) return out;
+  // The walks of the trace's test_spilled and test_compact_cell (reference/trace.cpp): one bound of
+  // the list's capacity over both of a cell's lists
+  uint32_t k = 0;
+  const auto walk = [&](uint32_t e) {
+    for (; e != shared::kSpillEnd && k < grid.spill_header.capacity; ++k, e = grid.spill[e].next)
+      out.push_back(grid.spill[e].ref);
+  };
+  if ((g.flags & shared::kGridCompact) != 0u) {
+    const glm::uvec3 lo(grid.spill_heads[0], grid.spill_heads[1], grid.spill_heads[2]);
+    const glm::uvec3 hi(grid.spill_heads[4], grid.spill_heads[5], grid.spill_heads[6]);
+    if (shared::region_contains(cell, lo, hi))
+      walk(grid.spill_heads[shared::compact_head_index(shared::region_index(cell, lo, hi))]);
+    return out;
+  }
+  if (cell_status(grid, cell) == 0u) return out;
+  for (bool dynamic : {false, true})
+    walk(grid.spill_heads[shared::spill_head_index(shared::cell_linear_index(g, cell), dynamic)]);
+  return out;
+}
+
 uint32_t cell_status(const GridData& grid, glm::uvec3 cell) {
   // The compact layout drops nothing: no cell is saturated
   if ((grid.params.flags & shared::kGridCompact) != 0u) return 0u;

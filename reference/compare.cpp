@@ -220,7 +220,7 @@ Difference classify_difference(const GridData& grid, const Ray& ray, const Hit& 
            sh::triangle_overlaps_cell(g, tri.v0, tri.v1, tri.v2, n, c);
   };
   const auto stored = [&](glm::uvec3 c) {
-    for (uint32_t v : cell_references(grid, c))
+    for (uint32_t v : cell_traced_references(grid, c))
       if (v == w_ref) return true;
     return false;
   };
