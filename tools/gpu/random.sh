@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Scenes nobody tuned for (tools/random_scenes.py) through `gridrt diff` on the GPU machine: the
+# reference against the shaders, bit for bit, validation on, both traversals with the GPU frame's
+# passes (tools/random_diff.sh; the gpu build has no Embree, so no verify). Staged as
+# tools/gpu/speed-and-trust.sh says, plus the scenes' caches (the gpu build reads no texture file):
+#   python3 tools/random_scenes.py /tmp/rs 40 1
+#   mkdir /tmp/rsg; for s in /tmp/rs/rand-*.json; do gridrt convert $s -o /tmp/rsg/$(basename $s .json).gridscene; done
+#   pack.sh ... -- /tmp/rsg     (staged as .gpu/extra/rsg; RS=rs for a folder of scene files)
+# There: bash tools/gpu/random.sh (G=.gpu by default); log in $OUT/random.txt.
+set -u
+G=${G:-.gpu}
+out=${OUT:-/tmp/gridrt-out}
+mkdir -p "$out"
+source "$G/env.sh"
+E=$G/extra
+export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
+{
+  nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
+  VERIFY=0 GRIDRT=gridrt bash tools/random_diff.sh "$E/${RS:-rsg}" "${WIDTH:-480}" "${HEIGHT:-270}"
+} 2>&1 | tee "$out/random.txt"
