@@ -22,6 +22,7 @@ Grid overrides, sometimes: a resolution, or a small capacity (saturated cells, t
 The scene's scale is 10^-3 to 10^4 and its centre up to 10^4 scale-widths from the origin (at most
 4e6: the camera stays inside the ray domain).
 """
+import json
 import math
 import os
 import random
@@ -160,7 +161,8 @@ def part_stairs(R):
     return V, F
 
 
-PARTS = ["soup", "room", "terrain", "sphere", "needles", "cards", "stairs"]
+PARTS = {"soup": part_soup, "room": part_room, "terrain": part_terrain, "sphere": part_sphere,
+         "needles": part_needles, "cards": part_cards, "stairs": part_stairs}
 
 
 def write_mask(path, R):
@@ -178,7 +180,7 @@ def scene(out, seed):
     # (within 2^22 of the origin, so the camera stays inside the ray domain's 2^24)
     centre = [max(-4e6, min(4e6, R.choice([0.0, 1.0, 100.0, 1e4]) * scale * R.uniform(-1, 1))) for _ in range(3)]
     meshes, instances, made = {}, [], []
-    for k, kind in enumerate(R.sample(PARTS, R.randint(1, 4))):
+    for kind in R.sample(list(PARTS), R.randint(1, 4)):
         file = "%s-%s.obj" % (name, kind)
         if kind == "cards":
             V, F, VT = part_cards(R)
@@ -188,7 +190,7 @@ def scene(out, seed):
                 f.write("newmtl card\nKd 0.7 0.6 0.3\nmap_d %s\n" % mask)
             obj_write(os.path.join(out, file), V, F, "%s.mtl" % name, "card", VT)
         else:
-            V, F = globals()["part_" + kind](R)
+            V, F = PARTS[kind](R)
             obj_write(os.path.join(out, file), V, F)
         meshes[kind] = {"file": file}
         made.append(kind)
@@ -230,7 +232,6 @@ def scene(out, seed):
         doc["grid"] = {"capacity": R.choice([1, 2, 4])}
     elif g < 0.3:
         doc["grid"] = {"resolution": [R.randint(1, 80) for _ in range(3)]}
-    import json
     with open(os.path.join(out, name + ".json"), "w") as f:
         json.dump(doc, f, indent=1)
     return name
