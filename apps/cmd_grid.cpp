@@ -43,7 +43,7 @@ struct GridVerbOptions {
 
 void add_common(CLI::App* cmd, GridVerbOptions& o) {
   add_scene_argument(cmd, o.scene);
-  add_image_size(cmd, o.width, o.height, "of the gather buffer");
+  add_image_size(cmd, o.width, o.height, "of the gather buffer that --measure and --pixel trace (only with one of them)");
   cmd->add_option("--time,-t", o.time, "Scene time in seconds")->check(CLI::Range(-1.0e6f, 1.0e6f));
   add_backend_options(cmd, o.backend_options, /*vulkan=*/false);  // the CPU reference's grid only
 }

@@ -310,6 +310,7 @@ struct Row {
   Accuracy acc;
   // Differing rays by cause (reference::classify_difference; CPU rows only), and the measured work
   std::array<size_t, 9> why{};
+  bool classified = false;  // `why` was counted (a CPU row): the CSV leaves a Vulkan row's causes empty
   float padding = 0.0f;  // the AABB padding the grid was built with
   // Whether --max-image-dimension shaped the grid: not on the compact layout the trace-cost policy
   // chose (no image, and no limit weighed: max_dim "-"), as the other verbs refuse it there
@@ -434,7 +435,7 @@ void write_outputs(const std::string& dir, const std::string& stem, const std::s
       using D = reference::Difference;
       for (D d : {D::skipped_cell, D::window, D::dropped, D::reported_early, D::tested, D::grid_nearer, D::gap_fill,
                   D::tie})
-        csv << "," << r.why[size_t(d)];
+        csv << "," << (r.classified ? std::to_string(r.why[size_t(d)]) : std::string());  // empty: not classified
       csv << "\n";
     }
     write_file_atomically(dir + "/" + stem + ".csv", "CSV table", csv.str());
@@ -589,9 +590,11 @@ bool measure_row(const SweepOptions& o, const Scene& scene, const std::vector<Ra
 #endif
   row.acc = accuracy(want, got);
   row.work = reference::measured_work(rays, got);
-  if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get()))
+  if (auto* ref = dynamic_cast<reference::ReferenceGridTracer*>(tracer.get())) {
     for (size_t i = 0; i < rays.size(); ++i)
       row.why[size_t(reference::classify_difference(ref->data(), rays[i], got[i], want[i]))] += 1;
+    row.classified = true;
+  }
   return true;
 }
 #endif
