@@ -10,6 +10,7 @@ pkgs=(build-essential cmake ninja-build pkg-config
       vulkan-tools glslang-tools spirv-tools catch2 libopenimageio-dev openimageio-tools
       libtinyobjloader-dev libtinygltf-dev nlohmann-json3-dev libcli11-dev libbenchmark-dev
       fonts-dejavu-core
+      python3  # tools/random_scenes.py: the test of generated scenes
       clang-14 libclang-rt-14-dev
       chromium)  # chromium: the test that loads explain's HTML viewer in a headless browser
 missing=()
