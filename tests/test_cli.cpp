@@ -209,9 +209,15 @@ TEST_CASE("CLI: render --view pictures agree with what the grid does", "[cli][vi
     return r.output;
   };
   auto count = [](const std::string& output) {  // "view NAME: K of N rays"
-    const size_t p = output.find("view ");
-    const size_t colon = output.find(": ", p);
-    return std::stoul(output.substr(colon + 2));
+    // that line, not a progress line ("view NAME: 50.0% ...") a slow machine prints first
+    for (size_t p = output.find("view "); p != std::string::npos; p = output.find("view ", p + 1)) {
+      const size_t colon = output.find(": ", p);
+      if (colon == std::string::npos) break;
+      const std::string rest = output.substr(colon + 2, output.find('\n', colon) - colon - 2);
+      if (rest.find('%') == std::string::npos && rest.find(" of ") != std::string::npos) return std::stoul(rest);
+    }
+    FAIL("no 'view NAME: K of N rays' line");
+    return 0ul;
   };
   // Saturation only where the capacity is too small; gap-fill and the spill list answer only there,
   // and only when they are on.
@@ -867,10 +873,14 @@ TEST_CASE("Outside sweep: a crowded cell is warned of, and a tiny model keeps a 
     INFO(r.output);
     CHECK(r.exit_code == 0);
     CHECK_THAT(r.output, !Catch::Contains("densest cell holds"));
-    const size_t at = r.output.find("grid: "), occ = r.output.find("occupancy (");
-    REQUIRE(at != std::string::npos);
+    // The grid's line, "grid: X x Y x Z cells of ...": not the progress line "grid: weighing ..."
+    // that a slow machine prints first (a CI rehearsal's failure)
+    const size_t end = r.output.find(" cells of"), occ = r.output.find("occupancy (");
+    REQUIRE(end != std::string::npos);
     REQUIRE(occ != std::string::npos);
-    cells[k] = r.output.substr(at, r.output.find(" cells of", at) - at);
+    const size_t at = r.output.rfind("grid: ", end);
+    REQUIRE(at != std::string::npos);
+    cells[k] = r.output.substr(at, end - at);
     occupancy[k] = r.output.substr(occ, r.output.find('\n', occ) - occ);
   }
   // the tiny sheet's grid is the unit sheet's, scaled: the same cells, the same occupancy
