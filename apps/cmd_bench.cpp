@@ -49,7 +49,9 @@ struct BenchOptions {
   uint32_t width = 1920, height = 1080;
   uint32_t frames = 20, warmup = 3;
   uint32_t back_to_back = 8;  // vulkan: also time frames recorded this many times per submission
-  std::string rays = "auto";       // the traced rays: auto, glossy (the frame's), or a kind (rays_of_kind)
+  std::string rays = "auto";       // the traced rays: auto, glossy (the frame's), glossy-list, or a kind (rays_of_kind)
+  std::string ray_order = "given";  // a fixed list's order: given, or sorted (coherent_ray_order)
+  bool ray_order_set = false;       // --ray-order given on the command line (refused for the frame's rays)
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
   std::string gather_lists = "buckets";  // vulkan, compute gather: the tile lists' passes
   std::vector<std::string> frame_knobs;  // the frame's own options given (refused where --rays auto finds no frame)
@@ -894,17 +896,29 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
   if (!counters_json.empty()) out["backends"][name]["trace_counters"] = counters_json;
 }
 
+// A fixed list in the order --ray-order asks: as made, or sorted (coherent_ray_order: neighbours by
+// direction and origin); every backend gets the one list, so the hits compare ray by ray.
+std::vector<Ray> in_order(std::vector<Ray> rays, const std::string& order) {
+  if (order != "sorted") return rays;
+  const std::vector<uint32_t> perm = coherent_ray_order(rays);
+  std::vector<Ray> sorted(rays.size());
+  for (size_t k = 0; k < perm.size(); ++k) sorted[k] = rays[perm[k]];
+  return sorted;
+}
+
 void run_bench(const BenchOptions& options) {
   // The command line is checked before any work (exit 2): the backends and the rays' kind
   for (const std::string& b : options.backends)
     if (const std::vector<std::string> known = backend_names(); std::find(known.begin(), known.end(), b) == known.end())
       throw OptionsError("--backend: unknown backend '" + b + "' (this build has: " + backend_list() + ")");
 #ifdef GRIDRT_HAVE_EMBREE
-  if (!verify::is_ray_kind(options.rays))
-    throw OptionsError("--rays: unknown kind '" + options.rays + "' (" + verify::ray_kind_list() + ")");
+  if (!verify::is_ray_kind(options.rays) && options.rays != "glossy-list")
+    throw OptionsError("--rays: unknown kind '" + options.rays + "' (" + verify::ray_kind_list() + ", glossy-list)");
 #else
-  if (options.rays != "auto" && options.rays != "glossy" && options.rays != "primary" && options.rays != "camera")
-    throw OptionsError("--rays: '" + options.rays + "' needs the Embree backend (this build has none): auto, glossy or primary");
+  if (options.rays != "auto" && options.rays != "glossy" && options.rays != "glossy-list" && options.rays != "primary" &&
+      options.rays != "camera")
+    throw OptionsError("--rays: '" + options.rays + "' needs the Embree backend (this build has none): auto, glossy, "
+                       "glossy-list or primary");
 #endif
   check_frame_size(options.width, options.height);
   if (!options.json.empty()) check_output_path(options.json);  // before the benchmark, not after it
@@ -944,6 +958,11 @@ void run_bench(const BenchOptions& options) {
     throw Error("bench: " + scene.name + " has no glossy material, so its frame has no glossy bounce rays: "
                 "choose --rays primary, diffuse or a verify family");
   const std::string kind = frame_rays ? "glossy bounce" : (o.rays == "auto" ? "diffuse" : o.rays);
+  // --ray-order orders a fixed list; the frame's own rays are traced in its pixel tiles
+  if (frame_rays && o.ray_order_set)
+    throw OptionsError("--ray-order " + o.ray_order + " orders a fixed list of rays; the frame traces its glossy bounce "
+                       "rays in its own pixel tiles: give --rays glossy-list (the same rays of one frame as a list) "
+                       "or another kind");
   if (o.rtx && !frame_rays)
     throw Error("--rtx traces the frame's glossy bounce rays: it needs --rays glossy (or auto) on a scene with a glossy material");
   // --rays auto on a scene without a glossy material traces diffuse rays as a list, without the
@@ -958,7 +977,16 @@ void run_bench(const BenchOptions& options) {
   reference::ReferenceGridTracer gather_tracer(plan::gather_options(grid_options_for(o.backend_options, scene)));
   size_t bounce_count = 0;
   std::vector<Ray> given;  // the fixed rays of a kind (not frame_rays)
-  if (!frame_rays) {
+  FrameGathers gathers(o, scene, gather_tracer);
+  if (o.rays == "glossy-list") {
+    // The glossy bounce rays of frame 0's gather, the CPU reference's (as the CPU backends trace
+    // them in the frame), the real ones as a list: no Embree needed
+    for (const Ray& r : bounce_rays(scene, gathers.at(0), 0))
+      if (!is_unused(r)) given.push_back(r);
+    if (given.empty()) throw Error("bench: " + scene.name + " has no glossy bounce ray (no glossy material in view?)");
+    given = in_order(std::move(given), o.ray_order);
+    bounce_count = given.size();
+  } else if (!frame_rays) {
 #ifdef GRIDRT_HAVE_EMBREE
     reference::GridOptions aim = grid_options_for(o.backend_options, scene);
     aim.traversal = reference::Traversal::exact;
@@ -968,6 +996,7 @@ void run_bench(const BenchOptions& options) {
     embree.build(scene, 0.0f);
     given = verify::rays_of_kind(kind, scene, aimer.data(), embree, o.width, o.height);
     if (given.empty()) throw Error("bench: " + scene.name + " gives no " + kind + " rays");
+    given = in_order(std::move(given), o.ray_order);
     bounce_count = given.size();
 #else
     // Without the oracle only the camera rays can be made: verify's camera family (a 16:9 grid of
@@ -975,10 +1004,10 @@ void run_bench(const BenchOptions& options) {
     if (kind != "primary" && kind != "camera")
       throw Error("bench: --rays " + kind + " needs the Embree backend (this build has none): use --rays glossy or primary");
     given = camera_grid_rays(scene.frame_camera(), size_t(o.width) * o.height);
+    given = in_order(std::move(given), o.ray_order);
     bounce_count = given.size();
 #endif
   }
-  FrameGathers gathers(o, scene, gather_tracer);
   if (cpu_rays && frame_rays) {
     const std::vector<Ray> r = bounce_rays(scene, gathers.at(0), 0);
     bounce_count = size_t(std::count_if(r.begin(), r.end(), [](const Ray& ray) { return !is_unused(ray); }));
@@ -995,7 +1024,8 @@ void run_bench(const BenchOptions& options) {
               "%u frames after %u warm-up\n",
               scene.name.c_str(), (unsigned long long)scene.triangle_count(), scene.instances.size(),
               scene.instances.size() - scene.static_instance_count(), o.width, o.height,
-              cpu_rays ? std::to_string(bounce_count).c_str() : "(GPU gather)", kind.c_str(), o.frames, o.warmup);
+              cpu_rays ? std::to_string(bounce_count).c_str() : "(GPU gather)",
+              (kind + (o.ray_order == "sorted" ? " (sorted by direction, then origin)" : "")).c_str(), o.frames, o.warmup);
   std::printf("machine: %u hardware threads; effects the scene calls for: alpha keying %s, update %s, glossy %s, shadows %s\n",
               std::thread::hardware_concurrency(), features.alpha_keying ? "yes" : "no", features.update ? "yes" : "no",
               features.glossy ? "yes" : "no", features.shadows ? "yes" : "no");
@@ -1006,6 +1036,7 @@ void run_bench(const BenchOptions& options) {
   out["height"] = o.height;
   out["rays_per_frame"] = bounce_count;
   out["rays"] = kind;
+  out["ray_order"] = frame_rays ? "tiles" : o.ray_order;
   out["frames"] = o.frames;
   if (cpu_rays)
     std::printf("\n| backend | device | clock | build ms | update ms (median) | trace ms (median) | Mrays/s | grid MiB |\n"
@@ -1049,7 +1080,12 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--rays", o->rays,
                   "The traced rays: auto (the frame's glossy bounce rays, else diffuse bounces), glossy, primary, "
                   "diffuse, or a verify family (random, surface, edge, ...); a kind other than glossy is one fixed set "
-                  "of about WIDTH x HEIGHT rays, handed to every backend (vulkan included) each frame");
+                  "of about WIDTH x HEIGHT rays, handed to every backend (vulkan included) each frame; glossy-list: the "
+                  "glossy bounce rays of frame 0's gather (the CPU reference's) as such a list");
+  add_choice(cmd, "--ray-order", o->ray_order, {"given", "sorted"},
+                  "A fixed list's order (--rays other than the frame's): given (as made: pixel rows for glossy-list, "
+                  "diffuse and primary) or sorted (by direction, then origin: neighbouring rays walk alike; "
+                  "the hits are the same, per ray)");
   CLI::Option* rtx =
       cmd->add_flag("--rtx", o->rtx,
                     "Vulkan: the device's ray tracing pipeline (VK_KHR_ray_tracing_pipeline) side by side: each frame, "
@@ -1103,6 +1139,7 @@ void add_bench_command(CLI::App& app) {
     if (cmd->count("--gather-lists") > 0 && o->gather != "compute")
       throw OptionsError("--gather-lists chooses the compute gather's tile lists; --gather " + o->gather +
                          " has none: it does nothing (leave one out)");
+    o->ray_order_set = cmd->count("--ray-order") > 0;
     o->frame_knobs.clear();
     for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--counter-frames", "--back-to-back"})
       if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0) o->frame_knobs.push_back(name);

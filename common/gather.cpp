@@ -15,6 +15,62 @@
 
 namespace gridrt {
 
+namespace {
+
+// 7 bits to every third bit of 21.
+uint32_t spread3_7(uint32_t v) {
+  uint32_t out = 0;
+  for (uint32_t b = 0; b < 7; ++b) out |= ((v >> b) & 1u) << (3 * b);
+  return out;
+}
+
+// The direction's face of the cube (the axis of its largest component, and its sign) and its cell
+// of 16 x 16 on that face: 6 * 256 bins, 11 bits.
+uint32_t direction_bin(glm::vec3 d) {
+  const glm::vec3 a = glm::abs(d);
+  const int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
+  const float m = a[axis];
+  const float u = d[(axis + 1) % 3] / m, v = d[(axis + 2) % 3] / m;  // in [-1, 1]
+  const uint32_t face = uint32_t(axis * 2 + (d[axis] < 0.0f ? 1 : 0));
+  const uint32_t iu = uint32_t(std::clamp((u + 1.0f) * 8.0f, 0.0f, 15.0f));
+  const uint32_t iv = uint32_t(std::clamp((v + 1.0f) * 8.0f, 0.0f, 15.0f));
+  return (face * 16u + iu) * 16u + iv;
+}
+
+bool finite3(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+}  // namespace
+
+std::vector<uint32_t> coherent_ray_order(std::span<const Ray> rays) {
+  auto usable = [](const Ray& r) { return !is_unused(r) && finite3(r.org) && finite3(r.dir) && r.dir != glm::vec3(0.0f); };
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  for (const Ray& r : rays)
+    if (usable(r)) {
+      lo = glm::min(lo, r.org);
+      hi = glm::max(hi, r.org);
+    }
+  const glm::vec3 extent = glm::max(hi - lo, glm::vec3(std::numeric_limits<float>::min()));
+  std::vector<std::pair<uint32_t, uint32_t>> keyed(rays.size());
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Ray& r = rays[i];
+    uint32_t key = 0xFFFFFFFFu;
+    if (usable(r)) {
+      // The origin's lattice cell, in double: an extent near float's largest does not overflow
+      uint32_t m = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double f = (double(r.org[a]) - double(lo[a])) / double(extent[a]) * 128.0;
+        m |= spread3_7(uint32_t(std::clamp(f, 0.0, 127.0))) << a;
+      }
+      key = direction_bin(r.dir) << 21 | m;
+    }
+    keyed[i] = {key, uint32_t(i)};
+  }
+  std::stable_sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<uint32_t> order(rays.size());
+  for (size_t k = 0; k < keyed.size(); ++k) order[k] = keyed[k].second;
+  return order;
+}
+
 glm::vec2 pixel_random(uint32_t x, uint32_t y, uint32_t frame) { return shared::pixel_random(x, y, frame); }
 
 float cone_cos_max(float glossiness) {

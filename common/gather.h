@@ -65,6 +65,13 @@ bool shadows_for(ShadowMode mode, const Scene& scene);
 // Throws Error if the scene has more lights than shadow rays are traced to (kMaxShadowLights).
 void check_shadow_lights(const Scene& scene);
 
+// An order of a ray list in which neighbouring rays walk alike (bench --ray-order sorted): by a
+// 32-bit key, the direction's cell on a cube of 16 x 16 cells a face (11 bits), then the origin's
+// cell on a lattice of 128 per axis over the used rays' origins, in Morton order (21 bits); equal
+// keys keep the list's order, and the empty rays (is_unused) and rays with a non-finite origin or
+// direction come last. Returns the permutation: ray order[k] goes k-th.
+std::vector<uint32_t> coherent_ray_order(std::span<const Ray> rays);
+
 // The per-pixel random numbers of bounce_rays: two uniform floats in [0, 1).
 glm::vec2 pixel_random(uint32_t x, uint32_t y, uint32_t frame);
 

@@ -1,8 +1,10 @@
 // test_gather.cpp: gather buffer, bounce rays and shading.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "gridrt/common/builtin/builtin.h"
 #include "gridrt/common/camera.h"
@@ -298,4 +300,94 @@ TEST_CASE("bench: the CPU's rows trace each frame's own rays, from a gather at t
   CHECK(j["backends"]["cpu"]["shadow_rays"].get<size_t>() == last);
   CHECK(j["rays_per_frame"].get<size_t>() == first);
   std::filesystem::remove(json);
+}
+
+TEST_CASE("coherent_ray_order: a permutation, stable, the empty and broken rays last, rays grouped by direction",
+          "[unit]") {
+  // Rays from random origins in random directions, with empty rays (is_unused) and rays with a NaN
+  // or infinite component among them
+  std::vector<Ray> rays;
+  uint32_t state = 12345u;
+  const auto next = [&] {
+    state = state * 1664525u + 1013904223u;
+    return float(state >> 8) / float(1u << 24) * 2.0f - 1.0f;  // [-1, 1)
+  };
+  std::vector<bool> broken;
+  for (int i = 0; i < 2000; ++i) {
+    Ray r = gridtest::make_ray(glm::vec3(next(), next(), next()) * 100.0f, glm::vec3(next(), next(), next()));
+    bool bad = false;
+    if (i % 97 == 0) {
+      r.tmin = r.tmax = 0.0f;  // empty
+      bad = true;
+    } else if (i % 131 == 0) {
+      r.org.y = std::numeric_limits<float>::quiet_NaN();
+      bad = true;
+    } else if (i % 173 == 0) {
+      r.dir.x = std::numeric_limits<float>::infinity();
+      bad = true;
+    } else if (r.dir == glm::vec3(0.0f)) {
+      bad = true;
+    }
+    rays.push_back(r);
+    broken.push_back(bad);
+  }
+  const std::vector<uint32_t> order = coherent_ray_order(rays);
+  REQUIRE(order.size() == rays.size());
+  std::vector<uint32_t> seen(order);
+  std::sort(seen.begin(), seen.end());
+  for (uint32_t i = 0; i < seen.size(); ++i) REQUIRE(seen[i] == i);  // a permutation
+  CHECK(coherent_ray_order(rays) == order);                          // deterministic
+  const size_t bad_count = size_t(std::count(broken.begin(), broken.end(), true));
+  REQUIRE(bad_count > 20);
+  // The broken rays last, in their given order
+  for (size_t k = 0; k < order.size(); ++k) CHECK(broken[order[k]] == (k >= order.size() - bad_count));
+  for (size_t k = order.size() - bad_count + 1; k < order.size(); ++k) CHECK(order[k - 1] < order[k]);
+  // The usable rays by the direction's cube face (the key's highest part): the face of the largest
+  // component and its sign, never decreasing along the order
+  const auto face = [](glm::vec3 d) {
+    const glm::vec3 a = glm::abs(d);
+    const int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
+    return axis * 2 + (d[axis] < 0.0f ? 1 : 0);
+  };
+  for (size_t k = 1; k < order.size() - bad_count; ++k) CHECK(face(rays[order[k - 1]].dir) <= face(rays[order[k]].dir));
+  // Equal rays keep their order: a list of one ray repeated is left as it is
+  const std::vector<Ray> same(50, rays[1]);
+  const std::vector<uint32_t> same_order = coherent_ray_order(same);
+  for (uint32_t k = 0; k < same_order.size(); ++k) CHECK(same_order[k] == k);
+  CHECK(coherent_ray_order(std::vector<Ray>{}).empty());
+}
+
+TEST_CASE("bench --ray-order sorted: the same rays and hits as in the given order, and only for a fixed list",
+          "[cli][bench]") {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path();
+  const auto run = [&](const std::string& order) {
+    const std::filesystem::path json = dir / ("gridrt-bench-order-" + order + ".json");
+    const gridrt::test::Run r = gridrt::test::run_tool(
+        "bench builtin:atrium --backend cpu --traversal exact --rays glossy-list --ray-order " + order +
+        " --width 48 --height 27 --frames 1 --warmup 0 --json " + json.string());
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    CHECK((r.output.find("sorted by direction, then origin") != std::string::npos) == (order == "sorted"));
+    std::ifstream in(json);
+    const nlohmann::json j = nlohmann::json::parse(in);
+    std::filesystem::remove(json);
+    return j;
+  };
+  const nlohmann::json given = run("given"), sorted = run("sorted");
+  CHECK(sorted["ray_order"] == "sorted");
+  CHECK(given["ray_order"] == "given");
+  // The same rays (every glossy pixel's, the empty ones left out) and, ray by ray, the same hits:
+  // the counters' means over them agree exactly (sums of integers)
+  REQUIRE(given["rays_per_frame"].get<size_t>() > 100);
+  CHECK(sorted["rays_per_frame"] == given["rays_per_frame"]);
+  const nlohmann::json& a = given["backends"]["cpu"]["trace_counters"];
+  const nlohmann::json& b = sorted["backends"]["cpu"]["trace_counters"];
+  CHECK(a["cells_mean"].get<double>() == b["cells_mean"].get<double>());
+  CHECK(a["tests_mean"].get<double>() == b["tests_mean"].get<double>());
+  CHECK(a["tests_max"].get<double>() == b["tests_max"].get<double>());
+  // The frame traces its own rays in its pixel tiles: no order to choose there (exit 2)
+  const gridrt::test::Run frame = gridrt::test::run_tool("bench builtin:atrium --backend cpu --ray-order sorted --frames 1");
+  INFO(frame.output);
+  CHECK(frame.exit_code == 2);
+  CHECK(frame.output.find("orders a fixed list") != std::string::npos);
 }
