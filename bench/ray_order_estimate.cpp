@@ -149,6 +149,25 @@ int main(int argc, char** argv) {
               }
       report("tiles (the frame's)", tiles);
       report("rows (real rays only)", real);
+      // Blocks of B x B pixels, each block's rays sorted by coherent_ray_order within it (the empty
+      // pixels last: whole subgroups of them idle at once), a workgroup per block
+      for (uint32_t B : {8u, 16u, 32u}) {
+        std::vector<uint32_t> order;
+        for (uint32_t by = 0; by < height; by += B)
+          for (uint32_t bx = 0; bx < width; bx += B) {
+            std::vector<uint32_t> idx;
+            std::vector<Ray> block;
+            for (uint32_t y = by; y < std::min(height, by + B); ++y)
+              for (uint32_t x = bx; x < std::min(width, bx + B); ++x) {
+                idx.push_back(y * width + x);
+                block.push_back(rays[y * width + x]);
+              }
+            for (uint32_t k : coherent_ray_order(block)) order.push_back(is_unused(block[k]) ? kIdle : idx[k]);
+            while (order.size() % subgroup != 0) order.push_back(kIdle);
+          }
+        const std::string name = "blocks of " + std::to_string(B) + "x" + std::to_string(B) + ", sorted within";
+        report(name.c_str(), order);
+      }
       auto cell = [&](uint32_t i) { return shared::cell_of_point(g, rays[i].org); };
       auto sorted_by = [&](auto key) {
         std::vector<std::pair<uint64_t, uint32_t>> kv;
