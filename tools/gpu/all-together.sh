@@ -16,12 +16,7 @@
 #          skipping, spill list, rasterizer gather) beside the RT pipeline, with the shadow pass
 #          (the scenes' light) and without; and with the plane/sphere cell test.
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
-export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv,noheader | tee "$out/device.txt"
 scenes=(sibenik-teapots sponza-teapots ons-reborn-teapot)
 case ${PART:-all} in

@@ -13,12 +13,7 @@
 #   bench: per scene, the frame with the box gather and with the rasterizer, one after the other
 #          in this one run (exact traversal, compute build, medians of 30 frames after 5)
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
-export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv,noheader | tee "$out/device.txt"
 scenes=(sibenik-teapots sponza-teapots ons-reborn-teapot)
 case ${PART:-all} in

@@ -6,12 +6,7 @@
 # meshes: python3 tools/hostile_meshes.py /tmp/hm; pack.sh ... -- /tmp/hm/*.obj
 # There: bash tools/gpu/hostile.sh (G=.gpu by default); log in $OUT/hostile.txt.
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
-export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 {
   nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
   for m in soup needles scalemix uvsphere coplanar lattice flat tjunction faraway slivers cone300 prisms; do

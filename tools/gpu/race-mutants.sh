@@ -12,12 +12,7 @@
 # when a diff that reaches its code reports DIFFER (exit 3); each diff runs twice (races vary).
 # The unmutated gridrt runs the same diffs once first, as the control: they must agree.
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
-export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH  # the validation layer, staged
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | tee "$out/device.txt"
 scenes=(sibenik-teapots sponza-teapots ons-reborn-teapot)
 # The diffs that reach each mutant's code: the compute gather (every frame's); the image layout's

@@ -8,12 +8,7 @@
 #   pack.sh ... -- /tmp/rsg     (staged as .gpu/extra/rsg; RS=rs for a folder of scene files)
 # There: bash tools/gpu/random.sh (G=.gpu by default); log in $OUT/random.txt.
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
-export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 {
   nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
   VERIFY=0 GRIDRT=gridrt bash tools/random_diff.sh "$E/${RS:-rsg}" "${WIDTH:-480}" "${HEIGHT:-270}"

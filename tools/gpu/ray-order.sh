@@ -9,12 +9,7 @@
 # caches). There: bash tools/gpu/ray-order.sh (G=.gpu by default; SCENES, ORDERS="sorted given" to
 # time the sorted list first, NOFRAME=1 without the frame's run); log in $OUT/ray-order.txt.
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
-export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 keep='^(bench|\| vulkan|vulkan: per traced|machine)|error'
 {
   nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv,noheader

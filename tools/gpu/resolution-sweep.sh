@@ -9,11 +9,7 @@
 #   ../shared/gpu/pack.sh build/gpu/apps/gridrt -- /tmp/gs/*.gridscene
 # There: bash tools/gpu/resolution-sweep.sh (G=.gpu by default; FRAMES=20); log in $OUT/sweep.txt.
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 [ -n "${BIN:-}" ] && chmod +x "$BIN"
 bin=${BIN:-gridrt}
 frames=${FRAMES:-20}

@@ -8,11 +8,7 @@
 # paper traversal's figures unchanged; then gridrt diff (the reference against the shaders, bit for
 # bit) with skipping on. Logs go to $OUT.
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv,noheader | tee "$out/device.txt"
 B="--backend vulkan --traversal exact --vk-build compute --rtx --frames 30 --warmup 5"
 {

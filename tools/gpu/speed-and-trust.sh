@@ -28,12 +28,7 @@
 #   untuned the bunny's primary rays, the built-in teapot and Cornell box, both binaries in turns
 #           twice; the three frames' first build split (this binary)
 set -u
-G=${G:-.gpu}
-out=${OUT:-/tmp/gridrt-out}
-mkdir -p "$out"
-source "$G/env.sh"
-E=$G/extra
-export VK_LAYER_PATH=$PWD/$E LD_LIBRARY_PATH=$PWD/$E:$LD_LIBRARY_PATH
+source "$(dirname "${BASH_SOURCE[0]}")/staged.sh"  # G, E, out, env.sh, the validation layer
 [ -f "$E/gridrt-base" ] && chmod +x "$E/gridrt-base"
 nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv,noheader | tee "$out/device.txt"
 scenes=(sibenik-teapots sponza-teapots ons-reborn-teapot)
