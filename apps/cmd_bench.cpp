@@ -984,8 +984,6 @@ void run_bench(const BenchOptions& options) {
     for (const Ray& r : bounce_rays(scene, gathers.at(0), 0))
       if (!is_unused(r)) given.push_back(r);
     if (given.empty()) throw Error("bench: " + scene.name + " has no glossy bounce ray (no glossy material in view?)");
-    given = in_order(std::move(given), o.ray_order);
-    bounce_count = given.size();
   } else if (!frame_rays) {
 #ifdef GRIDRT_HAVE_EMBREE
     reference::GridOptions aim = grid_options_for(o.backend_options, scene);
@@ -996,17 +994,17 @@ void run_bench(const BenchOptions& options) {
     embree.build(scene, 0.0f);
     given = verify::rays_of_kind(kind, scene, aimer.data(), embree, o.width, o.height);
     if (given.empty()) throw Error("bench: " + scene.name + " gives no " + kind + " rays");
-    given = in_order(std::move(given), o.ray_order);
-    bounce_count = given.size();
 #else
     // Without the oracle only the camera rays can be made: verify's camera family (a 16:9 grid of
     // about WIDTH x HEIGHT camera rays, verify/rays.cpp), which needs no Embree
     if (kind != "primary" && kind != "camera")
       throw Error("bench: --rays " + kind + " needs the Embree backend (this build has none): use --rays glossy or primary");
     given = camera_grid_rays(scene.frame_camera(), size_t(o.width) * o.height);
+#endif
+  }
+  if (!frame_rays) {
     given = in_order(std::move(given), o.ray_order);
     bounce_count = given.size();
-#endif
   }
   if (cpu_rays && frame_rays) {
     const std::vector<Ray> r = bounce_rays(scene, gathers.at(0), 0);
