@@ -57,6 +57,7 @@ struct BenchOptions {
   std::vector<std::string> frame_knobs;  // the frame's own options given (refused where --rays auto finds no frame)
   std::optional<uint32_t> gather_bucket;  // vulkan, buckets: a tile's room in pairs
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
+  uint32_t sort_bits = 0;          // vulkan: the bounce rays sorted by this many bits of their keys (0: off)
   ShadowMode shadows = ShadowMode::automatic;  // shadow rays to the lights (auto: iff the scene has some)
   uint32_t counter_frames = 5;     // vulkan: frames whose hit records are read back for the counters
   float fps = 30.0f;
@@ -288,6 +289,7 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
       t["resolve"].push_back(ft.resolve_ms);
       t["bounce"].push_back(ft.bounce_ms);
       t["trace"].push_back(ft.trace_ms);
+      if (o.sort_bits != 0u) t["sort"].push_back(ft.sort_ms);
       t["shade"].push_back(ft.shade_ms);
       t["shadow"].push_back(ft.shadow_ms);
       t["shadow_trace"].push_back(ft.shadow_trace_ms);
@@ -474,6 +476,10 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
   std::printf("| %.3f, %s | %s (%s + %s) | %s | %s | %s | %s | %s | %s | %.1f | %.1f |\n\n", build, warm,
               ms("update").c_str(), ms("clear").c_str(), ms("insert").c_str(), ms("gather").c_str(), ms("bounce").c_str(),
               ms("trace").c_str(), ms("shade").c_str(), ms("frame").c_str(), rate, mem.total, mem.frame);
+  if (o.sort_bits != 0u && t.count("sort"))
+    std::printf("sorted rays: the sort's %u passes %.3f ms of the trace's %.3f (its rays made by the bounce pass, "
+                "%.3f ms)\n\n",
+                o.sort_bits / 4u, m["sort"], m["trace"], m["bounce"]);
   if (frame.shadows() && stamps)
     std::printf("shadow pass: %zu shadow rays per frame, of %zu slots (%zu light(s) x %ux%u): rays %.3f + trace %.3f "
                 "= %.3f ms (in the frame above, between trace and shade)%s\n\n",
@@ -575,6 +581,7 @@ vulkan::FrameOptions frame_options(const BenchOptions& o, const Scene& scene) {
   fo.gather_lists = o.gather_lists == "scan" ? vulkan::GatherLists::scan : vulkan::GatherLists::buckets;
   fo.gather_bucket_capacity = o.gather_bucket;
   fo.compact_rays = o.compact_rays;
+  fo.sort_bits = o.sort_bits;
   fo.shadows = shadows_for(o.shadows, scene);
   return fo;
 }
@@ -661,7 +668,9 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               "%s gather, %s trace\n",
               device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z,
               (gp.flags & shared::kGridCompact) != 0u ? "compact, largest cell" : "capacity", gp.capacity, gather_name,
-              o.compact_rays ? "compacted" : "every-pixel");
+              o.compact_rays ? "compacted"
+              : o.sort_bits != 0u ? ("sorted by " + std::to_string(o.sort_bits) + " key bits").c_str()
+                                  : "every-pixel");
   // The shadow rays the last frame made: a slot per pixel and light, a ray where the pixel has a
   // surface facing its light (the slots were reported as rays, where the CPU counts rays: an
   // outside sweep)
@@ -709,6 +718,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   j["gather_lists"] = run.gather_pairs.buckets ? "buckets" : "scan";
   j["gather_pairs_past_buckets"] = run.gather_pairs.past;
   j["compact_rays"] = o.compact_rays;
+  j["sort_bits"] = o.sort_bits;
   j["shadows"] = frame.shadows();
   j["shadow_rays_per_frame"] = shadow_used;
   j["shadow_ray_slots_per_frame"] = frame.shadows() ? scene.lights.size() * o.width * o.height : 0;
@@ -961,8 +971,8 @@ void run_bench(const BenchOptions& options) {
   // --ray-order orders a fixed list; the frame's own rays are traced in its pixel tiles
   if (frame_rays && o.ray_order_set)
     throw OptionsError("--ray-order " + o.ray_order + " orders a fixed list of rays; the frame traces its glossy bounce "
-                       "rays in its own pixel tiles: give --rays glossy-list (the same rays of one frame as a list) "
-                       "or another kind");
+                       "rays in its own pixel tiles (--sort-rays sorts them on the GPU): give --rays glossy-list "
+                       "(the same rays of one frame as a list) or another kind");
   if (o.rtx && !frame_rays)
     throw Error("--rtx traces the frame's glossy bounce rays: it needs --rays glossy (or auto) on a scene with a glossy material");
   // --rays auto on a scene without a glossy material traces diffuse rays as a list, without the
@@ -1107,6 +1117,15 @@ void add_bench_command(CLI::App& app) {
                   "Vulkan, compute gather with --gather-lists buckets: the pairs a tile's bucket holds (default " +
                       std::to_string(vulkan::kGatherBucketDefault) + "; the pairs past it are rasterized by the past pass)")
       ->check(CLI::Range(0u, 1u << 20));
+  cmd->add_option("--sort-rays", o->sort_bits,
+                  "Vulkan: the frame's bounce rays made by a pass of their own, sorted by the top BITS bits of a key "
+                  "(the direction's cell, then the origin's) by a radix sort on the GPU, and traced in that order "
+                  "(the same rays and hits; 0, the default: the trace takes every pixel in 8x8 tiles and makes its "
+                  "ray itself)")
+      ->type_name("0|16|24|32")
+      ->check([](const std::string& v) {
+        return v == "0" || v == "16" || v == "24" || v == "32" ? std::string() : "0, 16, 24 or 32";
+      });
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");
@@ -1127,7 +1146,7 @@ void add_bench_command(CLI::App& app) {
       throw OptionsError("--back-to-back times the Vulkan frame recorded several times a submission: it needs "
                          "--backend vulkan");
     // The Vulkan frame's own knobs did nothing on the other backends (an outside sweep)
-    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--build-passes", "--counter-frames"})
+    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--build-passes", "--counter-frames"})
       if (cmd->count(name) > 0 && std::find(o->backends.begin(), o->backends.end(), "vulkan") == o->backends.end())
         throw OptionsError(std::string(name) + " is a knob of the Vulkan frame: it needs --backend vulkan");
     if (cmd->count("--gather-bucket") > 0 && (o->gather_lists == "scan" || o->gather != "compute"))
@@ -1138,13 +1157,16 @@ void add_bench_command(CLI::App& app) {
       throw OptionsError("--gather-lists chooses the compute gather's tile lists; --gather " + o->gather +
                          " has none: it does nothing (leave one out)");
     o->ray_order_set = cmd->count("--ray-order") > 0;
+    if (o->sort_bits != 0u && o->compact_rays)
+      throw OptionsError("--sort-rays sorts every pixel's bounce ray; --compact-rays traces a list of the pixels with "
+                         "a ray in the order they came: give one of them");
     o->frame_knobs.clear();
-    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--counter-frames", "--back-to-back"})
+    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--counter-frames", "--back-to-back"})
       if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0) o->frame_knobs.push_back(name);
     // ... nor with rays of a fixed kind, which every backend, vulkan included, traces as a list
     // without the frame (an outside sweep: accepted, nothing changed)
     if (o->rays != "glossy" && o->rays != "auto") {
-      for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--counter-frames", "--back-to-back", "--rtx"})
+      for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--counter-frames", "--back-to-back", "--rtx"})
         if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
           throw OptionsError(std::string(name) + " is a knob of the frame, which traces its glossy bounce rays; --rays " +
                              o->rays + " traces a fixed list of rays without it: it does nothing (leave it out, or "

@@ -50,6 +50,7 @@ struct DiffOptions {
   uint32_t ulps_t = 0;   // float fields of otherwise equal hits may differ by this many ulps in t
   float abs_uv = 0.0f;   // ... and by this much in u and v (absolute)
   bool gpu_frame = false;  // also the GPU frame's own passes: gather, bounce rays, trace
+  uint32_t sort_bits = 0;  // the GPU frame's bounce rays sorted by this many key bits before their trace (0: off)
   ShadowMode shadows = ShadowMode::automatic;  // the GPU frame's shadow pass (auto: iff the scene has lights)
   std::string validation = "on";  // on, best-practices, off
   std::string json_path, junit_path;
@@ -503,7 +504,8 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   if (!gpu_frame_)
     gpu_frame_ = std::make_unique<vulkan::VulkanFrame>(
         *gpu_, scene_,
-        vulkan::FrameOptions{.width = o_.width, .height = o_.height, .shadows = shadows_for(o_.shadows, scene_)});
+        vulkan::FrameOptions{.width = o_.width, .height = o_.height, .shadows = shadows_for(o_.shadows, scene_),
+                             .sort_bits = o_.sort_bits});
   vulkan::VulkanFrame& fr = *gpu_frame_;
   fr.render(frame);
   const uint32_t w = o_.width;
@@ -620,6 +622,19 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   std::printf("frame %u: %s\n", frame, line);
   if (!f.empty()) std::printf("  %s\n", f.c_str());
   if (fr.gather_mode() == vulkan::GatherMode::compute) diff_gather_boxes(frame, gpu_gather);
+  // The sorted rays: the order the trace took them in, checked on its own (the hits above do not
+  // depend on it)
+  std::string order_problem;
+  if (o_.sort_bits != 0u && fr.bounce()) {
+    order_problem = vulkan::ray_order_problem(fr.download_ray_order(), fr.download_ray_order_keys(), fr.download_rays(),
+                                              o_.sort_bits);
+    const std::string text = order_problem.empty()
+                                 ? "the order is a permutation of the pixels, its keys in order, ties in pixel order"
+                                 : order_problem;
+    std::printf("frame %u: sorted rays (%u key bits): %s\n", frame, o_.sort_bits, text.c_str());
+    check("frame " + std::to_string(frame) + ": the sorted rays' order", order_problem.empty(), text,
+          order_problem.empty() ? "" : "the sorted rays: " + order_problem);
+  }
   const size_t hit_mismatch = bounce.hit_mismatch + shadow.hit_mismatch - bounce.excused - shadow.excused;
   if (bounce.excused + shadow.excused > 0)
     std::printf("frame %u: %zu frame hit(s) not held to bits: their rays pass %s\n", frame,
@@ -845,6 +860,14 @@ void add_diff_command(CLI::App& app) {
                 "Also run the GPU frame's own passes (gather, bounce, trace) and compare its bounce rays "
                 "and hits, bit for bit, with the reference's from the same gather");
   add_shadows_option(cmd, o->shadows);  // the GPU frame's shadow pass (a scene of more than 8 lights: off)
+  cmd->add_option("--sort-rays", o->sort_bits,
+                  "With --gpu-frame: its bounce rays sorted on the GPU by the top BITS bits of their keys before their "
+                  "trace (0, the default: 8x8 pixel tiles); the order is checked, and the rays and hits must be the "
+                  "reference's all the same")
+      ->type_name("0|16|24|32")
+      ->check([](const std::string& v) {
+        return v == "0" || v == "16" || v == "24" || v == "32" ? std::string() : "0, 16, 24 or 32";
+      });
   add_choice(cmd, "--validation", o->validation, {"on", "best-practices", "off"},
                   "The Khronos validation layer (with synchronization validation): on (default; any message "
                   "fails the run with exit 4), best-practices (also the layer's best-practices checks), off");
@@ -858,6 +881,8 @@ void add_diff_command(CLI::App& app) {
     // Options that did nothing here, without a word (an outside sweep)
     if (cmd->get_option("--fps")->count() > 0 && o->frames <= 1)
       throw OptionsError("--fps spaces the frames of --frames: give --frames 2 or more");
+    if (cmd->get_option("--sort-rays")->count() > 0 && !o->gpu_frame)
+      throw OptionsError("--sort-rays orders the GPU frame's bounce trace: it needs --gpu-frame");
     if (cmd->get_option("--shadows")->count() > 0 && !o->gpu_frame)
       throw OptionsError("--shadows switches the GPU frame's shadow pass: it needs --gpu-frame");
     if (cmd->get_option("--fallback-cpu")->count() > 0)

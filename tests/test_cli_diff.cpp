@@ -455,3 +455,27 @@ TEST_CASE("CLI: a triangle of coordinates about 1e-38 (subnormal edges) is the s
     CHECK_THAT(r.output, Catch::Contains("AGREE"));
   }
 }
+
+TEST_CASE("CLI: diff --gpu-frame --sort-rays - the sorted bounce trace gives the reference's rays and hits",
+          "[vulkan][diff][cli][sort]") {
+  // The rays sorted on the GPU (ray_sort.comp) and traced in that order: the rays and hits bit for
+  // bit the reference's, and the order checked by diff itself, on an image of 72 x 41 pixels
+  const Run r = run_tool("diff builtin:atrium --traversal exact --vk-build compute --gpu-frame --sort-rays 24 "
+                         "--width 72 --height 41 --frames 2 --threads 2");
+  INFO(r.output);
+  CHECK(r.exit_code == 0);
+  CHECK(r.output.find("AGREE") != std::string::npos);
+  CHECK(r.output.find("0 frame hits differ in bits from the reference's trace") != std::string::npos);
+  CHECK(r.output.find("frame 1: sorted rays (24 key bits): the order is a permutation of the pixels") != std::string::npos);
+  // Where it does nothing, or cannot run: refused before any work (exit 2)
+  const Run no_frame = run_tool("diff builtin:atrium --sort-rays 32 --width 8 --height 8 --frames 1");
+  CHECK(no_frame.exit_code == 2);
+  CHECK(no_frame.output.find("needs --gpu-frame") != std::string::npos);
+  const Run odd = run_tool("diff builtin:atrium --gpu-frame --sort-rays 8 --width 8 --height 8 --frames 1");
+  CHECK(odd.exit_code == 2);
+  const Run compact = run_tool("bench builtin:atrium -b vulkan --sort-rays 32 --compact-rays --frames 1 --warmup 0");
+  CHECK(compact.exit_code == 2);
+  CHECK(compact.output.find("--compact-rays") != std::string::npos);
+  const Run cpu = run_tool("bench builtin:atrium -b cpu --sort-rays 16 --frames 1 --warmup 0");
+  CHECK(cpu.exit_code == 2);
+}

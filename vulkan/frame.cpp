@@ -96,6 +96,11 @@ struct VulkanFrame::Gpu {
   uint32_t screen_tiles = 0, pair_capacity = 0, past_capacity = 0;
   Image2D color, depth;
   std::unique_ptr<Descriptors> set, ray_list_set;
+  // The sorted rays (ray_sort.comp): keys A and B, B's values (A's are the ray list's), the counts
+  Buffer sort_keys_a, sort_keys_b, sort_values_b, sort_counts;
+  std::unique_ptr<Descriptors> sort_set;
+  std::unique_ptr<Pipeline> sort_count, sort_scatter;
+  shared::RaySortPush sort_push{};
   std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, dirs;
   std::unique_ptr<Pipeline> pairs, scan, past, fine;  // the rasterizer's tile lists and fine pass
   std::unique_ptr<Timestamps> timestamps;
@@ -401,6 +406,12 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
       !(ctx.info().buffer_int64_atomics && ctx.info().subgroup_arithmetic_ballot))
     gather_ = GatherMode::raster;
   const bool compact = bounce_ && options_.compact_rays;
+  if (options_.sort_bits != 0u && (options_.compact_rays || (options_.sort_bits != 16u && options_.sort_bits != 24u &&
+                                                              options_.sort_bits != 32u)))
+    throw Error("vulkan frame: the bounce rays are sorted by 16, 24 or 32 bits of their keys, and not with the "
+                "compacted ray list (asked: " + std::to_string(options_.sort_bits) + " bits" +
+                (options_.compact_rays ? ", with compact_rays)" : ")"));
+  const bool sorted = bounce_ && options_.sort_bits != 0u;
   gpu_ = std::make_unique<Gpu>();
   Gpu& gpu = *gpu_;
   gpu.ctx = &ctx;
@@ -454,7 +465,29 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
   gpu.image = ctx.create_buffer(pixels * 4, sb);
   const VkBufferUsageFlags list_usage = sb | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT;
   const size_t header = sizeof(shared::WorkListHeader);
-  gpu.ray_list = ctx.create_buffer(compact ? header + pixels * 4 : header, list_usage);
+  gpu.ray_list = ctx.create_buffer(compact || sorted ? header + pixels * 4 : header, list_usage);
+  if (sorted) {
+    if (pixels > UINT32_MAX - shared::kRaySortBlock) throw Error("vulkan frame: too many pixels to sort");
+    const uint32_t blocks = uint32_t((pixels + shared::kRaySortBlock - 1) / shared::kRaySortBlock);
+    // llvmpipe ends a shader's loops after 65,535 iterations in all (vulkan/grid.h): the scatter
+    // reads every block's counts in 16 turns, a loop of blocks / 16 iterations
+    if (ctx.info().driver_id == VK_DRIVER_ID_MESA_LLVMPIPE && blocks / 16u > 60000u)
+      throw Error("vulkan frame: " + std::to_string(pixels) + " pixels are too many for the ray sort on llvmpipe "
+                  "(a CPU Vulkan driver, whose shader loops end after 65,535 iterations): leave the sort off");
+    gpu.sort_keys_a = ctx.create_buffer(pixels * 4, sb);
+    gpu.sort_keys_b = ctx.create_buffer(pixels * 4, sb);
+    gpu.sort_values_b = ctx.create_buffer(pixels * 4, sb);
+    gpu.sort_counts = ctx.create_buffer(size_t(blocks) * shared::kRaySortDigits * 4, sb);
+    // The origin lattice over the grid's box
+    const shared::GridParams& g = grid.params();
+    const glm::vec3 extent = glm::max(glm::vec3(g.cells) * g.cell_size, glm::vec3(1e-30f));
+    const glm::uvec3 sg = shared::work_list_groups(blocks, 1u, ctx.info().limits.maxComputeWorkGroupCount[0]);
+    gpu.sort_push.lattice_lo = g.origin;
+    gpu.sort_push.count = uint32_t(pixels);
+    gpu.sort_push.lattice_scale = float(shared::kRaySortLattice) / extent;
+    gpu.sort_push.blocks = blocks;
+    gpu.sort_push.groups_x = sg.x;
+  }
   const bool compute = gather_ != GatherMode::raster;
   if (compute) {
     // The large triangles: a set-up record for every triangle of the geometry buffer at most
@@ -509,6 +542,12 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     vkCmdFillBuffer(cb, gpu.ray_list.buffer, 0, VK_WHOLE_SIZE, 0u);
     vkCmdFillBuffer(cb, gpu.tiles.buffer, 0, header, 0u);
   });
+  // The sorted rays' list holds every pixel, the trace's dispatch over all of them once for all
+  if (sorted) {
+    const glm::uvec3 tg = shared::work_list_groups(uint32_t(pixels), 64u, ctx.info().limits.maxComputeWorkGroupCount[0]);
+    const shared::WorkListHeader head{tg.x, tg.y, tg.z, uint32_t(pixels), 0u, 0u, 0u, 0u};
+    ctx.upload(gpu.ray_list, &head, sizeof head, 0);
+  }
 
   // The descriptor set, the pipelines (specialized: bounce, textures)
   const VkDescriptorType t = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
@@ -546,14 +585,30 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     return s;
   };
   gpu.resolve = std::make_unique<Pipeline>(ctx, "gather_resolve.comp", set.layout(), 0, spec());
-  // The bounce pass of its own only for the compacted rays (else the trace makes each pixel's ray)
-  if (compact) gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
+  // The bounce pass of its own only for the compacted or sorted rays (else the trace makes each
+  // pixel's ray)
+  if (compact || sorted) gpu.bounce = std::make_unique<Pipeline>(ctx, "bounce.comp", set.layout(), 0, spec());
   gpu.shade = std::make_unique<Pipeline>(ctx, "shade.comp", set.layout(), 0, spec());
   const uint32_t list_push = 3 * sizeof(uint32_t);
   if (compact) {
     gpu.ray_list_set = std::make_unique<Descriptors>(ctx, std::initializer_list<VkDescriptorType>{t});
     gpu.ray_list_set->bind(0, gpu.ray_list);
     gpu.ray_list_dispatch = std::make_unique<Pipeline>(ctx, "work_list_dispatch.comp", gpu.ray_list_set->layout(), list_push);
+  }
+  if (sorted) {
+    gpu.sort_set = std::make_unique<Descriptors>(
+        ctx, std::vector<VkDescriptorType>(shared::kRaySortBindingCount, t), VK_SHADER_STAGE_COMPUTE_BIT);
+    gpu.sort_set->bind(shared::kRaySortBindRays, gpu.rays);
+    gpu.sort_set->bind(shared::kRaySortBindKeysA, gpu.sort_keys_a);
+    gpu.sort_set->bind(shared::kRaySortBindKeysB, gpu.sort_keys_b);
+    gpu.sort_set->bind(shared::kRaySortBindListA, gpu.ray_list);
+    gpu.sort_set->bind(shared::kRaySortBindValuesB, gpu.sort_values_b);
+    gpu.sort_set->bind(shared::kRaySortBindCounts, gpu.sort_counts);
+    const uint32_t push = uint32_t(sizeof(shared::RaySortPush));
+    gpu.sort_count = std::make_unique<Pipeline>(ctx, "ray_sort.comp", gpu.sort_set->layout(), push,
+                                                SpecConstants().add(shared::kRaySortSpecStage, 0u));
+    gpu.sort_scatter = std::make_unique<Pipeline>(ctx, "ray_sort.comp", gpu.sort_set->layout(), push,
+                                                  SpecConstants().add(shared::kRaySortSpecStage, 1u));
   }
   if (compute) {
     gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(sizeof(shared::GatherBinPush)), spec());
@@ -571,7 +626,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     SpecConstants raster_spec = spec();
     gpu.create_raster(w, h, raster_spec.info());
   }
-  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 13);
+  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 14);
 }
 
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
@@ -586,11 +641,11 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   Context& ctx = grid_.context();
   Gpu& gpu = *gpu_;
   const uint32_t w = options_.width, h = options_.height;
-  const bool compact = bool(gpu.ray_list_dispatch);
+  const bool compact = bool(gpu.ray_list_dispatch), sorted = bool(gpu.sort_count);
   const uint32_t max_groups_x = ctx.info().limits.maxComputeWorkGroupCount[0];
   repeats = std::max(repeats, 1u);
   ctx.upload(gpu.params, &frame, sizeof frame, offsetof(shared::FrameParams, frame));
-  if (bounce_ || shadows_) grid_.bind_ray_buffers(gpu.rays, gpu.hits, compact ? &gpu.ray_list : nullptr);
+  if (bounce_ || shadows_) grid_.bind_ray_buffers(gpu.rays, gpu.hits, compact || sorted ? &gpu.ray_list : nullptr);
   if (bounce_ || shadows_) grid_.bind_frame(gpu.gather, gpu.params, gpu.materials);
   const std::vector<shared::GridInstance>& instances = grid_.instances();
   const uint32_t triangles = instances.empty() ? 0u : instances.back().tri_offset + instances.back().tri_count;
@@ -740,6 +795,30 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           vkCmdDispatch(cb, 1, 1, 1);
           barrier(cb);
           grid_.record_trace_list(cb);
+        } else if (sorted) {
+          // The pixels sorted by their rays' keys (ray_sort.comp), then traced in that order
+          gpu.bounce->bind(cb, s);
+          vkCmdDispatch(cb, groups(w, 8), groups(h, 8), 1);
+          barrier(cb);
+          if (timed) gpu.timestamps->write(cb, 4);
+          const uint32_t passes = options_.sort_bits / 4u;
+          const glm::uvec3 sg = shared::work_list_groups(gpu.sort_push.blocks, 1u, max_groups_x);
+          for (uint32_t p = 0; p < passes; ++p) {
+            shared::RaySortPush push = gpu.sort_push;
+            push.shift = 32u - options_.sort_bits + 4u * p;
+            push.parity = p & 1u;
+            push.make_keys = p == 0 ? 1u : 0u;
+            gpu.sort_count->bind(cb, gpu.sort_set->set());
+            gpu.sort_count->push(cb, push);
+            vkCmdDispatch(cb, sg.x, sg.y, 1);
+            barrier(cb);
+            gpu.sort_scatter->bind(cb, gpu.sort_set->set());
+            gpu.sort_scatter->push(cb, push);
+            vkCmdDispatch(cb, sg.x, sg.y, 1);
+            barrier(cb);
+          }
+          if (timed) gpu.timestamps->write(cb, 13);
+          grid_.record_trace_list(cb);
         } else {
           if (timed) gpu.timestamps->write(cb, 4);
           grid_.record_bounce_trace_image(cb, w, h);  // an 8x8 pixel tile a workgroup
@@ -750,6 +829,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         gpu.timestamps->write(cb, 4);
         gpu.timestamps->write(cb, 5);
       }
+      if (timed && !(bounce_ && sorted)) gpu.timestamps->write(cb, 13);  // the sort's end: none
       // Shadow rays to every light, their trace
       if (shadows_) {
         // The trace makes each pixel's shadow ray from the gather itself (no pass of its own:
@@ -791,6 +871,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     timings_.gather_ms = (ns[3] - ns[0]) * 1e-6;
     timings_.bounce_ms = (ns[4] - ns[3]) * 1e-6;
     timings_.trace_ms = (ns[5] - ns[4]) * 1e-6;
+    timings_.sort_ms = gpu.sort_count && bounce_ ? (ns[13] - ns[4]) * 1e-6 : 0.0;
     timings_.shadow_ms = shadows_ ? (ns[7] - ns[5]) * 1e-6 : 0.0;
     timings_.shadow_trace_ms = shadows_ ? (ns[7] - ns[6]) * 1e-6 : 0.0;
     timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;
@@ -865,6 +946,46 @@ GatherBuffer VulkanFrame::download_gather() const {
 
 std::vector<Ray> VulkanFrame::download_rays() const {
   return grid_.context().download<Ray>(gpu_->rays, size_t(options_.width) * options_.height);
+}
+
+std::string ray_order_problem(const std::vector<uint32_t>& order, const std::vector<uint32_t>& keys,
+                              const std::vector<Ray>& rays, uint32_t sort_bits) {
+  const size_t n = rays.size();
+  if (order.size() != n || keys.size() != n)
+    return "the order holds " + std::to_string(order.size()) + " pixels and " + std::to_string(keys.size()) +
+           " keys for " + std::to_string(n) + " rays";
+  if (sort_bits == 0u || sort_bits > 32u) return "sorted by " + std::to_string(sort_bits) + " bits";
+  const uint32_t shift = 32u - sort_bits;
+  std::vector<uint8_t> seen(n, 0);
+  for (size_t k = 0; k < n; ++k) {
+    const uint32_t p = order[k];
+    if (p >= n) return "place " + std::to_string(k) + " holds pixel " + std::to_string(p) + ", past the image";
+    if (seen[p]++) return "pixel " + std::to_string(p) + " comes twice (again at place " + std::to_string(k) + ")";
+    const bool unused = !(rays[p].tmax > 0.0f);
+    if (unused != (keys[k] == 0xFFFFFFFFu))
+      return "place " + std::to_string(k) + ": pixel " + std::to_string(p) + (unused ? " has no ray" : " has a ray") +
+             " and the key " + std::to_string(keys[k]);
+    if (k > 0) {
+      const uint64_t a = uint64_t(keys[k - 1]) >> shift, b = uint64_t(keys[k]) >> shift;
+      if (a > b || (a == b && order[k - 1] > p))
+        return "places " + std::to_string(k - 1) + " and " + std::to_string(k) + " out of order: keys " +
+               std::to_string(keys[k - 1]) + ", " + std::to_string(keys[k]) + " of pixels " +
+               std::to_string(order[k - 1]) + ", " + std::to_string(p);
+    }
+  }
+  return "";
+}
+
+std::vector<uint32_t> VulkanFrame::download_ray_order() const {
+  if (!gpu_->sort_count || !bounce_) return {};
+  const size_t n = size_t(options_.width) * options_.height;
+  const std::vector<uint32_t> words = grid_.context().download<uint32_t>(gpu_->ray_list, shared::kWorkListHeaderWords + n);
+  return std::vector<uint32_t>(words.begin() + shared::kWorkListHeaderWords, words.end());
+}
+
+std::vector<uint32_t> VulkanFrame::download_ray_order_keys() const {
+  if (!gpu_->sort_count || !bounce_) return {};
+  return grid_.context().download<uint32_t>(gpu_->sort_keys_a, size_t(options_.width) * options_.height);
 }
 
 std::vector<Hit> VulkanFrame::download_hits() const {

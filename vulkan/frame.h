@@ -20,6 +20,8 @@
 //   bounce   (compacted rays only, an option) bounce.comp: one glossy bounce ray per pixel, as
 //            bounce_rays (common/shared/bounce.h); the pixels with a ray are appended to a work
 //            list, the others get their (miss) hit at once
+//   sort     (sorted rays only, an option) ray_sort.comp: the pixels ordered by their bounce
+//            ray's direction and origin, a radix sort's passes into the ray list
 //   trace    the grid's trace pipeline: every pixel, the trace making the pixel's bounce ray
 //            itself as bounce.comp would and writing it to the ray buffer
 //            (VulkanGridTracer::record_bounce_trace_image), or the work list's rays
@@ -45,6 +47,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "gridrt/common/gather.h"
@@ -60,6 +63,8 @@ struct FrameTimings {
   double gather_ms = 0.0, bounce_ms = 0.0, trace_ms = 0.0, shade_ms = 0.0;
   // The shadow pass (0 without): its rays, then their trace (shadow_trace_ms of shadow_ms)
   double shadow_ms = 0.0, shadow_trace_ms = 0.0;
+  // The sorted rays (FrameOptions::sort_bits): the sort's passes, of trace_ms (0 without)
+  double sort_ms = 0.0;
   // The gather's parts: the visibility (raster pass, or the compute passes with the key buffer's
   // fill) and its compute passes (bin with the fill, tiles with their dispatch step), the raster
   // attachment's copy to a buffer, the resolve pass
@@ -119,6 +124,12 @@ struct FrameOptions {
   // Trace only the pixels with a bounce ray (a work list). Off: measured slower on the H200
   // (docs/BENCHMARKS.md): the empty rays cost nothing measurable, the list loses coherence.
   bool compact_rays = false;
+  // The bounce rays sorted before their trace (ray_sort.comp): 0, off (the trace takes every
+  // pixel in 8x8 tiles and makes its ray itself); 16, 24 or 32, bounce.comp makes the rays, a
+  // radix sort orders the pixels by the top sort_bits bits of each ray's key (its direction's
+  // cell, then its origin's, as coherent_ray_order keys a list), and the trace takes them in that
+  // order through the ray list. The same rays and hits either way. Not with compact_rays.
+  uint32_t sort_bits = 0;
 };
 
 // The compute gather's tile lists of the last render (GatherMode::compute; zeros otherwise).
@@ -133,6 +144,13 @@ struct GatherPairs {
   bool buckets = false;
   uint32_t bucket = 0;    // buckets: a tile's room in pairs
 };
+
+// What is wrong with a sorted ray order (VulkanFrame::download_ray_order and _keys, the frame's
+// bounce rays), "" where nothing is: the order must be a permutation of the pixels, its keys in
+// order by their top `sort_bits` bits, equal ones in the pixels' order (the radix sort is
+// stable), and a key 0xFFFFFFFF exactly where the pixel has no ray (tmax not above 0).
+std::string ray_order_problem(const std::vector<uint32_t>& order, const std::vector<uint32_t>& keys,
+                              const std::vector<Ray>& rays, uint32_t sort_bits);
 
 class VulkanFrame {
  public:
@@ -163,6 +181,11 @@ class VulkanFrame {
   // GatherMode::boxes; 0 for the raster gather).
   uint32_t download_gather_tiles() const;
   GatherPairs download_gather_pairs() const;
+
+  // The sorted rays (FrameOptions::sort_bits) of the last render: the pixels in the order the
+  // trace took them, and their keys (ray_sort.comp) in the same order. Empty without the sort.
+  std::vector<uint32_t> download_ray_order() const;
+  std::vector<uint32_t> download_ray_order_keys() const;
 
   // The device buffers of the bounce rays and hits (another tracer may trace the same rays).
   const Buffer& ray_buffer() const;

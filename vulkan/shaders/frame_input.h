@@ -178,9 +178,39 @@ SH_INLINE RayRecord frame_bounce_ray(SH_IN(CameraParams) c, uint frame, SH_IN(Ga
   return r;
 }
 
+// The bounce rays sorted before their trace (ray_sort.comp; FrameOptions::sort_bits): a
+// least-significant-digit radix sort of (key, pixel) pairs, a digit of 4 bits a pass, each pass a
+// count of the digits per block of kRaySortBlock pairs, then their stable scatter. Only the order
+// in which the trace takes the rays depends on it: each pixel's ray and hit stay the same.
+SH_CONST uint kRaySortThreads = 256u;  // invocations of a workgroup
+SH_CONST uint kRaySortItems = 8u;      // consecutive pairs an invocation takes
+SH_CONST uint kRaySortBlock = 2048u;   // pairs a workgroup takes: kRaySortThreads * kRaySortItems
+SH_CONST uint kRaySortDigits = 16u;    // values of a digit (4 bits)
+SH_CONST uint kRaySortSpecStage = 0u;  // specialization constant: 0, the count; 1, the scatter
+SH_CONST uint kRaySortLattice = 128u;  // the origin lattice's cells a side (7 bits an axis)
+SH_CONST uint kRaySortBindRays = 0u;   // the frame's rays (the bounce rays first)
+SH_CONST uint kRaySortBindKeysA = 1u;
+SH_CONST uint kRaySortBindKeysB = 2u;
+SH_CONST uint kRaySortBindListA = 3u;  // the ray list (WorkListHeader, then the pixels: A's values)
+SH_CONST uint kRaySortBindValuesB = 4u;
+SH_CONST uint kRaySortBindCounts = 5u;  // per digit, per block: kRaySortDigits x blocks, digit-major
+SH_CONST uint kRaySortBindingCount = 6u;
+
+struct RaySortPush {
+  vec3 lattice_lo;     // the origin's lattice cell: (org - lattice_lo) * lattice_scale, per axis
+  uint count;          // pairs (the image's pixels)
+  vec3 lattice_scale;
+  uint shift;          // the pass's digit: bits shift .. shift + 3 of the key
+  uint blocks;         // blocks of kRaySortBlock pairs (workgroups of a pass)
+  uint parity;         // 0: A to B; 1: B to A
+  uint make_keys;      // the first count: the keys made from the rays, A's keys and values written
+  uint groups_x;       // workgroups in a row of the dispatch (it wraps into rows past the device's limit)
+};
+
 SH_END
 
 #ifdef __cplusplus
+static_assert(sizeof(gridrt::shared::RaySortPush) == 48, "layout of RaySortPush");
 static_assert(sizeof(gridrt::shared::FrameParams) == 160, "std430 layout of FrameParams");
 static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
