@@ -289,7 +289,12 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
       t["resolve"].push_back(ft.resolve_ms);
       t["bounce"].push_back(ft.bounce_ms);
       t["trace"].push_back(ft.trace_ms);
-      if (o.sort_bits != 0u) t["sort"].push_back(ft.sort_ms);
+      if (o.sort_bits != 0u) {
+        t["sort"].push_back(ft.sort_ms);
+        t["sort_first_count"].push_back(ft.sort_first_pass_ms[0]);
+        t["sort_first_scan"].push_back(ft.sort_first_pass_ms[1]);
+        t["sort_first_scatter"].push_back(ft.sort_first_pass_ms[2]);
+      }
       t["shade"].push_back(ft.shade_ms);
       t["shadow"].push_back(ft.shadow_ms);
       t["shadow_trace"].push_back(ft.shadow_trace_ms);
@@ -478,8 +483,9 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
               ms("trace").c_str(), ms("shade").c_str(), ms("frame").c_str(), rate, mem.total, mem.frame);
   if (o.sort_bits != 0u && t.count("sort"))
     std::printf("sorted rays: the sort's %u passes %.3f ms of the trace's %.3f (its rays made by the bounce pass, "
-                "%.3f ms)\n\n",
-                o.sort_bits / 4u, m["sort"], m["trace"], m["bounce"]);
+                "%.3f ms); the first pass: count with the keys made %.3f, scan %.3f, scatter %.3f ms\n\n",
+                o.sort_bits / 4u, m["sort"], m["trace"], m["bounce"], m["sort_first_count"], m["sort_first_scan"],
+                m["sort_first_scatter"]);
   if (frame.shadows() && stamps)
     std::printf("shadow pass: %zu shadow rays per frame, of %zu slots (%zu light(s) x %ux%u): rays %.3f + trace %.3f "
                 "= %.3f ms (in the frame above, between trace and shade)%s\n\n",

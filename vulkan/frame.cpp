@@ -99,7 +99,7 @@ struct VulkanFrame::Gpu {
   // The sorted rays (ray_sort.comp): keys A and B, B's values (A's are the ray list's), the counts
   Buffer sort_keys_a, sort_keys_b, sort_values_b, sort_counts;
   std::unique_ptr<Descriptors> sort_set;
-  std::unique_ptr<Pipeline> sort_count, sort_scatter;
+  std::unique_ptr<Pipeline> sort_count, sort_scan, sort_scatter;
   shared::RaySortPush sort_push{};
   std::unique_ptr<Pipeline> resolve, bounce, shade, bin, tile_pass, ray_list_dispatch, dirs;
   std::unique_ptr<Pipeline> pairs, scan, past, fine;  // the rasterizer's tile lists and fine pass
@@ -477,7 +477,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     gpu.sort_keys_a = ctx.create_buffer(pixels * 4, sb);
     gpu.sort_keys_b = ctx.create_buffer(pixels * 4, sb);
     gpu.sort_values_b = ctx.create_buffer(pixels * 4, sb);
-    gpu.sort_counts = ctx.create_buffer(size_t(blocks) * shared::kRaySortDigits * 4, sb);
+    gpu.sort_counts = ctx.create_buffer((size_t(blocks) + 1) * shared::kRaySortDigits * 4, sb);
     // The origin lattice over the grid's box
     const shared::GridParams& g = grid.params();
     const glm::vec3 extent = glm::max(glm::vec3(g.cells) * g.cell_size, glm::vec3(1e-30f));
@@ -607,8 +607,10 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     const uint32_t push = uint32_t(sizeof(shared::RaySortPush));
     gpu.sort_count = std::make_unique<Pipeline>(ctx, "ray_sort.comp", gpu.sort_set->layout(), push,
                                                 SpecConstants().add(shared::kRaySortSpecStage, 0u));
+    gpu.sort_scan = std::make_unique<Pipeline>(ctx, "ray_sort.comp", gpu.sort_set->layout(), push,
+                                               SpecConstants().add(shared::kRaySortSpecStage, 1u));
     gpu.sort_scatter = std::make_unique<Pipeline>(ctx, "ray_sort.comp", gpu.sort_set->layout(), push,
-                                                  SpecConstants().add(shared::kRaySortSpecStage, 1u));
+                                                  SpecConstants().add(shared::kRaySortSpecStage, 2u));
   }
   if (compute) {
     gpu.bin = std::make_unique<Pipeline>(ctx, "gather_bin.comp", set.layout(), uint32_t(sizeof(shared::GatherBinPush)), spec());
@@ -626,7 +628,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     SpecConstants raster_spec = spec();
     gpu.create_raster(w, h, raster_spec.info());
   }
-  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 14);
+  if (ctx.info().timestamp_valid_bits) gpu.timestamps = std::make_unique<Timestamps>(ctx, 17);
 }
 
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
@@ -811,11 +813,19 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
             gpu.sort_count->bind(cb, gpu.sort_set->set());
             gpu.sort_count->push(cb, push);
             vkCmdDispatch(cb, sg.x, sg.y, 1);
-            barrier(cb);
+            gather_barrier(cb);  // compute to compute
+            if (timed && p == 0) gpu.timestamps->write(cb, 14);  // the first pass's split
+            push.make_keys = 0u;
+            gpu.sort_scan->bind(cb, gpu.sort_set->set());
+            gpu.sort_scan->push(cb, push);
+            vkCmdDispatch(cb, shared::kRaySortDigits, 1, 1);
+            gather_barrier(cb);  // compute to compute
+            if (timed && p == 0) gpu.timestamps->write(cb, 15);
             gpu.sort_scatter->bind(cb, gpu.sort_set->set());
             gpu.sort_scatter->push(cb, push);
             vkCmdDispatch(cb, sg.x, sg.y, 1);
-            barrier(cb);
+            gather_barrier(cb);  // compute to compute
+            if (timed && p == 0) gpu.timestamps->write(cb, 16);
           }
           if (timed) gpu.timestamps->write(cb, 13);
           grid_.record_trace_list(cb);
@@ -829,7 +839,8 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         gpu.timestamps->write(cb, 4);
         gpu.timestamps->write(cb, 5);
       }
-      if (timed && !(bounce_ && sorted)) gpu.timestamps->write(cb, 13);  // the sort's end: none
+      if (timed && !(bounce_ && sorted))
+        for (uint32_t q : {13u, 14u, 15u, 16u}) gpu.timestamps->write(cb, q);  // the sort's: none
       // Shadow rays to every light, their trace
       if (shadows_) {
         // The trace makes each pixel's shadow ray from the gather itself (no pass of its own:
@@ -871,7 +882,12 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
     timings_.gather_ms = (ns[3] - ns[0]) * 1e-6;
     timings_.bounce_ms = (ns[4] - ns[3]) * 1e-6;
     timings_.trace_ms = (ns[5] - ns[4]) * 1e-6;
-    timings_.sort_ms = gpu.sort_count && bounce_ ? (ns[13] - ns[4]) * 1e-6 : 0.0;
+    if (gpu.sort_count && bounce_) {
+      timings_.sort_ms = (ns[13] - ns[4]) * 1e-6;
+      timings_.sort_first_pass_ms[0] = (ns[14] - ns[4]) * 1e-6;
+      timings_.sort_first_pass_ms[1] = (ns[15] - ns[14]) * 1e-6;
+      timings_.sort_first_pass_ms[2] = (ns[16] - ns[15]) * 1e-6;
+    }
     timings_.shadow_ms = shadows_ ? (ns[7] - ns[5]) * 1e-6 : 0.0;
     timings_.shadow_trace_ms = shadows_ ? (ns[7] - ns[6]) * 1e-6 : 0.0;
     timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;

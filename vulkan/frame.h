@@ -65,6 +65,7 @@ struct FrameTimings {
   double shadow_ms = 0.0, shadow_trace_ms = 0.0;
   // The sorted rays (FrameOptions::sort_bits): the sort's passes, of trace_ms (0 without)
   double sort_ms = 0.0;
+  double sort_first_pass_ms[3] = {0.0, 0.0, 0.0};  // its first pass: count (the keys made), scan, scatter
   // The gather's parts: the visibility (raster pass, or the compute passes with the key buffer's
   // fill) and its compute passes (bin with the fill, tiles with their dispatch step), the raster
   // attachment's copy to a buffer, the resolve pass

@@ -180,20 +180,20 @@ SH_INLINE RayRecord frame_bounce_ray(SH_IN(CameraParams) c, uint frame, SH_IN(Ga
 
 // The bounce rays sorted before their trace (ray_sort.comp; FrameOptions::sort_bits): a
 // least-significant-digit radix sort of (key, pixel) pairs, a digit of 4 bits a pass, each pass a
-// count of the digits per block of kRaySortBlock pairs, then their stable scatter. Only the order
+// count of the digits per block of kRaySortBlock pairs, their scan, then their stable scatter. Only the order
 // in which the trace takes the rays depends on it: each pixel's ray and hit stay the same.
 SH_CONST uint kRaySortThreads = 256u;  // invocations of a workgroup
 SH_CONST uint kRaySortItems = 8u;      // consecutive pairs an invocation takes
 SH_CONST uint kRaySortBlock = 2048u;   // pairs a workgroup takes: kRaySortThreads * kRaySortItems
 SH_CONST uint kRaySortDigits = 16u;    // values of a digit (4 bits)
-SH_CONST uint kRaySortSpecStage = 0u;  // specialization constant: 0, the count; 1, the scatter
+SH_CONST uint kRaySortSpecStage = 0u;  // specialization constant: 0, the count; 1, the scan; 2, the scatter
 SH_CONST uint kRaySortLattice = 128u;  // the origin lattice's cells a side (7 bits an axis)
 SH_CONST uint kRaySortBindRays = 0u;   // the frame's rays (the bounce rays first)
 SH_CONST uint kRaySortBindKeysA = 1u;
 SH_CONST uint kRaySortBindKeysB = 2u;
 SH_CONST uint kRaySortBindListA = 3u;  // the ray list (WorkListHeader, then the pixels: A's values)
 SH_CONST uint kRaySortBindValuesB = 4u;
-SH_CONST uint kRaySortBindCounts = 5u;  // per digit, per block: kRaySortDigits x blocks, digit-major
+SH_CONST uint kRaySortBindCounts = 5u;  // per digit, per block: kRaySortDigits x blocks, digit-major; then the digits' totals
 SH_CONST uint kRaySortBindingCount = 6u;
 
 struct RaySortPush {

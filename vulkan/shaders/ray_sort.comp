@@ -5,18 +5,23 @@
 // key: the direction's cell on a cube of 16 x 16 cells a face (11 bits), then the origin's cell on
 // a lattice of 128 a side over the grid, in Morton order (21 bits), as common/gather.h's
 // coherent_ray_order keys a fixed list (over the grid's box, not the list's origins). Pixels
-// without a ray go last. The sort is a least-significant-digit radix sort of (key, pixel) pairs, 4
-// bits a pass over the key's top FrameOptions::sort_bits bits, each pass two dispatches:
+// without a ray go last.
+// The sort is a least-significant-digit radix sort of (key, pixel) pairs, 4 bits a pass over the
+// key's top FrameOptions::sort_bits bits, each pass three dispatches:
 //   count    (kRaySortSpecStage 0) a workgroup per block of kRaySortBlock pairs counts its
 //            digits into counts[digit * blocks + block]; the first pass makes the keys from the
 //            rays and writes the pairs (key, pixel) of A
-//   scatter  (kRaySortSpecStage 1) each block again: a pair's place is the pairs of smaller
-//            digits in all blocks, those of its digit in the blocks before, and those of its
-//            digit before it in its own block (each invocation's pairs consecutive: stable)
+//   scan     (1) a workgroup per digit turns its row of counts into the pairs of that digit in the
+//            blocks before (in place), and writes the digit's total after the rows
+//   scatter  (2) each block again: a pair's place is the pairs of smaller digits in all blocks,
+//            those of its digit in the blocks before, and those of its digit before it in its own
+//            block (each invocation's pairs consecutive: stable)
 // The passes go A to B, then B to A; an even number of passes ends in A, whose values are the
 // ray list the trace takes (trace.comp, kGridSpecTraceList). Only the order depends on the sort:
-// the trace writes each ray's hit at the ray's own index.
+// the trace writes each ray's hit at the ray's own index. Counting and ranking within a block go
+// through shared memory, a column per invocation: no atomics, the same on every device.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
 #include "gridrt/common/shared/compat.h"
 #include "gridrt/common/shared/records.h"
 #include "gridrt/common/shared/worklist.h"
@@ -63,18 +68,58 @@ uint ray_sort_key(RayRecord ray) {
 
 uint digit_of(uint key) { return (key >> pc.shift) & (kRaySortDigits - 1u); }
 
-shared uint block_counts[kRaySortDigits];                    // count: the block's digits
-shared uint thread_counts[kRaySortDigits * kRaySortThreads];  // scatter: [digit][invocation]
+shared uint thread_counts[kRaySortDigits * kRaySortThreads];  // [digit][invocation]
 shared uint run_sums[kRaySortThreads];
-shared uint part_before[kRaySortThreads];  // [j * 16 + digit]: counts of the blocks before, in turns j
-shared uint part_total[kRaySortThreads];
 shared uint digit_base[kRaySortDigits];
 
+// The scatter's loads: this invocation's kRaySortItems consecutive pairs of its block, and their
+// digits counted into its own column of thread_counts; returns how many lie within the pairs.
+// (The loops are unrolled so that the loads of all its pairs are in flight at once.)
+uint load_block(uint block, uint t, inout uint keys[kRaySortItems], inout uint values[kRaySortItems]) {
+  const uint first = block * kRaySortBlock + t * kRaySortItems;
+  [[unroll]] for (uint d = 0u; d < kRaySortDigits; ++d) thread_counts[d * kRaySortThreads + t] = 0u;
+  const uint n = first < pc.count ? min(pc.count - first, kRaySortItems) : 0u;
+  if (pc.parity == 0u) {
+    [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
+      keys[i] = i < n ? keys_a[first + i] : 0u;
+      values[i] = i < n ? values_a[first + i] : 0u;
+    }
+  } else {
+    [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
+      keys[i] = i < n ? keys_b[first + i] : 0u;
+      values[i] = i < n ? values_b[first + i] : 0u;
+    }
+  }
+  [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i)
+    if (i < n) thread_counts[digit_of(keys[i]) * kRaySortThreads + t] += 1u;
+  return n;
+}
+
+// Invocation t's run of 16 entries of thread_counts in its [digit][invocation] order summed:
+// digit t / 16, invocations (t % 16) * 16 and the 15 after.
+uint run_sum(uint t) {
+  uint run = 0u;
+  [[unroll]] for (uint e = 0u; e < kRaySortDigits; ++e) run += thread_counts[t * kRaySortDigits + e];
+  return run;
+}
+
+// run_sums scanned (inclusive) across the workgroup.
+void scan_run_sums(uint t) {
+  [[unroll]] for (uint off = 1u; off < kRaySortThreads; off <<= 1u) {
+    const uint add = t >= off ? run_sums[t - off] : 0u;
+    barrier();
+    run_sums[t] += add;
+    barrier();
+  }
+}
+
+// The count: each invocation counts the pairs i * kRaySortThreads + t of its block (any order
+// counts alike; neighbouring invocations read neighbouring pairs), the first pass making the
+// keys from the rays and writing A.
 void count_pass(uint block, uint t) {
-  if (t < kRaySortDigits) block_counts[t] = 0u;
-  barrier();
-  for (uint i = 0u; i < kRaySortItems; ++i) {
-    const uint idx = block * kRaySortBlock + i * kRaySortThreads + t;  // any order counts alike
+  [[unroll]] for (uint d = 0u; d < kRaySortDigits; ++d) thread_counts[d * kRaySortThreads + t] = 0u;
+  [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
+    const uint idx = block * kRaySortBlock + i * kRaySortThreads + t;
     if (idx >= pc.count) break;
     uint key;
     if (pc.make_keys != 0u) {
@@ -84,90 +129,103 @@ void count_pass(uint block, uint t) {
     } else {
       key = pc.parity == 0u ? keys_a[idx] : keys_b[idx];
     }
-    atomicAdd(block_counts[digit_of(key)], 1u);
+    thread_counts[digit_of(key) * kRaySortThreads + t] += 1u;
   }
   barrier();
-  if (t < kRaySortDigits) counts[t * pc.blocks + block] = block_counts[t];
+  run_sums[t] = run_sum(t);
+  barrier();
+  if (t < kRaySortDigits) {
+    uint total = 0u;
+    [[unroll]] for (uint j = 0u; j < kRaySortThreads / kRaySortDigits; ++j) total += run_sums[t * kRaySortDigits + j];
+    counts[t * pc.blocks + block] = total;
+  }
+}
+
+// Workgroup `digit`: its row of counts scanned in place (exclusive), its total after the rows.
+void scan_pass(uint digit, uint t) {
+  const uint per = (pc.blocks + kRaySortThreads - 1u) / kRaySortThreads;  // blocks an invocation takes
+  const uint row = digit * pc.blocks, first = t * per;
+  uint run = 0u;
+  [[unroll]] for (uint i = 0u; i < 8u; ++i)
+    if (i < per && first + i < pc.blocks) run += counts[row + first + i];
+  for (uint i = 8u; i < per && first + i < pc.blocks; ++i) run += counts[row + first + i];
+  run_sums[t] = run;
+  barrier();
+  scan_run_sums(t);
+  uint at = run_sums[t] - run;
+  for (uint i = 0u; i < per && first + i < pc.blocks; ++i) {
+    const uint c = counts[row + first + i];
+    counts[row + first + i] = at;
+    at += c;
+  }
+  if (t == kRaySortThreads - 1u) counts[kRaySortDigits * pc.blocks + digit] = run_sums[t];
 }
 
 void scatter_pass(uint block, uint t) {
-  // This invocation's pairs, consecutive in the source
   uint keys[kRaySortItems], values[kRaySortItems];
-  const uint first = block * kRaySortBlock + t * kRaySortItems;
-  for (uint d = 0u; d < kRaySortDigits; ++d) thread_counts[d * kRaySortThreads + t] = 0u;
-  for (uint i = 0u; i < kRaySortItems; ++i) {
-    const uint idx = first + i;
-    keys[i] = 0u;
-    values[i] = 0u;
-    if (idx < pc.count) {
-      keys[i] = pc.parity == 0u ? keys_a[idx] : keys_b[idx];
-      values[i] = pc.parity == 0u ? values_a[idx] : values_b[idx];
-      thread_counts[digit_of(keys[i]) * kRaySortThreads + t] += 1u;  // its own column
-    }
-  }
-  // The counts of all blocks: per digit, those before this block and all, in 16 turns
-  {
-    const uint d = t % kRaySortDigits, j = t / kRaySortDigits;
-    uint before = 0u, total = 0u;
-    for (uint b = j; b < pc.blocks; b += kRaySortThreads / kRaySortDigits) {
-      const uint c = counts[d * pc.blocks + b];
-      total += c;
-      if (b < block) before += c;
-    }
-    part_before[t] = before;
-    part_total[t] = total;
-  }
+  const uint n = load_block(block, t, keys, values);
   barrier();
-  // The block's counts [digit][invocation] scanned in that order: invocation t sums 16 in a run
-  uint run = 0u;
-  for (uint e = 0u; e < kRaySortDigits; ++e) run += thread_counts[t * kRaySortDigits + e];
+  // The block's counts [digit][invocation] scanned in that order (exclusive)
+  const uint run = run_sum(t);
   run_sums[t] = run;
   barrier();
-  for (uint off = 1u; off < kRaySortThreads; off <<= 1u) {
-    const uint add = t >= off ? run_sums[t - off] : 0u;
-    barrier();
-    run_sums[t] += add;
-    barrier();
-  }
-  uint at = run_sums[t] - run;  // exclusive
-  for (uint e = 0u; e < kRaySortDigits; ++e) {
+  scan_run_sums(t);
+  uint at = run_sums[t] - run;
+  [[unroll]] for (uint e = 0u; e < kRaySortDigits; ++e) {
     const uint c = thread_counts[t * kRaySortDigits + e];
     thread_counts[t * kRaySortDigits + e] = at;
     at += c;
   }
   barrier();
-  // Per digit: where its pairs of this block start in the destination, less the pairs of the
-  // block's smaller digits (thread_counts[d][0]), which every place below counts again
-  if (t == 0u) {
+  // Per digit: where its pairs of this block start in the destination (the pairs of smaller
+  // digits, those of its digit in the blocks before: the scan's), less the pairs of the block's
+  // smaller digits (thread_counts[d][0]), which every place below counts again
+  if (t < kRaySortDigits) {
     uint smaller = 0u;
-    for (uint d = 0u; d < kRaySortDigits; ++d) {
-      uint before = 0u, total = 0u;
-      for (uint j = 0u; j < kRaySortThreads / kRaySortDigits; ++j) {
-        before += part_before[j * kRaySortDigits + d];
-        total += part_total[j * kRaySortDigits + d];
-      }
-      digit_base[d] = smaller + before - thread_counts[d * kRaySortThreads];
-      smaller += total;
-    }
+    [[unroll]] for (uint d = 0u; d < kRaySortDigits; ++d)
+      if (d < t) smaller += counts[kRaySortDigits * pc.blocks + d];
+    digit_base[t] = smaller + counts[t * pc.blocks + block] - thread_counts[t * kRaySortThreads];
   }
-  barrier();
-  for (uint i = 0u; i < kRaySortItems; ++i) {
-    if (first + i >= pc.count) break;
+  // Each pair's place within the block's sorted run (thread_counts[d][t]: the block's pairs of
+  // smaller digits, and of its digit in the invocations before)
+  uint local[kRaySortItems];
+  [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
     const uint d = digit_of(keys[i]);
     uint earlier = 0u;  // this invocation's pairs of the same digit before it
-    for (uint k = 0u; k < i; ++k) earlier += digit_of(keys[k]) == d ? 1u : 0u;
-    const uint to = digit_base[d] + thread_counts[d * kRaySortThreads + t] + earlier;
+    [[unroll]] for (uint k = 0u; k < i; ++k) earlier += digit_of(keys[k]) == d ? 1u : 0u;
+    local[i] = thread_counts[d * kRaySortThreads + t] + earlier;
+  }
+  barrier();
+  // The block's pairs in their sorted order in shared memory (thread_counts' room: keys, then
+  // values), then written out by neighbouring invocations to neighbouring places: a digit's run of
+  // the block goes to digit_base[d] + its place in the block
+  [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i)
+    if (i < n) {
+      thread_counts[local[i]] = keys[i];
+      thread_counts[kRaySortBlock + local[i]] = values[i];
+    }
+  barrier();
+  const uint in_block = min(pc.count - block * kRaySortBlock, kRaySortBlock);
+  [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
+    const uint at_block = i * kRaySortThreads + t;
+    if (at_block >= in_block) break;
+    const uint key = thread_counts[at_block], value = thread_counts[kRaySortBlock + at_block];
+    const uint to = digit_base[digit_of(key)] + at_block;
     if (pc.parity == 0u) {
-      keys_b[to] = keys[i];
-      values_b[to] = values[i];
+      keys_b[to] = key;
+      values_b[to] = value;
     } else {
-      keys_a[to] = keys[i];
-      values_a[to] = values[i];
+      keys_a[to] = key;
+      values_a[to] = value;
     }
   }
 }
 
 void main() {
+  if (kStage == 1u) {
+    scan_pass(gl_WorkGroupID.x, gl_LocalInvocationIndex);  // kRaySortDigits workgroups
+    return;
+  }
   const uint block = gl_WorkGroupID.y * pc.groups_x + gl_WorkGroupID.x;
   if (block >= pc.blocks) return;  // the whole workgroup: no barrier is left waiting
   if (kStage == 0u) count_pass(block, gl_LocalInvocationIndex);
