@@ -634,6 +634,9 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
     std::printf("frame %u: sorted rays (%u key bits): %s\n", frame, o_.sort_bits, text.c_str());
     check("frame " + std::to_string(frame) + ": the sorted rays' order", order_problem.empty(), text,
           order_problem.empty() ? "" : "the sorted rays: " + order_problem);
+  } else if (o_.sort_bits != 0u) {
+    std::printf("frame %u: sorted rays: none to sort (%s has no glossy material: the frame makes no bounce rays)\n",
+                frame, scene_.name.c_str());
   }
   const size_t hit_mismatch = bounce.hit_mismatch + shadow.hit_mismatch - bounce.excused - shadow.excused;
   if (bounce.excused + shadow.excused > 0)
