@@ -675,7 +675,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               device.c_str(), clock.c_str(), rays, gp.cells.x, gp.cells.y, gp.cells.z,
               (gp.flags & shared::kGridCompact) != 0u ? "compact, largest cell" : "capacity", gp.capacity, gather_name,
               o.compact_rays ? "compacted"
-              : o.sort_bits != 0u ? ("sorted by " + std::to_string(o.sort_bits) + " key bits").c_str()
+              : o.sort_bits != 0u ? ("sorted-ray (" + std::to_string(o.sort_bits) + " key bits)").c_str()
                                   : "every-pixel");
   // The shadow rays the last frame made: a slot per pixel and light, a ray where the pixel has a
   // surface facing its light (the slots were reported as rays, where the CPU counts rays: an
