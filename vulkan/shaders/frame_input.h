@@ -211,6 +211,10 @@ SH_END
 
 #ifdef __cplusplus
 static_assert(sizeof(gridrt::shared::RaySortPush) == 48, "layout of RaySortPush");
+static_assert(gridrt::shared::kRaySortBlock == gridrt::shared::kRaySortThreads * gridrt::shared::kRaySortItems,
+              "ray_sort.comp: a block is its workgroup's invocations' pairs");
+static_assert(gridrt::shared::kRaySortDigits * gridrt::shared::kRaySortThreads >= 2 * gridrt::shared::kRaySortBlock,
+              "ray_sort.comp stages a block's keys and values in thread_counts' room");
 static_assert(sizeof(gridrt::shared::FrameParams) == 160, "std430 layout of FrameParams");
 static_assert(sizeof(gridrt::shared::FrameMaterial) == 48, "std430 layout of FrameMaterial");
 static_assert(sizeof(gridrt::shared::FrameLight) == 32, "std430 layout of FrameLight");
