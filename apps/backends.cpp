@@ -484,6 +484,12 @@ void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
       ->type_name("on|off|auto");
 }
 
+void add_sort_rays_option(CLI::App* cmd, uint32_t& bits, const std::string& help) {
+  cmd->add_option("--sort-rays", bits, help)->type_name("0|16|24|32")->check([](const std::string& v) {
+    return v == "0" || v == "16" || v == "24" || v == "32" ? std::string() : "0, 16, 24 or 32";
+  });
+}
+
 void build_gather_grid(Tracer& tracer, const Scene& scene, float time) {
   try {
     tracer.build(scene, time);

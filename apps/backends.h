@@ -135,6 +135,10 @@ class ProgressTracer : public Tracer {
 // --shadows on|off|auto (auto: on iff the scene has lights; shadows_for, common/gather.h).
 void add_shadows_option(CLI::App* cmd, ShadowMode& mode);
 
+// --sort-rays 0|16|24|32: the Vulkan frame's bounce rays sorted by that many bits of their keys
+// before their trace (vulkan::FrameOptions::sort_bits; 0: off); `help` says it for the verb.
+void add_sort_rays_option(CLI::App* cmd, uint32_t& bits, const std::string& help);
+
 // Traces only the ray of one index and answers a miss for every other: a gather buffer whose one
 // pixel is real, for explaining that pixel without tracing the whole image.
 class OneRayTracer : public Tracer {

@@ -1123,15 +1123,11 @@ void add_bench_command(CLI::App& app) {
                   "Vulkan, compute gather with --gather-lists buckets: the pairs a tile's bucket holds (default " +
                       std::to_string(vulkan::kGatherBucketDefault) + "; the pairs past it are rasterized by the past pass)")
       ->check(CLI::Range(0u, 1u << 20));
-  cmd->add_option("--sort-rays", o->sort_bits,
-                  "Vulkan: the frame's bounce rays made by a pass of their own, sorted by the top BITS bits of a key "
-                  "(the direction's cell, then the origin's) by a radix sort on the GPU, and traced in that order "
-                  "(the same rays and hits; 0, the default: the trace takes every pixel in 8x8 tiles and makes its "
-                  "ray itself)")
-      ->type_name("0|16|24|32")
-      ->check([](const std::string& v) {
-        return v == "0" || v == "16" || v == "24" || v == "32" ? std::string() : "0, 16, 24 or 32";
-      });
+  add_sort_rays_option(cmd, o->sort_bits,
+                       "Vulkan: the frame's bounce rays made by a pass of their own, sorted by the top BITS bits of "
+                       "a key (the direction's cell, then the origin's) by a radix sort on the GPU, and traced in that "
+                       "order (the same rays and hits; 0, the default: the trace takes every pixel in 8x8 tiles and "
+                       "makes its ray itself)");
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");

@@ -863,14 +863,10 @@ void add_diff_command(CLI::App& app) {
                 "Also run the GPU frame's own passes (gather, bounce, trace) and compare its bounce rays "
                 "and hits, bit for bit, with the reference's from the same gather");
   add_shadows_option(cmd, o->shadows);  // the GPU frame's shadow pass (a scene of more than 8 lights: off)
-  cmd->add_option("--sort-rays", o->sort_bits,
-                  "With --gpu-frame: its bounce rays sorted on the GPU by the top BITS bits of their keys before their "
-                  "trace (0, the default: 8x8 pixel tiles); the order is checked, and the rays and hits must be the "
-                  "reference's all the same")
-      ->type_name("0|16|24|32")
-      ->check([](const std::string& v) {
-        return v == "0" || v == "16" || v == "24" || v == "32" ? std::string() : "0, 16, 24 or 32";
-      });
+  add_sort_rays_option(cmd, o->sort_bits,
+                       "With --gpu-frame: its bounce rays sorted on the GPU by the top BITS bits of their keys before "
+                       "their trace (0, the default: 8x8 pixel tiles); the order is checked, and the rays and hits "
+                       "must be the reference's all the same");
   add_choice(cmd, "--validation", o->validation, {"on", "best-practices", "off"},
                   "The Khronos validation layer (with synchronization validation): on (default; any message "
                   "fails the run with exit 4), best-practices (also the layer's best-practices checks), off");

@@ -19,7 +19,8 @@
 // The passes go A to B, then B to A; an even number of passes ends in A, whose values are the
 // ray list the trace takes (trace.comp, kGridSpecTraceList). Only the order depends on the sort:
 // the trace writes each ray's hit at the ray's own index. Counting and ranking within a block go
-// through shared memory, a column per invocation: no atomics, the same on every device.
+// through shared memory, a column per invocation: no atomics, so the order is the keys' own
+// (stable), whatever the scheduling.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #include "gridrt/common/shared/compat.h"
