@@ -895,12 +895,33 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
   // holds a slot for every pixel and light, the empty ones unused (they were counted too)
   const size_t shadow_used =
       size_t(std::count_if(shadow.begin(), shadow.end(), [](const Ray& r) { return !is_unused(r); }));
+  nlohmann::json shadow_counters;
   if (!shadow.empty()) {
-    char line[320];
+    char line[512];
     std::snprintf(line, sizeof line, "%s: shadow pass: %zu shadow rays per frame (%zu light(s); %zu slots, the others "
                   "empty), their trace %.3f ms (median; not in the table's trace)", name.c_str(), shadow_used,
                   scene.lights.size(), shadow.size(), median(shadow_ms));
-    shadow_notes.push_back(line);
+    std::string text = line;
+    // The shadow rays' own counters (any hit: a ray stops at its first accepted candidate), and
+    // how many reach their light
+    if (grid && shadow_hits.size() == shadow.size()) {
+      std::vector<uint32_t> cells, tests;
+      size_t lit = 0;
+      for (size_t i = 0; i < shadow.size(); ++i)
+        if (!is_unused(shadow[i])) {
+          cells.push_back(shadow_hits[i].cells);
+          tests.push_back(shadow_hits[i].tests);
+          lit += is_miss(shadow_hits[i]);
+        }
+      const CounterStats c = counter_stats(cells), tt = counter_stats(tests);
+      std::snprintf(line, sizeof line, "; per shadow ray: cells mean %.2f (p99 %.0f, max %.0f), references tested "
+                    "mean %.2f (p99 %.0f, max %.0f); %zu reach their light", c.mean, c.p99, c.max, tt.mean, tt.p99,
+                    tt.max, lit);
+      text += line;
+      shadow_counters = {{"cells_mean", c.mean}, {"cells_p99", c.p99}, {"cells_max", c.max}, {"tests_mean", tt.mean},
+                         {"tests_p99", tt.p99}, {"tests_max", tt.max}, {"reach_light", lit}};
+    }
+    shadow_notes.push_back(text);
   }
   std::fflush(stdout);
   out["backends"][name] = {{"device", device},        {"clock", times.clock},   {"build_ms", times.build},
@@ -910,6 +931,7 @@ void bench_cpu_backend(const BenchOptions& o, const Scene& scene, const std::str
                            {"shadow_trace_ms", median(shadow_ms)}, {"shadow_trace_ms_all", shadow_ms}};
   if (grid) out["backends"][name]["spill"] = spill_json(spill, spill_flags);
   if (!counters_json.empty()) out["backends"][name]["trace_counters"] = counters_json;
+  if (!shadow_counters.empty()) out["backends"][name]["shadow_counters"] = shadow_counters;
 }
 
 // A fixed list in the order --ray-order asks: as made, or sorted (coherent_ray_order: neighbours by
