@@ -626,10 +626,13 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
   // depend on it)
   std::string order_problem;
   if (o_.sort_bits != 0u && fr.bounce()) {
-    order_problem = vulkan::ray_order_problem(fr.download_ray_order(), fr.download_ray_order_keys(), fr.download_rays(),
-                                              o_.sort_bits);
+    const std::vector<uint32_t> order = fr.download_ray_order();
+    const std::vector<Ray> frame_rays = fr.download_rays();
+    order_problem = vulkan::ray_order_problem(order, fr.download_ray_order_keys(), frame_rays, o_.sort_bits);
     const std::string text = order_problem.empty()
-                                 ? "the order is a permutation of the pixels, its keys in order, ties in pixel order"
+                                 ? "the order lists every pixel with a ray once (" + std::to_string(order.size()) +
+                                       " of " + std::to_string(frame_rays.size()) +
+                                       " pixels), its keys in order, ties in pixel order"
                                  : order_problem;
     std::printf("frame %u: sorted rays (%u key bits): %s\n", frame, o_.sort_bits, text.c_str());
     check("frame " + std::to_string(frame) + ": the sorted rays' order", order_problem.empty(), text,

@@ -868,9 +868,10 @@ TEST_CASE("Vulkan frame: the shadow pass is gated by the scene's lights", "[vulk
 
 // The bounce rays sorted before their trace (FrameOptions::sort_bits, ray_sort.comp): only the
 // order changes. On an image of 203 x 97 pixels (ten blocks of the sort, the last one partial):
-// every pixel's ray and hit identical in bits to the tiles' frame, the order checked on its own
-// (a permutation, the keys in order, ties in pixel order, the empty rays' keys last), and the
-// checker shown to see a broken order.
+// every pixel's ray and hit identical in bits to the tiles' frame (the pixels without a ray too,
+// which the trace after the sort never takes), the order checked on its own (every pixel with a
+// ray once and no other, the keys in order, ties in pixel order), and the checker shown to see a
+// broken order.
 TEST_CASE("Vulkan frame: the sorted bounce rays give the tiles' rays and hits, in an order checked",
           "[vulkan][frame][sort]") {
   vulkan::Context& ctx = vk_context();
@@ -903,17 +904,24 @@ TEST_CASE("Vulkan frame: the sorted bounce rays give the tiles' rays and hits, i
     std::vector<uint32_t> order = sorted.download_ray_order();
     const std::vector<uint32_t> keys = sorted.download_ray_order_keys();
     CHECK(vulkan::ray_order_problem(order, keys, srays, bits) == "");
-    // Sorted: not the pixels' order, and the rays first, the empty ones after
+    // Sorted: the rays alone, not in the pixels' order
+    REQUIRE(order.size() == used);
+    std::vector<uint32_t> in_pixel_order;
+    for (uint32_t p = 0; p < rays.size(); ++p)
+      if (rays[p].tmax > 0.0f) in_pixel_order.push_back(p);
     size_t moved = 0;
-    for (size_t k = 0; k < order.size(); ++k) moved += order[k] != k;
+    for (size_t k = 0; k < order.size(); ++k) moved += order[k] != in_pixel_order[k];
     CHECK(moved > order.size() / 2);
-    CHECK(keys[used - 1] != 0xFFFFFFFFu);
-    CHECK(keys[used] == 0xFFFFFFFFu);
-    // The checker sees a ray's pixel swapped with an empty one's, a pixel twice (one left out),
-    // keys out of order, and a ray's key taken for an empty one
-    std::swap(order[0], order[used]);
+    // The checker sees a ray's pixel taken for an empty one's, a ray left out, a pixel twice (one
+    // left out), keys out of order, and a ray given the no-ray key
+    const uint32_t empty_pixel = uint32_t(
+        std::find_if(rays.begin(), rays.end(), [](const Ray& r) { return !(r.tmax > 0.0f); }) - rays.begin());
+    const uint32_t kept = order[0];
+    order[0] = empty_pixel;
     CHECK(vulkan::ray_order_problem(order, keys, srays, bits) != "");
-    std::swap(order[0], order[used]);
+    order[0] = kept;
+    CHECK(vulkan::ray_order_problem(std::vector<uint32_t>(order.begin(), order.end() - 1),
+                                    std::vector<uint32_t>(keys.begin(), keys.end() - 1), srays, bits) != "");
     std::vector<uint32_t> swapped_keys = keys;
     std::swap(swapped_keys[0], swapped_keys[used - 1]);
     if (swapped_keys[0] >> (32 - bits) != swapped_keys[used - 1] >> (32 - bits))

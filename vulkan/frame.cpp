@@ -475,7 +475,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     gpu.sort_keys_a = ctx.create_buffer(pixels * 4, sb);
     gpu.sort_keys_b = ctx.create_buffer(pixels * 4, sb);
     gpu.sort_values_b = ctx.create_buffer(pixels * 4, sb);
-    gpu.sort_counts = ctx.create_buffer((size_t(blocks) + 1) * shared::kRaySortDigits * 4, sb);
+    gpu.sort_counts = ctx.create_buffer((size_t(blocks) + 1) * shared::kRaySortBuckets * 4, sb);
     // The origin lattice over the grid's box
     const shared::GridParams& g = grid.params();
     const glm::vec3 extent = glm::max(glm::vec3(g.cells) * g.cell_size, glm::vec3(1e-30f));
@@ -485,6 +485,7 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     gpu.sort_push.lattice_scale = float(shared::kRaySortLattice) / extent;
     gpu.sort_push.blocks = blocks;
     gpu.sort_push.groups_x = sg.x;
+    gpu.sort_push.max_groups_x = ctx.info().limits.maxComputeWorkGroupCount[0];
   }
   const bool compute = gather_ != GatherMode::raster;
   if (compute) {
@@ -540,13 +541,6 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
     vkCmdFillBuffer(cb, gpu.ray_list.buffer, 0, VK_WHOLE_SIZE, 0u);
     vkCmdFillBuffer(cb, gpu.tiles.buffer, 0, header, 0u);
   });
-  // The sorted rays' list holds every pixel, the trace's dispatch over all of them once for all
-  if (sorted) {
-    const glm::uvec3 tg = shared::work_list_groups(uint32_t(pixels), 64u, ctx.info().limits.maxComputeWorkGroupCount[0]);
-    const shared::WorkListHeader head{tg.x, tg.y, tg.z, uint32_t(pixels), 0u, 0u, 0u, 0u};
-    ctx.upload(gpu.ray_list, &head, sizeof head, 0);
-  }
-
   // The descriptor set, the pipelines (specialized: bounce, textures)
   const VkDescriptorType t = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   gpu.set = std::make_unique<Descriptors>(
@@ -807,16 +801,15 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
             shared::RaySortPush push = gpu.sort_push;
             push.shift = 32u - options_.sort_bits + 4u * p;
             push.parity = p & 1u;
-            push.make_keys = p == 0 ? 1u : 0u;
+            push.first_pass = p == 0 ? 1u : 0u;
             gpu.sort_count->bind(cb, gpu.sort_set->set());
             gpu.sort_count->push(cb, push);
             vkCmdDispatch(cb, sg.x, sg.y, 1);
             gather_barrier(cb);  // compute to compute
             if (timed && p == 0) gpu.timestamps->write(cb, 14);  // the first pass's split
-            push.make_keys = 0u;
             gpu.sort_scan->bind(cb, gpu.sort_set->set());
             gpu.sort_scan->push(cb, push);
-            vkCmdDispatch(cb, shared::kRaySortDigits, 1, 1);
+            vkCmdDispatch(cb, shared::kRaySortBuckets, 1, 1);
             gather_barrier(cb);  // compute to compute
             if (timed && p == 0) gpu.timestamps->write(cb, 15);
             gpu.sort_scatter->bind(cb, gpu.sort_set->set());
@@ -965,20 +958,20 @@ std::vector<Ray> VulkanFrame::download_rays() const {
 std::string ray_order_problem(const std::vector<uint32_t>& order, const std::vector<uint32_t>& keys,
                               const std::vector<Ray>& rays, uint32_t sort_bits) {
   const size_t n = rays.size();
-  if (order.size() != n || keys.size() != n)
+  const size_t used = size_t(std::count_if(rays.begin(), rays.end(), [](const Ray& r) { return r.tmax > 0.0f; }));
+  if (order.size() != used || keys.size() != used)
     return "the order holds " + std::to_string(order.size()) + " pixels and " + std::to_string(keys.size()) +
-           " keys for " + std::to_string(n) + " rays";
+           " keys for " + std::to_string(used) + " rays (of " + std::to_string(n) + " pixels)";
   if (sort_bits == 0u || sort_bits > 32u) return "sorted by " + std::to_string(sort_bits) + " bits";
   const uint32_t shift = 32u - sort_bits;
   std::vector<uint8_t> seen(n, 0);
-  for (size_t k = 0; k < n; ++k) {
+  for (size_t k = 0; k < used; ++k) {
     const uint32_t p = order[k];
     if (p >= n) return "place " + std::to_string(k) + " holds pixel " + std::to_string(p) + ", past the image";
     if (seen[p]++) return "pixel " + std::to_string(p) + " comes twice (again at place " + std::to_string(k) + ")";
-    const bool unused = !(rays[p].tmax > 0.0f);
-    if (unused != (keys[k] == 0xFFFFFFFFu))
-      return "place " + std::to_string(k) + ": pixel " + std::to_string(p) + (unused ? " has no ray" : " has a ray") +
-             " and the key " + std::to_string(keys[k]);
+    if (!(rays[p].tmax > 0.0f)) return "place " + std::to_string(k) + ": pixel " + std::to_string(p) + " has no ray";
+    if (keys[k] == 0xFFFFFFFFu)
+      return "place " + std::to_string(k) + ": pixel " + std::to_string(p) + " has a ray and the no-ray key";
     if (k > 0) {
       const uint64_t a = uint64_t(keys[k - 1]) >> shift, b = uint64_t(keys[k]) >> shift;
       if (a > b || (a == b && order[k - 1] > p))
@@ -994,12 +987,18 @@ std::vector<uint32_t> VulkanFrame::download_ray_order() const {
   if (!gpu_->sort_count || !bounce_) return {};
   const size_t n = size_t(options_.width) * options_.height;
   const std::vector<uint32_t> words = grid_.context().download<uint32_t>(gpu_->ray_list, shared::kWorkListHeaderWords + n);
-  return std::vector<uint32_t>(words.begin() + shared::kWorkListHeaderWords, words.end());
+  const size_t size = std::min<size_t>(words[shared::kWorkListSizeWord], n);  // the rays, first
+  return std::vector<uint32_t>(words.begin() + shared::kWorkListHeaderWords,
+                               words.begin() + shared::kWorkListHeaderWords + ptrdiff_t(size));
 }
 
 std::vector<uint32_t> VulkanFrame::download_ray_order_keys() const {
   if (!gpu_->sort_count || !bounce_) return {};
-  return grid_.context().download<uint32_t>(gpu_->sort_keys_a, size_t(options_.width) * options_.height);
+  const size_t n = size_t(options_.width) * options_.height;
+  std::vector<uint32_t> keys = grid_.context().download<uint32_t>(gpu_->sort_keys_a, n);
+  const std::vector<uint32_t> head = grid_.context().download<uint32_t>(gpu_->ray_list, shared::kWorkListHeaderWords);
+  keys.resize(std::min<size_t>(head[shared::kWorkListSizeWord], n));  // the rays' keys, first
+  return keys;
 }
 
 std::vector<Hit> VulkanFrame::download_hits() const {

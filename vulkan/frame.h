@@ -147,9 +147,9 @@ struct GatherPairs {
 };
 
 // What is wrong with a sorted ray order (VulkanFrame::download_ray_order and _keys, the frame's
-// bounce rays), "" where nothing is: the order must be a permutation of the pixels, its keys in
-// order by their top `sort_bits` bits, equal ones in the pixels' order (the radix sort is
-// stable), and a key 0xFFFFFFFF exactly where the pixel has no ray (tmax not above 0).
+// bounce rays `rays`, a slot per pixel), "" where nothing is: the order must list every pixel
+// with a ray (tmax above 0) once and no other, its keys in order by their top `sort_bits` bits,
+// equal ones in the pixels' order (the radix sort is stable), and none the no-ray key 0xFFFFFFFF.
 std::string ray_order_problem(const std::vector<uint32_t>& order, const std::vector<uint32_t>& keys,
                               const std::vector<Ray>& rays, uint32_t sort_bits);
 
@@ -183,8 +183,9 @@ class VulkanFrame {
   uint32_t download_gather_tiles() const;
   GatherPairs download_gather_pairs() const;
 
-  // The sorted rays (FrameOptions::sort_bits) of the last render: the pixels in the order the
-  // trace took them, and their keys (ray_sort.comp) in the same order. Empty without the sort.
+  // The sorted rays (FrameOptions::sort_bits) of the last render: the pixels with a ray in the
+  // order the trace took them (the ray list), and their keys (ray_sort.comp) in the same order.
+  // Empty without the sort.
   std::vector<uint32_t> download_ray_order() const;
   std::vector<uint32_t> download_ray_order_keys() const;
 

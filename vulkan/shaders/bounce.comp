@@ -1,9 +1,10 @@
 #version 460
 // bounce.comp: one glossy bounce ray per pixel off the gather buffer, as common/gather.cpp's
-// bounce_rays makes it (common/shared/bounce.h); unused pixels get the empty ray. Compacted
-// (kFrameCompact): a pixel with a ray appends its index to the ray list, which the trace takes;
-// an unused pixel gets here the hit the trace would give its empty ray (a miss: the empty
-// interval, no cell visited, no test), so the trace never sees it.
+// bounce_rays makes it (common/shared/bounce.h); unused pixels get the empty ray, and here the hit
+// the trace would give it (a miss: the empty interval, no cell visited, no test), so that the
+// trace takes the rays alone. The pass runs only for a ray list: compacted (kFrameCompact), a
+// pixel with a ray appends its index to the list; sorted (ray_sort.comp), the sort's first pass
+// lists the pixels with a ray, in their keys' order.
 #extension GL_GOOGLE_include_directive : require
 #include "frame_common.glsl"
 
@@ -22,11 +23,9 @@ void main() {
   }
   const RayRecord ray = frame_bounce_ray(c, fp.frame, g, gloss, cos_max, px.x, px.y);
   rays[p] = ray;
-  if ((kFrameFlags & kFrameCompact) != 0u) {
-    if (ray.tmax > 0.0f) {
-      ray_list[atomicAdd(ray_list_header.appended, 1u)] = p;
-    } else {
-      hits[p] = HitRecord(sh_infinity(), kNoInstance, 0u, 0.0f, 0.0f, 0u, 0u, 0u);
-    }
+  if (!(ray.tmax > 0.0f)) {
+    hits[p] = HitRecord(sh_infinity(), kNoInstance, 0u, 0.0f, 0.0f, 0u, 0u, 0u);
+  } else if ((kFrameFlags & kFrameCompact) != 0u) {
+    ray_list[atomicAdd(ray_list_header.appended, 1u)] = p;
   }
 }

@@ -186,6 +186,8 @@ SH_CONST uint kRaySortThreads = 256u;  // invocations of a workgroup
 SH_CONST uint kRaySortItems = 8u;      // consecutive pairs an invocation takes
 SH_CONST uint kRaySortBlock = 2048u;   // pairs a workgroup takes: kRaySortThreads * kRaySortItems
 SH_CONST uint kRaySortDigits = 16u;    // values of a digit (4 bits)
+SH_CONST uint kRaySortNoRay = 16u;     // the bucket after the digits': pixels without a ray (the first pass's)
+SH_CONST uint kRaySortBuckets = 17u;   // a pass's buckets: the digits, then kRaySortNoRay
 SH_CONST uint kRaySortSpecStage = 0u;  // specialization constant: 0, the count; 1, the scan; 2, the scatter
 SH_CONST uint kRaySortLattice = 128u;  // the origin lattice's cells a side (7 bits an axis)
 SH_CONST uint kRaySortBindRays = 0u;   // the frame's rays (the bounce rays first)
@@ -193,7 +195,7 @@ SH_CONST uint kRaySortBindKeysA = 1u;
 SH_CONST uint kRaySortBindKeysB = 2u;
 SH_CONST uint kRaySortBindListA = 3u;  // the ray list (WorkListHeader, then the pixels: A's values)
 SH_CONST uint kRaySortBindValuesB = 4u;
-SH_CONST uint kRaySortBindCounts = 5u;  // per digit, per block: kRaySortDigits x blocks, digit-major; then the digits' totals
+SH_CONST uint kRaySortBindCounts = 5u;  // per bucket, per block: kRaySortBuckets x blocks, bucket-major; then the buckets' totals
 SH_CONST uint kRaySortBindingCount = 6u;
 
 struct RaySortPush {
@@ -203,16 +205,21 @@ struct RaySortPush {
   uint shift;          // the pass's digit: bits shift .. shift + 3 of the key
   uint blocks;         // blocks of kRaySortBlock pairs (workgroups of a pass)
   uint parity;         // 0: A to B; 1: B to A
-  uint make_keys;      // the first count: the keys made from the rays, A's keys and values written
+  uint first_pass;     // the first pass: its count makes the keys from the rays and writes A's pairs, it
+                       // sorts every pixel, its scan writes the rays' count into the ray list's header
   uint groups_x;       // workgroups in a row of the dispatch (it wraps into rows past the device's limit)
+  uint max_groups_x;   // maxComputeWorkGroupCount[0]: the trace's dispatch over the ray list
 };
 
 SH_END
 
 #ifdef __cplusplus
-static_assert(sizeof(gridrt::shared::RaySortPush) == 48, "layout of RaySortPush");
+static_assert(sizeof(gridrt::shared::RaySortPush) == 52, "layout of RaySortPush");
 static_assert(gridrt::shared::kRaySortBlock == gridrt::shared::kRaySortThreads * gridrt::shared::kRaySortItems,
               "ray_sort.comp: a block is its workgroup's invocations' pairs");
+static_assert(gridrt::shared::kRaySortBuckets == gridrt::shared::kRaySortNoRay + 1 &&
+                  gridrt::shared::kRaySortDigits * gridrt::shared::kRaySortDigits == gridrt::shared::kRaySortThreads,
+              "ray_sort.comp: the no-ray bucket after the digits; the count's runs of 16 entries a digit's row");
 static_assert(gridrt::shared::kRaySortDigits * gridrt::shared::kRaySortThreads >= 2 * gridrt::shared::kRaySortBlock,
               "ray_sort.comp stages a block's keys and values in thread_counts' room");
 static_assert(sizeof(gridrt::shared::FrameParams) == 160, "std430 layout of FrameParams");

@@ -4,23 +4,26 @@
 // from nearby points in nearby directions walk alike, so the trace takes them in the order of a
 // key: the direction's cell on a cube of 16 x 16 cells a face (11 bits), then the origin's cell on
 // a lattice of 128 a side over the grid, in Morton order (21 bits), as common/gather.h's
-// coherent_ray_order keys a fixed list (over the grid's box, not the list's origins). Pixels
-// without a ray go last.
+// coherent_ray_order keys a fixed list (over the grid's box, not the list's origins).
 // The sort is a least-significant-digit radix sort of (key, pixel) pairs, 4 bits a pass over the
 // key's top FrameOptions::sort_bits bits, each pass three dispatches:
 //   count    (kRaySortSpecStage 0) a workgroup per block of kRaySortBlock pairs counts its
-//            digits into counts[digit * blocks + block]; the first pass makes the keys from the
+//            buckets into counts[bucket * blocks + block]; the first pass makes the keys from the
 //            rays and writes the pairs (key, pixel) of A
-//   scan     (1) a workgroup per digit turns its row of counts into the pairs of that digit in the
-//            blocks before (in place), and writes the digit's total after the rows
-//   scatter  (2) each block again: a pair's place is the pairs of smaller digits in all blocks,
-//            those of its digit in the blocks before, and those of its digit before it in its own
+//   scan     (1) a workgroup per bucket turns its row of counts into the pairs of that bucket in
+//            the blocks before (in place), and writes the bucket's total after the rows
+//   scatter  (2) each block again: a pair's place is the pairs of smaller buckets in all blocks,
+//            those of its bucket in the blocks before, and those of its bucket before it in its own
 //            block (each invocation's pairs consecutive: stable)
-// The passes go A to B, then B to A; an even number of passes ends in A, whose values are the
-// ray list the trace takes (trace.comp, kGridSpecTraceList). Only the order depends on the sort:
-// the trace writes each ray's hit at the ray's own index. Counting and ranking within a block go
-// through shared memory, a column per invocation: no atomics, so the order is the keys' own
-// (stable), whatever the scheduling.
+// A bucket is the pass's digit, or kRaySortNoRay for a pixel without a ray (bounce.comp gave it
+// its miss already): the first pass puts those after every ray, and its scan writes the rays'
+// count into the ray list's header, so that the later passes sort only the rays (most pixels
+// have none where few surfaces are glossy) and the trace dispatches over them alone.
+// The passes go A to B, then B to A; an even number of passes ends in A, whose first values are
+// the ray list the trace takes (trace.comp, kGridSpecTraceList). Only the order depends on the
+// sort: the trace writes each ray's hit at the ray's own index. Counting and ranking within a
+// block go through shared memory, a column per invocation: no atomics, so the order is the keys'
+// own (stable), whatever the scheduling.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #include "gridrt/common/shared/compat.h"
@@ -67,19 +70,25 @@ uint ray_sort_key(RayRecord ray) {
   return ((face * 16u + iu) * 16u + iv) << 21u | spread7(l.x) | spread7(l.y) << 1u | spread7(l.z) << 2u;
 }
 
-uint digit_of(uint key) { return (key >> pc.shift) & (kRaySortDigits - 1u); }
+// A pair's bucket: the pass's digit of its key, or kRaySortNoRay without a ray (only in the
+// first pass: the later ones take the rays alone).
+uint digit_of(uint key) { return key == 0xFFFFFFFFu ? kRaySortNoRay : (key >> pc.shift) & (kRaySortDigits - 1u); }
 
-shared uint thread_counts[kRaySortDigits * kRaySortThreads];  // [digit][invocation]
+// The pairs this pass sorts: the first pass every pixel; the later ones the rays, which the
+// first pass's scan counted into the ray list's header.
+uint pass_pairs() { return pc.first_pass != 0u ? pc.count : list_header.size; }
+
+shared uint thread_counts[kRaySortBuckets * kRaySortThreads];  // [bucket][invocation]
 shared uint run_sums[kRaySortThreads];
-shared uint digit_base[kRaySortDigits];
+shared uint digit_base[kRaySortBuckets];
 
 // The scatter's loads: this invocation's kRaySortItems consecutive pairs of its block, and their
 // digits counted into its own column of thread_counts; returns how many lie within the pairs.
 // (The loops are unrolled so that the loads of all its pairs are in flight at once.)
-uint load_block(uint block, uint t, inout uint keys[kRaySortItems], inout uint values[kRaySortItems]) {
+uint load_block(uint block, uint t, uint pairs, inout uint keys[kRaySortItems], inout uint values[kRaySortItems]) {
   const uint first = block * kRaySortBlock + t * kRaySortItems;
-  [[unroll]] for (uint d = 0u; d < kRaySortDigits; ++d) thread_counts[d * kRaySortThreads + t] = 0u;
-  const uint n = first < pc.count ? min(pc.count - first, kRaySortItems) : 0u;
+  [[unroll]] for (uint d = 0u; d < kRaySortBuckets; ++d) thread_counts[d * kRaySortThreads + t] = 0u;
+  const uint n = first < pairs ? min(pairs - first, kRaySortItems) : 0u;
   if (pc.parity == 0u) {
     [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
       keys[i] = i < n ? keys_a[first + i] : 0u;
@@ -96,11 +105,19 @@ uint load_block(uint block, uint t, inout uint keys[kRaySortItems], inout uint v
   return n;
 }
 
-// Invocation t's run of 16 entries of thread_counts in its [digit][invocation] order summed:
-// digit t / 16, invocations (t % 16) * 16 and the 15 after.
-uint run_sum(uint t) {
+// Invocation t's run of 16 entries of thread_counts' digit rows in their [digit][invocation]
+// order summed: digit t / 16, invocations (t % 16) * 16 and the 15 after.
+uint digit_run_sum(uint t) {
   uint run = 0u;
   [[unroll]] for (uint e = 0u; e < kRaySortDigits; ++e) run += thread_counts[t * kRaySortDigits + e];
+  return run;
+}
+
+// Invocation t's run of kRaySortBuckets entries of thread_counts in its [bucket][invocation] order
+// summed: entries t * kRaySortBuckets and the ones after (a run may span two buckets).
+uint bucket_run_sum(uint t) {
+  uint run = 0u;
+  [[unroll]] for (uint e = 0u; e < kRaySortBuckets; ++e) run += thread_counts[t * kRaySortBuckets + e];
   return run;
 }
 
@@ -118,27 +135,40 @@ void scan_run_sums(uint t) {
 // counts alike; neighbouring invocations read neighbouring pairs), the first pass making the
 // keys from the rays and writing A.
 void count_pass(uint block, uint t) {
+  const uint pairs = pass_pairs();
+  if (block * kRaySortBlock >= pairs) {  // past the rays (a later pass): the whole workgroup
+    if (t < kRaySortBuckets) counts[t * pc.blocks + block] = 0u;
+    return;
+  }
   [[unroll]] for (uint d = 0u; d < kRaySortDigits; ++d) thread_counts[d * kRaySortThreads + t] = 0u;
   [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
     const uint idx = block * kRaySortBlock + i * kRaySortThreads + t;
-    if (idx >= pc.count) break;
+    if (idx >= pairs) break;
     uint key;
-    if (pc.make_keys != 0u) {
+    if (pc.first_pass != 0u) {
       key = ray_sort_key(rays[idx]);
       keys_a[idx] = key;
       values_a[idx] = idx;
     } else {
       key = pc.parity == 0u ? keys_a[idx] : keys_b[idx];
     }
-    thread_counts[digit_of(key) * kRaySortThreads + t] += 1u;
+    const uint d = digit_of(key);
+    if (d < kRaySortDigits) thread_counts[d * kRaySortThreads + t] += 1u;  // no ray: counted below
   }
   barrier();
-  run_sums[t] = run_sum(t);
+  run_sums[t] = digit_run_sum(t);
   barrier();
   if (t < kRaySortDigits) {
     uint total = 0u;
     [[unroll]] for (uint j = 0u; j < kRaySortThreads / kRaySortDigits; ++j) total += run_sums[t * kRaySortDigits + j];
     counts[t * pc.blocks + block] = total;
+    digit_base[t] = total;
+  }
+  barrier();
+  if (t == 0u) {  // the block's pixels without a ray: all its pairs but the rays
+    uint rays_in_block = 0u;
+    [[unroll]] for (uint d = 0u; d < kRaySortDigits; ++d) rays_in_block += digit_base[d];
+    counts[kRaySortNoRay * pc.blocks + block] = min(pairs - block * kRaySortBlock, kRaySortBlock) - rays_in_block;
   }
 }
 
@@ -159,36 +189,50 @@ void scan_pass(uint digit, uint t) {
     counts[row + first + i] = at;
     at += c;
   }
-  if (t == kRaySortThreads - 1u) counts[kRaySortDigits * pc.blocks + digit] = run_sums[t];
+  if (t == kRaySortThreads - 1u) {
+    counts[kRaySortBuckets * pc.blocks + digit] = run_sums[t];
+    // The first pass: the rays' count, which the later passes sort and the trace dispatches over
+    // (a list of `size` items in workgroups of 64, as work_list_dispatch.comp writes one)
+    if (pc.first_pass != 0u && digit == kRaySortNoRay) {
+      const uint size = pc.count - run_sums[t];
+      const uvec3 groups = work_list_groups(size, 64u, pc.max_groups_x);
+      list_header.groups_x = groups.x;
+      list_header.groups_y = groups.y;
+      list_header.groups_z = groups.z;
+      list_header.size = size;
+    }
+  }
 }
 
 void scatter_pass(uint block, uint t) {
+  const uint pairs = pass_pairs();
+  if (block * kRaySortBlock >= pairs) return;  // past the rays (a later pass): the whole workgroup
   uint keys[kRaySortItems], values[kRaySortItems];
-  const uint n = load_block(block, t, keys, values);
+  const uint n = load_block(block, t, pairs, keys, values);
   barrier();
-  // The block's counts [digit][invocation] scanned in that order (exclusive)
-  const uint run = run_sum(t);
+  // The block's counts [bucket][invocation] scanned in that order (exclusive)
+  const uint run = bucket_run_sum(t);
   run_sums[t] = run;
   barrier();
   scan_run_sums(t);
   uint at = run_sums[t] - run;
-  [[unroll]] for (uint e = 0u; e < kRaySortDigits; ++e) {
-    const uint c = thread_counts[t * kRaySortDigits + e];
-    thread_counts[t * kRaySortDigits + e] = at;
+  [[unroll]] for (uint e = 0u; e < kRaySortBuckets; ++e) {
+    const uint c = thread_counts[t * kRaySortBuckets + e];
+    thread_counts[t * kRaySortBuckets + e] = at;
     at += c;
   }
   barrier();
-  // Per digit: where its pairs of this block start in the destination (the pairs of smaller
-  // digits, those of its digit in the blocks before: the scan's), less the pairs of the block's
-  // smaller digits (thread_counts[d][0]), which every place below counts again
-  if (t < kRaySortDigits) {
+  // Per bucket: where its pairs of this block start in the destination (the pairs of smaller
+  // buckets, those of its bucket in the blocks before: the scan's), less the pairs of the block's
+  // smaller buckets (thread_counts[d][0]), which every place below counts again
+  if (t < kRaySortBuckets) {
     uint smaller = 0u;
-    [[unroll]] for (uint d = 0u; d < kRaySortDigits; ++d)
-      if (d < t) smaller += counts[kRaySortDigits * pc.blocks + d];
+    [[unroll]] for (uint d = 0u; d < kRaySortBuckets; ++d)
+      if (d < t) smaller += counts[kRaySortBuckets * pc.blocks + d];
     digit_base[t] = smaller + counts[t * pc.blocks + block] - thread_counts[t * kRaySortThreads];
   }
   // Each pair's place within the block's sorted run (thread_counts[d][t]: the block's pairs of
-  // smaller digits, and of its digit in the invocations before)
+  // smaller buckets, and of its bucket in the invocations before)
   uint local[kRaySortItems];
   [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
     const uint d = digit_of(keys[i]);
@@ -206,7 +250,7 @@ void scatter_pass(uint block, uint t) {
       thread_counts[kRaySortBlock + local[i]] = values[i];
     }
   barrier();
-  const uint in_block = min(pc.count - block * kRaySortBlock, kRaySortBlock);
+  const uint in_block = min(pairs - block * kRaySortBlock, kRaySortBlock);
   [[unroll]] for (uint i = 0u; i < kRaySortItems; ++i) {
     const uint at_block = i * kRaySortThreads + t;
     if (at_block >= in_block) break;
@@ -224,7 +268,7 @@ void scatter_pass(uint block, uint t) {
 
 void main() {
   if (kStage == 1u) {
-    scan_pass(gl_WorkGroupID.x, gl_LocalInvocationIndex);  // kRaySortDigits workgroups
+    scan_pass(gl_WorkGroupID.x, gl_LocalInvocationIndex);  // kRaySortBuckets workgroups
     return;
   }
   const uint block = gl_WorkGroupID.y * pc.groups_x + gl_WorkGroupID.x;
