@@ -9,22 +9,32 @@
 #include "frame_common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
+// The rays and hits as 16-byte words (record_words.glsl)
+layout(std430, binding = kFrameBindRays) writeonly buffer RayWords { uvec4 ray_words[]; };
+layout(std430, binding = kFrameBindHits) writeonly buffer HitWords { uvec4 hit_words[]; };
+#include "record_words.glsl"
 
 void main() {
   const CameraParams c = fp.camera;
   const uvec2 px = gl_GlobalInvocationID.xy;
   if (px.x >= c.width || px.y >= c.height) return;
   const uint p = px.y * c.width + px.x;
-  const GatherTexel g = gather[p];
+  const GatherTexel g = load_gather(p);
   float gloss = 0.0f, cos_max = 1.0f;
   if ((kFrameFlags & kFrameBounce) != 0u && g.launch_ref != kNoRef && g.material < fp.material_count) {
     gloss = fmaterials[g.material].glossiness;
     cos_max = fmaterials[g.material].cos_max;
   }
   const RayRecord ray = frame_bounce_ray(c, fp.frame, g, gloss, cos_max, px.x, px.y);
-  rays[p] = ray;
+  uvec4 w0, w1, w2;
+  ray_to_words(ray, w0, w1, w2);
+  ray_words[3u * p] = w0;
+  ray_words[3u * p + 1u] = w1;
+  ray_words[3u * p + 2u] = w2;
   if (!(ray.tmax > 0.0f)) {
-    hits[p] = HitRecord(sh_infinity(), kNoInstance, 0u, 0.0f, 0.0f, 0u, 0u, 0u);
+    hit_to_words(HitRecord(sh_infinity(), kNoInstance, 0u, 0.0f, 0.0f, 0u, 0u, 0u), w0, w1);
+    hit_words[2u * p] = w0;
+    hit_words[2u * p + 1u] = w1;
   } else if ((kFrameFlags & kFrameCompact) != 0u) {
     ray_list[atomicAdd(ray_list_header.appended, 1u)] = p;
   }

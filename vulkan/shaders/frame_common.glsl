@@ -28,6 +28,21 @@ layout(std430, binding = kFrameBindPlanes) readonly buffer Planes { GridPlane pl
 layout(std430, binding = kFrameBindUvs) readonly buffer Uvs { GridTriangleUv uvs[]; };
 layout(std430, binding = kFrameBindVisibility) buffer Visibility { uint visibility[]; };  // launch ref per pixel
 layout(std430, binding = kFrameBindGather) buffer Gather { GatherTexel gather[]; };
+// The gather texels as 16-byte words (record_words.glsl): load_gather, store_gather below
+layout(std430, binding = kFrameBindGather) buffer GatherWords { uvec4 gather_words[]; };
+#include "record_words.glsl"
+
+GatherTexel load_gather(uint p) {
+  return gather_from_words(gather_words[3u * p], gather_words[3u * p + 1u], gather_words[3u * p + 2u]);
+}
+
+void store_gather(uint p, GatherTexel g) {
+  uvec4 w0, w1, w2;
+  gather_to_words(g, w0, w1, w2);
+  gather_words[3u * p] = w0;
+  gather_words[3u * p + 1u] = w1;
+  gather_words[3u * p + 2u] = w2;
+}
 layout(std430, binding = kFrameBindMaterials) readonly buffer Materials { FrameMaterial fmaterials[]; };
 layout(std430, binding = kFrameBindDiffuseTexels) readonly buffer DiffuseTexels { uint diffuse_texels[]; };
 layout(std430, binding = kFrameBindLights) readonly buffer Lights { FrameLight lights[]; };

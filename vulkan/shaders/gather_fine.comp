@@ -113,6 +113,6 @@ void main() {
   if (on) {
     const uvec2 k = unpackUint2x32(key);
     visibility[p] = k.x;
-    gather[p] = gather_texel_at(k.x, dir.xyz, uintBitsToFloat(k.y));
+    store_gather(p, gather_texel_at(k.x, dir.xyz, uintBitsToFloat(k.y)));
   }
 }

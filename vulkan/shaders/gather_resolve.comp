@@ -19,8 +19,8 @@ void main() {
     // of the test that gave it
     const uint ref = gather_keys[2u * p];
     visibility[p] = ref;
-    gather[p] = gather_texel_at(ref, camera_direction(c, px.x, px.y), uintBitsToFloat(gather_keys[2u * p + 1u]));
+    store_gather(p, gather_texel_at(ref, camera_direction(c, px.x, px.y), uintBitsToFloat(gather_keys[2u * p + 1u])));
     return;
   }
-  gather[p] = gather_texel(visibility[p], camera_direction(c, px.x, px.y));
+  store_gather(p, gather_texel(visibility[p], camera_direction(c, px.x, px.y)));
 }

@@ -34,7 +34,8 @@
 layout(local_size_x = 256) in;  // kRaySortThreads
 layout(constant_id = kRaySortSpecStage) const uint kStage = 0u;
 
-layout(std430, binding = kRaySortBindRays) readonly buffer Rays { RayRecord rays[]; };
+// The rays as 16-byte words (record_words.glsl: a RayRecord is three): the key reads the first two
+layout(std430, binding = kRaySortBindRays) readonly buffer RayWords { uvec4 ray_words[]; };
 layout(std430, binding = kRaySortBindKeysA) buffer KeysA { uint keys_a[]; };
 layout(std430, binding = kRaySortBindKeysB) buffer KeysB { uint keys_b[]; };
 layout(std430, binding = kRaySortBindListA) buffer ListA {
@@ -54,9 +55,12 @@ uint spread7(uint v) {
 
 bool finite3(vec3 v) { return !any(isnan(v)) && !any(isinf(v)); }
 
-// A ray's key (above): 0xFFFFFFFF without a ray (tmax not above 0, as the trace's empty ray),
+// Ray i's key (above): 0xFFFFFFFF without a ray (tmax not above 0, as the trace's empty ray),
 // 0xFFFFFFFE for a ray the trace rejects (a non-finite origin or direction, or a zero direction).
-uint ray_sort_key(RayRecord ray) {
+uint ray_sort_key(uint i) {
+  const uvec4 w0 = ray_words[3u * i], w1 = ray_words[3u * i + 1u];
+  const RayRecord ray = RayRecord(uintBitsToFloat(w0.xyz), uintBitsToFloat(w0.w), uintBitsToFloat(w1.xyz),
+                                  uintBitsToFloat(w1.w), vec3(0.0f), 0u);
   if (!(ray.tmax > 0.0f)) return 0xFFFFFFFFu;
   const vec3 a = abs(ray.dir);
   const uint axis = a.x >= a.y && a.x >= a.z ? 0u : (a.y >= a.z ? 1u : 2u);
@@ -146,7 +150,7 @@ void count_pass(uint block, uint t) {
     if (idx >= pairs) break;
     uint key;
     if (pc.first_pass != 0u) {
-      key = ray_sort_key(rays[idx]);
+      key = ray_sort_key(idx);
       keys_a[idx] = key;
       values_a[idx] = idx;
     } else {

@@ -59,7 +59,7 @@ void main() {
   const uvec2 px = gl_GlobalInvocationID.xy;
   if (px.x >= cam.width || px.y >= cam.height) return;
   const uint p = px.y * cam.width + px.x;
-  const GatherTexel g = gather[p];
+  const GatherTexel g = load_gather(p);
   vec3 c = fp.background;
   if (g.launch_ref != kNoRef) {
     const vec3 albedo = material_albedo(g.material, g.uv);

@@ -16,8 +16,7 @@
 
 layout(local_size_x = 64) in;
 layout(binding = kGridBindImage, r32ui) uniform readonly uimage3D grid_image;
-layout(std430, binding = kGridBindRays) readonly buffer Rays { RayRecord rays[]; };
-layout(std430, binding = kGridBindHits) writeonly buffer Hits { HitRecord hits[]; };
+// The rays and hits (RayRecord, HitRecord) as 16-byte words: load_ray, store_hit below
 // The spill list and its heads (kGridSpill): read only here.
 layout(std430, binding = kGridBindSpill) readonly buffer Spill {
   SpillHeader spill_header;
@@ -59,10 +58,31 @@ layout(constant_id = kGridSpecTraceMode) const uint kTraceMode = kTraceClosestHi
 layout(constant_id = kGridSpecTraceRays) const uint kTraceRays = kTraceRaysBuffer;
 // On llvmpipe only: flag a ray whose loops near the driver's limit (kHitLoopSpent, grid_interface.h)
 layout(constant_id = kGridSpecLoopGuard) const bool kLoopGuard = false;
-layout(std430, binding = kGridBindGather) readonly buffer Gather { GatherTexel gather[]; };
+layout(std430, binding = kGridBindGather) readonly buffer GatherWords { uvec4 gather_words[]; };  // GatherTexels
 layout(std430, binding = kGridBindFrameParams) readonly buffer FrameParamsBuffer { FrameParams fp; };
 layout(std430, binding = kGridBindFrameMaterials) readonly buffer FrameMaterials { FrameMaterial fmaterials[]; };
-layout(std430, binding = kGridBindRays) writeonly buffer RaysOut { RayRecord rays_out[]; };
+layout(std430, binding = kGridBindRays) writeonly buffer RaysOut { uvec4 ray_words_out[]; };
+// The rays and hits as 16-byte words (record_words.glsl)
+layout(std430, binding = kGridBindRays) readonly buffer RayWords { uvec4 ray_words[]; };
+layout(std430, binding = kGridBindHits) writeonly buffer HitWords { uvec4 hit_words[]; };
+#include "record_words.glsl"
+
+RayRecord load_ray(uint i) { return ray_from_words(ray_words[3u * i], ray_words[3u * i + 1u], ray_words[3u * i + 2u]); }
+
+void store_hit(uint i, HitRecord h) {
+  uvec4 w0, w1;
+  hit_to_words(h, w0, w1);
+  hit_words[2u * i] = w0;
+  hit_words[2u * i + 1u] = w1;
+}
+
+void store_ray_out(uint i, RayRecord r) {
+  uvec4 w0, w1, w2;
+  ray_to_words(r, w0, w1, w2);
+  ray_words_out[3u * i] = w0;
+  ray_words_out[3u * i + 1u] = w1;
+  ray_words_out[3u * i + 2u] = w2;
+}
 
 // The frame's bounce ray of pixel px (frame_input.h's frame_bounce_ray, as bounce.comp makes it).
 RayRecord trace_bounce_ray(uvec2 px, GatherTexel t) {
@@ -666,27 +686,28 @@ void main() {
     if (px.x >= pc.tiled_width || px.y >= pc.tiled_height) return;
     const uint r = pc.ray_offset + px.y * pc.tiled_width + px.x;
     if (kTraceRays != kTraceRaysBuffer) {
-      const GatherTexel t = gather[px.y * pc.tiled_width + px.x];
+      const uint g = px.y * pc.tiled_width + px.x;
+      const GatherTexel t = gather_from_words(gather_words[3u * g], gather_words[3u * g + 1u], gather_words[3u * g + 2u]);
       const RayRecord ray = kTraceRays == kTraceRaysBounce
                                 ? trace_bounce_ray(px, t)
                                 : shadow_ray(t.position, t.normal, t.launch_ref, vec3(pc.light_x, pc.light_y, pc.light_z),
                                              pc.light_directional != 0u);
-      rays_out[r] = ray;
-      hits[r] = loop_guarded(scene_trace(grid_params(), ray, kTraceMode));
+      store_ray_out(r, ray);
+      store_hit(r, loop_guarded(scene_trace(grid_params(), ray, kTraceMode)));
       return;
     }
-    hits[r] = loop_guarded(scene_trace(grid_params(), rays[r], kTraceMode));
+    store_hit(r, loop_guarded(scene_trace(grid_params(), load_ray(r), kTraceMode)));
     return;
   }
   if (kTraceList) {
     const uint k = work_list_index(gl_WorkGroupID, gl_NumWorkGroups.x, 64u, gl_LocalInvocationID.x);
     if (k >= ray_list_header.size) return;
     const uint r = ray_list[k];
-    hits[r] = loop_guarded(scene_trace(grid_params(), rays[r], kTraceMode));
+    store_hit(r, loop_guarded(scene_trace(grid_params(), load_ray(r), kTraceMode)));
     return;
   }
   if (gl_GlobalInvocationID.x >= pc.ray_count) return;
   const uint i = pc.ray_offset + gl_GlobalInvocationID.x;
   explaining = kExplain && i == pc.explain_ray;
-  hits[i] = loop_guarded(scene_trace(grid_params(), rays[i], kTraceMode));
+  store_hit(i, loop_guarded(scene_trace(grid_params(), load_ray(i), kTraceMode)));
 }
