@@ -933,6 +933,26 @@ TEST_CASE("Vulkan frame: the sorted bounce rays give the tiles' rays and hits, i
     empty_key[0] = 0xFFFFFFFFu;
     CHECK(vulkan::ray_order_problem(order, empty_key, srays, bits) != "");
   }
+  // No ray at all (the camera above the open court, looking at the sky): the sort's first pass
+  // counts none, the later passes and the trace take nothing, and every hit is the tiles' miss
+  {
+    Scene sky = scene;
+    sky.camera = Camera{.eye = {0.0f, 20.0f, 0.0f}, .target = {0.0f, 40.0f, 0.0f}, .up = {1.0f, 0.0f, 0.0f}};
+    VulkanGridTracer vks(ctx, o);
+    vks.build(sky, 0.0f);
+    VulkanFrame sky_tiles(vks, sky, FrameOptions{.width = 37, .height = 23});
+    sky_tiles.render(1);
+    VulkanFrame sky_sorted(vks, sky, FrameOptions{.width = 37, .height = 23, .sort_bits = 24});
+    sky_sorted.render(1);
+    const std::vector<Ray> sky_rays = sky_sorted.download_rays();
+    REQUIRE(std::none_of(sky_rays.begin(), sky_rays.end(), [](const Ray& r) { return r.tmax > 0.0f; }));
+    const std::vector<Hit> a = sky_tiles.download_hits(), b = sky_sorted.download_hits();
+    REQUIRE(a.size() == b.size());
+    CHECK(std::memcmp(a.data(), b.data(), a.size() * sizeof(Hit)) == 0);
+    CHECK(sky_sorted.download_ray_order().empty());
+    CHECK(vulkan::ray_order_problem(sky_sorted.download_ray_order(), sky_sorted.download_ray_order_keys(), sky_rays,
+                                    24) == "");
+  }
   // What the sort does not take: a clear error
   CHECK_THROWS_AS(VulkanFrame(vk, scene, FrameOptions{.width = w, .height = h, .sort_bits = 8}), Error);
   CHECK_THROWS_AS(VulkanFrame(vk, scene, FrameOptions{.width = w, .height = h, .compact_rays = true, .sort_bits = 32}),
