@@ -1182,8 +1182,8 @@ void add_bench_command(CLI::App& app) {
                          " has none: it does nothing (leave one out)");
     o->ray_order_set = cmd->count("--ray-order") > 0;
     if (o->sort_bits != 0u && o->compact_rays)
-      throw OptionsError("--sort-rays sorts every pixel's bounce ray; --compact-rays traces a list of the pixels with "
-                         "a ray in the order they came: give one of them");
+      throw OptionsError("--sort-rays traces the pixels with a bounce ray in their keys' order; --compact-rays traces "
+                         "them in the order their rays were made: give one of them");
     o->frame_knobs.clear();
     for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--counter-frames", "--back-to-back"})
       if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0) o->frame_knobs.push_back(name);

@@ -206,7 +206,8 @@ struct RaySortPush {
   uint blocks;         // blocks of kRaySortBlock pairs (workgroups of a pass)
   uint parity;         // 0: A to B; 1: B to A
   uint first_pass;     // the first pass: its count makes the keys from the rays and writes A's pairs, it
-                       // sorts every pixel, its scan writes the rays' count into the ray list's header
+                       // takes every pixel (those without a ray last), its scan writes the rays' count
+                       // into the ray list's header
   uint groups_x;       // workgroups in a row of the dispatch (it wraps into rows past the device's limit)
   uint max_groups_x;   // maxComputeWorkGroupCount[0]: the trace's dispatch over the ray list
 };
