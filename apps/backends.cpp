@@ -484,6 +484,13 @@ void add_shadows_option(CLI::App* cmd, ShadowMode& mode) {
       ->type_name("on|off|auto");
 }
 
+void add_traces_option(CLI::App* cmd, std::string& traces) {
+  add_choice(cmd, "--traces", traces, {"together", "apart"},
+             "Vulkan frame, with bounce and shadow rays in 8x8 pixel tiles: the bounce trace and the first light's "
+             "shadow trace in one dispatch (together, the default: the shadow tiles fill the device while the bounce "
+             "trace's last workgroups run) or as two passes with a barrier between (apart); the same rays and hits");
+}
+
 void add_sort_rays_option(CLI::App* cmd, uint32_t& bits, const std::string& help) {
   cmd->add_option("--sort-rays", bits, help)->type_name("0|16|24|32")->check([](const std::string& v) {
     return v == "0" || v == "16" || v == "24" || v == "32" ? std::string() : "0, 16, 24 or 32";

@@ -138,6 +138,8 @@ void add_shadows_option(CLI::App* cmd, ShadowMode& mode);
 // --sort-rays 0|16|24|32: the Vulkan frame's bounce rays sorted by that many bits of their keys
 // before their trace (vulkan::FrameOptions::sort_bits; 0: off); `help` says it for the verb.
 void add_sort_rays_option(CLI::App* cmd, uint32_t& bits, const std::string& help);
+// --traces together|apart (FrameOptions::traces_together), for bench and diff --gpu-frame
+void add_traces_option(CLI::App* cmd, std::string& traces);
 
 // Traces only the ray of one index and answers a miss for every other: a gather buffer whose one
 // pixel is real, for explaining that pixel without tracing the whole image.

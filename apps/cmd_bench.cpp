@@ -54,6 +54,7 @@ struct BenchOptions {
   bool ray_order_set = false;       // --ray-order given on the command line (refused for the frame's rays)
   std::string gather = "compute";  // vulkan: the frame's gather, compute or raster (FrameOptions)
   std::string gather_lists = "buckets";  // vulkan, compute gather: the tile lists' passes
+  std::string traces = "together";        // vulkan: the bounce and shadow traces in one dispatch, or apart
   std::vector<std::string> frame_knobs;  // the frame's own options given (refused where --rays auto finds no frame)
   std::optional<uint32_t> gather_bucket;  // vulkan, buckets: a tile's room in pairs
   bool compact_rays = false;       // vulkan: trace only the pixels with a bounce ray
@@ -234,6 +235,14 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
     }
     const vulkan::GridTimings& g = vk->timings();
     const vulkan::FrameTimings ft = frame.timings();
+    // The bounce and shadow traces in one dispatch: the frame's time is this render's; the two
+    // traces' own times come from the same frame rendered again as two passes (the same rays and
+    // hits), so that the trace column and the RT pipeline's comparison keep the bounce trace alone
+    vulkan::FrameTimings apart = ft;
+    if (stamps && ft.traces_together && f >= o.warmup) {
+      frame.render(f, 1, true);
+      apart = frame.timings();
+    }
     if (frame.bounce() && (counted < o.counter_frames || f + 1 == o.warmup + o.frames)) {
       last_rays = frame.download_rays();
       last_hits = frame.download_hits();
@@ -263,7 +272,7 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
       t["b2b_bounce"].push_back(bb.bounce_ms);
       t["b2b_trace"].push_back(bb.trace_ms);
       t["b2b_shade"].push_back(bb.shade_ms);
-      t["b2b_shadow"].push_back(bb.shadow_ms);
+      if (!bb.traces_together) t["b2b_shadow"].push_back(bb.shadow_ms);  // else in b2b_trace
       t["b2b_frame"].push_back((moves ? g.update_ms : 0.0) + bb.total_ms);
     }
     const double update = moves ? (stamps ? g.update_ms : update_host) : 0.0;
@@ -287,8 +296,9 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
       t["gather_scatter"].push_back(ft.scatter_ms);
       t["gather_fine"].push_back(ft.fine_ms);
       t["resolve"].push_back(ft.resolve_ms);
-      t["bounce"].push_back(ft.bounce_ms);
-      t["trace"].push_back(ft.trace_ms);
+      t["bounce"].push_back(apart.bounce_ms);
+      t["trace"].push_back(apart.trace_ms);
+      if (ft.traces_together) t["traces_together"].push_back(ft.trace_ms);
       if (o.sort_bits != 0u) {
         t["sort"].push_back(ft.sort_ms);
         t["sort_first_count"].push_back(ft.sort_first_pass_ms[0]);
@@ -296,8 +306,8 @@ FrameRun run_frames(const BenchOptions& o, const Scene& scene, vulkan::VulkanGri
         t["sort_first_scatter"].push_back(ft.sort_first_pass_ms[2]);
       }
       t["shade"].push_back(ft.shade_ms);
-      t["shadow"].push_back(ft.shadow_ms);
-      t["shadow_trace"].push_back(ft.shadow_trace_ms);
+      t["shadow"].push_back(apart.shadow_ms);
+      t["shadow_trace"].push_back(apart.shadow_trace_ms);
     }
     t["frame"].push_back(update + (stamps ? ft.total_ms : ft.host_ms));
   }
@@ -486,11 +496,20 @@ void print_frame_tables(const BenchOptions& o, const Scene& scene, const vulkan:
                 "%.3f ms); the first pass: count with the keys made %.3f, scan %.3f, scatter %.3f ms\n\n",
                 o.sort_bits / 4u, m["sort"], m["trace"], m["bounce"], m["sort_first_count"], m["sort_first_scan"],
                 m["sort_first_scatter"]);
+  if (t.count("traces_together"))
+    std::printf("traces together: the bounce trace and the first light's shadow trace in one dispatch, %.3f ms in the "
+                "frame above; apart (the same frames rendered again as two passes: the trace column and the shadow "
+                "pass below) %.3f + %.3f = %.3f ms; together saves %.3f ms (%.1f %%)\n\n",
+                m["traces_together"], m["trace"], m["shadow"], m["trace"] + m["shadow"],
+                m["trace"] + m["shadow"] - m["traces_together"],
+                m["trace"] + m["shadow"] > 0.0 ? 100.0 * (1.0 - m["traces_together"] / (m["trace"] + m["shadow"])) : 0.0);
   if (frame.shadows() && stamps)
     std::printf("shadow pass: %zu shadow rays per frame, of %zu slots (%zu light(s) x %ux%u): rays %.3f + trace %.3f "
-                "= %.3f ms (in the frame above, between trace and shade)%s\n\n",
+                "= %.3f ms (%s)%s\n\n",
                 shadow_used, scene.lights.size() * o.width * o.height, scene.lights.size(), o.width, o.height,
                 m["shadow"] - m["shadow_trace"], m["shadow_trace"], m["shadow"],
+                t.count("traces_together") ? "rendered apart; in the frame above traced with the bounce rays"
+                                           : "in the frame above, between trace and shade",
                 t.count("b2b_shadow") ? (", back to back " + std::to_string(m["b2b_shadow"]) + " ms").c_str() : "");
   else if (frame.shadows())
     std::printf("shadow pass: %zu shadow rays per frame, of %zu slots (%zu light(s) x %ux%u), in the frame above (host "
@@ -589,6 +608,7 @@ vulkan::FrameOptions frame_options(const BenchOptions& o, const Scene& scene) {
   fo.compact_rays = o.compact_rays;
   fo.sort_bits = o.sort_bits;
   fo.shadows = shadows_for(o.shadows, scene);
+  fo.traces_together = o.traces == "together";
   return fo;
 }
 
@@ -616,6 +636,10 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   const double build = stamps ? vk->timings().build_ms : build_host;
   const vulkan::GridTimings first_build = vk->timings();
   vulkan::VulkanFrame frame(*vk, scene, frame_options(o, scene));
+  if (std::find(o.frame_knobs.begin(), o.frame_knobs.end(), "--traces") != o.frame_knobs.end() && !frame.shadows())
+    throw OptionsError("--traces chooses whether the bounce trace shares its dispatch with the shadow trace; the frame "
+                       "has no shadow pass (" + (scene.lights.empty() ? scene.name + " has no lights" : std::string("--shadows off")) +
+                       "): it does nothing (leave it out)");
   // The RT pipeline side by side: its acceleration structures over the geometry the build wrote
   std::unique_ptr<vulkan::VulkanRtxTracer> rtx;
   vulkan::Buffer rtx_hits;
@@ -676,7 +700,8 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
               (gp.flags & shared::kGridCompact) != 0u ? "compact, largest cell" : "capacity", gp.capacity, gather_name,
               o.compact_rays ? "compacted"
               : o.sort_bits != 0u ? ("sorted-ray (" + std::to_string(o.sort_bits) + " key bits)").c_str()
-                                  : "every-pixel");
+              : frame.traces_together() ? "every-pixel (with the first light's shadow rays in one dispatch)"
+                                        : "every-pixel");
   // The shadow rays the last frame made: a slot per pixel and light, a ray where the pixel has a
   // surface facing its light (the slots were reported as rays, where the CPU counts rays: an
   // outside sweep)
@@ -686,7 +711,11 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   print_frame_tables(o, scene, frame, m, t, stamps, gather_tiles, run.gather_pairs, build, build_warm, mrays, mem,
                      spill_text(spill, spill_flags), shadow_used);
   const nlohmann::json trace_counters = trace_counter_report(counters, rays, m["trace"], counted);
-  if (t.count("b2b_frame"))
+  if (t.count("b2b_frame") && t.count("traces_together"))
+    std::printf("back to back (%u frames per submission, the last timed; update as above): gather %.3f, bounce %.3f, "
+                "bounce and shadow traces (one dispatch) %.3f, shade %.3f, frame (update..shade) %.3f ms\n\n",
+                o.back_to_back, m["b2b_gather"], m["b2b_bounce"], m["b2b_trace"], m["b2b_shade"], m["b2b_frame"]);
+  else if (t.count("b2b_frame"))
     std::printf("back to back (%u frames per submission, the last timed; update as above): gather %.3f, bounce %.3f, "
                 "trace %.3f, shade %.3f, frame (update..shade) %.3f ms, %.0f Mrays/s\n\n",
                 o.back_to_back, m["b2b_gather"], m["b2b_bounce"], m["b2b_trace"], m["b2b_shade"], m["b2b_frame"],
@@ -725,6 +754,7 @@ void bench_vulkan_frame(const BenchOptions& o, const Scene& scene, nlohmann::jso
   j["gather_pairs_past_buckets"] = run.gather_pairs.past;
   j["compact_rays"] = o.compact_rays;
   j["sort_bits"] = o.sort_bits;
+  j["traces_together"] = frame.traces_together();
   j["shadows"] = frame.shadows();
   j["shadow_rays_per_frame"] = shadow_used;
   j["shadow_ray_slots_per_frame"] = frame.shadows() ? scene.lights.size() * o.width * o.height : 0;
@@ -1150,6 +1180,7 @@ void add_bench_command(CLI::App& app) {
                        "a key (the direction's cell, then the origin's) by a radix sort on the GPU, and traced in that "
                        "order (the same rays and hits; 0, the default: the trace takes every pixel in 8x8 tiles and "
                        "makes its ray itself)");
+  add_traces_option(cmd, o->traces);
   cmd->add_flag("--compact-rays", o->compact_rays,
                 "Vulkan: trace only the pixels with a bounce ray, through a work list (default: every pixel; the "
                 "empty rays return at once)");
@@ -1170,7 +1201,7 @@ void add_bench_command(CLI::App& app) {
       throw OptionsError("--back-to-back times the Vulkan frame recorded several times a submission: it needs "
                          "--backend vulkan");
     // The Vulkan frame's own knobs did nothing on the other backends (an outside sweep)
-    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--build-passes", "--counter-frames"})
+    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--traces", "--build-passes", "--counter-frames"})
       if (cmd->count(name) > 0 && std::find(o->backends.begin(), o->backends.end(), "vulkan") == o->backends.end())
         throw OptionsError(std::string(name) + " is a knob of the Vulkan frame: it needs --backend vulkan");
     if (cmd->count("--gather-bucket") > 0 && (o->gather_lists == "scan" || o->gather != "compute"))
@@ -1184,13 +1215,17 @@ void add_bench_command(CLI::App& app) {
     if (o->sort_bits != 0u && o->compact_rays)
       throw OptionsError("--sort-rays traces the pixels with a bounce ray in their keys' order; --compact-rays traces "
                          "them in the order their rays were made: give one of them");
+    if (cmd->count("--traces") > 0 && (o->sort_bits != 0u || o->compact_rays))
+      throw OptionsError(std::string("--traces chooses whether the tiles' bounce trace shares its dispatch with the "
+                                     "shadow trace; ") + (o->sort_bits != 0u ? "--sort-rays" : "--compact-rays") +
+                         " traces the bounce rays through a list, always apart: it does nothing (leave one out)");
     o->frame_knobs.clear();
-    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--counter-frames", "--back-to-back"})
+    for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--traces", "--counter-frames", "--back-to-back"})
       if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0) o->frame_knobs.push_back(name);
     // ... nor with rays of a fixed kind, which every backend, vulkan included, traces as a list
     // without the frame (an outside sweep: accepted, nothing changed)
     if (o->rays != "glossy" && o->rays != "auto") {
-      for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--counter-frames", "--back-to-back", "--rtx"})
+      for (const char* name : {"--gather", "--gather-lists", "--gather-bucket", "--compact-rays", "--sort-rays", "--traces", "--counter-frames", "--back-to-back", "--rtx"})
         if (cmd->get_option_no_throw(name) != nullptr && cmd->count(name) > 0)
           throw OptionsError(std::string(name) + " is a knob of the frame, which traces its glossy bounce rays; --rays " +
                              o->rays + " traces a fixed list of rays without it: it does nothing (leave it out, or "

@@ -51,6 +51,7 @@ struct DiffOptions {
   float abs_uv = 0.0f;   // ... and by this much in u and v (absolute)
   bool gpu_frame = false;  // also the GPU frame's own passes: gather, bounce rays, trace
   uint32_t sort_bits = 0;  // the GPU frame's bounce rays sorted by this many key bits before their trace (0: off)
+  std::string traces = "together";  // the GPU frame's bounce and shadow traces in one dispatch, or apart
   ShadowMode shadows = ShadowMode::automatic;  // the GPU frame's shadow pass (auto: iff the scene has lights)
   std::string validation = "on";  // on, best-practices, off
   std::string json_path, junit_path;
@@ -505,7 +506,7 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
     gpu_frame_ = std::make_unique<vulkan::VulkanFrame>(
         *gpu_, scene_,
         vulkan::FrameOptions{.width = o_.width, .height = o_.height, .shadows = shadows_for(o_.shadows, scene_),
-                             .sort_bits = o_.sort_bits});
+                             .sort_bits = o_.sort_bits, .traces_together = o_.traces == "together"});
   vulkan::VulkanFrame& fr = *gpu_frame_;
   fr.render(frame);
   const uint32_t w = o_.width;
@@ -619,7 +620,10 @@ void DiffRun::diff_gpu_frame(uint32_t frame, float time) {
                                    .c_str()
                              : (scene_.lights.empty() ? "no shadow pass (the scene has no lights)"
                                                       : "no shadow pass (--shadows off)"));
-  std::printf("frame %u: %s\n", frame, line);
+  std::printf("frame %u: %s%s\n", frame, line,
+              fr.traces_together() ? "; the bounce and shadow rays traced in one dispatch (--traces together)"
+              : fr.bounce() && fr.shadows() && o_.sort_bits == 0u ? "; the bounce and shadow traces apart (--traces apart)"
+                                                                  : "");
   if (!f.empty()) std::printf("  %s\n", f.c_str());
   if (fr.gather_mode() == vulkan::GatherMode::compute) diff_gather_boxes(frame, gpu_gather);
   // The sorted rays: the order the trace took them in, checked on its own (the hits above do not
@@ -870,6 +874,7 @@ void add_diff_command(CLI::App& app) {
                        "With --gpu-frame: its bounce rays sorted on the GPU by the top BITS bits of their keys before "
                        "their trace (0, the default: 8x8 pixel tiles); the order is checked, and the rays and hits "
                        "must be the reference's all the same");
+  add_traces_option(cmd, o->traces);
   add_choice(cmd, "--validation", o->validation, {"on", "best-practices", "off"},
                   "The Khronos validation layer (with synchronization validation): on (default; any message "
                   "fails the run with exit 4), best-practices (also the layer's best-practices checks), off");
@@ -885,6 +890,11 @@ void add_diff_command(CLI::App& app) {
       throw OptionsError("--fps spaces the frames of --frames: give --frames 2 or more");
     if (cmd->get_option("--sort-rays")->count() > 0 && !o->gpu_frame)
       throw OptionsError("--sort-rays orders the GPU frame's bounce trace: it needs --gpu-frame");
+    if (cmd->get_option("--traces")->count() > 0 && !o->gpu_frame)
+      throw OptionsError("--traces chooses how the GPU frame dispatches its bounce and shadow traces: it needs --gpu-frame");
+    if (cmd->get_option("--traces")->count() > 0 && o->sort_bits != 0u)
+      throw OptionsError("--traces chooses whether the tiles' bounce trace shares its dispatch with the shadow trace; "
+                         "--sort-rays traces the bounce rays through a list, always apart: it does nothing (leave one out)");
     if (cmd->get_option("--shadows")->count() > 0 && !o->gpu_frame)
       throw OptionsError("--shadows switches the GPU frame's shadow pass: it needs --gpu-frame");
     if (cmd->get_option("--fallback-cpu")->count() > 0)

@@ -484,3 +484,35 @@ TEST_CASE("CLI: diff --gpu-frame --sort-rays - the sorted bounce trace gives the
   const Run cpu = run_tool("bench builtin:atrium -b cpu --sort-rays 16 --frames 1 --warmup 0");
   CHECK(cpu.exit_code == 2);
 }
+
+TEST_CASE("CLI: diff --gpu-frame --traces - the bounce and shadow traces in one dispatch or apart, the reference's either way",
+          "[vulkan][diff][cli][shadows]") {
+  // Both dispatches of the frame's traces give the reference's rays and hits, and diff says which ran
+  for (const std::string traces : {"together", "apart"}) {
+    const Run r = run_tool("diff builtin:atrium --traversal exact --vk-build compute --gpu-frame --traces " + traces +
+                           " --width 40 --height 24 --frames 1 --threads 2");
+    INFO(r.output);
+    CHECK(r.exit_code == 0);
+    CHECK(r.output.find("AGREE") != std::string::npos);
+    CHECK(r.output.find("0 frame hits differ in bits from the reference's trace") != std::string::npos);
+    CHECK(r.output.find("0 shadow hits differ in bits") != std::string::npos);
+    CHECK(r.output.find(traces == "together" ? "traced in one dispatch (--traces together)"
+                                             : "traces apart (--traces apart)") != std::string::npos);
+  }
+  // Where it does nothing: refused before any work (exit 2), naming why
+  const Run no_frame = run_tool("diff builtin:atrium --traces apart --width 8 --height 8 --frames 1");
+  CHECK(no_frame.exit_code == 2);
+  CHECK(no_frame.output.find("needs --gpu-frame") != std::string::npos);
+  const Run sorted = run_tool("diff builtin:atrium --gpu-frame --traces apart --sort-rays 16 --width 8 --height 8 --frames 1");
+  CHECK(sorted.exit_code == 2);
+  CHECK(sorted.output.find("--sort-rays traces the bounce rays through a list") != std::string::npos);
+  const Run compact = run_tool("bench builtin:atrium -b vulkan --traces together --compact-rays --frames 1 --warmup 0");
+  CHECK(compact.exit_code == 2);
+  CHECK(compact.output.find("--compact-rays traces the bounce rays through a list") != std::string::npos);
+  const Run cpu = run_tool("bench builtin:atrium -b cpu --traces apart --frames 1 --warmup 0");
+  CHECK(cpu.exit_code == 2);
+  CHECK(cpu.output.find("--traces is a knob of the Vulkan frame") != std::string::npos);
+  const Run dark = run_tool("bench builtin:atrium -b vulkan --shadows off --traces apart --width 16 --height 16 --frames 1 --warmup 0");
+  CHECK(dark.exit_code == 2);
+  CHECK(dark.output.find("the frame has no shadow pass (--shadows off)") != std::string::npos);
+}

@@ -264,6 +264,93 @@ TEST_CASE("Vulkan frame: raster gather, bounce rays, trace and shade agree with 
   GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
 }
 
+// FrameOptions::traces_together: the bounce trace and the first light's shadow trace in one
+// dispatch, the other lights' after it. Two lights (the atrium's sun and a point light under its
+// roof), so that both the shared dispatch and a pass of its own run: every ray and hit the same
+// in bits as the two passes apart (render's traces_apart) and as the reference's trace of
+// bounce_rays() and shadow_rays() of the GPU's gather; the compacted and sorted frames never
+// share the dispatch.
+TEST_CASE("Vulkan frame: the bounce and shadow traces in one dispatch, as apart and as the reference's",
+          "[vulkan][diff][frame][shadows]") {
+  vulkan::Context& ctx = vk_context();
+  ctx.clear_messages();
+  const bool exact = bit_exact_device(ctx);
+  Scene scene = make_builtin("atrium");
+  REQUIRE(scene.has_glossy());
+  REQUIRE(scene.lights.size() == 1);
+  const Bounds box = scene.bounds();
+  scene.lights.push_back(Light{.position = 0.5f * (box.lo + box.hi) + glm::vec3(0.0f, 0.3f, 0.0f) * box.extent(),
+                               .intensity = 1.0f});
+  const uint32_t w = 96, h = 64, frame_number = 5;
+  GridOptions o;
+  o.threads = 2;
+  ReferenceGridTracer ref(o);
+  VulkanGridTracer vk(ctx, o);
+  ref.build(scene, 0.0f);
+  vk.build(scene, 0.0f);
+  VulkanFrame frame(vk, scene, FrameOptions{.width = w, .height = h});
+  CHECK(frame.traces_together());
+  CHECK_FALSE(VulkanFrame(vk, scene, FrameOptions{.width = w, .height = h, .traces_together = false}).traces_together());
+  CHECK_FALSE(VulkanFrame(vk, scene, FrameOptions{.width = w, .height = h, .compact_rays = true}).traces_together());
+  CHECK_FALSE(VulkanFrame(vk, scene, FrameOptions{.width = w, .height = h, .sort_bits = 16}).traces_together());
+  CHECK_FALSE(VulkanFrame(vk, scene, FrameOptions{.width = w, .height = h, .shadows = false}).traces_together());
+
+  frame.render(frame_number);
+  const std::vector<Ray> rays = frame.download_rays(), shadow = frame.download_shadow_rays();
+  const std::vector<Hit> hits = frame.download_hits(), shadow_hits = frame.download_shadow_hits();
+  const GatherBuffer gather = frame.download_gather();
+  frame.render(frame_number, 1, true);
+  const std::vector<Ray> rays_apart = frame.download_rays(), shadow_apart = frame.download_shadow_rays();
+  const std::vector<Hit> hits_apart = frame.download_hits(), shadow_hits_apart = frame.download_shadow_hits();
+  REQUIRE(shadow.size() == 2 * size_t(w) * h);
+  REQUIRE(rays.size() == size_t(w) * h);
+  REQUIRE(rays_apart.size() == rays.size());
+  REQUIRE(shadow_apart.size() == shadow.size());
+  size_t apart_differ = 0;
+  for (size_t i = 0; i < rays.size(); ++i)
+    apart_differ += !same_ray(rays[i], rays_apart[i]) || !same_hit(hits[i], hits_apart[i]);
+  for (size_t i = 0; i < shadow.size(); ++i)
+    apart_differ += !same_ray(shadow[i], shadow_apart[i]) || !same_hit(shadow_hits[i], shadow_hits_apart[i]);
+  CHECK(apart_differ == 0);
+
+  // Against the reference: the rays made from the GPU's gather, traced by the reference grid
+  const std::vector<Ray> cpu_rays = bounce_rays(scene, gather, frame_number);
+  const std::vector<Ray> cpu_shadow = shadow_rays(scene, gather);
+  REQUIRE(cpu_shadow.size() == shadow.size());
+  std::vector<Hit> ref_hits(cpu_rays.size()), ref_shadow(cpu_shadow.size());
+  ref.trace(cpu_rays, ref_hits);
+  ref.trace_any(cpu_shadow, ref_shadow);
+  size_t bounce_used = 0, bounce_differ = 0, bounce_hit = 0;
+  for (size_t i = 0; i < cpu_rays.size(); ++i) {
+    bounce_used += !is_unused(cpu_rays[i]);
+    bounce_hit += !is_unused(cpu_rays[i]) && !is_miss(ref_hits[i]);
+    bounce_differ += exact ? !same_ray(cpu_rays[i], rays[i]) || !same_hit(ref_hits[i], hits[i])
+                           : ref_hits[i].instance != hits[i].instance;
+  }
+  // Per light: rays used, occluded, and those differing from the reference's
+  std::array<size_t, 2> used{}, occluded{}, differ{};
+  for (size_t i = 0; i < cpu_shadow.size(); ++i) {
+    const size_t l = i / (size_t(w) * h);
+    used[l] += !is_unused(cpu_shadow[i]);
+    occluded[l] += !is_unused(cpu_shadow[i]) && !is_miss(ref_shadow[i]);
+    differ[l] += exact ? !same_ray(cpu_shadow[i], shadow[i]) || !same_hit(ref_shadow[i], shadow_hits[i])
+                       : ref_shadow[i].instance != shadow_hits[i].instance;
+  }
+  INFO("bounce rays " << bounce_used << " (" << bounce_hit << " hit); shadow rays per light " << used[0] << ", "
+                      << used[1] << " (occluded " << occluded[0] << ", " << occluded[1] << ")");
+  // Each kind has rays that hit and rays that miss, so that a swapped mode or light would show
+  CHECK(bounce_hit > 0);
+  CHECK(bounce_hit < bounce_used);
+  for (size_t l = 0; l < 2; ++l) {
+    CHECK(occluded[l] > 0);
+    CHECK(occluded[l] < used[l]);
+  }
+  CHECK(bounce_differ <= (exact ? 0 : cpu_rays.size() / 100));
+  CHECK(differ[0] <= (exact ? 0 : cpu_shadow.size() / 200));
+  CHECK(differ[1] <= (exact ? 0 : cpu_shadow.size() / 200));
+  GRIDRT_REQUIRE_NO_VALIDATION_MESSAGES(ctx);
+}
+
 namespace {
 
 // Triangles made to trip a rasterizer, for the camera at (0, 1, 5) looking down -z (Camera's

@@ -625,7 +625,11 @@ VulkanFrame::VulkanFrame(VulkanGridTracer& grid, const Scene& scene, FrameOption
 
 VulkanFrame::~VulkanFrame() { gpu_.reset(); }
 
-void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
+bool VulkanFrame::traces_together() const {
+  return options_.traces_together && bounce_ && shadows_ && !options_.compact_rays && options_.sort_bits == 0u;
+}
+
+void VulkanFrame::render(uint32_t frame, uint32_t repeats, bool traces_apart) {
   if (!grid_.built())
     throw Error("vulkan frame: its grid is not built now (a build or an update of it failed): build it again and make "
                 "a new frame");
@@ -636,6 +640,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
   Gpu& gpu = *gpu_;
   const uint32_t w = options_.width, h = options_.height;
   const bool compact = bool(gpu.ray_list_dispatch), sorted = bool(gpu.sort_count);
+  const bool together = traces_together() && !traces_apart;
   const uint32_t max_groups_x = ctx.info().limits.maxComputeWorkGroupCount[0];
   repeats = std::max(repeats, 1u);
   ctx.upload(gpu.params, &frame, sizeof frame, offsetof(shared::FrameParams, frame));
@@ -820,6 +825,13 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
           }
           if (timed) gpu.timestamps->write(cb, 13);
           grid_.record_trace_list(cb);
+        } else if (together) {
+          // The bounce trace and the first light's shadow trace in one dispatch (an 8x8 pixel
+          // tile a workgroup, the bounce tiles first): the shadow tiles fill the device while the
+          // bounce trace's last workgroups run, where a barrier between two passes left it idle
+          if (timed) gpu.timestamps->write(cb, 4);
+          grid_.record_bounce_and_shadow_trace_image(cb, w, h, w * h, scene_.lights[0].position,
+                                                     scene_.lights[0].directional);
         } else {
           if (timed) gpu.timestamps->write(cb, 4);
           grid_.record_bounce_trace_image(cb, w, h);  // an 8x8 pixel tile a workgroup
@@ -837,10 +849,10 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
         // The trace makes each pixel's shadow ray from the gather itself (no pass of its own:
         // the "rays" part of the shadow pass's time is 0)
         if (timed) gpu.timestamps->write(cb, 6);
-        for (uint32_t l = 0; l < uint32_t(scene_.lights.size()); ++l) {
+        for (uint32_t l = together ? 1u : 0u; l < uint32_t(scene_.lights.size()); ++l) {
           // One light's rays and hits after another's: disjoint ranges of the same bindings, which
           // a barrier orders as the synchronization validation reads the whole binding
-          if (l > 0) barrier(cb);
+          if (l > (together ? 1u : 0u)) barrier(cb);
           grid_.record_shadow_trace_image(cb, w, h, (1 + l) * w * h, scene_.lights[l].position,
                                           scene_.lights[l].directional);
         }
@@ -879,6 +891,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats) {
       timings_.sort_first_pass_ms[1] = (ns[15] - ns[14]) * 1e-6;
       timings_.sort_first_pass_ms[2] = (ns[16] - ns[15]) * 1e-6;
     }
+    timings_.traces_together = together;
     timings_.shadow_ms = shadows_ ? (ns[7] - ns[5]) * 1e-6 : 0.0;
     timings_.shadow_trace_ms = shadows_ ? (ns[7] - ns[6]) * 1e-6 : 0.0;
     timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;

@@ -76,6 +76,9 @@ struct FrameTimings {
   // the pairs overflowed)
   double dirs_ms = 0.0, count_ms = 0.0, scan_ms = 0.0, scatter_ms = 0.0, fine_ms = 0.0;
   double total_ms = 0.0;  // gather + bounce + trace + shadow + shade
+  // The bounce trace and the first light's shadow trace ran as one dispatch
+  // (FrameOptions::traces_together): trace_ms holds both, shadow_ms the other lights' passes only
+  bool traces_together = false;
   double host_ms = 0.0;
 };
 
@@ -131,6 +134,12 @@ struct FrameOptions {
   // cell, then its origin's, as coherent_ray_order keys a list), and the trace takes them in that
   // order through the ray list. The same rays and hits either way. Not with compact_rays.
   uint32_t sort_bits = 0;
+  // The bounce trace and the first light's shadow trace in one dispatch (the tiles' trace only:
+  // not with compact_rays or sort_bits; the other lights' shadow traces follow as passes of their
+  // own): the shadow tiles fill the device while the bounce trace's last workgroups run, where a
+  // barrier between two passes left it idle (the frame 2-14 % faster on the H200,
+  // docs/BENCHMARKS.md). The same rays and hits either way; off: two passes, each timed.
+  bool traces_together = true;
 };
 
 // The compute gather's tile lists of the last render (GatherMode::compute; zeros otherwise).
@@ -167,7 +176,9 @@ class VulkanFrame {
   // `frame` selects the bounce's per-pixel random sequence (bounce_rays' frame). `repeats` > 1
   // records the passes that many times back to back in the one submission and times the last
   // (a GPU kept busy, as in a render loop, rather than idling while the host waits).
-  void render(uint32_t frame, uint32_t repeats = 1);
+  // `traces_apart` records the bounce and shadow traces as two passes even where
+  // traces_together() (the same rays and hits), so that their timings split them.
+  void render(uint32_t frame, uint32_t repeats = 1, bool traces_apart = false);
 
   // Read-backs of the last render(), per pixel (index y * width + x).
   GatherBuffer download_gather() const;     // as make_gather fills it (hit: t, instance, triangle)
@@ -197,6 +208,9 @@ class VulkanFrame {
   bool bounce() const { return bounce_; }
   // Whether the shadow pass runs (the scene has lights, and options.shadows).
   bool shadows() const { return shadows_; }
+  // Whether render() traces the bounce rays and the first light's shadow rays in one dispatch
+  // (options.traces_together, with both passes, in the tiles).
+  bool traces_together() const;
   // The gather this frame runs (options.gather, unless the device lacks what compute needs).
   GatherMode gather_mode() const { return gather_; }
 

@@ -942,12 +942,18 @@ void VulkanGridTracer::record_frame_trace(VkCommandBuffer cb, uint32_t width, ui
   const shared::TracePush push{first_ray, width * height, shared::kNoExplain, vk_.explain_capacity, width, height,
                                light.x, light.y, light.z, directional ? 1u : 0u};
   pipe.push(cb, push);
-  vkCmdDispatch(cb, groups(width, 8), groups(height, 8), 1);
+  vkCmdDispatch(cb, groups(width, 8), groups(height, 8), rays == shared::kTraceRaysBoth ? 2u : 1u);
 }
 
 void VulkanGridTracer::record_bounce_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height) {
   if (!gpu_) throw Error("vulkan-grid: record_bounce_trace_image before build");
   record_frame_trace(cb, width, height, 0u, shared::kTraceRaysBounce, glm::vec3(0.0f), false);
+}
+
+void VulkanGridTracer::record_bounce_and_shadow_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height,
+                                                           uint32_t first_ray, glm::vec3 light, bool directional) {
+  if (!gpu_) throw Error("vulkan-grid: record_bounce_and_shadow_trace_image before build");
+  record_frame_trace(cb, width, height, first_ray, shared::kTraceRaysBoth, light, directional);
 }
 
 void VulkanGridTracer::record_shadow_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height,

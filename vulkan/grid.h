@@ -214,6 +214,11 @@ class VulkanGridTracer : public Tracer {
   // it), written as ray `first` + pixel and traced for any hit.
   void record_shadow_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first,
                                  glm::vec3 light, bool directional);
+  // Both in one dispatch: the bounce trace's workgroups first, then the shadow trace's towards
+  // `light` (rays `first` + pixel), so that the shadow rays fill the device while the bounce
+  // trace's last workgroups run (no barrier between two passes)
+  void record_bounce_and_shadow_trace_image(VkCommandBuffer cb, uint32_t width, uint32_t height, uint32_t first,
+                                            glm::vec3 light, bool directional);
   // Records the trace of the rays the bound ray list names, dispatched indirectly on the list
   // (its dispatch step must have run; no barriers). The other rays' hits are not written.
   void record_trace_list(VkCommandBuffer cb);

@@ -89,6 +89,9 @@ SH_INLINE uint llvmpipe_loop_estimate(bool exact, bool compact, bool mailbox, ui
 SH_CONST uint kTraceRaysBuffer = 0u;  // read from the ray buffer
 SH_CONST uint kTraceRaysBounce = 1u;  // the glossy bounce ray (common/shared/bounce.h, as bounce.comp)
 SH_CONST uint kTraceRaysShadow = 2u;  // the shadow ray towards TracePush's light (common/shared/shadow.h)
+// Both in one dispatch: workgroups of z = 0 trace the bounce rays (rays 0.., closest hit), those of
+// z = 1 the shadow rays towards TracePush's light (rays ray_offset.., any hit)
+SH_CONST uint kTraceRaysBoth = 3u;
 
 // Push constants of trace.comp.
 struct TracePush {

@@ -679,12 +679,25 @@ void main() {
     barrier();
   }
   if (pc.tiled_width != 0u) {
-    // An image's rays (the frame's shadow rays toward one light), an 8x8 pixel tile a workgroup:
-    // a subgroup's rays leave neighbouring pixels (8x4 of them on a 32-wide subgroup, not 32 of a
-    // row), so they tend to walk the same cells and stop together
+    // An image's rays (the frame's bounce rays, or its shadow rays toward one light, or with
+    // kTraceRaysBoth the bounce rays in the workgroups of z = 0 and the shadow rays in those of
+    // z = 1, one dispatch), an 8x8 pixel tile a workgroup: a subgroup's rays leave neighbouring
+    // pixels (8x4 of them on a 32-wide subgroup, not 32 of a row), so they tend to walk the same
+    // cells and stop together
     const uvec2 px = gl_WorkGroupID.xy * 8u + uvec2(gl_LocalInvocationID.x & 7u, gl_LocalInvocationID.x >> 3u);
     if (px.x >= pc.tiled_width || px.y >= pc.tiled_height) return;
-    const uint r = pc.ray_offset + px.y * pc.tiled_width + px.x;
+    const bool bounce = kTraceRays == kTraceRaysBoth && gl_WorkGroupID.z == 0u;  // both: the bounce rays' half
+    const uint r = (bounce ? 0u : pc.ray_offset) + px.y * pc.tiled_width + px.x;
+    if (kTraceRays == kTraceRaysBoth) {
+      const uint g = px.y * pc.tiled_width + px.x;
+      const GatherTexel t = gather_from_words(gather_words[3u * g], gather_words[3u * g + 1u], gather_words[3u * g + 2u]);
+      const RayRecord ray = bounce ? trace_bounce_ray(px, t)
+                                   : shadow_ray(t.position, t.normal, t.launch_ref, vec3(pc.light_x, pc.light_y, pc.light_z),
+                                                pc.light_directional != 0u);
+      store_ray_out(r, ray);
+      store_hit(r, loop_guarded(scene_trace(grid_params(), ray, bounce ? kTraceClosestHit : kTraceAnyHit)));
+      return;
+    }
     if (kTraceRays != kTraceRaysBuffer) {
       const uint g = px.y * pc.tiled_width + px.x;
       const GatherTexel t = gather_from_words(gather_words[3u * g], gather_words[3u * g + 1u], gather_words[3u * g + 2u]);
