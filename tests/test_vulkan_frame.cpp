@@ -299,7 +299,9 @@ TEST_CASE("Vulkan frame: the bounce and shadow traces in one dispatch, as apart 
   const std::vector<Ray> rays = frame.download_rays(), shadow = frame.download_shadow_rays();
   const std::vector<Hit> hits = frame.download_hits(), shadow_hits = frame.download_shadow_hits();
   const GatherBuffer gather = frame.download_gather();
+  CHECK(frame.timings().traces_together);
   frame.render(frame_number, 1, true);
+  CHECK_FALSE(frame.timings().traces_together);
   const std::vector<Ray> rays_apart = frame.download_rays(), shadow_apart = frame.download_shadow_rays();
   const std::vector<Hit> hits_apart = frame.download_hits(), shadow_hits_apart = frame.download_shadow_hits();
   REQUIRE(shadow.size() == 2 * size_t(w) * h);

@@ -869,6 +869,7 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats, bool traces_apart) {
     }
   });
   timings_.host_ms = ms_since(t0);
+  timings_.traces_together = together;
   if (gpu.timestamps) {
     const std::vector<double> ns = gpu.timestamps->read_ns();
     const bool compute = gather_ != GatherMode::raster;
@@ -891,7 +892,6 @@ void VulkanFrame::render(uint32_t frame, uint32_t repeats, bool traces_apart) {
       timings_.sort_first_pass_ms[1] = (ns[15] - ns[14]) * 1e-6;
       timings_.sort_first_pass_ms[2] = (ns[16] - ns[15]) * 1e-6;
     }
-    timings_.traces_together = together;
     timings_.shadow_ms = shadows_ ? (ns[7] - ns[5]) * 1e-6 : 0.0;
     timings_.shadow_trace_ms = shadows_ ? (ns[7] - ns[6]) * 1e-6 : 0.0;
     timings_.shade_ms = (ns[8] - ns[7]) * 1e-6;
